@@ -1,0 +1,16 @@
+"""RayFlex driver: BVH4, traversal, rendering and checks around the RayFlex datapath RTL."""
+
+from .backends import BACKENDS, BackendError, backend
+from .datapath import (ANGULAR, EUCLIDEAN, LATENCY, QUADBOX, REQUEST_DTYPE, RESPONSE_DTYPE,
+                       TRIANGLE, DatapathError, prepare_rays)
+
+__all__ = ["ANGULAR", "BACKENDS", "BackendError", "DatapathError", "EUCLIDEAN", "LATENCY",
+           "QUADBOX", "REQUEST_DTYPE", "RESPONSE_DTYPE", "TRIANGLE", "backend", "prepare_rays",
+           "trace"]
+
+
+def trace(scene, origins, directions, backend="rtl", **options):
+    """Closest-hit trace of rays through a scene (name, path, trimesh mesh or built BVH4) with every
+    box and triangle test run on ``backend``; see ``driver.traversal.trace``."""
+    from .traversal import trace as _trace
+    return _trace(scene, origins, directions, backend=backend, **options)

@@ -1,0 +1,99 @@
+"""Datapath IO: opcodes, request/response dtypes, host-side ray preparation (SPEC sections 2, 3, 12).
+
+Every tracer (golden numpy model, RTL through the fast harness, RTL through pyverilator) consumes a
+``REQUEST_DTYPE`` array and returns a ``RESPONSE_DTYPE`` array of the same length and order.
+
+Fields a request's opcode does not use are ignored; response fields an opcode does not produce are
+zero (this is what the RTL's output stage drives, and what the golden model returns).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+TRIANGLE, QUADBOX, EUCLIDEAN, ANGULAR = 0, 1, 2, 3
+OPCODE_NAMES = {TRIANGLE: "TRIANGLE", QUADBOX: "QUADBOX", EUCLIDEAN: "EUCLIDEAN", ANGULAR: "ANGULAR"}
+LATENCY = 11
+CANONICAL_NAN = np.uint32(0x7FC00000)
+
+REQUEST_DTYPE = np.dtype([
+    ("opcode", np.uint8),
+    ("origin", np.float32, (3,)),
+    ("dir", np.float32, (3,)),
+    ("inv", np.float32, (3,)),
+    ("extent", np.float32),
+    ("kx", np.uint8),
+    ("ky", np.uint8),
+    ("kz", np.uint8),
+    ("shear", np.float32, (3,)),
+    ("box", np.float32, (4, 6)),        # per box: xmin, ymin, zmin, xmax, ymax, zmax
+    ("tri", np.float32, (3, 3)),        # A, B, C
+    ("vec_a", np.float32, (16,)),
+    ("vec_b", np.float32, (16,)),
+    ("vec_mask", np.uint16),
+    ("reset_accumulator", np.uint8),
+    ("tag", np.uint32),                 # opaque, carried through unchanged
+])
+
+RESPONSE_DTYPE = np.dtype([
+    ("opcode", np.uint8),
+    ("box_index", np.uint8, (4,)),
+    ("box_hit", np.uint8, (4,)),
+    ("box_tmin", np.float32, (4,)),
+    ("tri_hit", np.uint8),
+    ("t_num", np.float32),
+    ("t_den", np.float32),
+    ("euclid_acc", np.float32),
+    ("euclid_last", np.uint8),
+    ("angular_dot", np.float32),
+    ("angular_norm", np.float32),
+    ("angular_last", np.uint8),
+    ("tag", np.uint32),
+])
+
+
+class DatapathError(ValueError):
+    """A request stream the datapath cannot take (bad opcode, extended op on a baseline build)."""
+
+
+def prepare_rays(origins, directions, extent=np.inf) -> np.ndarray:
+    """Fill the ray fields of a new request array (SPEC section 2).
+
+    origins, directions : (n, 3) array-like, converted to float32
+    extent : scalar or (n,) ray extent (tmax)
+    Returns an (n,) ``REQUEST_DTYPE`` array, every non-ray field zero.
+    Raises ValueError for non-finite origins/directions or an all-zero direction.
+    """
+    o = np.asarray(origins, dtype=np.float32).reshape(-1, 3)
+    d = np.asarray(directions, dtype=np.float32).reshape(-1, 3)
+    if o.shape != d.shape:
+        raise ValueError(f"origins {o.shape} and directions {d.shape} differ in shape")
+    if not (np.isfinite(o).all() and np.isfinite(d).all()):
+        raise ValueError("ray origins and directions must be finite")
+    if (d == 0).all(axis=1).any():
+        raise ValueError("a ray direction is the zero vector")
+    n = len(o)
+    req = np.zeros(n, REQUEST_DTYPE)
+    req["origin"] = o
+    req["dir"] = d
+    req["extent"] = np.broadcast_to(np.asarray(extent, np.float32), (n,))
+    one = np.float32(1)
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        req["inv"] = one / d
+        kz = np.argmax(np.abs(d), axis=1)          # ties: lowest index
+        kx = (kz + 1) % 3
+        ky = (kx + 1) % 3
+        rows = np.arange(n)
+        dz = d[rows, kz]
+        swap = dz < 0
+        kx, ky = np.where(swap, ky, kx), np.where(swap, kx, ky)
+        req["kx"], req["ky"], req["kz"] = kx, ky, kz
+        req["shear"][:, 0] = d[rows, kx] / dz
+        req["shear"][:, 1] = d[rows, ky] / dz
+        req["shear"][:, 2] = one / dz
+    return req
+
+
+def requests(n: int) -> np.ndarray:
+    """A zeroed request array of length n."""
+    return np.zeros(n, REQUEST_DTYPE)

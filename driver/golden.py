@@ -1,0 +1,206 @@
+"""Golden model of the RayFlex datapath: vectorised numpy float32, bit-exact by construction.
+
+One numpy float32 operation per SPEC step, in the SPEC's order (sections 4-6). numpy rounds every
+float32 add/multiply to nearest-even and keeps subnormals, which is exactly the datapath's
+arithmetic; NaN results are written as the canonical quiet NaN 0x7FC00000 at the outputs (a NaN
+anywhere in a chain of adds/multiplies stays NaN, and compares are false on NaN, so canonicalising
+at the output is the same as canonicalising after every step).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .datapath import (ANGULAR, CANONICAL_NAN, EUCLIDEAN, LATENCY, QUADBOX, RESPONSE_DTYPE,
+                       TRIANGLE, DatapathError)
+
+F32 = np.float32
+_INF = F32(np.inf)
+
+
+def canonical(x: np.ndarray) -> np.ndarray:
+    """Replace every NaN by the canonical quiet NaN (in place on a float32 array)."""
+    x.view(np.uint32)[np.isnan(x)] = CANONICAL_NAN
+    return x
+
+
+def quadbox(origin, inv, dirs, boxes, extent):
+    """SPEC section 4 before the sort. origin, inv, dirs: (n, 3); boxes: (n, 4, 6); extent: (n,).
+
+    Returns (hit (n, 4) bool, tmin (n, 4) float32: +0-canonical on a hit, +inf on a miss).
+    """
+    o = origin[:, None, :]
+    inv = inv[:, None, :]
+    lo = (boxes[:, :, 0:3] - o) * inv
+    hi = (boxes[:, :, 3:6] - o) * inv
+    neg = np.signbit(dirs)[:, None, :]
+    near = np.where(neg, hi, lo)
+    far = np.where(neg, lo, hi)
+    nan = np.isnan(near).any(axis=2) | np.isnan(far).any(axis=2)
+    tmin = np.maximum(np.maximum(np.maximum(near[:, :, 0], near[:, :, 1]), near[:, :, 2]), F32(0))
+    tmax = np.minimum(np.minimum(np.minimum(far[:, :, 0], far[:, :, 1]), far[:, :, 2]),
+                      extent[:, None])
+    hit = ~nan & (tmin < tmax)
+    tmin = np.where(hit, tmin + F32(0), _INF)      # -0 + +0 = +0: a hit's tmin is never -0
+    return hit, tmin.astype(F32)
+
+
+def sort4(hit, tmin):
+    """The 5-comparator network on (tmin, index): equivalent to a stable sort by tmin, since a
+    hit's tmin is finite and non-negative and every miss is +inf (ties resolve by index)."""
+    order = np.argsort(tmin, axis=1, kind="stable").astype(np.uint8)
+    return order, np.take_along_axis(hit, order, 1), np.take_along_axis(tmin, order, 1)
+
+
+def triangle(origin, kxyz, shear, tri):
+    """SPEC section 5. origin (n,3), kxyz (n,3) int, shear (n,3), tri (n,3,3).
+
+    Returns (hit (n,) bool, t_num (n,), t_den (n,))."""
+    p = tri - origin[:, None, :]                                  # P' = P - o
+    px = np.take_along_axis(p, kxyz[:, None, 0:1], 2)[:, :, 0]    # (n, 3 vertices)
+    py = np.take_along_axis(p, kxyz[:, None, 1:2], 2)[:, :, 0]
+    pz = np.take_along_axis(p, kxyz[:, None, 2:3], 2)[:, :, 0]
+    sx, sy, sz = shear[:, 0:1], shear[:, 1:2], shear[:, 2:3]
+    x = px - sx * pz
+    y = py - sy * pz
+    z = sz * pz
+    (ax, bx, cx), (ay, by, cy), (az, bz, cz) = x.T, y.T, z.T
+    u = cx * by - cy * bx
+    v = ax * cy - ay * cx
+    w = bx * ay - by * ax
+    t_den = (u + v) + w
+    t_num = ((u * az) + (v * bz)) + (w * cz)
+    hit = (u >= 0) & (v >= 0) & (w >= 0) & (t_num >= 0) & (t_den != 0)
+    return hit, t_num, t_den
+
+
+def tree_sum(x: np.ndarray) -> np.ndarray:
+    """Fixed reduction tree over the last axis (length a power of two): (i, i+half) pairs, halving."""
+    while x.shape[-1] > 1:
+        half = x.shape[-1] // 2
+        x = x[..., :half] + x[..., half:]
+    return x[..., 0]
+
+
+def euclid_beat(a, b, mask):
+    """One EUCLIDEAN beat: sum over 16 lanes of (a-b)^2, masked lanes +0."""
+    d = a - b
+    e = d * d
+    e = np.where(_lanes(mask, 16), e, F32(0))
+    return tree_sum(e)
+
+
+def angular_beat(a, b, mask):
+    """One ANGULAR beat over 8 lanes: (sum a*b, sum b*b), masked lanes +0."""
+    a, b = a[:, :8], b[:, :8]
+    on = _lanes(mask, 8)
+    return tree_sum(np.where(on, a * b, F32(0))), tree_sum(np.where(on, b * b, F32(0)))
+
+
+def _lanes(mask, n):
+    return ((mask[:, None].astype(np.uint32) >> np.arange(n, dtype=np.uint32)) & 1).astype(bool)
+
+
+def accumulate(beats: np.ndarray, last: np.ndarray, acc0: F32):
+    """Sequential accumulator over beats in order: acc = acc + beat; after a beat with last set the
+    accumulator clears to +0. Vectorised across jobs (one loop step per beat position).
+
+    Returns (running acc after each beat (float32), final accumulator state)."""
+    n = len(beats)
+    out = np.empty(n, F32)
+    if n == 0:
+        return out, acc0
+    last = last.astype(bool)
+    job = np.concatenate(([0], np.cumsum(last)[:-1]))             # job id of each beat
+    starts = np.flatnonzero(np.concatenate(([True], job[1:] != job[:-1])))
+    pos = np.arange(n) - np.repeat(starts, np.diff(np.append(starts, n)))
+    acc = np.zeros(job[-1] + 1, F32)
+    acc[0] = acc0
+    for p in range(pos.max() + 1):
+        rows = np.flatnonzero(pos == p)
+        acc[job[rows]] = acc[job[rows]] + beats[rows]
+        out[rows] = acc[job[rows]]
+    final = F32(0) if last[-1] else acc[-1]
+    return out, final
+
+
+class GoldenBackend:
+    """Numpy model of the whole datapath. ``cycles`` counts an ideal pipeline: a run of n requests
+    takes n + latency cycles (first request accepted to last response taken)."""
+
+    name = "golden"
+
+    def __init__(self, extended: bool = False, disjoint: bool = False, latency: int = LATENCY):
+        self.extended = bool(extended)
+        self.disjoint = bool(disjoint)     # same results by contract; kept for a uniform interface
+        self.latency = int(latency)
+        self.cycles = 0
+        self.requests = 0
+        self.euclid_acc = F32(0)
+        self.angular_dot = F32(0)
+        self.angular_norm = F32(0)
+
+    def run(self, req: np.ndarray) -> np.ndarray:
+        ops = req["opcode"]
+        limit = 4 if self.extended else 2
+        if (ops >= limit).any():
+            bad = int(ops[ops >= limit][0])
+            what = "extended operations need backend(..., extended=True)" if bad < 4 else "bad opcode"
+            raise DatapathError(f"opcode {bad}: {what}")
+        rsp = np.zeros(len(req), RESPONSE_DTYPE)
+        rsp["opcode"] = ops
+        rsp["tag"] = req["tag"]
+        with np.errstate(all="ignore"):
+            self._boxes(req, rsp, np.flatnonzero(ops == QUADBOX))
+            self._triangles(req, rsp, np.flatnonzero(ops == TRIANGLE))
+            if self.extended:
+                self._euclid(req, rsp, np.flatnonzero(ops == EUCLIDEAN))
+                self._angular(req, rsp, np.flatnonzero(ops == ANGULAR))
+        if len(req):
+            self.cycles += len(req) + self.latency
+            self.requests += len(req)
+        return rsp
+
+    def _boxes(self, req, rsp, i):
+        if not len(i):
+            return
+        r = req[i]
+        hit, tmin = quadbox(r["origin"], r["inv"], r["dir"], r["box"], r["extent"])
+        order, hit, tmin = sort4(hit, tmin)
+        rsp["box_index"][i] = order
+        rsp["box_hit"][i] = hit
+        rsp["box_tmin"][i] = tmin
+
+    def _triangles(self, req, rsp, i):
+        if not len(i):
+            return
+        r = req[i]
+        k = np.stack([r["kx"], r["ky"], r["kz"]], axis=1).astype(np.intp)
+        if (k > 2).any():
+            raise DatapathError("kx/ky/kz must be 0, 1 or 2")
+        hit, num, den = triangle(r["origin"], k, r["shear"], r["tri"])
+        rsp["tri_hit"][i] = hit
+        rsp["t_num"][i] = canonical(num)
+        rsp["t_den"][i] = canonical(den)
+
+    def _euclid(self, req, rsp, i):
+        if not len(i):
+            return
+        r = req[i]
+        beats = euclid_beat(r["vec_a"], r["vec_b"], r["vec_mask"])
+        last = r["reset_accumulator"] & 1
+        acc, self.euclid_acc = accumulate(beats, last, self.euclid_acc)
+        rsp["euclid_acc"][i] = canonical(acc)
+        rsp["euclid_last"][i] = last
+
+    def _angular(self, req, rsp, i):
+        if not len(i):
+            return
+        r = req[i]
+        dot, norm = angular_beat(r["vec_a"], r["vec_b"], r["vec_mask"])
+        last = r["reset_accumulator"] & 1
+        dacc, self.angular_dot = accumulate(dot, last, self.angular_dot)
+        nacc, self.angular_norm = accumulate(norm, last, self.angular_norm)
+        rsp["angular_dot"][i] = canonical(dacc)
+        rsp["angular_norm"][i] = canonical(nacc)
+        rsp["angular_last"][i] = last
