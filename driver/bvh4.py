@@ -1,0 +1,406 @@
+"""BVH4 for the RayFlex datapath: binned-SAH binary build, collapse to 4-wide, RDNA-like image.
+
+Build pipeline (madmann91/bvh and tinybvh style):
+
+1. Primitive boxes and centroids only (``_prim_boxes``): the binary builder never sees triangles.
+2. Binary BVH by binned SAH (``_build_binary``): ``bins`` bins per axis over the node's centroid
+   bounds, all three axes, C_trav = C_int = 1, split until every leaf holds one triangle (RDNA
+   style leaves). Vectorised per tree level: all nodes of a level are binned, scored and
+   partitioned together with numpy; there is no per-triangle or per-node Python loop.
+   A node whose centroids all coincide is split in the middle of its primitive list.
+3. Collapse to 4-wide (``_collapse``): start each 4-wide node with the binary node's two children
+   and twice replace the interior child of largest surface area by its two children.
+4. Memory image (``_write_image``): SPEC section 8, layout below.
+
+Memory image (one contiguous little-endian byte buffer; every node 64-byte aligned)::
+
+    node pointer (uint32) = (byte_offset >> 3) | type        type: 5 = box node, 0 = triangle node
+        byte_offset is a multiple of 64, so byte_offset >> 3 has its low 3 bits clear and the type
+        fills them; byte_offset = (pointer & ~7) << 3.   0xFFFFFFFF = no child (its type bits, 7,
+        are neither 0 nor 5). The root box node is at offset 0, so its pointer is 5.
+
+    [0, 128 * box_nodes)                          box nodes, breadth-first (root first)
+    [128 * box_nodes, + 64 * tri_nodes)           triangle nodes, in the order they are referenced
+
+    box node, 128 bytes                           triangle node, 64 bytes
+      0  uint32  child[4]    pointers               0  float32 A[3]
+     16  float32 box[4][6]   xmin ymin zmin         12  float32 B[3]
+                             xmax ymax zmax         24  float32 C[3]
+    112  uint32  parent      (root: 0xFFFFFFFF)     36  uint32  primitive id (index into input)
+    116  uint32  child count (1..4)                 40  24 bytes zero
+    120  uint32  reserved[2] (zero)
+
+    Valid children come first; an unused slot has pointer 0xFFFFFFFF and the box
+    (+inf, +inf, +inf, +inf, +inf, +inf), which the SPEC 4 slab test never hits: on an axis with
+    d > 0 (or d = +0) near = +inf so tmin = +inf; with d < 0 (or d = -0) far = -inf so tmax = -inf.
+
+Conservative boxes. The datapath's slab test is strict (``tmin < tmax``) and rounds ``box - o``
+and ``* inv`` to float32, so an exact box would lose flat (axis-aligned) triangles entirely and
+could lose grazing hits on box faces by an ulp. Every stored bound is therefore grown outward:
+
+    stored_min = nextafter(float32(min - pad), -inf),  stored_max = nextafter(float32(max + pad), +inf)
+    pad = PAD_REL * (largest |coordinate| in the mesh),  PAD_REL = 2**-18
+
+which is at least one float32 ulp of the bound (so every box has positive thickness) plus a
+scene-relative margin of 64 float32 ulps of the largest coordinate. The slab test's rounding
+error in ``box - o`` and ``* inv`` is a few ulps of ``|box - o|``, and the watertight triangle
+test's own rounding is of the same order, so the margin keeps every triangle the triangle test
+hits inside a box the slab test hits for ray origins up to roughly 30x the scene's largest
+coordinate from the world origin (cameras looking at the scene from outside included). Growth is
+monotone, so a child's stored box always lies inside its parent's stored box.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+BOX_TYPE = 5
+TRI_TYPE = 0
+NO_CHILD = 0xFFFFFFFF
+BOX_BYTES = 128
+TRI_BYTES = 64
+PAD_REL = 2.0 ** -18
+_BOX_WORDS = BOX_BYTES // 4
+_TRI_WORDS = TRI_BYTES // 4
+_EMPTY_BOX = np.full(6, np.inf, np.float32)
+
+
+class BVH4:
+    """A built BVH4: the memory image plus vectorised decoders that read it like an RT unit.
+
+    Attributes
+    ----------
+    image : (bytes,) uint8, the SPEC 8 memory image (layout in the module docstring)
+    root : int, pointer of the root box node (offset 0, so 5)
+    triangles : (n, 3, 3) float32, the input triangles; primitive id i is ``triangles[i]``
+    stats : dict with ``box_nodes``, ``tri_nodes``, ``depth`` (box-node levels on the longest
+        root-to-leaf path; a root with only triangle children has depth 1), ``sah_cost``,
+        ``build_s`` (wall seconds), ``bytes`` (= 128 * box_nodes + 64 * tri_nodes).
+
+    ``sah_cost`` is the expected number of datapath ops of a random ray that hits the root box,
+    with C_trav = C_int = 1, computed from the stored (grown) float32 boxes in float64:
+
+        sah_cost = sum over box nodes N of A(N) / A(root) * 1 + sum over triangle nodes L of
+                   A(L) / A(root) * 1
+                 = 1 + sum over all used child slots s of A(box[s]) / A(root)
+
+    where A is the surface area of a box, a node's box is the box its parent stores for it, and
+    A(root) is the area of the union of the root's child boxes.
+    """
+
+    def __init__(self, image: np.ndarray, triangles: np.ndarray, stats: dict):
+        self.image = image
+        self.root = BOX_TYPE            # box node at offset 0
+        self.triangles = triangles
+        self.stats = stats
+        self._words = image.view("<u4")
+
+    def __repr__(self) -> str:
+        s = self.stats
+        return (f"BVH4({len(self.triangles)} triangles, {s['box_nodes']} box nodes, depth "
+                f"{s['depth']}, SAH {s['sah_cost']:.2f}, {s['bytes']} bytes)")
+
+    @staticmethod
+    def node_type(ptrs) -> np.ndarray:
+        """Type bits of node pointers: 5 = box node, 0 = triangle node (7 for 0xFFFFFFFF)."""
+        return np.asarray(ptrs, np.uint32) & np.uint32(7)
+
+    @staticmethod
+    def node_offset(ptrs) -> np.ndarray:
+        """Byte offsets (int64) of node pointers in the image."""
+        return (np.asarray(ptrs, np.uint32) & np.uint32(0xFFFFFFF8)).astype(np.int64) << 3
+
+    def box_nodes(self, ptrs):
+        """Decode box nodes. ptrs : (m,) uint32 box-node pointers.
+
+        Returns (children (m, 4) uint32, boxes (m, 4, 6) float32), read from ``image``."""
+        ptrs = np.asarray(ptrs, np.uint32)
+        if (self.node_type(ptrs) != BOX_TYPE).any():
+            raise ValueError("box_nodes: a pointer is not a box-node pointer")
+        words = self._words[(self.node_offset(ptrs) >> 2)[:, None] + np.arange(28)]
+        children = words[:, :4].astype(np.uint32)
+        boxes = words[:, 4:28].view("<f4").astype(np.float32).reshape(-1, 4, 6)
+        return children, boxes
+
+    def tri_nodes(self, ptrs):
+        """Decode triangle nodes. ptrs : (m,) uint32 triangle-node pointers.
+
+        Returns (tris (m, 3, 3) float32, prim (m,) int64), read from ``image``."""
+        ptrs = np.asarray(ptrs, np.uint32)
+        if (self.node_type(ptrs) != TRI_TYPE).any():
+            raise ValueError("tri_nodes: a pointer is not a triangle-node pointer")
+        words = self._words[(self.node_offset(ptrs) >> 2)[:, None] + np.arange(10)]
+        tris = words[:, :9].view("<f4").astype(np.float32).reshape(-1, 3, 3)
+        return tris, words[:, 9].astype(np.int64)
+
+    def node_extras(self, ptrs):
+        """(parent pointer (m,) uint32, child count (m,) int64) of box nodes."""
+        words = self._words[(self.node_offset(ptrs) >> 2)[:, None] + np.array([28, 29])]
+        return words[:, 0].astype(np.uint32), words[:, 1].astype(np.int64)
+
+
+# ----------------------------------------------------------------------------------------------
+# input
+
+def as_triangles(mesh_or_triangles) -> np.ndarray:
+    """(n, 3, 3) float32 C-contiguous triangles from a trimesh mesh or an array-like.
+
+    Raises ValueError (one line) for no triangles, a wrong shape or non-finite coordinates."""
+    if hasattr(mesh_or_triangles, "vertices") and hasattr(mesh_or_triangles, "faces"):
+        v = np.asarray(mesh_or_triangles.vertices, np.float32)
+        f = np.asarray(mesh_or_triangles.faces, np.int64)
+        if f.ndim != 2 or f.shape[1] != 3:
+            raise ValueError(f"mesh faces must be (n, 3), got {f.shape}")
+        tris = v[f] if len(v) else np.zeros((0, 3, 3), np.float32)
+    else:
+        try:
+            tris = np.asarray(mesh_or_triangles, np.float32)
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"triangles must be an (n, 3, 3) float array: {e}") from None
+    if tris.ndim != 3 or tris.shape[1:] != (3, 3):
+        raise ValueError(f"triangles must have shape (n, 3, 3), got {tris.shape}")
+    if len(tris) == 0:
+        raise ValueError("no triangles: cannot build a BVH of an empty mesh")
+    if not np.isfinite(tris).all():
+        raise ValueError("triangle coordinates must be finite (in float32)")
+    return np.ascontiguousarray(tris)
+
+
+def _prim_boxes(tris: np.ndarray):
+    """Primitive boxes (lo, hi) and box centroids, float64 (n, 3) each (exact float32 values)."""
+    lo = tris.min(axis=1).astype(np.float64)
+    hi = tris.max(axis=1).astype(np.float64)
+    return lo, hi, 0.5 * (lo + hi)
+
+
+def _half_area(lo, hi):
+    d = hi - lo
+    return d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0]
+
+
+# ----------------------------------------------------------------------------------------------
+# binary binned-SAH builder (boxes and centroids only)
+
+def _build_binary(lo, hi, cent, bins: int):
+    """Binary BVH with one primitive per leaf, built level by level.
+
+    Returns (left, right, prim, node_lo, node_hi) over 2n-1 nodes, node 0 the root, parents
+    numbered before children; left/right are -1 for a leaf, prim is -1 for an interior node."""
+    n = len(lo)
+    m = 2 * n - 1
+    left = np.full(m, -1, np.int64)
+    right = np.full(m, -1, np.int64)
+    prim = np.full(m, -1, np.int64)
+    node_lo = np.empty((m, 3))
+    node_hi = np.empty((m, 3))
+    order = np.arange(n)
+    if n == 1:
+        prim[0] = 0
+        node_lo[0], node_hi[0] = lo[0], hi[0]
+        return left, right, prim, node_lo, node_hi
+    # active nodes of the current level: node id, first position in `order`, primitive count
+    ids, start, cnt = np.array([0]), np.array([0]), np.array([n])
+    next_id = 1
+    while len(ids):
+        k = len(ids)
+        seg_off = np.concatenate(([0], np.cumsum(cnt)[:-1]))       # segment starts, compacted
+        total = int(cnt.sum())
+        seg = np.repeat(np.arange(k), cnt)
+        rank = np.arange(total) - seg_off[seg]                     # index within the segment
+        pidx = order[start[seg] + rank]
+        node_lo[ids] = np.minimum.reduceat(lo[pidx], seg_off, axis=0)
+        node_hi[ids] = np.maximum.reduceat(hi[pidx], seg_off, axis=0)
+
+        # go right: binned SAH for nodes of >= 3 primitives; a 2-primitive node, or one whose
+        # centroids all coincide, splits its list in the middle
+        go_right = rank >= (cnt // 2)[seg]
+        big = cnt >= 3
+        if big.any():
+            sel = big[seg]
+            bseg = (np.cumsum(big) - 1)[seg[sel]]
+            b, axis, split, ok = _binned_sah(bseg, int(big.sum()), cent[pidx[sel]],
+                                             lo[pidx[sel]], hi[pidx[sel]], bins)
+            sah_right = b[np.arange(len(bseg)), axis[bseg]] > split[bseg]
+            go_right[sel] = np.where(ok[bseg], sah_right, go_right[sel])
+
+        # stable partition of each segment: lefts first
+        is_left = (~go_right).astype(np.int64)
+        n_left = np.add.reduceat(is_left, seg_off)
+        before = np.cumsum(is_left) - is_left                       # lefts before, global
+        left_rank = before - before[seg_off][seg]
+        new_pos = start[seg] + np.where(go_right, n_left[seg] + rank - left_rank, left_rank)
+        order[new_pos] = pidx
+
+        lid = next_id + 2 * np.arange(k)
+        next_id += 2 * k
+        left[ids], right[ids] = lid, lid + 1
+        cid = np.stack([lid, lid + 1], axis=1).ravel()
+        cstart = np.stack([start, start + n_left], axis=1).ravel()
+        ccnt = np.stack([n_left, cnt - n_left], axis=1).ravel()
+        leaf = ccnt == 1
+        p = order[cstart[leaf]]
+        prim[cid[leaf]] = p
+        node_lo[cid[leaf]], node_hi[cid[leaf]] = lo[p], hi[p]
+        ids, start, cnt = cid[~leaf], cstart[~leaf], ccnt[~leaf]
+    return left, right, prim, node_lo, node_hi
+
+
+def _binned_sah(seg, k, c, plo, phi, bins):
+    """Best SAH split of k nodes at once. seg (P,) node of each primitive (sorted), c/plo/phi (P, 3)
+    centroids and boxes. Returns (bin (P, 3) int, axis (k,), split (k,), ok (k,)): a primitive
+    goes right iff bin[axis] > split; ok is False where no axis has distinct centroids."""
+    nb = bins - 1                                          # split candidates per axis
+    seg_off = np.flatnonzero(np.concatenate(([True], seg[1:] != seg[:-1])))
+    cmin = np.minimum.reduceat(c, seg_off, axis=0)
+    cext = np.maximum.reduceat(c, seg_off, axis=0) - cmin
+    scale = np.divide(bins, cext, out=np.zeros_like(cext), where=cext > 0)
+    b = ((c - cmin[seg]) * scale[seg]).astype(np.int64)
+    np.clip(b, 0, bins - 1, out=b)
+
+    # per (bin, axis, [component,] node), bins first so the prefix scans run over long rows
+    count = np.empty((bins, 3, k))
+    blo = np.empty((bins, 3, 3, k), np.float32)             # exact: bounds are float32 values
+    bhi = np.empty((bins, 3, 3, k), np.float32)
+    plo32, phi32 = plo.astype(np.float32), phi.astype(np.float32)
+    for a in range(3):
+        key = b[:, a] * k + seg
+        count[:, a] = np.bincount(key, minlength=bins * k).reshape(bins, k)
+        for comp in range(3):
+            acc = np.full(bins * k, np.inf, np.float32)
+            np.minimum.at(acc, key, plo32[:, comp])
+            blo[:, a, comp] = acc.reshape(bins, k)
+            acc = np.full(bins * k, -np.inf, np.float32)
+            np.maximum.at(acc, key, phi32[:, comp])
+            bhi[:, a, comp] = acc.reshape(bins, k)
+
+    # SAH of the split after bin i (left = bins 0..i, right = bins i+1..): A_L n_L + A_R n_R
+    n_l = np.cumsum(count, axis=0)[:nb]
+    n_r = np.cumsum(count[::-1], axis=0)[::-1][1:]
+    with np.errstate(invalid="ignore"):
+        a_l = _half_area_c(np.minimum.accumulate(blo, axis=0)[:nb],
+                           np.maximum.accumulate(bhi, axis=0)[:nb])
+        a_r = _half_area_c(np.minimum.accumulate(blo[::-1], axis=0)[::-1][1:],
+                           np.maximum.accumulate(bhi[::-1], axis=0)[::-1][1:])
+        cost = np.where((n_l > 0) & (n_r > 0), a_l * n_l + a_r * n_r, np.inf)
+    cost = cost.reshape(nb * 3, k)                         # row = split * 3 + axis
+    best = np.argmin(cost, axis=0)
+    ok = np.isfinite(cost[best, np.arange(k)])
+    return b, best % 3, best // 3, ok
+
+
+def _half_area_c(lo, hi):
+    """Half surface area, float64, of boxes with the component on axis -2: (..., 3, k)."""
+    d = hi.astype(np.float64) - lo
+    return d[..., 0, :] * d[..., 1, :] + d[..., 1, :] * d[..., 2, :] + d[..., 2, :] * d[..., 0, :]
+
+
+# ----------------------------------------------------------------------------------------------
+# binary -> 4-wide
+
+def _collapse(left, right, area):
+    """4-wide levels from the binary tree: a list, root level first, of (k, 4) arrays of binary
+    node ids per 4-wide box node (-1 = unused slot; used slots first)."""
+    levels = []
+    if left[0] < 0:                                       # single triangle: root has one child
+        slots = np.array([[0, -1, -1, -1]])
+    else:
+        slots = np.full((1, 4), -1)
+        slots[0, :2] = left[0], right[0]
+    while len(slots):
+        rows = np.arange(len(slots))
+        for free in (2, 3):                               # open the largest interior child, twice
+            interior = (slots >= 0) & (left[slots] >= 0)
+            a = np.where(interior, area[slots], -np.inf)
+            j = np.argmax(a, axis=1)
+            ok = interior[rows, j]
+            r, jj = rows[ok], j[ok]
+            opened = slots[r, jj]
+            slots[r, jj] = left[opened]
+            slots[r, free] = right[opened]
+        levels.append(slots)
+        nxt = slots[(slots >= 0) & (left[slots] >= 0)]          # row-major: breadth-first order
+        slots = np.full((len(nxt), 4), -1)
+        slots[:, 0], slots[:, 1] = left[nxt], right[nxt]
+    return levels
+
+
+# ----------------------------------------------------------------------------------------------
+# memory image
+
+def _grow(lo, hi, pad):
+    """Conservative float32 boxes (see module docstring): (..., 6) xmin ymin zmin xmax ymax zmax."""
+    f32 = np.float32
+    with np.errstate(over="ignore"):
+        glo = np.nextafter((lo - pad).astype(f32), f32(-np.inf))
+        ghi = np.nextafter((hi + pad).astype(f32), f32(np.inf))
+    return np.concatenate([glo, ghi], axis=-1)
+
+
+def _write_image(levels, left, prim, node_lo, node_hi, tris, pad):
+    """Number nodes, fill the byte image. Returns (image, depth, sah_cost)."""
+    n_box = sum(len(s) for s in levels)
+    n_tri = len(tris)
+    total = BOX_BYTES * n_box + TRI_BYTES * n_tri
+    if total >= 1 << 35:
+        raise ValueError(f"BVH image of {total} bytes exceeds the 32 GiB a uint32 pointer reaches")
+    slots = np.concatenate(levels)                         # (n_box, 4) binary ids, breadth-first
+    used = slots >= 0
+    is_box = used & (left[np.maximum(slots, 0)] >= 0)
+    is_tri = used & ~is_box
+    # box node i is at byte 128 i (pointer 16 i | 5); box children are numbered breadth-first in
+    # row-major slot order, which is the order _collapse emits the next level in
+    flat_box, flat_tri = is_box.ravel(), is_tri.ravel()
+    ptrs = np.full(slots.size, NO_CHILD, np.uint32)
+    ptrs[flat_box] = 16 * np.cumsum(flat_box)[flat_box] | BOX_TYPE
+    tri_index = np.cumsum(flat_tri)[flat_tri] - 1
+    ptrs[flat_tri] = (BOX_BYTES * n_box + TRI_BYTES * tri_index) >> 3 | TRI_TYPE
+    ptrs = ptrs.reshape(slots.shape)
+
+    ids = np.maximum(slots, 0)
+    boxes = _grow(node_lo[ids], node_hi[ids], pad)
+    boxes[~used] = _EMPTY_BOX
+    parent = np.full(n_box, NO_CHILD, np.uint32)
+    parent_row = np.nonzero(is_box)[0]                     # row-major, same order as child_box
+    parent[1:] = (16 * parent_row | BOX_TYPE).astype(np.uint32)
+
+    image = np.zeros(total, np.uint8)
+    words = image.view("<u4")
+    bw = words[:_BOX_WORDS * n_box].reshape(n_box, _BOX_WORDS)
+    bw[:, 0:4] = ptrs
+    bw[:, 4:28] = boxes.astype("<f4").reshape(n_box, 24).view("<u4")
+    bw[:, 28] = parent
+    bw[:, 29] = used.sum(axis=1)
+    tri_prim = prim[slots[is_tri]]                         # triangle nodes in reference order
+    tw = words[_BOX_WORDS * n_box:].reshape(n_tri, _TRI_WORDS)
+    tw[:, 0:9] = tris[tri_prim].reshape(n_tri, 9).view("<u4")
+    tw[:, 9] = tri_prim
+
+    b64 = np.where(used[..., None], boxes, 0).astype(np.float64)        # unused slots: area 0
+    area = _half_area(b64[..., :3], b64[..., 3:])
+    root_box = np.concatenate([b64[0, used[0], :3].min(axis=0), b64[0, used[0], 3:].max(axis=0)])
+    sah = 1.0 + float(area.sum()) / float(_half_area(root_box[:3], root_box[3:]))
+    return image, len(levels), sah
+
+
+def build(triangles_or_trimesh, bins: int = 16) -> BVH4:
+    """Build a BVH4 (binned SAH, one triangle per leaf) and its SPEC 8 memory image.
+
+    triangles_or_trimesh : (n, 3, 3) array-like (converted to float32) or a trimesh.Trimesh
+    bins : SAH bins per axis (>= 2; default 16)
+    Degenerate (zero-area) triangles are kept (the datapath never hits them).
+    Raises ValueError for an empty input, a wrong shape or non-finite coordinates."""
+    t0 = time.perf_counter()
+    if int(bins) < 2:
+        raise ValueError(f"bins must be >= 2, got {bins}")
+    tris = as_triangles(triangles_or_trimesh)
+    lo, hi, cent = _prim_boxes(tris)
+    left, right, prim, node_lo, node_hi = _build_binary(lo, hi, cent, int(bins))
+    levels = _collapse(left, right, _half_area(node_lo, node_hi))
+    pad = PAD_REL * float(np.abs(tris).max())
+    image, depth, sah = _write_image(levels, left, prim, node_lo, node_hi, tris, pad)
+    n_box = sum(len(s) for s in levels)
+    stats = {"box_nodes": n_box, "tri_nodes": len(tris), "depth": depth, "sah_cost": sah,
+             "build_s": time.perf_counter() - t0, "bytes": int(image.nbytes)}
+    return BVH4(image, tris, stats)
