@@ -1,0 +1,164 @@
+"""Cross-check of closest hits against Intel Embree (embreex).
+
+``embree_closest_front`` gives Embree's closest *front-face* hit per ray (the datapath culls back
+faces, SPEC section 5; Embree 4 does not, so back-face hits are re-cast from just past the hit).
+``compare`` classifies every ray of our result against Embree's:
+
+- agree: same primitive, or both miss;
+- hit/miss mismatch: one hits, the other misses;
+- edge tie: different primitives, but both legally contain the hit point: the t values agree to
+  ``T_REL`` and our hit point lies on Embree's triangle and Embree's on ours (within a distance
+  tolerance): a hit on an edge or vertex shared by two triangles, or on coplanar overlaps;
+- primitive mismatch: any other different primitive (unexplained).
+
+``embree_json(result)`` keeps the SPEC section 10 ``embree`` object (scalars only).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+T_REL = 1e-5          # relative t agreement of an edge tie
+POINT_REL = 1e-5      # hit point to triangle distance, relative to the scene's coordinate scale
+MAX_RECAST = 64       # bounded back-face re-casting per ray
+SPEC_KEYS = ("rays_compared", "hit_mismatch", "prim_mismatch", "edge_ties", "max_t_rel_err")
+
+
+def embree_closest_front(triangles, origins, dirs):
+    """Closest front-face hit per ray with Embree.
+
+    triangles : (m, 3, 3) float32 A, B, C; front faces have d . ((B-A) x (C-A)) < 0
+    origins, dirs : (n, 3) float32 rays (t measured in units of |dir|; no upper extent)
+    Returns (t (n,) float32, inf on a miss; prim (n,) int64, -1 on a miss).
+    """
+    from embreex import rtcore_scene as rtcs
+    from embreex.mesh_construction import TriangleMesh
+
+    tri = np.ascontiguousarray(triangles, np.float32).reshape(-1, 3, 3)
+    o = np.ascontiguousarray(origins, np.float32).reshape(-1, 3)
+    d = np.ascontiguousarray(dirs, np.float32).reshape(-1, 3)
+    n = len(o)
+    t = np.full(n, np.inf)
+    prim = np.full(n, -1, np.int64)
+    if n == 0 or len(tri) == 0:
+        return t.astype(np.float32), prim
+    scene = rtcs.EmbreeScene()
+    TriangleMesh(scene, tri)
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]).astype(np.float64)
+
+    rows = np.arange(n)                   # rays still being cast
+    base = np.zeros(n)                    # t (units of d) of the current cast origin
+    last = np.full(n, -1, np.int64)       # back face the current cast starts on
+    step = np.full(n, 1e-6)               # relative advance past a back face
+    for _ in range(MAX_RECAST + 1):
+        if not len(rows):
+            break
+        oo = (o[rows].astype(np.float64) + base[rows, None] * d[rows]).astype(np.float32)
+        r = scene.run(oo, d[rows], output=1)
+        p = r["primID"].astype(np.int64)
+        tt = base[rows] + r["tfar"].astype(np.float64)
+        hit = p >= 0
+        front = np.zeros(len(rows), bool)
+        front[hit] = np.einsum("ij,ij->i", d[rows[hit]].astype(np.float64), normal[p[hit]]) < 0
+        done = ~hit | front
+        t[rows[done & hit]] = tt[done & hit]
+        prim[rows[done & hit]] = p[done & hit]
+        # back face: restart just past it (further, if the restart hit that same face again)
+        back = rows[~done]
+        same = p[~done] == last[back]
+        step[back] = np.where(same, step[back] * 4, 1e-6)
+        last[back] = p[~done]
+        tb = tt[~done]
+        scale = np.abs(o[back]).max(1) / np.maximum(np.abs(d[back]).max(1), 1e-30)
+        base[back] = tb + step[back] * (np.abs(tb) + scale) + 1e-30
+        rows = back
+    return t.astype(np.float32), prim
+
+
+def compare(our_t, our_prim, emb_t, emb_prim, triangles, origins, dirs) -> dict:
+    """Classify every ray (see module docstring).
+
+    Returns a dict with the SPEC keys ``rays_compared, hit_mismatch, prim_mismatch, edge_ties,
+    max_t_rel_err`` (max over rays where both hit), plus ``agree`` and index arrays
+    ``hit_mismatch_rays, prim_mismatch_rays, edge_tie_rays`` for debugging.
+    """
+    our_t, emb_t = np.asarray(our_t, np.float64), np.asarray(emb_t, np.float64)
+    our_prim, emb_prim = np.asarray(our_prim, np.int64), np.asarray(emb_prim, np.int64)
+    tri = np.asarray(triangles, np.float64).reshape(-1, 3, 3)
+    o = np.asarray(origins, np.float64).reshape(-1, 3)
+    d = np.asarray(dirs, np.float64).reshape(-1, 3)
+    n = len(our_t)
+    if not (len(our_prim) == len(emb_t) == len(emb_prim) == len(o) == len(d) == n):
+        raise ValueError("compare: all per-ray arrays must have the same length")
+    ours, theirs = our_prim >= 0, emb_prim >= 0
+    both = ours & theirs
+    hit_mismatch = np.flatnonzero(ours != theirs)
+    differ = np.flatnonzero(both & (our_prim != emb_prim))
+
+    tie = np.zeros(len(differ), bool)
+    if len(differ):
+        scale = max(np.abs(tri).max(), np.abs(o).max(), 1e-30)
+        tol = POINT_REL * scale
+        ta, tb = our_t[differ], emb_t[differ]
+        t_ok = np.abs(ta - tb) <= T_REL * np.maximum(np.abs(tb), 1e-30) + tol / np.maximum(
+            np.linalg.norm(d[differ], axis=1), 1e-30)
+        pa = o[differ] + ta[:, None] * d[differ]
+        pb = o[differ] + tb[:, None] * d[differ]
+        on_theirs = point_triangle_distance(pa, tri[emb_prim[differ]]) <= tol
+        on_ours = point_triangle_distance(pb, tri[our_prim[differ]]) <= tol
+        tie = t_ok & on_theirs & on_ours
+
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rel = np.abs(our_t[both] - emb_t[both]) / np.maximum(np.abs(emb_t[both]), 1e-30)
+    return {
+        "rays_compared": int(n),
+        "hit_mismatch": int(len(hit_mismatch)),
+        "prim_mismatch": int((~tie).sum()),
+        "edge_ties": int(tie.sum()),
+        "max_t_rel_err": float(rel.max()) if len(rel) else 0.0,
+        "agree": int(n - len(hit_mismatch) - len(differ)),
+        "hit_mismatch_rays": hit_mismatch,
+        "prim_mismatch_rays": differ[~tie],
+        "edge_tie_rays": differ[tie],
+    }
+
+
+def embree_json(result: dict) -> dict:
+    """The SPEC section 10 ``embree`` object (plus ``agree``) from a ``compare`` result."""
+    return {k: result[k] for k in SPEC_KEYS + ("agree",)}
+
+
+def check(triangles, origins, dirs, our_t, our_prim) -> dict:
+    """Run Embree on the same rays and ``compare``."""
+    emb_t, emb_prim = embree_closest_front(triangles, origins, dirs)
+    return compare(our_t, our_prim, emb_t, emb_prim, triangles, origins, dirs)
+
+
+def point_triangle_distance(p, tri):
+    """Euclidean distance from points p (n, 3) to triangles tri (n, 3, 3), float64; degenerate
+    triangles (segments, points) are handled by falling back to the nearest edge."""
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    # distance to the three edges (covers the boundary and every degenerate case)
+    dist = np.minimum(np.minimum(_segment_distance(p, a, b), _segment_distance(p, b, c)),
+                      _segment_distance(p, c, a))
+    # interior: project onto the plane and test barycentrics
+    n = np.cross(b - a, c - a)
+    nn = np.einsum("ij,ij->i", n, n)
+    ok = nn > 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        h = np.einsum("ij,ij->i", p - a, n) / nn
+        q = p - h[:, None] * n
+        inside = ok.copy()
+        for u, v in ((a, b), (b, c), (c, a)):
+            inside &= np.einsum("ij,ij->i", np.cross(v - u, q - u), n) >= 0
+        plane = np.abs(h) * np.sqrt(nn)
+    return np.where(inside, np.minimum(plane, dist), dist)
+
+
+def _segment_distance(p, a, b):
+    ab = b - a
+    den = np.einsum("ij,ij->i", ab, ab)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s = np.where(den > 0, np.einsum("ij,ij->i", p - a, ab) / den, 0.0)
+    s = np.clip(s, 0.0, 1.0)
+    return np.linalg.norm(p - (a + s[:, None] * ab), axis=1)

@@ -1,0 +1,311 @@
+"""Scenes: a triangle mesh, a camera and a default image size.
+
+``load(name_or_path)`` returns a ``trimesh.Trimesh``; ``load_scene(name_or_path)`` a ``Scene``.
+A name or path is resolved in this order:
+
+1. an existing file: a ``.toml`` scene description, or any mesh trimesh reads (PLY, OBJ, STL, OFF,
+   GLB, ...; multi-part files are concatenated into one mesh);
+2. a scene description in the repository's ``scenes/`` directory (``NAME`` or ``NAME.toml``);
+3. a built-in mesh: ``bunny`` (Stanford bunny shipped with pymeshfix), and the procedural
+   ``sphere``, ``room`` (a closed box room seen from inside) and ``soup`` (seeded random triangles).
+   Built-ins without a TOML get a camera framed from the mesh bounds.
+
+Meshes are loaded with ``process=False``: no vertex merging, no face removal, so primitive ids are
+face indices in the file. Degenerate (zero-area) triangles are kept. Invalid input raises
+``SceneError`` (a ``ValueError``) with a one-line message.
+
+Scene TOML (paths are relative to the TOML file)::
+
+    mesh = "bunny"                 # built-in name or mesh file path
+    name = "bunny"                 # optional, default: the file's stem
+    size = 256                     # or width = ..., height = ...; default 256 x 256
+    [camera]                       # optional; without it the camera is framed automatically
+    position = [0.0, -120.0, 40.0]
+    look_at = [0.0, 0.0, 25.0]
+    up = [0.0, 0.0, 1.0]           # optional, default +z
+    fov_deg = 40.0                 # optional, vertical field of view
+"""
+
+from __future__ import annotations
+
+import importlib.resources
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from .camera import Camera, check_size, frame
+from .errors import CameraError, SceneError
+
+SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
+BUILTINS = ("bunny", "room", "soup", "sphere")
+DEFAULT_SIZE = 256
+_UP = {"bunny": (0.0, 0.0, 1.0), "sphere": (0.0, 0.0, 1.0), "room": (0.0, 0.0, 1.0),
+       "soup": (0.0, 0.0, 1.0)}
+_FILE_UP = (0.0, 1.0, 0.0)      # auto-framing of mesh files: +y up (OBJ / glTF convention)
+
+
+@dataclass
+class Scene:
+    """mesh : trimesh.Trimesh (process=False); camera : Camera; size : default (width, height)."""
+
+    mesh: trimesh.Trimesh
+    camera: Camera
+    size: tuple = (DEFAULT_SIZE, DEFAULT_SIZE)
+    name: str = "scene"
+
+    @property
+    def triangles(self) -> np.ndarray:
+        """(n, 3, 3) float32 vertex positions of every face; row i is primitive id i."""
+        return triangles(self.mesh)
+
+
+def triangles(mesh: trimesh.Trimesh) -> np.ndarray:
+    """(n, 3, 3) float32 vertex positions A, B, C of every face, in face order."""
+    return np.asarray(mesh.vertices, np.float32)[np.asarray(mesh.faces)]
+
+
+def load(name_or_path) -> trimesh.Trimesh:
+    """The mesh of a scene name, built-in, scene TOML or mesh file (see module docstring)."""
+    if isinstance(name_or_path, trimesh.Trimesh):
+        return _validated(name_or_path, "mesh")
+    return load_scene(name_or_path).mesh
+
+
+def load_scene(name_or_path) -> Scene:
+    """Resolve ``name_or_path`` to a ``Scene`` (see module docstring)."""
+    if isinstance(name_or_path, Scene):
+        return name_or_path
+    if not isinstance(name_or_path, (str, Path)):
+        raise SceneError(f"a scene is a name or a path, got {type(name_or_path).__name__}")
+    text = str(name_or_path)
+    if not text.strip():
+        raise SceneError("empty scene name")
+    path = Path(text).expanduser()
+    if path.is_file():
+        return _from_toml(path) if path.suffix.lower() == ".toml" else _from_mesh_file(path)
+    if path.exists():
+        raise SceneError(f"scene {text!r} is a directory, not a mesh or .toml file")
+    for candidate in (SCENES_DIR / text, SCENES_DIR / f"{text}.toml"):
+        if path.name == text and candidate.suffix == ".toml" and candidate.is_file():
+            return _from_toml(candidate)
+    if text in BUILTINS:
+        mesh = builtin(text)
+        return Scene(mesh, _frame(mesh, _UP[text]), (DEFAULT_SIZE, DEFAULT_SIZE), text)
+    if path.suffix or len(path.parts) > 1:
+        raise SceneError(f"no such file: {text}")
+    raise SceneError(f"unknown scene {text!r}: not a file; scenes: {', '.join(available())}")
+
+
+def available() -> list[str]:
+    """Names accepted besides paths: TOML scenes in scenes/ and built-in meshes."""
+    tomls = sorted(p.stem for p in SCENES_DIR.glob("*.toml")) if SCENES_DIR.is_dir() else []
+    return sorted(set(tomls) | set(BUILTINS))
+
+
+# ---------------------------------------------------------------------------------------------
+# built-in meshes
+
+def builtin(name: str) -> trimesh.Trimesh:
+    """A built-in mesh by name (see ``BUILTINS``)."""
+    if name == "bunny":
+        res = importlib.resources.files("pymeshfix") / "examples" / "StanfordBunny.ply"
+        with importlib.resources.as_file(res) as p:
+            if not p.is_file():
+                raise SceneError(f"built-in bunny not found at {p} (is pymeshfix installed?)")
+            return _read_mesh_file(p)
+    if name == "sphere":
+        m = trimesh.creation.icosphere(subdivisions=3, radius=1.0)
+        return _mesh(m.vertices, m.faces, "sphere")
+    if name == "room":
+        return _room()
+    if name == "soup":
+        return _soup()
+    raise SceneError(f"unknown built-in mesh {name!r}; built-ins: {', '.join(BUILTINS)}")
+
+
+def _grid_box(lo, hi, n: int, inward: bool):
+    """Axis-aligned box surface, each face split into n x n quads (2 triangles each); faces wound
+    outward (trimesh convention), or inward if ``inward``. Returns (vertices, faces)."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    verts, faces = [], []
+    s = np.linspace(0.0, 1.0, n + 1)
+    for axis in range(3):
+        a, b = (axis + 1) % 3, (axis + 2) % 3
+        for side in (0, 1):
+            uu, vv = np.meshgrid(s, s, indexing="ij")
+            p = np.empty(uu.shape + (3,))
+            p[..., axis] = hi[axis] if side else lo[axis]
+            p[..., a] = lo[a] + uu * (hi[a] - lo[a])
+            p[..., b] = lo[b] + vv * (hi[b] - lo[b])
+            base = sum(len(v) for v in verts)
+            verts.append(p.reshape(-1, 3))
+            idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1) + base
+            q0, q1, q2, q3 = idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]
+            f = np.concatenate([np.stack([q0, q1, q2], -1).reshape(-1, 3),
+                                np.stack([q0, q2, q3], -1).reshape(-1, 3)])
+            # (a, b, axis) is right-handed, so q0 q1 q2 faces +axis: flip on the low side
+            if (side == 0) != inward:
+                f = f[:, ::-1]
+            faces.append(f)
+    return np.concatenate(verts), np.concatenate(faces)
+
+
+def _room() -> trimesh.Trimesh:
+    """A closed 8 x 8 x 3 room (walls face inward) with a box and a sphere standing in it."""
+    parts = [_grid_box((-4, -4, 0), (4, 4, 3), 4, inward=True),
+             _grid_box((0.5, 0.5, 0), (2, 2, 1.5), 1, inward=False)]
+    s = trimesh.creation.icosphere(subdivisions=2, radius=0.8)
+    parts.append((s.vertices + [-1.5, 1.0, 0.8], s.faces))
+    verts, faces, base = [], [], 0
+    for v, f in parts:
+        verts.append(v)
+        faces.append(f + base)
+        base += len(v)
+    return _mesh(np.concatenate(verts), np.concatenate(faces), "room")
+
+
+def _soup(n: int = 256, seed: int = 7) -> trimesh.Trimesh:
+    """n random triangles (seeded) in about [-1, 1]^3; random winding, so about half face away."""
+    rng = np.random.default_rng(seed)
+    centres = rng.uniform(-1, 1, (n, 1, 3))
+    tri = centres + rng.normal(0, 0.2, (n, 3, 3))
+    return _mesh(tri.reshape(-1, 3), np.arange(3 * n).reshape(n, 3), "soup")
+
+
+def _frame(mesh, up) -> Camera:
+    """Automatic camera for a mesh: its used vertices fill about 60 % of the image height."""
+    return frame(np.asarray(mesh.vertices)[np.unique(mesh.faces)], up=up)
+
+
+def _mesh(vertices, faces, what) -> trimesh.Trimesh:
+    return _validated(trimesh.Trimesh(np.asarray(vertices, np.float64), np.asarray(faces, np.int64),
+                                      process=False, validate=False), what)
+
+
+# ---------------------------------------------------------------------------------------------
+# files
+
+def _from_mesh_file(path: Path) -> Scene:
+    mesh = _read_mesh_file(path)
+    return Scene(mesh, _frame(mesh, _FILE_UP), (DEFAULT_SIZE, DEFAULT_SIZE), path.stem)
+
+
+def _read_mesh_file(path: Path) -> trimesh.Trimesh:
+    """Read a mesh file with process=False, concatenating multi-part files; validate it."""
+    suffix = path.suffix.lower().lstrip(".")
+    if suffix not in trimesh.available_formats():
+        raise SceneError(f"unsupported mesh file type {path.suffix or '(none)'!r}: {path} "
+                         "(use PLY, OBJ, STL, OFF, GLB or a .toml scene)")
+    try:
+        mesh = trimesh.load(str(path), force="mesh", process=False)
+    except Exception as e:  # noqa: BLE001  (trimesh raises anything on a broken file)
+        msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise SceneError(f"cannot read mesh file {path}: {msg}") from None
+    if not isinstance(mesh, trimesh.Trimesh):
+        raise SceneError(f"{path} holds no triangle mesh (got {type(mesh).__name__})")
+    return _validated(mesh, str(path))
+
+
+def _validated(mesh: trimesh.Trimesh, what: str) -> trimesh.Trimesh:
+    """Check the raw arrays (before anything touches them): faces present, (n, 3) integer faces
+    inside the vertex array, finite float32 vertices."""
+    faces = np.asarray(mesh.faces)
+    verts = np.asarray(mesh.vertices)
+    if faces.size == 0:
+        raise SceneError(f"{what}: mesh has no triangles")
+    if faces.ndim != 2 or faces.shape[1] != 3:
+        raise SceneError(f"{what}: faces must be triangles, got shape {faces.shape}")
+    if faces.min() < 0 or faces.max() >= len(verts):
+        bad = int(np.flatnonzero((faces < 0).any(1) | (faces >= len(verts)).any(1))[0])
+        raise SceneError(f"{what}: face {bad} {faces[bad].tolist()} indexes outside the "
+                         f"{len(verts)} vertices")
+    with np.errstate(over="ignore"):
+        finite = np.isfinite(verts.astype(np.float32)).all(axis=1)
+    if not finite.all():
+        bad = int(np.flatnonzero(~finite)[0])
+        raise SceneError(f"{what}: vertex {bad} is not finite in float32: {verts[bad].tolist()}")
+    return mesh
+
+
+# ---------------------------------------------------------------------------------------------
+# scene TOML
+
+_TOP_KEYS = {"mesh", "name", "size", "width", "height", "camera"}
+_CAMERA_KEYS = {"position", "look_at", "up", "fov_deg"}
+
+
+def _from_toml(path: Path) -> Scene:
+    data = _read_toml(path)
+    unknown = set(data) - _TOP_KEYS
+    if unknown:
+        raise SceneError(f"{path}: unknown key(s) {', '.join(sorted(unknown))}; "
+                         f"allowed: {', '.join(sorted(_TOP_KEYS))}")
+    if not isinstance(data.get("mesh"), str):
+        raise SceneError(f"{path}: needs mesh = \"<built-in name or mesh file>\"")
+    mesh_ref = data["mesh"]
+    mesh_path = (path.parent / mesh_ref).expanduser()
+    if mesh_path.is_file():
+        if mesh_path.suffix.lower() == ".toml":
+            raise SceneError(f"{path}: mesh must be a mesh file or built-in, not a .toml")
+        mesh, up = _read_mesh_file(mesh_path), _FILE_UP
+    elif mesh_ref in BUILTINS:
+        mesh, up = builtin(mesh_ref), _UP[mesh_ref]
+    else:
+        raise SceneError(f"{path}: mesh {mesh_ref!r} is neither a file (relative to the TOML) "
+                         f"nor a built-in ({', '.join(BUILTINS)})")
+    name = data.get("name", path.stem)
+    if not isinstance(name, str) or not name:
+        raise SceneError(f"{path}: name must be a non-empty string")
+    try:
+        size = _size(data)
+        camera = _camera(data.get("camera"), mesh, up)
+    except CameraError as e:
+        raise SceneError(f"{path}: {e}") from None
+    return Scene(mesh, camera, size, name)
+
+
+def _read_toml(path: Path) -> dict:
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:                                               # pragma: no cover
+        try:
+            import tomli as tomllib
+        except ImportError:
+            raise SceneError(f"{path}: reading .toml scenes needs Python >= 3.11 "
+                             "or the tomli package") from None
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except tomllib.TOMLDecodeError as e:
+        raise SceneError(f"{path}: invalid TOML: {e}") from None
+    except OSError as e:
+        raise SceneError(f"cannot read {path}: {e.strerror}") from None
+
+
+def _size(data: dict) -> tuple[int, int]:
+    if "size" in data and ("width" in data or "height" in data):
+        raise CameraError("give either size or width/height, not both")
+    if "size" in data:
+        return check_size(data["size"], data["size"])
+    return check_size(data.get("width", DEFAULT_SIZE), data.get("height", DEFAULT_SIZE))
+
+
+def _camera(spec, mesh, up) -> Camera:
+    if spec is None:
+        return _frame(mesh, up)
+    if not isinstance(spec, dict):
+        raise CameraError("[camera] must be a table")
+    unknown = set(spec) - _CAMERA_KEYS
+    if unknown:
+        raise CameraError(f"unknown camera key(s) {', '.join(sorted(unknown))}; "
+                          f"allowed: {', '.join(sorted(_CAMERA_KEYS))}")
+    missing = {"position", "look_at"} - set(spec)
+    if missing:
+        raise CameraError(f"camera needs {' and '.join(sorted(missing))}")
+    tup = lambda v: tuple(v) if isinstance(v, list) else v  # noqa: E731  (TOML arrays)
+    cam = Camera(tup(spec["position"]), tup(spec["look_at"]), tup(spec.get("up", up)),
+                 spec.get("fov_deg", 40.0))
+    return cam.validate()
