@@ -39,15 +39,19 @@ and ``* inv`` to float32, so an exact box would lose flat (axis-aligned) triangl
 could lose grazing hits on box faces by an ulp. Every stored bound is therefore grown outward:
 
     stored_min = nextafter(float32(min - pad), -inf),  stored_max = nextafter(float32(max + pad), +inf)
-    pad = PAD_REL * (largest |coordinate| in the mesh),  PAD_REL = 2**-18
+    pad = PAD_REL * S,   S = largest |coordinate| in the mesh,   PAD_REL = 2**-16
 
-which is at least one float32 ulp of the bound (so every box has positive thickness) plus a
-scene-relative margin of 64 float32 ulps of the largest coordinate. The slab test's rounding
-error in ``box - o`` and ``* inv`` is a few ulps of ``|box - o|``, and the watertight triangle
-test's own rounding is of the same order, so the margin keeps every triangle the triangle test
-hits inside a box the slab test hits for ray origins up to roughly 30x the scene's largest
-coordinate from the world origin (cameras looking at the scene from outside included). Growth is
-monotone, so a child's stored box always lies inside its parent's stored box.
+i.e. at least one float32 ulp of the bound (so every box, flat ones included, has positive
+thickness) plus a scene-relative margin of about 256 float32 ulps of S (1.5e-5 S, far below a
+triangle's size in any practical mesh, so traversal cost is unchanged). Why a margin: the slab
+test rounds ``box - o`` and then ``* inv``, an error of about one ulp of ``|box - o|``, and the
+watertight triangle test rounds ``P - o`` the same way; when the ray origin is far from the box
+these ulps are much larger than the box's own ulps, and a box grown by one ulp only would be
+flattened back to zero thickness (a miss) for e.g. a flat wall seen from a camera 20 S away.
+The margin keeps every triangle that the TRIANGLE op hits inside a box that the QUADBOX op hits
+for ray origins up to about 100 S from the world origin (tests/test_bvh4.py checks it on the
+golden model up to 64 S; measured on the test meshes, PAD_REL = 2**-18 first lost hits at 64 S
+and 2**-16 at 256 S). Growth is monotone, so a child's stored box lies inside its parent's.
 """
 
 from __future__ import annotations
@@ -61,7 +65,7 @@ TRI_TYPE = 0
 NO_CHILD = 0xFFFFFFFF
 BOX_BYTES = 128
 TRI_BYTES = 64
-PAD_REL = 2.0 ** -18
+PAD_REL = 2.0 ** -16
 _BOX_WORDS = BOX_BYTES // 4
 _TRI_WORDS = TRI_BYTES // 4
 _EMPTY_BOX = np.full(6, np.inf, np.float32)
@@ -156,7 +160,8 @@ def as_triangles(mesh_or_triangles) -> np.ndarray:
         tris = v[f] if len(v) else np.zeros((0, 3, 3), np.float32)
     else:
         try:
-            tris = np.asarray(mesh_or_triangles, np.float32)
+            with np.errstate(over="ignore"):                # > float32 max -> inf -> rejected
+                tris = np.asarray(mesh_or_triangles, np.float32)
         except (TypeError, ValueError) as e:
             raise ValueError(f"triangles must be an (n, 3, 3) float array: {e}") from None
     if tris.ndim != 3 or tris.shape[1:] != (3, 3):

@@ -1,0 +1,96 @@
+"""Small procedural test meshes, as (n, 3, 3) float32 triangle arrays (or trimesh meshes).
+
+Winding follows SPEC 5: a face is hit from the side its (B-A)x(C-A) normal points to.
+
+- ``soup(n, seed)``: random triangles of mixed size in [-1, 1]^3, random orientation.
+- ``box_room(k)``: an axis-aligned room with inward-facing walls (k x k quads per wall, all flat
+  axis-aligned triangles) and an outward-facing crate inside.
+- ``icosphere(subdivisions, radius)``: trimesh's icosphere, outward faces (seen from outside only).
+- ``degenerate()``: zero-area triangles (repeated vertex, collinear), axis-aligned flat triangles in
+  x/y/z planes, a tiny triangle and exact duplicates.
+- ``bunny()``: the 99,785-triangle Stanford bunny shipped with pymeshfix (trimesh mesh, cached).
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.resources
+
+import numpy as np
+import trimesh
+
+
+def soup(n: int, seed: int = 0) -> np.ndarray:
+    """n random triangles: centres uniform in [-1, 1]^3, edge lengths ~ 0.02 .. 0.6."""
+    rng = np.random.default_rng(seed)
+    centre = rng.uniform(-1, 1, (n, 1, 3))
+    size = 10 ** rng.uniform(-1.7, -0.2, (n, 1, 1))
+    return (centre + size * rng.normal(size=(n, 3, 3))).astype(np.float32)
+
+
+def _quad_grid(origin, u, v, k):
+    """k x k quads spanning origin + [0,1]u + [0,1]v, two triangles each, normal along u x v."""
+    s = np.linspace(0, 1, k + 1)
+    p = origin + s[:, None, None] * u + s[None, :, None] * v          # (k+1, k+1, 3)
+    a, b, c, d = p[:-1, :-1], p[1:, :-1], p[1:, 1:], p[:-1, 1:]
+    t1 = np.stack([a, b, c], axis=2).reshape(-1, 3, 3)
+    t2 = np.stack([a, c, d], axis=2).reshape(-1, 3, 3)
+    return np.concatenate([t1, t2])
+
+
+def _box(lo, hi, k: int, inward: bool) -> np.ndarray:
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    ext = hi - lo
+    faces = []
+    for ax in range(3):
+        u_ax, v_ax = (ax + 1) % 3, (ax + 2) % 3
+        u = np.zeros(3)
+        v = np.zeros(3)
+        u[u_ax], v[v_ax] = ext[u_ax], ext[v_ax]             # u x v points along +ax
+        for side, base in ((+1, hi), (-1, lo)):
+            o = lo.copy()
+            o[ax] = base[ax]
+            plus = (side > 0) != inward                     # want the normal along +ax
+            tris = _quad_grid(o, u, v, k) if plus else _quad_grid(o, v, u, k)
+            faces.append(tris)
+    return np.concatenate(faces)
+
+
+def box_room(k: int = 3) -> np.ndarray:
+    """Room [-2, 3] x [-1, 1.5] x [-1.25, 2] with inward walls (12 k^2 triangles) plus an
+    outward-facing crate [0.25, 1] x [-1, -0.25] x [-0.5, 0.125] (12 triangles)."""
+    room = _box((-2, -1, -1.25), (3, 1.5, 2), k, inward=True)
+    crate = _box((0.25, -1, -0.5), (1, -0.25, 0.125), 1, inward=False)
+    return np.concatenate([room, crate]).astype(np.float32)
+
+
+def icosphere(subdivisions: int = 2, radius: float = 1.0) -> np.ndarray:
+    m = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
+    return np.asarray(m.triangles, np.float32)
+
+
+def degenerate() -> np.ndarray:
+    """Zero-area, flat axis-aligned, tiny and duplicated triangles (32 triangles)."""
+    tris = [
+        [(0, 0, 0), (0, 0, 0), (0, 0, 0)],                  # a point
+        [(1, 1, 1), (1, 1, 1), (2, 0, 1)],                  # repeated vertex
+        [(0, 0, 0), (1, 1, 1), (2, 2, 2)],                  # collinear
+        [(-1, 0.5, 0), (1, 0.5, 0), (3, 0.5, 0)],           # collinear and axis-aligned
+    ]
+    rng = np.random.default_rng(3)
+    for ax in range(3):                                     # flat in an axis plane, both windings
+        for _ in range(8):
+            t = rng.uniform(-1, 1, (3, 3))
+            t[:, ax] = np.float32(rng.uniform(-1, 1))
+            tris.append(t if len(tris) % 2 else t[::-1])
+    tris.append([(0.5, 0.5, 0.5), (0.5 + 1e-6, 0.5, 0.5), (0.5, 0.5 + 1e-6, 0.5)])   # tiny
+    tris += [tris[5], tris[6], tris[5]]                     # exact duplicates
+    return np.asarray(tris, np.float32)
+
+
+@functools.lru_cache(maxsize=1)
+def bunny() -> trimesh.Trimesh:
+    """The Stanford bunny from pymeshfix's example data (not ``import pymeshfix.examples``,
+    which needs pyvista)."""
+    p = importlib.resources.files("pymeshfix") / "examples" / "StanfordBunny.ply"
+    return trimesh.load(str(p), force="mesh")

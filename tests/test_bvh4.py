@@ -1,0 +1,217 @@
+"""BVH4 builder and memory image (SPEC 4, 8): structural invariants read back from the image."""
+
+import numpy as np
+import pytest
+
+import meshes
+from driver import QUADBOX, TRIANGLE, backend, prepare_rays
+from driver.bvh4 import BOX_BYTES, BOX_TYPE, NO_CHILD, TRI_BYTES, TRI_TYPE, build
+
+
+def half_area(b):
+    d = b[..., 3:].astype(np.float64) - b[..., :3]
+    return d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0]
+
+
+def check_bvh(bvh):
+    """Walk the image breadth-first with the decoders and check every SPEC 8 invariant.
+
+    Returns {prim id: the float32 box its parent stores for its triangle node}."""
+    img, n = bvh.image, len(bvh.triangles)
+    words = img.view("<u4")
+    assert img.dtype == np.uint8 and img.ndim == 1
+    assert bvh.root == BOX_TYPE and bvh.node_offset([bvh.root])[0] == 0
+    seen_box, seen_tri, leaf_box = [np.array([bvh.root], np.uint32)], [], {}
+    level, level_box, parents = seen_box[0], None, np.array([NO_CHILD], np.uint32)
+    area_sum, depth = 0.0, 0
+    while len(level):
+        depth += 1
+        children, boxes = bvh.box_nodes(level)
+        parent, count = bvh.node_extras(level)
+        used = children != NO_CHILD
+        assert (used.sum(1) == count).all() and (count >= 1).all()
+        assert (np.sort(~used, axis=1) == ~used).all(), "used slots first"
+        assert (parent == parents).all()
+        off = bvh.node_offset(level)
+        assert (words[(off >> 2)[:, None] + np.array([30, 31])] == 0).all(), "reserved words"
+        assert np.isposinf(boxes[~used]).all(), "unused slot box is +inf"
+        b = boxes[used]
+        assert (b[:, 3:] > b[:, :3]).all(), "every box has positive thickness"
+        if level_box is not None:                           # child box inside the parent's box
+            pb = np.broadcast_to(level_box[:, None, :], boxes.shape)[used]
+            assert (b[:, :3] >= pb[:, :3]).all() and (b[:, 3:] <= pb[:, 3:]).all()
+        else:
+            root_box = np.concatenate([b[:, :3].min(0), b[:, 3:].max(0)])
+        area_sum += half_area(b).sum()
+        ptr = children[used]
+        typ = bvh.node_type(ptr)
+        assert np.isin(typ, [BOX_TYPE, TRI_TYPE]).all()
+        coff = bvh.node_offset(ptr)
+        assert (coff % 64 == 0).all() and (coff > 0).all()
+        assert (coff + np.where(typ == BOX_TYPE, BOX_BYTES, TRI_BYTES) <= len(img)).all()
+        tri = typ == TRI_TYPE
+        if tri.any():
+            tris, prim = bvh.tri_nodes(ptr[tri])
+            assert ((prim >= 0) & (prim < n)).all()
+            assert (tris.view(np.uint32) == bvh.triangles[prim].view(np.uint32)).all()
+            tb = b[tri]
+            assert (tb[:, :3] < tris.min(1)).all() and (tb[:, 3:] > tris.max(1)).all(), \
+                "triangle strictly inside its box"
+            toff = bvh.node_offset(ptr[tri])
+            assert (words[(toff >> 2)[:, None] + np.arange(10, 16)] == 0).all(), "tri node tail"
+            seen_tri.append(ptr[tri])
+            leaf_box.update(zip(prim.tolist(), tb))
+        box = typ == BOX_TYPE
+        parents = np.repeat(level, used.sum(1))[box]
+        level, level_box = ptr[box], b[box]
+        seen_box.append(level)
+    boxes_p = np.concatenate(seen_box)
+    tris_p = np.concatenate(seen_tri)
+    everything = np.concatenate([boxes_p, tris_p])
+    assert len(np.unique(everything)) == len(everything), "no node referenced twice"
+    # the nodes tile the image exactly: all bytes belong to a reachable node, no overlaps
+    off = bvh.node_offset(everything)
+    size = np.where(bvh.node_type(everything) == BOX_TYPE, BOX_BYTES, TRI_BYTES)
+    o = np.argsort(off)
+    assert off[o][0] == 0 and (off[o][1:] == (off[o] + size[o])[:-1]).all()
+    assert off[o][-1] + size[o][-1] == len(img)
+    assert sorted(leaf_box) == list(range(n)), "every triangle in exactly one leaf"
+    s = bvh.stats
+    assert s["box_nodes"] == len(boxes_p) and s["tri_nodes"] == len(tris_p) == n
+    assert s["bytes"] == len(img) == BOX_BYTES * s["box_nodes"] + TRI_BYTES * n
+    assert s["depth"] == depth
+    assert s["sah_cost"] == pytest.approx(1 + area_sum / half_area(root_box), rel=1e-9)
+    assert s["build_s"] >= 0
+    return leaf_box
+
+
+MESHES = {
+    "soup1": lambda: meshes.soup(1),
+    "soup2": lambda: meshes.soup(2, seed=1),
+    "soup500": lambda: meshes.soup(500, seed=2),
+    "room": meshes.box_room,
+    "sphere": meshes.icosphere,
+    "degenerate": meshes.degenerate,
+}
+
+
+@pytest.mark.parametrize("name", MESHES)
+def test_invariants(name):
+    bvh = build(MESHES[name]())
+    check_bvh(bvh)
+
+
+def test_single_triangle_has_a_root_box():
+    bvh = build(meshes.soup(1))
+    children, _ = bvh.box_nodes([bvh.root])
+    assert bvh.stats["box_nodes"] == 1 and bvh.stats["depth"] == 1
+    assert (children[0, 1:] == NO_CHILD).all() and bvh.node_type(children[0, :1])[0] == TRI_TYPE
+    assert len(bvh.image) == 128 + 64
+
+
+def test_coincident_centroids_and_trimesh_input():
+    tri = meshes.soup(1)
+    bvh = build(np.repeat(tri, 9, axis=0))                  # 9 identical triangles
+    check_bvh(bvh)
+    m = meshes.bunny().copy()
+    m.update_faces(np.arange(200))
+    bvh = build(m)
+    assert np.array_equal(bvh.triangles, np.asarray(m.vertices, np.float32)[m.faces])
+    check_bvh(bvh)
+
+
+def test_sah_beats_a_random_tree():
+    """SAH on 500 soup triangles is well below the ~n/4 ops a flat, unsorted tree would need."""
+    assert build(meshes.soup(500, seed=2)).stats["sah_cost"] < 60
+
+
+def test_bunny():
+    bvh = build(meshes.bunny())
+    s = bvh.stats
+    print(f"\nbunny: {s}")
+    assert s["tri_nodes"] == 99_785
+    assert s["build_s"] < 4.0                              # ~1 s here; the budget is 2 s
+    check_bvh(bvh)
+
+
+@pytest.mark.parametrize("bad", [
+    np.zeros((0, 3, 3)), np.zeros((4, 3)), np.zeros((4, 3, 2)), np.zeros((2, 9)), [[1, 2, 3]],
+    np.array([[[0, 0, 0], [1, 0, 0], [0, np.nan, 0]]]),
+    np.array([[[0, 0, 0], [1, 0, 0], [0, np.inf, 0]]]),
+    np.array([[[0, 0, 0], [1, 0, 0], [0, 1e39, 0]]]),        # overflows float32
+    "not triangles",
+], ids=["empty", "n3", "n32", "n9", "ragged", "nan", "inf", "f32overflow", "str"])
+def test_bad_input(bad):
+    with pytest.raises(ValueError):
+        build(bad)
+
+
+def test_bad_bins():
+    with pytest.raises(ValueError):
+        build(meshes.soup(3), bins=1)
+
+
+# ---- the datapath and the stored boxes ---------------------------------------------------------
+
+def _axis_dirs():
+    d = []
+    for ax in range(3):
+        for s in (1.0, -1.0, 0.5):
+            v = [0.0, 0.0, 0.0]
+            v[ax] = s
+            d.append(v)
+    d += [[-0.0, -0.0, 1.0], [-0.0, 1.0, -0.0], [1.0, -0.0, 0.0], [0.0, -1.0, -0.0]]
+    return np.array(d, np.float32)
+
+
+def test_unused_slot_never_hit():
+    """An unused slot's +inf box misses for every ray, axis-parallel and signed zeros included."""
+    rng = np.random.default_rng(5)
+    d = np.concatenate([rng.normal(size=(400, 3)), _axis_dirs()]).astype(np.float32)
+    o = rng.uniform(-1e3, 1e3, (len(d), 3)).astype(np.float32)
+    o[:20] = 0
+    req = prepare_rays(o, d)
+    req["opcode"] = QUADBOX
+    req["box"] = np.inf
+    rsp = backend("golden").run(req)
+    assert not rsp["box_hit"].any()
+    assert np.isposinf(rsp["box_tmin"]).all()
+
+
+@pytest.mark.parametrize("name,dist", [("degenerate", 2), ("degenerate", 64), ("room", 2),
+                                       ("room", 64), ("soup500", 64)])
+def test_boxes_conservative_on_the_datapath(name, dist):
+    """Whenever the golden TRIANGLE op hits a triangle, the golden QUADBOX op hits the box its
+    parent stores for it (and, slab results being monotone in the box, every ancestor's box).
+    Rays aim at random points of triangles from origins up to ``dist`` * S from the world origin
+    (S = largest |coordinate|; bvh4's documented range is ~100 S), and graze flat triangles
+    along their plane from 0.5 S away."""
+    tris = MESHES[name]()
+    bvh = build(tris)
+    leaf = check_bvh(bvh)
+    rng = np.random.default_rng(11)
+    n = len(tris)
+    ti = np.repeat(np.arange(n), 40)
+    w = rng.dirichlet([1, 1, 1], len(ti)).astype(np.float32)
+    target = np.einsum("ij,ijk->ik", w, tris[ti])
+    scale = np.abs(tris).max()
+    u = rng.normal(size=target.shape)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    o = u * scale * rng.uniform(0.01, dist, (len(ti), 1))
+    o[1::4] = u[1::4] * scale * dist                        # at the far end of the range
+    o[::4] = target[::4] + 0.5 * scale * np.eye(3)[ti[::4] % 3]
+    o = o.astype(np.float32)
+    d = target - o
+    d[d == 0] = 1e-3
+    req = prepare_rays(o, d)
+    req["opcode"] = TRIANGLE
+    req["tri"] = tris[ti]
+    gold = backend("golden")
+    hit = gold.run(req)["tri_hit"].astype(bool)
+    assert hit.sum() > len(ti) // 10
+    req = req[hit]
+    req["opcode"] = QUADBOX
+    req["box"] = np.inf
+    req["box"][:, 0] = np.array([leaf[i] for i in ti[hit]])
+    rsp = gold.run(req)
+    assert rsp["box_hit"][:, 0].all()
