@@ -221,6 +221,10 @@ def test_interleaved_jobs_and_box_triangle_requests():
     e_jobs = vector_requests(rng, EUCLIDEAN, rng.integers(1, 12, 40))
     a_jobs = vector_requests(rng, ANGULAR, rng.integers(1, 12, 40))
     other = mixed_stream(9, 300, 200)
+    # box/triangle requests carry vector data and reset flags that must be ignored
+    other["vec_a"], other["vec_b"] = random_vectors(rng, len(other))
+    other["vec_mask"] = 0xFFFF
+    other["reset_accumulator"] = rng.random(len(other)) < 0.5
     kinds = np.concatenate([np.zeros(len(e_jobs), int), np.ones(len(a_jobs), int),
                             np.full(len(other), 2)])
     kinds = kinds[rng.permutation(len(kinds))]                  # order within each stream kept

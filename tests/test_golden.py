@@ -422,6 +422,22 @@ def test_strict_compare_flat_box_and_extent():
     assert rsp["box_hit"][0]
 
 
+def test_subnormals_not_flushed():
+    """Bit patterns written as literals, so a flush-to-zero FPU mode cannot hide itself."""
+    sub = np.array([0x000116C2], np.uint32).view(F32)[0]             # 1e-40, subnormal
+    r = box_req((0, 0, 0), (1, 0, 0), [(0, -1, -1, 1, 1, 1)])
+    r["box"][0, 0, 0] = sub                                           # box starts at x = 1e-40
+    rsp = both(r)[0]
+    assert rsp["box_hit"][0] and rsp["box_tmin"].view(np.uint32)[0] == 0x000116C2
+    # triangle in the plane z = -2^-140: t_num = 4 * 2^-140 = 2^-138, subnormal
+    tiny = np.array([0x00000200], np.uint32).view(F32)[0]             # 2^-140
+    r = tri_req(((1, -1, 0), (0, 1, 0), (-1, -1, 0)), (0, 0, -1))
+    r["tri"][0, :, 2] = -tiny
+    rsp = both(r)[0]
+    assert rsp["tri_hit"] and rsp["t_den"] == 4
+    assert rsp["t_num"].view(np.uint32) == 0x00000800                # 4 * 2^-140 = 2^-138
+
+
 def tri_req(tri, direction, origin=(0, 0, 0), extent=4000):
     r = driver.prepare_rays([origin], [direction], extent)
     r["opcode"] = TRIANGLE
