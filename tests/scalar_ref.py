@@ -1,4 +1,4 @@
-"""Scalar reference model of the RayFlex datapath, restated one operation at a time from SPEC 2, 4-6.
+"""Scalar reference model of the RayFlex datapath, one operation at a time, from SPEC 2 and 4-6.
 
 This is deliberately the slow, obvious version: one request at a time, one ``np.float32`` scalar
 operation per SPEC step (every add, subtract, multiply and divide is rounded to binary32 on its own,

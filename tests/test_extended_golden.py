@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import driver
-from driver import ANGULAR, EUCLIDEAN, QUADBOX, TRIANGLE, REQUEST_DTYPE
+from driver import ANGULAR, EUCLIDEAN, REQUEST_DTYPE
 from scalar_ref import ScalarState, scalar_run
 from test_golden import assert_bit_equal, mixed_stream, random_bits
 
@@ -187,7 +187,7 @@ def test_reset_clears_to_plus_zero(op):
     req2["reset_accumulator"] = [0, 1]
     rsp2 = ext_equal(req2, s, g)
     field = "euclid_acc" if op == EUCLIDEAN else "angular_dot"
-    assert rsp2[field].view(np.uint32)[0] == 0                                # +0, not -0, not job 1
+    assert rsp2[field].view(np.uint32)[0] == 0             # +0: not -0, nothing left of job 1
     if op == ANGULAR:
         assert rsp2["angular_norm"][0] == 8 and rsp2["angular_norm"][1] == 9
         assert rsp[field][2] == 3 * 8 * 300
@@ -281,7 +281,8 @@ def test_masked_off_lanes_ignore_nan_and_garbage(op):
     rng = np.random.default_rng(13 + op)
     req = vector_requests(rng, op, [4, 1, 6], special=False)
     clean = req.copy()
-    lanes = ((req["vec_mask"][:, None].astype(np.uint32) >> np.arange(16, dtype=np.uint32)) & 1) == 0
+    bit = np.arange(16, dtype=np.uint32)
+    lanes = ((req["vec_mask"][:, None].astype(np.uint32) >> bit) & 1) == 0
     if op == ANGULAR:
         lanes[:, 8:] = True                                   # lanes 8-15 never used by ANGULAR
     clean["vec_a"][lanes] = 0

@@ -1,4 +1,4 @@
-"""Golden (vectorised numpy) model vs the scalar reference, bit for bit, plus SPEC 4/5 special rules.
+"""Golden (vectorised numpy) model vs the scalar reference bit for bit, and SPEC 4/5 special rules.
 
 The random streams mix QUADBOX and TRIANGLE requests drawn to hit the corner cases: axis-parallel
 rays (exact +-0 components), origins on slab planes, boxes around / near / containing the origin,
@@ -55,7 +55,8 @@ def assert_bit_equal(req, got, want):
             i = int(np.flatnonzero(bad)[0])
             pytest.fail(f"{int(bad.sum())} mismatches in field {name!r}; first at request {i}:\n"
                         f"  golden: {got[i]}\n  scalar: {want[i]}\n"
-                        f"  golden bits {np.asarray(g[i]).tolist()} scalar bits {np.asarray(w[i]).tolist()}\n"
+                        f"  golden bits {np.asarray(g[i]).tolist()}"
+                        f" scalar bits {np.asarray(w[i]).tolist()}\n"
                         f"  request: {hexrow(req[i])}")
 
 
@@ -97,7 +98,8 @@ def random_origins(rng, n):
     kind = rng.integers(0, 5, n)
     o[kind == 1] = np.round(o[kind == 1])                  # on the integer grid (box planes)
     m = kind == 2
-    o[m] = rng.choice(np.concatenate([SUBNORMALS, -SUBNORMALS, [0, -0.0]]).astype(F32), (m.sum(), 3))
+    tiny = np.concatenate([SUBNORMALS, -SUBNORMALS, [0, -0.0]]).astype(F32)
+    o[m] = rng.choice(tiny, (m.sum(), 3))
     return o
 
 
@@ -252,7 +254,8 @@ def triangle_requests(rng, n):
                                                        (m.sum(), 3, 3))
     # 10: the origin lies in the triangle (an axis plane through it): t_num = 0 exactly, t = 0 hit
     m = kind == 10
-    ang = rng.uniform(0, 2 * np.pi, n)[:, None] + np.array([0, 2.1, 4.2]) + rng.normal(0, .2, (n, 3))
+    ang = (rng.uniform(0, 2 * np.pi, n)[:, None] + np.array([0, 2.1, 4.2])
+           + rng.normal(0, .2, (n, 3)))
     rad = rng.uniform(0.1, 3, (n, 3))
     a1, a2 = (ax + 1) % 3, (ax + 2) % 3
     flat = np.repeat(o[:, None, :], 3, axis=1)
@@ -273,7 +276,7 @@ def triangle_requests(rng, n):
     req = driver.prepare_rays(o.astype(F32), d, random_extents(rng, n))
     req["opcode"] = TRIANGLE
     req["tri"] = tri32
-    # a few with garbage (but 2-bit-valid) kx/ky/kz or garbage shear: the datapath uses them as given
+    # a few with garbage (2-bit-valid) kx/ky/kz or garbage shear: the datapath uses them as given
     m = rng.random(n) < 0.01
     req["kx"][m] = rng.integers(0, 3, m.sum())
     m = rng.random(n) < 0.01
