@@ -33,7 +33,7 @@ from typing import Iterable, Mapping, Sequence
 __all__ = ["BuildError", "verilator_bin", "find_cxx", "cache_dir", "build_library", "lint"]
 
 # Bump when the build recipe below changes, so that old cache entries are not reused.
-_RECIPE_VERSION = "1"
+_RECIPE_VERSION = "2"  # 2: CFG_CXXFLAGS_PCH_I=-include
 _CXXFLAGS = "-fPIC -std=c++17"
 _OPT = "-O2"  # OPT_FAST / OPT_GLOBAL: model hot path, harness and libverilated
 _DEFAULT_BUILD_ESTIMATE_S = 30.0
@@ -253,7 +253,9 @@ def _build_locked(top: str, sv: list[Path], cpp: list[Path], params: dict[str, i
                  work, log, f"verilating {top}", shown_log, env)
             make = ["make", "-C", str(obj), "-f", f"V{top}.mk", "-j2",
                     f"PYTHON3={sys.executable}", f"CXX={cxx}", f"LINK={cxx}",
-                    f"CXXFLAGS={_CXXFLAGS}", f"OPT_FAST={_OPT}", f"OPT_GLOBAL={_OPT}"]
+                    f"CXXFLAGS={_CXXFLAGS}", f"OPT_FAST={_OPT}", f"OPT_GLOBAL={_OPT}",
+                    # the wheel's verilated.mk leaves the precompiled-header flag empty
+                    "CFG_CXXFLAGS_PCH_I=-include"]
             if shutil.which("ccache"):
                 make.append("OBJCACHE=ccache")
             _run(make, work, log, f"compiling {top}", shown_log, env)
