@@ -1,0 +1,157 @@
+"""The ``rayflex`` command line: render outputs, JSON statistics, one-line errors with exit 2."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from PIL import Image
+
+from driver.cli import main
+from test_render import SPEC10, _traversal_standin  # noqa: F401  (fixture, temporary)
+
+EMBREE_KEYS = ("rays_compared", "hit_mismatch", "prim_mismatch", "edge_ties", "max_t_rel_err")
+
+
+@pytest.fixture(autouse=True)
+def in_tmp(tmp_path, monkeypatch, _traversal_standin):  # noqa: F811
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+def size_of(path):
+    with Image.open(path) as im:
+        assert im.format == "PNG"
+        return im.size
+
+
+def test_render_defaults_write_png_and_heatmap(capsys, in_tmp):
+    assert main(["render", "sphere", "--size", "16", "--backend", "golden", "--no-progress"]) == 0
+    assert size_of(in_tmp / "sphere.png") == (16, 16)
+    assert size_of(in_tmp / "sphere_heatmap.png")[0] > 100
+    out = capsys.readouterr().out
+    assert "256 rays" in out and "cycles" in out and "BVH4" in out and "sphere.png" in out
+
+
+def test_render_all_outputs_and_stats_json(capsys, in_tmp):
+    rc = main(["render", "room", "--width", "20", "--height", "12", "--backend", "golden",
+               "--check-embree", "--stats-json", "s.json", "--out", "img.png",
+               "--heatmap", "hm.png"])
+    assert rc == 0
+    assert size_of(in_tmp / "img.png") == (20, 12)
+    size_of(in_tmp / "hm.png")
+    doc = json.loads((in_tmp / "s.json").read_text())
+    assert set(SPEC10) <= set(doc)
+    assert doc["rays"] == 240 and doc["backend"] == "golden"
+    assert doc["ops"] == doc["box_ops"] + doc["tri_ops"]
+    assert set(EMBREE_KEYS) <= set(doc["embree"])
+    assert doc["embree"]["hit_mismatch"] == 0 and doc["embree"]["prim_mismatch"] == 0
+    assert {"box_nodes", "tri_nodes", "depth", "sah_cost", "build_s", "bytes"} <= set(doc["bvh"])
+    assert doc["width"] == 20 and doc["height"] == 12 and doc["scene"] == "room"
+    assert "embree:" in capsys.readouterr().out
+
+
+def test_render_bunny_small(in_tmp):
+    assert main(["render", "bunny", "--size", "32", "--backend", "golden", "--no-progress",
+                 "--stats-json", "b.json"]) == 0
+    assert size_of(in_tmp / "bunny.png") == (32, 32)
+    assert json.loads((in_tmp / "b.json").read_text())["hits"] > 50
+
+
+def test_render_mesh_file_and_toml(in_tmp):
+    import trimesh
+    trimesh.creation.box().export(str(in_tmp / "cube.obj"))
+    assert main(["render", "cube.obj", "--size", "8", "--backend", "golden", "--no-progress"]) == 0
+    assert size_of(in_tmp / "cube.png") == (8, 8)
+    (in_tmp / "mine.toml").write_text('mesh = "cube.obj"\nwidth = 10\nheight = 6\n')
+    assert main(["render", "mine.toml", "--backend", "golden", "--no-progress"]) == 0
+    assert size_of(in_tmp / "mine.png") == (10, 6)
+
+
+def error_line(capsys):
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("rayflex: error: ") and "\n" not in err and "Traceback" not in err
+    return err
+
+
+@pytest.mark.parametrize("args, words", [
+    (["render", "no_such_scene"], "unknown scene"),
+    (["render", "missing.ply"], "no such file"),
+    (["render", "sphere", "--size", "0"], "1..8192"),
+    (["render", "sphere", "--size", "-5"], "1..8192"),
+    (["render", "sphere", "--size", "100000"], "1..8192"),
+    (["render", "sphere", "--width", "0"], "width"),
+    (["render", "sphere", "--size", "8", "--width", "4"], "either"),
+    (["render", "sphere", "--backend", "nope"], "unknown backend"),
+    (["render", "sphere", "--out", "no/such/dir/x.png"], "directory"),
+])
+def test_user_mistakes_exit_2_with_one_line(capsys, args, words):
+    assert main(args + ["--backend", "golden"] * ("--backend" not in args)) == 2
+    assert words in error_line(capsys)
+
+
+def test_bad_files_exit_2(capsys, in_tmp):
+    (in_tmp / "bad.ply").write_bytes(b"garbage\x00")
+    assert main(["render", "bad.ply", "--backend", "golden"]) == 2
+    assert "cannot read" in error_line(capsys)
+    (in_tmp / "bad.toml").write_text('mesh = "sphere"\n[camera]\nposition = [0,0,0]\n'
+                                     'look_at = [0,0,0]\n')
+    assert main(["render", "bad.toml", "--backend", "golden"]) == 2
+    assert "same point" in error_line(capsys)
+    (in_tmp / "fov.toml").write_text('mesh = "sphere"\n[camera]\nposition = [0,5,0]\n'
+                                     'look_at = [0,0,0]\nfov_deg = 0\n')
+    assert main(["render", "fov.toml", "--backend", "golden"]) == 2
+    assert "fov" in error_line(capsys)
+
+
+def test_camera_inside_mesh_is_legal(in_tmp):
+    (in_tmp / "in.toml").write_text('mesh = "sphere"\nsize = 6\n[camera]\n'
+                                    'position = [0, 0, 0]\nlook_at = [1, 0, 0]\n')
+    assert main(["render", "in.toml", "--backend", "golden", "--no-progress"]) == 0
+
+
+def test_backend_that_cannot_be_built_exits_2(capsys, monkeypatch):
+    import driver.backends
+
+    def broken(name, **options):
+        raise driver.BackendError(f"backend {name!r} cannot be built: verilator not found")
+    monkeypatch.setattr(driver.backends, "backend", broken)
+    assert main(["render", "sphere", "--size", "4", "--backend", "rtl"]) == 2
+    assert "cannot be built" in error_line(capsys)
+
+
+def test_argparse_errors_exit_2(capsys):
+    for args in (["render"], ["render", "sphere", "--size", "abc"], ["frobnicate"],
+                 ["render", "sphere", "--bogus"]):
+        with pytest.raises(SystemExit) as e:
+            main(args)
+        assert e.value.code == 2
+    capsys.readouterr()
+    assert main([]) == 2
+
+
+def test_help(capsys):
+    for args in (["--help"], ["render", "--help"]):
+        with pytest.raises(SystemExit) as e:
+            main(args)
+        assert e.value.code == 0
+    out = capsys.readouterr().out
+    assert "render" in out and "--check-embree" in out and "--stats-json" in out
+
+
+def test_console_script():
+    exe = shutil.which("rayflex") or str(Path(sys.executable).parent / "rayflex")
+    if not os.path.exists(exe):
+        pytest.skip("rayflex console script not installed")
+    r = subprocess.run([exe, "render", "--help"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and "--backend" in r.stdout
+    r = subprocess.run([exe, "render", "no_such_scene", "--backend", "golden"],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2
+    assert r.stderr.strip().startswith("rayflex: error: unknown scene")
+    assert len(r.stderr.strip().splitlines()) == 1
