@@ -73,7 +73,7 @@ def test_front_face_hit_and_miss():
 
 
 def test_back_face_is_recast_to_the_front_face_behind_it():
-    back = [[-1, -1, -1], [0, 1, -1], [1, -1, -1]]          # SPEC 11 #1: seen from above, a back face
+    back = [[-1, -1, -1], [0, 1, -1], [1, -1, -1]]          # SPEC 11 #1: a back face from above
     front = [[1, -1, -3], [0, 1, -3], [-1, -1, -3]]
     t, p = embree_closest_front(tris(back, front), *rays([[0, 0, 0]], DOWN))
     assert p.tolist() == [1] and abs(t[0] - 3) < 1e-5

@@ -13,55 +13,6 @@ from driver.camera import primary_rays
 from driver.render import BG_BOTTOM, BG_TOP, RenderResult, heatmap, render, save_png, shade
 from driver.scene import load_scene
 
-# --- TEMPORARY: brute-force stand-in for driver.traversal until it lands ----------------------
-
-@pytest.fixture(autouse=True)
-def _traversal_standin(monkeypatch):
-    import importlib.util
-    import sys
-    if importlib.util.find_spec("driver.traversal") is not None:
-        yield
-        return
-    import time
-    import driver
-    from driver.datapath import TRIANGLE, prepare_rays
-
-    def trace(bvh, origins, directions, backend="golden", extent=np.inf, progress=None):
-        be = driver.backend(backend) if isinstance(backend, str) else backend
-        tri = bvh.triangles
-        n, m = len(origins), len(tri)
-        t = np.full(n, np.inf, np.float32)
-        prim = np.full(n, -1, np.int64)
-        t0 = time.perf_counter()
-        for s in range(0, n, 64):
-            r = prepare_rays(origins[s:s + 64], directions[s:s + 64], extent)
-            req = np.repeat(r, m)
-            req["opcode"] = TRIANGLE
-            req["tri"] = np.tile(tri, (len(r), 1, 1))
-            rsp = be.run(req)
-            with np.errstate(all="ignore"):
-                tt = np.where(rsp["tri_hit"] == 1, rsp["t_num"] / rsp["t_den"], np.inf)
-            tt = tt.reshape(len(r), m).astype(np.float32)
-            j = np.argmin(tt, axis=1)
-            best = tt[np.arange(len(r)), j]
-            t[s:s + 64], prim[s:s + 64] = best, np.where(np.isfinite(best), j, -1)
-            if progress:
-                progress(s + len(r), n)
-        hit = prim >= 0
-        stats = dict(rays=n, hits=int(hit.sum()), box_ops=0, tri_ops=n * m, ops=n * m,
-                     cycles=be.cycles, utilization=n * m / max(be.cycles, 1), latency_cycles=11,
-                     box_ops_per_ray=0.0, tri_ops_per_ray=float(m), node_bytes_fetched=64 * n * m,
-                     sim_wall_s=time.perf_counter() - t0, sim_cycles_per_s=0.0,
-                     frame_us_at_1ghz=be.cycles / 1000, backend=be.name)
-        return types.SimpleNamespace(t=t, prim=prim, hit=hit, box_ops=np.zeros(n, np.int64),
-                                     tri_ops=np.full(n, m), stats=stats)
-
-    monkeypatch.setitem(sys.modules, "driver.traversal", types.SimpleNamespace(trace=trace))
-    yield
-
-
-# -----------------------------------------------------------------------------------------------
-
 SPEC10 = ("rays", "hits", "box_ops", "tri_ops", "ops", "cycles", "utilization", "latency_cycles",
           "box_ops_per_ray", "tri_ops_per_ray", "node_bytes_fetched", "sim_wall_s",
           "sim_cycles_per_s", "frame_us_at_1ghz", "backend")
