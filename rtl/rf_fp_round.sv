@@ -13,7 +13,8 @@
 //   * sig_i[0]     the first bit below the fraction (round bit);
 //   * sticky_i     OR of all bits below sig_i[0];
 //   * exp_i        biased exponent of the integer bit, signed and wide: exp_i >= 255 overflows,
-//                  exp_i <= 0 is the subnormal range (the value is shifted right by 1 - exp_i here).
+//                  exp_i <= 0 is the subnormal range (the value is shifted right by 1 - exp_i
+//                  here).
 //
 // Output: the binary32 value of round_to_nearest_even(v), with
 //   * overflow (before or after rounding) -> +-inf (RNE never gives MAXFLOAT on overflow);

@@ -130,7 +130,8 @@ def gen_subnormal_one(rng, n):
     small = _bits(_rand_sign(rng, n), rng.integers(1, 40, n), _rand_frac(rng, n))
     other = np.where(rng.random(n) < 0.6, small, rng.integers(0, 1 << 32, n, dtype=np.uint32))
     swap = rng.random(n) < 0.5
-    return np.where(swap, sub, other).astype(np.uint32), np.where(swap, other, sub).astype(np.uint32)
+    return (np.where(swap, sub, other).astype(np.uint32),
+            np.where(swap, other, sub).astype(np.uint32))
 
 
 SPECIALS = np.array([
@@ -312,7 +313,9 @@ GENERATORS = {
 
 
 def operand_mix(rng: np.random.Generator, per_category: int):
-    """All categories, ``per_category`` pairs each: (a uint32 (n,), b uint32 (n,), category (n,))."""
+    """All categories, ``per_category`` pairs each.
+
+    Returns a uint32 (n,), b uint32 (n,), category name (n,)."""
     parts = [(name, gen(rng, per_category)) for name, gen in GENERATORS.items()]
     a = np.concatenate([p[1][0] for p in parts]).astype(np.uint32)
     b = np.concatenate([p[1][1] for p in parts]).astype(np.uint32)
