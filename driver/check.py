@@ -30,6 +30,12 @@ def embree_closest_front(triangles, origins, dirs):
     triangles : (m, 3, 3) float32 A, B, C; front faces have d . ((B-A) x (C-A)) < 0
     origins, dirs : (n, 3) float32 rays (t measured in units of |dir|; no upper extent)
     Returns (t (n,) float32, inf on a miss; prim (n,) int64, -1 on a miss).
+
+    A ray whose closest hit is a back face (or a degenerate triangle, whose normal is zero) is
+    re-cast, all such rays as one batch, from just past the hit (``1e-6`` relative, more if it hits
+    the same face again), at most ``MAX_RECAST`` times; a ray still on back faces after that is
+    reported as a miss. Limitation: a front face coincident with (or within ~1e-6 relative behind)
+    a back face, as in double-sided sheets made of two opposite triangles, is skipped.
     """
     from embreex import rtcore_scene as rtcs
     from embreex.mesh_construction import TriangleMesh
@@ -129,9 +135,12 @@ def embree_json(result: dict) -> dict:
 
 
 def check(triangles, origins, dirs, our_t, our_prim) -> dict:
-    """Run Embree on the same rays and ``compare``."""
+    """Run Embree on the same rays and ``compare``; the result also holds Embree's own
+    ``embree_t`` and ``embree_prim`` arrays for debugging."""
     emb_t, emb_prim = embree_closest_front(triangles, origins, dirs)
-    return compare(our_t, our_prim, emb_t, emb_prim, triangles, origins, dirs)
+    result = compare(our_t, our_prim, emb_t, emb_prim, triangles, origins, dirs)
+    result.update(embree_t=emb_t, embree_prim=emb_prim)
+    return result
 
 
 def point_triangle_distance(p, tri):
