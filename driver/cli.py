@@ -103,12 +103,16 @@ class RenderCommand:
 
     @staticmethod
     def run(args) -> int:
-        from .camera import check_size
+        from .camera import MAX_SIZE, check_size
         from .render import render
         from .scene import load_scene
 
         if args.size is not None and (args.width is not None or args.height is not None):
             raise ValueError("give either --size or --width/--height, not both")
+        for flag in ("size", "width", "height"):
+            v = getattr(args, flag)
+            if v is not None and not 1 <= v <= MAX_SIZE:
+                raise ValueError(f"--{flag} must be in 1..{MAX_SIZE}, got {v}")
         scene = load_scene(args.scene)
         w, h = scene.size
         if args.size is not None:
