@@ -1,0 +1,76 @@
+// RayFlex datapath top: an elastic pipeline of LATENCY skid-buffer registers with stage logic in
+// front of each. It only wires stages.
+//
+//   req_i -> S1 sub -> [R1] -> S2 mul -> [R2] -> S3 -> [R3] -> ... -> S9 -> [R9]
+//         -> (LATENCY - 10 pass-through registers) -> output format -> [R_LATENCY] -> rsp_o
+//
+// One request per cycle; the response leaves LATENCY cycles after its input handshake when
+// out_ready_i stays high; responses come back in request order.
+// Parameters: EXTENDED adds EUCLIDEAN/ANGULAR, DISJOINT gives each operation private functional
+// units, LATENCY >= 10 (the paper's design has 11).
+module rayflex import rf_pkg::*; #(
+  parameter bit          EXTENDED = 1'b0,
+  parameter bit          DISJOINT = 1'b0,
+  parameter int unsigned LATENCY  = 11
+) (
+  input  logic clk_i,
+  input  logic rst_ni,
+  input  logic in_valid_i,
+  output logic in_ready_o,
+  input  req_t req_i,
+  output logic out_valid_o,
+  input  logic out_ready_i,
+  output rsp_t rsp_o
+);
+
+  localparam int unsigned NUM_STAGES = 9;                    // compute stages S1..S9
+  localparam int unsigned NUM_REGS   = LATENCY - 1;          // stage_t registers before output
+
+  if (LATENCY < 10) begin : g_bad_latency
+    $error("rayflex: LATENCY must be >= 10 (9 compute stages and the output stage)");
+  end
+
+  // reg_*[k] is the input of register k+1 (k = 0..NUM_REGS-1); q_*[k] its output.
+  stage_t [NUM_REGS-1:0] d_st, q_st;
+  logic   [NUM_REGS-1:0] d_valid, d_ready, q_valid, q_ready;
+
+  // ---- compute stages ----
+  rf_st01_sub #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s1 (.req_i(req_i), .st_o(d_st[0]));
+  rf_st02_mul #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s2 (.st_i(q_st[0]), .st_o(d_st[1]));
+  rf_st03     #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s3 (.st_i(q_st[1]), .st_o(d_st[2]));
+  rf_st04     #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s4 (.st_i(q_st[2]), .st_o(d_st[3]));
+  rf_st05     #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s5 (.st_i(q_st[3]), .st_o(d_st[4]));
+  rf_st06     #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s6 (.st_i(q_st[4]), .st_o(d_st[5]));
+  rf_st07     #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s7 (
+    .clk_i, .rst_ni, .fire_i(d_valid[6] & d_ready[6]), .st_i(q_st[5]), .st_o(d_st[6]));
+  rf_st08     #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s8 (.st_i(q_st[6]), .st_o(d_st[7]));
+  rf_st09                                                 u_s9 (.st_i(q_st[7]), .st_o(d_st[8]));
+
+  // ---- pass-through stages (pad the latency) ----
+  for (genvar k = NUM_STAGES; k < NUM_REGS; k++) begin : g_pass
+    assign d_st[k] = q_st[k-1];
+  end
+
+  // ---- stage_t registers and their handshakes ----
+  assign d_valid[0]  = in_valid_i;
+  assign in_ready_o  = d_ready[0];
+  for (genvar k = 0; k < NUM_REGS; k++) begin : g_reg
+    if (k > 0) begin : g_link
+      assign d_valid[k]   = q_valid[k-1];
+      assign q_ready[k-1] = d_ready[k];
+    end
+    rf_skid #(.T(stage_t)) u_reg (
+      .clk_i, .rst_ni,
+      .valid_i(d_valid[k]), .ready_o(d_ready[k]), .data_i(d_st[k]),
+      .valid_o(q_valid[k]), .ready_i(q_ready[k]), .data_o(q_st[k]));
+  end
+
+  // ---- output stage ----
+  rsp_t rsp_d;
+  rf_st_output #(.EXTENDED(EXTENDED)) u_out (.st_i(q_st[NUM_REGS-1]), .rsp_o(rsp_d));
+  rf_skid #(.T(rsp_t)) u_out_reg (
+    .clk_i, .rst_ni,
+    .valid_i(q_valid[NUM_REGS-1]), .ready_o(q_ready[NUM_REGS-1]), .data_i(rsp_d),
+    .valid_o(out_valid_o), .ready_i(out_ready_i), .data_o(rsp_o));
+
+endmodule

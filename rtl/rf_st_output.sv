@@ -1,0 +1,40 @@
+// Output stage: the stage struct to the response format. Fields the beat's operation does not
+// produce are driven to zero.
+module rf_st_output import rf_pkg::*; #(
+  parameter bit EXTENDED = 1'b0
+) (
+  input  stage_t st_i,
+  output rsp_t   rsp_o
+);
+  always_comb begin
+    rsp_o        = '0;
+    rsp_o.opcode = st_i.op;
+    rsp_o.tag    = st_i.tag;
+    unique case (st_i.op)
+      OP_QUADBOX: begin
+        rsp_o.box_index = st_i.bidx;
+        rsp_o.box_hit   = st_i.bhit;
+        rsp_o.box_tmin  = st_i.btmin;
+      end
+      OP_TRIANGLE: begin
+        rsp_o.tri_hit = st_i.tri_hit;
+        rsp_o.t_num   = st_i.t_num;
+        rsp_o.t_den   = st_i.t_den;
+      end
+      OP_EUCLIDEAN: begin
+        if (EXTENDED) begin
+          rsp_o.euclid_acc  = st_i.euclid_acc;
+          rsp_o.euclid_last = st_i.last;
+        end
+      end
+      OP_ANGULAR: begin
+        if (EXTENDED) begin
+          rsp_o.angular_dot  = st_i.angular_dot;
+          rsp_o.angular_norm = st_i.angular_norm;
+          rsp_o.angular_last = st_i.last;
+        end
+      end
+      default: ;
+    endcase
+  end
+endmodule
