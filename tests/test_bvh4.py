@@ -146,6 +146,15 @@ def test_bad_input(bad):
         build(bad)
 
 
+def test_bad_trimesh_input():
+    import trimesh
+    for mesh in (trimesh.Trimesh(),
+                 trimesh.Trimesh([[0, 0, 0], [1e39, 0, 0], [0, 1, 0]], [[0, 1, 2]], process=False),
+                 trimesh.Trimesh(np.zeros((3, 3)), [[0, 1, 5]], process=False)):
+        with pytest.raises(ValueError):
+            build(mesh)
+
+
 def test_bad_bins():
     with pytest.raises(ValueError):
         build(meshes.soup(3), bins=1)
