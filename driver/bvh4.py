@@ -3,11 +3,14 @@
 Build pipeline (madmann91/bvh and tinybvh style):
 
 1. Primitive boxes and centroids only (``_prim_boxes``): the binary builder never sees triangles.
-2. Binary BVH by binned SAH (``_build_binary``): ``bins`` bins per axis over the node's centroid
-   bounds, all three axes, C_trav = C_int = 1, split until every leaf holds one triangle (RDNA
-   style leaves). Vectorised per tree level: all nodes of a level are binned, scored and
-   partitioned together with numpy; there is no per-triangle or per-node Python loop.
-   A node whose centroids all coincide is split in the middle of its primitive list.
+2. Binary BVH by SAH (``_build_binary``), C_trav = C_int = 1, split until every leaf holds one
+   triangle (RDNA-style leaves): nodes of more than ``SWEEP_MAX`` (8) primitives are binned,
+   ``bins`` (16) bins per axis over the node's centroid bounds on all three axes
+   (``_binned_sah``); nodes of 3..8 primitives try every split of the centroid order on all
+   three axes (``_sweep_sah``, the exact SAH, which no binning beats); 2 primitives split 1 + 1.
+   Vectorised per tree level: all nodes of a level are binned, scored and partitioned together
+   with numpy; there is no per-triangle or per-node Python loop. A node whose centroids all
+   coincide is split in the middle of its primitive list.
 3. Collapse to 4-wide (``_collapse``): start each 4-wide node with the binary node's two children
    and twice replace the interior child of largest surface area by its two children.
 4. Memory image (``_write_image``): SPEC section 8, layout below.
@@ -38,7 +41,8 @@ Conservative boxes. The datapath's slab test is strict (``tmin < tmax``) and rou
 and ``* inv`` to float32, so an exact box would lose flat (axis-aligned) triangles entirely and
 could lose grazing hits on box faces by an ulp. Every stored bound is therefore grown outward:
 
-    stored_min = nextafter(float32(min - pad), -inf),  stored_max = nextafter(float32(max + pad), +inf)
+    stored_min = nextafter(float32(min - pad), -inf)
+    stored_max = nextafter(float32(max + pad), +inf)
     pad = PAD_REL * S,   S = largest |coordinate| in the mesh,   PAD_REL = 2**-16
 
 i.e. at least one float32 ulp of the bound (so every box, flat ones included, has positive
