@@ -7,7 +7,8 @@ pops one node and turns it into one datapath request:
   the response lists the children nearest first (``box_index``/``box_hit``), and the hit ones are
   pushed in reverse so that the nearest is popped next;
 - triangle node -> TRIANGLE; on ``tri_hit`` the host computes
-  ``t = float32(t_num) / float32(t_den)`` and keeps it if ``t < nearest`` (strictly: on an exact tie the first triangle found stays).
+  ``t = float32(t_num) / float32(t_den)`` and keeps it if ``t < nearest`` (strictly: on an
+  exact tie the triangle found first stays).
 
 All of a step's requests (QUADBOX and TRIANGLE interleaved, in ray order) go to the backend in ONE
 ``run()`` call, so the datapath sees a full stream and never waits on Python per request. Nodes are
