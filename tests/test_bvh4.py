@@ -121,7 +121,8 @@ def test_coincident_centroids_and_trimesh_input():
 
 
 def test_sah_beats_a_random_tree():
-    """SAH on 500 soup triangles is well below the ~n/4 ops a flat, unsorted tree would need."""
+    """SAH cost of 500 soup triangles stays far below a tree built in random order (whose nodes
+    are about as large as the root: several hundred ops); ~16 here."""
     assert build(meshes.soup(500, seed=2)).stats["sah_cost"] < 60
 
 
