@@ -32,7 +32,7 @@ TOP = "rayflex"
 
 # Compile order: the package first, then the leaf units, then the stages and the top.
 RTL_FILES = [
-    "rf_pkg.sv", "rf_fp_round.sv", "rf_fp_add.sv", "rf_fp_mul.sv", "rf_fp_cmp.sv",
+    "rf_pkg.sv", "rf_fp_normalize.sv", "rf_fp_round.sv", "rf_fp_add.sv", "rf_fp_mul.sv", "rf_fp_cmp.sv",
     "rf_fp_minmax.sv", "rf_fu.sv", "rf_fu_pool.sv", "rf_skid.sv", "rf_sort4.sv",
     "rf_st01_sub.sv", "rf_st02_mul.sv", "rf_st03.sv", "rf_st04.sv", "rf_st05.sv", "rf_st06.sv",
     "rf_st07.sv", "rf_st08.sv", "rf_st09.sv", "rf_st_output.sv", "rayflex.sv",
@@ -269,14 +269,20 @@ def _build_pyverilator(pyverilator, sources, params, build: Path, vbin: Path) ->
     env_path = os.environ.get("PATH", "")
     os.environ["PATH"] = f"{vbin.parent}{os.pathsep}{env_path}"   # pyverilator looks it up
     print("building pyverilator model rayflex (first time)\u2026", file=sys.stderr, flush=True)
+    log = open(build.with_name(build.name + ".log"), "w")
+    saved = os.dup(1)
     try:
+        os.dup2(log.fileno(), 1)      # pyverilator runs Verilator with its report on stdout
         pyverilator.PyVerilator.build(
             str(RTL_DIR / f"{TOP}.sv"), preceding_files=str(RTL_DIR / "rf_pkg.sv"),
             verilog_path=[str(RTL_DIR)], build_dir=str(tmp), gen_only=True, quiet=True,
-            args=["--top-module", TOP, *[f"-G{k}={v}" for k, v in params.items()]],
+            verilog_defines=["RF_ASSERTIONS"],     # the skid buffers' protocol assertions
+            args=["--top-module", TOP, "--assert", *[f"-G{k}={v}" for k, v in params.items()]],
             cargs="-std=c++17 -O1")
+        os.dup2(saved, 1)
         subprocess.run(["make", "-C", str(tmp), "-f", f"V{TOP}.mk", "-j2",
                         "LDFLAGS=-fPIC -shared", f"PYTHON3={sys.executable}",
+                        "CFG_CXXFLAGS_PCH_I=-include",   # empty in the wheel's verilated.mk
                         f"CXX={verilate.find_cxx()}", f"LINK={verilate.find_cxx()}"],
                        check=True, capture_output=True)
     except subprocess.CalledProcessError as e:
@@ -284,6 +290,9 @@ def _build_pyverilator(pyverilator, sources, params, build: Path, vbin: Path) ->
         raise BackendError("cannot build the pyverilator model: "
                            + (err[-1] if err else str(e))) from None
     finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+        log.close()
         os.environ["PATH"] = env_path
     try:
         os.rename(tmp, build)

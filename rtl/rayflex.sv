@@ -1,13 +1,17 @@
 // RayFlex datapath top: an elastic pipeline of LATENCY skid-buffer registers with stage logic in
 // front of each. It only wires stages.
 //
-//   req_i -> S1 sub -> [R1] -> S2 mul -> [R2] -> S3 -> [R3] -> ... -> S9 -> [R9]
-//         -> (LATENCY - 10 pass-through registers) -> output format -> [R_LATENCY] -> rsp_o
+//   req_i -> [R_in] -> S1 sub -> [R1] -> S2 mul -> [R2] -> ... -> S9 -> [R9]
+//         -> (LATENCY - 11 pass-through registers) -> output format -> [R_out] -> rsp_o
+//
+// The request is registered as it arrives (the paper's input stage), so no logic sits between the
+// ports and a register: every output is a register output and nothing combinational depends on
+// the inputs, which also keeps the Verilated model's per-cycle work in the clocked region.
 //
 // One request per cycle; the response leaves LATENCY cycles after its input handshake when
 // out_ready_i stays high; responses come back in request order.
 // Parameters: EXTENDED adds EUCLIDEAN/ANGULAR, DISJOINT gives each operation private functional
-// units, LATENCY >= 10 (the paper's design has 11).
+// units, LATENCY >= 11 (the paper's design has 11).
 module rayflex import rf_pkg::*; #(
   parameter bit          EXTENDED = 1'b0,
   parameter bit          DISJOINT = 1'b0,
@@ -24,18 +28,26 @@ module rayflex import rf_pkg::*; #(
 );
 
   localparam int unsigned NUM_STAGES = 9;                    // compute stages S1..S9
-  localparam int unsigned NUM_REGS   = LATENCY - 1;          // stage_t registers before output
+  localparam int unsigned NUM_REGS   = LATENCY - 2;          // stage_t registers R1..
 
-  if (LATENCY < 10) begin : g_bad_latency
-    $error("rayflex: LATENCY must be >= 10 (9 compute stages and the output stage)");
+  if (LATENCY < 11) begin : g_bad_latency
+    $error("rayflex: LATENCY must be >= 11 (input register, 9 compute stages, output register)");
   end
 
-  // reg_*[k] is the input of register k+1 (k = 0..NUM_REGS-1); q_*[k] its output.
+  // ---- input register ----
+  req_t req_q;
+  logic req_valid_q, req_ready;
+  rf_skid #(.T(req_t)) u_in_reg (
+    .clk_i, .rst_ni,
+    .valid_i(in_valid_i), .ready_o(in_ready_o), .data_i(req_i),
+    .valid_o(req_valid_q), .ready_i(req_ready), .data_o(req_q));
+
+  // d_*[k] is the input of stage_t register k (R(k+1)); q_*[k] its output.
   stage_t [NUM_REGS-1:0] d_st, q_st;
   logic   [NUM_REGS-1:0] d_valid, d_ready, q_valid, q_ready;
 
   // ---- compute stages ----
-  rf_st01_sub #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s1 (.req_i(req_i), .st_o(d_st[0]));
+  rf_st01_sub #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s1 (.req_i(req_q), .st_o(d_st[0]));
   rf_st02_mul #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s2 (.st_i(q_st[0]), .st_o(d_st[1]));
   rf_st03     #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s3 (.st_i(q_st[1]), .st_o(d_st[2]));
   rf_st04     #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s4 (.st_i(q_st[2]), .st_o(d_st[3]));
@@ -52,8 +64,8 @@ module rayflex import rf_pkg::*; #(
   end
 
   // ---- stage_t registers and their handshakes ----
-  assign d_valid[0]  = in_valid_i;
-  assign in_ready_o  = d_ready[0];
+  assign d_valid[0] = req_valid_q;
+  assign req_ready  = d_ready[0];
   for (genvar k = 0; k < NUM_REGS; k++) begin : g_reg
     if (k > 0) begin : g_link
       assign d_valid[k]   = q_valid[k-1];

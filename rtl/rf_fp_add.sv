@@ -92,10 +92,12 @@ module rf_fp_add (
   // ---------------------------------------------------------------------------------------------
   // Add or subtract magnitudes (never negative: |A| >= |B|), then normalise
   logic [27:0]       sum;  // sum[26] has the weight of big_sig's integer bit
-  logic [4:0]        lzc;
+  logic [4:0]        lzc;  // leading zeros of sum; irrelevant for sum == 0 (the rounder's case)
   logic [27:0]       sum_norm;
   logic              sum_sign;
   logic signed [9:0] sum_exp;
+
+  rf_fp_normalize #(.W(28)) u_norm (.x_i(sum), .y_o(sum_norm), .count_o(lzc));
 
   always_comb begin
     if (big_sign != small_sign) begin
@@ -104,14 +106,6 @@ module rf_fp_add (
       sum = {1'b0, big_ext} + {1'b0, small_ext};
     end
 
-    // Leading-zero count; the value is irrelevant for sum == 0 (handled by the rounder).
-    lzc = 5'd0;
-    for (int i = 0; i <= 27; i++) begin
-      if (sum[i]) begin
-        lzc = 5'(27 - i);
-      end
-    end
-    sum_norm = sum << lzc;
     sum_exp  = $signed({2'b00, big_exp}) + 10'sd1 - $signed({5'd0, lzc});
 
     // Exact zero: +0 unless both operands are negative (only possible for (-0) + (-0)).

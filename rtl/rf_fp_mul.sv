@@ -52,9 +52,11 @@ module rf_fp_mul (
   // ---------------------------------------------------------------------------------------------
   // Exact product of the significands (hidden bit set for normals, exponent 1 for subnormals)
   logic [47:0]       prod;  // prod[46] has weight 2^(exp_a + exp_b - 254)
-  logic [5:0]        lzc;
+  logic [5:0]        lzc;  // leading zeros of prod (never 0 here: zeros are special cases)
   logic [47:0]       prod_norm;
   logic signed [9:0] prod_exp;
+
+  rf_fp_normalize #(.W(48)) u_norm (.x_i(prod), .y_o(prod_norm), .count_o(lzc));
 
   always_comb begin
     logic [23:0] a_sig, b_sig;
@@ -65,14 +67,6 @@ module rf_fp_mul (
     b_exp = (b_i[30:23] == 8'd0) ? 8'd1 : b_i[30:23];
     prod  = a_sig * b_sig;
 
-    // Leading-zero count; the value is irrelevant for prod == 0 (zeros are special cases).
-    lzc = 6'd0;
-    for (int i = 0; i <= 47; i++) begin
-      if (prod[i]) begin
-        lzc = 6'(47 - i);
-      end
-    end
-    prod_norm = prod << lzc;
     // prod_norm[47] has weight 2^(exp_a + exp_b - 254 + 1 - lzc): biased exponent below.
     prod_exp  = $signed({2'b00, a_exp}) + $signed({2'b00, b_exp}) - 10'sd126
               - $signed({4'd0, lzc});

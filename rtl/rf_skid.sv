@@ -56,8 +56,9 @@ module rf_skid #(
     end
   end
 
-`ifndef SYNTHESIS
-  // Protocol checks (compiled with --assert): a raised valid_o holds, with stable data, until taken.
+`ifdef RF_ASSERTIONS
+  // Protocol check (simulation builds with +define+RF_ASSERTIONS and --assert): a raised valid_o
+  // holds, with stable data, until it is taken.
   hold_valid_o : assert property (@(posedge clk_i) disable iff (!rst_ni)
       valid_o && !ready_i |=> valid_o && $stable(data_o));
 `endif
