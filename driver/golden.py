@@ -28,19 +28,22 @@ def quadbox(origin, inv, dirs, boxes, extent):
     """SPEC section 4 before the sort. origin, inv, dirs: (n, 3); boxes: (n, 4, 6); extent: (n,).
 
     Returns (hit (n, 4) bool, tmin (n, 4) float32: +0-canonical on a hit, +inf on a miss).
+    Works one axis at a time on contiguous (n, 4) arrays. A NaN near/far value (0 * inf) makes the
+    box a miss: np.maximum/np.minimum propagate NaN into tmin/tmax and `tmin < tmax` is then false,
+    which is exactly SPEC's "any NaN -> miss" rule.
     """
-    o = origin[:, None, :]
-    inv = inv[:, None, :]
-    lo = (boxes[:, :, 0:3] - o) * inv
-    hi = (boxes[:, :, 3:6] - o) * inv
-    neg = np.signbit(dirs)[:, None, :]
-    near = np.where(neg, hi, lo)
-    far = np.where(neg, lo, hi)
-    nan = np.isnan(near).any(axis=2) | np.isnan(far).any(axis=2)
-    tmin = np.maximum(np.maximum(np.maximum(near[:, :, 0], near[:, :, 1]), near[:, :, 2]), F32(0))
-    tmax = np.minimum(np.minimum(np.minimum(far[:, :, 0], far[:, :, 1]), far[:, :, 2]),
-                      extent[:, None])
-    hit = ~nan & (tmin < tmax)
+    near = []
+    far = []
+    for a in range(3):
+        o = origin[:, a:a + 1]
+        lo = (boxes[:, :, a] - o) * inv[:, a:a + 1]
+        hi = (boxes[:, :, 3 + a] - o) * inv[:, a:a + 1]
+        neg = np.signbit(dirs[:, a:a + 1])
+        near.append(np.where(neg, hi, lo))
+        far.append(np.where(neg, lo, hi))
+    tmin = np.maximum(np.maximum(np.maximum(near[0], near[1]), near[2]), F32(0))
+    tmax = np.minimum(np.minimum(np.minimum(far[0], far[1]), far[2]), extent[:, None])
+    hit = tmin < tmax
     tmin = np.where(hit, tmin + F32(0), _INF)      # -0 + +0 = +0: a hit's tmin is never -0
     return hit, tmin.astype(F32)
 
@@ -124,6 +127,13 @@ def accumulate(beats: np.ndarray, last: np.ndarray, acc0: F32):
     return out, final
 
 
+def _fields(req, rows, names):
+    """The named fields of the selected rows (all rows: no copy), without copying whole records."""
+    if len(rows) == len(req):
+        return {f: req[f] for f in names}
+    return {f: req[f][rows] for f in names}
+
+
 class GoldenBackend:
     """Numpy model of the whole datapath. ``cycles`` counts an ideal pipeline: a run of n requests
     takes n + latency cycles (first request accepted to last response taken)."""
@@ -164,7 +174,7 @@ class GoldenBackend:
     def _boxes(self, req, rsp, i):
         if not len(i):
             return
-        r = req[i]
+        r = _fields(req, i, ("origin", "inv", "dir", "box", "extent"))
         hit, tmin = quadbox(r["origin"], r["inv"], r["dir"], r["box"], r["extent"])
         order, hit, tmin = sort4(hit, tmin)
         rsp["box_index"][i] = order
@@ -174,7 +184,7 @@ class GoldenBackend:
     def _triangles(self, req, rsp, i):
         if not len(i):
             return
-        r = req[i]
+        r = _fields(req, i, ("kx", "ky", "kz", "origin", "shear", "tri"))
         k = np.stack([r["kx"], r["ky"], r["kz"]], axis=1).astype(np.intp)
         if (k > 2).any():
             raise DatapathError("kx/ky/kz must be 0, 1 or 2")
