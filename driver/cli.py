@@ -97,7 +97,7 @@ class RenderCommand:
         p.add_argument("--stats-json", metavar="PATH", help="write frame statistics as JSON")
         p.add_argument("--out", metavar="PATH", help="image PNG (default: SCENE.png)")
         p.add_argument("--heatmap", metavar="PATH",
-                       help="ops-per-pixel heat map PNG (default: SCENE_heatmap.png)")
+                       help="ops-per-pixel heat map PNG (default: beside --out, OUT_heatmap.png)")
         p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
         return p
 
@@ -121,7 +121,7 @@ class RenderCommand:
         h = args.height if args.height is not None else h
         w, h = check_size(w, h)
         out = Path(args.out or f"{scene.name}.png")
-        hm = Path(args.heatmap or f"{scene.name}_heatmap.png")
+        hm = Path(args.heatmap or out.with_name(f"{out.stem}_heatmap.png"))
         for path in (out, hm) + ((Path(args.stats_json),) if args.stats_json else ()):
             if not path.parent.is_dir():
                 raise ValueError(f"output directory does not exist: {path.parent}")
