@@ -22,6 +22,7 @@ import numpy as np
 # name -> "module" or "module:attribute"; each provides add_parser(subparsers) and run(args)
 COMMANDS = {
     "render": "driver.cli:RenderCommand",
+    "knn": "driver.knn:KnnCommand",
 }
 
 PROG = "rayflex"
