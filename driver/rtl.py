@@ -22,7 +22,7 @@ import numpy as np
 
 from . import verilate
 from .backends import BackendError
-from .datapath import LATENCY, DatapathError
+from .datapath import LATENCY, REQUEST_DTYPE, DatapathError
 from .wire import REQ_WORDS, RSP_WORDS, pack_requests, unpack_responses
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -102,46 +102,150 @@ class _RtlBase:
 
 
 class HarnessBackend(_RtlBase):
-    """The fast path: one C++ call streams a batch through the Verilated model."""
+    """The fast path: one C++ call streams a batch through the Verilated model.
+
+    ``run(requests)`` takes a ``REQUEST_DTYPE`` array; ``run_nodes(...)`` takes traversal requests
+    as (ray, node pointer, extent) triples and lets the harness assemble the request words from the
+    packed rays and the BVH4 image (no per-request Python work; see ``driver.traversal``)."""
 
     name = "rtl"
 
     def __init__(self, **options):
         super().__init__(**options)
-        lib_path = _build_harness(self.params)
-        self._lib = ctypes.CDLL(str(lib_path))
-        lib = self._lib
-        lib.rf_new.restype = ctypes.c_void_p
-        lib.rf_free.argtypes = [ctypes.c_void_p]
-        lib.rf_run.restype = ctypes.c_int64
-        u8p = ctypes.POINTER(ctypes.c_uint8)
-        u32p = ctypes.POINTER(ctypes.c_uint32)
-        lib.rf_run.argtypes = [ctypes.c_void_p, u32p, u32p, ctypes.c_int64, u8p, ctypes.c_int64,
-                               u8p, ctypes.c_int64, ctypes.c_int64]
-        if lib.rf_req_words() != REQ_WORDS or lib.rf_rsp_words() != RSP_WORDS:
-            raise BackendError("harness and driver disagree on the wire format; rebuild")
-        self._sim = lib.rf_new()
+        self._lib = harness_library(self.params)
+        self._sim = self._lib.rf_new()
 
     def __del__(self):
         sim, self._sim = getattr(self, "_sim", None), None
         if sim:
             self._lib.rf_free(sim)
 
+    def _patterns(self):
+        gap = self.gap.ctypes.data_as(_U8P) if self.gap is not None else None
+        stall = self.stall.ctypes.data_as(_U8P) if self.stall is not None else None
+        return gap, PATTERN_LEN, stall, PATTERN_LEN, self._max_idle()
+
+    def _account(self, cycles: int, n: int) -> None:
+        if cycles == -2:
+            raise ValueError("a traversal request names a node pointer outside the BVH image")
+        if cycles < 0:
+            raise RuntimeError("RTL pipeline deadlocked: no handshake for too many cycles")
+        self.cycles += int(cycles)
+        self.requests += n
+
     def run(self, req: np.ndarray) -> np.ndarray:
         self._check(req)
         words = pack_requests(req)
         out = np.zeros((len(req), RSP_WORDS), np.uint32)
-        u8p = ctypes.POINTER(ctypes.c_uint8)
-        u32p = ctypes.POINTER(ctypes.c_uint32)
-        gap = self.gap.ctypes.data_as(u8p) if self.gap is not None else None
-        stall = self.stall.ctypes.data_as(u8p) if self.stall is not None else None
-        cycles = self._lib.rf_run(self._sim, words.ctypes.data_as(u32p), out.ctypes.data_as(u32p),
-                                  len(req), gap, PATTERN_LEN, stall, PATTERN_LEN, self._max_idle())
-        if cycles < 0:
-            raise RuntimeError("RTL pipeline deadlocked: no handshake for too many cycles")
-        self.cycles += int(cycles)
-        self.requests += len(req)
+        cycles = self._lib.rf_run(self._sim, _u32p(words), _u32p(out), len(req),
+                                  *self._patterns())
+        self._account(cycles, len(req))
         return unpack_responses(out)
+
+    def run_nodes(self, ray_words: np.ndarray, image_words: np.ndarray, ray: np.ndarray,
+                  ptr: np.ndarray, extent: np.ndarray) -> np.ndarray:
+        """Stream traversal requests: request i is ray ``ray[i]`` (a row of ``ray_words``, see
+        ``ray_words()``; tag = the ray index) against the node at pointer ``ptr[i]`` of the BVH4
+        image ``image_words`` (QUADBOX for a box node, TRIANGLE for a triangle node), with extent
+        ``extent[i]``. Returns the (n, RSP_WORDS) uint32 response words, in request order.
+        Bit-identical to ``run()`` on the same requests built in Python (tests check)."""
+        rw, img, r, p, e = node_arrays(ray_words, image_words, ray, ptr, extent)
+        n = len(r)
+        out = np.empty((n, RSP_WORDS), np.uint32)
+        cycles = self._lib.rf_run_nodes(self._sim, _u32p(rw), _u32p(img), img.size, _u32p(r),
+                                        _u32p(p), _u32p(e), _u32p(out), n, *self._patterns())
+        self._account(cycles, n)
+        return out
+
+
+_U8P = ctypes.POINTER(ctypes.c_uint8)
+_U32P = ctypes.POINTER(ctypes.c_uint32)
+_I64P = ctypes.POINTER(ctypes.c_int64)
+_LIBS: dict = {}
+
+
+def _u32p(a: np.ndarray):
+    return a.ctypes.data_as(_U32P)
+
+
+def harness_library(params: dict[str, int]) -> ctypes.CDLL:
+    """The C++ harness (sim/rayflex_harness.cpp) over the Verilated model with these parameters,
+    built on first use and loaded once per process."""
+    key = tuple(sorted(params.items()))
+    lib = _LIBS.get(key)
+    if lib is not None:
+        return lib
+    lib = ctypes.CDLL(str(_build_harness(params)))
+    i64, vp = ctypes.c_int64, ctypes.c_void_p
+    lib.rf_new.restype = vp
+    lib.rf_free.argtypes = [vp]
+    lib.rf_run.restype = i64
+    lib.rf_run.argtypes = [vp, _U32P, _U32P, i64, _U8P, i64, _U8P, i64, i64]
+    lib.rf_run_nodes.restype = i64
+    lib.rf_run_nodes.argtypes = [vp, _U32P, _U32P, i64, _U32P, _U32P, _U32P, _U32P, i64,
+                                 _U8P, i64, _U8P, i64, i64]
+    lib.rf_build_requests.restype = i64
+    lib.rf_build_requests.argtypes = [_U32P, _U32P, i64, _U32P, _U32P, _U32P, _U32P, i64]
+    lib.rf_replay.restype = i64
+    lib.rf_replay.argtypes = [i64, i64, i64, i64, _U32P, i64, _U32P, i64, _U32P, _U32P, _U32P,
+                              i64, _I64P, _I64P, _U32P, _I64P, _I64P, i64]
+    if (lib.rf_req_words() != REQ_WORDS or lib.rf_rsp_words() != RSP_WORDS
+            or lib.rf_ray_words() != RAY_WORDS):
+        raise BackendError("harness and driver disagree on the wire format; rebuild")
+    _LIBS[key] = lib
+    return lib
+
+
+RAY_WORDS = 15            # wire words 0..14 of a request: tag, control, origin, dir, inv, extent,
+#                           shear; the rest of a traversal request is its box or triangle
+
+
+def ray_words(rays: np.ndarray) -> np.ndarray:
+    """The ray table of ``run_nodes``/``replay``: (n, RAY_WORDS) uint32, wire words 0..14 of the
+    prepared rays (``prepare_rays``): tag, control (kx, ky, kz; opcode as given), origin, dir,
+    inv, extent, shear. Box, triangle and vector fields are not part of it (a traversal request
+    carries zero vector fields; the harness fills the box or the triangle)."""
+    if rays.dtype != REQUEST_DTYPE:
+        raise TypeError("rays must be a REQUEST_DTYPE array")
+    n = len(rays)
+    w = np.empty((n, RAY_WORDS), np.uint32)
+    w[:, 0] = rays["tag"]
+    u = lambda f: rays[f].astype(np.uint32)  # noqa: E731
+    w[:, 1] = ((u("opcode") & 3) | (u("kx") & 3) << 2 | (u("ky") & 3) << 4 | (u("kz") & 3) << 6
+               | (u("reset_accumulator") & 1) << 8 | u("vec_mask") << 16)
+    for name, first, count in (("origin", 2, 3), ("dir", 5, 3), ("inv", 8, 3), ("extent", 11, 1),
+                               ("shear", 12, 3)):
+        w[:, first:first + count] = rays[name].reshape(n, count).view(np.uint32)
+    return w
+
+
+def node_arrays(ray_words_, image_words, ray, ptr, extent):
+    """Checked contiguous arrays (ray table, image words, ray, ptr, extent bits: uint32) for the
+    harness calls that assemble traversal requests."""
+    rw = np.ascontiguousarray(ray_words_, np.uint32)
+    if rw.ndim != 2 or rw.shape[1] != RAY_WORDS:
+        raise ValueError(f"ray words must be (n, {RAY_WORDS}) uint32")
+    img = np.ascontiguousarray(image_words).reshape(-1).view(np.uint32)
+    r = np.ascontiguousarray(ray, np.uint32).reshape(-1)
+    p = np.ascontiguousarray(ptr, np.uint32).reshape(-1)
+    e = np.ascontiguousarray(extent, np.float32).reshape(-1).view(np.uint32)
+    if not len(r) == len(p) == len(e):
+        raise ValueError("ray, ptr and extent must have the same length")
+    if len(r) and int(r.max()) >= len(rw):
+        raise ValueError("a ray index is out of range of the ray table")
+    return rw, img, r, p, e
+
+
+def build_requests(params: dict[str, int], ray_words_: np.ndarray, image_words: np.ndarray,
+                   ray, ptr, extent) -> np.ndarray:
+    """The (n, REQ_WORDS) request words ``run_nodes``/``replay`` assemble for these triples."""
+    lib = harness_library(params)
+    rw, img, r, p, e = node_arrays(ray_words_, image_words, ray, ptr, extent)
+    out = np.zeros((len(r), REQ_WORDS), np.uint32)
+    if lib.rf_build_requests(_u32p(rw), _u32p(img), img.size, _u32p(r), _u32p(p), _u32p(e),
+                             _u32p(out), len(r)) < 0:
+        raise ValueError("a traversal request names a node pointer outside the BVH image")
+    return out
 
 
 def _build_harness(params: dict[str, int]) -> Path:
@@ -242,7 +346,7 @@ def _pyverilator_model(params: dict[str, int]):
                            "(Debian: apt-get install g++) or set CXX")
     vbin = verilate.verilator_bin()
     h = hashlib.sha256()
-    for p in sources + [SIM_DIR / "rayflex_harness.cpp"]:
+    for p in sources:
         h.update(p.read_bytes())
     h.update(repr(sorted(params.items())).encode())
     h.update(str(vbin).encode())

@@ -1,0 +1,316 @@
+"""RT-unit model around the RayFlex datapath: rays in flight and parallel pipelines.
+
+Question it answers: how many cycles does a frame take on an RT unit that holds R rays in flight
+(a ray pool, like the warp slots of a GPU RT unit) and feeds P copies of the datapath pipeline,
+and where does latency stop being hidden?
+
+Design: functional traversal first, timing by replay.
+
+1. ``driver.traversal.trace`` runs the wavefront closest-hit traversal (all rays in flight, one
+   ``backend.run()`` per step) and, when asked, records every datapath request as (ray index,
+   node pointer, extent) in issue order, plus the response words (``Record``). A ray's requests
+   depend only on that ray's own earlier responses (its stack and its nearest t), never on other
+   rays, so each ray's *request chain* is fixed by the scene and the ray, whatever the schedule:
+   replaying the chains in any interleaving issues exactly the same requests. (Steps are
+   synchronous in the wavefront, but per ray the order is the chain order.)
+2. ``replay`` issues the recorded chains through the real RTL in the C++ harness
+   (``rf_replay`` in sim/rayflex_harness.cpp) under an RT-unit scheduler: P fresh Verilated model
+   instances clocked together, a pool of R ray slots filled in ray (pixel) order; every cycle each
+   pipeline accepts at most one request, from the oldest ready ray (a FIFO by ready time); a ray
+   has at most one request in flight and becomes ready again ``turnaround`` cycles after its
+   response is taken (default 1: the host needs a cycle to turn a response into the ray's next
+   request, so there is no combinational path from rsp_o to req_i, as in the pipeline itself;
+   larger values model a node-fetch latency); a ray whose chain is done leaves the pool and the
+   next ray enters. The request words are assembled in C++ from the packed rays and the BVH4 image,
+   by the same code as the "rtl" fast path (``HarnessBackend.run_nodes``).
+3. Cycles are real model clock cycles from the first accepted request to the last response taken
+   (inclusive), as SPEC 10 counts them. ``utilization = ops / (pipelines * cycles)`` (the SPEC
+   definition for one pipeline). The replayed responses are compared with the functional run's
+   bit for bit (and every response tag with its ray): same requests, so they must be equal;
+   a difference raises ``ReplayMismatch``.
+
+Why replay rather than scheduling inside the traversal: the functional run stays the vectorised
+wavefront (one C++ call per step, fast and already tested), the schedule costs no Python per
+request or per cycle, and the timing comes from the RTL's own handshakes rather than from a
+latency formula. With R = 1 and P = 1 every request waits for the previous one: a ray's requests
+are 11 + ``turnaround`` cycles apart, so cycles = ops * 12 with the defaults (>= ops * 11).
+
+Simulation shortcut (exact): a pipeline that holds no request at the start of a cycle and gets
+none is not evaluated in that cycle (``skip_idle``): the datapath's registers load only on a
+handshake (rf_skid.sv; accumulators only on an accepted beat), so a clock edge with nothing valid
+changes no state. Cycles still count; ``skip_idle=False`` clocks every model every cycle and gives
+identical responses and cycles (tests check).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .datapath import LATENCY, QUADBOX
+from .wire import RSP_WORDS
+
+DEFAULT_RAYS_IN_FLIGHT = 64        # the default ray pool (see the module docstring)
+DEFAULT_TURNAROUND = 1
+SWEEP_RAYS_IN_FLIGHT = (1, 2, 4, 8, 16, 32, 64, 128, 256, 1024)
+SWEEP_PIPELINES = (1, 2, 4, 8)
+
+
+class ReplayMismatch(RuntimeError):
+    """The replayed RTL responses differ from the functional run's (must never happen)."""
+
+
+@dataclass
+class Record:
+    """Every datapath request of a traversal, in issue order (wavefront step by step, rays in
+    index order within a step).
+
+    ray_words : (n, RAY_WORDS) uint32, the packed prepared rays (``driver.rtl.ray_words``)
+    image : (k,) uint32, the BVH4 memory image as little-endian words
+    ray, ptr : (m,) uint32, ray index and node pointer of request i
+    extent : (m,) float32, the ray's nearest t when request i was issued
+    responses : (m, RSP_WORDS) uint32 response words of the functional run, or None
+    params : RTL build parameters for the replay (EXTENDED, DISJOINT, LATENCY)
+    """
+
+    ray_words: np.ndarray
+    image: np.ndarray
+    ray: np.ndarray
+    ptr: np.ndarray
+    extent: np.ndarray
+    responses: np.ndarray | None
+    params: dict
+
+    @property
+    def rays(self) -> int:
+        return len(self.ray_words)
+
+    @property
+    def ops(self) -> int:
+        return len(self.ray)
+
+    @property
+    def box_ops(self) -> int:
+        return int(((self.ptr & 7) == 5).sum())
+
+    def chains(self):
+        """(chain_idx (m,) int64, chain_off (n + 1,) int64): ray r's requests, in issue order,
+        are record indices chain_idx[chain_off[r]:chain_off[r + 1]]."""
+        order = np.argsort(self.ray, kind="stable").astype(np.int64)
+        count = np.bincount(self.ray.astype(np.int64), minlength=self.rays)
+        off = np.zeros(self.rays + 1, np.int64)
+        np.cumsum(count, out=off[1:])
+        return order, off
+
+    def requests(self, index=None) -> np.ndarray:
+        """The recorded requests as a ``REQUEST_DTYPE`` array (all, or ``index``), built in
+        Python from the rays and the image, as ``driver.traversal`` builds them for generic
+        backends (for the cycle-by-cycle backend and for tests)."""
+        from .wire import REQ_WORDS
+        index = np.arange(self.ops) if index is None else np.asarray(index)
+        words = np.zeros((len(index), REQ_WORDS), np.uint32)
+        words[:, :self.ray_words.shape[1]] = self.ray_words[self.ray[index]]
+        words[:, 0] = self.ray[index]
+        words[:, 11] = self.extent[index].view(np.uint32)
+        ptr = self.ptr[index]
+        base = (ptr & np.uint32(0xFFFFFFF8)).astype(np.int64) << 1
+        box = (ptr & 7) == 5
+        words[:, 1] = (words[:, 1] & ~np.uint32(3)) | np.where(box, QUADBOX, 0).astype(np.uint32)
+        words[box, 15:39] = self.image[base[box, None] + 4 + np.arange(24)]
+        words[~box, 39:48] = self.image[base[~box, None] + np.arange(9)]
+        return unpack_requests(words)
+
+
+@dataclass
+class ReplayResult:
+    """One RT-unit replay. cycles: first accept to last response, inclusive; responses:
+    (m, RSP_WORDS) uint32 at the record index; per_pipeline: requests accepted by each pipeline;
+    starved_cycles: cycles in which a pipeline got no request because no ray was ready;
+    model_evals: pipeline-cycles actually evaluated; wall_s: the C++ call."""
+
+    rays_in_flight: int
+    pipelines: int
+    turnaround: int
+    rays: int
+    ops: int
+    box_ops: int
+    cycles: int
+    starved_cycles: int
+    full_cycles: int
+    model_evals: int
+    per_pipeline: list
+    wall_s: float
+    verified: bool
+    latency: int
+    responses: np.ndarray
+
+    @property
+    def utilization(self) -> float:
+        return self.ops / (self.pipelines * self.cycles) if self.cycles else 0.0
+
+    def stats(self) -> dict:
+        """Plain-Python summary (SPEC 10 names where they apply)."""
+        return {
+            "rays_in_flight": self.rays_in_flight,
+            "pipelines": self.pipelines,
+            "turnaround_cycles": self.turnaround,
+            "rays": self.rays,
+            "ops": self.ops,
+            "box_ops": self.box_ops,
+            "tri_ops": self.ops - self.box_ops,
+            "cycles": self.cycles,
+            "utilization": self.utilization,
+            "frame_us_at_1ghz": self.cycles / 1000,
+            "latency_cycles": self.latency,
+            "starved_cycles": self.starved_cycles,
+            "per_pipeline_ops": list(self.per_pipeline),
+            "model_evals": self.model_evals,
+            "sim_wall_s": self.wall_s,
+            "sim_cycles_per_s": self.cycles / self.wall_s if self.wall_s > 0 else 0.0,
+            "responses_verified": self.verified,
+        }
+
+
+def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelines: int = 1,
+           turnaround: int = DEFAULT_TURNAROUND, skip_idle: bool = True,
+           verify: bool = True) -> ReplayResult:
+    """Replay a traversal ``Record`` through P Verilated pipelines with R rays in flight (see the
+    module docstring). ``verify``: compare every response with the functional run's (raises
+    ``ReplayMismatch``); without recorded responses only the tags are checked."""
+    from . import rtl
+    r, p, ta = int(rays_in_flight), int(pipelines), int(turnaround)
+    if r < 1:
+        raise ValueError(f"rays in flight must be >= 1, got {rays_in_flight}")
+    if not 1 <= p <= 64:
+        raise ValueError(f"pipelines must be in 1..64, got {pipelines}")
+    if ta < 0:
+        raise ValueError(f"turnaround must be >= 0 cycles, got {turnaround}")
+    lib = rtl.harness_library(record.params)
+    rw, img, ray, ptr, ext = rtl.node_arrays(record.ray_words, record.image, record.ray,
+                                             record.ptr, record.extent)
+    m = len(ray)
+    chain_idx, chain_off = record.chains()
+    rsp = np.zeros((m, RSP_WORDS), np.uint32)
+    stats = np.zeros(8, np.int64)
+    per_pipe = np.zeros(p, np.int64)
+    i64p = rtl._I64P
+    latency = int(record.params.get("LATENCY", LATENCY))
+    max_idle = 100 * latency + 1000
+    t0 = time.perf_counter()
+    rc = lib.rf_replay(p, r, ta, int(bool(skip_idle)), rtl._u32p(rw), len(rw), rtl._u32p(img),
+                       img.size, rtl._u32p(ray), rtl._u32p(ptr), rtl._u32p(ext), m,
+                       chain_idx.ctypes.data_as(i64p), chain_off.ctypes.data_as(i64p),
+                       rtl._u32p(rsp), stats.ctypes.data_as(i64p),
+                       per_pipe.ctypes.data_as(i64p), max_idle)
+    wall = time.perf_counter() - t0
+    if rc == -2:
+        raise ValueError("a recorded request names a node pointer outside the BVH image")
+    if rc < 0:
+        raise RuntimeError(f"RT-unit replay failed ({'deadlock' if rc == -1 else rc})")
+    if stats[6]:
+        raise ReplayMismatch(f"{stats[6]} replayed responses carry the wrong ray tag")
+    verified = False
+    if verify and record.responses is not None:
+        diff = np.flatnonzero((rsp != record.responses).any(axis=1))
+        if len(diff):
+            raise ReplayMismatch(f"{len(diff)} of {m} replayed responses differ from the "
+                                 f"functional run's (first: request {int(diff[0])})")
+        verified = True
+    return ReplayResult(r, p, ta, record.rays, m, record.box_ops, int(stats[0]), int(stats[2]),
+                        int(stats[3]), int(stats[1]), per_pipe.tolist(), wall, verified, latency,
+                        rsp)
+
+
+def sweep(record: Record, rays_in_flight=SWEEP_RAYS_IN_FLIGHT, pipelines=SWEEP_PIPELINES,
+          turnaround: int = DEFAULT_TURNAROUND, progress=None) -> list[dict]:
+    """Replay ``record`` for every (pipelines, rays_in_flight) pair; returns one ``stats()``
+    dict per point (responses verified at every point). progress: optional callable(done, total,
+    point_dict)."""
+    points = []
+    pairs = [(p, r) for p in pipelines for r in rays_in_flight]
+    for k, (p, r) in enumerate(pairs):
+        res = replay(record, r, p, turnaround)
+        s = res.stats()
+        points.append(s)
+        if progress is not None:
+            progress(k + 1, len(pairs), s)
+    return points
+
+
+def plot_sweep(points: list[dict], path, title: str = "") -> None:
+    """PNG: cycles per frame vs rays in flight (log x), one line per pipeline count, with the
+    throughput bound ops / P and the latency bound ops * (latency + turnaround) / R dotted."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7.5, 5.0), dpi=110)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    pipes = sorted({pt["pipelines"] for pt in points})
+    colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown"]
+    ops = max(pt["ops"] for pt in points) if points else 0
+    rs = sorted({pt["rays_in_flight"] for pt in points})
+    for i, p in enumerate(pipes):
+        pts = sorted((pt for pt in points if pt["pipelines"] == p),
+                     key=lambda pt: pt["rays_in_flight"])
+        c = colours[i % len(colours)]
+        ax.plot([pt["rays_in_flight"] for pt in pts], [pt["cycles"] for pt in pts], "o-",
+                color=c, label=f"{p} pipeline{'s' if p > 1 else ''}")
+        ax.axhline(ops / p, color=c, ls=":", lw=1)
+    if points and rs:
+        per_req = points[0]["latency_cycles"] + points[0]["turnaround_cycles"]
+        x = np.array(rs, float)
+        ax.plot(x, ops * per_req / x, "k--", lw=1,
+                label=f"latency bound ops\u00b7{per_req}/R")
+    ax.set_xscale("log", base=2)
+    ax.set_yscale("log")
+    ax.set_xlabel("rays in flight (ray pool size R)")
+    ax.set_ylabel("cycles per frame (= ns at 1 GHz)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(title="dotted: ops / P", fontsize=8)
+    ax.set_title(title or "RT-unit sweep", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(str(path), format="png")
+
+
+# ----------------------------------------------------------------------------------------------
+# wire helpers (the inverse directions of driver.wire)
+
+def response_words(rsp: np.ndarray) -> np.ndarray:
+    """RESPONSE_DTYPE (n,) -> (n, RSP_WORDS) uint32 wire words (inverse of
+    ``driver.wire.unpack_responses``)."""
+    n = len(rsp)
+    w = np.zeros((n, RSP_WORDS), np.uint32)
+    w[:, 0] = rsp["tag"]
+    u = lambda f: rsp[f].astype(np.uint32)  # noqa: E731
+    c = u("opcode") & 3
+    for j in range(4):
+        c |= (rsp["box_index"][:, j].astype(np.uint32) & 3) << (2 + 2 * j)
+        c |= (rsp["box_hit"][:, j].astype(np.uint32) & 1) << (10 + j)
+    c |= (u("tri_hit") & 1) << 14 | (u("euclid_last") & 1) << 15 | (u("angular_last") & 1) << 16
+    w[:, 1] = c
+    w[:, 2:6] = np.ascontiguousarray(rsp["box_tmin"]).view(np.uint32)
+    for k, f in ((6, "t_num"), (7, "t_den"), (8, "euclid_acc"), (9, "angular_dot"),
+                 (10, "angular_norm")):
+        w[:, k] = np.ascontiguousarray(rsp[f]).view(np.uint32)
+    return w
+
+
+def unpack_requests(words: np.ndarray) -> np.ndarray:
+    """(n, REQ_WORDS) uint32 -> REQUEST_DTYPE (n,) (inverse of ``driver.wire.pack_requests``)."""
+    from .datapath import REQUEST_DTYPE
+    n = len(words)
+    req = np.zeros(n, REQUEST_DTYPE)
+    req["tag"] = words[:, 0]
+    c = words[:, 1]
+    req["opcode"], req["kx"], req["ky"], req["kz"] = c & 3, c >> 2 & 3, c >> 4 & 3, c >> 6 & 3
+    req["reset_accumulator"] = c >> 8 & 1
+    req["vec_mask"] = c >> 16
+    for name, first, count in (("origin", 2, 3), ("dir", 5, 3), ("inv", 8, 3), ("extent", 11, 1),
+                               ("shear", 12, 3), ("box", 15, 24), ("tri", 39, 9),
+                               ("vec_a", 48, 16), ("vec_b", 64, 16)):
+        req[name] = (np.ascontiguousarray(words[:, first:first + count]).view(np.float32)
+                     .reshape(req[name].shape))
+    return req
