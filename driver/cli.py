@@ -23,6 +23,7 @@ import numpy as np
 COMMANDS = {
     "render": "driver.cli:RenderCommand",
     "knn": "driver.knn:KnnCommand",
+    "bench": "driver.bench",
 }
 
 PROG = "rayflex"

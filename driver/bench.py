@@ -1,0 +1,394 @@
+"""``rayflex bench``: datapath throughput of a real frame, and how fast the simulation runs.
+
+Runs the default scene (bunny, 256 x 256) through the "rtl" backend and reports:
+
+- ``frame``: the SPEC section 10 statistics of the frame on the RT-unit model
+  (``driver.rtunit``) with the default ray pool (``--rays-in-flight``, 64) and one pipeline
+  (``--pipelines``): cycles, utilization, frame time at 1 GHz; the functional wavefront run's own
+  figures as ``wavefront_*``; ``embree``, the Embree cross-check of every ray; ``wall_s`` with its
+  parts (BVH build, traversal on the RTL, RT-unit replay).
+- ``rtl_cycles_per_s``: datapath clock cycles per wall second of the "rtl" backend while it
+  streams the frame (the wavefront traversal, time inside the harness calls).
+- ``pyverilator``: cycles per second of the cycle-by-cycle backend on a short stream of the same
+  requests (the frame's first ``--pyverilator-requests``, 2,000), with "rtl" timed on that same
+  stream for reference and both checked against the frame's responses bit for bit;
+  ``rtl_vs_pyverilator_speedup`` = rtl_cycles_per_s / pyverilator cycles per second.
+- ``golden_rays_per_s``: the whole frame's traversal on the golden numpy model (rays per wall
+  second; hits checked equal to the RTL's); ``embree_rays_per_s``: Embree's closest hit
+  for the same rays (one cast each, Embree's own BVH build excluded and reported as
+  ``embree_build_s``); ``bvh_build_s``.
+- ``rtunit_sweep``: cycles per frame, utilization and frame time at 1 GHz for every (pipelines,
+  rays in flight) pair on a smaller frame of the same view (``--sweep-size``, 64), and one PNG plot
+  (``--plot``): cycles per frame vs rays in flight, log x, one line per pipeline count.
+- ``machine``: CPU model (/proc/cpuinfo), cores, Python/numpy versions; ``targets``: the
+  project's goals and whether this run met them.
+
+A short table goes to stdout, progress bars to stderr, the JSON to ``--json PATH``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from . import rtunit
+
+DEFAULT_SCENE = "bunny"
+PYVERILATOR_REQUESTS = 2000
+SWEEP_SIZE = 64
+TARGETS = {"utilization": 0.98, "rtl_cycles_per_s": 1e6, "speedup": 100.0, "frame_wall_s": 10.0}
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser(
+        "bench", help="datapath utilization and simulation speed on a real frame",
+        description="Run the default bunny frame through the RTL (C++ harness over Verilator) "
+                    "and report its datapath statistics on the RT-unit model, the simulation "
+                    "speed of the rtl and pyverilator backends, golden and Embree ray rates, the "
+                    "BVH build time, and a sweep of rays in flight x pipelines (PNG plot).")
+    p.add_argument("--json", metavar="PATH", help="write the results as JSON")
+    p.add_argument("--size", type=int, metavar="N",
+                   help="square frame N x N (default: the scene's size, 256)")
+    p.add_argument("--scene", default=DEFAULT_SCENE, metavar="SCENE",
+                   help=f"scene name or file (default: {DEFAULT_SCENE})")
+    p.add_argument("--rays-in-flight", type=int, default=rtunit.DEFAULT_RAYS_IN_FLIGHT,
+                   metavar="R", help="ray pool of the RT-unit model for the frame "
+                                     f"(default {rtunit.DEFAULT_RAYS_IN_FLIGHT})")
+    p.add_argument("--pipelines", type=int, default=1, metavar="P",
+                   help="datapath pipelines of the RT-unit model for the frame (default 1)")
+    p.add_argument("--sweep-size", type=int, default=SWEEP_SIZE, metavar="N",
+                   help=f"frame size of the rays-in-flight x pipelines sweep (default "
+                        f"{SWEEP_SIZE}, at most --size; 0: no sweep)")
+    p.add_argument("--sweep-rays", default=",".join(map(str, rtunit.SWEEP_RAYS_IN_FLIGHT)),
+                   metavar="LIST", help="rays in flight of the sweep (comma-separated)")
+    p.add_argument("--sweep-pipelines", default=",".join(map(str, rtunit.SWEEP_PIPELINES)),
+                   metavar="LIST", help="pipeline counts of the sweep (comma-separated)")
+    p.add_argument("--plot", metavar="PATH",
+                   help="sweep plot PNG (default: beside --json as JSONSTEM_rtunit.png, else "
+                        "rayflex_bench_rtunit.png)")
+    p.add_argument("--pyverilator-requests", type=int, default=PYVERILATOR_REQUESTS,
+                   metavar="N", help=f"requests streamed through pyverilator (default "
+                                     f"{PYVERILATOR_REQUESTS}; 0: skip)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
+    return p
+
+
+def _int_list(text: str, flag: str) -> list[int]:
+    try:
+        vals = [int(x) for x in str(text).split(",") if x.strip()]
+    except ValueError:
+        raise ValueError(f"{flag} must be comma-separated integers, got {text!r}") from None
+    if not vals or min(vals) < 1:
+        raise ValueError(f"{flag} must list integers >= 1, got {text!r}")
+    return sorted(set(vals))
+
+
+def run(args) -> int:
+    from .camera import MAX_SIZE
+    if args.size is not None and not 1 <= args.size <= MAX_SIZE:
+        raise ValueError(f"--size must be in 1..{MAX_SIZE}, got {args.size}")
+    if args.rays_in_flight < 1:
+        raise ValueError(f"--rays-in-flight must be >= 1, got {args.rays_in_flight}")
+    if not 1 <= args.pipelines <= 64:
+        raise ValueError(f"--pipelines must be in 1..64, got {args.pipelines}")
+    if args.sweep_size < 0 or args.pyverilator_requests < 0:
+        raise ValueError("--sweep-size and --pyverilator-requests must be >= 0")
+    sweep_rays = _int_list(args.sweep_rays, "--sweep-rays")
+    sweep_pipes = _int_list(args.sweep_pipelines, "--sweep-pipelines")
+    if max(sweep_pipes) > 64:
+        raise ValueError("--sweep-pipelines: at most 64 pipelines")
+    plot = None
+    if args.sweep_size:
+        plot = Path(args.plot) if args.plot else (
+            Path(args.json).with_name(Path(args.json).stem + "_rtunit.png") if args.json
+            else Path("rayflex_bench_rtunit.png"))
+    for path in [Path(args.json) if args.json else None, plot]:
+        if path is None:
+            continue
+        if not path.parent.is_dir():
+            raise ValueError(f"output directory does not exist: {path.parent}")
+
+    doc = bench(args.scene, size=args.size, rays_in_flight=args.rays_in_flight,
+                pipelines=args.pipelines, sweep_size=args.sweep_size,
+                sweep_rays=sweep_rays, sweep_pipelines=sweep_pipes,
+                plot=plot, pyverilator_requests=args.pyverilator_requests,
+                progress=not args.no_progress)
+    print(table(doc))
+    written = []
+    if args.json:
+        from .cli import _jsonable
+        Path(args.json).write_text(json.dumps(_jsonable(doc), indent=2) + "\n")
+        written.append(str(args.json))
+    if plot:
+        written.append(str(plot))
+    if written:
+        print("wrote " + ", ".join(written))
+    return 0
+
+
+def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAYS_IN_FLIGHT,
+          pipelines=1, sweep_size=SWEEP_SIZE, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT,
+          sweep_pipelines=rtunit.SWEEP_PIPELINES, plot=None,
+          pyverilator_requests=PYVERILATOR_REQUESTS, progress=True) -> dict:
+    """Run the benchmark; returns the JSON document (see the module docstring)."""
+    from .backends import backend
+    from .bvh4 import build
+    from .camera import check_size, primary_rays
+    from .scene import load_scene
+    from .traversal import trace
+
+    scene = load_scene(scene_name)
+    w, h = scene.size if size is None else (size, size)
+    w, h = check_size(w, h)
+    origins, dirs = primary_rays(scene.camera, w, h)
+    n = len(origins)
+    rtl = backend("rtl")                            # build (or load) first: fail early
+
+    # ---- the frame on "rtl": BVH build, wavefront traversal, RT-unit replay -----------------
+    t0 = time.perf_counter()
+    bvh = build(scene.mesh)
+    t_bvh = time.perf_counter() - t0
+    bar = _bar(n, f"frame {w}x{h} rtl", "ray", progress)
+    t1 = time.perf_counter()
+    res = trace(bvh, origins, dirs, backend=rtl, record=True, progress=bar.hook)
+    t_trace = time.perf_counter() - t1
+    bar.close()
+    rec = res.record
+    bar = _bar(1, f"RT-unit replay R={rays_in_flight} P={pipelines}", "run", progress)
+    rep = rtunit.replay(rec, rays_in_flight, pipelines)
+    bar.hook(1, 1)
+    bar.close()
+    frame_wall = time.perf_counter() - t0
+    rs = rep.stats()
+    frame = dict(res.stats)
+    for k in ("cycles", "utilization", "sim_wall_s", "sim_cycles_per_s"):
+        frame["wavefront_" + k] = frame[k]
+    frame.update({k: rs[k] for k in (
+        "cycles", "utilization", "frame_us_at_1ghz", "rays_in_flight", "pipelines",
+        "turnaround_cycles", "starved_cycles", "per_pipeline_ops", "responses_verified")})
+    frame["replay_wall_s"] = rs["sim_wall_s"]
+    frame["wall_s"] = frame_wall
+    frame["wall_parts_s"] = {"bvh_build": t_bvh, "traversal": t_trace, "replay": rep.wall_s}
+    frame["bvh"] = dict(bvh.stats)
+    rtl_cps = res.stats["sim_cycles_per_s"]
+
+    # ---- Embree: rays per second and the cross-check of every hit ---------------------------
+    from .check import compare, embree_closest_front, embree_json
+    tri = scene.triangles
+    t_emb_build, t_emb = _embree_rate(tri, origins, dirs)
+    emb_t, emb_prim = embree_closest_front(tri, origins, dirs)
+    emb = compare(res.t, res.prim, emb_t, emb_prim, tri, origins, dirs)
+    frame["embree"] = embree_json(emb)
+
+    # ---- golden: the whole frame on the numpy model ------------------------------------------
+    bar = _bar(n, f"frame {w}x{h} golden", "ray", progress)
+    t0 = time.perf_counter()
+    gold = trace(bvh, origins, dirs, backend="golden", progress=bar.hook)
+    t_gold = time.perf_counter() - t0
+    bar.close()
+    golden_same = bool(np.array_equal(gold.t.view(np.uint32), res.t.view(np.uint32))
+                       and np.array_equal(gold.prim, res.prim))
+
+    # ---- pyverilator on a short stream of the frame's requests --------------------------------
+    pyv = None
+    k = min(int(pyverilator_requests), rec.ops)
+    if k:
+        pyv = _pyverilator_stream(rec, k, progress)
+    speedup = rtl_cps / pyv["cycles_per_s"] if pyv and pyv["cycles_per_s"] else None
+
+    # ---- RT-unit sweep on a smaller frame of the same view -----------------------------------
+    sweep = None
+    if sweep_size:
+        ss = min(int(sweep_size), w, h)
+        so, sd = primary_rays(scene.camera, ss, ss)
+        srec = trace(bvh, so, sd, backend=rtl, record=True).record
+        pairs = len(sweep_rays) * len(sweep_pipelines)
+        bar = _bar(pairs, f"RT-unit sweep {ss}x{ss}", "point", progress)
+        t0 = time.perf_counter()
+        points = rtunit.sweep(srec, sweep_rays, sweep_pipelines,
+                              progress=lambda done, total, pt: bar.hook(done, total))
+        t_sweep = time.perf_counter() - t0
+        bar.close()
+        keep = ("pipelines", "rays_in_flight", "cycles", "utilization", "frame_us_at_1ghz",
+                "starved_cycles", "responses_verified")
+        sweep = {"width": ss, "height": ss, "rays": srec.rays, "ops": srec.ops,
+                 "latency_cycles": rep.latency, "turnaround_cycles": rep.turnaround,
+                 "wall_s": t_sweep, "plot": str(plot) if plot else None,
+                 "points": [{kk: pt[kk] for kk in keep} for pt in points]}
+        if plot:
+            rtunit.plot_sweep(points, plot, f"{scene.name} {ss}x{ss}: {srec.ops} datapath ops, "
+                                            f"latency {rep.latency} + turnaround "
+                                            f"{rep.turnaround} cycles")
+
+    doc = {
+        "scene": scene.name,
+        "width": w,
+        "height": h,
+        "frame": frame,
+        "rtl_cycles_per_s": rtl_cps,
+        "pyverilator": pyv,
+        "rtl_vs_pyverilator_speedup": speedup,
+        "golden_rays_per_s": n / t_gold if t_gold > 0 else None,
+        "golden_matches_rtl": golden_same,
+        "embree_rays_per_s": n / t_emb if t_emb > 0 else None,
+        "embree_build_s": t_emb_build,
+        "bvh_build_s": t_bvh,
+        "rtunit_sweep": sweep,
+        "machine": machine(),
+    }
+    doc["targets"] = {
+        "utilization_ge_0.98": frame["utilization"] >= TARGETS["utilization"],
+        "rtl_ge_1M_cycles_per_s": rtl_cps >= TARGETS["rtl_cycles_per_s"],
+        "speedup_ge_100": speedup is not None and speedup >= TARGETS["speedup"],
+        "frame_wall_le_10s": frame_wall <= TARGETS["frame_wall_s"],
+    }
+    return doc
+
+
+def _embree_rate(triangles, origins, dirs):
+    """(scene build seconds, trace seconds) of one Embree closest-hit cast of every ray (any
+    face; the cross-check's back-face re-casts are not timed)."""
+    from embreex import rtcore_scene as rtcs
+    from embreex.mesh_construction import TriangleMesh
+    tri = np.ascontiguousarray(triangles, np.float32)
+    o = np.ascontiguousarray(origins, np.float32)
+    d = np.ascontiguousarray(dirs, np.float32)
+    t0 = time.perf_counter()
+    scene = rtcs.EmbreeScene()
+    TriangleMesh(scene, tri)
+    scene.run(o[:1], d[:1], output=1)              # Embree commits (builds) on the first query
+    t1 = time.perf_counter()
+    scene.run(o, d, output=1)
+    return t1 - t0, time.perf_counter() - t1
+
+
+def _pyverilator_stream(rec, k: int, progress) -> dict:
+    """Stream the record's first k requests through pyverilator and through "rtl"; both checked
+    against the frame's responses bit for bit."""
+    from .backends import backend
+    from .rtunit import response_words
+    req = rec.requests(np.arange(k))
+    expect = rec.responses[:k]
+    pv = backend("pyverilator")
+    chunk = max(1, min(250, k))
+    bar = _bar(k, "pyverilator stream", "req", progress)
+    out, wall, cycles = [], 0.0, 0
+    for i in range(0, k, chunk):
+        c0 = pv.cycles
+        t0 = time.perf_counter()
+        out.append(pv.run(req[i:i + chunk]))
+        wall += time.perf_counter() - t0
+        cycles += pv.cycles - c0
+        bar.hook(min(i + chunk, k), k)
+    bar.close()
+    rsp = np.concatenate(out)
+    be = backend("rtl")
+    t0 = time.perf_counter()
+    rsp_rtl = be.run(req)
+    rtl_wall = time.perf_counter() - t0
+    return {
+        "requests": k,
+        "chunk": chunk,
+        "cycles": int(cycles),
+        "wall_s": wall,
+        "cycles_per_s": cycles / wall if wall > 0 else 0.0,
+        "responses_match_frame": bool(np.array_equal(response_words(rsp), expect)),
+        "rtl_same_stream_cycles": int(be.cycles),
+        "rtl_same_stream_wall_s": rtl_wall,
+        "rtl_same_stream_cycles_per_s": be.cycles / rtl_wall if rtl_wall > 0 else 0.0,
+        "rtl_same_stream_match": bool(np.array_equal(response_words(rsp_rtl), expect)),
+    }
+
+
+def machine() -> dict:
+    """CPU model (first ``model name`` of /proc/cpuinfo), logical cores (all / usable)."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.lower().startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    try:
+        usable = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        usable = os.cpu_count()
+    return {"cpu": cpu, "cores": os.cpu_count(), "cores_usable": usable,
+            "python": platform.python_version(), "numpy": np.__version__,
+            "platform": platform.platform()}
+
+
+def table(doc: dict) -> str:
+    """The short human-readable summary printed by ``rayflex bench``."""
+    f, pv = doc["frame"], doc.get("pyverilator")
+    e = f.get("embree") or {}
+    rows = [
+        ("frame", f"{doc['scene']} {doc['width']}x{doc['height']}: {f['rays']} rays, "
+                  f"{f['hits']} hits, Embree: {e.get('hit_mismatch', '?')} hit/miss + "
+                  f"{e.get('prim_mismatch', '?')} prim mismatches"),
+        ("datapath ops", f"{f['ops']} ({f['box_ops']} box + {f['tri_ops']} tri; "
+                         f"{f['box_ops_per_ray']:.2f} + {f['tri_ops_per_ray']:.2f} per ray)"),
+        (f"RT unit R={f['rays_in_flight']} P={f['pipelines']}",
+         f"{f['cycles']} cycles, utilization {f['utilization']:.4f}, "
+         f"{f['frame_us_at_1ghz']:.1f} us at 1 GHz"),
+        ("wavefront (all rays)", f"{f['wavefront_cycles']} cycles, utilization "
+                                 f"{f['wavefront_utilization']:.4f}"),
+        ("frame wall", f"{f['wall_s']:.2f} s (BVH {f['wall_parts_s']['bvh_build']:.2f} + "
+                       f"traversal {f['wall_parts_s']['traversal']:.2f} + replay "
+                       f"{f['wall_parts_s']['replay']:.2f})"),
+        ("rtl", f"{doc['rtl_cycles_per_s']:.3g} cycles/s"),
+    ]
+    if pv:
+        rows.append(("pyverilator", f"{pv['cycles_per_s']:.3g} cycles/s on {pv['requests']} "
+                                    f"requests; rtl/pyverilator "
+                                    f"{doc['rtl_vs_pyverilator_speedup']:.0f}x"))
+    rows += [
+        ("golden", f"{doc['golden_rays_per_s']:.3g} rays/s"),
+        ("embree", f"{doc['embree_rays_per_s']:.3g} rays/s"),
+        ("BVH build", f"{doc['bvh_build_s']:.2f} s"),
+    ]
+    sw = doc.get("rtunit_sweep")
+    if sw:
+        pts = sw["points"]
+        for p in sorted({pt["pipelines"] for pt in pts}):
+            line = "  ".join(f"R={pt['rays_in_flight']}:{pt['utilization']:.2f}"
+                             for pt in pts if pt["pipelines"] == p)
+            rows.append((f"sweep P={p} util", line))
+    miss = [k for k, ok in doc["targets"].items() if not ok]
+    rows.append(("targets", "all met" if not miss else "not met: " + ", ".join(miss)))
+    width = max(len(r[0]) for r in rows)
+    return "\n".join(f"{a:<{width}}  {b}" for a, b in rows)
+
+
+class _NoBar:
+    def hook(self, done, total):
+        pass
+
+    def close(self):
+        pass
+
+
+class _Bar(_NoBar):
+    def __init__(self, total, desc, unit):
+        from tqdm import tqdm
+        self.bar = tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, leave=False,
+                        dynamic_ncols=True, mininterval=0.2)
+
+    def hook(self, done, total):
+        if total != self.bar.total:
+            self.bar.total = total
+        self.bar.update(max(0, int(done) - self.bar.n))
+
+    def close(self):
+        self.bar.close()
+
+
+def _bar(total, desc, unit, enabled):
+    return _Bar(total, desc, unit) if enabled else _NoBar()

@@ -1,0 +1,114 @@
+"""``rayflex bench`` on a tiny frame: every JSON key, consistent statistics, the sweep plot,
+one-line errors."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from PIL import Image
+
+from driver.cli import main
+
+SPEC10 = ("rays", "hits", "box_ops", "tri_ops", "ops", "cycles", "utilization", "latency_cycles",
+          "box_ops_per_ray", "tri_ops_per_ray", "node_bytes_fetched", "sim_wall_s",
+          "sim_cycles_per_s", "frame_us_at_1ghz", "backend")
+TOP = ("scene", "width", "height", "frame", "rtl_cycles_per_s", "pyverilator",
+       "rtl_vs_pyverilator_speedup", "golden_rays_per_s", "golden_matches_rtl",
+       "embree_rays_per_s", "embree_build_s", "bvh_build_s", "rtunit_sweep", "machine",
+       "targets")
+
+
+@pytest.fixture(scope="module")
+def doc(tmp_path_factory):
+    d = tmp_path_factory.mktemp("bench")
+    out = d / "bench.json"
+    assert main(["bench", "--size", "16", "--json", str(out), "--pyverilator-requests", "120",
+                 "--sweep-rays", "1,4,16,64", "--sweep-pipelines", "1,2",
+                 "--no-progress"]) == 0
+    data = json.loads(out.read_text())
+    data["_dir"] = d
+    return data
+
+
+def test_all_keys(doc):
+    assert set(TOP) <= set(doc)
+    f = doc["frame"]
+    assert set(SPEC10) <= set(f)
+    for k in ("rays_in_flight", "pipelines", "turnaround_cycles", "wavefront_cycles",
+              "wavefront_utilization", "embree", "wall_s", "wall_parts_s", "bvh"):
+        assert k in f, k
+    assert set(f["embree"]) >= {"rays_compared", "hit_mismatch", "prim_mismatch", "edge_ties",
+                                "max_t_rel_err"}
+    assert set(doc["pyverilator"]) >= {"requests", "cycles", "wall_s", "cycles_per_s"}
+    assert set(doc["machine"]) >= {"cpu", "cores"}
+    assert doc["machine"]["cpu"] and doc["machine"]["cores"] >= 1
+    assert set(doc["targets"]) == {"utilization_ge_0.98", "rtl_ge_1M_cycles_per_s",
+                                   "speedup_ge_100", "frame_wall_le_10s"}
+    for k in ("rtl_cycles_per_s", "rtl_vs_pyverilator_speedup", "golden_rays_per_s",
+              "embree_rays_per_s", "bvh_build_s"):
+        assert doc[k] > 0, k
+
+
+def test_frame_statistics_consistent(doc):
+    f = doc["frame"]
+    assert doc["scene"] == "bunny" and doc["width"] == doc["height"] == 16
+    assert f["rays"] == 256 and f["backend"] == "rtl"
+    assert f["ops"] == f["box_ops"] + f["tri_ops"]
+    assert f["cycles"] >= f["ops"] + f["latency_cycles"]
+    assert f["utilization"] == pytest.approx(f["ops"] / f["cycles"], rel=1e-12)
+    assert f["frame_us_at_1ghz"] == pytest.approx(f["cycles"] / 1000)
+    assert f["pipelines"] == 1 and f["rays_in_flight"] == 64 and f["responses_verified"]
+    assert f["embree"]["hit_mismatch"] == 0 and f["embree"]["rays_compared"] == 256
+    assert doc["golden_matches_rtl"] is True
+    assert doc["rtl_cycles_per_s"] == f["wavefront_sim_cycles_per_s"]
+    pv = doc["pyverilator"]
+    assert pv["requests"] == 120 and pv["cycles"] >= 120 + f["latency_cycles"]
+    assert pv["responses_match_frame"] and pv["rtl_same_stream_match"]
+    assert pv["rtl_same_stream_cycles"] == pv["cycles"]      # same handshakes, same cycles
+    assert doc["rtl_vs_pyverilator_speedup"] == pytest.approx(
+        doc["rtl_cycles_per_s"] / pv["cycles_per_s"])
+
+
+def test_sweep_and_plot(doc):
+    sw = doc["rtunit_sweep"]
+    assert sw["width"] == 16 and len(sw["points"]) == 8
+    pts = {(p["pipelines"], p["rays_in_flight"]): p for p in sw["points"]}
+    assert set(pts) == {(p, r) for p in (1, 2) for r in (1, 4, 16, 64)}
+    assert pts[1, 1]["cycles"] >= sw["ops"] * 11
+    for p in pts.values():
+        assert p["responses_verified"]
+        assert p["utilization"] == pytest.approx(sw["ops"] / (p["pipelines"] * p["cycles"]))
+        assert p["frame_us_at_1ghz"] == pytest.approx(p["cycles"] / 1000)
+    png = doc["_dir"] / "bench_rtunit.png"
+    assert sw["plot"] == str(png)
+    with Image.open(png) as im:
+        assert im.format == "PNG" and im.size[0] > 300
+
+
+def test_table_printed(doc, capsys):
+    from driver.bench import table
+    text = table({k: v for k, v in doc.items() if k != "_dir"})
+    assert "utilization" in text and "pyverilator" in text and "sweep P=2" in text
+
+
+@pytest.mark.parametrize("argv", [
+    ["bench", "--size", "0"],
+    ["bench", "--rays-in-flight", "0"],
+    ["bench", "--pipelines", "0"],
+    ["bench", "--sweep-rays", "1,x"],
+    ["bench", "--sweep-pipelines", "0"],
+    ["bench", "--json", "/nonexistent-dir/x.json"],
+])
+def test_errors_one_line(argv, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("rayflex: error: ")
+
+
+def test_help(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["bench", "--help"])
+    assert e.value.code == 0
+    out = capsys.readouterr().out
+    assert "--json" in out and "--size" in out and "--rays-in-flight" in out
