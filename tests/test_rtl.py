@@ -149,7 +149,7 @@ def test_latency_14_bit_exact(gaps, stalls):
 @pytest.mark.parametrize("latency", [10, 5, 0, -1])
 def test_latency_below_11_is_a_backend_error(latency, tmp_path, monkeypatch):
     monkeypatch.setenv("RAYFLEX_CACHE", str(tmp_path))   # a refused build leaves nothing behind
-    with pytest.raises(driver.BackendError) as e:
+    with pytest.raises(driver.BackendError, match="(?i)latency") as e:
         driver.backend("rtl", latency=latency)
     assert "\n" not in str(e.value)
 
@@ -236,3 +236,39 @@ def test_rtl_and_pyverilator_agree_long(gaps, stalls):
     (slow,), runs = run_isolated("pyverilator", dict(gaps=gaps, stalls=stalls, seed=300), [req])
     assert fast.run(req).tobytes() == slow.tobytes()
     assert fast.runs == runs
+
+
+# ----------------------------------------------------------------------------------------------
+# the bench itself catches what it is there to catch
+
+class _Faulty:
+    """Golden responses with one fault injected (a lost, duplicated, reordered or flipped one)."""
+
+    def __init__(self, fault):
+        self.golden, self.fault = driver.backend("golden"), fault
+        self.cycles, self.gap, self.stall = 0, None, None
+
+    def run(self, req):
+        rsp = self.golden.run(req)
+        self.cycles = self.golden.cycles
+        if self.fault == "lost":
+            rsp = np.delete(rsp, 3)
+        elif self.fault == "duplicated":
+            rsp[5] = rsp[4]
+        elif self.fault == "reordered":
+            rsp[[5, 6]] = rsp[[6, 5]]
+        elif self.fault == "flipped":
+            rsp["t_num"].view(np.uint32)[7] ^= 1
+        elif self.fault == "slow":
+            self.cycles += 1
+        return rsp
+
+
+@pytest.mark.parametrize("fault,message", [
+    ("lost", "responses"), ("duplicated", "duplicated"), ("reordered", "reordered"),
+    ("flipped", "t_num"), ("slow", "cycles")])
+def test_bench_catches(fault, message):
+    bench = Bench("golden")
+    bench.dut = _Faulty(fault)
+    with pytest.raises((AssertionError, pytest.fail.Exception), match=message):
+        bench.run(mixed_stream(1, 10, 10))
