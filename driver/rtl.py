@@ -5,6 +5,11 @@ call (sim/rayflex_harness.cpp). ``PyverilatorBackend`` ("pyverilator") drives th
 by cycle from Python (single steps, optional VCD waveform). Given the same requests and the same
 input-gap / output-stall patterns, both return identical responses and identical cycle counts.
 
+``HarnessBackend.run_nodes`` is the traversal fast path: the harness assembles QUADBOX/TRIANGLE
+requests from a packed ray table (``ray_words``) and the BVH4 image, so the host sends three
+numbers per request instead of 320 bytes. The same harness library runs the RT-unit replay
+(``driver.rtunit``); ``harness_library(params)`` loads it once per process.
+
 Both build on first use (cached, keyed by the RTL sources and parameters; see driver.verilate).
 """
 

@@ -266,6 +266,10 @@ def plot_sweep(points: list[dict], path, title: str = "") -> None:
                 label=f"latency bound ops\u00b7{per_req}/R")
     ax.set_xscale("log", base=2)
     ax.set_yscale("log")
+    if rs:
+        ax.set_xticks(rs)
+        ax.set_xticklabels([str(r) for r in rs])
+        ax.minorticks_off()
     ax.set_xlabel("rays in flight (ray pool size R)")
     ax.set_ylabel("cycles per frame (= ns at 1 GHz)")
     ax.grid(True, which="both", alpha=0.3)

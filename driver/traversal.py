@@ -15,6 +15,16 @@ All of a step's requests (QUADBOX and TRIANGLE interleaved, in ray order) go to 
 decoded from the BVH4 byte image (``BVH4.box_nodes``/``tri_nodes``) as an RT unit would fetch them;
 fetched bytes are counted (128 per box node, 64 per triangle node). The ray index travels in the
 request ``tag`` and is checked on the way back.
+
+Fast path: a backend with ``run_nodes`` (the "rtl" C++ harness) gets each step as (ray index,
+node pointer, extent) triples and assembles the request words itself from the packed rays and the
+BVH4 image, by the same rules (tests check the words are identical to the generic path's); the
+host then decodes only the response bits it needs. Per step the Python work is a handful of
+vectorised numpy operations on arrays of the step's length; no per-request Python.
+
+RT-unit model: with ``record=True`` the requests are kept as a ``driver.rtunit.Record``; with
+``rays_in_flight=R`` (and ``pipelines=P``) they are also replayed through the RTL with R rays in
+flight on P pipelines, and the timing statistics are the replay's (see ``driver.rtunit``).
 """
 
 from __future__ import annotations

@@ -112,3 +112,19 @@ def test_help(capsys):
     assert e.value.code == 0
     out = capsys.readouterr().out
     assert "--json" in out and "--size" in out and "--rays-in-flight" in out
+
+
+@pytest.mark.slow
+def test_default_frame_utilization():
+    """The default 256 x 256 bunny frame on "rtl" with the default ray pool keeps the datapath
+    >= 98 % busy, and the replay reproduces every response."""
+    from driver import rtunit
+    from driver.camera import primary_rays
+    from driver.scene import load_scene
+    from driver.traversal import trace
+    scene = load_scene("bunny")
+    o, d = primary_rays(scene.camera, 256, 256)
+    res = trace(scene.mesh, o, d, backend="rtl", rays_in_flight=rtunit.DEFAULT_RAYS_IN_FLIGHT)
+    s = res.stats
+    assert s["rays"] == 65536 and s["responses_verified"]
+    assert s["utilization"] >= 0.98 and s["wavefront_utilization"] >= 0.98
