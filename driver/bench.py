@@ -19,7 +19,8 @@ Runs the default scene (bunny, 256 x 256) through the "rtl" backend and reports:
   ``embree_build_s``); ``bvh_build_s``.
 - ``rtunit_sweep``: cycles per frame, utilization and frame time at 1 GHz for every (pipelines,
   rays in flight) pair on a smaller frame of the same view (``--sweep-size``, 64), and one PNG plot
-  (``--plot``): cycles per frame vs rays in flight, log x, one line per pipeline count.
+  (``--plot``): cycles per frame vs rays in flight, log x, one line per pipeline count. The
+  sweep's replays run in parallel threads, one per usable core (at most 4).
 - ``machine``: CPU model (/proc/cpuinfo), cores, Python/numpy versions; ``targets``: the
   project's goals and whether this run met them.
 
@@ -212,7 +213,8 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
         bar = _bar(pairs, f"RT-unit sweep {ss}x{ss}", "point", progress)
         t0 = time.perf_counter()
         points = rtunit.sweep(srec, sweep_rays, sweep_pipelines,
-                              progress=lambda done, total, pt: bar.hook(done, total))
+                              progress=lambda done, total, pt: bar.hook(done, total),
+                              workers=min(4, machine()["cores_usable"] or 1))
         t_sweep = time.perf_counter() - t0
         bar.close()
         keep = ("pipelines", "rays_in_flight", "cycles", "utilization", "frame_us_at_1ghz",

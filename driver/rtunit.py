@@ -224,18 +224,32 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
 
 
 def sweep(record: Record, rays_in_flight=SWEEP_RAYS_IN_FLIGHT, pipelines=SWEEP_PIPELINES,
-          turnaround: int = DEFAULT_TURNAROUND, progress=None) -> list[dict]:
+          turnaround: int = DEFAULT_TURNAROUND, progress=None, workers: int = 1) -> list[dict]:
     """Replay ``record`` for every (pipelines, rays_in_flight) pair; returns one ``stats()``
-    dict per point (responses verified at every point). progress: optional callable(done, total,
-    point_dict)."""
-    points = []
+    dict per point, in (pipelines, rays_in_flight) order (responses verified at every point).
+    progress: optional callable(done, total, point_dict). workers: replays run concurrently in
+    this many threads (the C++ replay releases the GIL; every replay has its own models)."""
     pairs = [(p, r) for p in pipelines for r in rays_in_flight]
-    for k, (p, r) in enumerate(pairs):
-        res = replay(record, r, p, turnaround)
-        s = res.stats()
-        points.append(s)
-        if progress is not None:
-            progress(k + 1, len(pairs), s)
+
+    def one(pair):
+        return replay(record, pair[1], pair[0], turnaround).stats()
+
+    points = [None] * len(pairs)
+    if int(workers) <= 1:
+        for k, pair in enumerate(pairs):
+            points[k] = one(pair)
+            if progress is not None:
+                progress(k + 1, len(pairs), points[k])
+        return points
+    from concurrent.futures import ThreadPoolExecutor, as_completed
+    with ThreadPoolExecutor(max_workers=int(workers)) as pool:
+        # the slowest points (few rays in flight) first, so the pool ends evenly
+        order = sorted(range(len(pairs)), key=lambda k: pairs[k][1])
+        futures = {pool.submit(one, pairs[k]): k for k in order}
+        for done, fut in enumerate(as_completed(futures), 1):
+            points[futures[fut]] = fut.result()
+            if progress is not None:
+                progress(done, len(pairs), points[futures[fut]])
     return points
 
 

@@ -206,6 +206,8 @@ def test_sweep_and_plot(wave, tmp_path):
     cyc = {(p["pipelines"], p["rays_in_flight"]): p["cycles"] for p in pts}
     assert cyc[1, 1] == cyc[2, 1] > cyc[1, 4] > cyc[1, 32]
     assert cyc[2, 32] < cyc[1, 32]
+    par = rtunit.sweep(wave.record, (1, 4, 32), (1, 2), workers=2)
+    assert [p["cycles"] for p in par] == [p["cycles"] for p in pts]
     png = tmp_path / "sweep.png"
     rtunit.plot_sweep(pts, png, "test")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
