@@ -271,8 +271,9 @@ def _embree_rate(triangles, origins, dirs):
 
 
 def _pyverilator_stream(rec, k: int, progress) -> dict:
-    """Stream the record's first k requests through pyverilator and through "rtl"; both checked
-    against the frame's responses bit for bit."""
+    """Stream the record's first k requests through pyverilator and through "rtl" (``run()``
+    calls of ``chunk`` requests each, so that the progress bar moves; both backends get the same
+    calls and count the same cycles); both checked against the frame's responses bit for bit."""
     from .backends import backend
     from .rtunit import response_words
     req = rec.requests(np.arange(k))
@@ -290,9 +291,9 @@ def _pyverilator_stream(rec, k: int, progress) -> dict:
         bar.hook(min(i + chunk, k), k)
     bar.close()
     rsp = np.concatenate(out)
-    be = backend("rtl")
+    be = backend("rtl")                   # same stream, same chunks: same cycles
     t0 = time.perf_counter()
-    rsp_rtl = be.run(req)
+    rsp_rtl = np.concatenate([be.run(req[i:i + chunk]) for i in range(0, k, chunk)])
     rtl_wall = time.perf_counter() - t0
     return {
         "requests": k,

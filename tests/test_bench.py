@@ -23,7 +23,7 @@ TOP = ("scene", "width", "height", "frame", "rtl_cycles_per_s", "pyverilator",
 def doc(tmp_path_factory):
     d = tmp_path_factory.mktemp("bench")
     out = d / "bench.json"
-    assert main(["bench", "--size", "16", "--json", str(out), "--pyverilator-requests", "120",
+    assert main(["bench", "--size", "16", "--json", str(out), "--pyverilator-requests", "300",
                  "--sweep-rays", "1,4,16,64", "--sweep-pipelines", "1,2",
                  "--no-progress"]) == 0
     data = json.loads(out.read_text())
@@ -63,7 +63,7 @@ def test_frame_statistics_consistent(doc):
     assert doc["golden_matches_rtl"] is True
     assert doc["rtl_cycles_per_s"] == f["wavefront_sim_cycles_per_s"]
     pv = doc["pyverilator"]
-    assert pv["requests"] == 120 and pv["cycles"] >= 120 + f["latency_cycles"]
+    assert pv["requests"] == 300 and pv["cycles"] >= 300 + f["latency_cycles"]
     assert pv["responses_match_frame"] and pv["rtl_same_stream_match"]
     assert pv["rtl_same_stream_cycles"] == pv["cycles"]      # same handshakes, same cycles
     assert doc["rtl_vs_pyverilator_speedup"] == pytest.approx(
