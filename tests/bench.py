@@ -4,7 +4,8 @@
     rsp = bench.run(requests)           # drives, monitors, checks; returns the DUT's responses
 
 - driver: the backend under test (``driver.backend(name, ...)``), fed the request stream with the
-  backend's own random input gaps and output stalls (``gaps=``/``stalls=`` probabilities, ``seed=``);
+  backend's own random input gaps and output stalls (``gaps=``/``stalls=`` probabilities,
+  ``seed=``);
   every request gets a unique tag (a bijective scramble of its sequence number, so all 32 tag bits
   toggle) unless ``stamp=False``.
 - monitor: one response per request, in request order: a response whose tag is not the next
@@ -133,8 +134,8 @@ class Bench:
         if n == 0:
             assert cycles == 0, f"{self.name}: an empty run took {cycles} cycles"
         elif self.pressure_free:
-            assert cycles == n + self.latency, \
-                f"{self.name}: {n} back-to-back requests took {cycles} cycles, not n + {self.latency}"
+            assert cycles == n + self.latency, (f"{self.name}: {n} back-to-back requests took "
+                                                f"{cycles} cycles, not n + {self.latency}")
         else:
             assert cycles >= n + self.latency, f"{self.name}: {n} requests in {cycles} cycles"
         assert self.dut.cycles == sum(self.runs)

@@ -19,8 +19,6 @@ from test_golden import mixed_stream, random_bits
 
 __all__ = ["mixed_stream", "vector_requests", "random_vectors", "extended_stream", "interleave"]
 
-F32 = np.float32
-
 
 def interleave(rng, parts):
     """Randomly interleave request arrays, keeping the order within each. Returns (stream, kind)."""

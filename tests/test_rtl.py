@@ -3,8 +3,9 @@
 "rtl" is the fast C++ harness, "pyverilator" the cycle-by-cycle Python driver; every test runs
 through ``bench.Bench`` (driver, monitor, golden reference, scoreboard), most of them under random
 input gaps and output stalls as well as without. Each pyverilator bench runs in its own process
-(``bench.run_isolated``: one pyverilator model per build and process). Also: cycle counts (N back-to-back requests take
-N + LATENCY cycles), the two backends agreeing cycle for cycle, and the backends' error paths.
+(``bench.run_isolated``: one pyverilator model per build and process). Also: cycle counts (N
+back-to-back requests take N + LATENCY cycles), the two backends agreeing cycle for cycle, and the
+backends' error paths.
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""``verilator --lint-only -Wall`` is clean on every build of the datapath (waivers: rtl/lint.vlt)."""
+"""``verilator --lint-only -Wall`` is clean on every build of the datapath (waivers with their
+reasons in rtl/lint.vlt)."""
 
 from __future__ import annotations
 
