@@ -14,8 +14,7 @@ package rf_pkg;
   localparam fp32_t FP_POS_INF   = 32'h7F80_0000;
 
   // ---------------------------------------------------------------------------------------------
-  // Opcodes (SPEC section 3). The opcode value is also the index of the operation's operand slot in
-  // a functional-unit pool (see rf_fu_pool).
+  // Opcodes (SPEC section 3).
   // ---------------------------------------------------------------------------------------------
   typedef enum logic [1:0] {
     OP_TRIANGLE  = 2'd0,
@@ -24,7 +23,6 @@ package rf_pkg;
     OP_ANGULAR   = 2'd3
   } opcode_e;
 
-  localparam int unsigned NUM_OPS   = 4;
   localparam int unsigned EUC_LANES = 16;
   localparam int unsigned ANG_LANES = 8;
 
@@ -76,60 +74,112 @@ package rf_pkg;
   } rsp_t;
 
   // ---------------------------------------------------------------------------------------------
-  // The shared stage struct. Comments name the stage that writes each field (S1 = input stage).
+  // The shared stage struct.
+  //
+  // A beat carries one operation, so the operations share the payload bits (a packed union), and
+  // within an operation fields whose lifetimes do not overlap share bits too (the paper's reuse of
+  // the shared structure): each operation has one "view" (struct) per group of stages. Rn is the
+  // stage_t register after stage Sn (S1 = input stage); comments name the stage that writes a
+  // field. Every view is PAYLOAD_W bits wide: 32-bit values sit at the low end, word aligned, the
+  // few single-bit fields above them and the unused bits (rsvd) on top.
   // ---------------------------------------------------------------------------------------------
-  typedef struct packed {
-    // common
-    opcode_e          op;
-    logic  [31:0]     tag;
-    logic             last;          // reset_accumulator of an extended beat
-    // ray (from the request)
-    fp32_t [2:0]      dir;
-    fp32_t [2:0]      inv;
-    fp32_t            extent;
-    logic  [1:0]      kx, ky, kz;
-    fp32_t [2:0]      shear;
-    // QUADBOX
-    fp32_t [3:0][5:0] slab;          // S1: bound - origin; S2: (bound - origin) * inv
-    logic  [3:0]      bnan;          // S3: some near/far value is NaN
-    fp32_t [3:0]      bnear;         // S3: max(near_x, near_y); S4: with near_z; S5: with +0 = tmin
-    fp32_t [3:0]      bfar;          // S3: min(far_x, far_y);   S4: with far_z;  S5: with extent
-    fp32_t [3:0]      bnear_z;       // S3
-    fp32_t [3:0]      bfar_z;        // S3
-    logic  [3:0]      bhit;          // S6 (then permuted by the sort, S7-S9)
-    fp32_t [3:0]      btmin;         // S6: tmin on a hit, +inf on a miss (then sorted)
-    logic  [3:0][1:0] bidx;          // S6: 0,1,2,3 (then sorted)
-    // TRIANGLE
-    fp32_t [2:0][2:0] tp;            // S1: P - origin, [vertex][axis]
-    fp32_t [2:0]      tpx, tpy;      // S2: P'[kx], P'[ky] per vertex
-    fp32_t [2:0]      tsx, tsy;      // S2: Sx*P'[kz], Sy*P'[kz]
-    fp32_t [2:0]      tz;            // S2: Z = Sz*P'[kz]
-    fp32_t [2:0]      tx, ty;        // S3: X, Y per vertex
-    fp32_t [5:0]      tcross;        // S4: Cx*By, Cy*Bx, Ax*Cy, Ay*Cx, Bx*Ay, By*Ax
-    fp32_t            tu, tv, tw;    // S5: U, V, W
-    fp32_t [2:0]      tuvw_z;        // S6: U*Az, V*Bz, W*Cz
-    fp32_t            tuv;           // S6: U + V
-    fp32_t            tnum_part;     // S7: U*Az + V*Bz
-    fp32_t            t_den;         // S7: (U + V) + W
-    fp32_t            t_num;         // S8: (U*Az + V*Bz) + W*Cz
-    logic             tri_hit;       // S9
-    // EUCLIDEAN / ANGULAR (extended)
-    logic  [15:0]     mask;
-    fp32_t [ANG_LANES-1:0] va, vb;   // S1: query / candidate lanes for ANGULAR
-    fp32_t [EUC_LANES-1:0] ediff;    // S1: a - b
-    fp32_t [EUC_LANES-1:0] esq;      // S2: (a - b)^2, masked lanes +0
-    fp32_t [7:0]      esum;          // S3..S6: reduction tree, level k keeps 16 >> k sums
-    fp32_t [ANG_LANES-1:0] adot;     // S2: a*b, masked +0;  S3..S5: tree
-    fp32_t [ANG_LANES-1:0] anorm;    // S2: b*b, masked +0;  S3..S5: tree
-    fp32_t            euclid_acc;    // S7: accumulator value after this beat
-    fp32_t            angular_dot;   // S7
-    fp32_t            angular_norm;  // S7
-  } stage_t;
+  localparam int unsigned PAYLOAD_W = 29 * 32;
 
-  // One-hot operation select for the FU pools.
-  function automatic logic [NUM_OPS-1:0] op_onehot(opcode_e op);
-    return NUM_OPS'(1) << op;
-  endfunction
+  // QUADBOX, R1..R2
+  typedef struct packed {
+    logic [PAYLOAD_W-28*32-3-1:0] rsvd;
+    logic  [2:0]      dir_neg;       // S1: sign bits of dir (S3 picks near/far with them)
+    fp32_t            extent;        // S1
+    fp32_t [2:0]      inv;           // S1
+    fp32_t [3:0][5:0] slab;          // S1: bound - origin; S2: (bound - origin) * inv  [box][bound]
+  } box_slab_t;
+
+  // QUADBOX, R3..R5
+  typedef struct packed {
+    logic [PAYLOAD_W-17*32-4-1:0] rsvd;
+    logic  [3:0]      nan;           // S3: some near/far value of the box is NaN
+    fp32_t            extent;
+    fp32_t [3:0]      tnear;         // S3: max(near_x, near_y); S4: with near_z; S5: with +0 = tmin
+    fp32_t [3:0]      tfar;          // S3: min(far_x, far_y);   S4: with far_z;  S5: with extent
+    fp32_t [3:0]      tnear_z;       // S3: near_z
+    fp32_t [3:0]      tfar_z;        // S3: far_z
+  } box_range_t;
+
+  // QUADBOX, R6..R9
+  typedef struct packed {
+    logic [PAYLOAD_W-4*32-12-1:0] rsvd;
+    logic  [3:0]      hit;           // S6 (then permuted by the sort, S7..S9)
+    logic  [3:0][1:0] idx;           // S6: 0, 1, 2, 3 (then sorted)
+    fp32_t [3:0]      tmin;          // S6: tmin on a hit, +inf on a miss (then sorted)
+  } box_sort_t;
+
+  // TRIANGLE, R1
+  typedef struct packed {
+    logic [PAYLOAD_W-12*32-6-1:0] rsvd;
+    logic  [1:0]      kx, ky, kz;    // S1
+    fp32_t [2:0]      shear;         // S1: Sx, Sy, Sz
+    fp32_t [2:0][2:0] p;             // S1: P' = P - origin  [vertex A, B, C][axis]
+  } tri_vert_t;
+
+  // TRIANGLE, R2
+  typedef struct packed {
+    logic [PAYLOAD_W-15*32-1:0] rsvd;
+    fp32_t [2:0]      px, py;        // S2: P'[kx], P'[ky] per vertex
+    fp32_t [2:0]      sx, sy;        // S2: Sx*P'[kz], Sy*P'[kz]
+    fp32_t [2:0]      z;             // S2: Z = Sz*P'[kz]
+  } tri_shear_t;
+
+  // TRIANGLE, R3..R9
+  typedef struct packed {
+    logic [PAYLOAD_W-25*32-1-1:0] rsvd;
+    logic             hit;           // S9
+    fp32_t [2:0]      z;             // from S2
+    fp32_t [2:0]      x, y;          // S3: X, Y per vertex
+    fp32_t [5:0]      xprod;         // S4: Cx*By, Cy*Bx, Ax*Cy, Ay*Cx, Bx*Ay, By*Ax
+    fp32_t            u, v, w;       // S5: U, V, W
+    fp32_t [2:0]      uvw_z;         // S6: U*Az, V*Bz, W*Cz
+    fp32_t            uv;            // S6: U + V
+    fp32_t            num_part;      // S7: U*Az + V*Bz
+    fp32_t            den;           // S7: t_den = (U + V) + W
+    fp32_t            num;           // S8: t_num = (U*Az + V*Bz) + W*Cz
+  } tri_edge_t;
+
+  // EUCLIDEAN, R1..R9
+  typedef struct packed {
+    logic [PAYLOAD_W-17*32-16-1:0] rsvd;
+    logic  [15:0]     mask;          // S1
+    fp32_t            acc;           // S7: accumulator value after this beat
+    fp32_t [EUC_LANES-1:0] e;        // S1: a - b; S2: (a - b)^2, masked lanes +0;
+                                     // S3..S6: reduction tree, level k keeps e[0 .. (16 >> k) - 1]
+  } euc_t;
+
+  // ANGULAR, R1..R9
+  typedef struct packed {
+    logic [PAYLOAD_W-18*32-8-1:0] rsvd;
+    logic  [ANG_LANES-1:0] mask;     // S1
+    fp32_t            dot_acc;       // S7: accumulator values after this beat
+    fp32_t            norm_acc;
+    fp32_t [ANG_LANES-1:0] dot;      // S1: query lanes a; S2: a*b, masked +0; S3..S5: tree
+    fp32_t [ANG_LANES-1:0] norm;     // S1: candidate lanes b; S2: b*b, masked +0; S3..S5: tree
+  } ang_t;
+
+  typedef union packed {
+    box_slab_t  box_slab;
+    box_range_t box_range;
+    box_sort_t  box_sort;
+    tri_vert_t  tri_vert;
+    tri_shear_t tri_shear;
+    tri_edge_t  tri_edge;
+    euc_t       euc;
+    ang_t       ang;
+  } payload_u;
+
+  typedef struct packed {
+    opcode_e          op;
+    logic             last;          // reset_accumulator of an extended beat
+    logic  [31:0]     tag;
+    payload_u         pl;            // the view that the operation and stage select
+  } stage_t;
 
   // Maximum of four pool demands (one per operation).
   function automatic int unsigned max4(int unsigned a, int unsigned b, int unsigned c,

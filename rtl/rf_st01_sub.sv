@@ -1,7 +1,8 @@
 // Stage 1 (input): convert the request into the stage struct and do the first subtractions.
-//   QUADBOX   24 x  bound - origin            (slab)
-//   TRIANGLE   9 x  P - origin                (tp)
-//   EUCLIDEAN 16 x  a - b                     (ediff)
+//   QUADBOX   24 x  bound - origin            (box_slab.slab)
+//   TRIANGLE   9 x  P - origin                (tri_vert.p)
+//   EUCLIDEAN 16 x  a - b                     (v_euc.e)
+//   ANGULAR         lanes a, b pass through   (v_ang.dot, v_ang.norm)
 module rf_st01_sub import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
   parameter bit DISJOINT = 1'b0
@@ -9,63 +10,86 @@ module rf_st01_sub import rf_pkg::*; #(
   input  req_t   req_i,
   output stage_t st_o
 );
-  localparam int unsigned NT = 9, NB = 24, NE = EXTENDED ? EUC_LANES : 0, NA = 0;
-  localparam int unsigned P = max4(NT, NB, NE, NA);
+  localparam int unsigned NT = 9, NB = 24, NE = EXTENDED ? EUC_LANES : 0;
 
-  fp32_t [NUM_OPS-1:0][P-1:0] a, b, y;
+  // ---- adder pool: operands per operation ----
+  fp32_t [NT-1:0] tri_a, tri_b, tri_y;
+  fp32_t [NB-1:0] box_a, box_b, box_y;
+  fp32_t [(NE > 0 ? NE : 1)-1:0] euc_a, euc_b, euc_y;
+  fp32_t unused_ang_y;
 
   always_comb begin
-    a = '0;
-    b = '0;
     for (int i = 0; i < 4; i++) begin
       for (int j = 0; j < 6; j++) begin
-        a[OP_QUADBOX][6*i+j] = req_i.box[i][j];
-        b[OP_QUADBOX][6*i+j] = fp_neg(req_i.origin[j % 3]);
+        box_a[6*i+j] = req_i.box[i][j];
+        box_b[6*i+j] = fp_neg(req_i.origin[j % 3]);
       end
     end
     for (int v = 0; v < 3; v++) begin
       for (int ax = 0; ax < 3; ax++) begin
-        a[OP_TRIANGLE][3*v+ax] = req_i.triangle[v][ax];
-        b[OP_TRIANGLE][3*v+ax] = fp_neg(req_i.origin[ax]);
+        tri_a[3*v+ax] = req_i.triangle[v][ax];
+        tri_b[3*v+ax] = fp_neg(req_i.origin[ax]);
       end
     end
+    euc_a = '0;
+    euc_b = '0;
     if (EXTENDED) begin
-      for (int l = 0; l < int'(EUC_LANES); l++) begin
-        a[OP_EUCLIDEAN][l] = req_i.vec_a[l];
-        b[OP_EUCLIDEAN][l] = fp_neg(req_i.vec_b[l]);
+      for (int l = 0; l < int'(NE); l++) begin
+        euc_a[l] = req_i.vec_a[l];
+        euc_b[l] = fp_neg(req_i.vec_b[l]);
       end
     end
   end
 
-  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(NB), .N_EUC(NE), .N_ANG(NA))
-    u_add (.sel_i(op_onehot(req_i.opcode)), .a_i(a), .b_i(b), .y_o(y));
+  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(NB), .N_EUC(NE), .N_ANG(0))
+    u_add (.op_i(req_i.opcode),
+           .tri_a_i(tri_a), .tri_b_i(tri_b), .tri_y_o(tri_y),
+           .box_a_i(box_a), .box_b_i(box_b), .box_y_o(box_y),
+           .euc_a_i(euc_a), .euc_b_i(euc_b), .euc_y_o(euc_y),
+           .ang_a_i(FP_POS_ZERO), .ang_b_i(FP_POS_ZERO), .ang_y_o(unused_ang_y));
 
+  // ---- stage struct ----
   always_comb begin
-    st_o        = '0;
-    st_o.op     = req_i.opcode;
-    st_o.tag    = req_i.tag;
-    st_o.dir    = req_i.dir;
-    st_o.inv    = req_i.inv;
-    st_o.extent = req_i.extent;
-    st_o.kx     = req_i.kx;
-    st_o.ky     = req_i.ky;
-    st_o.kz     = req_i.kz;
-    st_o.shear  = req_i.shear;
-    for (int i = 0; i < 4; i++) begin
-      for (int j = 0; j < 6; j++) st_o.slab[i][j] = y[OP_QUADBOX][6*i+j];
-    end
-    for (int v = 0; v < 3; v++) begin
-      for (int ax = 0; ax < 3; ax++) st_o.tp[v][ax] = y[OP_TRIANGLE][3*v+ax];
-    end
-    if (EXTENDED) begin
-      st_o.last = req_i.reset_accumulator;
-      st_o.mask = req_i.vec_mask;
-      for (int l = 0; l < int'(EUC_LANES); l++) st_o.ediff[l] = y[OP_EUCLIDEAN][l];
-      for (int l = 0; l < int'(ANG_LANES); l++) begin
-        st_o.va[l] = req_i.vec_a[l];
-        st_o.vb[l] = req_i.vec_b[l];
+    st_o     = '0;
+    st_o.op  = req_i.opcode;
+    st_o.tag = req_i.tag;
+    unique case (req_i.opcode)
+      OP_QUADBOX: begin
+        for (int ax = 0; ax < 3; ax++) st_o.pl.box_slab.dir_neg[ax] = req_i.dir[ax][31];
+        st_o.pl.box_slab.extent = req_i.extent;
+        st_o.pl.box_slab.inv    = req_i.inv;
+        for (int i = 0; i < 4; i++) begin
+          for (int j = 0; j < 6; j++) st_o.pl.box_slab.slab[i][j] = box_y[6*i+j];
+        end
       end
-    end
+      OP_TRIANGLE: begin
+        st_o.pl.tri_vert.kx    = req_i.kx;
+        st_o.pl.tri_vert.ky    = req_i.ky;
+        st_o.pl.tri_vert.kz    = req_i.kz;
+        st_o.pl.tri_vert.shear = req_i.shear;
+        for (int v = 0; v < 3; v++) begin
+          for (int ax = 0; ax < 3; ax++) st_o.pl.tri_vert.p[v][ax] = tri_y[3*v+ax];
+        end
+      end
+      OP_EUCLIDEAN: begin
+        if (EXTENDED) begin
+          st_o.last        = req_i.reset_accumulator;
+          st_o.pl.euc.mask = req_i.vec_mask;
+          for (int l = 0; l < int'(NE); l++) st_o.pl.euc.e[l] = euc_y[l];
+        end
+      end
+      OP_ANGULAR: begin
+        if (EXTENDED) begin
+          st_o.last        = req_i.reset_accumulator;
+          st_o.pl.ang.mask = req_i.vec_mask[ANG_LANES-1:0];
+          for (int l = 0; l < int'(ANG_LANES); l++) begin
+            st_o.pl.ang.dot[l]  = req_i.vec_a[l];
+            st_o.pl.ang.norm[l] = req_i.vec_b[l];
+          end
+        end
+      end
+      default: ;
+    endcase
   end
 
 endmodule

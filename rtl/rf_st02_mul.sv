@@ -12,68 +12,100 @@ module rf_st02_mul import rf_pkg::*; #(
 );
   localparam int unsigned NT = 9, NB = 24;
   localparam int unsigned NE = EXTENDED ? EUC_LANES : 0, NA = EXTENDED ? 2 * ANG_LANES : 0;
-  localparam int unsigned P = max4(NT, NB, NE, NA);
 
   // Component k (0, 1, 2 = x, y, z) of a 3-vector.
   function automatic fp32_t pick(fp32_t [2:0] v, logic [1:0] k);
     return (k == 2'd0) ? v[0] : (k == 2'd1) ? v[1] : v[2];
   endfunction
 
-  fp32_t [NUM_OPS-1:0][P-1:0] a, b, y;
+  box_slab_t  v_box;
+  tri_vert_t  v_tri;
+  euc_t       v_euc;
+  ang_t       v_ang;
+  assign v_box = st_i.pl.box_slab;
+  assign v_tri = st_i.pl.tri_vert;
+  assign v_euc = st_i.pl.euc;
+  assign v_ang = st_i.pl.ang;
+
+  // ---- multiplier pool: operands per operation ----
+  fp32_t [NT-1:0] tri_a, tri_b, tri_y;
+  fp32_t [NB-1:0] box_a, box_b, box_y;
+  fp32_t [(NE > 0 ? NE : 1)-1:0] euc_a, euc_b, euc_y;
+  fp32_t [(NA > 0 ? NA : 1)-1:0] ang_a, ang_b, ang_y;
 
   always_comb begin
-    a = '0;
-    b = '0;
     for (int i = 0; i < 4; i++) begin
       for (int j = 0; j < 6; j++) begin
-        a[OP_QUADBOX][6*i+j] = st_i.slab[i][j];
-        b[OP_QUADBOX][6*i+j] = st_i.inv[j % 3];
+        box_a[6*i+j] = v_box.slab[i][j];
+        box_b[6*i+j] = v_box.inv[j % 3];
       end
     end
     for (int v = 0; v < 3; v++) begin
       for (int s = 0; s < 3; s++) begin
-        a[OP_TRIANGLE][3*v+s] = st_i.shear[s];
-        b[OP_TRIANGLE][3*v+s] = pick(st_i.tp[v], st_i.kz);
+        tri_a[3*v+s] = v_tri.shear[s];
+        tri_b[3*v+s] = pick(v_tri.p[v], v_tri.kz);
       end
     end
+    euc_a = '0;
+    euc_b = '0;
+    ang_a = '0;
+    ang_b = '0;
     if (EXTENDED) begin
       for (int l = 0; l < int'(EUC_LANES); l++) begin
-        a[OP_EUCLIDEAN][l] = st_i.ediff[l];
-        b[OP_EUCLIDEAN][l] = st_i.ediff[l];
+        euc_a[l] = v_euc.e[l];
+        euc_b[l] = v_euc.e[l];
       end
       for (int l = 0; l < int'(ANG_LANES); l++) begin
-        a[OP_ANGULAR][l]             = st_i.va[l];
-        b[OP_ANGULAR][l]             = st_i.vb[l];
-        a[OP_ANGULAR][ANG_LANES + l] = st_i.vb[l];
-        b[OP_ANGULAR][ANG_LANES + l] = st_i.vb[l];
+        ang_a[l]             = v_ang.dot[l];
+        ang_b[l]             = v_ang.norm[l];
+        ang_a[ANG_LANES + l] = v_ang.norm[l];
+        ang_b[ANG_LANES + l] = v_ang.norm[l];
       end
     end
   end
 
   rf_fu_pool #(.IS_MUL(1'b1), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(NB), .N_EUC(NE), .N_ANG(NA))
-    u_mul (.sel_i(op_onehot(st_i.op)), .a_i(a), .b_i(b), .y_o(y));
+    u_mul (.op_i(st_i.op),
+           .tri_a_i(tri_a), .tri_b_i(tri_b), .tri_y_o(tri_y),
+           .box_a_i(box_a), .box_b_i(box_b), .box_y_o(box_y),
+           .euc_a_i(euc_a), .euc_b_i(euc_b), .euc_y_o(euc_y),
+           .ang_a_i(ang_a), .ang_b_i(ang_b), .ang_y_o(ang_y));
 
+  // ---- stage struct ----
   always_comb begin
     st_o = st_i;
-    for (int i = 0; i < 4; i++) begin
-      for (int j = 0; j < 6; j++) st_o.slab[i][j] = y[OP_QUADBOX][6*i+j];
-    end
-    for (int v = 0; v < 3; v++) begin
-      st_o.tpx[v] = pick(st_i.tp[v], st_i.kx);
-      st_o.tpy[v] = pick(st_i.tp[v], st_i.ky);
-      st_o.tsx[v] = y[OP_TRIANGLE][3*v+0];
-      st_o.tsy[v] = y[OP_TRIANGLE][3*v+1];
-      st_o.tz[v]  = y[OP_TRIANGLE][3*v+2];
-    end
-    if (EXTENDED) begin
-      for (int l = 0; l < int'(EUC_LANES); l++) begin
-        st_o.esq[l] = st_i.mask[l] ? y[OP_EUCLIDEAN][l] : FP_POS_ZERO;
+    unique case (st_i.op)
+      OP_QUADBOX: begin
+        for (int i = 0; i < 4; i++) begin
+          for (int j = 0; j < 6; j++) st_o.pl.box_slab.slab[i][j] = box_y[6*i+j];
+        end
       end
-      for (int l = 0; l < int'(ANG_LANES); l++) begin
-        st_o.adot[l]  = st_i.mask[l] ? y[OP_ANGULAR][l]             : FP_POS_ZERO;
-        st_o.anorm[l] = st_i.mask[l] ? y[OP_ANGULAR][ANG_LANES + l] : FP_POS_ZERO;
+      OP_TRIANGLE: begin
+        for (int v = 0; v < 3; v++) begin
+          st_o.pl.tri_shear.px[v] = pick(v_tri.p[v], v_tri.kx);
+          st_o.pl.tri_shear.py[v] = pick(v_tri.p[v], v_tri.ky);
+          st_o.pl.tri_shear.sx[v] = tri_y[3*v+0];
+          st_o.pl.tri_shear.sy[v] = tri_y[3*v+1];
+          st_o.pl.tri_shear.z[v]  = tri_y[3*v+2];
+        end
       end
-    end
+      OP_EUCLIDEAN: begin
+        if (EXTENDED) begin
+          for (int l = 0; l < int'(EUC_LANES); l++) begin
+            st_o.pl.euc.e[l] = v_euc.mask[l] ? euc_y[l] : FP_POS_ZERO;
+          end
+        end
+      end
+      OP_ANGULAR: begin
+        if (EXTENDED) begin
+          for (int l = 0; l < int'(ANG_LANES); l++) begin
+            st_o.pl.ang.dot[l]  = v_ang.mask[l] ? ang_y[l]             : FP_POS_ZERO;
+            st_o.pl.ang.norm[l] = v_ang.mask[l] ? ang_y[ANG_LANES + l] : FP_POS_ZERO;
+          end
+        end
+      end
+      default: ;
+    endcase
   end
 
 endmodule

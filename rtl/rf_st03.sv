@@ -1,8 +1,8 @@
 // Stage 3.
 //   QUADBOX   near/far per axis by the sign of dir, NaN flag, max(near_x, near_y), min(far_x, far_y)
 //   TRIANGLE   6 x  X = P'[kx] - Sx*P'[kz],  Y = P'[ky] - Sy*P'[kz]
-//   EUCLIDEAN  8 x  tree level 1: esq[i] + esq[i+8]
-//   ANGULAR    8 x  tree level 1: adot[i] + adot[i+4], anorm[i] + anorm[i+4]
+//   EUCLIDEAN  8 x  tree level 1: e[i] + e[i+8]
+//   ANGULAR    8 x  tree level 1: dot[i] + dot[i+4], norm[i] + norm[i+4]
 module rf_st03 import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
   parameter bit DISJOINT = 1'b0
@@ -10,12 +10,20 @@ module rf_st03 import rf_pkg::*; #(
   input  stage_t st_i,
   output stage_t st_o
 );
-  localparam int unsigned NT = 6, NB = 0, NE = EXTENDED ? 8 : 0, NA = EXTENDED ? 8 : 0;
-  localparam int unsigned P = max4(NT, NB, NE, NA);
+  localparam int unsigned NT = 6, NE = EXTENDED ? 8 : 0, NA = EXTENDED ? 8 : 0;
 
   function automatic logic is_nan(logic [30:0] magnitude);
-    return (magnitude[30:23] == 8'hFF) && (magnitude[22:0] != '0);
+    return magnitude > 31'h7F80_0000;
   endfunction
+
+  box_slab_t  v_box;
+  tri_shear_t v_tri;
+  euc_t       v_euc;
+  ang_t       v_ang;
+  assign v_box = st_i.pl.box_slab;
+  assign v_tri = st_i.pl.tri_shear;
+  assign v_euc = st_i.pl.euc;
+  assign v_ang = st_i.pl.ang;
 
   // ---- QUADBOX: slab interval per axis ----
   fp32_t [3:0][2:0] near, far;
@@ -24,9 +32,9 @@ module rf_st03 import rf_pkg::*; #(
     for (int i = 0; i < 4; i++) begin
       nan[i] = 1'b0;
       for (int ax = 0; ax < 3; ax++) begin
-        near[i][ax] = st_i.dir[ax][31] ? st_i.slab[i][3+ax] : st_i.slab[i][ax];
-        far[i][ax]  = st_i.dir[ax][31] ? st_i.slab[i][ax]   : st_i.slab[i][3+ax];
-        nan[i] = nan[i] | is_nan(near[i][ax][30:0]) | is_nan(far[i][ax][30:0]);
+        near[i][ax] = v_box.dir_neg[ax] ? v_box.slab[i][3+ax] : v_box.slab[i][ax];
+        far[i][ax]  = v_box.dir_neg[ax] ? v_box.slab[i][ax]   : v_box.slab[i][3+ax];
+        nan[i] = nan[i] | is_nan(v_box.slab[i][ax][30:0]) | is_nan(v_box.slab[i][3+ax][30:0]);
       end
     end
   end
@@ -38,54 +46,79 @@ module rf_st03 import rf_pkg::*; #(
     rf_fp_minmax u_far  (.a_i(far[i][0]),  .b_i(far[i][1]),  .min_o(far_xy[i]),  .max_o(unused_max));
   end
 
-  // ---- adder pool ----
-  fp32_t [NUM_OPS-1:0][P-1:0] a, b, y;
+  // ---- adder pool: operands per operation ----
+  fp32_t [NT-1:0] tri_a, tri_b, tri_y;
+  fp32_t [(NE > 0 ? NE : 1)-1:0] euc_a, euc_b, euc_y;
+  fp32_t [(NA > 0 ? NA : 1)-1:0] ang_a, ang_b, ang_y;
+  fp32_t unused_box_y;
   always_comb begin
-    a = '0;
-    b = '0;
     for (int v = 0; v < 3; v++) begin
-      a[OP_TRIANGLE][v]     = st_i.tpx[v];
-      b[OP_TRIANGLE][v]     = fp_neg(st_i.tsx[v]);
-      a[OP_TRIANGLE][3 + v] = st_i.tpy[v];
-      b[OP_TRIANGLE][3 + v] = fp_neg(st_i.tsy[v]);
+      tri_a[v]     = v_tri.px[v];
+      tri_b[v]     = fp_neg(v_tri.sx[v]);
+      tri_a[3 + v] = v_tri.py[v];
+      tri_b[3 + v] = fp_neg(v_tri.sy[v]);
     end
+    euc_a = '0;
+    euc_b = '0;
+    ang_a = '0;
+    ang_b = '0;
     if (EXTENDED) begin
       for (int i = 0; i < 8; i++) begin
-        a[OP_EUCLIDEAN][i] = st_i.esq[i];
-        b[OP_EUCLIDEAN][i] = st_i.esq[i + 8];
+        euc_a[i] = v_euc.e[i];
+        euc_b[i] = v_euc.e[i + 8];
       end
       for (int i = 0; i < 4; i++) begin
-        a[OP_ANGULAR][i]     = st_i.adot[i];
-        b[OP_ANGULAR][i]     = st_i.adot[i + 4];
-        a[OP_ANGULAR][4 + i] = st_i.anorm[i];
-        b[OP_ANGULAR][4 + i] = st_i.anorm[i + 4];
+        ang_a[i]     = v_ang.dot[i];
+        ang_b[i]     = v_ang.dot[i + 4];
+        ang_a[4 + i] = v_ang.norm[i];
+        ang_b[4 + i] = v_ang.norm[i + 4];
       end
     end
   end
 
-  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(NB), .N_EUC(NE), .N_ANG(NA))
-    u_add (.sel_i(op_onehot(st_i.op)), .a_i(a), .b_i(b), .y_o(y));
+  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(0), .N_EUC(NE), .N_ANG(NA))
+    u_add (.op_i(st_i.op),
+           .tri_a_i(tri_a), .tri_b_i(tri_b), .tri_y_o(tri_y),
+           .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_y),
+           .euc_a_i(euc_a), .euc_b_i(euc_b), .euc_y_o(euc_y),
+           .ang_a_i(ang_a), .ang_b_i(ang_b), .ang_y_o(ang_y));
 
+  // ---- stage struct ----
   always_comb begin
     st_o = st_i;
-    for (int i = 0; i < 4; i++) begin
-      st_o.bnan[i]    = nan[i];
-      st_o.bnear[i]   = near_xy[i];
-      st_o.bfar[i]    = far_xy[i];
-      st_o.bnear_z[i] = near[i][2];
-      st_o.bfar_z[i]  = far[i][2];
-    end
-    for (int v = 0; v < 3; v++) begin
-      st_o.tx[v] = y[OP_TRIANGLE][v];
-      st_o.ty[v] = y[OP_TRIANGLE][3 + v];
-    end
-    if (EXTENDED) begin
-      for (int i = 0; i < 8; i++) st_o.esum[i] = y[OP_EUCLIDEAN][i];
-      for (int i = 0; i < 4; i++) begin
-        st_o.adot[i]  = y[OP_ANGULAR][i];
-        st_o.anorm[i] = y[OP_ANGULAR][4 + i];
+    unique case (st_i.op)
+      OP_QUADBOX: begin
+        st_o.pl.box_range.nan    = nan;
+        st_o.pl.box_range.extent = v_box.extent;
+        for (int i = 0; i < 4; i++) begin
+          st_o.pl.box_range.tnear[i]   = near_xy[i];
+          st_o.pl.box_range.tfar[i]    = far_xy[i];
+          st_o.pl.box_range.tnear_z[i] = near[i][2];
+          st_o.pl.box_range.tfar_z[i]  = far[i][2];
+        end
       end
-    end
+      OP_TRIANGLE: begin
+        st_o.pl.tri_edge.z = v_tri.z;
+        for (int v = 0; v < 3; v++) begin
+          st_o.pl.tri_edge.x[v] = tri_y[v];
+          st_o.pl.tri_edge.y[v] = tri_y[3 + v];
+        end
+      end
+      OP_EUCLIDEAN: begin
+        if (EXTENDED) begin
+          for (int i = 0; i < 8; i++) st_o.pl.euc.e[i] = euc_y[i];
+        end
+      end
+      OP_ANGULAR: begin
+        if (EXTENDED) begin
+          for (int i = 0; i < 4; i++) begin
+            st_o.pl.ang.dot[i]  = ang_y[i];
+            st_o.pl.ang.norm[i] = ang_y[4 + i];
+          end
+        end
+      end
+      default: ;
+    endcase
   end
 
 endmodule

@@ -1,7 +1,7 @@
 // Stage 4.
 //   QUADBOX   max(.., near_z), min(.., far_z)
 //   TRIANGLE   6 x  Cx*By, Cy*Bx, Ax*Cy, Ay*Cx, Bx*Ay, By*Ax   (multipliers)
-//   EUCLIDEAN  4 x  tree level 2: esum[i] + esum[i+4]            (adders)
+//   EUCLIDEAN  4 x  tree level 2: e[i] + e[i+4]                  (adders)
 //   ANGULAR    4 x  tree level 2 on dot and norm                  (adders)
 module rf_st04 import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
@@ -12,70 +12,98 @@ module rf_st04 import rf_pkg::*; #(
 );
   localparam int unsigned MT = 6;
   localparam int unsigned AE = EXTENDED ? 4 : 0, AA = EXTENDED ? 4 : 0;
-  localparam int unsigned PM = MT;
-  localparam int unsigned PA = (max4(0, 0, AE, AA) > 0) ? max4(0, 0, AE, AA) : 1;
+
+  box_range_t v_box;
+  tri_edge_t  v_tri;
+  euc_t       v_euc;
+  ang_t       v_ang;
+  assign v_box = st_i.pl.box_range;
+  assign v_tri = st_i.pl.tri_edge;
+  assign v_euc = st_i.pl.euc;
+  assign v_ang = st_i.pl.ang;
 
   // ---- QUADBOX ----
   fp32_t [3:0] near, far;
   for (genvar i = 0; i < 4; i++) begin : g_box
     fp32_t unused_min, unused_max;
-    rf_fp_minmax u_near (.a_i(st_i.bnear[i]), .b_i(st_i.bnear_z[i]),
-                         .min_o(unused_min), .max_o(near[i]));
-    rf_fp_minmax u_far  (.a_i(st_i.bfar[i]),  .b_i(st_i.bfar_z[i]),
-                         .min_o(far[i]), .max_o(unused_max));
+    rf_fp_minmax u_near (.a_i(v_box.tnear[i]), .b_i(v_box.tnear_z[i]), .min_o(unused_min), .max_o(near[i]));
+    rf_fp_minmax u_far  (.a_i(v_box.tfar[i]),  .b_i(v_box.tfar_z[i]),  .min_o(far[i]), .max_o(unused_max));
   end
 
-  // ---- multiplier pool: the 2-D cross products (vertex index 0, 1, 2 = A, B, C) ----
-  fp32_t [NUM_OPS-1:0][PM-1:0] ma, mb, my;
+  // ---- multiplier pool: the 2-D xprod products (vertex index 0, 1, 2 = A, B, C) ----
+  fp32_t [MT-1:0] tri_ma, tri_mb, tri_my;
+  fp32_t          unused_box_my, unused_euc_my, unused_ang_my;
   always_comb begin
-    ma = '0;
-    mb = '0;
-    ma[OP_TRIANGLE][0] = st_i.tx[2];  mb[OP_TRIANGLE][0] = st_i.ty[1];   // Cx*By
-    ma[OP_TRIANGLE][1] = st_i.ty[2];  mb[OP_TRIANGLE][1] = st_i.tx[1];   // Cy*Bx
-    ma[OP_TRIANGLE][2] = st_i.tx[0];  mb[OP_TRIANGLE][2] = st_i.ty[2];   // Ax*Cy
-    ma[OP_TRIANGLE][3] = st_i.ty[0];  mb[OP_TRIANGLE][3] = st_i.tx[2];   // Ay*Cx
-    ma[OP_TRIANGLE][4] = st_i.tx[1];  mb[OP_TRIANGLE][4] = st_i.ty[0];   // Bx*Ay
-    ma[OP_TRIANGLE][5] = st_i.ty[1];  mb[OP_TRIANGLE][5] = st_i.tx[0];   // By*Ax
+    tri_ma[0] = v_tri.x[2];  tri_mb[0] = v_tri.y[1];   // Cx*By
+    tri_ma[1] = v_tri.y[2];  tri_mb[1] = v_tri.x[1];   // Cy*Bx
+    tri_ma[2] = v_tri.x[0];  tri_mb[2] = v_tri.y[2];   // Ax*Cy
+    tri_ma[3] = v_tri.y[0];  tri_mb[3] = v_tri.x[2];   // Ay*Cx
+    tri_ma[4] = v_tri.x[1];  tri_mb[4] = v_tri.y[0];   // Bx*Ay
+    tri_ma[5] = v_tri.y[1];  tri_mb[5] = v_tri.x[0];   // By*Ax
   end
   rf_fu_pool #(.IS_MUL(1'b1), .DISJOINT(DISJOINT), .N_TRI(MT), .N_BOX(0), .N_EUC(0), .N_ANG(0))
-    u_mul (.sel_i(op_onehot(st_i.op)), .a_i(ma), .b_i(mb), .y_o(my));
+    u_mul (.op_i(st_i.op),
+           .tri_a_i(tri_ma), .tri_b_i(tri_mb), .tri_y_o(tri_my),
+           .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_my),
+           .euc_a_i(FP_POS_ZERO), .euc_b_i(FP_POS_ZERO), .euc_y_o(unused_euc_my),
+           .ang_a_i(FP_POS_ZERO), .ang_b_i(FP_POS_ZERO), .ang_y_o(unused_ang_my));
 
   // ---- adder pool: reduction trees (extended only) ----
-  fp32_t [NUM_OPS-1:0][PA-1:0] ay;
+  fp32_t [(AE > 0 ? AE : 1)-1:0] euc_ay;
+  fp32_t [(AA > 0 ? AA : 1)-1:0] ang_ay;
   if (EXTENDED) begin : g_tree
-    fp32_t [NUM_OPS-1:0][PA-1:0] aa, ab;
+    fp32_t [AE-1:0] euc_aa, euc_ab;
+    fp32_t [AA-1:0] ang_aa, ang_ab;
+    fp32_t          unused_tri_ay, unused_box_ay;
     always_comb begin
-      aa = '0;
-      ab = '0;
       for (int i = 0; i < 4; i++) begin
-        aa[OP_EUCLIDEAN][i] = st_i.esum[i];
-        ab[OP_EUCLIDEAN][i] = st_i.esum[i + 4];
+        euc_aa[i] = v_euc.e[i];
+        euc_ab[i] = v_euc.e[i + 4];
       end
       for (int i = 0; i < 2; i++) begin
-        aa[OP_ANGULAR][i]     = st_i.adot[i];
-        ab[OP_ANGULAR][i]     = st_i.adot[i + 2];
-        aa[OP_ANGULAR][2 + i] = st_i.anorm[i];
-        ab[OP_ANGULAR][2 + i] = st_i.anorm[i + 2];
+        ang_aa[i]     = v_ang.dot[i];
+        ang_ab[i]     = v_ang.dot[i + 2];
+        ang_aa[2 + i] = v_ang.norm[i];
+        ang_ab[2 + i] = v_ang.norm[i + 2];
       end
     end
     rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(0), .N_BOX(0), .N_EUC(AE), .N_ANG(AA))
-      u_add (.sel_i(op_onehot(st_i.op)), .a_i(aa), .b_i(ab), .y_o(ay));
+      u_add (.op_i(st_i.op),
+             .tri_a_i(FP_POS_ZERO), .tri_b_i(FP_POS_ZERO), .tri_y_o(unused_tri_ay),
+             .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_ay),
+             .euc_a_i(euc_aa), .euc_b_i(euc_ab), .euc_y_o(euc_ay),
+             .ang_a_i(ang_aa), .ang_b_i(ang_ab), .ang_y_o(ang_ay));
   end else begin : g_no_tree
-    assign ay = '0;
+    assign euc_ay = '0;
+    assign ang_ay = '0;
   end
 
+  // ---- stage struct ----
   always_comb begin
     st_o = st_i;
-    st_o.bnear  = near;
-    st_o.bfar   = far;
-    st_o.tcross = my[OP_TRIANGLE];
-    if (EXTENDED) begin
-      for (int i = 0; i < 4; i++) st_o.esum[i] = ay[OP_EUCLIDEAN][i];
-      for (int i = 0; i < 2; i++) begin
-        st_o.adot[i]  = ay[OP_ANGULAR][i];
-        st_o.anorm[i] = ay[OP_ANGULAR][2 + i];
+    unique case (st_i.op)
+      OP_QUADBOX: begin
+        st_o.pl.box_range.tnear = near;
+        st_o.pl.box_range.tfar  = far;
       end
-    end
+      OP_TRIANGLE: begin
+        st_o.pl.tri_edge.xprod = tri_my;
+      end
+      OP_EUCLIDEAN: begin
+        if (EXTENDED) begin
+          for (int i = 0; i < 4; i++) st_o.pl.euc.e[i] = euc_ay[i];
+        end
+      end
+      OP_ANGULAR: begin
+        if (EXTENDED) begin
+          for (int i = 0; i < 2; i++) begin
+            st_o.pl.ang.dot[i]  = ang_ay[i];
+            st_o.pl.ang.norm[i] = ang_ay[2 + i];
+          end
+        end
+      end
+      default: ;
+    endcase
   end
 
 endmodule

@@ -1,8 +1,8 @@
 // Stage 5.
 //   QUADBOX   tmin = max(.., +0), tmax = min(.., extent)
 //   TRIANGLE   3 x  U = Cx*By - Cy*Bx,  V = Ax*Cy - Ay*Cx,  W = Bx*Ay - By*Ax
-//   EUCLIDEAN  2 x  tree level 3: esum[i] + esum[i+2]
-//   ANGULAR    2 x  tree level 3 (last): adot[0] + adot[1], anorm[0] + anorm[1]
+//   EUCLIDEAN  2 x  tree level 3: e[i] + e[i+2]
+//   ANGULAR    2 x  tree level 3 (last): dot[0] + dot[1], norm[0] + norm[1]
 module rf_st05 import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
   parameter bit DISJOINT = 1'b0
@@ -10,56 +10,85 @@ module rf_st05 import rf_pkg::*; #(
   input  stage_t st_i,
   output stage_t st_o
 );
-  localparam int unsigned NT = 3, NB = 0, NE = EXTENDED ? 2 : 0, NA = EXTENDED ? 2 : 0;
-  localparam int unsigned P = max4(NT, NB, NE, NA);
+  localparam int unsigned NT = 3, NE = EXTENDED ? 2 : 0, NA = EXTENDED ? 2 : 0;
+
+  box_range_t v_box;
+  tri_edge_t  v_tri;
+  euc_t       v_euc;
+  ang_t       v_ang;
+  assign v_box = st_i.pl.box_range;
+  assign v_tri = st_i.pl.tri_edge;
+  assign v_euc = st_i.pl.euc;
+  assign v_ang = st_i.pl.ang;
 
   // ---- QUADBOX ----
   fp32_t [3:0] tmin, tmax;
   for (genvar i = 0; i < 4; i++) begin : g_box
     fp32_t unused_min, unused_max;
-    rf_fp_minmax u_near (.a_i(st_i.bnear[i]), .b_i(FP_POS_ZERO),
-                         .min_o(unused_min), .max_o(tmin[i]));
-    rf_fp_minmax u_far  (.a_i(st_i.bfar[i]), .b_i(st_i.extent),
-                         .min_o(tmax[i]), .max_o(unused_max));
+    rf_fp_minmax u_near (.a_i(v_box.tnear[i]), .b_i(FP_POS_ZERO), .min_o(unused_min), .max_o(tmin[i]));
+    rf_fp_minmax u_far  (.a_i(v_box.tfar[i]), .b_i(v_box.extent), .min_o(tmax[i]), .max_o(unused_max));
   end
 
-  // ---- adder pool ----
-  fp32_t [NUM_OPS-1:0][P-1:0] a, b, y;
+  // ---- adder pool: operands per operation ----
+  fp32_t [NT-1:0] tri_a, tri_b, tri_y;
+  fp32_t [(NE > 0 ? NE : 1)-1:0] euc_a, euc_b, euc_y;
+  fp32_t [(NA > 0 ? NA : 1)-1:0] ang_a, ang_b, ang_y;
+  fp32_t unused_box_y;
   always_comb begin
-    a = '0;
-    b = '0;
     for (int k = 0; k < 3; k++) begin
-      a[OP_TRIANGLE][k] = st_i.tcross[2*k];
-      b[OP_TRIANGLE][k] = fp_neg(st_i.tcross[2*k+1]);
+      tri_a[k] = v_tri.xprod[2*k];
+      tri_b[k] = fp_neg(v_tri.xprod[2*k+1]);
     end
+    euc_a = '0;
+    euc_b = '0;
+    ang_a = '0;
+    ang_b = '0;
     if (EXTENDED) begin
       for (int i = 0; i < 2; i++) begin
-        a[OP_EUCLIDEAN][i] = st_i.esum[i];
-        b[OP_EUCLIDEAN][i] = st_i.esum[i + 2];
+        euc_a[i] = v_euc.e[i];
+        euc_b[i] = v_euc.e[i + 2];
       end
-      a[OP_ANGULAR][0] = st_i.adot[0];
-      b[OP_ANGULAR][0] = st_i.adot[1];
-      a[OP_ANGULAR][1] = st_i.anorm[0];
-      b[OP_ANGULAR][1] = st_i.anorm[1];
+      ang_a[0] = v_ang.dot[0];
+      ang_b[0] = v_ang.dot[1];
+      ang_a[1] = v_ang.norm[0];
+      ang_b[1] = v_ang.norm[1];
     end
   end
 
-  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(NB), .N_EUC(NE), .N_ANG(NA))
-    u_add (.sel_i(op_onehot(st_i.op)), .a_i(a), .b_i(b), .y_o(y));
+  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(0), .N_EUC(NE), .N_ANG(NA))
+    u_add (.op_i(st_i.op),
+           .tri_a_i(tri_a), .tri_b_i(tri_b), .tri_y_o(tri_y),
+           .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_y),
+           .euc_a_i(euc_a), .euc_b_i(euc_b), .euc_y_o(euc_y),
+           .ang_a_i(ang_a), .ang_b_i(ang_b), .ang_y_o(ang_y));
 
+  // ---- stage struct ----
   always_comb begin
     st_o = st_i;
-    st_o.bnear = tmin;
-    st_o.bfar  = tmax;
-    st_o.tu    = y[OP_TRIANGLE][0];
-    st_o.tv    = y[OP_TRIANGLE][1];
-    st_o.tw    = y[OP_TRIANGLE][2];
-    if (EXTENDED) begin
-      st_o.esum[0]  = y[OP_EUCLIDEAN][0];
-      st_o.esum[1]  = y[OP_EUCLIDEAN][1];
-      st_o.adot[0]  = y[OP_ANGULAR][0];
-      st_o.anorm[0] = y[OP_ANGULAR][1];
-    end
+    unique case (st_i.op)
+      OP_QUADBOX: begin
+        st_o.pl.box_range.tnear = tmin;
+        st_o.pl.box_range.tfar  = tmax;
+      end
+      OP_TRIANGLE: begin
+        st_o.pl.tri_edge.u = tri_y[0];
+        st_o.pl.tri_edge.v = tri_y[1];
+        st_o.pl.tri_edge.w = tri_y[2];
+      end
+      OP_EUCLIDEAN: begin
+        if (EXTENDED) begin
+          st_o.pl.euc.e[0] = euc_y[0];
+          st_o.pl.euc.e[1] = euc_y[1];
+        end
+      end
+      OP_ANGULAR: begin
+        if (EXTENDED) begin
+          st_o.pl.ang.dot[0]  = ang_y[0];
+          st_o.pl.ang.norm[0] = ang_y[1];
+        end
+      end
+      default: ;
+    endcase
   end
 
 endmodule

@@ -17,40 +17,54 @@ module rf_st07 import rf_pkg::*; #(
   input  stage_t st_i,
   output stage_t st_o
 );
-  localparam int unsigned NT = 2, NB = 0, NE = EXTENDED ? 1 : 0, NA = EXTENDED ? 2 : 0;
-  localparam int unsigned P = max4(NT, NB, NE, NA);
+  localparam int unsigned NT = 2, NE = EXTENDED ? 1 : 0, NA = EXTENDED ? 2 : 0;
+
+  box_sort_t  v_box;
+  tri_edge_t  v_tri;
+  euc_t       v_euc;
+  ang_t       v_ang;
+  assign v_box = st_i.pl.box_sort;
+  assign v_tri = st_i.pl.tri_edge;
+  assign v_euc = st_i.pl.euc;
+  assign v_ang = st_i.pl.ang;
 
   // ---- QUADBOX ----
   fp32_t [3:0]      tmin;
   logic  [3:0][1:0] idx;
   logic  [3:0]      hit;
-  rf_sort4 #(.LAYER(0)) u_sort (.tmin_i(st_i.btmin), .idx_i(st_i.bidx), .hit_i(st_i.bhit),
+  rf_sort4 #(.LAYER(0)) u_sort (.tmin_i(v_box.tmin), .idx_i(v_box.idx), .hit_i(v_box.hit),
                                 .tmin_o(tmin), .idx_o(idx), .hit_o(hit));
 
   // ---- accumulator state ----
   fp32_t euc_acc_q, dot_acc_q, norm_acc_q;
 
   // ---- adder pool ----
-  fp32_t [NUM_OPS-1:0][P-1:0] a, b, y;
+  fp32_t [NT-1:0] tri_a, tri_b, tri_y;
+  fp32_t [(NA > 0 ? NA : 1)-1:0] ang_a, ang_b, ang_y;
+  fp32_t euc_a, euc_b, euc_y, unused_box_y;
   always_comb begin
-    a = '0;
-    b = '0;
-    a[OP_TRIANGLE][0] = st_i.tuvw_z[0];
-    b[OP_TRIANGLE][0] = st_i.tuvw_z[1];
-    a[OP_TRIANGLE][1] = st_i.tuv;
-    b[OP_TRIANGLE][1] = st_i.tw;
+    tri_a[0] = v_tri.uvw_z[0];
+    tri_b[0] = v_tri.uvw_z[1];
+    tri_a[1] = v_tri.uv;
+    tri_b[1] = v_tri.w;
+    euc_a    = euc_acc_q;
+    euc_b    = EXTENDED ? v_euc.e[0] : FP_POS_ZERO;
+    ang_a    = '0;
+    ang_b    = '0;
     if (EXTENDED) begin
-      a[OP_EUCLIDEAN][0] = euc_acc_q;
-      b[OP_EUCLIDEAN][0] = st_i.esum[0];
-      a[OP_ANGULAR][0]   = dot_acc_q;
-      b[OP_ANGULAR][0]   = st_i.adot[0];
-      a[OP_ANGULAR][1]   = norm_acc_q;
-      b[OP_ANGULAR][1]   = st_i.anorm[0];
+      ang_a[0] = dot_acc_q;
+      ang_b[0] = v_ang.dot[0];
+      ang_a[1] = norm_acc_q;
+      ang_b[1] = v_ang.norm[0];
     end
   end
 
-  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(NB), .N_EUC(NE), .N_ANG(NA))
-    u_add (.sel_i(op_onehot(st_i.op)), .a_i(a), .b_i(b), .y_o(y));
+  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(0), .N_EUC(NE), .N_ANG(NA))
+    u_add (.op_i(st_i.op),
+           .tri_a_i(tri_a), .tri_b_i(tri_b), .tri_y_o(tri_y),
+           .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_y),
+           .euc_a_i(euc_a), .euc_b_i(euc_b), .euc_y_o(euc_y),
+           .ang_a_i(ang_a), .ang_b_i(ang_b), .ang_y_o(ang_y));
 
   if (EXTENDED) begin : g_acc
     always_ff @(posedge clk_i or negedge rst_ni) begin
@@ -60,11 +74,11 @@ module rf_st07 import rf_pkg::*; #(
         norm_acc_q <= FP_POS_ZERO;
       end else if (fire_i) begin
         if (st_i.op == OP_EUCLIDEAN) begin
-          euc_acc_q <= st_i.last ? FP_POS_ZERO : y[OP_EUCLIDEAN][0];
+          euc_acc_q <= st_i.last ? FP_POS_ZERO : euc_y;
         end
         if (st_i.op == OP_ANGULAR) begin
-          dot_acc_q  <= st_i.last ? FP_POS_ZERO : y[OP_ANGULAR][0];
-          norm_acc_q <= st_i.last ? FP_POS_ZERO : y[OP_ANGULAR][1];
+          dot_acc_q  <= st_i.last ? FP_POS_ZERO : ang_y[0];
+          norm_acc_q <= st_i.last ? FP_POS_ZERO : ang_y[1];
         end
       end
     end
@@ -76,18 +90,30 @@ module rf_st07 import rf_pkg::*; #(
     assign unused_fire = fire_i ^ clk_i ^ rst_ni;
   end
 
+  // ---- stage struct ----
   always_comb begin
-    st_o           = st_i;
-    st_o.btmin     = tmin;
-    st_o.bidx      = idx;
-    st_o.bhit      = hit;
-    st_o.tnum_part = y[OP_TRIANGLE][0];
-    st_o.t_den     = y[OP_TRIANGLE][1];
-    if (EXTENDED) begin
-      st_o.euclid_acc   = y[OP_EUCLIDEAN][0];
-      st_o.angular_dot  = y[OP_ANGULAR][0];
-      st_o.angular_norm = y[OP_ANGULAR][1];
-    end
+    st_o = st_i;
+    unique case (st_i.op)
+      OP_QUADBOX: begin
+        st_o.pl.box_sort.tmin = tmin;
+        st_o.pl.box_sort.idx  = idx;
+        st_o.pl.box_sort.hit  = hit;
+      end
+      OP_TRIANGLE: begin
+        st_o.pl.tri_edge.num_part = tri_y[0];
+        st_o.pl.tri_edge.den      = tri_y[1];
+      end
+      OP_EUCLIDEAN: begin
+        if (EXTENDED) st_o.pl.euc.acc = euc_y;
+      end
+      OP_ANGULAR: begin
+        if (EXTENDED) begin
+          st_o.pl.ang.dot_acc  = ang_y[0];
+          st_o.pl.ang.norm_acc = ang_y[1];
+        end
+      end
+      default: ;
+    endcase
   end
 
 endmodule

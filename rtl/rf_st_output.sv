@@ -12,25 +12,25 @@ module rf_st_output import rf_pkg::*; #(
     rsp_o.tag    = st_i.tag;
     unique case (st_i.op)
       OP_QUADBOX: begin
-        rsp_o.box_index = st_i.bidx;
-        rsp_o.box_hit   = st_i.bhit;
-        rsp_o.box_tmin  = st_i.btmin;
+        rsp_o.box_index = st_i.pl.box_sort.idx;
+        rsp_o.box_hit   = st_i.pl.box_sort.hit;
+        rsp_o.box_tmin  = st_i.pl.box_sort.tmin;
       end
       OP_TRIANGLE: begin
-        rsp_o.tri_hit = st_i.tri_hit;
-        rsp_o.t_num   = st_i.t_num;
-        rsp_o.t_den   = st_i.t_den;
+        rsp_o.tri_hit = st_i.pl.tri_edge.hit;
+        rsp_o.t_num   = st_i.pl.tri_edge.num;
+        rsp_o.t_den   = st_i.pl.tri_edge.den;
       end
       OP_EUCLIDEAN: begin
         if (EXTENDED) begin
-          rsp_o.euclid_acc  = st_i.euclid_acc;
+          rsp_o.euclid_acc  = st_i.pl.euc.acc;
           rsp_o.euclid_last = st_i.last;
         end
       end
       OP_ANGULAR: begin
         if (EXTENDED) begin
-          rsp_o.angular_dot  = st_i.angular_dot;
-          rsp_o.angular_norm = st_i.angular_norm;
+          rsp_o.angular_dot  = st_i.pl.ang.dot_acc;
+          rsp_o.angular_norm = st_i.pl.ang.norm_acc;
           rsp_o.angular_last = st_i.last;
         end
       end
