@@ -51,6 +51,19 @@ def test_report_ratios_and_markdown():
     assert md.count("\n") == 3 and "| extended-unified | 150 |" in md and "+50 %" in md
 
 
+def test_snapshot_from_git_and_mixed_versions_rejected():
+    head = area.snapshot("HEAD")
+    assert [n for n, _ in head] == [f.name for f in area.rtl_files()]
+    assert area.rtl_sha(head) == area.rtl_sha(area.snapshot("HEAD"))
+    assert len(area.rtl_sha(head)) == 12
+    with pytest.raises(area.AreaError, match="git show"):
+        area.snapshot("no-such-revision-xyz")
+    a = {"cells": 1, "sequential": 1, "inverter": 0, "buffer": 0, "logic": 0, "ge": 1.0}
+    with pytest.raises(area.AreaError, match="different RTL versions"):
+        area.report({"baseline-unified": {**a, "rtl_sha": "aaa"},
+                     "extended-unified": {**a, "rtl_sha": "bbb"}})
+
+
 def test_frontends():
     """The slang frontend reads the RTL; (Yosys' read_verilog -sv does not: docs/area.md)."""
     fe = area.check_frontends()

