@@ -48,13 +48,8 @@ module rf_fp_add (
     logic [31:0] big_w, small_w;
     logic [63:0] aligned;       // {small_w, 32 bits catching what is shifted out}
 
-    if (b_i[30:0] > a_i[30:0]) begin
-      big_op   = b_i;
-      small_op = a_i;
-    end else begin
-      big_op   = a_i;
-      small_op = b_i;
-    end
+    big_op         = (b_i[30:0] > a_i[30:0]) ? b_i : a_i;
+    small_op       = (b_i[30:0] > a_i[30:0]) ? a_i : b_i;
     special        = (big_op[30:23] == 8'hFF) | (small_op[30:0] == 31'd0);
     special_result = '0;
     big_exp        = '0;
@@ -69,11 +64,11 @@ module rf_fp_add (
 
     if (special) begin
       // A is a NaN or inf, or B is a zero
-      if ((big_op[30:0] > InfMagnitude)
-          | ((small_op[30:0] == InfMagnitude) & (small_op[31] != big_op[31]))) begin
-        special_result = CanonicalNaN;                  // NaN operand, or inf - inf
-      end else if (big_op[30:0] == 31'd0) begin
+      if (big_op[30:0] == 31'd0) begin
         special_result = {a_i[31] & b_i[31], 31'd0};    // zero + zero: -0 only for (-0) + (-0)
+      end else if ((big_op[30:0] > InfMagnitude)
+                   | ((small_op[30:0] == InfMagnitude) & (small_op[31] != big_op[31]))) begin
+        special_result = CanonicalNaN;                  // NaN operand, or inf - inf
       end else begin
         special_result = big_op;                        // inf + x, or x + zero
       end

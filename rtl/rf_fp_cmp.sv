@@ -5,8 +5,10 @@
 //   * -0 == +0 (eq_o = 1, lt_o = 0, le_o = 1);
 //   * otherwise lt_o/le_o/eq_o follow the order of the real numbers, with -inf < finite < +inf.
 //
-// Structure: classify -> order of the magnitudes (the 31-bit {exponent, fraction} field is
-// monotonic in |x|, subnormals included) -> sign rules.
+// Structure: classify -> one unsigned compare of order keys -> zero and NaN rules.  The key of x
+// is x with the sign bit inverted for positive x and all bits inverted for negative x: as 32-bit
+// unsigned integers the keys of non-NaN values are in the order of the values (the 31-bit
+// {exponent, fraction} field is monotonic in |x|, subnormals included), with -0 just below +0.
 module rf_fp_cmp (
   input  logic [31:0] a_i,
   input  logic [31:0] b_i,
@@ -16,33 +18,24 @@ module rf_fp_cmp (
   output logic        unord_o
 );
 
-  logic a_nan, b_nan, both_zero;
-  logic mag_lt, mag_eq;
-  logic ordered_lt, ordered_eq;
+  localparam logic [30:0] InfMagnitude = 31'h7F80_0000;
 
   always_comb begin
+    logic        both_zero;
+    logic [31:0] a_key, b_key;
+
     // Classify
-    a_nan     = (a_i[30:23] == 8'hFF) & (a_i[22:0] != 23'd0);
-    b_nan     = (b_i[30:23] == 8'hFF) & (b_i[22:0] != 23'd0);
-    both_zero = (a_i[30:0] == 31'd0) & (b_i[30:0] == 31'd0);
+    unord_o   = (a_i[30:0] > InfMagnitude) | (b_i[30:0] > InfMagnitude);
+    both_zero = (a_i[30:0] | b_i[30:0]) == 31'd0;
 
-    // Order, assuming neither operand is a NaN
-    mag_lt = a_i[30:0] < b_i[30:0];
-    mag_eq = a_i[30:0] == b_i[30:0];
-    ordered_eq = both_zero | (a_i == b_i);
-    if (a_i[31] != b_i[31]) begin
-      ordered_lt = a_i[31] & ~both_zero;       // negative < positive, but -0 == +0
-    end else if (a_i[31]) begin
-      ordered_lt = ~mag_lt & ~mag_eq;          // both negative: larger magnitude is smaller
-    end else begin
-      ordered_lt = mag_lt;                     // both positive
-    end
+    // Order keys
+    a_key = a_i[31] ? ~a_i : {1'b1, a_i[30:0]};
+    b_key = b_i[31] ? ~b_i : {1'b1, b_i[30:0]};
 
-    // Unordered operands compare false
-    unord_o = a_nan | b_nan;
-    lt_o    = ~unord_o & ordered_lt;
-    eq_o    = ~unord_o & ordered_eq;
-    le_o    = ~unord_o & (ordered_lt | ordered_eq);
+    // -0 == +0; unordered operands compare false
+    eq_o = ~unord_o & ((a_i == b_i) | both_zero);
+    lt_o = ~unord_o & ~both_zero & (a_key < b_key);
+    le_o = lt_o | eq_o;
   end
 
 endmodule

@@ -2,11 +2,13 @@
 //
 // Contract:
 //   * if a or b is a NaN (quiet or signalling): min_o = max_o = canonical NaN 32'h7FC00000;
-//   * otherwise the smaller / larger value by IEEE order (rf_fp_cmp), and for a pair of zeros
-//     of opposite sign -0 counts as smaller: min(-0, +0) = -0, max(-0, +0) = +0.
+//   * otherwise the smaller / larger value in IEEE order, and for a pair of zeros of opposite
+//     sign -0 counts as smaller: min(-0, +0) = -0, max(-0, +0) = +0;
 //   * equal operands are returned unchanged.
 //
-// Structure: rf_fp_cmp for the order -> zero-sign rule -> result select.
+// Structure: classify (NaN) -> one unsigned compare of order keys -> result select.  The order key
+// is the one of rf_fp_cmp (sign bit inverted for positive x, all bits inverted for negative x):
+// unsigned key order is IEEE order with -0 just below +0, which is exactly the zero rule here.
 module rf_fp_minmax (
   input  logic [31:0] a_i,
   input  logic [31:0] b_i,
@@ -15,26 +17,16 @@ module rf_fp_minmax (
 );
 
   localparam logic [31:0] CanonicalNaN = 32'h7FC0_0000;
-
-  logic lt, eq, unord;
-
-  rf_fp_cmp u_cmp (
-    .a_i     (a_i),
-    .b_i     (b_i),
-    .lt_o    (lt),
-    /* verilator lint_off PINCONNECTEMPTY */  // le is not needed: lt and eq decide
-    .le_o    (),
-    /* verilator lint_on PINCONNECTEMPTY */
-    .eq_o    (eq),
-    .unord_o (unord)
-  );
-
-  logic a_first;  // a is the minimum (a < b, or -0 against +0, or a == b)
+  localparam logic [30:0] InfMagnitude = 31'h7F80_0000;
 
   always_comb begin
-    // eq with different bits can only be -0 versus +0: the negative zero is the minimum.
-    a_first = lt | (eq & (a_i[31] | (a_i == b_i)));
-    if (unord) begin
+    logic [31:0] a_key, b_key;
+    logic        a_first;  // a is the minimum (a <= b in key order)
+
+    a_key   = a_i[31] ? ~a_i : {1'b1, a_i[30:0]};
+    b_key   = b_i[31] ? ~b_i : {1'b1, b_i[30:0]};
+    a_first = a_key <= b_key;
+    if ((a_i[30:0] > InfMagnitude) | (b_i[30:0] > InfMagnitude)) begin
       min_o = CanonicalNaN;
       max_o = CanonicalNaN;
     end else begin

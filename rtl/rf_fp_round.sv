@@ -37,29 +37,35 @@ module rf_fp_round (
     logic [63:0] shifted;    // subnormal alignment: {sig_i, 32 bits catching what is shifted out}
     logic [30:0] frac;       // [30:8] fraction, [7] round bit, [6:0] sticky, on the result's grid
     logic [7:0]  exp_field;
+    logic        overflow;
     logic        round_up;
 
     shifted   = '0;
     frac      = sig_i[30:0];
     exp_field = exp_i[7:0];
+    overflow  = 1'b0;
     round_up  = 1'b0;
     if (!sig_i[31]) begin
-      y_o = {sign_i, 31'd0};                                 // exact zero
-    end else if (exp_i >= 10'sd255) begin
-      y_o = {sign_i, 8'hFF, 23'd0};                          // overflow before rounding
+      y_o = {sign_i, 31'd0};                                   // exact zero
     end else begin
-      if (exp_i < 10'sd1) begin
-        // Subnormal range: align to exponent 1 (shift 1 - exp_i, at most 31: beyond that only
-        // sticky information survives); the integer bit moves into the fraction, the exponent
-        // field is 0.
-        shifted   = {sig_i, 32'd0} >> ((exp_i < -10'sd30) ? 5'd31 : 5'(10'sd1 - exp_i));
-        frac      = 31'({shifted[63:33], shifted[32] | (shifted[31:0] != 32'd0)});
-        exp_field = 8'd0;
+      // Normal range 1 <= exp_i <= 254 (one unsigned compare); else overflow or subnormal
+      if (10'(exp_i - 10'sd1) >= 10'd254) begin
+        if (exp_i[9] || exp_i == 10'sd0) begin
+          // Subnormal range: align to exponent 1 (shift 1 - exp_i, at most 31: beyond that
+          // only sticky information survives); the integer bit moves into the fraction and the
+          // exponent field is 0.
+          shifted   = {sig_i, 32'd0} >> ((exp_i < -10'sd30) ? 5'd31 : 5'(10'sd1 - exp_i));
+          frac      = 31'({shifted[63:33], shifted[32] | (shifted[31:0] != 32'd0)});
+          exp_field = 8'd0;
+        end else begin
+          overflow  = 1'b1;                                    // exp_i >= 255
+        end
       end
       // Round to nearest, ties to even, on {exponent field, fraction} as one integer; a carry
       // into the exponent field is correct (up to inf).
       round_up = frac[7] & (frac[8] | (frac[6:0] != 7'd0));
-      y_o      = {sign_i, {exp_field, frac[30:8]} + 31'(round_up)};
+      y_o      = overflow ? {sign_i, 8'hFF, 23'd0}
+                          : {sign_i, {exp_field, frac[30:8]} + 31'(round_up)};
     end
   end
 
