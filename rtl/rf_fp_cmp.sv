@@ -20,22 +20,20 @@ module rf_fp_cmp (
 
   localparam logic [30:0] InfMagnitude = 31'h7F80_0000;
 
-  always_comb begin
-    logic        both_zero;
-    logic [31:0] a_key, b_key;
+  logic        both_zero;
+  logic [31:0] a_key, b_key;
 
-    // Classify
-    unord_o   = (a_i[30:0] > InfMagnitude) | (b_i[30:0] > InfMagnitude);
-    both_zero = (a_i[30:0] | b_i[30:0]) == 31'd0;
+  // Classify
+  assign unord_o   = (a_i[30:0] > InfMagnitude) | (b_i[30:0] > InfMagnitude);
+  assign both_zero = (a_i[30:0] | b_i[30:0]) == 31'd0;
 
-    // Order keys
-    a_key = a_i[31] ? ~a_i : {1'b1, a_i[30:0]};
-    b_key = b_i[31] ? ~b_i : {1'b1, b_i[30:0]};
+  // Order keys
+  assign a_key = a_i[31] ? ~a_i : {1'b1, a_i[30:0]};
+  assign b_key = b_i[31] ? ~b_i : {1'b1, b_i[30:0]};
 
-    // -0 == +0; unordered operands compare false
-    eq_o = ~unord_o & ((a_i == b_i) | both_zero);
-    lt_o = ~unord_o & ~both_zero & (a_key < b_key);
-    le_o = lt_o | eq_o;
-  end
+  // -0 == +0; unordered operands compare false
+  assign eq_o = ~unord_o & ((a_i == b_i) | both_zero);
+  assign lt_o = ~unord_o & ~both_zero & (a_key < b_key);
+  assign le_o = lt_o | eq_o;
 
 endmodule

@@ -19,20 +19,15 @@ module rf_fp_minmax (
   localparam logic [31:0] CanonicalNaN = 32'h7FC0_0000;
   localparam logic [30:0] InfMagnitude = 31'h7F80_0000;
 
-  always_comb begin
-    logic [31:0] a_key, b_key;
-    logic        a_first;  // a is the minimum (a <= b in key order)
+  logic [31:0] a_key, b_key;
+  logic        unord;    // a or b is a NaN
+  logic        a_first;  // a is the minimum (a <= b in key order)
 
-    a_key   = a_i[31] ? ~a_i : {1'b1, a_i[30:0]};
-    b_key   = b_i[31] ? ~b_i : {1'b1, b_i[30:0]};
-    a_first = a_key <= b_key;
-    if ((a_i[30:0] > InfMagnitude) | (b_i[30:0] > InfMagnitude)) begin
-      min_o = CanonicalNaN;
-      max_o = CanonicalNaN;
-    end else begin
-      min_o = a_first ? a_i : b_i;
-      max_o = a_first ? b_i : a_i;
-    end
-  end
+  assign unord   = (a_i[30:0] > InfMagnitude) | (b_i[30:0] > InfMagnitude);
+  assign a_key   = a_i[31] ? ~a_i : {1'b1, a_i[30:0]};
+  assign b_key   = b_i[31] ? ~b_i : {1'b1, b_i[30:0]};
+  assign a_first = a_key <= b_key;
+  assign min_o   = unord ? CanonicalNaN : a_first ? a_i : b_i;
+  assign max_o   = unord ? CanonicalNaN : a_first ? b_i : a_i;
 
 endmodule

@@ -28,7 +28,8 @@ module rf_fp_mul (
   logic              sign;
   logic              special;
   logic [31:0]       special_result;
-  logic [63:0]       prod;      // prod[46] has weight 2^(exp_a + exp_b - 254)
+  logic [63:0]       prod;      // 48-bit product, left aligned: prod[62] has weight
+                                //   2^(exp_a + exp_b - 254)
   logic signed [9:0] prod_exp;  // biased exponent of bit 63 of prod (before normalisation)
 
   always_comb begin
@@ -54,18 +55,19 @@ module rf_fp_mul (
       end
     end else begin
       // Datapath: hidden bit set for normals; subnormals have exponent 1 and no hidden bit.
-      // Bit 63 of prod has weight 2^(exp_a + exp_b - 254 + 17), i.e. biased exponent
-      // exp_a + exp_b - 110.
-      prod     = 64'({a_i[30:23] != 8'd0, a_i[22:0]}) * 64'({b_i[30:23] != 8'd0, b_i[22:0]});
+      // Bit 63 of prod has weight 2^(exp_a + exp_b - 254 + 1), i.e. biased exponent
+      // exp_a + exp_b - 126. Normal operands leave the leading one in bit 63 or 62.
+      prod     = {48'({a_i[30:23] != 8'd0, a_i[22:0]}) * 48'({b_i[30:23] != 8'd0, b_i[22:0]}),
+                  16'd0};
       prod_exp = $signed({2'b00, a_i[30:23]}) + $signed({2'b00, b_i[30:23]})
-               + $signed(10'(a_i[30:23] == 8'd0)) + $signed(10'(b_i[30:23] == 8'd0)) - 10'sd110;
+               + $signed(10'(a_i[30:23] == 8'd0)) + $signed(10'(b_i[30:23] == 8'd0)) - 10'sd126;
     end
   end
 
   // ---------------------------------------------------------------------------------------------
   // Normalise, round (the shared rounding module) and select the result
   logic [63:0] prod_norm;
-  logic [5:0]  lzc;             // leading zeros of prod (at least 16; 0 for the zero product)
+  logic [5:0]  lzc;             // leading zeros of prod (0 for the zero product)
   logic [31:0] rounded;
 
   rf_fp_normalize #(.W(64)) u_norm (.x_i(prod), .y_o(prod_norm), .count_o(lzc));

@@ -25,22 +25,18 @@ module rf_st03 import rf_pkg::*; #(
   assign v_euc = st_i.pl.euc;
   assign v_ang = st_i.pl.ang;
 
-  // ---- QUADBOX: slab interval per axis ----
+  // ---- QUADBOX: slab interval per axis (near/far chosen by the sign of dir), NaN flag ----
   fp32_t [3:0][2:0] near, far;
   logic  [3:0]      nan;
-  always_comb begin
-    for (int i = 0; i < 4; i++) begin
-      nan[i] = 1'b0;
-      for (int ax = 0; ax < 3; ax++) begin
-        near[i][ax] = v_box.dir_neg[ax] ? v_box.slab[i][3+ax] : v_box.slab[i][ax];
-        far[i][ax]  = v_box.dir_neg[ax] ? v_box.slab[i][ax]   : v_box.slab[i][3+ax];
-        nan[i] = nan[i] | is_nan(v_box.slab[i][ax][30:0]) | is_nan(v_box.slab[i][3+ax][30:0]);
-      end
-    end
-  end
-
-  fp32_t [3:0] near_xy, far_xy;
+  fp32_t [3:0]      near_xy, far_xy;
   for (genvar i = 0; i < 4; i++) begin : g_box
+    for (genvar ax = 0; ax < 3; ax++) begin : g_axis
+      assign near[i][ax] = v_box.dir_neg[ax] ? v_box.slab[i][3+ax] : v_box.slab[i][ax];
+      assign far[i][ax]  = v_box.dir_neg[ax] ? v_box.slab[i][ax]   : v_box.slab[i][3+ax];
+    end
+    assign nan[i] = is_nan(v_box.slab[i][0][30:0]) | is_nan(v_box.slab[i][1][30:0])
+                  | is_nan(v_box.slab[i][2][30:0]) | is_nan(v_box.slab[i][3][30:0])
+                  | is_nan(v_box.slab[i][4][30:0]) | is_nan(v_box.slab[i][5][30:0]);
     fp32_t unused_min, unused_max;
     rf_fp_minmax u_near (.a_i(near[i][0]), .b_i(near[i][1]), .min_o(unused_min), .max_o(near_xy[i]));
     rf_fp_minmax u_far  (.a_i(far[i][0]),  .b_i(far[i][1]),  .min_o(far_xy[i]),  .max_o(unused_max));
