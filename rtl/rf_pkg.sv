@@ -3,7 +3,8 @@
 // Everything the pipeline carries is defined here once (the paper's "Shared RayFlex Data
 // Structure"): the input stage turns a req_t into a stage_t, every inner stage reads a stage_t and
 // writes a stage_t (copying it and overwriting the fields it produces), the output stage turns a
-// stage_t into a rsp_t. Unused fields are dead logic and fall away in synthesis.
+// stage_t into a rsp_t. The operations share the payload bits (one view per operation and group of
+// stages, see below): a stage register holds 963 bits (one field per value would need 5,674).
 //
 // Numbers are IEEE-754 binary32 throughout (fp32_t); every add/multiply rounds to nearest-even.
 package rf_pkg;

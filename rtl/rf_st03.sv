@@ -1,5 +1,5 @@
 // Stage 3.
-//   QUADBOX   near/far per axis by the sign of dir, NaN flag, max(near_x, near_y), min(far_x, far_y)
+//   QUADBOX   near/far by the sign of dir, NaN flag, max(near_x, near_y), min(far_x, far_y)
 //   TRIANGLE   6 x  X = P'[kx] - Sx*P'[kz],  Y = P'[ky] - Sy*P'[kz]
 //   EUCLIDEAN  8 x  tree level 1: e[i] + e[i+8]
 //   ANGULAR    8 x  tree level 1: dot[i] + dot[i+4], norm[i] + norm[i+4]
@@ -38,8 +38,10 @@ module rf_st03 import rf_pkg::*; #(
                   | is_nan(v_box.slab[i][2][30:0]) | is_nan(v_box.slab[i][3][30:0])
                   | is_nan(v_box.slab[i][4][30:0]) | is_nan(v_box.slab[i][5][30:0]);
     fp32_t unused_min, unused_max;
-    rf_fp_minmax u_near (.a_i(near[i][0]), .b_i(near[i][1]), .min_o(unused_min), .max_o(near_xy[i]));
-    rf_fp_minmax u_far  (.a_i(far[i][0]),  .b_i(far[i][1]),  .min_o(far_xy[i]),  .max_o(unused_max));
+    rf_fp_minmax u_near (.a_i(near[i][0]), .b_i(near[i][1]),
+                         .min_o(unused_min), .max_o(near_xy[i]));
+    rf_fp_minmax u_far  (.a_i(far[i][0]), .b_i(far[i][1]),
+                         .min_o(far_xy[i]), .max_o(unused_max));
   end
 
   // ---- adder pool: operands per operation ----

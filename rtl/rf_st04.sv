@@ -26,8 +26,10 @@ module rf_st04 import rf_pkg::*; #(
   fp32_t [3:0] near, far;
   for (genvar i = 0; i < 4; i++) begin : g_box
     fp32_t unused_min, unused_max;
-    rf_fp_minmax u_near (.a_i(v_box.tnear[i]), .b_i(v_box.tnear_z[i]), .min_o(unused_min), .max_o(near[i]));
-    rf_fp_minmax u_far  (.a_i(v_box.tfar[i]),  .b_i(v_box.tfar_z[i]),  .min_o(far[i]), .max_o(unused_max));
+    rf_fp_minmax u_near (.a_i(v_box.tnear[i]), .b_i(v_box.tnear_z[i]),
+                         .min_o(unused_min), .max_o(near[i]));
+    rf_fp_minmax u_far  (.a_i(v_box.tfar[i]), .b_i(v_box.tfar_z[i]),
+                         .min_o(far[i]), .max_o(unused_max));
   end
 
   // ---- multiplier pool: the 2-D xprod products (vertex index 0, 1, 2 = A, B, C) ----

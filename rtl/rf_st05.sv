@@ -25,8 +25,10 @@ module rf_st05 import rf_pkg::*; #(
   fp32_t [3:0] tmin, tmax;
   for (genvar i = 0; i < 4; i++) begin : g_box
     fp32_t unused_min, unused_max;
-    rf_fp_minmax u_near (.a_i(v_box.tnear[i]), .b_i(FP_POS_ZERO), .min_o(unused_min), .max_o(tmin[i]));
-    rf_fp_minmax u_far  (.a_i(v_box.tfar[i]), .b_i(v_box.extent), .min_o(tmax[i]), .max_o(unused_max));
+    rf_fp_minmax u_near (.a_i(v_box.tnear[i]), .b_i(FP_POS_ZERO),
+                         .min_o(unused_min), .max_o(tmin[i]));
+    rf_fp_minmax u_far  (.a_i(v_box.tfar[i]), .b_i(v_box.extent),
+                         .min_o(tmax[i]), .max_o(unused_max));
   end
 
   // ---- adder pool: operands per operation ----
