@@ -56,6 +56,22 @@ class DatapathError(ValueError):
     """A request stream the datapath cannot take (bad opcode, extended op on a baseline build)."""
 
 
+def check_requests(req: np.ndarray, extended: bool) -> None:
+    """Reject what no backend simulates (the same check for every backend): an extended opcode on a
+    baseline build, and a TRIANGLE whose kx/ky/kz is not 0, 1 or 2. Raises DatapathError."""
+    if not len(req):
+        return
+    ops = req["opcode"]
+    limit = 4 if extended else 2
+    if (ops >= limit).any():
+        bad = int(ops[ops >= limit][0])
+        what = "extended operations need backend(..., extended=True)" if bad < 4 else "bad opcode"
+        raise DatapathError(f"opcode {bad}: {what}")
+    tri = ops == TRIANGLE
+    if tri.any() and ((req["kx"][tri] > 2) | (req["ky"][tri] > 2) | (req["kz"][tri] > 2)).any():
+        raise DatapathError("kx/ky/kz must be 0, 1 or 2")
+
+
 def prepare_rays(origins, directions, extent=np.inf) -> np.ndarray:
     """Fill the ray fields of a new request array (SPEC section 2).
 

@@ -27,7 +27,7 @@ import numpy as np
 
 from . import verilate
 from .backends import BackendError
-from .datapath import LATENCY, REQUEST_DTYPE, DatapathError
+from .datapath import LATENCY, REQUEST_DTYPE, check_requests
 from .wire import REQ_WORDS, RSP_WORDS, pack_requests, unpack_responses
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -96,12 +96,7 @@ class _RtlBase:
         self.requests = 0
 
     def _check(self, req: np.ndarray) -> None:
-        ops = req["opcode"]
-        limit = 4 if self.extended else 2
-        if len(req) and (ops >= limit).any():
-            bad = int(ops[ops >= limit][0])
-            what = "extended operations need backend(..., extended=True)" if bad < 4 else "bad opcode"
-            raise DatapathError(f"opcode {bad}: {what}")
+        check_requests(req, self.extended)
 
     def _max_idle(self) -> int:
         return 64 * PATTERN_LEN + 100 * self.latency

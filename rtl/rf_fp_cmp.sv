@@ -3,7 +3,7 @@
 // Contract (the same as numpy float32 <, <=, == and isnan(a) | isnan(b)):
 //   * unord_o = a or b is a NaN (quiet or signalling); then lt_o, le_o and eq_o are all 0;
 //   * -0 == +0 (eq_o = 1, lt_o = 0, le_o = 1);
-//   * otherwise lt_o/le_o/eq_o follow the order of the real numbers, with -inf < finite < +inf.
+//   * otherwise lt_o/le_o/eq_o follow numeric order, with -inf < finite < +inf.
 //
 // Structure: classify -> one unsigned compare of order keys -> zero and NaN rules.  The key of x
 // is x with the sign bit inverted for positive x and all bits inverted for negative x: as 32-bit

@@ -147,8 +147,7 @@ def test_help(capsys):
 
 def test_console_script():
     exe = shutil.which("rayflex") or str(Path(sys.executable).parent / "rayflex")
-    if not os.path.exists(exe):
-        pytest.skip("rayflex console script not installed")
+    assert os.path.exists(exe), "the rayflex console script is not installed (pip install -e .)"
     r = subprocess.run([exe, "render", "--help"], capture_output=True, text=True, timeout=60)
     assert r.returncode == 0 and "--backend" in r.stdout
     r = subprocess.run([exe, "render", "no_such_scene", "--backend", "golden"],

@@ -273,3 +273,14 @@ def test_bench_catches(fault, message):
     bench.dut = _Faulty(fault)
     with pytest.raises((AssertionError, pytest.fail.Exception), match=message):
         bench.run(mixed_stream(1, 10, 10))
+
+
+@pytest.mark.parametrize("name", ["golden", "rtl"])
+def test_axis_index_3_rejected_by_every_backend(name):
+    """kx/ky/kz = 3 has no meaning (SPEC 2); every backend refuses it before simulating."""
+    import driver
+    from cases import tri_request, FRONT
+    req = tri_request(FRONT, (0, 0, -1))
+    req["kx"] = 3
+    with pytest.raises(driver.DatapathError, match="kx/ky/kz"):
+        driver.backend(name).run(req)
