@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import ctypes
 import hashlib
+import json
 import os
 import shutil
 import subprocess
@@ -174,9 +175,16 @@ def harness_library(params: dict[str, int]) -> ctypes.CDLL:
     built on first use and loaded once per process."""
     key = tuple(sorted(params.items()))
     lib = _LIBS.get(key)
-    if lib is not None:
-        return lib
-    lib = ctypes.CDLL(str(_build_harness(params)))
+    if lib is None:
+        lib = use_library(params, _build_harness(params))
+    return lib
+
+
+def use_library(params: dict[str, int], path) -> ctypes.CDLL:
+    """Load the harness library at ``path`` and make it this process's library for ``params``
+    (``harness_library``, the "rtl" backend and the RT-unit replay then use it). The build's
+    profile-guided-optimisation training (``driver.pgo``) runs the instrumented library this way."""
+    lib = ctypes.CDLL(str(path))
     i64, vp = ctypes.c_int64, ctypes.c_void_p
     lib.rf_new.restype = vp
     lib.rf_free.argtypes = [vp]
@@ -193,7 +201,7 @@ def harness_library(params: dict[str, int]) -> ctypes.CDLL:
     if (lib.rf_req_words() != REQ_WORDS or lib.rf_rsp_words() != RSP_WORDS
             or lib.rf_ray_words() != RAY_WORDS):
         raise BackendError("harness and driver disagree on the wire format; rebuild")
-    _LIBS[key] = lib
+    _LIBS[tuple(sorted(params.items()))] = lib
     return lib
 
 
@@ -249,11 +257,26 @@ def build_requests(params: dict[str, int], ray_words_: np.ndarray, image_words: 
     return out
 
 
+def pgo_enabled() -> bool:
+    """Whether the harness is built with profile-guided optimisation (``driver.pgo``): yes unless
+    the environment sets ``RAYFLEX_PGO=0`` (a faster first build, a slower simulation)."""
+    value = os.environ.get("RAYFLEX_PGO", "1").strip().lower()
+    if value not in ("0", "1", "no", "yes", "off", "on", "false", "true", ""):
+        raise BackendError(f"RAYFLEX_PGO={value!r}: use 1 (profile-guided build, the default) or 0")
+    return value not in ("0", "no", "off", "false")
+
+
 def _build_harness(params: dict[str, int]) -> Path:
     name = "rayflex_" + "_".join(f"{k[0].lower()}{v}" for k, v in params.items())
+    train = train_env = None
+    if pgo_enabled():
+        train = [sys.executable, "-m", "driver.pgo", json.dumps(params, sort_keys=True)]
+        train_env = {"PYTHONPATH": os.pathsep.join(
+            [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
     try:
         return verilate.build_library(TOP, rtl_sources(), [SIM_DIR / "rayflex_harness.cpp"],
-                                      params=params, name=name)
+                                      params=params, name=name, train=train,
+                                      train_env=train_env)
     except verilate.BuildError as e:
         raise BackendError(f"cannot build the RTL backend: {e}") from None
 

@@ -23,6 +23,9 @@ Vfpu_tb_top& model() {
 
 }  // namespace
 
+// The library is compiled with -fvisibility=hidden (driver/verilate.py): only this API is exported,
+// so the compiler may inline and call the model's functions directly.
+#pragma GCC visibility push(default)
 extern "C" {
 
 int fpu_eval(const uint32_t* a, const uint32_t* b, size_t n, uint32_t* add, uint32_t* sub,
@@ -44,3 +47,4 @@ int fpu_eval(const uint32_t* a, const uint32_t* b, size_t n, uint32_t* add, uint
 }
 
 }  // extern "C"
+#pragma GCC visibility pop

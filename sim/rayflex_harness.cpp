@@ -145,6 +145,9 @@ int64_t stream(Sim* s, const Source& src, uint32_t* rsp, int64_t n, const uint8_
 
 }  // namespace
 
+// The library is compiled with -fvisibility=hidden (driver/verilate.py): only this API is exported,
+// so the compiler may inline and call the model's functions directly.
+#pragma GCC visibility push(default)
 extern "C" {
 
 int rf_req_words() { return kReqWords; }
@@ -299,3 +302,4 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
 }
 
 }  // extern "C"
+#pragma GCC visibility pop

@@ -1,0 +1,105 @@
+"""Training workload for the profile-guided build of the "rtl" harness library.
+
+``driver.verilate.build_library(train=...)`` compiles the harness instrumented, runs
+
+    python -m driver.pgo '{"DISJOINT": 0, "EXTENDED": 0, "LATENCY": 11}' /path/to/librayflex_....so
+
+and recompiles with the profile this run wrote. The workload is what the library is for, on scenes
+other than the benchmark's: primary rays of an icosphere seen from outside and of the built-in room
+seen from inside, traversed through the library (the wavefront fast path ``run_nodes`` and the
+RT-unit replay ``rf_replay``), a slice of the same requests through ``run``, and, for an EXTENDED
+build, Euclidean and cosine distance jobs. Every result is checked against the golden model, so a
+build whose instrumented library computes anything wrong fails here instead of being cached.
+Deterministic; a few seconds.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+import trimesh
+
+from . import rtl
+from .bvh4 import build
+from .camera import frame, primary_rays
+from .datapath import ANGULAR, EUCLIDEAN
+from .golden import GoldenBackend
+from .knn import LANES, pad, run_jobs
+from .scene import builtin
+from .traversal import trace
+
+# (mesh, image size): a convex object from outside, a closed room from inside
+SCENES = (("icosphere", 96), ("room", 64))
+RUN_SLICE = 4000           # requests of the first scene also streamed through run()
+KNN_SHAPE = (32, 48, 61)   # queries, candidates, dimensions (not a multiple of any lane count)
+
+
+class TrainingMismatch(RuntimeError):
+    """The instrumented library disagrees with the golden model."""
+
+
+def _scene(name: str):
+    if name == "icosphere":
+        mesh = trimesh.creation.icosphere(subdivisions=4, radius=1.0)
+        return mesh, frame(mesh.vertices)
+    from .scene import load_scene
+    return builtin(name), load_scene(name).camera
+
+
+def _check(what: str, ok: bool) -> None:
+    if not ok:
+        raise TrainingMismatch(f"PGO training: {what} differs from the golden model")
+
+
+def train(params: dict[str, int]) -> dict:
+    """Run the training workload on this process's harness library for ``params`` (see
+    ``rtl.use_library``); returns request counts. Raises TrainingMismatch on a wrong result."""
+    opts = dict(extended=bool(params["EXTENDED"]), disjoint=bool(params["DISJOINT"]),
+                latency=int(params["LATENCY"]))
+    counts = {"traversal": 0, "run": 0, "knn": 0}
+    for i, (name, size) in enumerate(SCENES):
+        mesh, cam = _scene(name)
+        bvh = build(mesh)
+        o, d = primary_rays(cam, size, size)
+        ref = trace(bvh, o, d, backend="golden", record=i == 0)
+        # rays_in_flight: the wavefront pass, then the RT-unit replay of it, checked bit for bit
+        got = trace(bvh, o, d, backend=rtl.HarnessBackend(**opts), rays_in_flight=64)
+        _check(f"{name} traversal", np.array_equal(got.prim, ref.prim)
+               and np.array_equal(got.t.view(np.uint32), ref.t.view(np.uint32)))
+        counts["traversal"] += int(got.record.ops)
+        if i == 0:
+            req = ref.record.requests(np.arange(min(RUN_SLICE, ref.record.ops)))
+            rsp = rtl.HarnessBackend(**opts).run(req)
+            _check("run()", rsp.tobytes() == GoldenBackend(**opts).run(req).tobytes())
+            counts["run"] += len(req)
+    if opts["extended"]:
+        rng = np.random.default_rng(1)
+        nq, nc, dim = KNN_SHAPE
+        q = rng.standard_normal((nq, dim)).astype(np.float32)
+        c = rng.standard_normal((nc, dim)).astype(np.float32)
+        qi, ci = (a.ravel() for a in np.meshgrid(np.arange(nq), np.arange(nc), indexing="ij"))
+        for op in (EUCLIDEAN, ANGULAR):
+            a, b = pad(q, LANES[op]), pad(c, LANES[op])
+            got = run_jobs(rtl.HarnessBackend(**opts), op, a, b, qi, ci, dim)
+            ref = run_jobs(GoldenBackend(**opts), op, a, b, qi, ci, dim)
+            _check(f"knn opcode {op}", got.tobytes() == ref.tobytes())
+            counts["knn"] += len(qi) * (a.shape[1] // LANES[op])
+    return counts
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if len(argv) != 2:
+        print("usage: python -m driver.pgo PARAMS_JSON LIBRARY", file=sys.stderr)
+        return 2
+    params = {k: int(v) for k, v in json.loads(argv[0]).items()}
+    rtl.use_library(params, argv[1])
+    counts = train(params)
+    print(f"PGO training {params}: {counts}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

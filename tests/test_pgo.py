@@ -1,0 +1,91 @@
+"""Profile-guided build of the "rtl" harness: the training workload checks what it runs, a failed
+training fails the build, and RAYFLEX_PGO switches it off."""
+
+import sys
+
+import numpy as np
+import pytest
+
+from driver import pgo, rtl
+from driver.backends import BackendError
+from driver.rtunit import ReplayMismatch
+from driver.verilate import BuildError, build_library
+from fpu_model import FPU_HARNESS, FPU_TB_SOURCES
+
+BASELINE = {"EXTENDED": 0, "DISJOINT": 0, "LATENCY": 11}
+
+
+def test_training_workload_runs_every_path():
+    counts = pgo.train(BASELINE)
+    assert counts["traversal"] > 50_000          # both scenes' requests, wavefront and replay
+    assert counts["run"] == pgo.RUN_SLICE
+    assert counts["knn"] == 0                    # no vector opcodes on a baseline build
+
+
+@pytest.mark.parametrize("method, error, what", [
+    ("run_nodes", ReplayMismatch, "differ from the functional run"),   # the replay's own check
+    ("run", pgo.TrainingMismatch, "run"),
+])
+def test_training_catches_a_wrong_library(monkeypatch, method, error, what):
+    """A library that returns one wrong response bit must not become a cached build."""
+    real = getattr(rtl.HarnessBackend, method)
+
+    def corrupt(self, *args):
+        out = real(self, *args)
+        if method == "run":
+            out["tag"][len(out) // 2] ^= 1
+        else:
+            out[len(out) // 2, 1] ^= 1
+        return out
+
+    monkeypatch.setattr(rtl.HarnessBackend, method, corrupt)
+    with pytest.raises(error, match=what):
+        pgo.train(BASELINE)
+
+
+def test_failed_training_is_a_build_error(tmp_path, monkeypatch):
+    monkeypatch.setenv("RAYFLEX_CACHE", str(tmp_path))
+    with pytest.raises(BuildError, match="profile-guided optimisation training") as e:
+        build_library("fpu_tb_top", FPU_TB_SOURCES, FPU_HARNESS,
+                      train=[sys.executable, "-c", "import sys; sys.exit(3)"])
+    assert "\n" not in str(e.value)
+    cached = [p for p in tmp_path.glob("fpu_tb_top-*/*.so") if p.parent.suffix != ".failed"]
+    assert not cached
+
+
+def test_training_that_runs_nothing_is_a_build_error(tmp_path, monkeypatch):
+    monkeypatch.setenv("RAYFLEX_CACHE", str(tmp_path))
+    with pytest.raises(BuildError, match="wrote no profile"):
+        build_library("fpu_tb_top", FPU_TB_SOURCES, FPU_HARNESS,
+                      train=[sys.executable, "-c", "pass"])
+
+
+@pytest.mark.parametrize("value, enabled", [(None, True), ("1", True), ("0", False),
+                                            ("off", False), ("yes", True)])
+def test_rayflex_pgo_switch(monkeypatch, value, enabled):
+    if value is None:
+        monkeypatch.delenv("RAYFLEX_PGO", raising=False)
+    else:
+        monkeypatch.setenv("RAYFLEX_PGO", value)
+    assert rtl.pgo_enabled() is enabled
+
+
+def test_rayflex_pgo_bad_value(monkeypatch):
+    monkeypatch.setenv("RAYFLEX_PGO", "maybe")
+    with pytest.raises(BackendError, match="RAYFLEX_PGO"):
+        rtl.pgo_enabled()
+
+
+def test_profile_guided_library_is_bit_exact():
+    """The default (profile-guided) "rtl" build against golden on requests of a scene the
+    training did not see (the soup of random triangles)."""
+    from driver.golden import GoldenBackend
+    from driver.scene import builtin
+    from driver.traversal import trace
+    from driver.camera import frame, primary_rays
+    mesh = builtin("soup")
+    o, d = primary_rays(frame(mesh.vertices), 24, 24)
+    ref = trace(mesh, o, d, backend="golden", record=True)
+    req = ref.record.requests()
+    got = rtl.HarnessBackend().run(req)
+    assert got.tobytes() == GoldenBackend().run(req).tobytes()
