@@ -69,6 +69,7 @@ struct WordSource {
     std::memcpy(dst, req + i * kReqWords, kReqWords * 4);
     return true;
   }
+  void prefetch(int64_t) const {}  // sequential: the hardware prefetcher sees it
 };
 
 // A traversal request: ray `ray[i]` against node `ptr[i]` with extent bits `ext[i]`.
@@ -101,7 +102,20 @@ struct NodeSource {
     }
     return true;
   }
+
+  // Request i's ray and node are scattered over the ray table and the image (a cache miss
+  // each); fetching them a few requests ahead hides that behind the model's evaluation.
+  void prefetch(int64_t i) const {
+    const uint32_t* r = rays + static_cast<int64_t>(ray[i]) * kRayWords;
+    const uint32_t* node = image + (static_cast<int64_t>(ptr[i] & ~7u) << 1);
+    __builtin_prefetch(r);
+    __builtin_prefetch(r + kRayWords - 1);
+    __builtin_prefetch(node);
+    __builtin_prefetch(node + 27);   // a box node's last word (a triangle node is shorter)
+  }
 };
+
+constexpr int64_t kPrefetchAhead = 8;  // requests
 
 // Returns the cycles of this run, -1 on a deadlock, -2 on a bad request (bad node pointer).
 template <typename Source>
@@ -115,6 +129,7 @@ int64_t stream(Sim* s, const Source& src, uint32_t* rsp, int64_t n, const uint8_
     t.in_valid_i = (sent < n && !hold) ? 1 : 0;
     if (t.in_valid_i && loaded != sent) {   // a request held back by in_ready stays loaded
       if (!src.fill(sent, t.req_i.data())) return -2;
+      if (sent + kPrefetchAhead < n) src.prefetch(sent + kPrefetchAhead);
       loaded = sent;
     }
     t.out_ready_i = stall_now ? 0 : 1;
@@ -271,6 +286,11 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
       ready.pop_front();
       const int64_t i = chain_idx[chain_off[r] + pos[r]];
       if (!src.fill(i, t.req_i.data())) return -2;
+      if (!ready.empty()) {                       // the next ray to issue, if it is known
+        const Ready& nx = ready.front();
+        if (pos[nx.ray] < chain_off[nx.ray + 1] - chain_off[nx.ray])
+          src.prefetch(chain_idx[chain_off[nx.ray] + pos[nx.ray]]);
+      }
       t.in_valid_i = 1;
       inflight[p].push_back(i);
       per_pipe[p]++;
