@@ -229,7 +229,8 @@ def build_library(top: str, sv_sources: Sequence[Path], cpp_sources: Sequence[Pa
     ----------
     top : name of the top module (``--top-module``); the model class is ``V<top>``.
     sv_sources : SystemVerilog files, in compile order (packages first).
-    cpp_sources : C++ harness files; export ``extern "C"`` functions for ctypes.
+    cpp_sources : C++ harness files; export ``extern "C"`` functions for ctypes with default
+        visibility (the library is compiled with ``-fvisibility=hidden``).
     params : top-level parameter overrides (``-G<k>=<v>``).
     verilator_args : extra Verilator arguments (e.g. ``["-Irtl"]``).
     name : library name (default ``top``).

@@ -129,7 +129,7 @@ endmodule
 """
 TINY_CPP = """#include <cstdint>
 #include "Vtiny.h"
-extern "C" uint32_t tiny_eval(uint32_t a) {
+extern "C" __attribute__((visibility("default"))) uint32_t tiny_eval(uint32_t a) {
   static Vtiny* top = new Vtiny;
   top->a_i = a;
   top->eval();
@@ -154,11 +154,13 @@ def test_cache_key_depends_on_inputs(tmp_path):
     sv = tmp_path / "tiny.sv"
     sv.write_text(TINY_SV)
     vbin, cxx = verilate.verilator_bin(), find_cxx()
-    key = lambda *args: verilate._cache_key("tiny", [sv], [], *args, vbin, cxx)  # noqa: E731
+    key = lambda params, vargs, train=None: verilate._cache_key(  # noqa: E731
+        "tiny", [sv], [], params, vargs, vbin, cxx, train)
     base = key({}, [])
     assert key({}, []) == base
     assert key({"K": 2}, []) != base
     assert key({}, ["-Wno-WIDTH"]) != base
+    assert key({}, [], ["python", "-m", "train"]) != base        # a profile-guided build
     sv.write_text(TINY_SV + "// changed\n")
     assert key({}, []) != base
 
