@@ -23,15 +23,16 @@ CANONICAL_NAN = np.uint32(0x7FC00000)
 
 # Each unit with the files it needs (dependencies first), for lint and builds.
 UNIT_SOURCES = {
-    "rf_fp_round": [RTL / "rf_fp_round.sv"],
-    "rf_fp_normalize": [RTL / "rf_fp_normalize.sv"],
-    "rf_fp_add": [RTL / "rf_fp_normalize.sv", RTL / "rf_fp_round.sv", RTL / "rf_fp_add.sv"],
-    "rf_fp_mul": [RTL / "rf_fp_normalize.sv", RTL / "rf_fp_round.sv", RTL / "rf_fp_mul.sv"],
+    "rf_fp_round": [RTL / "rf_fp_pkg.sv", RTL / "rf_fp_round.sv"],
+    "rf_fp_normalize": [RTL / "rf_fp_pkg.sv", RTL / "rf_fp_normalize.sv"],
+    "rf_fp_add": [RTL / "rf_fp_pkg.sv", RTL / "rf_fp_add.sv"],
+    "rf_fp_mul": [RTL / "rf_fp_pkg.sv", RTL / "rf_fp_mul.sv"],
     "rf_fp_cmp": [RTL / "rf_fp_cmp.sv"],
     "rf_fp_minmax": [RTL / "rf_fp_cmp.sv", RTL / "rf_fp_minmax.sv"],
 }
-FPU_TB_SOURCES = [RTL / f for f in ("rf_fp_normalize.sv", "rf_fp_round.sv", "rf_fp_add.sv", "rf_fp_mul.sv",
-                                    "rf_fp_cmp.sv", "rf_fp_minmax.sv")] + [SIM / "fpu_tb_top.sv"]
+FPU_TB_SOURCES = [RTL / f for f in ("rf_fp_pkg.sv", "rf_fp_normalize.sv", "rf_fp_round.sv",
+                                    "rf_fp_add.sv", "rf_fp_mul.sv", "rf_fp_cmp.sv",
+                                    "rf_fp_minmax.sv")] + [SIM / "fpu_tb_top.sv"]
 FPU_HARNESS = [SIM / "fpu_harness.cpp"]
 
 OUTPUTS = ("add", "sub", "mul", "lt", "le", "eq", "unord", "min", "max")
