@@ -2,6 +2,7 @@
 training fails the build, and RAYFLEX_PGO switches it off."""
 
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -76,16 +77,24 @@ def test_rayflex_pgo_bad_value(monkeypatch):
         rtl.pgo_enabled()
 
 
-def test_profile_guided_library_is_bit_exact():
-    """The default (profile-guided) "rtl" build against golden on requests of a scene the
-    training did not see (the soup of random triangles)."""
+def test_profile_guided_library_is_bit_exact(monkeypatch):
+    """The default (profile-guided) "rtl" build, the one `rayflex` uses (the rest of the suite
+    builds without PGO), against golden on requests of a scene the training did not see (the
+    soup of random triangles), the directed cases and random corner-case requests."""
+    from driver.camera import frame, primary_rays
     from driver.golden import GoldenBackend
     from driver.scene import builtin
     from driver.traversal import trace
-    from driver.camera import frame, primary_rays
+    from cases import all_requests
+    from streams import mixed_stream
+    monkeypatch.setenv("RAYFLEX_PGO", "1")
+    monkeypatch.setattr(rtl, "_LIBS", {})              # load the PGO build in this test only
     mesh = builtin("soup")
     o, d = primary_rays(frame(mesh.vertices), 24, 24)
-    ref = trace(mesh, o, d, backend="golden", record=True)
-    req = ref.record.requests()
-    got = rtl.HarnessBackend().run(req)
-    assert got.tobytes() == GoldenBackend().run(req).tobytes()
+    req = np.concatenate([trace(mesh, o, d, backend="golden", record=True).record.requests(),
+                          all_requests(), mixed_stream(3, 12_000, 8_000)])
+    be = rtl.HarnessBackend()
+    log = (Path(be._lib._name).parent / "build.log").read_text()
+    assert log.count("-m driver.pgo") == 2                # trained, then the final build checked
+    assert log.count("PGO workload") == 2 and log.count("results = golden") == 2
+    assert be.run(req).tobytes() == GoldenBackend().run(req).tobytes()
