@@ -272,7 +272,7 @@ def _build_harness(params: dict[str, int]) -> Path:
     name = "rayflex_" + "_".join(f"{k[0].lower()}{v}" for k, v in params.items())
     train = train_env = None
     if pgo_enabled():
-        train = [sys.executable, "-m", "driver.pgo", json.dumps(params, sort_keys=True)]
+        train = [verilate.PYTHON, "-m", "driver.pgo", json.dumps(params, sort_keys=True)]
         train_env = {"PYTHONPATH": os.pathsep.join(
             [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
     try:

@@ -38,7 +38,7 @@ import time
 from pathlib import Path
 from typing import Iterable, Mapping, Sequence
 
-__all__ = ["BuildError", "verilator_bin", "find_cxx", "cache_dir", "build_library", "lint"]
+__all__ = ["BuildError", "PYTHON", "verilator_bin", "find_cxx", "cache_dir", "build_library", "lint"]
 
 # Bump when the build recipe below changes, so that old cache entries are not reused.
 _RECIPE_VERSION = "7"  # 2: CFG_CXXFLAGS_PCH_I=-include; 3, 4: _VERILATOR_OPT; 5: PGO; 6: hidden; 7: check
@@ -59,6 +59,10 @@ _PGO_USE = "-fprofile-use -fprofile-correction -Wno-missing-profile"
 # functions at file boundaries (-1%).
 _VERILATOR_OPT = ("-O3", "-fno-reloop", "-fno-split", "-fno-table", "--output-split", "0")
 _DEFAULT_BUILD_ESTIMATE_S = 30.0
+# In a training command, this word stands for the running Python interpreter; it is substituted
+# when the command runs, so the cache key does not depend on how the interpreter was spelled
+# (python, python3, a venv path).
+PYTHON = "{python}"
 _ERROR_LINES = 8
 
 
@@ -236,7 +240,8 @@ def build_library(top: str, sv_sources: Sequence[Path], cpp_sources: Sequence[Pa
     name : library name (default ``top``).
     train : profile-guided optimisation: a command (argv) that is run with the path of the
         instrumented library appended and must exit 0 after running a representative workload on
-        it; None builds without a profile.
+        it (a word ``PYTHON`` is replaced by the running interpreter); None builds without a
+        profile.
     train_env : extra environment variables for the training command (not part of the cache key).
 
     Returns the path of the cached shared library.  Raises BuildError on any failure.
@@ -309,6 +314,7 @@ def _build_locked(top: str, sv: list[Path], cpp: list[Path], params: dict[str, i
                 # ccache is bypassed: an instrumented object names the directory its profile is
                 # written to, and a cached one would name another build's directory.
                 compile_and_link(f"{_OPT} {_PGO_GENERATE}", "-fprofile-generate", cache=False)
+                train = [sys.executable if w == PYTHON else w for w in train]
                 _run([*train, str(so)], work, log, "profile-guided optimisation training",
                      shown_log, {**env, **train_env})
                 if not any(obj.glob("*.gcda")):

@@ -70,6 +70,7 @@ struct WordSource {
     return true;
   }
   void prefetch(int64_t) const {}  // sequential: the hardware prefetcher sees it
+  void begin(uint32_t*) const {}
 };
 
 // A traversal request: ray `ray[i]` against node `ptr[i]` with extent bits `ext[i]`.
@@ -81,22 +82,29 @@ struct NodeSource {
   const uint32_t* ptr;
   const uint32_t* ext;
 
+  // The words after the ray's are zero except the box or the triangle: begin() clears them once
+  // per stream, and each fill() writes its own operand and clears the other one's.
+  void begin(uint32_t* dst) const {
+    std::memset(dst + kRayWords, 0, (kReqWords - kRayWords) * 4);
+  }
+
   // Returns false for a pointer that is neither a box nor a triangle node inside the image.
   bool fill(int64_t i, uint32_t* dst) const {
     const uint32_t r = ray[i], p = ptr[i], type = p & 7u;
     const int64_t word = static_cast<int64_t>(p & ~7u) << 1;  // byte offset (p & ~7) << 3, / 4
     std::memcpy(dst, rays + static_cast<int64_t>(r) * kRayWords, kRayWords * 4);
-    std::memset(dst + kRayWords, 0, (kReqWords - kRayWords) * 4);
     dst[0] = r;                                          // tag = ray index
     dst[11] = ext[i];                                    // extent = the ray's nearest t so far
     if (type == kBoxType) {
       if (word + 28 > image_words) return false;
       dst[1] = (dst[1] & ~3u) | 1u;                       // QUADBOX
       std::memcpy(dst + kBoxWord, image + word + 4, 24 * 4);
+      std::memset(dst + kTriWord, 0, 9 * 4);
     } else if (type == kTriType) {
       if (word + 9 > image_words) return false;
       dst[1] = dst[1] & ~3u;                              // TRIANGLE
       std::memcpy(dst + kTriWord, image + word, 9 * 4);
+      std::memset(dst + kBoxWord, 0, 24 * 4);
     } else {
       return false;
     }
@@ -123,6 +131,7 @@ int64_t stream(Sim* s, const Source& src, uint32_t* rsp, int64_t n, const uint8_
                int64_t gap_len, const uint8_t* stall, int64_t stall_len, int64_t max_idle) {
   Vrayflex& t = s->top;
   int64_t sent = 0, taken = 0, k = 0, first = -1, last = -1, idle = 0, loaded = -1;
+  src.begin(t.req_i.data());
   while (taken < n) {
     const bool hold = gap && gap[k % gap_len];
     const bool stall_now = stall && stall[k % stall_len];
@@ -203,8 +212,10 @@ int64_t rf_build_requests(const uint32_t* rays, const uint32_t* image, int64_t i
                           const uint32_t* ray, const uint32_t* ptr, const uint32_t* ext,
                           uint32_t* req, int64_t n) {
   const NodeSource src{rays, image, image_words, ray, ptr, ext};
-  for (int64_t i = 0; i < n; i++)
+  for (int64_t i = 0; i < n; i++) {
+    src.begin(req + i * kReqWords);
     if (!src.fill(i, req + i * kReqWords)) return -2;
+  }
   return 0;
 }
 
@@ -238,7 +249,10 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
   if (pipelines < 1 || slots < 1 || turnaround < 0 || n_rays < 0 || m < 0) return -3;
   const NodeSource src{rays, image, image_words, ray, ptr, ext};
   std::vector<std::unique_ptr<Sim>> sims;
-  for (int64_t p = 0; p < pipelines; p++) sims.emplace_back(new_sim());
+  for (int64_t p = 0; p < pipelines; p++) {
+    sims.emplace_back(new_sim());
+    src.begin(sims.back()->top.req_i.data());
+  }
   std::vector<std::deque<int64_t>> inflight(pipelines);   // record indices, in request order
   std::vector<int64_t> pos(n_rays, 0);                     // next chain position of each ray
   struct Ready { int64_t ray, at; };
