@@ -108,6 +108,17 @@ def find_cxx() -> str:
     raise BuildError("no C++ compiler found: install g++ (Debian: apt-get install g++) or set CXX")
 
 
+def is_gcc(cxx: str) -> bool:
+    """Whether the C++ compiler is GCC (the profile-guided build uses GCC's .gcda profiles; clang's
+    need llvm-profdata). Anything that cannot be asked counts as not GCC."""
+    try:
+        out = subprocess.run([*shlex.split(cxx), "--version"], capture_output=True, text=True,
+                             timeout=30).stdout.lower()
+    except (OSError, subprocess.SubprocessError):
+        return False
+    return "clang" not in out and "free software foundation" in out
+
+
 def cache_dir() -> Path:
     """Root of the build cache (``$RAYFLEX_CACHE`` or ``~/.cache/rayflex/verilator``)."""
     env = os.environ.get("RAYFLEX_CACHE")
@@ -241,7 +252,7 @@ def build_library(top: str, sv_sources: Sequence[Path], cpp_sources: Sequence[Pa
     train : profile-guided optimisation: a command (argv) that is run with the path of the
         instrumented library appended and must exit 0 after running a representative workload on
         it (a word ``PYTHON`` is replaced by the running interpreter); None builds without a
-        profile.
+        profile, and so does a compiler other than GCC.
     train_env : extra environment variables for the training command (not part of the cache key).
 
     Returns the path of the cached shared library.  Raises BuildError on any failure.
@@ -255,6 +266,8 @@ def build_library(top: str, sv_sources: Sequence[Path], cpp_sources: Sequence[Pa
     cxx = find_cxx()
     root = cache_dir()
     train = list(train) if train else None
+    if train and not is_gcc(cxx):
+        train = None          # no profile-guided build: same library, compiled in one pass
     key = _cache_key(top, sv, cpp, params, vargs, vbin, cxx, train)
     final = root / f"{name}-{key}"
     lib = final / f"lib{name}.so"

@@ -98,3 +98,24 @@ def test_profile_guided_library_is_bit_exact(monkeypatch):
     assert log.count("-m driver.pgo") == 2                # trained, then the final build checked
     assert log.count("PGO workload") == 2 and log.count("results = golden") == 2
     assert be.run(req).tobytes() == GoldenBackend().run(req).tobytes()
+
+
+def test_compiler_other_than_gcc_builds_without_profile(tmp_path, monkeypatch):
+    """clang keeps its profiles in another format: the build then runs no training (this
+    command would fail) and gives a working library."""
+    from driver import verilate
+    monkeypatch.setenv("RAYFLEX_CACHE", str(tmp_path))
+    monkeypatch.setattr(verilate, "is_gcc", lambda cxx: False)
+    lib = build_library("fpu_tb_top", FPU_TB_SOURCES, FPU_HARNESS,
+                        train=[sys.executable, "-c", "import sys; sys.exit(3)"])
+    assert lib.is_file() and "-fprofile" not in (lib.parent / "build.log").read_text()
+
+
+def test_is_gcc():
+    from driver.verilate import find_cxx, is_gcc
+    assert is_gcc("/nonexistent/c++") is False
+    import shutil
+    for cxx, gcc in (("g++", True), ("clang++", False)):
+        if shutil.which(cxx):
+            assert is_gcc(cxx) is gcc, cxx
+    assert is_gcc(find_cxx()) in (True, False)
