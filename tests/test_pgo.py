@@ -112,10 +112,11 @@ def test_compiler_other_than_gcc_builds_without_profile(tmp_path, monkeypatch):
 
 
 def test_is_gcc():
-    from driver.verilate import find_cxx, is_gcc
-    assert is_gcc("/nonexistent/c++") is False
     import shutil
-    for cxx, gcc in (("g++", True), ("clang++", False)):
-        if shutil.which(cxx):
-            assert is_gcc(cxx) is gcc, cxx
-    assert is_gcc(find_cxx()) in (True, False)
+    from driver.verilate import is_gcc
+    assert is_gcc("/nonexistent/c++") is False
+    found = [(cxx, gcc) for cxx, gcc in (("g++", True), ("clang++", False)) if shutil.which(cxx)]
+    if not found:
+        pytest.skip("neither g++ nor clang++ on PATH")
+    for cxx, gcc in found:
+        assert is_gcc(cxx) is gcc, cxx
