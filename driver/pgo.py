@@ -28,7 +28,7 @@ from .camera import frame, primary_rays
 from .datapath import ANGULAR, EUCLIDEAN
 from .golden import GoldenBackend
 from .knn import LANES, pad, run_jobs
-from .scene import builtin
+from .scene import load_scene
 from .traversal import trace
 
 # (mesh, image size): a convex object from outside, a closed room from inside
@@ -45,8 +45,8 @@ def _scene(name: str):
     if name == "icosphere":
         mesh = trimesh.creation.icosphere(subdivisions=4, radius=1.0)
         return mesh, frame(mesh.vertices)
-    from .scene import load_scene
-    return builtin(name), load_scene(name).camera
+    scene = load_scene(name)
+    return scene.mesh, scene.camera
 
 
 def _check(what: str, ok: bool) -> None:

@@ -266,8 +266,6 @@ def build_library(top: str, sv_sources: Sequence[Path], cpp_sources: Sequence[Pa
     cxx = find_cxx()
     root = cache_dir()
     train = list(train) if train else None
-    if train and not is_gcc(cxx):
-        train = None          # no profile-guided build: same library, compiled in one pass
     key = _cache_key(top, sv, cpp, params, vargs, vbin, cxx, train)
     final = root / f"{name}-{key}"
     lib = final / f"lib{name}.so"
@@ -321,6 +319,10 @@ def _build_locked(top: str, sv: list[Path], cpp: list[Path], params: dict[str, i
                       str(obj / "libverilated.a"), "-pthread", "-Wl,--no-undefined"],
                      work, log, f"linking lib{name}.so", shown_log, env)
 
+            if train and not is_gcc(cxx):
+                # the compiler is part of the cache key, so this entry is always one-pass
+                log.write(f"# {cxx} is not GCC: no profile-guided build\n")
+                train = None
             if not train:
                 compile_and_link(_OPT, "", cache=True)
             else:
