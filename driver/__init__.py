@@ -11,6 +11,6 @@ __all__ = ["ANGULAR", "BACKENDS", "BackendError", "DatapathError", "EUCLIDEAN", 
 
 def trace(scene, origins, directions, backend="rtl", **options):
     """Closest-hit trace of rays through a scene (name, path, trimesh mesh or built BVH4) with every
-    box and triangle test run on ``backend``; see ``driver.traversal.trace``."""
-    from .traversal import trace as _trace
+    box and triangle test run on ``backend``; see ``driver.tracer.trace``."""
+    from .tracer import trace as _trace
     return _trace(scene, origins, directions, backend=backend, **options)

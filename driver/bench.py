@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from . import rtunit
+from .stats import with_replay
 
 DEFAULT_SCENE = "bunny"
 PYVERILATOR_REQUESTS = 2000
@@ -153,7 +154,7 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
     from .bvh4 import build
     from .camera import check_size, primary_rays
     from .scene import load_scene
-    from .traversal import trace
+    from .tracer import trace
 
     scene = load_scene(scene_name)
     w, h = scene.size if size is None else (size, size)
@@ -178,12 +179,7 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
     bar.close()
     frame_wall = time.perf_counter() - t0
     rs = rep.stats()
-    frame = dict(res.stats)
-    for k in ("cycles", "utilization", "sim_wall_s", "sim_cycles_per_s"):
-        frame["wavefront_" + k] = frame[k]
-    frame.update({k: rs[k] for k in (
-        "cycles", "utilization", "frame_us_at_1ghz", "rays_in_flight", "pipelines",
-        "turnaround_cycles", "starved_cycles", "per_pipeline_ops", "responses_verified")})
+    frame = with_replay(res.stats, rs)
     frame["replay_wall_s"] = rs["sim_wall_s"]
     frame["wall_s"] = frame_wall
     frame["wall_parts_s"] = {"bvh_build": t_bvh, "traversal": t_trace, "replay": rep.wall_s}
@@ -308,7 +304,7 @@ def _pyverilator_stream(rec, k: int, progress, repeat: int = 1) -> dict:
     calls and count the same cycles), ``repeat`` times each; every pass checked against the
     frame's responses bit for bit. Rates: the best pass (all passes in ``*_runs``)."""
     from .backends import backend
-    from .rtunit import response_words
+    from .layout import pack_responses
     req = rec.requests(np.arange(k))
     expect = rec.responses[:k]
     pv = backend("pyverilator")
@@ -323,7 +319,7 @@ def _pyverilator_stream(rec, k: int, progress, repeat: int = 1) -> dict:
             wall += time.perf_counter() - t0
             if bar:
                 bar.hook(min(i + chunk, k), k)
-        same = bool(np.array_equal(response_words(np.concatenate(out)), expect))
+        same = bool(np.array_equal(pack_responses(np.concatenate(out)), expect))
         return dp.cycles - c0, wall, same
 
     pv_runs, rtl_runs = [], []

@@ -1,7 +1,9 @@
-"""Datapath IO: opcodes, request/response dtypes, host-side ray preparation (SPEC sections 2, 3, 12).
+"""Datapath IO: request checks and host-side ray preparation (SPEC sections 2, 3, 12).
 
-Every tracer (golden numpy model, RTL through the fast harness, RTL through pyverilator) consumes a
-``REQUEST_DTYPE`` array and returns a ``RESPONSE_DTYPE`` array of the same length and order.
+The opcodes and the request/response dtypes are derived from the wire table in ``driver.layout``
+and re-exported here. Every tracer (golden numpy model, RTL through the fast harness, RTL through
+pyverilator) consumes a ``REQUEST_DTYPE`` array and returns a ``RESPONSE_DTYPE`` array of the same
+length and order.
 
 Fields a request's opcode does not use are ignored; response fields an opcode does not produce are
 zero (this is what the RTL's output stage drives, and what the golden model returns).
@@ -11,45 +13,11 @@ from __future__ import annotations
 
 import numpy as np
 
-TRIANGLE, QUADBOX, EUCLIDEAN, ANGULAR = 0, 1, 2, 3
-OPCODE_NAMES = {TRIANGLE: "TRIANGLE", QUADBOX: "QUADBOX", EUCLIDEAN: "EUCLIDEAN", ANGULAR: "ANGULAR"}
+from .layout import (ANGULAR, EUCLIDEAN, QUADBOX, REQUEST_DTYPE, RESPONSE_DTYPE,  # noqa: F401
+                     TRIANGLE)
+
 LATENCY = 11
 CANONICAL_NAN = np.uint32(0x7FC00000)
-
-REQUEST_DTYPE = np.dtype([
-    ("opcode", np.uint8),
-    ("origin", np.float32, (3,)),
-    ("dir", np.float32, (3,)),
-    ("inv", np.float32, (3,)),
-    ("extent", np.float32),
-    ("kx", np.uint8),
-    ("ky", np.uint8),
-    ("kz", np.uint8),
-    ("shear", np.float32, (3,)),
-    ("box", np.float32, (4, 6)),        # per box: xmin, ymin, zmin, xmax, ymax, zmax
-    ("tri", np.float32, (3, 3)),        # A, B, C
-    ("vec_a", np.float32, (16,)),
-    ("vec_b", np.float32, (16,)),
-    ("vec_mask", np.uint16),
-    ("reset_accumulator", np.uint8),
-    ("tag", np.uint32),                 # opaque, carried through unchanged
-])
-
-RESPONSE_DTYPE = np.dtype([
-    ("opcode", np.uint8),
-    ("box_index", np.uint8, (4,)),
-    ("box_hit", np.uint8, (4,)),
-    ("box_tmin", np.float32, (4,)),
-    ("tri_hit", np.uint8),
-    ("t_num", np.float32),
-    ("t_den", np.float32),
-    ("euclid_acc", np.float32),
-    ("euclid_last", np.uint8),
-    ("angular_dot", np.float32),
-    ("angular_norm", np.float32),
-    ("angular_last", np.uint8),
-    ("tag", np.uint32),
-])
 
 
 class DatapathError(ValueError):
@@ -108,8 +76,3 @@ def prepare_rays(origins, directions, extent=np.inf) -> np.ndarray:
         req["shear"][:, 1] = d[rows, ky] / dz
         req["shear"][:, 2] = one / dz
     return req
-
-
-def requests(n: int) -> np.ndarray:
-    """A zeroed request array of length n."""
-    return np.zeros(n, REQUEST_DTYPE)

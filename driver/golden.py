@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .datapath import (ANGULAR, CANONICAL_NAN, EUCLIDEAN, LATENCY, QUADBOX, RESPONSE_DTYPE,
-                       TRIANGLE, check_requests)
+from .datapath import CANONICAL_NAN
+from .layout import ANG_LANES, EUC_LANES
 
 F32 = np.float32
 _INF = F32(np.inf)
@@ -86,17 +86,17 @@ def tree_sum(x: np.ndarray) -> np.ndarray:
 
 
 def euclid_beat(a, b, mask):
-    """One EUCLIDEAN beat: sum over 16 lanes of (a-b)^2, masked lanes +0."""
+    """One EUCLIDEAN beat: sum over the 16 lanes of (a-b)^2, masked lanes +0."""
     d = a - b
     e = d * d
-    e = np.where(_lanes(mask, 16), e, F32(0))
+    e = np.where(_lanes(mask, EUC_LANES), e, F32(0))
     return tree_sum(e)
 
 
 def angular_beat(a, b, mask):
     """One ANGULAR beat over 8 lanes: (sum a*b, sum b*b), masked lanes +0."""
-    a, b = a[:, :8], b[:, :8]
-    on = _lanes(mask, 8)
+    a, b = a[:, :ANG_LANES], b[:, :ANG_LANES]
+    on = _lanes(mask, ANG_LANES)
     return tree_sum(np.where(on, a * b, F32(0))), tree_sum(np.where(on, b * b, F32(0)))
 
 
@@ -125,86 +125,3 @@ def accumulate(beats: np.ndarray, last: np.ndarray, acc0: F32):
         out[rows] = acc[job[rows]]
     final = F32(0) if last[-1] else acc[-1]
     return out, final
-
-
-def _fields(req, rows, names):
-    """The named fields of the selected rows (all rows: no copy), without copying whole records."""
-    if len(rows) == len(req):
-        return {f: req[f] for f in names}
-    return {f: req[f][rows] for f in names}
-
-
-class GoldenBackend:
-    """Numpy model of the whole datapath. ``cycles`` counts an ideal pipeline: a run of n requests
-    takes n + latency cycles (first request accepted to last response taken)."""
-
-    name = "golden"
-
-    def __init__(self, extended: bool = False, disjoint: bool = False, latency: int = LATENCY):
-        self.extended = bool(extended)
-        self.disjoint = bool(disjoint)     # same results by contract; kept for a uniform interface
-        self.latency = int(latency)
-        self.cycles = 0
-        self.requests = 0
-        self.euclid_acc = F32(0)
-        self.angular_dot = F32(0)
-        self.angular_norm = F32(0)
-
-    def run(self, req: np.ndarray) -> np.ndarray:
-        check_requests(req, self.extended)
-        ops = req["opcode"]
-        rsp = np.zeros(len(req), RESPONSE_DTYPE)
-        rsp["opcode"] = ops
-        rsp["tag"] = req["tag"]
-        with np.errstate(all="ignore"):
-            self._boxes(req, rsp, np.flatnonzero(ops == QUADBOX))
-            self._triangles(req, rsp, np.flatnonzero(ops == TRIANGLE))
-            if self.extended:
-                self._euclid(req, rsp, np.flatnonzero(ops == EUCLIDEAN))
-                self._angular(req, rsp, np.flatnonzero(ops == ANGULAR))
-        if len(req):
-            self.cycles += len(req) + self.latency
-            self.requests += len(req)
-        return rsp
-
-    def _boxes(self, req, rsp, i):
-        if not len(i):
-            return
-        r = _fields(req, i, ("origin", "inv", "dir", "box", "extent"))
-        hit, tmin = quadbox(r["origin"], r["inv"], r["dir"], r["box"], r["extent"])
-        order, hit, tmin = sort4(hit, tmin)
-        rsp["box_index"][i] = order
-        rsp["box_hit"][i] = hit
-        rsp["box_tmin"][i] = tmin
-
-    def _triangles(self, req, rsp, i):
-        if not len(i):
-            return
-        r = _fields(req, i, ("kx", "ky", "kz", "origin", "shear", "tri"))
-        k = np.stack([r["kx"], r["ky"], r["kz"]], axis=1).astype(np.intp)
-        hit, num, den = triangle(r["origin"], k, r["shear"], r["tri"])
-        rsp["tri_hit"][i] = hit
-        rsp["t_num"][i] = canonical(num)
-        rsp["t_den"][i] = canonical(den)
-
-    def _euclid(self, req, rsp, i):
-        if not len(i):
-            return
-        r = req[i]
-        beats = euclid_beat(r["vec_a"], r["vec_b"], r["vec_mask"])
-        last = r["reset_accumulator"] & 1
-        acc, self.euclid_acc = accumulate(beats, last, self.euclid_acc)
-        rsp["euclid_acc"][i] = canonical(acc)
-        rsp["euclid_last"][i] = last
-
-    def _angular(self, req, rsp, i):
-        if not len(i):
-            return
-        r = req[i]
-        dot, norm = angular_beat(r["vec_a"], r["vec_b"], r["vec_mask"])
-        last = r["reset_accumulator"] & 1
-        dacc, self.angular_dot = accumulate(dot, last, self.angular_dot)
-        nacc, self.angular_norm = accumulate(norm, last, self.angular_norm)
-        rsp["angular_dot"][i] = canonical(dacc)
-        rsp["angular_norm"][i] = canonical(nacc)
-        rsp["angular_last"][i] = last

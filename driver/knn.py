@@ -37,9 +37,10 @@ from pathlib import Path
 import numpy as np
 
 from .datapath import ANGULAR, EUCLIDEAN, REQUEST_DTYPE
+from .layout import ANG_LANES, EUC_LANES
 
 F32 = np.float32
-LANES = {EUCLIDEAN: 16, ANGULAR: 8}
+LANES = {EUCLIDEAN: EUC_LANES, ANGULAR: ANG_LANES}
 METRICS = ("euclidean", "cosine")
 CHUNK_BEATS = 1 << 16            # requests per backend.run() call (rounded to whole jobs)
 DEFAULT_QUERIES = 100

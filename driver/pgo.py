@@ -22,14 +22,14 @@ import time
 import numpy as np
 import trimesh
 
-from . import rtl
+from .backends.golden import GoldenBackend
+from .backends.harness import HarnessBackend, use_library
 from .bvh4 import build
 from .camera import frame, primary_rays
 from .datapath import ANGULAR, EUCLIDEAN
-from .golden import GoldenBackend
 from .knn import LANES, pad, run_jobs
 from .scene import load_scene
-from .traversal import trace
+from .tracer import trace
 
 # (mesh, image size): a convex object from outside, a closed room from inside
 SCENES = (("icosphere", 96), ("room", 64))
@@ -56,7 +56,7 @@ def _check(what: str, ok: bool) -> None:
 
 def train(params: dict[str, int]) -> dict:
     """Run the training workload on this process's harness library for ``params`` (see
-    ``rtl.use_library``); returns request counts. Raises TrainingMismatch on a wrong result."""
+    ``driver.backends.harness.use_library``); returns request counts. Raises TrainingMismatch on a wrong result."""
     opts = dict(extended=bool(params["EXTENDED"]), disjoint=bool(params["DISJOINT"]),
                 latency=int(params["LATENCY"]))
     counts = {"traversal": 0, "run": 0, "knn": 0}
@@ -66,13 +66,13 @@ def train(params: dict[str, int]) -> dict:
         o, d = primary_rays(cam, size, size)
         ref = trace(bvh, o, d, backend="golden", record=i == 0)
         # rays_in_flight: the wavefront pass, then the RT-unit replay of it, checked bit for bit
-        got = trace(bvh, o, d, backend=rtl.HarnessBackend(**opts), rays_in_flight=64)
+        got = trace(bvh, o, d, backend=HarnessBackend(**opts), rays_in_flight=64)
         _check(f"{name} traversal", np.array_equal(got.prim, ref.prim)
                and np.array_equal(got.t.view(np.uint32), ref.t.view(np.uint32)))
         counts["traversal"] += int(got.record.ops)
         if i == 0:
             req = ref.record.requests(np.arange(min(RUN_SLICE, ref.record.ops)))
-            rsp = rtl.HarnessBackend(**opts).run(req)
+            rsp = HarnessBackend(**opts).run(req)
             _check("run()", rsp.tobytes() == GoldenBackend(**opts).run(req).tobytes())
             counts["run"] += len(req)
     if opts["extended"]:
@@ -83,7 +83,7 @@ def train(params: dict[str, int]) -> dict:
         qi, ci = (a.ravel() for a in np.meshgrid(np.arange(nq), np.arange(nc), indexing="ij"))
         for op in (EUCLIDEAN, ANGULAR):
             a, b = pad(q, LANES[op]), pad(c, LANES[op])
-            got = run_jobs(rtl.HarnessBackend(**opts), op, a, b, qi, ci, dim)
+            got = run_jobs(HarnessBackend(**opts), op, a, b, qi, ci, dim)
             ref = run_jobs(GoldenBackend(**opts), op, a, b, qi, ci, dim)
             _check(f"knn opcode {op}", got.tobytes() == ref.tobytes())
             counts["knn"] += len(qi) * (a.shape[1] // LANES[op])
@@ -96,7 +96,7 @@ def main(argv=None) -> int:
         print("usage: python -m driver.pgo PARAMS_JSON LIBRARY", file=sys.stderr)
         return 2
     params = {k: int(v) for k, v in json.loads(argv[0]).items()}
-    rtl.use_library(params, argv[1])
+    use_library(params, argv[1])
     t0 = time.perf_counter()
     counts = train(params)
     print(f"PGO workload {params}: {counts}, {time.perf_counter() - t0:.1f} s, results = golden")

@@ -58,7 +58,7 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
     the scene's size) with every box/triangle test on ``backend``; optionally cross-check every
     primary ray against Embree."""
     from .bvh4 import build
-    from .traversal import trace
+    from .tracer import trace
 
     scene = load_scene(scene)
     w, h = check_size(width if width is not None else scene.size[0],

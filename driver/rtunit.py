@@ -14,7 +14,7 @@ Design: functional traversal first, timing by replay.
    replaying the chains in any interleaving issues exactly the same requests. (Steps are
    synchronous in the wavefront, but per ray the order is the chain order.)
 2. ``replay`` issues the recorded chains through the real RTL in the C++ harness
-   (``rf_replay`` in sim/rayflex_harness.cpp) under an RT-unit scheduler: P fresh Verilated model
+   (``rf_replay`` in sim/rtunit_scheduler.cpp) under an RT-unit scheduler: P fresh Verilated model
    instances clocked together, a pool of R ray slots filled in ray (pixel) order; every cycle each
    pipeline accepts at most one request, from the oldest ready ray (a FIFO by ready time); a ray
    has at most one request in flight and becomes ready again ``turnaround`` cycles after its
@@ -22,7 +22,7 @@ Design: functional traversal first, timing by replay.
    request, so there is no combinational path from rsp_o to req_i, as in the pipeline itself;
    larger values model a node-fetch latency); a ray whose chain is done leaves the pool and the
    next ray enters. The request words are assembled in C++ from the packed rays and the BVH4 image,
-   by the same code as the "rtl" fast path (``HarnessBackend.run_nodes``).
+   by the same code as the "rtl" fast path (``HarnessBackend.run_nodes``; sim/rf_sim.h).
 3. Cycles are real model clock cycles from the first accepted request to the last response taken
    (inclusive), as SPEC 10 counts them. ``utilization = ops / (pipelines * cycles)`` (the SPEC
    definition for one pipeline). The replayed responses are compared with the functional run's
@@ -49,8 +49,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .datapath import LATENCY, QUADBOX
-from .wire import RSP_WORDS
+from .datapath import LATENCY, QUADBOX, TRIANGLE
+from .layout import (BOX_NODE, RAY_WORDS, REQ_WORDS, TRI_NODE, NodeRef, read_nodes,
+                     unpack_requests)
 
 DEFAULT_RAYS_IN_FLIGHT = 64        # the default ray pool (see the module docstring)
 DEFAULT_TURNAROUND = 1
@@ -67,7 +68,7 @@ class Record:
     """Every datapath request of a traversal, in issue order (wavefront step by step, rays in
     index order within a step).
 
-    ray_words : (n, RAY_WORDS) uint32, the packed prepared rays (``driver.rtl.ray_words``)
+    ray_words : (n, RAY_WORDS) uint32, the packed prepared rays (``driver.layout.ray_words``)
     image : (k,) uint32, the BVH4 memory image as little-endian words
     ray, ptr : (m,) uint32, ray index and node pointer of request i
     extent : (m,) float32, the ray's nearest t when request i was issued
@@ -93,7 +94,7 @@ class Record:
 
     @property
     def box_ops(self) -> int:
-        return int(((self.ptr & 7) == 5).sum())
+        return int(NodeRef.is_box(self.ptr).sum())
 
     def chains(self):
         """(chain_idx (m,) int64, chain_off (n + 1,) int64): ray r's requests, in issue order,
@@ -108,19 +109,18 @@ class Record:
         """The recorded requests as a ``REQUEST_DTYPE`` array (all, or ``index``), built in
         Python from the rays and the image, as ``driver.traversal`` builds them for generic
         backends (for the cycle-by-cycle backend and for tests)."""
-        from .wire import REQ_WORDS
         index = np.arange(self.ops) if index is None else np.asarray(index)
         words = np.zeros((len(index), REQ_WORDS), np.uint32)
-        words[:, :self.ray_words.shape[1]] = self.ray_words[self.ray[index]]
-        words[:, 0] = self.ray[index]
-        words[:, 11] = self.extent[index].view(np.uint32)
+        words[:, :RAY_WORDS] = self.ray_words[self.ray[index]]
+        req = unpack_requests(words)
+        req["tag"] = self.ray[index]
+        req["extent"] = self.extent[index]
         ptr = self.ptr[index]
-        base = (ptr & np.uint32(0xFFFFFFF8)).astype(np.int64) << 1
-        box = (ptr & 7) == 5
-        words[:, 1] = (words[:, 1] & ~np.uint32(3)) | np.where(box, QUADBOX, 0).astype(np.uint32)
-        words[box, 15:39] = self.image[base[box, None] + 4 + np.arange(24)]
-        words[~box, 39:48] = self.image[base[~box, None] + np.arange(9)]
-        return unpack_requests(words)
+        box = NodeRef.is_box(ptr)
+        req["opcode"] = np.where(box, QUADBOX, TRIANGLE)
+        req["box"][box] = read_nodes(self.image, ptr[box], BOX_NODE)["box"]
+        req["tri"][~box] = read_nodes(self.image, ptr[~box], TRI_NODE)["tri"]
+        return req
 
 
 @dataclass
@@ -179,7 +179,7 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
     """Replay a traversal ``Record`` through P Verilated pipelines with R rays in flight (see the
     module docstring). ``verify``: compare every response with the functional run's (raises
     ``ReplayMismatch``); without recorded responses only the tags are checked."""
-    from . import rtl
+    from .backends.harness import replay_chains
     r, p, ta = int(rays_in_flight), int(pipelines), int(turnaround)
     if r < 1:
         raise ValueError(f"rays in flight must be >= 1, got {rays_in_flight}")
@@ -187,30 +187,16 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
         raise ValueError(f"pipelines must be in 1..64, got {pipelines}")
     if ta < 0:
         raise ValueError(f"turnaround must be >= 0 cycles, got {turnaround}")
-    lib = rtl.harness_library(record.params)
-    rw, img, ray, ptr, ext = rtl.node_arrays(record.ray_words, record.image, record.ray,
-                                             record.ptr, record.extent)
-    m = len(ray)
     chain_idx, chain_off = record.chains()
-    rsp = np.zeros((m, RSP_WORDS), np.uint32)
-    stats = np.zeros(8, np.int64)
-    per_pipe = np.zeros(p, np.int64)
-    i64p = rtl._I64P
     latency = int(record.params.get("LATENCY", LATENCY))
-    max_idle = 100 * latency + 1000
     t0 = time.perf_counter()
-    rc = lib.rf_replay(p, r, ta, int(bool(skip_idle)), rtl._u32p(rw), len(rw), rtl._u32p(img),
-                       img.size, rtl._u32p(ray), rtl._u32p(ptr), rtl._u32p(ext), m,
-                       chain_idx.ctypes.data_as(i64p), chain_off.ctypes.data_as(i64p),
-                       rtl._u32p(rsp), stats.ctypes.data_as(i64p),
-                       per_pipe.ctypes.data_as(i64p), max_idle)
+    rsp, stats, per_pipe = replay_chains(record.params, p, r, ta, skip_idle, record.ray_words,
+                                         record.image, record.ray, record.ptr, record.extent,
+                                         chain_idx, chain_off, 100 * latency + 1000)
     wall = time.perf_counter() - t0
-    if rc == -2:
-        raise ValueError("a recorded request names a node pointer outside the BVH image")
-    if rc < 0:
-        raise RuntimeError(f"RT-unit replay failed ({'deadlock' if rc == -1 else rc})")
-    if stats[6]:
-        raise ReplayMismatch(f"{stats[6]} replayed responses carry the wrong ray tag")
+    m = len(rsp)
+    if stats["bad_tags"]:
+        raise ReplayMismatch(f"{stats['bad_tags']} replayed responses carry the wrong ray tag")
     verified = False
     if verify and record.responses is not None:
         diff = np.flatnonzero((rsp != record.responses).any(axis=1))
@@ -218,9 +204,9 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
             raise ReplayMismatch(f"{len(diff)} of {m} replayed responses differ from the "
                                  f"functional run's (first: request {int(diff[0])})")
         verified = True
-    return ReplayResult(r, p, ta, record.rays, m, record.box_ops, int(stats[0]), int(stats[2]),
-                        int(stats[3]), int(stats[1]), per_pipe.tolist(), wall, verified, latency,
-                        rsp)
+    return ReplayResult(r, p, ta, record.rays, m, record.box_ops, stats["cycles"],
+                        stats["starved_cycles"], stats["full_cycles"], stats["model_evals"],
+                        per_pipe.tolist(), wall, verified, latency, rsp)
 
 
 def sweep(record: Record, rays_in_flight=SWEEP_RAYS_IN_FLIGHT, pipelines=SWEEP_PIPELINES,
@@ -291,44 +277,3 @@ def plot_sweep(points: list[dict], path, title: str = "") -> None:
     ax.set_title(title or "RT-unit sweep", fontsize=10)
     fig.tight_layout()
     fig.savefig(str(path), format="png")
-
-
-# ----------------------------------------------------------------------------------------------
-# wire helpers (the inverse directions of driver.wire)
-
-def response_words(rsp: np.ndarray) -> np.ndarray:
-    """RESPONSE_DTYPE (n,) -> (n, RSP_WORDS) uint32 wire words (inverse of
-    ``driver.wire.unpack_responses``)."""
-    n = len(rsp)
-    w = np.zeros((n, RSP_WORDS), np.uint32)
-    w[:, 0] = rsp["tag"]
-    u = lambda f: rsp[f].astype(np.uint32)  # noqa: E731
-    c = u("opcode") & 3
-    for j in range(4):
-        c |= (rsp["box_index"][:, j].astype(np.uint32) & 3) << (2 + 2 * j)
-        c |= (rsp["box_hit"][:, j].astype(np.uint32) & 1) << (10 + j)
-    c |= (u("tri_hit") & 1) << 14 | (u("euclid_last") & 1) << 15 | (u("angular_last") & 1) << 16
-    w[:, 1] = c
-    w[:, 2:6] = np.ascontiguousarray(rsp["box_tmin"]).view(np.uint32)
-    for k, f in ((6, "t_num"), (7, "t_den"), (8, "euclid_acc"), (9, "angular_dot"),
-                 (10, "angular_norm")):
-        w[:, k] = np.ascontiguousarray(rsp[f]).view(np.uint32)
-    return w
-
-
-def unpack_requests(words: np.ndarray) -> np.ndarray:
-    """(n, REQ_WORDS) uint32 -> REQUEST_DTYPE (n,) (inverse of ``driver.wire.pack_requests``)."""
-    from .datapath import REQUEST_DTYPE
-    n = len(words)
-    req = np.zeros(n, REQUEST_DTYPE)
-    req["tag"] = words[:, 0]
-    c = words[:, 1]
-    req["opcode"], req["kx"], req["ky"], req["kz"] = c & 3, c >> 2 & 3, c >> 4 & 3, c >> 6 & 3
-    req["reset_accumulator"] = c >> 8 & 1
-    req["vec_mask"] = c >> 16
-    for name, first, count in (("origin", 2, 3), ("dir", 5, 3), ("inv", 8, 3), ("extent", 11, 1),
-                               ("shear", 12, 3), ("box", 15, 24), ("tri", 39, 9),
-                               ("vec_a", 48, 16), ("vec_b", 64, 16)):
-        req[name] = (np.ascontiguousarray(words[:, first:first + count]).view(np.float32)
-                     .reshape(req[name].shape))
-    return req

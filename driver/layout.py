@@ -1,0 +1,352 @@
+"""Every layout the driver shares with the RTL and the C++ harness, defined once (SPEC 3, 8).
+
+This table is the single source of truth on the host side for
+
+- the **wire words** of a request and a response (``REQUEST``, ``RESPONSE``): the packed
+  ``req_t``/``rsp_t`` structs of ``rtl/rf_pkg.sv`` as little-endian uint32 words, word 0 holding
+  bits [31:0]; the numpy dtypes ``REQUEST_DTYPE``/``RESPONSE_DTYPE`` (SPEC 12) and the pack and
+  unpack functions are derived from it;
+- the **BVH4 node image** (SPEC 8): node pointers (``NodeRef``), the box and triangle node
+  structs as numpy dtypes (``BOX_NODE``, ``TRI_NODE``);
+- the **C header** of the harness (``c_header()``), generated from these tables at build time into
+  the build cache (never committed), so ``sim/rayflex_harness.cpp`` names no word index itself.
+
+The SystemVerilog structs remain the hardware's definition; ``tests/test_layout.py`` elaborates
+``rtl/rf_pkg.sv`` with Verilator and checks every field's bit position and width, and the two
+structs' ``$bits``, against this table. Adding a request field is one row here plus the RTL struct
+and the logic that uses it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# ----------------------------------------------------------------------------------------------
+# Opcodes (SPEC 3; rf_pkg::opcode_e)
+
+OPCODES = {"TRIANGLE": 0, "QUADBOX": 1, "EUCLIDEAN": 2, "ANGULAR": 3}
+TRIANGLE, QUADBOX, EUCLIDEAN, ANGULAR = (OPCODES[k] for k in
+                                         ("TRIANGLE", "QUADBOX", "EUCLIDEAN", "ANGULAR"))
+EUC_LANES = 16      # rf_pkg::EUC_LANES: lanes of one EUCLIDEAN beat
+ANG_LANES = 8       # rf_pkg::ANG_LANES: lanes of one ANGULAR beat
+
+
+@dataclass(frozen=True)
+class Field:
+    """One field of a wire struct.
+
+    name : numpy field name (SPEC 12); sv : the SystemVerilog member name when it differs
+    word, lsb : position of element 0 (word index, bit within the word)
+    bits : width of one element; shape : numpy element shape (elements are consecutive, each
+        ``bits`` wide: 32-bit elements take one word each, narrower ones share a word)
+    kind : "f32" (IEEE binary32 bits) or a numpy unsigned integer type name
+    """
+
+    name: str
+    word: int
+    lsb: int = 0
+    bits: int = 32
+    shape: tuple = ()
+    kind: str = "f32"
+    sv: str | None = None
+
+    @property
+    def count(self) -> int:
+        return int(np.prod(self.shape, dtype=np.int64)) if self.shape else 1
+
+    @property
+    def first_bit(self) -> int:
+        return 32 * self.word + self.lsb
+
+    @property
+    def total_bits(self) -> int:
+        return self.bits * self.count
+
+    @property
+    def words(self) -> int:
+        """Words spanned (for 32-bit fields: one per element)."""
+        return (self.lsb + self.total_bits + 31) // 32
+
+    @property
+    def dtype(self):
+        return np.float32 if self.kind == "f32" else np.dtype(self.kind)
+
+
+def _f32(name, word, shape=(), sv=None):
+    return Field(name, word, 0, 32, tuple(shape), "f32", sv)
+
+
+def _uint(name, word, lsb, bits, shape=(), kind="u1", sv=None):
+    return Field(name, word, lsb, bits, tuple(shape), kind, sv)
+
+
+class Wire:
+    """A wire struct: its fields (in numpy dtype order), its width in words, its dtype, and
+    vectorised pack/unpack between the dtype and (n, words) uint32 arrays."""
+
+    def __init__(self, name: str, sv_type: str, fields: list[Field], words: int):
+        self.name, self.sv_type, self.fields, self.words = name, sv_type, fields, words
+        self.field = {f.name: f for f in fields}
+        self.dtype = np.dtype([(f.name, f.dtype, f.shape) if f.shape else (f.name, f.dtype)
+                               for f in fields])
+        used = np.zeros(32 * words, bool)
+        for f in fields:
+            span = slice(f.first_bit, f.first_bit + f.total_bits)
+            if f.first_bit + f.total_bits > 32 * words or used[span].any():
+                raise AssertionError(f"{name}.{f.name} overlaps another field or the end")
+            used[span] = True
+
+    def pack(self, rows: np.ndarray, words: int | None = None) -> np.ndarray:
+        """(n,) rows of ``dtype`` -> (n, words) uint32, C-contiguous; ``words`` packs only the
+        fields that lie entirely in the first ``words`` words (default: all)."""
+        if rows.dtype != self.dtype:
+            raise TypeError(f"{self.name}s must be a {self.name.upper()}_DTYPE array")
+        nw = self.words if words is None else int(words)
+        n = len(rows)
+        out = np.zeros((n, nw), np.uint32)
+        for f in self.fields:
+            if f.word + f.words > nw:
+                continue
+            v = np.ascontiguousarray(rows[f.name]).reshape(n, f.count)
+            if f.kind == "f32":
+                out[:, f.word:f.word + f.count] = v.view(np.uint32)
+                continue
+            mask = np.uint32((1 << f.bits) - 1)
+            for j in range(f.count):
+                bit = f.lsb + j * f.bits
+                out[:, f.word + bit // 32] |= (v[:, j].astype(np.uint32) & mask) << np.uint32(
+                    bit % 32)
+        return out
+
+    def unpack(self, words: np.ndarray) -> np.ndarray:
+        """(n, words) uint32 -> (n,) rows of ``dtype`` (inverse of ``pack``)."""
+        w = np.ascontiguousarray(words, np.uint32)
+        if w.ndim != 2 or w.shape[1] != self.words:
+            raise ValueError(f"{self.name} words must be (n, {self.words}) uint32")
+        n = len(w)
+        rows = np.zeros(n, self.dtype)
+        for f in self.fields:
+            if f.kind == "f32":
+                rows[f.name] = (np.ascontiguousarray(w[:, f.word:f.word + f.count])
+                                .view(np.float32).reshape(rows[f.name].shape))
+                continue
+            mask = np.uint32((1 << f.bits) - 1)
+            bits = f.lsb + f.bits * np.arange(f.count)
+            vals = (w[:, f.word + bits // 32] >> (bits % 32).astype(np.uint32)) & mask
+            rows[f.name] = vals.reshape(rows[f.name].shape)
+        return rows
+
+
+# ----------------------------------------------------------------------------------------------
+# Wire words (rf_pkg::req_t, rf_pkg::rsp_t)
+
+REQUEST = Wire("request", "req_t", [
+    _uint("opcode", 1, 0, 2),
+    _f32("origin", 2, (3,)),
+    _f32("dir", 5, (3,)),
+    _f32("inv", 8, (3,)),
+    _f32("extent", 11),
+    _uint("kx", 1, 2, 2),
+    _uint("ky", 1, 4, 2),
+    _uint("kz", 1, 6, 2),
+    _f32("shear", 12, (3,)),
+    _f32("box", 15, (4, 6)),            # per box: xmin, ymin, zmin, xmax, ymax, zmax
+    _f32("tri", 39, (3, 3), sv="triangle"),   # A, B, C
+    _f32("vec_a", 48, (EUC_LANES,)),
+    _f32("vec_b", 64, (EUC_LANES,)),
+    _uint("vec_mask", 1, 16, 16, kind="u2"),
+    _uint("reset_accumulator", 1, 8, 1),
+    _uint("tag", 0, 0, 32, kind="u4"),  # opaque, carried through unchanged
+], words=80)
+
+RESPONSE = Wire("response", "rsp_t", [
+    _uint("opcode", 1, 0, 2),
+    _uint("box_index", 1, 2, 2, (4,)),
+    _uint("box_hit", 1, 10, 1, (4,)),
+    _f32("box_tmin", 2, (4,)),
+    _uint("tri_hit", 1, 14, 1),
+    _f32("t_num", 6),
+    _f32("t_den", 7),
+    _f32("euclid_acc", 8),
+    _uint("euclid_last", 1, 15, 1),
+    _f32("angular_dot", 9),
+    _f32("angular_norm", 10),
+    _uint("angular_last", 1, 16, 1),
+    _uint("tag", 0, 0, 32, kind="u4"),
+], words=11)
+
+REQUEST_DTYPE = REQUEST.dtype
+RESPONSE_DTYPE = RESPONSE.dtype
+REQ_WORDS = REQUEST.words
+RSP_WORDS = RESPONSE.words
+
+# A traversal request is a ray (the first RAY_WORDS words: every field but the operands) plus
+# one node's box or triangle: the harness keeps a table of packed rays and fills the rest.
+RAY_FIELDS = ("tag", "opcode", "kx", "ky", "kz", "reset_accumulator", "vec_mask", "origin",
+              "dir", "inv", "extent", "shear")
+RAY_WORDS = max(REQUEST.field[f].word + REQUEST.field[f].words for f in RAY_FIELDS)
+CONTROL_WORD = REQUEST.field["opcode"].word          # the word of opcode, kx/ky/kz and flags
+
+
+def pack_requests(req: np.ndarray) -> np.ndarray:
+    """REQUEST_DTYPE (n,) -> (n, REQ_WORDS) uint32, C-contiguous."""
+    return REQUEST.pack(req)
+
+
+def unpack_requests(words: np.ndarray) -> np.ndarray:
+    """(n, REQ_WORDS) uint32 -> REQUEST_DTYPE (n,)."""
+    return REQUEST.unpack(words)
+
+
+def pack_responses(rsp: np.ndarray) -> np.ndarray:
+    """RESPONSE_DTYPE (n,) -> (n, RSP_WORDS) uint32."""
+    return RESPONSE.pack(rsp)
+
+
+def unpack_responses(words: np.ndarray) -> np.ndarray:
+    """(n, RSP_WORDS) uint32 -> RESPONSE_DTYPE (n,)."""
+    return RESPONSE.unpack(words)
+
+
+def ray_words(rays: np.ndarray) -> np.ndarray:
+    """(n, RAY_WORDS) uint32: the ray part of prepared rays (``prepare_rays``), the ray table of
+    the harness's traversal requests (the opcode, box and triangle are filled per request)."""
+    return REQUEST.pack(rays, RAY_WORDS)
+
+
+# ----------------------------------------------------------------------------------------------
+# BVH4 node image (SPEC 8)
+
+BOX_TYPE = 5
+TRI_TYPE = 0
+NO_CHILD = 0xFFFFFFFF
+NODE_ALIGN = 64                 # every node starts at a multiple of 64 bytes
+_TYPE_MASK = 7
+_PTR_SHIFT = 3                  # pointer = (byte offset >> 3) | type
+
+BOX_NODE = np.dtype([
+    ("child", "<u4", (4,)),     # node pointers; unused slots NO_CHILD
+    ("box", "<f4", (4, 6)),     # child boxes: xmin ymin zmin xmax ymax zmax
+    ("parent", "<u4"),          # the parent's pointer (root: NO_CHILD)
+    ("count", "<u4"),           # used child slots (1..4)
+    ("rsvd", "<u4", (2,)),
+])
+TRI_NODE = np.dtype([
+    ("tri", "<f4", (3, 3)),     # A, B, C
+    ("prim", "<u4"),            # primitive id (index into the input triangles)
+    ("rsvd", "<u4", (6,)),
+])
+BOX_BYTES = BOX_NODE.itemsize
+TRI_BYTES = TRI_NODE.itemsize
+assert BOX_BYTES == 128 and TRI_BYTES == 64 and BOX_BYTES % NODE_ALIGN == TRI_BYTES % NODE_ALIGN == 0
+NODE_BYTES = {BOX_TYPE: BOX_BYTES, TRI_TYPE: TRI_BYTES}
+NODE_OPCODE = {BOX_TYPE: QUADBOX, TRI_TYPE: TRIANGLE}   # the request a node becomes
+
+
+class NodeRef:
+    """Encode/decode node pointers (uint32): ``(byte_offset >> 3) | type``; ``NO_CHILD`` is no
+    node (its type bits, 7, are neither type). The one place that knows the bit layout."""
+
+    @staticmethod
+    def encode(byte_offset, node_type) -> np.ndarray:
+        off = np.asarray(byte_offset, np.int64)
+        if (off % NODE_ALIGN).any() or (off < 0).any() or (off >> (32 + _PTR_SHIFT)).any():
+            raise ValueError("node offsets must be non-negative multiples of 64 below 32 GiB")
+        return ((off >> _PTR_SHIFT) | np.asarray(node_type, np.int64)).astype(np.uint32)
+
+    @staticmethod
+    def type(ptrs) -> np.ndarray:
+        """Type bits: BOX_TYPE, TRI_TYPE (7 for NO_CHILD)."""
+        return np.asarray(ptrs, np.uint32) & np.uint32(_TYPE_MASK)
+
+    @staticmethod
+    def offset(ptrs) -> np.ndarray:
+        """Byte offsets (int64) in the image."""
+        p = np.asarray(ptrs, np.uint32) & np.uint32(~_TYPE_MASK & 0xFFFFFFFF)
+        return p.astype(np.int64) << _PTR_SHIFT
+
+    @staticmethod
+    def word(ptrs) -> np.ndarray:
+        """Offsets in uint32 words (int64)."""
+        return NodeRef.offset(ptrs) >> 2
+
+    @staticmethod
+    def is_box(ptrs) -> np.ndarray:
+        return NodeRef.type(ptrs) == BOX_TYPE
+
+
+def node_word(node: np.dtype, field: str) -> int:
+    """Word offset of ``field`` inside a node struct."""
+    return node.fields[field][1] // 4
+
+
+# ----------------------------------------------------------------------------------------------
+# The harness's C header
+
+
+def c_header() -> str:
+    """``rf_layout.h`` for sim/rayflex_harness.cpp: every word index, bit position, opcode and
+    node layout constant the harness uses, from the tables above."""
+    lines = ["// Generated by driver/layout.py at build time. Do not edit.", "#pragma once",
+             "#include <cstdint>", "namespace rf_layout {"]
+
+    def const(name, value, ctype="int"):
+        lines.append(f"constexpr {ctype} {name} = {value};")
+
+    const("kReqWords", REQ_WORDS)
+    const("kRspWords", RSP_WORDS)
+    const("kRayWords", RAY_WORDS)
+    for prefix, wire in (("kReq", REQUEST), ("kRsp", RESPONSE)):
+        for f in wire.fields:
+            cname = "".join(p.capitalize() for p in f.name.split("_"))
+            const(f"{prefix}{cname}Word", f.word)
+            const(f"{prefix}{cname}Lsb", f.lsb)
+            const(f"{prefix}{cname}Bits", f.bits)
+            const(f"{prefix}{cname}Count", f.count)
+    for name, code in OPCODES.items():
+        const(f"kOp{name.capitalize()}", code, "uint32_t")
+    const("kBoxType", BOX_TYPE, "uint32_t")
+    const("kTriType", TRI_TYPE, "uint32_t")
+    const("kTypeMask", _TYPE_MASK, "uint32_t")
+    const("kPtrShift", _PTR_SHIFT)
+    for prefix, node in (("kBoxNode", BOX_NODE), ("kTriNode", TRI_NODE)):
+        const(f"{prefix}Words", node.itemsize // 4)
+        for fname in node.names:
+            sub = node.fields[fname][0]
+            count = int(np.prod(sub.shape)) if sub.shape else 1
+            cname = fname.capitalize()
+            const(f"{prefix}{cname}Word", node_word(node, fname))
+            const(f"{prefix}{cname}Count", count)
+    lines += [replay_stats_c(), "}  // namespace rf_layout", ""]
+    return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------------------------------
+# RT-unit replay statistics (rf_replay's output struct; driver.rtunit reads it with ctypes)
+
+REPLAY_STATS = (
+    "cycles",           # first accept to last response, inclusive
+    "model_evals",      # pipeline-cycles actually evaluated (skip_idle leaves idle ones out)
+    "starved_cycles",   # cycles in which a pipeline issued nothing because no ray was ready
+    "full_cycles",      # cycles with every pipeline issuing
+    "first_accept",     # cycle of the first accepted request
+    "last_response",    # cycle of the last response taken
+    "bad_tags",         # responses whose tag is not their ray's index (must be 0)
+    "accepts",          # requests accepted, over all pipelines
+)
+
+
+def replay_stats_c() -> str:
+    """The C declaration of ``ReplayStats`` (int64 fields in ``REPLAY_STATS`` order)."""
+    body = "\n".join(f"  int64_t {name};" for name in REPLAY_STATS)
+    return f"struct ReplayStats {{\n{body}\n}};"
+
+
+def read_nodes(image, ptrs, node: np.dtype) -> np.ndarray:
+    """Gather the nodes at ``ptrs`` from a node image (bytes or uint32 words) as (m,) rows of
+    the node dtype ``node`` (``BOX_NODE`` or ``TRI_NODE``)."""
+    words = np.asarray(image).reshape(-1).view("<u4")
+    idx = NodeRef.word(ptrs)[:, None] + np.arange(node.itemsize // 4)
+    return np.ascontiguousarray(words[idx]).view(node).reshape(-1)

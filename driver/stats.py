@@ -1,0 +1,56 @@
+"""Frame statistics (SPEC section 10): built once here, merged once here.
+
+``frame_stats`` turns a traversal's per-ray op counts and the backend's cycles into the SPEC 10
+dictionary; ``with_replay`` merges an RT-unit replay's timing into it (the wavefront's own timing
+kept as ``wavefront_*``). ``driver.tracer`` and ``rayflex bench`` both use these two.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .layout import BOX_BYTES, TRI_BYTES
+
+# the replay's figures that replace the wavefront's (which are kept as wavefront_<name>)
+REPLAYED = ("cycles", "utilization", "sim_wall_s", "sim_cycles_per_s")
+# the replay's own figures that join the frame's statistics
+REPLAY_KEYS = ("frame_us_at_1ghz", "rays_in_flight", "pipelines", "turnaround_cycles",
+               "starved_cycles", "responses_verified", "latency_cycles", "per_pipeline_ops")
+
+
+def frame_stats(box_ops: np.ndarray, tri_ops: np.ndarray, hit: np.ndarray, cycles: int,
+                latency: int, sim_wall_s: float, backend: str) -> dict:
+    """SPEC 10 statistics of a traversal: per-ray op counts (n,), hit mask (n,), the datapath
+    cycles it took, the pipeline latency, the wall time inside the backend, the backend's name."""
+    n = len(box_ops)
+    nb, nt = int(np.sum(box_ops)), int(np.sum(tri_ops))
+    ops = nb + nt
+    return {
+        "rays": n,
+        "hits": int(np.sum(hit)),
+        "box_ops": nb,
+        "tri_ops": nt,
+        "ops": ops,
+        "cycles": int(cycles),
+        "utilization": ops / cycles if cycles else 0.0,
+        "latency_cycles": int(latency),
+        "box_ops_per_ray": nb / n if n else 0.0,
+        "tri_ops_per_ray": nt / n if n else 0.0,
+        "node_bytes_fetched": BOX_BYTES * nb + TRI_BYTES * nt,
+        "sim_wall_s": sim_wall_s,
+        "sim_cycles_per_s": cycles / sim_wall_s if sim_wall_s > 0 else 0.0,
+        "frame_us_at_1ghz": cycles / 1000,
+        "backend": backend,
+    }
+
+
+def with_replay(stats: dict, replay: dict) -> dict:
+    """A copy of frame ``stats`` with the timing of an RT-unit replay (``ReplayResult.stats()``):
+    the replay's cycles, utilization and simulation speed replace the wavefront's, which are
+    kept as ``wavefront_*``; the replay's pool, pipelines and checks join."""
+    out = dict(stats)
+    for k in REPLAYED:
+        out["wavefront_" + k] = stats[k]
+        out[k] = replay[k]
+    out.update({k: replay[k] for k in REPLAY_KEYS})
+    return out

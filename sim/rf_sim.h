@@ -1,0 +1,117 @@
+// The Verilated RayFlex model as the harness drives it, and the request sources shared by the
+// streaming calls (rayflex_harness.cpp) and the RT-unit scheduler (rtunit_scheduler.cpp).
+//
+// Every word index, bit position, opcode and node-layout constant comes from rf_layout.h, which
+// driver/layout.py generates at build time from its tables (SPEC sections 3 and 8).
+#pragma once
+
+#include <cstdint>
+#include <cstring>
+
+#include "Vrayflex.h"
+#include "rf_layout.h"
+#include "verilated.h"
+
+namespace rf {
+
+using namespace rf_layout;
+
+// The generated layout and the Verilated ports must agree on the wire widths.
+static_assert(sizeof(Vrayflex::req_i) == kReqWords * 4, "req_t width differs from layout.py");
+static_assert(sizeof(Vrayflex::rsp_o) == kRspWords * 4, "rsp_t width differs from layout.py");
+
+struct Sim {
+  VerilatedContext ctx;
+  Vrayflex top{&ctx};
+};
+
+inline void tick(Sim* s) {
+  s->top.clk_i = 1;
+  s->top.eval();
+  s->top.clk_i = 0;
+  s->top.eval();
+}
+
+inline Sim* new_sim() {
+  Sim* s = new Sim;
+  s->top.clk_i = 0;
+  s->top.rst_ni = 0;
+  s->top.in_valid_i = 0;
+  s->top.out_ready_i = 0;
+  s->top.eval();
+  for (int i = 0; i < 2; i++) tick(s);
+  s->top.rst_ni = 1;
+  s->top.eval();
+  return s;
+}
+
+// Ready-made request words.
+struct WordSource {
+  const uint32_t* req;
+  bool fill(int64_t i, uint32_t* dst) const {
+    std::memcpy(dst, req + i * kReqWords, kReqWords * 4);
+    return true;
+  }
+  void prefetch(int64_t) const {}  // sequential: the hardware prefetcher sees it
+  void begin(uint32_t*) const {}
+};
+
+constexpr uint32_t kOpcodeMask = (1u << kReqOpcodeBits) - 1u;
+
+// A traversal request: ray `ray[i]` against node `ptr[i]` with extent bits `ext[i]`, assembled as
+// an RT unit would: the ray's words from the ray table, the node's box or triangle from the image.
+struct NodeSource {
+  const uint32_t* rays;   // (n_rays, kRayWords)
+  const uint32_t* image;  // BVH4 image as uint32 words
+  int64_t image_words;
+  const uint32_t* ray;
+  const uint32_t* ptr;
+  const uint32_t* ext;
+
+  static int64_t node_word(uint32_t p) {   // word offset of a node: byte offset / 4
+    return static_cast<int64_t>(p & ~kTypeMask) << (kPtrShift - 2);
+  }
+
+  // The words after the ray's are zero except the box or the triangle: begin() clears them once
+  // per stream, and each fill() writes its own operand and clears the other one's.
+  void begin(uint32_t* dst) const {
+    std::memset(dst + kRayWords, 0, (kReqWords - kRayWords) * 4);
+  }
+
+  // Returns false for a pointer that is neither a box nor a triangle node inside the image.
+  bool fill(int64_t i, uint32_t* dst) const {
+    const uint32_t r = ray[i], p = ptr[i], type = p & kTypeMask;
+    const int64_t word = node_word(p);
+    uint32_t& ctrl = dst[kReqOpcodeWord];
+    std::memcpy(dst, rays + static_cast<int64_t>(r) * kRayWords, kRayWords * 4);
+    dst[kReqTagWord] = r;                              // tag = ray index
+    dst[kReqExtentWord] = ext[i];                      // extent = the ray's nearest t so far
+    if (type == kBoxType) {
+      if (word + kBoxNodeBoxWord + kBoxNodeBoxCount > image_words) return false;
+      ctrl = (ctrl & ~(kOpcodeMask << kReqOpcodeLsb)) | (kOpQuadbox << kReqOpcodeLsb);
+      std::memcpy(dst + kReqBoxWord, image + word + kBoxNodeBoxWord, kReqBoxCount * 4);
+      std::memset(dst + kReqTriWord, 0, kReqTriCount * 4);
+    } else if (type == kTriType) {
+      if (word + kTriNodeTriWord + kTriNodeTriCount > image_words) return false;
+      ctrl = (ctrl & ~(kOpcodeMask << kReqOpcodeLsb)) | (kOpTriangle << kReqOpcodeLsb);
+      std::memcpy(dst + kReqTriWord, image + word + kTriNodeTriWord, kReqTriCount * 4);
+      std::memset(dst + kReqBoxWord, 0, kReqBoxCount * 4);
+    } else {
+      return false;
+    }
+    return true;
+  }
+
+  // Request i's ray and node are scattered over the ray table and the image (a cache miss
+  // each); fetching them a few requests ahead hides that behind the model's evaluation.
+  void prefetch(int64_t i) const {
+    const uint32_t* r = rays + static_cast<int64_t>(ray[i]) * kRayWords;
+    const uint32_t* node = image + node_word(ptr[i]);
+    __builtin_prefetch(r);
+    __builtin_prefetch(r + kRayWords - 1);
+    __builtin_prefetch(node);
+    __builtin_prefetch(node + kBoxNodeWords - 1);   // a box node spans two cache lines
+  }
+};
+
+}  // namespace rf

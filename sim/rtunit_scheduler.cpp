@@ -1,0 +1,131 @@
+// RT-unit scheduler of driver/rtunit.py: P fresh model instances clocked together, a pool of R
+// ray slots, each ray's recorded request chain issued one request at a time. The requests are
+// assembled by the same NodeSource as the streaming fast path (rf_sim.h).
+#include <cstdint>
+#include <cstring>
+#include <deque>
+#include <memory>
+#include <vector>
+
+#include "rf_sim.h"
+
+using namespace rf;
+
+#pragma GCC visibility push(default)
+extern "C" {
+
+// RT-unit replay (driver/rtunit.py). The m recorded requests (ray[i], ptr[i], ext[i]) form one
+// chain per ray; chain_idx lists the record indices of ray r's chain, in issue order, at
+// chain_idx[chain_off[r] .. chain_off[r + 1]). Rays enter a pool of `slots` ray slots in index
+// order (rays with an empty chain are skipped) and leave it when their chain is done.
+//
+// Every cycle, first each pipeline's response (if out_valid) is taken: its ray becomes ready
+// `turnaround` cycles later (or leaves the pool, and the next ray enters, ready `turnaround`
+// cycles later). Then each pipeline, in order 0..P-1, whose input is ready accepts the next
+// request of the oldest ready ray (FIFO of rays by ready time; a new ray ready at cycle 0
+// initially). Then all pipelines are clocked. A ray has at most one request in flight.
+//
+// skip_idle: a pipeline that holds no request at the start of a cycle and gets none is not
+// evaluated in that cycle (clock gating: with nothing valid inside, a clock edge changes no state
+// of the RayFlex pipeline, whose registers load only on a handshake); cycles still count.
+//
+// rsp: (m, kRspWords), written at the record index. stats: the ReplayStats of rf_layout.h (its
+// fields are documented in driver/layout.py). per_pipe (int64[P]): requests per pipeline.
+// Returns 0, -1 on a deadlock, -2 on a bad node pointer, -3 on bad arguments.
+int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t skip_idle,
+                  const uint32_t* rays, int64_t n_rays, const uint32_t* image,
+                  int64_t image_words, const uint32_t* ray, const uint32_t* ptr,
+                  const uint32_t* ext, int64_t m, const int64_t* chain_idx,
+                  const int64_t* chain_off, uint32_t* rsp, ReplayStats* stats, int64_t* per_pipe,
+                  int64_t max_idle) {
+  if (pipelines < 1 || slots < 1 || turnaround < 0 || n_rays < 0 || m < 0) return -3;
+  const NodeSource src{rays, image, image_words, ray, ptr, ext};
+  std::vector<std::unique_ptr<Sim>> sims;
+  for (int64_t p = 0; p < pipelines; p++) {
+    sims.emplace_back(new_sim());
+    src.begin(sims.back()->top.req_i.data());
+  }
+  std::vector<std::deque<int64_t>> inflight(pipelines);   // record indices, in request order
+  std::vector<int64_t> pos(n_rays, 0);                     // next chain position of each ray
+  struct Ready { int64_t ray, at; };
+  std::deque<Ready> ready;
+  int64_t next_ray = 0;
+  auto enter = [&](int64_t at) {                           // next ray with a non-empty chain
+    while (next_ray < n_rays && chain_off[next_ray + 1] == chain_off[next_ray]) next_ray++;
+    if (next_ray < n_rays) {
+      ready.push_back({next_ray++, at});
+    }
+  };
+  for (int64_t s = 0; s < slots && next_ray < n_rays; s++) enter(0);
+
+  int64_t taken = 0, k = 0, first = -1, last = -1, idle = 0, evals = 0, starved = 0;
+  int64_t full_cycles = 0, bad_tags = 0, accepts = 0;
+  std::vector<char> busy(pipelines);
+  for (int64_t p = 0; p < pipelines; p++) per_pipe[p] = 0;
+  while (taken < m) {
+    bool progress = false;
+    for (int64_t p = 0; p < pipelines; p++) {
+      Vrayflex& t = sims[p]->top;
+      busy[p] = !inflight[p].empty();
+      t.out_ready_i = 1;
+      if (!(busy[p] && t.out_valid_o)) continue;
+      const int64_t i = inflight[p].front();
+      inflight[p].pop_front();
+      std::memcpy(rsp + i * kRspWords, t.rsp_o.data(), kRspWords * 4);
+      if (rsp[i * kRspWords] != ray[i]) bad_tags++;
+      taken++;
+      last = k;
+      progress = true;
+      const int64_t r = ray[i];
+      if (++pos[r] < chain_off[r + 1] - chain_off[r]) {
+        ready.push_back({r, k + turnaround});
+      } else {
+        enter(k + turnaround);
+      }
+    }
+    int64_t issued = 0;
+    for (int64_t p = 0; p < pipelines; p++) {
+      Vrayflex& t = sims[p]->top;
+      t.in_valid_i = 0;
+      if (ready.empty() || ready.front().at > k || !t.in_ready_o) continue;
+      const int64_t r = ready.front().ray;
+      ready.pop_front();
+      const int64_t i = chain_idx[chain_off[r] + pos[r]];
+      if (!src.fill(i, t.req_i.data())) return -2;
+      if (!ready.empty()) {                       // the next ray to issue, if it is known
+        const Ready& nx = ready.front();
+        if (pos[nx.ray] < chain_off[nx.ray + 1] - chain_off[nx.ray])
+          src.prefetch(chain_idx[chain_off[nx.ray] + pos[nx.ray]]);
+      }
+      t.in_valid_i = 1;
+      inflight[p].push_back(i);
+      per_pipe[p]++;
+      issued++;
+      if (first < 0) first = k;
+      progress = true;
+    }
+    accepts += issued;
+    if (issued == pipelines) full_cycles++;
+    if (issued < pipelines && (ready.empty() || ready.front().at > k)) starved++;
+    for (int64_t p = 0; p < pipelines; p++) {
+      if (skip_idle && !busy[p] && !sims[p]->top.in_valid_i) continue;
+      tick(sims[p].get());
+      evals++;
+    }
+    idle = progress ? 0 : idle + 1;
+    if (idle > max_idle + turnaround) return -1;
+    k++;
+  }
+  stats->cycles = m ? last - first + 1 : 0;
+  stats->model_evals = evals;
+  stats->starved_cycles = starved;
+  stats->full_cycles = full_cycles;
+  stats->first_accept = first;
+  stats->last_response = last;
+  stats->bad_tags = bad_tags;
+  stats->accepts = accepts;
+  return 0;
+}
+
+}  // extern "C"
+#pragma GCC visibility pop
