@@ -36,7 +36,7 @@ import pytest
 
 import driver
 from driver import LATENCY, RESPONSE_DTYPE
-from driver.rtl import PATTERN_LEN
+from driver.backends.rtlbase import PATTERN_LEN
 
 PRESSURES = [(0.0, 0.0), (0.1, 0.1), (0.5, 0.5), (0.9, 0.9), (0.9, 0.1), (0.1, 0.9)]
 PRESSURE_IDS = [f"gaps{g}-stalls{s}" for g, s in PRESSURES]

@@ -127,7 +127,7 @@ def test_default_frame_utilization():
     from driver import rtunit
     from driver.camera import primary_rays
     from driver.scene import load_scene
-    from driver.traversal import trace
+    from driver.tracer import trace
     scene = load_scene("bunny")
     o, d = primary_rays(scene.camera, 256, 256)
     res = trace(scene.mesh, o, d, backend="rtl", rays_in_flight=rtunit.DEFAULT_RAYS_IN_FLIGHT)

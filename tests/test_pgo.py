@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from driver import pgo, rtl
+from driver import pgo
+from driver.backends import build, harness
 from driver.backends import BackendError
 from driver.rtunit import ReplayMismatch
 from driver.verilate import BuildError, build_library
@@ -29,7 +30,7 @@ def test_training_workload_runs_every_path():
 ])
 def test_training_catches_a_wrong_library(monkeypatch, method, error, what):
     """A library that returns one wrong response bit must not become a cached build."""
-    real = getattr(rtl.HarnessBackend, method)
+    real = getattr(harness.HarnessBackend, method)
 
     def corrupt(self, *args):
         out = real(self, *args)
@@ -39,7 +40,7 @@ def test_training_catches_a_wrong_library(monkeypatch, method, error, what):
             out[len(out) // 2, 1] ^= 1
         return out
 
-    monkeypatch.setattr(rtl.HarnessBackend, method, corrupt)
+    monkeypatch.setattr(harness.HarnessBackend, method, corrupt)
     with pytest.raises(error, match=what):
         pgo.train(BASELINE)
 
@@ -68,13 +69,13 @@ def test_rayflex_pgo_switch(monkeypatch, value, enabled):
         monkeypatch.delenv("RAYFLEX_PGO", raising=False)
     else:
         monkeypatch.setenv("RAYFLEX_PGO", value)
-    assert rtl.pgo_enabled() is enabled
+    assert build.pgo_enabled() is enabled
 
 
 def test_rayflex_pgo_bad_value(monkeypatch):
     monkeypatch.setenv("RAYFLEX_PGO", "maybe")
     with pytest.raises(BackendError, match="RAYFLEX_PGO"):
-        rtl.pgo_enabled()
+        build.pgo_enabled()
 
 
 def test_profile_guided_library_is_bit_exact(monkeypatch):
@@ -82,9 +83,9 @@ def test_profile_guided_library_is_bit_exact(monkeypatch):
     builds without PGO), against golden on requests of a scene the training did not see (the
     soup of random triangles), the directed cases and random corner-case requests."""
     from driver.camera import frame, primary_rays
-    from driver.golden import GoldenBackend
+    from driver.backends.golden import GoldenBackend
     from driver.scene import builtin
-    from driver.traversal import trace
+    from driver.tracer import trace
     from cases import all_requests
     from streams import mixed_stream
     monkeypatch.setenv("RAYFLEX_PGO", "1")
@@ -93,7 +94,7 @@ def test_profile_guided_library_is_bit_exact(monkeypatch):
     o, d = primary_rays(frame(mesh.vertices), 24, 24)
     req = np.concatenate([trace(mesh, o, d, backend="golden", record=True).record.requests(),
                           all_requests(), mixed_stream(3, 12_000, 8_000)])
-    be = rtl.HarnessBackend()
+    be = harness.HarnessBackend()
     log = (Path(be._lib._name).parent / "build.log").read_text()
     assert log.count("-m driver.pgo") == 2                # trained, then the final build checked
     assert log.count("PGO workload") == 2 and log.count("results = golden") == 2

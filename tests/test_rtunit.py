@@ -12,9 +12,9 @@ import meshes
 import driver
 from driver import backend, prepare_rays
 from driver.bvh4 import build
-from driver.rtl import build_requests, ray_words
-from driver.traversal import trace
-from driver.wire import pack_requests, unpack_responses
+from driver.backends.harness import build_requests
+from driver.layout import pack_requests, pack_responses, ray_words, unpack_requests, unpack_responses
+from driver.tracer import trace
 from driver import rtunit
 
 LAT = driver.LATENCY
@@ -82,9 +82,9 @@ def test_fast_path_matches_golden_and_generic_requests(scene, wave):
 
 def test_wire_helpers_round_trip(wave):
     rsp = unpack_responses(wave.record.responses)
-    assert np.array_equal(rtunit.response_words(rsp), wave.record.responses)
+    assert np.array_equal(pack_responses(rsp), wave.record.responses)
     req = wave.record.requests(np.arange(50))
-    assert np.array_equal(rtunit.unpack_requests(pack_requests(req)).view(np.uint8),
+    assert np.array_equal(unpack_requests(pack_requests(req)).view(np.uint8),
                           req.view(np.uint8))
 
 
@@ -155,7 +155,7 @@ def test_scheduler_exact_cycles():
     rays = prepare_rays([[0, 0, -5], [0.1, 0, -5]], [[0, 0, 1], [0, 0, 1]])
     rec = rtunit.Record(ray_words(rays), bvh.image.view("<u4"),
                         np.array([0, 1, 0, 0], np.uint32), np.full(4, bvh.root, np.uint32),
-                        np.full(4, np.inf, np.float32), None, driver.rtl.rtl_params(0, 0, LAT))
+                        np.full(4, np.inf, np.float32), None, driver.backends.build.rtl_params(0, 0, LAT))
     # R=2, P=1: r0 at 0, r1 at 1; r0 again at 12 and 24 -> last response at 35
     assert rtunit.replay(rec, 2, 1).cycles == 36
     assert rtunit.replay(rec, 2, 1, turnaround=0).cycles == 34

@@ -11,7 +11,7 @@ import meshes
 from driver import TRIANGLE, backend, prepare_rays
 from driver import trace as driver_trace
 from driver.bvh4 import build
-from driver.traversal import TraceResult, trace
+from driver.tracer import TraceResult, trace
 
 
 def brute_force(tris, o, d, extent=np.inf):

@@ -1,0 +1,148 @@
+"""driver/layout.py against the RTL: every wire field's bit position and width, the structs' $bits,
+the opcodes and lane counts, as Verilator elaborates rtl/rf_pkg.sv; and the Python side of the
+table (pack/unpack round trips, node dtypes, NodeRef, the generated C header)."""
+
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from driver import layout, verilate
+from driver.backends.build import RTL_DIR
+
+PKG = RTL_DIR / "rf_pkg.sv"
+
+
+def _check_module() -> str:
+    """A SystemVerilog test bench that prints, for every field of the table, the lowest bit and
+    the number of bits it sets when the field alone is all ones."""
+    lines = ["module rf_layout_check;", "  import rf_pkg::*;"]
+    for wire in (layout.REQUEST, layout.RESPONSE):
+        t = wire.sv_type
+        lines += [f"  function automatic int lowest_{t}(input {t} v);",
+                  f"    for (int i = 0; i < $bits({t}); i++) if (v[i]) return i;",
+                  "    return -1;", "  endfunction"]
+    lines += ["  req_t r;", "  rsp_t s;", "  initial begin",
+              '    $display("bits req_t %0d", $bits(req_t));',
+              '    $display("bits rsp_t %0d", $bits(rsp_t));']
+    for wire, var in ((layout.REQUEST, "r"), (layout.RESPONSE, "s")):
+        for f in wire.fields:
+            member = f.sv or f.name
+            lines += [f"    {var} = '0;", f"    {var}.{member} = '1;",
+                      f'    $display("field {wire.sv_type}.{f.name} %0d %0d", '
+                      f"lowest_{wire.sv_type}({var}), $countones({var}));"]
+    for name in layout.OPCODES:
+        lines.append(f'    $display("opcode {name} %0d", OP_{name});')
+    lines += ['    $display("lanes EUC %0d", EUC_LANES);', '    $display("lanes ANG %0d", ANG_LANES);',
+              "    $finish;", "  end", "endmodule", ""]
+    return "\n".join(lines)
+
+
+@pytest.fixture(scope="module")
+def rtl_layout(tmp_path_factory):
+    """What the RTL says: {('bits', type): n, ('field', type.name): (lsb, ones), ...}."""
+    work = tmp_path_factory.mktemp("layout")
+    (work / "rf_layout_check.sv").write_text(_check_module())
+    vbin = verilate.verilator_bin()
+    build = subprocess.run(
+        [str(vbin), "--binary", "--no-timing", "-O0", "-Wno-ENUMVALUE", "--Mdir", str(work / "obj"), "--top-module",
+         "rf_layout_check", "-MAKEFLAGS", f"PYTHON3={sys.executable} CXX={verilate.find_cxx()} "
+         "LINK=" + verilate.find_cxx() + " CFG_CXXFLAGS_STD=-std=c++17", str(PKG),
+         str(work / "rf_layout_check.sv")], capture_output=True, text=True, cwd=work)
+    assert build.returncode == 0, build.stdout + build.stderr
+    run = subprocess.run([str(work / "obj" / "Vrf_layout_check")], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    out = {}
+    for line in run.stdout.splitlines():
+        kind, key, *vals = line.split() + ["", ""]
+        vals = [v for v in vals if v]
+        if kind not in ("bits", "field", "opcode", "lanes"):
+            continue                                  # Verilator's own $finish message
+        out[(kind, key)] = tuple(int(v) for v in vals) if len(vals) > 1 else int(vals[0])
+    return out
+
+
+def test_struct_widths_match_the_table(rtl_layout):
+    assert rtl_layout[("bits", "req_t")] == 32 * layout.REQ_WORDS
+    assert rtl_layout[("bits", "rsp_t")] == 32 * layout.RSP_WORDS
+
+
+@pytest.mark.parametrize("wire", [layout.REQUEST, layout.RESPONSE], ids=lambda w: w.sv_type)
+def test_every_field_sits_where_the_table_says(rtl_layout, wire):
+    for f in wire.fields:
+        assert rtl_layout[("field", f"{wire.sv_type}.{f.name}")] == (f.first_bit, f.total_bits), f
+
+
+def test_opcodes_and_lanes_match_the_package(rtl_layout):
+    for name, code in layout.OPCODES.items():
+        assert rtl_layout[("opcode", name)] == code
+    assert rtl_layout[("lanes", "EUC")] == layout.EUC_LANES
+    assert rtl_layout[("lanes", "ANG")] == layout.ANG_LANES
+
+
+def test_the_fields_cover_the_struct_but_its_reserved_bits():
+    """Every bit of req_t/rsp_t is a field of the table except the ``rsvd`` members."""
+    structs = {name: body for body, name in
+               re.findall(r"typedef struct packed \{([^{}]*)\}\s*(\w+);", PKG.read_text())}
+    for wire in (layout.REQUEST, layout.RESPONSE):
+        body = structs[wire.sv_type]
+        rsvd = sum(int(m.group(1)) + 1 for m in re.finditer(r"logic\s*\[(\d+):0\]\s*rsvd", body))
+        assert sum(f.total_bits for f in wire.fields) + rsvd == 32 * wire.words
+
+
+@pytest.mark.parametrize("wire", [layout.REQUEST, layout.RESPONSE], ids=lambda w: w.sv_type)
+def test_pack_unpack_round_trip(wire):
+    rng = np.random.default_rng(3)
+    rows = rng.integers(0, 256, (500, wire.dtype.itemsize), dtype=np.uint8).view(wire.dtype)[:, 0]
+    for f in wire.fields:                     # sub-word fields hold only their width
+        if f.kind != "f32":
+            rows[f.name] &= (1 << f.bits) - 1
+    words = wire.pack(rows)
+    assert words.shape == (500, wire.words)
+    assert wire.unpack(words).tobytes() == rows.tobytes()
+    assert np.array_equal(wire.pack(wire.unpack(words)), words)
+
+
+def test_ray_words_are_the_leading_request_words():
+    rng = np.random.default_rng(4)
+    rows = rng.integers(0, 256, (50, layout.REQUEST_DTYPE.itemsize), dtype=np.uint8)
+    req = rows.view(layout.REQUEST_DTYPE)[:, 0]
+    for f in layout.REQUEST.fields:
+        if f.kind != "f32":
+            req[f.name] &= (1 << f.bits) - 1
+    assert np.array_equal(layout.ray_words(req), layout.pack_requests(req)[:, :layout.RAY_WORDS])
+    assert layout.RAY_WORDS <= layout.REQUEST.field["box"].word      # operands follow the ray
+
+
+def test_node_ref_and_node_dtypes():
+    off = np.array([0, 64, 128, 64 * 12345], np.int64)
+    ptr = layout.NodeRef.encode(off, [layout.BOX_TYPE, layout.TRI_TYPE, layout.BOX_TYPE,
+                                      layout.TRI_TYPE])
+    assert ptr[0] == 5                                # SPEC 8: the root box node's pointer
+    assert np.array_equal(layout.NodeRef.offset(ptr), off)
+    assert np.array_equal(layout.NodeRef.is_box(ptr), [True, False, True, False])
+    assert layout.NodeRef.type(layout.NO_CHILD) not in (layout.BOX_TYPE, layout.TRI_TYPE)
+    with pytest.raises(ValueError):
+        layout.NodeRef.encode(32, layout.BOX_TYPE)
+    assert layout.BOX_NODE.itemsize == 128 and layout.TRI_NODE.itemsize == 64
+    image = np.zeros(2 * 128 // 4, np.uint32)
+    node = np.zeros(1, layout.BOX_NODE)
+    node["box"] = np.arange(24, dtype=np.float32).reshape(4, 6)
+    node["child"] = [5, 21, layout.NO_CHILD, layout.NO_CHILD]
+    image[32:64] = node.view(np.uint32)
+    got = layout.read_nodes(image, layout.NodeRef.encode([128], [layout.BOX_TYPE]), layout.BOX_NODE)
+    assert got.tobytes() == node.tobytes()
+
+
+def test_c_header_has_every_constant_the_harness_uses():
+    header = layout.c_header()
+    names = set(re.findall(r"constexpr \w+ (k\w+) =", header))
+    src = "".join(p.read_text() for p in (RTL_DIR.parent / "sim").glob("r*.cpp"))
+    src += (RTL_DIR.parent / "sim" / "rf_sim.h").read_text()
+    used = set(re.findall(r"\bk[A-Z]\w+", src)) - {"kPrefetchAhead", "kOpcodeMask"}
+    assert used and used <= names, used - names
+    assert "struct ReplayStats" in header
+    for name in layout.REPLAY_STATS:
+        assert f"int64_t {name};" in header
