@@ -151,10 +151,8 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
           pyverilator_requests=PYVERILATOR_REQUESTS, repeat=REPEAT, progress=True) -> dict:
     """Run the benchmark; returns the JSON document (see the module docstring)."""
     from .backends import backend
-    from .bvh4 import build
     from .camera import check_size, primary_rays
     from .scene import load_scene
-    from .tracer import trace
 
     scene = load_scene(scene_name)
     w, h = scene.size if size is None else (size, size)
@@ -163,27 +161,9 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
     n = len(origins)
     rtl = backend("rtl")                            # build (or load) first: fail early
 
-    # ---- the frame on "rtl": BVH build, wavefront traversal, RT-unit replay -----------------
-    t0 = time.perf_counter()
-    bvh = build(scene.mesh)
-    t_bvh = time.perf_counter() - t0
-    bar = _bar(n, f"frame {w}x{h} rtl", "ray", progress)
-    t1 = time.perf_counter()
-    res = trace(bvh, origins, dirs, backend=rtl, record=True, progress=bar.hook)
-    t_trace = time.perf_counter() - t1
-    bar.close()
+    frame, res, bvh, rep = _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines,
+                                  f"{w}x{h}", progress)
     rec = res.record
-    bar = _bar(1, f"RT-unit replay R={rays_in_flight} P={pipelines}", "run", progress)
-    rep = rtunit.replay(rec, rays_in_flight, pipelines)
-    bar.hook(1, 1)
-    bar.close()
-    frame_wall = time.perf_counter() - t0
-    rs = rep.stats()
-    frame = with_replay(res.stats, rs)
-    frame["replay_wall_s"] = rs["sim_wall_s"]
-    frame["wall_s"] = frame_wall
-    frame["wall_parts_s"] = {"bvh_build": t_bvh, "traversal": t_trace, "replay": rep.wall_s}
-    frame["bvh"] = dict(bvh.stats)
     rtl_runs = [res.stats["sim_cycles_per_s"]]
     for _ in range(int(repeat) - 1):
         rtl_runs.append(_restream(rtl, rec, res.step_requests))
@@ -194,17 +174,9 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
     tri = scene.triangles
     t_emb_build, t_emb = _embree_rate(tri, origins, dirs)
     emb_t, emb_prim = embree_closest_front(tri, origins, dirs)
-    emb = compare(res.t, res.prim, emb_t, emb_prim, tri, origins, dirs)
-    frame["embree"] = embree_json(emb)
+    frame["embree"] = embree_json(compare(res.t, res.prim, emb_t, emb_prim, tri, origins, dirs))
 
-    # ---- golden: the whole frame on the numpy model ------------------------------------------
-    bar = _bar(n, f"frame {w}x{h} golden", "ray", progress)
-    t0 = time.perf_counter()
-    gold = trace(bvh, origins, dirs, backend="golden", progress=bar.hook)
-    t_gold = time.perf_counter() - t0
-    bar.close()
-    golden_same = bool(np.array_equal(gold.t.view(np.uint32), res.t.view(np.uint32))
-                       and np.array_equal(gold.prim, res.prim))
+    t_gold, golden_same = _golden(bvh, origins, dirs, res, f"{w}x{h}", progress)
 
     # ---- pyverilator on a short stream of the frame's requests --------------------------------
     pyv = None
@@ -213,30 +185,10 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
         pyv = _pyverilator_stream(rec, k, progress, repeat)
     speedup = rtl_cps / pyv["cycles_per_s"] if pyv and pyv["cycles_per_s"] else None
 
-    # ---- RT-unit sweep on a smaller frame of the same view -----------------------------------
     sweep = None
     if sweep_size:
-        ss = min(int(sweep_size), w, h)
-        so, sd = primary_rays(scene.camera, ss, ss)
-        srec = trace(bvh, so, sd, backend=rtl, record=True).record
-        pairs = len(sweep_rays) * len(sweep_pipelines)
-        bar = _bar(pairs, f"RT-unit sweep {ss}x{ss}", "point", progress)
-        t0 = time.perf_counter()
-        points = rtunit.sweep(srec, sweep_rays, sweep_pipelines,
-                              progress=lambda done, total, pt: bar.hook(done, total),
-                              workers=min(4, machine()["cores_usable"] or 1))
-        t_sweep = time.perf_counter() - t0
-        bar.close()
-        keep = ("pipelines", "rays_in_flight", "cycles", "utilization", "frame_us_at_1ghz",
-                "starved_cycles", "responses_verified")
-        sweep = {"width": ss, "height": ss, "rays": srec.rays, "ops": srec.ops,
-                 "latency_cycles": rep.latency, "turnaround_cycles": rep.turnaround,
-                 "wall_s": t_sweep, "plot": str(plot) if plot else None,
-                 "points": [{kk: pt[kk] for kk in keep} for pt in points]}
-        if plot:
-            rtunit.plot_sweep(points, plot, f"{scene.name} {ss}x{ss}: {srec.ops} datapath ops, "
-                                            f"latency {rep.latency} + turnaround "
-                                            f"{rep.turnaround} cycles")
+        sweep = _sweep(scene, bvh, rtl, min(int(sweep_size), w, h), sweep_rays, sweep_pipelines,
+                       rep, plot, progress)
 
     doc = {
         "scene": scene.name,
@@ -252,7 +204,7 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
         "golden_matches_rtl": golden_same,
         "embree_rays_per_s": n / t_emb if t_emb > 0 else None,
         "embree_build_s": t_emb_build,
-        "bvh_build_s": t_bvh,
+        "bvh_build_s": frame["wall_parts_s"]["bvh_build"],
         "rtunit_sweep": sweep,
         "machine": machine(),
     }
@@ -260,9 +212,75 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
         "utilization_ge_0.98": frame["utilization"] >= TARGETS["utilization"],
         "rtl_ge_1M_cycles_per_s": rtl_cps >= TARGETS["rtl_cycles_per_s"],
         "speedup_ge_100": speedup is not None and speedup >= TARGETS["speedup"],
-        "frame_wall_le_10s": frame_wall <= TARGETS["frame_wall_s"],
+        "frame_wall_le_10s": frame["wall_s"] <= TARGETS["frame_wall_s"],
     }
     return doc
+
+
+def _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines, label, progress):
+    """The frame on "rtl": BVH build, wavefront traversal (recorded), RT-unit replay. Returns
+    (frame statistics, trace result, BVH, replay result)."""
+    from .bvh4 import build
+    from .tracer import trace
+
+    t0 = time.perf_counter()
+    bvh = build(scene.mesh)
+    t_bvh = time.perf_counter() - t0
+    bar = _bar(len(origins), f"frame {label} rtl", "ray", progress)
+    t1 = time.perf_counter()
+    res = trace(bvh, origins, dirs, backend=rtl, record=True, progress=bar.hook)
+    t_trace = time.perf_counter() - t1
+    bar.close()
+    bar = _bar(1, f"RT-unit replay R={rays_in_flight} P={pipelines}", "run", progress)
+    rep = rtunit.replay(res.record, rays_in_flight, pipelines)
+    bar.hook(1, 1)
+    bar.close()
+    rs = rep.stats()
+    frame = with_replay(res.stats, rs)
+    frame["replay_wall_s"] = rs["sim_wall_s"]
+    frame["wall_s"] = time.perf_counter() - t0
+    frame["wall_parts_s"] = {"bvh_build": t_bvh, "traversal": t_trace, "replay": rep.wall_s}
+    frame["bvh"] = dict(bvh.stats)
+    return frame, res, bvh, rep
+
+
+def _golden(bvh, origins, dirs, res, label, progress):
+    """The whole frame on the numpy model: (wall seconds, hits equal to the RTL's)."""
+    from .tracer import trace
+    bar = _bar(len(origins), f"frame {label} golden", "ray", progress)
+    t0 = time.perf_counter()
+    gold = trace(bvh, origins, dirs, backend="golden", progress=bar.hook)
+    t_gold = time.perf_counter() - t0
+    bar.close()
+    same = bool(np.array_equal(gold.t.view(np.uint32), res.t.view(np.uint32))
+                and np.array_equal(gold.prim, res.prim))
+    return t_gold, same
+
+
+def _sweep(scene, bvh, rtl, ss, sweep_rays, sweep_pipelines, rep, plot, progress) -> dict:
+    """The RT-unit sweep on a smaller frame (ss x ss) of the same view, and its plot."""
+    from .camera import primary_rays
+    from .tracer import trace
+    so, sd = primary_rays(scene.camera, ss, ss)
+    srec = trace(bvh, so, sd, backend=rtl, record=True).record
+    pairs = len(sweep_rays) * len(sweep_pipelines)
+    bar = _bar(pairs, f"RT-unit sweep {ss}x{ss}", "point", progress)
+    t0 = time.perf_counter()
+    points = rtunit.sweep(srec, sweep_rays, sweep_pipelines,
+                          progress=lambda done, total, pt: bar.hook(done, total),
+                          workers=min(4, machine()["cores_usable"] or 1))
+    t_sweep = time.perf_counter() - t0
+    bar.close()
+    keep = ("pipelines", "rays_in_flight", "cycles", "utilization", "frame_us_at_1ghz",
+            "starved_cycles", "responses_verified")
+    if plot:
+        rtunit.plot_sweep(points, plot, f"{scene.name} {ss}x{ss}: {srec.ops} datapath ops, "
+                                        f"latency {rep.latency} + turnaround "
+                                        f"{rep.turnaround} cycles")
+    return {"width": ss, "height": ss, "rays": srec.rays, "ops": srec.ops,
+            "latency_cycles": rep.latency, "turnaround_cycles": rep.turnaround,
+            "wall_s": t_sweep, "plot": str(plot) if plot else None,
+            "points": [{kk: pt[kk] for kk in keep} for pt in points]}
 
 
 def _embree_rate(triangles, origins, dirs):

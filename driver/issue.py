@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from .backends import NodeBackend
+from .backends.base import NodeBackend
 from .datapath import QUADBOX, TRIANGLE
 from .layout import RESPONSE, RSP_WORDS, pack_responses, ray_words
 from .traversal import StepResponses

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from .. import layout, verilate
 from ..datapath import LATENCY
-from . import BackendError
+from .base import BackendError
 
 ROOT = Path(__file__).resolve().parent.parent.parent
 RTL_DIR = ROOT / "rtl"

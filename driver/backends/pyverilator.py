@@ -20,7 +20,7 @@ import numpy as np
 
 from .. import verilate
 from ..layout import RSP_WORDS, pack_requests, unpack_responses
-from . import BackendError
+from .base import BackendError
 from .build import RTL_DIR, TOP, rtl_sources
 from .rtlbase import PATTERN_LEN, RtlBackendBase
 
