@@ -135,3 +135,20 @@ def _number(v, name) -> float:
     if not math.isfinite(x):
         raise CameraError(f"camera {name} must be finite, got {x}")
     return x
+
+
+def camera_rays(camera: Camera, width: int, height: int, pixels, jx=0.5, jy=0.5):
+    """Rays through points of pixels: pixel index p = row * width + column (row 0 at the top), at
+    offset (jx, jy) in [0, 1)^2 inside the pixel (0.5, 0.5 = the centre, as ``primary_rays``).
+    Returns origins (k, 3) float32 and unit directions (k, 3) float32."""
+    width, height = check_size(width, height)
+    f, r, u = camera.basis()
+    half = math.tan(math.radians(float(camera.fov_deg)) / 2)
+    p = np.asarray(pixels, np.int64).reshape(-1)
+    col, row = p % width, p // width
+    xs = (2 * (col + np.broadcast_to(jx, p.shape)) / width - 1) * half * (width / height)
+    ys = (1 - 2 * (row + np.broadcast_to(jy, p.shape)) / height) * half
+    d = f + xs[:, None] * r + ys[:, None] * u
+    d = (d / np.linalg.norm(d, axis=1, keepdims=True)).astype(np.float32)
+    o = np.broadcast_to(np.asarray(camera.position, np.float32), d.shape).copy()
+    return o, d

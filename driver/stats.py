@@ -54,3 +54,29 @@ def with_replay(stats: dict, replay: dict) -> dict:
         out[k] = replay[k]
     out.update({k: replay[k] for k in REPLAY_KEYS})
     return out
+
+
+# summed over the parts of a frame; the rest of SPEC 10 is derived from the sums
+_SUMMED = ("rays", "hits", "box_ops", "tri_ops", "ops", "cycles", "node_bytes_fetched",
+           "sim_wall_s")
+
+
+def merge(parts: list[dict]) -> dict:
+    """SPEC 10 statistics of several traversals taken together (ray types, bounces, tiles): counts,
+    cycles and wall times add up (each traversal is its own wavefront: the datapath runs them one
+    after another); the ratios are recomputed from the sums."""
+    if not parts:
+        return frame_stats(np.zeros(0), np.zeros(0), np.zeros(0, bool), 0, 0, 0.0, "")
+    s = {k: sum(p[k] for p in parts) for k in _SUMMED}
+    n, cycles, wall = s["rays"], s["cycles"], s["sim_wall_s"]
+    s.update({
+        "utilization": s["ops"] / cycles if cycles else 0.0,
+        "latency_cycles": parts[0]["latency_cycles"],
+        "box_ops_per_ray": s["box_ops"] / n if n else 0.0,
+        "tri_ops_per_ray": s["tri_ops"] / n if n else 0.0,
+        "sim_cycles_per_s": cycles / wall if wall > 0 else 0.0,
+        "frame_us_at_1ghz": cycles / 1000,
+        "backend": parts[0]["backend"],
+    })
+    return {k: s[k] for k in parts[0] if k in s} | {k: v for k, v in s.items()
+                                                   if k not in parts[0]}

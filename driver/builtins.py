@@ -1,0 +1,155 @@
+"""Built-in rendering scenes with materials and lights: the Cornell box, the bunny on a floor,
+and a large instanced scene (a grid of rotated, scaled bunnies on a plane, flattened into one mesh).
+
+The Cornell box is the published geometry of the Cornell Program of Computer Graphics ("Cornell
+Box Data": floor, ceiling, back wall, red left wall, green right wall, a short and a tall block,
+a 130 x 105 quad light under the ceiling; millimetres, y up; camera at (278, 273, -800) looking
+down +z with a 35 mm lens on a 25 mm film, i.e. a vertical field of view of 39.31 degrees). The
+reflectances are the usual RGB reductions of its measured spectra; the light sits 0.1 below the
+ceiling (the data puts both in one plane, which would make the light and the ceiling overlap).
+Its triangles are double-sided (NO_CULL), as the data's walls are single quads seen from inside.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+WHITE = (0.73, 0.73, 0.73)
+RED = (0.63, 0.065, 0.05)
+GREEN = (0.14, 0.45, 0.091)
+LIGHT_RADIANCE = (17.0, 12.0, 4.0)
+
+# (name, reflectance, quads: 4 corners each, in the data's order)
+_CORNELL = (
+    ("floor", WHITE, [[(552.8, 0, 0), (0, 0, 0), (0, 0, 559.2), (549.6, 0, 559.2)]]),
+    ("ceiling", WHITE, [[(556, 548.8, 0), (556, 548.8, 559.2), (0, 548.8, 559.2),
+                         (0, 548.8, 0)]]),
+    ("back", WHITE, [[(549.6, 0, 559.2), (0, 0, 559.2), (0, 548.8, 559.2), (556, 548.8, 559.2)]]),
+    ("right", GREEN, [[(0, 0, 559.2), (0, 0, 0), (0, 548.8, 0), (0, 548.8, 559.2)]]),
+    ("left", RED, [[(552.8, 0, 0), (549.6, 0, 559.2), (556, 548.8, 559.2), (556, 548.8, 0)]]),
+    ("short block", WHITE, [
+        [(130, 165, 65), (82, 165, 225), (240, 165, 272), (290, 165, 114)],
+        [(290, 0, 114), (290, 165, 114), (240, 165, 272), (240, 0, 272)],
+        [(130, 0, 65), (130, 165, 65), (290, 165, 114), (290, 0, 114)],
+        [(82, 0, 225), (82, 165, 225), (130, 165, 65), (130, 0, 65)],
+        [(240, 0, 272), (240, 165, 272), (82, 165, 225), (82, 0, 225)]]),
+    ("tall block", WHITE, [
+        [(423, 330, 247), (265, 330, 296), (314, 330, 456), (472, 330, 406)],
+        [(423, 0, 247), (423, 330, 247), (472, 330, 406), (472, 0, 406)],
+        [(472, 0, 406), (472, 330, 406), (314, 330, 456), (314, 0, 456)],
+        [(314, 0, 456), (314, 330, 456), (265, 330, 296), (265, 0, 296)],
+        [(265, 0, 296), (265, 330, 296), (423, 330, 247), (423, 0, 247)]]),
+)
+_LIGHT_Y = 548.7
+_LIGHT = ((343.0, _LIGHT_Y, 227.0), (0.0, 0.0, 105.0), (-130.0, 0.0, 0.0))  # corner, u, v: u x v = -y
+
+
+@dataclass
+class Built:
+    """A built-in scene: triangles (m, 3, 3) float32, per-triangle albedo and emission (m, 3),
+    lights (``driver.workloads`` lights), camera (position, look_at, up, fov_deg), double-sided."""
+
+    triangles: np.ndarray
+    albedo: np.ndarray
+    emission: np.ndarray
+    lights: list
+    camera: dict
+    double_sided: bool
+
+
+def _quads(quads) -> np.ndarray:
+    q = np.asarray(quads, np.float64).reshape(-1, 4, 3)
+    return np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
+
+
+def cornell() -> Built:
+    """The Cornell box (see the module docstring)."""
+    from .workloads import QuadLight
+    tris, albedo = [], []
+    for _, refl, quads in _CORNELL:
+        t = _quads(quads)
+        tris.append(t)
+        albedo.append(np.broadcast_to(refl, (len(t), 3)))
+    c, u, v = (np.asarray(x) for x in _LIGHT)
+    light_tris = _quads([[c, c + u, c + u + v, c + v]])
+    tris.append(light_tris)
+    albedo.append(np.full((2, 3), 0.78))
+    emission = np.zeros((sum(len(t) for t in tris), 3))
+    emission[-2:] = LIGHT_RADIANCE
+    light = QuadLight(tuple(c), tuple(u), tuple(v), LIGHT_RADIANCE)
+    camera = {"position": (278.0, 273.0, -800.0), "look_at": (278.0, 273.0, 0.0),
+              "up": (0.0, 1.0, 0.0), "fov_deg": float(np.degrees(2 * np.arctan(12.5 / 35.0)))}
+    return Built(np.concatenate(tris).astype(np.float32), np.concatenate(albedo), emission,
+                 [light], camera, True)
+
+
+def floor_under(triangles: np.ndarray, margin: float = 1.5):
+    """Two triangles of a floor (normal +z) just under z-up ``triangles``, ``margin`` times their
+    footprint on each side, and a quad light above them (emitting downwards)."""
+    from .workloads import QuadLight
+    pts = triangles.reshape(-1, 3).astype(np.float64)
+    lo, hi = pts.min(0), pts.max(0)
+    size = hi - lo
+    c = (lo + hi) / 2
+    r = margin * max(size[0], size[1])
+    z = lo[2] - 1e-3 * max(size)
+    a, b = (c[0] - r, c[1] - r, z), (c[0] + r, c[1] - r, z)
+    cc, d = (c[0] + r, c[1] + r, z), (c[0] - r, c[1] + r, z)
+    floor = _quads([[a, b, cc, d]])                  # counter-clockwise seen from above: +z
+    s = 0.4 * max(size[0], size[1])
+    corner = (c[0] - s / 2 - 0.3 * size[0], c[1] - s / 2 - 0.3 * size[1], hi[2] + 1.2 * size[2])
+    light = QuadLight(corner, (0.0, s, 0.0), (s, 0.0, 0.0), (12.0, 11.0, 10.0))  # u x v = -z
+    return floor, light
+
+
+def bunny_floor() -> Built:
+    """The Stanford bunny (z up) on a floor, lit by a quad light above it; single-sided."""
+    from .scene import builtin, triangles
+    bunny = triangles(builtin("bunny"))
+    floor, light = floor_under(bunny)
+    tris = np.concatenate([bunny.astype(np.float64), floor]).astype(np.float32)
+    albedo = np.concatenate([np.full((len(bunny), 3), (0.80, 0.76, 0.70)),
+                             np.full((2, 3), (0.55, 0.60, 0.65))])
+    return Built(tris, albedo, np.zeros((len(tris), 3)), [light], _framing(bunny), False)
+
+
+def instanced_bunnies(count: int = 21, seed: int = 0) -> np.ndarray:
+    """(count x 99,785, 3, 3) float32: copies of the bunny on a square grid, each rotated about z
+    and scaled by a deterministic pseudo-random amount (21 copies: 2.1 million triangles)."""
+    from .scene import builtin, triangles
+    bunny = triangles(builtin("bunny")).astype(np.float64)
+    lo, hi = bunny.reshape(-1, 3).min(0), bunny.reshape(-1, 3).max(0)
+    base = bunny - np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+    pitch = 1.6 * max(hi[0] - lo[0], hi[1] - lo[1])
+    side = int(np.ceil(np.sqrt(count)))
+    rng = np.random.default_rng(seed)
+    angles, scales = rng.uniform(0, 2 * np.pi, count), rng.uniform(0.6, 1.2, count)
+    out = np.empty((count,) + bunny.shape, np.float32)
+    for i in range(count):
+        c, s = np.cos(angles[i]), np.sin(angles[i])
+        rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) * scales[i]
+        shift = np.array([(i % side) * pitch, (i // side) * pitch, 0.0])
+        out[i] = base @ rot.T + shift
+    return out.reshape(-1, 3, 3)
+
+
+def bunny_grid(count: int = 21) -> Built:
+    """``instanced_bunnies(count)`` on one floor with one quad light; single-sided."""
+    bunnies = instanced_bunnies(count)
+    floor, light = floor_under(bunnies, margin=0.6)
+    tris = np.concatenate([bunnies.astype(np.float64), floor]).astype(np.float32)
+    albedo = np.full((len(tris), 3), (0.80, 0.76, 0.70))
+    albedo[-2:] = (0.55, 0.60, 0.65)
+    return Built(tris, albedo, np.zeros((len(tris), 3)), [light], _framing(bunnies), False)
+
+
+def _framing(tris: np.ndarray) -> dict:
+    from .camera import frame
+    cam = frame(tris.reshape(-1, 3), up=(0.0, 0.0, 1.0), fill=0.7)
+    return {"position": cam.position, "look_at": cam.look_at, "up": cam.up,
+            "fov_deg": cam.fov_deg}
+
+
+BUILT = {"cornell": cornell, "bunny_floor": bunny_floor, "bunny_grid": bunny_grid}

@@ -1,0 +1,333 @@
+"""Rendering workloads (SPEC 13): which rays a frame shoots, and the image they make.
+
+An integrator never sees node layouts (pbrt's split): it makes rays, hands each batch to
+``driver.tracer.trace`` (every box and triangle test on the datapath), and shades the hits. Each
+batch is one wavefront through the datapath with all its rays in flight; a frame is a sequence of
+them:
+
+- ``primary``: one camera ray per pixel and sample (pixel centre for one sample, stratified jitter
+  for more), closest hit; the image is today's head-light shading.
+- ``shadow``: primary rays, then from every hit one shadow ray to a point sampled on the light
+  (any hit, extent just short of the light); the image is direct diffuse lighting.
+- ``ao``: primary rays, then ``ao_rays`` cosine-distributed rays per hit on the hemisphere of the
+  geometric normal facing the incoming ray (any hit, extent = the scene's AO radius); the image is
+  the unoccluded fraction.
+- ``path``: diffuse (Lambertian) path tracing with next-event estimation: at every vertex one
+  shadow ray to the light and, up to ``bounces`` deep, one cosine-distributed closest-hit
+  continuation ray (ray types ``bounce1``, ``bounce2``, ...). Emission is counted where a camera
+  ray sees a light directly; after that light arrives only through the shadow rays (no double
+  counting).
+
+Every random decision is ``driver.sampling.uniform`` of (seed, pixel, sample, bounce, purpose), so
+any subset of pixels (a tile) traced alone gives exactly its part of the whole frame.
+Ray types and their statistics: SPEC 10 ``by_type`` (``driver.stats.merge``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import sampling
+from .stats import merge
+
+WORKLOADS = ("primary", "shadow", "ao", "path")
+SHADOW_EXTENT = 1.0 - 1e-4     # shadow rays aim at the light sample with d = y - x: t in [0, 1)
+DEFAULT_ALBEDO = 0.75
+AO_RADIUS_REL = 0.1            # default AO radius: 10 % of the scene's bounding-box diagonal
+
+
+@dataclass(frozen=True)
+class PointLight:
+    """A point light: ``position`` (3,), radiant ``intensity`` (3,) (W/sr per channel)."""
+
+    position: tuple
+    intensity: tuple = (1.0, 1.0, 1.0)
+
+    def sample(self, u1, u2):
+        """(points (k, 3), light normals or None, emitted radiance x area factor (k, 3))."""
+        k = len(u1)
+        p = np.broadcast_to(np.asarray(self.position, np.float64), (k, 3))
+        return p, None, np.broadcast_to(np.asarray(self.intensity, np.float64), (k, 3))
+
+
+@dataclass(frozen=True)
+class QuadLight:
+    """A parallelogram light ``corner + s*u + t*v`` (s, t in [0, 1]) emitting ``emission``
+    (radiance, 3) from the side of its normal ``u x v``."""
+
+    corner: tuple
+    u: tuple
+    v: tuple
+    emission: tuple = (1.0, 1.0, 1.0)
+
+    def sample(self, u1, u2):
+        c, u, v = (np.asarray(x, np.float64) for x in (self.corner, self.u, self.v))
+        nrm = np.cross(u, v)
+        area = float(np.linalg.norm(nrm))
+        p = c + u1[:, None] * u + u2[:, None] * v
+        k = len(u1)
+        return (p, np.broadcast_to(nrm / area, (k, 3)),
+                np.broadcast_to(np.asarray(self.emission, np.float64) * area, (k, 3)))
+
+
+@dataclass
+class Materials:
+    """Per-triangle diffuse ``albedo`` (m, 3) and ``emission`` (m, 3) (radiance)."""
+
+    albedo: np.ndarray
+    emission: np.ndarray
+
+    @classmethod
+    def plain(cls, m: int) -> "Materials":
+        return cls(np.full((m, 3), DEFAULT_ALBEDO), np.zeros((m, 3)))
+
+
+@dataclass
+class Setup:
+    """What a workload needs of a scene: triangles (m, 3, 3), camera, materials, lights,
+    whether triangles are double-sided, the AO radius, the background radiance."""
+
+    triangles: np.ndarray
+    camera: object
+    materials: Materials
+    lights: list
+    double_sided: bool = False
+    ao_radius: float | None = None
+    background: tuple = (0.0, 0.0, 0.0)
+
+    def __post_init__(self):
+        lo, hi = self.triangles.reshape(-1, 3).min(0), self.triangles.reshape(-1, 3).max(0)
+        diag = float(np.linalg.norm(hi.astype(np.float64) - lo))
+        if self.ao_radius is None:
+            self.ao_radius = AO_RADIUS_REL * diag
+        if not self.lights:
+            self.lights = [default_light(self.camera, lo, hi)]
+
+
+def default_light(camera, lo, hi) -> PointLight:
+    """A point light above and behind the camera, bright enough to light the scene's centre with
+    irradiance about 1."""
+    _, _, up = camera.basis()
+    centre = (np.asarray(lo, np.float64) + hi) / 2
+    diag = float(np.linalg.norm(np.asarray(hi, np.float64) - lo))
+    pos = np.asarray(camera.position, np.float64) + up * 0.5 * diag
+    r2 = float(np.sum((pos - centre) ** 2))
+    return PointLight(tuple(pos), (r2,) * 3)
+
+
+@dataclass
+class Batch:
+    """One wavefront of one ray type: which pixel and sample each ray belongs to, its rays, and
+    (after tracing) its hits."""
+
+    kind: str                      # ray type (SPEC 10 by_type name)
+    pixel: np.ndarray              # (k,) pixel index of each ray
+    sample: np.ndarray             # (k,) sample index
+    origins: np.ndarray
+    dirs: np.ndarray
+    extent: np.ndarray
+    any_hit: bool
+    result: object = None
+
+
+@dataclass
+class FrameResult:
+    """radiance (npix, 3) float64 (linear; AO: the unoccluded fraction); ops[type] (npix,) int64
+    datapath ops per pixel; stats: totals + ``by_type``; batches: every traced batch."""
+
+    radiance: np.ndarray
+    ops: dict
+    stats: dict
+    batches: list = field(default_factory=list)
+
+
+class Frame:
+    """Trace one workload over ``pixels`` (indices into the width x height image)."""
+
+    def __init__(self, setup: Setup, bvh, width: int, height: int, tracer, spp: int = 1,
+                 bounces: int = 1, ao_rays: int = 4, seed: int = 0, pixels=None):
+        check_arguments(spp, bounces, ao_rays, seed)
+        self.setup, self.bvh, self.w, self.h = setup, bvh, width, height
+        self.trace = tracer        # trace(bvh, origins, dirs, extent=, any_hit=) -> TraceResult
+        self.spp, self.bounces, self.ao_rays, self.seed = spp, bounces, ao_rays, seed
+        self.pixels = (np.arange(width * height) if pixels is None
+                       else np.asarray(pixels, np.int64))
+        self.batches: list[Batch] = []
+
+    def _run(self, batch: Batch) -> Batch:
+        batch.result = self.trace(self.bvh, batch.origins, batch.dirs, extent=batch.extent,
+                                  any_hit=batch.any_hit)
+        self.batches.append(batch)
+        return batch
+
+    def primary(self) -> Batch:
+        pix = np.repeat(self.pixels, self.spp)
+        smp = np.tile(np.arange(self.spp), len(self.pixels))
+        jx, jy = sampling.jitter(self.seed, pix, smp, self.spp)
+        from .camera import camera_rays
+        o, d = camera_rays(self.setup.camera, self.w, self.h, pix, jx, jy)
+        return self._run(Batch("primary", pix, smp, o, d, np.full(len(pix), np.inf), False))
+
+    def surface(self, b: Batch):
+        """Hit rows, hit points (float64), unit geometric normals facing the incoming ray, prim."""
+        res = b.result
+        rows = np.flatnonzero(res.hit)
+        prim = res.prim[rows]
+        tri = self.setup.triangles[prim].astype(np.float64)
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+        d = b.dirs[rows].astype(np.float64)
+        n = np.where((np.einsum("ij,ij->i", n, d) > 0)[:, None], -n, n)
+        p = b.origins[rows].astype(np.float64) + res.t[rows, None].astype(np.float64) * d
+        return rows, p, n, prim
+
+    def shadow(self, b: Batch, depth: int, rows, p, n):
+        """Shadow rays to light samples from the hits ``rows`` of batch ``b``: only where the
+        sample faces the surface and the light faces the point (elsewhere the light adds nothing
+        and no ray is traced). Returns (batch, the rows it serves (index into ``rows``), their
+        unshadowed light (radiance x geometry / pi, without the albedo) (k, 3))."""
+        lights = self.setup.lights
+        pix, smp = b.pixel[rows], b.sample[rows]
+        u1, u2 = sampling.uniform2(self.seed, pix, smp, depth, sampling.LIGHT)
+        which = np.minimum((sampling.uniform(self.seed, pix, smp, depth, sampling.LIGHT, 2)
+                            * len(lights)).astype(np.int64), len(lights) - 1)
+        y, ny, le = np.zeros((len(rows), 3)), np.zeros((len(rows), 3)), np.zeros((len(rows), 3))
+        is_point = np.zeros(len(rows), bool)
+        for i, light in enumerate(lights):
+            sel = which == i
+            py, nl, e = light.sample(u1[sel], u2[sel])
+            y[sel], le[sel] = py, e
+            if nl is None:
+                is_point[sel] = True
+            else:
+                ny[sel] = nl
+        o = sampling.offset_origin(p, n)
+        d = y - o.astype(np.float64)
+        r2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
+        w = d / np.sqrt(r2)[:, None]
+        cos_x = np.einsum("ij,ij->i", n, w)
+        cos_y = np.where(is_point, 1.0, -np.einsum("ij,ij->i", ny, w))
+        go = np.flatnonzero((cos_x > 0) & (cos_y > 0))
+        factor = le[go] * (len(lights) * cos_x[go] * cos_y[go] / r2[go] / np.pi)[:, None]
+        batch = Batch("shadow", pix[go], smp[go], o[go], d[go].astype(np.float32),
+                      np.full(len(go), SHADOW_EXTENT, np.float32), True)
+        return self._run(batch), go, factor
+
+    def hemisphere(self, kind, b, rows, n, p, depth, purpose, count):
+        """``count`` cosine-distributed rays per hit (pixel-major), from the offset hit points."""
+        pix = np.repeat(b.pixel[rows], count)
+        smp = np.repeat(b.sample[rows], count)
+        j = np.tile(np.arange(count), len(rows))
+        key = smp * max(count, 1) + j
+        u1, u2 = sampling.uniform2(self.seed, pix, key, depth, purpose)
+        nn = np.repeat(n, count, axis=0)
+        d = sampling.cosine_hemisphere(nn, u1, u2)
+        o = sampling.offset_origin(np.repeat(p, count, axis=0), nn)
+        ext = self.setup.ao_radius if kind == "ao" else np.inf
+        return self._run(Batch(kind, pix, smp, o, d.astype(np.float32),
+                               np.full(len(pix), ext, np.float32), kind == "ao"))
+
+
+def check_arguments(spp, bounces, ao_rays, seed) -> None:
+    """One-line ValueErrors for bad workload arguments."""
+    for name, v, lo in (("spp", spp, 1), ("bounces", bounces, 0), ("ao-rays", ao_rays, 1),
+                        ("seed", seed, 0)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+            raise ValueError(f"--{name} must be an integer >= {lo}, got {v!r}")
+    if spp > 4096 or ao_rays > 1024 or bounces > 64:
+        raise ValueError("--spp is at most 4096, --ao-rays 1024 and --bounces 64")
+
+
+def run(setup: Setup, bvh, width: int, height: int, tracer, workload: str = "primary",
+        **options) -> FrameResult:
+    """Trace ``workload`` (``WORKLOADS``) on ``pixels`` (default: all) of a width x height frame.
+    ``tracer(bvh, origins, dirs, extent=, any_hit=)`` runs each batch (``driver.tracer.trace``
+    with the backend and flags bound). Options: spp, bounces, ao_rays, seed, pixels."""
+    if workload not in WORKLOADS:
+        raise ValueError(f"unknown workload {workload!r}; available: {', '.join(WORKLOADS)}")
+    fr = Frame(setup, bvh, width, height, tracer, **options)
+    npix = len(fr.pixels)
+    radiance = np.zeros((npix * fr.spp, 3))
+    prim = fr.primary()
+    if workload == "primary":
+        radiance[:] = _headlight(fr, prim)
+    elif workload == "ao":
+        rows, p, n, _ = fr.surface(prim)
+        ao = fr.hemisphere("ao", prim, rows, n, p, 0, sampling.AO, fr.ao_rays)
+        free = (~ao.result.hit).reshape(len(rows), fr.ao_rays).mean(axis=1)
+        radiance[rows] = free[:, None]
+    else:
+        _paths(fr, prim, radiance, fr.bounces if workload == "path" else 0)
+    return _finish(fr, radiance)
+
+
+def _headlight(fr: Frame, b: Batch) -> np.ndarray:
+    """Lambert with a head light (the primary workload's look): radiance (k, 3)."""
+    out = np.zeros((len(b.pixel), 3))
+    rows, p, n, prim = fr.surface(b)
+    d = b.dirs[rows].astype(np.float64)
+    lam = -np.einsum("ij,ij->i", n, d / np.linalg.norm(d, axis=1, keepdims=True))
+    out[rows] = fr.setup.materials.albedo[prim] * (0.08 + 0.92 * np.clip(lam, 0, 1))[:, None]
+    return out
+
+
+def _paths(fr: Frame, b: Batch, radiance: np.ndarray, bounces: int) -> None:
+    """Direct light at the primary hits (bounces = 0) or full diffuse paths with NEE."""
+    mats = fr.setup.materials
+    ray = np.arange(len(b.pixel))                # the sample (row of radiance) of each ray
+    throughput = np.ones((len(ray), 3))
+    for depth in range(bounces + 1):
+        miss = ~b.result.hit
+        radiance[ray[miss]] += throughput[miss] * np.asarray(fr.setup.background, np.float64)
+        rows, p, n, prim = fr.surface(b)
+        if depth == 0:
+            radiance[ray[rows]] += mats.emission[prim]
+        if not len(rows):
+            break
+        alb = mats.albedo[prim] * throughput[rows]
+        sh, go, factor = fr.shadow(b, depth, rows, p, n)
+        lit = ~sh.result.hit
+        np.add.at(radiance, ray[rows[go[lit]]], alb[go[lit]] * factor[lit])
+        if depth == bounces:
+            break
+        b = fr.hemisphere(f"bounce{depth + 1}", b, rows, n, p, depth + 1, sampling.BOUNCE, 1)
+        ray, throughput = ray[rows], alb
+
+
+def _finish(fr: Frame, radiance: np.ndarray) -> FrameResult:
+    """Average samples per pixel, ops per pixel per ray type, statistics per ray type."""
+    npix = len(fr.pixels)
+    per_pixel = radiance.reshape(npix, fr.spp, 3).mean(axis=1)
+    local = {p: i for i, p in enumerate(fr.pixels.tolist())} if npix != fr.w * fr.h else None
+    ops, stats = {}, {}
+    for b in fr.batches:
+        k = b.result.box_ops + b.result.tri_ops
+        idx = b.pixel if local is None else np.array([local[p] for p in b.pixel.tolist()],
+                                                     np.int64)
+        ops.setdefault(b.kind, np.zeros(npix, np.int64))
+        np.add.at(ops[b.kind], idx, k)
+        stats.setdefault(b.kind, []).append(b.result.stats)
+    by_type = {kind: merge(parts) for kind, parts in stats.items()}
+    total = merge([s for parts in stats.values() for s in parts])
+    total["by_type"] = by_type
+    return FrameResult(per_pixel, ops, total, fr.batches)
+
+
+def tone_map(radiance: np.ndarray, width: int, height: int, exposure: float | None = None,
+             linear: bool = False):
+    """(h, w, 3) uint8: exposure (default: the 99th percentile of luminance maps to 1), Reinhard
+    on luminance, gamma 2.2; ``linear``: values in [0, 1] as they are (AO), gamma 2.2 only."""
+    rgb = np.asarray(radiance, np.float64).reshape(height, width, 3)
+    if linear:
+        return (np.clip(rgb, 0.0, 1.0) ** (1 / 2.2) * 255 + 0.5).astype(np.uint8)
+    lum = rgb @ np.array([0.2126, 0.7152, 0.0722])
+    if exposure is None:
+        top = float(np.percentile(lum, 99)) if lum.size else 1.0
+        exposure = 1.0 / top if top > 0 else 1.0
+    x = rgb * exposure
+    lx = x @ np.array([0.2126, 0.7152, 0.0722])
+    x = x / (1.0 + lx[..., None]) * 2.0
+    x = np.clip(x, 0.0, 1.0) ** (1 / 2.2)
+    return (x * 255 + 0.5).astype(np.uint8)
