@@ -171,3 +171,104 @@ def _segment_distance(p, a, b):
         s = np.where(den > 0, np.einsum("ij,ij->i", p - a, ab) / den, 0.0)
     s = np.clip(s, 0.0, 1.0)
     return np.linalg.norm(p - (a + s[:, None] * ab), axis=1)
+
+
+# ----------------------------------------------------------------------------------------------
+# Secondary rays: extents, any-hit rays and double-sided triangles (SPEC 9, 13)
+
+
+def _embree_scene(triangles):
+    from embreex import rtcore_scene as rtcs
+    from embreex.mesh_construction import TriangleMesh
+    scene = rtcs.EmbreeScene()
+    TriangleMesh(scene, np.ascontiguousarray(triangles, np.float32).reshape(-1, 3, 3))
+    return scene
+
+
+def embree_closest(triangles, origins, dirs, double_sided: bool = False):
+    """Closest hit per ray: any face when ``double_sided`` (Embree does not cull, like NO_CULL),
+    else the closest front face (``embree_closest_front``). Returns (t, prim) as that does."""
+    if not double_sided:
+        return embree_closest_front(triangles, origins, dirs)
+    o = np.ascontiguousarray(origins, np.float32).reshape(-1, 3)
+    d = np.ascontiguousarray(dirs, np.float32).reshape(-1, 3)
+    if not len(o) or not len(triangles):
+        return np.full(len(o), np.inf, np.float32), np.full(len(o), -1, np.int64)
+    r = _embree_scene(triangles).run(o, d, output=1)
+    prim = r["primID"].astype(np.int64)
+    return np.where(prim >= 0, r["tfar"], np.inf).astype(np.float32), np.where(prim >= 0, prim, -1)
+
+
+def embree_occluded(triangles, origins, dirs, extent, double_sided: bool = False) -> np.ndarray:
+    """Whether each ray meets a triangle with t < extent: Embree's occlusion query when
+    ``double_sided``; with culling, whether the closest front face lies within the extent."""
+    o = np.ascontiguousarray(origins, np.float32).reshape(-1, 3)
+    d = np.ascontiguousarray(dirs, np.float32).reshape(-1, 3)
+    ext = np.ascontiguousarray(np.broadcast_to(np.asarray(extent, np.float32), (len(o),)))
+    if not len(o) or not len(triangles):
+        return np.zeros(len(o), bool)
+    if double_sided:
+        return _embree_scene(triangles).run(o, d, dists=ext.copy(), query="OCCLUDED") != -1
+    t, _ = embree_closest_front(triangles, o, d)
+    return t < ext
+
+
+def exact_t(triangles, prim, origins, dirs) -> np.ndarray:
+    """t of the intersection of each ray with the plane of its triangle, in float64 (the exact
+    value our float32 t approximates)."""
+    tri = np.asarray(triangles, np.float64)[prim]
+    o, d = np.asarray(origins, np.float64), np.asarray(dirs, np.float64)
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.einsum("ij,ij->i", tri[:, 0] - o, n) / np.einsum("ij,ij->i", d, n)
+
+
+def check_rays(triangles, origins, dirs, extent, our_t, our_prim, any_hit: bool,
+               double_sided: bool) -> dict:
+    """Embree check of one batch of rays (SPEC 10 ``embree`` keys plus ``max_t_rel_err_exact``:
+    our t against the exact plane intersection of our triangle). Closest-hit rays: ``compare``
+    with Embree's closest hit within the extent. Any-hit rays: hit/miss against Embree's occlusion
+    query; a hit whose point is not on its triangle or not within the extent counts as a
+    primitive mismatch (any triangle in the extent is a correct answer)."""
+    tri = np.asarray(triangles)
+    prim = np.asarray(our_prim, np.int64)
+    ext = np.broadcast_to(np.asarray(extent, np.float64), prim.shape)
+    ours = prim >= 0
+    if not any_hit:
+        emb_t, emb_prim = embree_closest(tri, origins, dirs, double_sided)
+        out = emb_t >= ext
+        emb_t, emb_prim = np.where(out, np.inf, emb_t), np.where(out, -1, emb_prim)
+        result = compare(our_t, prim, emb_t, emb_prim, tri, origins, dirs)
+    else:
+        theirs = embree_occluded(tri, origins, dirs, ext, double_sided)
+        o, d = np.asarray(origins, np.float64), np.asarray(dirs, np.float64)
+        rows = np.flatnonzero(ours)
+        p = o[rows] + np.asarray(our_t, np.float64)[rows, None] * d[rows]
+        scale = max(float(np.abs(tri).max()) if tri.size else 0.0, float(np.abs(o).max()) if
+                    o.size else 0.0, 1e-30)
+        off = point_triangle_distance(p, tri[prim[rows]].astype(np.float64)) > POINT_REL * scale
+        bad = rows[off | (np.asarray(our_t)[rows] >= ext[rows])]
+        result = {"rays_compared": int(len(prim)),
+                  "hit_mismatch": int((ours != theirs).sum()), "prim_mismatch": int(len(bad)),
+                  "edge_ties": 0, "hit_mismatch_rays": np.flatnonzero(ours != theirs),
+                  "prim_mismatch_rays": bad}
+    rows = np.flatnonzero(ours)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        te = exact_t(tri, prim[rows], np.asarray(origins)[rows], np.asarray(dirs)[rows])
+        rel = np.abs(np.asarray(our_t, np.float64)[rows] - te) / np.maximum(np.abs(te), 1e-30)
+    result["max_t_rel_err_exact"] = float(np.nanmax(rel)) if len(rel) else 0.0
+    if any_hit:
+        result["max_t_rel_err"] = result["max_t_rel_err_exact"]
+    return result
+
+
+def merge_checks(parts: list[dict]) -> dict:
+    """The SPEC 10 ``embree`` object of several checked batches (counts add, errors take the
+    maximum)."""
+    out = {k: 0 for k in ("rays_compared", "hit_mismatch", "prim_mismatch", "edge_ties")}
+    for p in parts:
+        for k in out:
+            out[k] += int(p[k])
+    for k in ("max_t_rel_err", "max_t_rel_err_exact"):
+        out[k] = max((float(p.get(k, 0.0)) for p in parts), default=0.0)
+    return out

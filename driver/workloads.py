@@ -331,3 +331,20 @@ def tone_map(radiance: np.ndarray, width: int, height: int, exposure: float | No
     x = x / (1.0 + lx[..., None]) * 2.0
     x = np.clip(x, 0.0, 1.0) ** (1 / 2.2)
     return (x * 255 + 0.5).astype(np.uint8)
+
+
+def embree_check(result: FrameResult, setup: Setup) -> dict:
+    """Check every traced batch against Embree (``driver.check.check_rays``); puts the SPEC 10
+    ``embree`` object into the frame's statistics and into each ray type's; returns the total."""
+    from .check import check_rays, merge_checks
+    per_kind: dict = {}
+    for b in result.batches:
+        r = b.result
+        per_kind.setdefault(b.kind, []).append(check_rays(
+            setup.triangles, b.origins, b.dirs, b.extent, r.t, r.prim, b.any_hit,
+            setup.double_sided))
+    for kind, parts in per_kind.items():
+        result.stats["by_type"][kind]["embree"] = merge_checks(parts)
+    total = merge_checks([p for parts in per_kind.values() for p in parts])
+    result.stats["embree"] = total
+    return total
