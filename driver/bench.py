@@ -451,3 +451,109 @@ class _Bar(_NoBar):
 
 def _bar(total, desc, unit, enabled):
     return _Bar(total, desc, unit) if enabled else _NoBar()
+
+
+# ----------------------------------------------------------------------------------------------
+# rayflex bench --workload: the datapath mix and the RT-unit timing per ray type
+
+WORKLOAD_SIZE = 64
+
+
+def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, ao_rays=4,
+                   seed=0, rays_in_flight=rtunit.DEFAULT_RAYS_IN_FLIGHT, pipelines=1,
+                   sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, plot=None, progress=True) -> dict:
+    """One workload frame on "rtl" (every batch recorded), checked against Embree; per ray type:
+    the op mix, the RT-unit replay at (R, P), any-hit vs closest-hit ops of the same rays, and a
+    sweep of utilization over rays in flight (one pipeline), plotted per ray type."""
+    from . import workloads
+    from .backends import backend
+    from .bvh4 import build
+    from .scene import load_scene
+    from .tracer import trace
+
+    scene = load_scene(scene_name)
+    setup = workloads.setup_for(scene)
+    rtl = backend("rtl")
+    t0 = time.perf_counter()
+    bvh = build(scene.triangles)
+    t_bvh = time.perf_counter() - t0
+
+    def tracer(bvh_, o, d, extent, any_hit):
+        return trace(bvh_, o, d, backend=rtl, extent=extent, any_hit=any_hit, record=True)
+
+    t1 = time.perf_counter()
+    res = workloads.run(setup, bvh, size, size, tracer, workload, spp=spp, bounces=bounces,
+                        ao_rays=ao_rays, seed=seed)
+    t_trace = time.perf_counter() - t1
+    workloads.embree_check(res, setup)
+    kinds = list(res.stats["by_type"])
+    steps = len(kinds) * (1 + len(sweep_rays))
+    bar = _bar(steps, f"{workload}: RT-unit replays", "replay", progress)
+    by_type, sweep, done = {}, {}, 0
+    for kind in kinds:
+        batches = [b for b in res.batches if b.kind == kind]
+        entry = dict(res.stats["by_type"][kind])
+        timed = _replay_all([b.result.record for b in batches], rays_in_flight, pipelines)
+        entry.update(timed)
+        if batches[0].any_hit:
+            closest = sum(trace(bvh, b.origins, b.dirs, backend="golden", extent=b.extent)
+                          .stats["ops"] for b in batches)
+            entry["closest_hit_ops"] = closest
+            entry["any_hit_vs_closest_ops"] = entry["ops"] / closest if closest else None
+        by_type[kind] = entry
+        done += 1
+        bar.hook(done, steps)
+        sweep[kind] = []
+        for r in sweep_rays:
+            sweep[kind].append({"rays_in_flight": r,
+                                **_replay_all([b.result.record for b in batches], r, 1)})
+            done += 1
+            bar.hook(done, steps)
+    bar.close()
+    if plot:
+        plot_workload_sweep(sweep, plot, f"{scene.name} {size}x{size} {workload}: utilization "
+                                         "vs rays in flight, one pipeline")
+    total = dict(res.stats)
+    total.pop("by_type")
+    total.update(_replay_all([b.result.record for b in res.batches], rays_in_flight, pipelines))
+    return {"scene": scene.name, "workload": workload, "width": size, "height": size,
+            "spp": spp, "bounces": bounces, "ao_rays": ao_rays, "seed": seed,
+            "frame": total, "by_type": by_type, "sweep": sweep, "plot": str(plot) if plot else None,
+            "wall_parts_s": {"bvh_build": t_bvh, "traversal": t_trace}}
+
+
+def _replay_all(records, rays_in_flight, pipelines) -> dict:
+    """RT-unit replays of several recorded wavefronts run one after another: cycles add up."""
+    cycles = ops = 0
+    verified = True
+    for rec in records:
+        rep = rtunit.replay(rec, rays_in_flight, pipelines)
+        cycles += rep.cycles
+        ops += rep.ops
+        verified &= rep.verified
+    return {"replay_cycles": cycles,
+            "replay_utilization": ops / (pipelines * cycles) if cycles else 0.0,
+            "rays_in_flight": rays_in_flight, "pipelines": pipelines,
+            "responses_verified": bool(verified)}
+
+
+def plot_workload_sweep(sweep: dict, path, title: str) -> None:
+    """PNG: datapath utilization vs rays in flight (log x), one line per ray type."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7.0, 4.6), dpi=110)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    for kind, pts in sweep.items():
+        ax.plot([p["rays_in_flight"] for p in pts], [p["replay_utilization"] for p in pts], "o-",
+                label=kind)
+    ax.set_xscale("log", base=2)
+    ax.set_ylim(0, 1.05)
+    ax.set_xlabel("rays in flight (ray pool size R)")
+    ax.set_ylabel("datapath utilization (ops / cycles)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(title="ray type", fontsize=8)
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(str(path), format="png")

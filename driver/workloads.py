@@ -348,3 +348,12 @@ def embree_check(result: FrameResult, setup: Setup) -> dict:
     total = merge_checks([p for parts in per_kind.values() for p in parts])
     result.stats["embree"] = total
     return total
+
+
+def setup_for(scene) -> Setup:
+    """The ``Setup`` of a loaded scene (``driver.scene.Scene``): its triangles and camera, and its
+    materials, lights, double-sidedness and AO radius where the scene defines them."""
+    tri = scene.triangles
+    mats = getattr(scene, "materials", None) or Materials.plain(len(tri))
+    return Setup(tri, scene.camera, mats, list(getattr(scene, "lights", None) or []),
+                 bool(getattr(scene, "double_sided", False)), getattr(scene, "ao_radius", None))
