@@ -335,6 +335,11 @@ REPLAY_STATS = (
     "last_response",    # cycle of the last response taken
     "bad_tags",         # responses whose tag is not their ray's index (must be 0)
     "accepts",          # requests accepted, over all pipelines
+    "line_accesses",    # node memory: cache lines looked up (a node touches one or more)
+    "line_hits",        # lines present in the node cache (or already being fetched)
+    "line_misses",      # lines fetched from memory
+    "bytes_from_memory",
+    "node_wait_cycles",  # sum over requests of the cycles a ray waited for its node's lines
 )
 
 

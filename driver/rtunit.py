@@ -123,6 +123,43 @@ class Record:
         return req
 
 
+@dataclass(frozen=True)
+class MemoryModel:
+    """The node memory of the replay (sim/rf_memory.h): a set-associative LRU node cache of
+    ``cache_bytes`` with ``ways`` ways and ``line_bytes`` lines in front of a memory that answers
+    a line ``latency_cycles`` after its transfer, transfers serialised at ``bytes_per_cycle``.
+    A request waits until its node's lines (box node 128 B, triangle node 64 B) are present; the
+    cache changes timing only, never a response."""
+
+    cache_bytes: int = 32 * 1024
+    ways: int = 4
+    line_bytes: int = 64
+    latency_cycles: int = 200
+    bytes_per_cycle: float = 32.0
+
+    def __post_init__(self):
+        for name in ("cache_bytes", "ways", "line_bytes", "latency_cycles"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
+                raise ValueError(f"memory model: {name} must be a non-negative integer, got {v!r}")
+        lb = self.line_bytes
+        if self.cache_bytes <= 0 or self.ways < 1 or lb < 4 or lb & (lb - 1):
+            raise ValueError("memory model: cache_bytes > 0, ways >= 1, line_bytes a power of two")
+        if self.cache_bytes % (self.ways * lb):
+            raise ValueError(f"memory model: cache_bytes {self.cache_bytes} is not a multiple of "
+                             f"ways x line_bytes ({self.ways * lb})")
+        if not float(self.bytes_per_cycle) > 0:
+            raise ValueError("memory model: bytes_per_cycle must be > 0")
+
+    def args(self) -> tuple:
+        return (int(self.cache_bytes), int(self.ways), int(self.line_bytes),
+                int(self.latency_cycles), float(self.bytes_per_cycle))
+
+    def describe(self) -> dict:
+        return {"cache_bytes": self.cache_bytes, "ways": self.ways, "line_bytes": self.line_bytes,
+                "latency_cycles": self.latency_cycles, "bytes_per_cycle": self.bytes_per_cycle}
+
+
 @dataclass
 class ReplayResult:
     """One RT-unit replay. cycles: first accept to last response, inclusive; responses:
@@ -145,6 +182,7 @@ class ReplayResult:
     verified: bool
     latency: int
     responses: np.ndarray
+    memory: dict | None = None      # the memory model's parameters and counters, when on
 
     @property
     def utilization(self) -> float:
@@ -170,16 +208,18 @@ class ReplayResult:
             "sim_wall_s": self.wall_s,
             "sim_cycles_per_s": self.cycles / self.wall_s if self.wall_s > 0 else 0.0,
             "responses_verified": self.verified,
+            **({"memory": self.memory} if self.memory else {}),
         }
 
 
 def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelines: int = 1,
            turnaround: int = DEFAULT_TURNAROUND, skip_idle: bool = True,
-           verify: bool = True) -> ReplayResult:
+           verify: bool = True, memory: MemoryModel | None = None) -> ReplayResult:
     """Replay a traversal ``Record`` through P Verilated pipelines with R rays in flight (see the
     module docstring). ``verify``: compare every response with the functional run's (raises
-    ``ReplayMismatch``); without recorded responses only the tags are checked."""
-    from .backends.harness import replay_chains
+    ``ReplayMismatch``); without recorded responses only the tags are checked. ``memory``: a
+    ``MemoryModel`` of node fetches (None: every fetch is free)."""
+    from .backends.harness import NO_MEMORY, replay_chains
     r, p, ta = int(rays_in_flight), int(pipelines), int(turnaround)
     if r < 1:
         raise ValueError(f"rays in flight must be >= 1, got {rays_in_flight}")
@@ -192,7 +232,8 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
     t0 = time.perf_counter()
     rsp, stats, per_pipe = replay_chains(record.params, p, r, ta, skip_idle, record.ray_words,
                                          record.image, record.ray, record.ptr, record.extent,
-                                         chain_idx, chain_off, 100 * latency + 1000)
+                                         chain_idx, chain_off, 100 * latency + 1000,
+                                         memory.args() if memory else NO_MEMORY)
     wall = time.perf_counter() - t0
     m = len(rsp)
     if stats["bad_tags"]:
@@ -204,9 +245,17 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
             raise ReplayMismatch(f"{len(diff)} of {m} replayed responses differ from the "
                                  f"functional run's (first: request {int(diff[0])})")
         verified = True
+    mem = None
+    if memory:
+        acc = stats["line_accesses"]
+        mem = {**memory.describe(), **{k: stats[k] for k in (
+            "line_accesses", "line_hits", "line_misses", "bytes_from_memory",
+            "node_wait_cycles")},
+            "hit_rate": stats["line_hits"] / acc if acc else 0.0,
+            "bytes_per_ray": stats["bytes_from_memory"] / record.rays if record.rays else 0.0}
     return ReplayResult(r, p, ta, record.rays, m, record.box_ops, stats["cycles"],
                         stats["starved_cycles"], stats["full_cycles"], stats["model_evals"],
-                        per_pipe.tolist(), wall, verified, latency, rsp)
+                        per_pipe.tolist(), wall, verified, latency, rsp, mem)
 
 
 def sweep(record: Record, rays_in_flight=SWEEP_RAYS_IN_FLIGHT, pipelines=SWEEP_PIPELINES,

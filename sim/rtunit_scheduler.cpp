@@ -5,8 +5,10 @@
 #include <cstring>
 #include <deque>
 #include <memory>
+#include <queue>
 #include <vector>
 
+#include "rf_memory.h"
 #include "rf_sim.h"
 
 using namespace rf;
@@ -22,8 +24,14 @@ extern "C" {
 // Every cycle, first each pipeline's response (if out_valid) is taken: its ray becomes ready
 // `turnaround` cycles later (or leaves the pool, and the next ray enters, ready `turnaround`
 // cycles later). Then each pipeline, in order 0..P-1, whose input is ready accepts the next
-// request of the oldest ready ray (FIFO of rays by ready time; a new ray ready at cycle 0
-// initially). Then all pipelines are clocked. A ray has at most one request in flight.
+// request of the ray that has been ready longest (rays ordered by ready time, then by the order in
+// which they became waiting; a new ray ready at cycle 0 initially). Then all pipelines are
+// clocked. A ray has at most one request in flight.
+//
+// Node memory (rf_memory.h; off when cache_bytes == 0): when a ray's next request becomes known
+// (the cycle it would be ready), its node is fetched through the node cache; the ray is ready when
+// its node's lines are present (at once on a hit, later on a miss), while other rays keep the
+// pipelines busy. Returns -4 for a cache geometry it cannot model.
 //
 // skip_idle: a pipeline that holds no request at the start of a cycle and gets none is not
 // evaluated in that cycle (clock gating: with nothing valid inside, a clock edge changes no state
@@ -37,8 +45,11 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
                   int64_t image_words, const uint32_t* ray, const uint32_t* ptr,
                   const uint32_t* ext, int64_t m, const int64_t* chain_idx,
                   const int64_t* chain_off, uint32_t* rsp, ReplayStats* stats, int64_t* per_pipe,
-                  int64_t max_idle) {
+                  int64_t max_idle, int64_t cache_bytes, int64_t ways, int64_t line_bytes,
+                  int64_t mem_latency, double bytes_per_cycle) {
   if (pipelines < 1 || slots < 1 || turnaround < 0 || n_rays < 0 || m < 0) return -3;
+  NodeMemory mem;
+  if (!mem.configure(cache_bytes, ways, line_bytes, mem_latency, bytes_per_cycle)) return -4;
   const NodeSource src{rays, image, image_words, ray, ptr, ext};
   std::vector<std::unique_ptr<Sim>> sims;
   for (int64_t p = 0; p < pipelines; p++) {
@@ -47,14 +58,25 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
   }
   std::vector<std::deque<int64_t>> inflight(pipelines);   // record indices, in request order
   std::vector<int64_t> pos(n_rays, 0);                     // next chain position of each ray
-  struct Ready { int64_t ray, at; };
-  std::deque<Ready> ready;
+  // Rays waiting to issue, earliest ready first, ties in the order they started waiting (without
+  // a node memory, ready times grow with that order and this is a FIFO).
+  struct Ready {
+    int64_t ray, at, seq;
+    bool operator>(const Ready& o) const { return at != o.at ? at > o.at : seq > o.seq; }
+  };
+  std::priority_queue<Ready, std::vector<Ready>, std::greater<Ready>> ready;
+  int64_t seq = 0, node_wait = 0;
+  auto wait = [&](int64_t r, int64_t at) {                // ray r's next request, known at `at`
+    const uint32_t p = ptr[chain_idx[chain_off[r] + pos[r]]];
+    const int64_t bytes = ((p & kTypeMask) == kBoxType ? kBoxNodeWords : kTriNodeWords) * 4;
+    const int64_t when = mem.fetch(NodeSource::node_word(p) * 4, bytes, at);
+    node_wait += when - at;
+    ready.push({r, when, seq++});
+  };
   int64_t next_ray = 0;
   auto enter = [&](int64_t at) {                           // next ray with a non-empty chain
     while (next_ray < n_rays && chain_off[next_ray + 1] == chain_off[next_ray]) next_ray++;
-    if (next_ray < n_rays) {
-      ready.push_back({next_ray++, at});
-    }
+    if (next_ray < n_rays) wait(next_ray++, at);
   };
   for (int64_t s = 0; s < slots && next_ray < n_rays; s++) enter(0);
 
@@ -78,7 +100,7 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
       progress = true;
       const int64_t r = ray[i];
       if (++pos[r] < chain_off[r + 1] - chain_off[r]) {
-        ready.push_back({r, k + turnaround});
+        wait(r, k + turnaround);
       } else {
         enter(k + turnaround);
       }
@@ -87,13 +109,13 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
     for (int64_t p = 0; p < pipelines; p++) {
       Vrayflex& t = sims[p]->top;
       t.in_valid_i = 0;
-      if (ready.empty() || ready.front().at > k || !t.in_ready_o) continue;
-      const int64_t r = ready.front().ray;
-      ready.pop_front();
+      if (ready.empty() || ready.top().at > k || !t.in_ready_o) continue;
+      const int64_t r = ready.top().ray;
+      ready.pop();
       const int64_t i = chain_idx[chain_off[r] + pos[r]];
       if (!src.fill(i, t.req_i.data())) return -2;
       if (!ready.empty()) {                       // the next ray to issue, if it is known
-        const Ready& nx = ready.front();
+        const Ready& nx = ready.top();
         if (pos[nx.ray] < chain_off[nx.ray + 1] - chain_off[nx.ray])
           src.prefetch(chain_idx[chain_off[nx.ray] + pos[nx.ray]]);
       }
@@ -106,12 +128,13 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
     }
     accepts += issued;
     if (issued == pipelines) full_cycles++;
-    if (issued < pipelines && (ready.empty() || ready.front().at > k)) starved++;
+    if (issued < pipelines && (ready.empty() || ready.top().at > k)) starved++;
     for (int64_t p = 0; p < pipelines; p++) {
       if (skip_idle && !busy[p] && !sims[p]->top.in_valid_i) continue;
       tick(sims[p].get());
       evals++;
     }
+    if (!ready.empty() && ready.top().at > k) progress = true;   // waiting on a node fetch
     idle = progress ? 0 : idle + 1;
     if (idle > max_idle + turnaround) return -1;
     k++;
@@ -124,6 +147,34 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
   stats->last_response = last;
   stats->bad_tags = bad_tags;
   stats->accepts = accepts;
+  stats->line_accesses = mem.line_accesses;
+  stats->line_hits = mem.line_hits;
+  stats->line_misses = mem.line_misses;
+  stats->bytes_from_memory = mem.bytes_from_memory;
+  stats->node_wait_cycles = node_wait;
+  return 0;
+}
+
+}  // extern "C"
+#pragma GCC visibility pop
+
+#pragma GCC visibility push(default)
+extern "C" {
+
+// The node memory alone, for tests: n node fetches (byte offset, bytes, cycle) in order; writes
+// the cycle each node is present and returns 0 (-4 for a geometry it cannot model). counts
+// (int64[4]): line accesses, hits, misses, bytes from memory.
+int64_t rf_memory_trace(int64_t cache_bytes, int64_t ways, int64_t line_bytes, int64_t latency,
+                        double bytes_per_cycle, int64_t n, const int64_t* offset,
+                        const int64_t* bytes, const int64_t* now, int64_t* ready,
+                        int64_t* counts) {
+  NodeMemory mem;
+  if (!mem.configure(cache_bytes, ways, line_bytes, latency, bytes_per_cycle)) return -4;
+  for (int64_t i = 0; i < n; i++) ready[i] = mem.fetch(offset[i], bytes[i], now[i]);
+  counts[0] = mem.line_accesses;
+  counts[1] = mem.line_hits;
+  counts[2] = mem.line_misses;
+  counts[3] = mem.bytes_from_memory;
   return 0;
 }
 

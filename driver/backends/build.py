@@ -30,7 +30,7 @@ LINT_WAIVERS = "lint.vlt"
 HARNESS_SOURCES = ("rayflex_harness.cpp", "rtunit_scheduler.cpp")
 # included by the harness sources from their own directory: their text is hashed into the name of
 # the generated header's directory, which is part of the build's cache key
-HARNESS_HEADERS = ("rf_sim.h",)
+HARNESS_HEADERS = ("rf_sim.h", "rf_memory.h")
 MIN_LATENCY = 11                      # input register, 9 compute stages, output register
 
 

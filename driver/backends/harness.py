@@ -68,7 +68,11 @@ def use_library(params: dict[str, int], path) -> ctypes.CDLL:
     lib.rf_build_requests.argtypes = [_U32P, _U32P, i64, _U32P, _U32P, _U32P, _U32P, i64]
     lib.rf_replay.restype = i64
     lib.rf_replay.argtypes = [i64, i64, i64, i64, _U32P, i64, _U32P, i64, _U32P, _U32P, _U32P,
-                              i64, _I64P, _I64P, _U32P, ctypes.POINTER(ReplayStats), _I64P, i64]
+                              i64, _I64P, _I64P, _U32P, ctypes.POINTER(ReplayStats), _I64P, i64,
+                              i64, i64, i64, i64, ctypes.c_double]
+    lib.rf_memory_trace.restype = i64
+    lib.rf_memory_trace.argtypes = [i64, i64, i64, i64, ctypes.c_double, i64, _I64P, _I64P,
+                                    _I64P, _I64P, _I64P]
     _LIBS[tuple(sorted(params.items()))] = lib
     return lib
 
@@ -106,12 +110,17 @@ def build_requests(params: dict[str, int], ray_words, image_words, ray, ptr, ext
     return out
 
 
+NO_MEMORY = (0, 1, 64, 0, 1.0)       # cache_bytes = 0: every node fetch is free
+BAD_GEOMETRY = -4
+
+
 def replay_chains(params: dict[str, int], pipelines: int, slots: int, turnaround: int,
                   skip_idle: bool, ray_words, image_words, ray, ptr, extent, chain_idx,
-                  chain_off, max_idle: int):
+                  chain_off, max_idle: int, memory=NO_MEMORY):
     """Run the RT-unit scheduler (sim/rtunit_scheduler.cpp) over recorded request chains.
-    Returns (responses (m, RSP_WORDS) uint32 at the record index, ``ReplayStats`` dict,
-    requests per pipeline (P,) int64)."""
+    ``memory``: (cache_bytes, ways, line_bytes, latency_cycles, bytes_per_cycle) of the node
+    memory (sim/rf_memory.h; cache_bytes = 0: none). Returns (responses (m, RSP_WORDS) uint32 at
+    the record index, ``ReplayStats`` dict, requests per pipeline (P,) int64)."""
     lib = harness_library(params)
     rw, img, r, p, e = node_arrays(ray_words, image_words, ray, ptr, extent)
     ci = np.ascontiguousarray(chain_idx, np.int64)
@@ -121,7 +130,11 @@ def replay_chains(params: dict[str, int], pipelines: int, slots: int, turnaround
     per_pipe = np.zeros(pipelines, np.int64)
     rc = lib.rf_replay(pipelines, slots, turnaround, int(bool(skip_idle)), _u32p(rw), len(rw),
                        _u32p(img), img.size, _u32p(r), _u32p(p), _u32p(e), len(r), _i64p(ci),
-                       _i64p(co), _u32p(rsp), ctypes.byref(stats), _i64p(per_pipe), max_idle)
+                       _i64p(co), _u32p(rsp), ctypes.byref(stats), _i64p(per_pipe), max_idle,
+                       *memory)
+    if rc == BAD_GEOMETRY:
+        raise ValueError(f"node cache geometry {memory[:3]} cannot be modelled: the cache size must "
+                         "be a multiple of ways x line size, the line a power of two >= 4 bytes")
     if rc == BAD_NODE:
         raise ValueError("a recorded request names a node pointer outside the BVH image")
     if rc < 0:
@@ -184,3 +197,18 @@ class HarnessBackend(RtlBackendBase):
                                         _u32p(p), _u32p(e), _u32p(out), n, *self._patterns())
         self._account(cycles, n)
         return out
+
+
+def memory_trace(params: dict[str, int], memory, offset, nbytes, now):
+    """The node memory alone (tests): fetch nodes (byte offset, bytes, cycle) in order. Returns
+    (cycle each node is present (n,) int64, {line_accesses, line_hits, line_misses,
+    bytes_from_memory})."""
+    lib = harness_library(params)
+    off, nb, t = (np.ascontiguousarray(x, np.int64) for x in (offset, nbytes, now))
+    ready = np.zeros(len(off), np.int64)
+    counts = np.zeros(4, np.int64)
+    if lib.rf_memory_trace(*memory, len(off), _i64p(off), _i64p(nb), _i64p(t), _i64p(ready),
+                           _i64p(counts)) == BAD_GEOMETRY:
+        raise ValueError(f"node cache geometry {tuple(memory[:3])} cannot be modelled")
+    keys = ("line_accesses", "line_hits", "line_misses", "bytes_from_memory")
+    return ready, dict(zip(keys, counts.tolist()))
