@@ -148,8 +148,10 @@ def run(args) -> int:
 def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAYS_IN_FLIGHT,
           pipelines=1, sweep_size=SWEEP_SIZE, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT,
           sweep_pipelines=rtunit.SWEEP_PIPELINES, plot=None,
-          pyverilator_requests=PYVERILATOR_REQUESTS, repeat=REPEAT, progress=True) -> dict:
-    """Run the benchmark; returns the JSON document (see the module docstring)."""
+          pyverilator_requests=PYVERILATOR_REQUESTS, repeat=REPEAT, progress=True,
+          memory=rtunit.MemoryModel()) -> dict:
+    """Run the benchmark; returns the JSON document (see the module docstring). ``memory``: the
+    node memory of the ``memory`` object's replay (None: no such object)."""
     from .backends import backend
     from .camera import check_size, primary_rays
     from .scene import load_scene
@@ -164,6 +166,7 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
     frame, res, bvh, rep = _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines,
                                   f"{w}x{h}", progress)
     rec = res.record
+    mem = _memory_frame(rec, rays_in_flight, pipelines, memory) if memory else None
     rtl_runs = [res.stats["sim_cycles_per_s"]]
     for _ in range(int(repeat) - 1):
         rtl_runs.append(_restream(rtl, rec, res.step_requests))
@@ -206,6 +209,7 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
         "embree_build_s": t_emb_build,
         "bvh_build_s": frame["wall_parts_s"]["bvh_build"],
         "rtunit_sweep": sweep,
+        "memory": mem,
         "machine": machine(),
     }
     doc["targets"] = {
@@ -242,6 +246,17 @@ def _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines, label, progress
     frame["wall_parts_s"] = {"bvh_build": t_bvh, "traversal": t_trace, "replay": rep.wall_s}
     frame["bvh"] = dict(bvh.stats)
     return frame, res, bvh, rep
+
+
+def _memory_frame(rec, rays_in_flight, pipelines, memory) -> dict:
+    """The frame's replay with the node memory on: the bench JSON's ``memory`` object."""
+    rep = rtunit.replay(rec, rays_in_flight, pipelines, memory=memory)
+    m = rep.memory
+    keep = ("cache_bytes", "ways", "line_bytes", "latency_cycles", "bytes_per_cycle", "hit_rate",
+            "bytes_per_ray", "line_accesses", "line_misses", "bytes_from_memory")
+    return {**{k: m[k] for k in keep}, "cycles": rep.cycles, "utilization": rep.utilization,
+            "rays_in_flight": rays_in_flight, "pipelines": pipelines,
+            "responses_verified": rep.verified}
 
 
 def _golden(bvh, origins, dirs, res, label, progress):
@@ -461,10 +476,12 @@ WORKLOAD_SIZE = 64
 
 def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, ao_rays=4,
                    seed=0, rays_in_flight=rtunit.DEFAULT_RAYS_IN_FLIGHT, pipelines=1,
-                   sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, plot=None, progress=True) -> dict:
+                   sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, plot=None, progress=True,
+                   memory=rtunit.MemoryModel()) -> dict:
     """One workload frame on "rtl" (every batch recorded), checked against Embree; per ray type:
-    the op mix, the RT-unit replay at (R, P), any-hit vs closest-hit ops of the same rays, and a
-    sweep of utilization over rays in flight (one pipeline), plotted per ray type."""
+    the op mix, the RT-unit replay at (R, P) without and with the node memory (``memory``; None:
+    without only), any-hit vs closest-hit ops of the same rays, and a sweep of utilization over
+    rays in flight (one pipeline), plotted per ray type."""
     from . import workloads
     from .backends import backend
     from .bvh4 import build
@@ -493,8 +510,10 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
     for kind in kinds:
         batches = [b for b in res.batches if b.kind == kind]
         entry = dict(res.stats["by_type"][kind])
-        timed = _replay_all([b.result.record for b in batches], rays_in_flight, pipelines)
-        entry.update(timed)
+        records = [b.result.record for b in batches]
+        entry.update(_replay_all(records, rays_in_flight, pipelines))
+        if memory:
+            entry["memory"] = _replay_all(records, rays_in_flight, pipelines, memory)
         if batches[0].any_hit:
             closest = sum(trace(bvh, b.origins, b.dirs, backend="golden", extent=b.extent)
                           .stats["ops"] for b in batches)
@@ -505,8 +524,10 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
         bar.hook(done, steps)
         sweep[kind] = []
         for r in sweep_rays:
-            sweep[kind].append({"rays_in_flight": r,
-                                **_replay_all([b.result.record for b in batches], r, 1)})
+            point = _replay_all(records, r, 1)
+            if memory:
+                point["memory"] = _replay_all(records, r, 1, memory)
+            sweep[kind].append(point)
             done += 1
             bar.hook(done, steps)
     bar.close()
@@ -522,19 +543,29 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
             "wall_parts_s": {"bvh_build": t_bvh, "traversal": t_trace}}
 
 
-def _replay_all(records, rays_in_flight, pipelines) -> dict:
-    """RT-unit replays of several recorded wavefronts run one after another: cycles add up."""
-    cycles = ops = 0
+def _replay_all(records, rays_in_flight, pipelines, memory=None) -> dict:
+    """RT-unit replays of several recorded wavefronts run one after another: cycles add up (each
+    wavefront starts with the node cache cold)."""
+    cycles = ops = rays = accesses = hits = fetched = 0
     verified = True
     for rec in records:
-        rep = rtunit.replay(rec, rays_in_flight, pipelines)
+        rep = rtunit.replay(rec, rays_in_flight, pipelines, memory=memory)
         cycles += rep.cycles
         ops += rep.ops
+        rays += rep.rays
         verified &= rep.verified
-    return {"replay_cycles": cycles,
-            "replay_utilization": ops / (pipelines * cycles) if cycles else 0.0,
-            "rays_in_flight": rays_in_flight, "pipelines": pipelines,
-            "responses_verified": bool(verified)}
+        if rep.memory:
+            accesses += rep.memory["line_accesses"]
+            hits += rep.memory["line_hits"]
+            fetched += rep.memory["bytes_from_memory"]
+    out = {"replay_cycles": cycles,
+           "replay_utilization": ops / (pipelines * cycles) if cycles else 0.0,
+           "rays_in_flight": rays_in_flight, "pipelines": pipelines,
+           "responses_verified": bool(verified)}
+    if memory:
+        out.update(memory.describe(), hit_rate=hits / accesses if accesses else 0.0,
+                   bytes_per_ray=fetched / rays if rays else 0.0)
+    return out
 
 
 def plot_workload_sweep(sweep: dict, path, title: str) -> None:
@@ -545,15 +576,22 @@ def plot_workload_sweep(sweep: dict, path, title: str) -> None:
     fig = Figure(figsize=(7.0, 4.6), dpi=110)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
-    for kind, pts in sweep.items():
-        ax.plot([p["rays_in_flight"] for p in pts], [p["replay_utilization"] for p in pts], "o-",
-                label=kind)
+    colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown"]
+    for i, (kind, pts) in enumerate(sweep.items()):
+        c = colours[i % len(colours)]
+        x = [p["rays_in_flight"] for p in pts]
+        if "memory" in pts[0]:
+            ax.plot(x, [p["memory"]["replay_utilization"] for p in pts], "o-", color=c,
+                    label=f"{kind} (node cache + memory)")
+            ax.plot(x, [p["replay_utilization"] for p in pts], ":", color=c, lw=1)
+        else:
+            ax.plot(x, [p["replay_utilization"] for p in pts], "o-", color=c, label=kind)
     ax.set_xscale("log", base=2)
     ax.set_ylim(0, 1.05)
     ax.set_xlabel("rays in flight (ray pool size R)")
     ax.set_ylabel("datapath utilization (ops / cycles)")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(title="ray type", fontsize=8)
+    ax.legend(title="ray type (dotted: free node fetches)", fontsize=7, loc="center right")
     ax.set_title(title, fontsize=9)
     fig.tight_layout()
     fig.savefig(str(path), format="png")
