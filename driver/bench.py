@@ -495,8 +495,8 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
     bvh = build(scene.triangles)
     t_bvh = time.perf_counter() - t0
 
-    def tracer(bvh_, o, d, extent, any_hit):
-        return trace(bvh_, o, d, backend=rtl, extent=extent, any_hit=any_hit, record=True)
+    def tracer(bvh_, o, d, **kw):
+        return trace(bvh_, o, d, backend=rtl, record=True, **kw)
 
     t1 = time.perf_counter()
     res = workloads.run(setup, bvh, size, size, tracer, workload, spp=spp, bounces=bounces,
@@ -515,8 +515,8 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
         if memory:
             entry["memory"] = _replay_all(records, rays_in_flight, pipelines, memory)
         if batches[0].any_hit:
-            closest = sum(trace(bvh, b.origins, b.dirs, backend="golden", extent=b.extent)
-                          .stats["ops"] for b in batches)
+            closest = sum(trace(bvh, b.origins, b.dirs, backend="golden", extent=b.extent,
+                                double_sided=setup.double_sided).stats["ops"] for b in batches)
             entry["closest_hit_ops"] = closest
             entry["any_hit_vs_closest_ops"] = entry["ops"] / closest if closest else None
         by_type[kind] = entry

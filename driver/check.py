@@ -16,6 +16,8 @@ faces, SPEC section 5; Embree 4 does not, so back-face hits are re-cast from jus
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 T_REL = 1e-5          # relative t agreement of an edge tie
@@ -37,9 +39,6 @@ def embree_closest_front(triangles, origins, dirs):
     reported as a miss. Limitation: a front face coincident with (or within ~1e-6 relative behind)
     a back face, as in double-sided sheets made of two opposite triangles, is skipped.
     """
-    from embreex import rtcore_scene as rtcs
-    from embreex.mesh_construction import TriangleMesh
-
     tri = np.ascontiguousarray(triangles, np.float32).reshape(-1, 3, 3)
     o = np.ascontiguousarray(origins, np.float32).reshape(-1, 3)
     d = np.ascontiguousarray(dirs, np.float32).reshape(-1, 3)
@@ -48,8 +47,7 @@ def embree_closest_front(triangles, origins, dirs):
     prim = np.full(n, -1, np.int64)
     if n == 0 or len(tri) == 0:
         return t.astype(np.float32), prim
-    scene = rtcs.EmbreeScene()
-    TriangleMesh(scene, tri)
+    scene = _embree_scene(triangles if isinstance(triangles, np.ndarray) else tri)
     normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]).astype(np.float64)
 
     rows = np.arange(n)                   # rays still being cast
@@ -177,11 +175,24 @@ def _segment_distance(p, a, b):
 # Secondary rays: extents, any-hit rays and double-sided triangles (SPEC 9, 13)
 
 
+_SCENES: dict = {}     # id(triangle array) -> (weak reference to it, its Embree scene)
+
+
 def _embree_scene(triangles):
+    """The Embree scene of a triangle array, built once per array object (tiles and ray types of
+    one frame check against the same scene)."""
     from embreex import rtcore_scene as rtcs
     from embreex.mesh_construction import TriangleMesh
+    key = id(triangles)
+    hit = _SCENES.get(key)
+    if hit is not None and hit[0]() is triangles:
+        return hit[1]
     scene = rtcs.EmbreeScene()
     TriangleMesh(scene, np.ascontiguousarray(triangles, np.float32).reshape(-1, 3, 3))
+    if isinstance(triangles, np.ndarray):
+        for k in [k for k, (ref, _) in _SCENES.items() if ref() is None]:
+            del _SCENES[k]
+        _SCENES[key] = (weakref.ref(triangles), scene)
     return scene
 
 

@@ -29,6 +29,7 @@ import numpy as np
 OPCODES = {"TRIANGLE": 0, "QUADBOX": 1, "EUCLIDEAN": 2, "ANGULAR": 3}
 TRIANGLE, QUADBOX, EUCLIDEAN, ANGULAR = (OPCODES[k] for k in
                                          ("TRIANGLE", "QUADBOX", "EUCLIDEAN", "ANGULAR"))
+FLAG_NO_CULL = 1    # request flags bit 0: the TRIANGLE test accepts both faces (SPEC 3, 5)
 EUC_LANES = 16      # rf_pkg::EUC_LANES: lanes of one EUCLIDEAN beat
 ANG_LANES = 8       # rf_pkg::ANG_LANES: lanes of one ANGULAR beat
 

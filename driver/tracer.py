@@ -14,6 +14,7 @@ import numpy as np
 
 from .bvh4 import BVH4, build
 from .datapath import prepare_rays
+from .layout import FLAG_NO_CULL
 from .issue import issuer
 from .stats import frame_stats, with_replay
 from .traversal import traverse
@@ -69,7 +70,7 @@ def _backend(backend):
 
 def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np.inf,
           progress=None, rays_in_flight=None, pipelines=1, turnaround=None, record=False,
-          any_hit=False) -> TraceResult:
+          any_hit=False, double_sided=False) -> TraceResult:
     """Trace rays with every box and triangle test run on ``backend``.
 
     scene_or_mesh_or_bvh : BVH4, trimesh mesh, (n, 3, 3) triangles, or a scene name/path
@@ -79,6 +80,7 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
     extent : scalar or (n,): only hits with t < extent are reported
     any_hit : occlusion rays (SPEC 9): a ray ends at its first accepted triangle (``hit``,
         ``prim``, ``t`` of that triangle); otherwise the closest hit
+    double_sided : set ``NO_CULL`` on every ray (SPEC 3, 5): triangles are hit from both sides
     progress : optional callable(done_rays, total_rays), called once per step
     rays_in_flight, pipelines, turnaround : RT-unit model (``driver.rtunit``). With
         ``rays_in_flight=None`` (default) the statistics are the wavefront's: every ray in
@@ -94,7 +96,8 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
     """
     bvh = as_bvh(scene_or_mesh_or_bvh)
     be, be_name = _backend(backend)
-    rays = prepare_rays(origins, directions, extent)
+    rays = prepare_rays(origins, directions, extent,
+                        **({"flags": FLAG_NO_CULL} if double_sided else {}))
     timed = rays_in_flight is not None
     issue = issuer(be, rays, bvh, be_name, record=bool(record) or timed)
     cycles0 = int(be.cycles)

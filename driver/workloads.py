@@ -150,7 +150,7 @@ class Frame:
                  bounces: int = 1, ao_rays: int = 4, seed: int = 0, pixels=None):
         check_arguments(spp, bounces, ao_rays, seed)
         self.setup, self.bvh, self.w, self.h = setup, bvh, width, height
-        self.trace = tracer        # trace(bvh, origins, dirs, extent=, any_hit=) -> TraceResult
+        self.trace = tracer   # trace(bvh, origins, dirs, extent=, any_hit=, double_sided=)
         self.spp, self.bounces, self.ao_rays, self.seed = spp, bounces, ao_rays, seed
         self.pixels = (np.arange(width * height) if pixels is None
                        else np.asarray(pixels, np.int64))
@@ -158,7 +158,7 @@ class Frame:
 
     def _run(self, batch: Batch) -> Batch:
         batch.result = self.trace(self.bvh, batch.origins, batch.dirs, extent=batch.extent,
-                                  any_hit=batch.any_hit)
+                                  any_hit=batch.any_hit, double_sided=self.setup.double_sided)
         self.batches.append(batch)
         return batch
 
@@ -243,8 +243,9 @@ def check_arguments(spp, bounces, ao_rays, seed) -> None:
 def run(setup: Setup, bvh, width: int, height: int, tracer, workload: str = "primary",
         **options) -> FrameResult:
     """Trace ``workload`` (``WORKLOADS``) on ``pixels`` (default: all) of a width x height frame.
-    ``tracer(bvh, origins, dirs, extent=, any_hit=)`` runs each batch (``driver.tracer.trace``
-    with the backend and flags bound). Options: spp, bounces, ao_rays, seed, pixels."""
+    ``tracer(bvh, origins, dirs, extent=, any_hit=, double_sided=)`` runs each batch
+    (``driver.tracer.trace`` with the backend bound). Options: spp, bounces, ao_rays, seed,
+    pixels."""
     if workload not in WORKLOADS:
         raise ValueError(f"unknown workload {workload!r}; available: {', '.join(WORKLOADS)}")
     fr = Frame(setup, bvh, width, height, tracer, **options)

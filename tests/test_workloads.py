@@ -24,8 +24,7 @@ def floor_scene():
 
 
 def tracer_on(be):
-    return lambda bvh, o, d, extent, any_hit: trace(bvh, o, d, backend=be, extent=extent,
-                                                   any_hit=any_hit)
+    return lambda bvh, o, d, **kw: trace(bvh, o, d, backend=be, **kw)
 
 
 # ---- sampling ---------------------------------------------------------------------------------

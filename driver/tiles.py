@@ -1,0 +1,202 @@
+"""Frames as tiles: bounded memory, and Dask to spread the tiles over processes and machines.
+
+A frame is a list of tiles (squares of ``tile`` x ``tile`` pixels, row-major); each tile is traced
+by the same code as a whole frame (``driver.workloads.run`` with the tile's pixels: every ray type
+and bounce is one wavefront within the tile) and its pixels, per-pixel ops, statistics and Embree
+check are merged into the frame. Because every random number is a pure function of (seed, pixel,
+sample, bounce, purpose) (``driver.sampling``), a tile traced alone is exactly that tile of the
+whole frame: the image, hits, per-pixel ops, ray and op counts do not depend on the tile size or
+on where a tile runs.
+
+Timing: a tile is the unit of scheduling (its ray types and bounces are its wavefronts), so the
+datapath ``cycles`` of a frame are the sum of its tiles' wavefront cycles (each wavefront pays its
+pipeline latency once per traversal step). They are identical for any number of workers and
+depend on the tile size only through that per-wavefront latency (a few per cent between 64 x 64
+and whole-frame wavefronts); ``rayflex bench`` times frames on the RT-unit model instead.
+
+Distribution (``workers > 1`` or a ``scheduler`` address): tiles are tasks on a
+``dask.distributed`` cluster (a ``LocalCluster`` of one-thread worker processes, or an existing
+cluster). The scene set-up and the BVH are built once on the client and scattered to every worker
+once; a worker builds (or loads from the build cache) its Verilated model once per process.
+Dask re-runs the tiles of a worker that dies; a tile that raises an expected error (ValueError,
+OSError) stops the frame with that error. Why Dask: it is the well-kept Python engine for exactly
+this (pure tasks over explicit inputs, retries, a dashboard, local or remote clusters); nothing of
+it is reimplemented here.
+"""
+
+from __future__ import annotations
+
+import uuid
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .stats import merge
+from .workloads import FrameResult
+
+DEFAULT_TILE = 64
+CONNECT_TIMEOUT = "5s"          # how long to wait for a Dask scheduler to answer
+BYTES_PER_RAY = 2048          # peak working memory per ray in flight in one tile (measured, README)
+_WORKER_BACKENDS: dict = {}
+
+
+def plan(width: int, height: int, tile: int = DEFAULT_TILE) -> list[np.ndarray]:
+    """Pixel indices (row * width + column) of each tile, tiles row-major, ``tile`` x ``tile``
+    pixels (smaller at the right and bottom edges)."""
+    if isinstance(tile, bool) or not isinstance(tile, (int, np.integer)) or tile < 1:
+        raise ValueError(f"--tile must be a positive integer, got {tile!r}")
+    out = []
+    for y0 in range(0, height, tile):
+        for x0 in range(0, width, tile):
+            ys = np.arange(y0, min(y0 + tile, height))
+            xs = np.arange(x0, min(x0 + tile, width))
+            out.append((ys[:, None] * width + xs[None, :]).reshape(-1))
+    return out
+
+
+@dataclass
+class TileResult:
+    """One tile: its pixels, radiance (k, 3) float32, ops per pixel per ray type (k,) int32,
+    statistics per ray type, Embree checks per ray type (empty without a check)."""
+
+    pixels: np.ndarray
+    radiance: np.ndarray
+    ops: dict
+    stats: dict
+    embree: dict = field(default_factory=dict)
+
+
+def _backend(spec):
+    """This process's backend for ``spec`` (a name, or (name, options)), made once."""
+    from .backends import backend
+    name, options = (spec, {}) if isinstance(spec, str) else spec
+    key = (name, tuple(sorted(options.items())))
+    if key not in _WORKER_BACKENDS:
+        _WORKER_BACKENDS[key] = backend(name, **options)
+    return _WORKER_BACKENDS[key]
+
+
+def run_tile(setup, bvh, width: int, height: int, pixels, workload: str, options: dict,
+             backend_spec, check_embree: bool = False) -> TileResult:
+    """Trace one tile (a task: pure in its inputs, the backend cached per process)."""
+    from .tracer import trace
+    from .workloads import embree_check, run
+
+    be = _backend(backend_spec)
+
+    def tracer(bvh_, o, d, **kw):
+        return trace(bvh_, o, d, backend=be, **kw)
+
+    res = run(setup, bvh, width, height, tracer, workload, pixels=pixels, **options)
+    embree = {}
+    if check_embree:
+        embree_check(res, setup)
+        embree = {k: v["embree"] for k, v in res.stats["by_type"].items()}
+    return TileResult(np.asarray(pixels, np.int64), res.radiance.astype(np.float32),
+                      {k: v.astype(np.int32) for k, v in res.ops.items()},
+                      res.stats["by_type"], embree)
+
+
+class Assembler:
+    """Merges tile results into a frame (in any order)."""
+
+    def __init__(self, width: int, height: int):
+        self.npix = width * height
+        self.radiance = np.zeros((self.npix, 3), np.float32)
+        self.ops: dict = {}
+        self.parts: dict = {}
+        self.checks: dict = {}
+
+    def add(self, t: TileResult) -> None:
+        self.radiance[t.pixels] = t.radiance
+        for kind, ops in t.ops.items():
+            self.ops.setdefault(kind, np.zeros(self.npix, np.int32))[t.pixels] = ops
+        for kind, s in t.stats.items():
+            self.parts.setdefault(kind, []).append((tuple(t.pixels[:1].tolist()), s))
+        for kind, e in t.embree.items():
+            self.checks.setdefault(kind, []).append((tuple(t.pixels[:1].tolist()), e))
+
+    def frame(self) -> FrameResult:
+        from .check import merge_checks
+        # merge in tile order, so that float sums (wall times) do not depend on arrival order
+        by_type = {k: merge([s for _, s in sorted(v, key=lambda x: x[0])])
+                   for k, v in self.parts.items()}
+        total = merge([s for v in self.parts.values() for _, s in sorted(v, key=lambda x: x[0])])
+        for kind, parts in self.checks.items():
+            by_type[kind]["embree"] = merge_checks([e for _, e in parts])
+        if self.checks:
+            total["embree"] = merge_checks([e for v in self.checks.values() for _, e in v])
+        total["by_type"] = by_type
+        return FrameResult(self.radiance, self.ops, total, [])
+
+
+def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
+                 options: dict | None = None, backend="rtl", tile: int = DEFAULT_TILE,
+                 workers: int = 1, scheduler: str | None = None, check_embree: bool = False,
+                 progress=None) -> FrameResult:
+    """Trace a frame tile by tile: in this process (``workers=1`` and no ``scheduler``), or as
+    Dask tasks on a new ``LocalCluster`` of ``workers`` processes or on the cluster at
+    ``scheduler``. ``progress(done_tiles, total_tiles)``. Returns the merged ``FrameResult``."""
+    options = dict(options or {})
+    tiles = plan(width, height, tile)
+    asm = Assembler(width, height)
+    if workers == 1 and not scheduler:
+        for i, px in enumerate(tiles):
+            asm.add(run_tile(setup, bvh, width, height, px, workload, options, backend,
+                             check_embree))
+            if progress:
+                progress(i + 1, len(tiles))
+        return asm.frame()
+    with _client(workers, scheduler) as client:
+        setup_f, bvh_f = client.scatter([setup, bvh], broadcast=True)
+        frame_id = uuid.uuid4().hex[:12]
+        futures = [client.submit(run_tile, setup_f, bvh_f, width, height, px, workload, options,
+                                 backend, check_embree, key=f"rayflex-tile-{frame_id}-{i}",
+                                 retries=3)
+                   for i, px in enumerate(tiles)]
+        from distributed import as_completed
+        try:
+            for done, fut in enumerate(as_completed(futures), 1):
+                asm.add(fut.result())
+                if progress:
+                    progress(done, len(tiles))
+        finally:
+            client.cancel(futures)
+    return asm.frame()
+
+
+class _client:
+    """A ``distributed.Client`` on a new LocalCluster or at an address; closes what it made."""
+
+    def __init__(self, workers: int, scheduler: str | None):
+        if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+            raise ValueError(f"--workers must be a positive integer, got {workers!r}")
+        self.workers, self.scheduler, self.cluster = int(workers), scheduler, None
+
+    def __enter__(self):
+        try:
+            from distributed import Client, LocalCluster
+        except ImportError:
+            raise ValueError("--workers/--scheduler need dask.distributed "
+                             "(pip install 'dask[distributed]')") from None
+        if self.scheduler:
+            try:
+                self.client = Client(self.scheduler, timeout=CONNECT_TIMEOUT)
+            except (OSError, TimeoutError) as e:
+                raise OSError(f"no Dask scheduler answers at {self.scheduler} ({e})") from None
+            return self.client
+        self.cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
+                                    dashboard_address=":0")
+        self.client = Client(self.cluster)
+        return self.client
+
+    def __exit__(self, *exc):
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+        return False
+
+
+def estimate_bytes(rays_in_flight: int) -> int:
+    """Peak working memory of tracing ``rays_in_flight`` rays in one wavefront (bytes)."""
+    return BYTES_PER_RAY * int(rays_in_flight)
