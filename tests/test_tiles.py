@@ -1,0 +1,108 @@
+"""Frames as tiles, alone and on a real Dask LocalCluster (driver.tiles)."""
+
+import os
+import signal
+import socket
+
+import numpy as np
+import pytest
+
+from driver import builtins, tiles, workloads
+from driver.bvh4 import build
+from driver.camera import Camera
+
+OPTS = dict(spp=2, bounces=2, seed=5)
+SAME = ("rays", "hits", "box_ops", "tri_ops", "ops", "node_bytes_fetched")
+
+
+@pytest.fixture(scope="module")
+def scene():
+    b = builtins.bunny_floor()
+    setup = workloads.Setup(b.triangles, Camera(**b.camera),
+                            workloads.Materials(b.albedo, b.emission), b.lights, b.double_sided)
+    return setup, build(b.triangles)
+
+
+@pytest.fixture(scope="module")
+def whole(scene):
+    setup, bvh = scene
+    return tiles.render_tiles(setup, bvh, 40, 30, "path", OPTS, "golden", tile=10 ** 6,
+                              check_embree=True)
+
+
+def same_frame(a, b, cycles=True):
+    assert np.array_equal(a.radiance, b.radiance)
+    assert a.ops.keys() == b.ops.keys()
+    for k in a.ops:
+        assert np.array_equal(a.ops[k], b.ops[k])
+    keys = SAME + (("cycles", "utilization") if cycles else ())
+    assert {k: a.stats[k] for k in keys} == {k: b.stats[k] for k in keys}
+    for kind in a.stats["by_type"]:
+        sa, sb = a.stats["by_type"][kind], b.stats["by_type"][kind]
+        assert {k: sa[k] for k in keys} == {k: sb[k] for k in keys}
+    assert a.stats.get("embree") == b.stats.get("embree")
+
+
+def test_plan_covers_every_pixel_once():
+    for w, h, t in ((40, 30, 16), (7, 5, 64), (64, 64, 64), (65, 1, 8)):
+        px = np.concatenate(tiles.plan(w, h, t))
+        assert np.array_equal(np.sort(px), np.arange(w * h))
+    with pytest.raises(ValueError, match="--tile"):
+        tiles.plan(8, 8, 0)
+
+
+@pytest.mark.parametrize("tile", [7, 16])
+def test_tiles_alone_make_the_whole_frame(scene, whole, tile):
+    setup, bvh = scene
+    part = tiles.render_tiles(setup, bvh, 40, 30, "path", OPTS, "golden", tile=tile,
+                              check_embree=True)
+    same_frame(whole, part, cycles=False)       # cycles: one wavefront per tile (see driver.tiles)
+    assert whole.stats["embree"]["hit_mismatch"] == 0
+
+
+def test_two_workers_give_the_frame_of_one(scene):
+    setup, bvh = scene
+    one = tiles.render_tiles(setup, bvh, 40, 30, "path", OPTS, "golden", tile=16)
+    seen = []
+    two = tiles.render_tiles(setup, bvh, 40, 30, "path", OPTS, "golden", tile=16, workers=2,
+                             progress=lambda d, n: seen.append((d, n)))
+    same_frame(one, two)
+    assert seen[-1] == (6, 6)
+
+
+def test_a_killed_worker_changes_nothing(scene):
+    from distributed import Client, LocalCluster
+    setup, bvh = scene
+    one = tiles.render_tiles(setup, bvh, 40, 30, "path", OPTS, "golden", tile=8)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=":0") as cluster, Client(cluster) as client:
+        pids = list(client.run(os.getpid).values())
+        killed = []
+
+        def progress(done, total):
+            if done == 3 and not killed:
+                os.kill(pids[0], signal.SIGKILL)
+                killed.append(pids[0])
+
+        two = tiles.render_tiles(setup, bvh, 40, 30, "path", OPTS, "golden", tile=8,
+                                 scheduler=cluster.scheduler_address, progress=progress)
+    assert killed
+    same_frame(one, two)
+
+
+def test_an_error_in_a_tile_stops_the_frame(scene):
+    setup, bvh = scene
+    with pytest.raises(ValueError, match="unknown backend"):
+        tiles.render_tiles(setup, bvh, 16, 16, "path", OPTS, "no-such-backend", tile=8,
+                           workers=2)
+
+
+def test_a_scheduler_that_does_not_answer_is_a_one_line_error(scene, monkeypatch):
+    setup, bvh = scene
+    monkeypatch.setattr(tiles, "CONNECT_TIMEOUT", "1s")
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]            # a free port: nothing listens there
+    address = f"tcp://127.0.0.1:{port}"
+    with pytest.raises(OSError, match=f"no Dask scheduler answers at {address}"):
+        tiles.render_tiles(setup, bvh, 16, 16, "path", OPTS, "golden", scheduler=address)
