@@ -29,21 +29,21 @@ Runs the default scene (bunny, 256 x 256) through the "rtl" backend and reports:
 - ``machine``: CPU model (/proc/cpuinfo), cores, Python/numpy versions; ``targets``: the
   project's goals and whether this run met them.
 
-A short table goes to stdout, progress bars to stderr, the JSON to ``--json PATH``.
+A short table goes to stdout, progress bars to stderr, the JSON to ``--json PATH``
+(the command line is ``driver.cli.bench``).
 """
 
 from __future__ import annotations
 
-import json
 import os
 import platform
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
 from . import rtunit
+from .progress import bar as _bar
 from .stats import with_replay
 
 DEFAULT_SCENE = "bunny"
@@ -51,98 +51,6 @@ PYVERILATOR_REQUESTS = 2000
 REPEAT = 3
 SWEEP_SIZE = 64
 TARGETS = {"utilization": 0.98, "rtl_cycles_per_s": 1e6, "speedup": 100.0, "frame_wall_s": 10.0}
-
-
-def add_parser(subparsers):
-    p = subparsers.add_parser(
-        "bench", help="datapath utilization and simulation speed on a real frame",
-        description="Run the default bunny frame through the RTL (C++ harness over Verilator) "
-                    "and report its datapath statistics on the RT-unit model, the simulation "
-                    "speed of the rtl and pyverilator backends, golden and Embree ray rates, the "
-                    "BVH build time, and a sweep of rays in flight x pipelines (PNG plot).")
-    p.add_argument("--json", metavar="PATH", help="write the results as JSON")
-    p.add_argument("--size", type=int, metavar="N",
-                   help="square frame N x N (default: the scene's size, 256)")
-    p.add_argument("--scene", default=DEFAULT_SCENE, metavar="SCENE",
-                   help=f"scene name or file (default: {DEFAULT_SCENE})")
-    p.add_argument("--rays-in-flight", type=int, default=rtunit.DEFAULT_RAYS_IN_FLIGHT,
-                   metavar="R", help="ray pool of the RT-unit model for the frame "
-                                     f"(default {rtunit.DEFAULT_RAYS_IN_FLIGHT})")
-    p.add_argument("--pipelines", type=int, default=1, metavar="P",
-                   help="datapath pipelines of the RT-unit model for the frame (default 1)")
-    p.add_argument("--sweep-size", type=int, default=SWEEP_SIZE, metavar="N",
-                   help=f"frame size of the rays-in-flight x pipelines sweep (default "
-                        f"{SWEEP_SIZE}, at most --size; 0: no sweep)")
-    p.add_argument("--sweep-rays", default=",".join(map(str, rtunit.SWEEP_RAYS_IN_FLIGHT)),
-                   metavar="LIST", help="rays in flight of the sweep (comma-separated)")
-    p.add_argument("--sweep-pipelines", default=",".join(map(str, rtunit.SWEEP_PIPELINES)),
-                   metavar="LIST", help="pipeline counts of the sweep (comma-separated)")
-    p.add_argument("--plot", metavar="PATH",
-                   help="sweep plot PNG (default: beside --json as JSONSTEM_rtunit.png, else "
-                        "rayflex_bench_rtunit.png)")
-    p.add_argument("--pyverilator-requests", type=int, default=PYVERILATOR_REQUESTS,
-                   metavar="N", help=f"requests streamed through pyverilator (default "
-                                     f"{PYVERILATOR_REQUESTS}; 0: skip)")
-    p.add_argument("--repeat", type=int, default=REPEAT, metavar="N",
-                   help=f"timed passes of the rtl and pyverilator streams; the best counts "
-                        f"(default {REPEAT})")
-    p.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
-    return p
-
-
-def _int_list(text: str, flag: str) -> list[int]:
-    try:
-        vals = [int(x) for x in str(text).split(",") if x.strip()]
-    except ValueError:
-        raise ValueError(f"{flag} must be comma-separated integers, got {text!r}") from None
-    if not vals or min(vals) < 1:
-        raise ValueError(f"{flag} must list integers >= 1, got {text!r}")
-    return sorted(set(vals))
-
-
-def run(args) -> int:
-    from .camera import MAX_SIZE
-    if args.size is not None and not 1 <= args.size <= MAX_SIZE:
-        raise ValueError(f"--size must be in 1..{MAX_SIZE}, got {args.size}")
-    if args.rays_in_flight < 1:
-        raise ValueError(f"--rays-in-flight must be >= 1, got {args.rays_in_flight}")
-    if not 1 <= args.pipelines <= 64:
-        raise ValueError(f"--pipelines must be in 1..64, got {args.pipelines}")
-    if args.sweep_size < 0 or args.pyverilator_requests < 0:
-        raise ValueError("--sweep-size and --pyverilator-requests must be >= 0")
-    if args.repeat < 1:
-        raise ValueError(f"--repeat must be >= 1, got {args.repeat}")
-    sweep_rays = _int_list(args.sweep_rays, "--sweep-rays")
-    sweep_pipes = _int_list(args.sweep_pipelines, "--sweep-pipelines")
-    if max(sweep_pipes) > 64:
-        raise ValueError("--sweep-pipelines: at most 64 pipelines")
-    plot = None
-    if args.sweep_size:
-        plot = Path(args.plot) if args.plot else (
-            Path(args.json).with_name(Path(args.json).stem + "_rtunit.png") if args.json
-            else Path("rayflex_bench_rtunit.png"))
-    for path in [Path(args.json) if args.json else None, plot]:
-        if path is None:
-            continue
-        if not path.parent.is_dir():
-            raise ValueError(f"output directory does not exist: {path.parent}")
-
-    doc = bench(args.scene, size=args.size, rays_in_flight=args.rays_in_flight,
-                pipelines=args.pipelines, sweep_size=args.sweep_size,
-                sweep_rays=sweep_rays, sweep_pipelines=sweep_pipes,
-                plot=plot, pyverilator_requests=args.pyverilator_requests,
-                repeat=args.repeat, progress=not args.no_progress)
-    print(table(doc))
-    written = []
-    if args.json:
-        from .cli import _jsonable
-        Path(args.json).write_text(json.dumps(_jsonable(doc), indent=2) + "\n")
-        written.append(str(args.json))
-    if plot:
-        written.append(str(plot))
-    if written:
-        print("wrote " + ", ".join(written))
-    return 0
 
 
 def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAYS_IN_FLIGHT,
@@ -439,33 +347,6 @@ def table(doc: dict) -> str:
     rows.append(("targets", "all met" if not miss else "not met: " + ", ".join(miss)))
     width = max(len(r[0]) for r in rows)
     return "\n".join(f"{a:<{width}}  {b}" for a, b in rows)
-
-
-class _NoBar:
-    def hook(self, done, total):
-        pass
-
-    def close(self):
-        pass
-
-
-class _Bar(_NoBar):
-    def __init__(self, total, desc, unit):
-        from tqdm import tqdm
-        self.bar = tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, leave=False,
-                        dynamic_ncols=True, mininterval=0.2)
-
-    def hook(self, done, total):
-        if total != self.bar.total:
-            self.bar.total = total
-        self.bar.update(max(0, int(done) - self.bar.n))
-
-    def close(self):
-        self.bar.close()
-
-
-def _bar(total, desc, unit, enabled):
-    return _Bar(total, desc, unit) if enabled else _NoBar()
 
 
 # ----------------------------------------------------------------------------------------------

@@ -15,6 +15,12 @@ import numpy as np
 from .errors import CameraError
 
 MAX_SIZE = 8192
+F32_MAX = float(np.finfo(np.float32).max)
+
+
+def fmt_vec(v) -> str:
+    """Plain numbers for messages: (1, 2.5, -3) (not np.float64(...))."""
+    return "(" + ", ".join(f"{float(x):.9g}" for x in np.asarray(v).reshape(-1)) + ")"
 
 
 @dataclass(frozen=True)
@@ -35,12 +41,15 @@ class Camera:
         view = at - pos
         scale = max(np.abs(pos).max(), np.abs(at).max(), 1e-30)
         if np.linalg.norm(view) <= 1e-9 * scale:
-            raise CameraError(f"camera position and look_at are the same point {tuple(pos)}")
+            raise CameraError(f"camera position and look_at are the same point {fmt_vec(pos)}")
         if np.linalg.norm(up) == 0.0:
             raise CameraError("camera up vector is zero")
         f = view / np.linalg.norm(view)
         if np.linalg.norm(np.cross(f, up / np.linalg.norm(up))) < 1e-6:
-            raise CameraError(f"camera up {tuple(up)} is parallel to the view direction")
+            raise CameraError(f"camera up {fmt_vec(up)} is parallel to the view direction")
+        if np.abs(pos).max() > F32_MAX:
+            raise CameraError(f"camera position {fmt_vec(pos)} is beyond the float32 range of "
+                              "the datapath (scene coordinates too large: scale the mesh down)")
         return self
 
     def basis(self):
@@ -121,7 +130,7 @@ def _vec3(v, name) -> np.ndarray:
     if a.shape != (3,):
         raise CameraError(f"camera {name} must be 3 numbers, got {v!r}")
     if not np.isfinite(a).all():
-        raise CameraError(f"camera {name} must be finite, got {tuple(a)}")
+        raise CameraError(f"camera {name} must be finite, got {fmt_vec(a)}")
     return a
 
 

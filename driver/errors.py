@@ -18,3 +18,8 @@ class SceneError(RayflexError):
 
 class CameraError(RayflexError):
     """Invalid camera (fov, position == look_at, up parallel to the view, non-finite) or size."""
+
+
+class Terminated(BaseException):
+    """SIGTERM arrived while work that must clean up ran (a model build; the command line):
+    raised by the signal handler so ``finally`` blocks and process-group kills run."""

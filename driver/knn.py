@@ -46,9 +46,6 @@ CHUNK_BEATS = 1 << 16            # requests per backend.run() call (rounded to w
 DEFAULT_QUERIES = 100
 DEFAULT_K = 5
 
-EXIT_MISMATCH = 1
-EXIT_USAGE = 2
-
 
 # ------------------------------------------------------------------------------------------------
 # data
@@ -380,7 +377,7 @@ def summary(res: KnnResult) -> str:
                      f"{d['rounding_error']:.3g} -> "
                      f"{'near tie' if d['near_tie'] else 'UNEXPLAINED'}")
     if len(res.disagreements) > 5:
-        lines.append(f"  ... {len(res.disagreements) - 5} more (see --json-stats)")
+        lines.append(f"  ... {len(res.disagreements) - 5} more (see --json)")
     if s["nonfinite_distances"]:
         lines.append(f"warning: {s['nonfinite_distances']} datapath distances overflowed "
                      "float32 (inf/NaN)")
@@ -389,91 +386,3 @@ def summary(res: KnnResult) -> str:
 
 # ------------------------------------------------------------------------------------------------
 # command line
-
-class KnnCommand:
-    """``rayflex knn [DATASET]``: exact kNN with every distance on the datapath."""
-
-    @staticmethod
-    def add_parser(subparsers):
-        from .backends import BACKENDS
-        p = subparsers.add_parser(
-            "knn", help="exact k-nearest-neighbour search on the datapath",
-            description="Exact k-nearest-neighbour search (Euclidean or cosine) with every "
-                        "distance computed on the datapath's EUCLIDEAN/ANGULAR operations, "
-                        "checked against an exact float64 search. Exit status: 0 ok, "
-                        f"{EXIT_MISMATCH} neighbour sets differ beyond float32 rounding, "
-                        f"{EXIT_USAGE} usage error.")
-        p.add_argument("dataset", nargs="?", default="digits", metavar="DATASET",
-                       help="'digits' (scikit-learn's bundled 1797 x 64 digits; default) or a "
-                            ".npy file with a 2-D float array (rows are vectors)")
-        p.add_argument("--metric", default="euclidean", choices=METRICS,
-                       help="distance (default: euclidean)")
-        p.add_argument("-k", type=int, default=DEFAULT_K, metavar="K",
-                       help=f"neighbours per query (default: {DEFAULT_K})")
-        p.add_argument("--queries", type=int, metavar="N",
-                       help="use the first N dataset rows as queries against the other rows "
-                            f"(default: {DEFAULT_QUERIES}, or fewer for a small dataset)")
-        p.add_argument("--query-file", metavar="PATH",
-                       help=".npy file of query vectors, searched against the whole dataset")
-        p.add_argument("--backend", default="rtl", metavar="NAME",
-                       help=f"datapath model: {', '.join(BACKENDS)} (default: rtl)")
-        p.add_argument("--disjoint", action="store_true",
-                       help="the DISJOINT build (private functional units per operation)")
-        p.add_argument("--out", metavar="PATH",
-                       help="write neighbours and distances per query (.json or .csv)")
-        p.add_argument("--json-stats", metavar="PATH", help="write statistics as JSON")
-        p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
-        return p
-
-    @staticmethod
-    def run(args) -> int:
-        from .cli import _jsonable
-        if args.out and Path(args.out).suffix.lower() not in (".json", ".csv"):
-            raise ValueError(f"--out {args.out}: extension must be .json or .csv")
-        for path in (args.out, args.json_stats):
-            if path and not Path(path).parent.is_dir():
-                raise ValueError(f"output directory does not exist: {Path(path).parent}")
-        if args.metric not in METRICS:
-            raise ValueError(f"unknown metric {args.metric!r}")
-        name, data = load_dataset(args.dataset)
-        if args.query_file:
-            if args.queries is not None:
-                raise ValueError("give either --queries or --query-file, not both")
-            queries = load_npy(args.query_file, "query file")
-            if queries.shape[1] != data.shape[1]:
-                raise ValueError(f"query file has {queries.shape[1]} dimensions, the dataset "
-                                 f"{data.shape[1]}")
-            cands, qid, cid = data, np.arange(len(queries)), np.arange(len(data))
-        else:
-            if len(data) < 2:
-                raise ValueError(f"dataset {name} has {len(data)} row: need at least 2 "
-                                 "(queries + candidates) or --query-file")
-            n = args.queries if args.queries is not None else min(DEFAULT_QUERIES, len(data) // 2)
-            if not 1 <= n < len(data):
-                raise ValueError(f"--queries must be in 1..{len(data) - 1}, got {n}")
-            queries, cands = data[:n], data[n:]
-            qid, cid = np.arange(n), np.arange(n, len(data))
-        if not 1 <= args.k <= len(cands):
-            raise ValueError(f"-k must be in 1..{len(cands)} (the number of candidates), "
-                             f"got {args.k}")
-        res = knn(queries, cands, args.k, args.metric, backend=args.backend,
-                  disjoint=args.disjoint, progress=not args.no_progress, query_ids=qid,
-                  candidate_ids=cid)
-        res.stats["dataset"] = name
-        written = []
-        if args.out:
-            write_neighbors(res, args.out)
-            written.append(str(args.out))
-        if args.json_stats:
-            doc = {**res.stats, "disagreements": res.disagreements}
-            Path(args.json_stats).write_text(json.dumps(_jsonable(doc), indent=2) + "\n")
-            written.append(str(args.json_stats))
-        print(f"dataset {name}: {len(data)} x {data.shape[1]}")
-        print(summary(res))
-        if written:
-            print("wrote " + ", ".join(written))
-        if res.stats["unexplained_queries"]:
-            print(f"rayflex: knn: {res.stats['unexplained_queries']} queries disagree with the "
-                  "exact search beyond float32 rounding", file=sys.stderr)
-            return EXIT_MISMATCH
-        return 0

@@ -6,23 +6,37 @@ names, plus ``bvh`` build statistics and, when checked, the ``embree`` object).
 
 Shading: flat face normals, Lambert with a head light (the light sits at the camera), a little
 ambient, sRGB-ish gamma; misses show a vertical background gradient.
+
+Memory: a frame holds every primary ray and its traversal state at once (tiles are a later
+issue), so ``check_memory`` refuses a frame whose estimated peak (``PEAK_BYTES_PER_RAY`` per ray
+plus ``BASE_BYTES``) exceeds the memory available, before anything is allocated.
 """
 
 from __future__ import annotations
 
-import sys
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .backends import BACKENDS, BackendError
+from .backends import BackendError
 from .camera import check_size, primary_rays
+from .errors import RayflexError
+from .outputs import save_image
+from .progress import bar as progress_bar
+from .progress import phase
 from .scene import Scene, load_scene
 
 BASE_COLOUR = np.array([0.92, 0.86, 0.76])           # surface albedo
 AMBIENT = 0.08
 BG_TOP = np.array([0.42, 0.52, 0.66])
 BG_BOTTOM = np.array([0.10, 0.11, 0.14])
+# Peak resident memory of a frame, measured with /usr/bin/time -v (maximum RSS) on the sphere
+# scene at 256², 512² and 1024² (--check-embree makes no difference): golden 167 / 403 / 1,294 MB,
+# rtl 144 / 282 / 853 MB. The slope between 512² and 1024² is 1,160 bytes per ray on golden and
+# 743 on rtl; the intercept about 100 MB (Python, numpy, the model). A mesh adds its BVH.
+PEAK_BYTES_PER_RAY = 1200
+BASE_BYTES = 150 * 2**20
 
 
 @dataclass
@@ -42,14 +56,19 @@ class RenderResult:
     bvh_stats: dict = field(default_factory=dict)
 
     def save(self, path) -> None:
-        """Write the image as PNG."""
-        save_png(self.image, path)
+        """Write the image (PNG, JPEG, ... by the extension of ``path``)."""
+        save_image(self.image, path)
+
+    def heatmap_image(self, title: str | None = None) -> np.ndarray:
+        """The operations-per-pixel heat map as an RGB image."""
+        return heatmap_image(self.ops, self.width, self.height,
+                             title=title or f"{self.scene.name} {self.width}x{self.height}: "
+                                            f"datapath ops per pixel "
+                                            f"({self.stats.get('backend', '?')})")
 
     def save_heatmap(self, path, title: str | None = None) -> None:
-        """Write the operations-per-pixel heat map as PNG."""
-        heatmap(self.ops, self.width, self.height, path,
-                title=title or f"{self.scene.name} {self.width}x{self.height}: "
-                               f"datapath ops per pixel ({self.stats.get('backend', '?')})")
+        """Write the operations-per-pixel heat map (format by the extension of ``path``)."""
+        save_image(self.heatmap_image(title), path)
 
 
 def render(scene, width=None, height=None, backend: str = "rtl", progress: bool = True,
@@ -63,17 +82,19 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
     scene = load_scene(scene)
     w, h = check_size(width if width is not None else scene.size[0],
                       height if height is not None else scene.size[1])
+    check_memory(w * h)
     origins, dirs = primary_rays(scene.camera, w, h)
-    be = _backend(backend)                  # fail early, before a long BVH build
-    bvh = build(scene.mesh)
+    be = open_backend(backend)              # fail early, before a long BVH build
+    with phase(f"building the BVH4 of {len(scene.mesh.faces):,} triangles", progress):
+        bvh = build(scene.mesh)
     bvh_stats = dict(getattr(bvh, "stats", {}) or {})
 
-    bar = _progress_bar(len(origins), progress, f"{scene.name} {w}x{h} {backend}")
+    name = backend if isinstance(backend, str) else getattr(backend, "name", "backend")
+    bar = progress_bar(len(origins), f"{scene.name} {w}x{h} {name}", "ray", progress)
     try:
-        result = trace(bvh, origins, dirs, backend=be, progress=bar.hook if bar else None)
+        result = trace(bvh, origins, dirs, backend=be, progress=bar.hook)
     finally:
-        if bar:
-            bar.close()
+        bar.close()
 
     tri = scene.triangles
     image = shade(result, tri, dirs, w, h)
@@ -83,44 +104,56 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
     emb = None
     if check_embree:
         from .check import check, embree_json
-        emb = check(tri, origins, dirs, result.t, result.prim)
+        with phase(f"Embree check of {len(origins):,} rays", progress):
+            emb = check(tri, origins, dirs, result.t, result.prim)
         stats["embree"] = embree_json(emb)
     return RenderResult(scene, w, h, image, ops.reshape(h, w), result, stats, emb, bvh_stats)
 
 
-def _backend(name):
+def available_memory() -> int | None:
+    """Bytes of memory available to a new allocation (MemAvailable in /proc/meminfo; else the
+    free physical pages), or None if the system does not say."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+def estimate_bytes(rays: int) -> int:
+    """Estimated peak memory of a frame of ``rays`` primary rays (see PEAK_BYTES_PER_RAY)."""
+    return BASE_BYTES + PEAK_BYTES_PER_RAY * int(rays)
+
+
+def check_memory(rays: int, available: int | None = None) -> None:
+    """Refuse (one-line RayflexError) a frame whose estimated peak exceeds available memory."""
+    avail = available_memory() if available is None else available
+    need = estimate_bytes(rays)
+    if avail is None or need <= avail:
+        return
+    fit = max(1, int(((avail - BASE_BYTES) / PEAK_BYTES_PER_RAY) ** 0.5)) if avail > BASE_BYTES \
+        else 1
+    raise RayflexError(f"a frame of {rays:,} rays needs about {need / 2**30:.1f} GiB, more than "
+                       f"the {avail / 2**30:.1f} GiB of memory available: use a smaller --size "
+                       f"(at most about {fit} x {fit} here; frames are not tiled yet)")
+
+
+def open_backend(name):
     """Build the backend once up front so a missing or broken one fails before any work.
     Returns the backend object (passed to trace) or the name if it is already an object."""
     if not isinstance(name, str):
         return name
-    if name not in BACKENDS:
-        raise BackendError(f"unknown backend {name!r}; available: {', '.join(BACKENDS)}")
     from .backends import backend
     try:
         return backend(name)
     except ImportError as e:
         raise BackendError(f"backend {name!r} is not available: {e}") from None
-
-
-class _Bar:
-    """tqdm bar on stderr fed by trace's progress(done_rays, total_rays) callback."""
-
-    def __init__(self, total, desc):
-        from tqdm import tqdm
-        self.bar = tqdm(total=total, desc=desc, unit="ray", file=sys.stderr, leave=True,
-                        dynamic_ncols=True, mininterval=0.2)
-
-    def hook(self, done, total):
-        if total != self.bar.total:
-            self.bar.total = total
-        self.bar.update(max(0, int(done) - self.bar.n))
-
-    def close(self):
-        self.bar.close()
-
-
-def _progress_bar(total, enabled, desc):
-    return _Bar(total, desc) if enabled else None
 
 
 def shade(trace_result, triangles, dirs, width: int, height: int) -> np.ndarray:
@@ -150,14 +183,9 @@ def shade(trace_result, triangles, dirs, width: int, height: int) -> np.ndarray:
     return (rgb * 255 + 0.5).astype(np.uint8).reshape(height, width, 3)
 
 
-def save_png(image: np.ndarray, path) -> None:
-    """Write an (h, w, 3) uint8 image as PNG."""
-    from PIL import Image
-    Image.fromarray(np.asarray(image, np.uint8), "RGB").save(str(path), format="PNG")
-
-
-def heatmap(ops_per_pixel, width: int, height: int, path, title: str | None = None) -> None:
-    """PNG heat map of datapath operations per pixel (box_ops + tri_ops) with a colour bar.
+def heatmap_image(ops_per_pixel, width: int, height: int, title: str | None = None) -> np.ndarray:
+    """The heat map of datapath operations per pixel (box_ops + tri_ops) with a colour bar, as an
+    (H, W, 3) uint8 image (written like any image, in the format its file extension names).
 
     ops_per_pixel : (width * height,) or (height, width), row 0 at the top.
     """
@@ -167,7 +195,7 @@ def heatmap(ops_per_pixel, width: int, height: int, path, title: str | None = No
     ops = np.asarray(ops_per_pixel).reshape(height, width)
     aspect = width / height
     fig = Figure(figsize=(min(4.8 * aspect, 12) + 1.4, 4.8), dpi=100)
-    FigureCanvasAgg(fig)
+    canvas = FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
     im = ax.imshow(ops, cmap="inferno", interpolation="nearest", vmin=0,
                    vmax=max(1, int(ops.max())) if ops.size else 1)
@@ -176,5 +204,10 @@ def heatmap(ops_per_pixel, width: int, height: int, path, title: str | None = No
     cb = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
     cb.set_label("box + triangle ops per pixel")
     fig.tight_layout()
-    fig.savefig(str(path), format="png")
+    canvas.draw()
+    return np.asarray(canvas.buffer_rgba())[..., :3].copy()
 
+
+def heatmap(ops_per_pixel, width: int, height: int, path, title: str | None = None) -> None:
+    """Write the heat map (``heatmap_image``) to ``path`` (format by extension)."""
+    save_image(heatmap_image(ops_per_pixel, width, height, title), path)

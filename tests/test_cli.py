@@ -96,6 +96,14 @@ def test_user_mistakes_exit_2_with_one_line(capsys, args, words):
     assert words in error_line(capsys)
 
 
+def test_frame_too_big_for_memory_is_refused_at_once(capsys, monkeypatch):
+    """Issue 11 #5: --size 8192 allocated > 15 GB and was killed by the kernel, no message."""
+    import driver.render
+    monkeypatch.setattr(driver.render, "available_memory", lambda: 15 * 2**30)
+    assert main(["render", "sphere", "--size", "8192", "--backend", "golden"]) == 2
+    assert "15.0 GiB of memory available: use a smaller --size" in error_line(capsys)
+
+
 def test_bad_files_exit_2(capsys, in_tmp):
     (in_tmp / "bad.ply").write_bytes(b"garbage\x00")
     assert main(["render", "bad.ply", "--backend", "golden"]) == 2
@@ -142,7 +150,109 @@ def test_help(capsys):
             main(args)
         assert e.value.code == 0
     out = capsys.readouterr().out
-    assert "render" in out and "--check-embree" in out and "--stats-json" in out
+    assert "render" in out and "--check-embree" in out and "--json" in out
+    assert "--stats-json" not in out                       # the old spelling is a hidden alias
+
+
+def test_help_names_exit_codes_and_environment(capsys):
+    """Issue 11 #6: RAYFLEX_CACHE and RAYFLEX_PGO were not in --help; issue 12: one exit table."""
+    from driver.cli import ENVIRONMENT, EXIT_CODES
+    for args in (["--help"], ["render", "--help"], ["knn", "--help"], ["bench", "--help"]):
+        with pytest.raises(SystemExit):
+            main(args)
+        out = capsys.readouterr().out
+        assert "RAYFLEX_CACHE" in out and "RAYFLEX_PGO" in out and "~/.cache/rayflex/verilator" in out
+        for code in EXIT_CODES:
+            assert f"  {code} " in out, (args, code)
+    assert set(EXIT_CODES) >= {0, 1, 2, 130, 143} and set(ENVIRONMENT) >= {"RAYFLEX_CACHE",
+                                                                              "RAYFLEX_PGO"}
+
+
+def test_version(capsys):
+    """Issue 11 #6: --version was missing."""
+    from importlib.metadata import version
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    assert e.value.code == 0
+    assert capsys.readouterr().out.strip() == f"rayflex {version('rayflex-driver')}"
+
+
+@pytest.mark.parametrize("flag", ["--json", "--stats-json"])
+def test_json_flag_and_old_spelling(in_tmp, flag):
+    """Issue 12 #4: one spelling --json PATH; the old one still works."""
+    assert main(["render", "sphere", "--size", "4", "--backend", "golden", "--no-progress",
+                 flag, "s.json"]) == 0
+    assert json.loads((in_tmp / "s.json").read_text())["rays"] == 16
+
+
+# ---------------------------------------------------------------------------------------------
+# outputs: checked before any work, written by extension, never overwritten by one another
+
+def test_outputs_are_written_by_extension(in_tmp):
+    """Issue 11 #3: --out x.jpg wrote PNG bytes into a .jpg."""
+    assert main(["render", "sphere", "--size", "8", "--backend", "golden", "--no-progress",
+                 "--out", "x.jpg", "--heatmap", "h.webp"]) == 0
+    for name, fmt in (("x.jpg", "JPEG"), ("h.webp", "WEBP")):
+        with Image.open(in_tmp / name) as im:
+            assert im.format == fmt
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--heatmap", "same.png", "--out", "same.png"], "same file as --out"),
+    (["--json", "same.png", "--out", "same.png"], "extension"),
+    (["--json", "x.json", "--heatmap", "./x.json"], "extension"),
+    (["--out", "sub/../same.png", "--heatmap", "same.png"], "same file"),
+    (["--out", "x.txt"], "unknown extension"),
+    (["--out", "noext"], "unknown extension"),
+    (["--json", "s.csv"], ".json"),
+    (["--out", "adir"], "is a directory"),
+    (["--out", "/proc/x.png"], "cannot write in /proc"),
+    (["--json", "/proc/s.json"], "cannot write in /proc"),
+])
+def test_bad_outputs_fail_before_any_work(capsys, in_tmp, monkeypatch, args, words):
+    """Issue 11 #3: a bad output path failed only after the whole render, or silently destroyed
+    another output. Now: one line, exit 2, before the scene is even loaded, nothing written."""
+    import driver.render
+    (in_tmp / "adir").mkdir()
+    (in_tmp / "sub").mkdir()
+    (in_tmp / "same.png").write_bytes(b"keep me")
+
+    def no_render(*a, **k):
+        raise AssertionError("rendered before checking the outputs")
+    monkeypatch.setattr(driver.render, "render", no_render)
+    assert main(["render", "sphere", "--size", "8", "--backend", "golden", *args]) == 2
+    assert words in error_line(capsys)
+    assert (in_tmp / "same.png").read_bytes() == b"keep me"
+    assert sorted(p.name for p in in_tmp.iterdir()) == ["adir", "same.png", "sub"]
+
+
+def test_failing_output_write_leaves_nothing(capsys, in_tmp, monkeypatch):
+    """Issue 11 #3: a failing --stats-json left the PNGs behind with exit 2. A full disk on the
+    last write leaves no file at all (and an existing image untouched)."""
+    import errno
+
+    import driver.outputs
+    (in_tmp / "img.png").write_bytes(b"old image")
+
+    def full(doc, path):
+        with open(path, "w") as f:
+            f.write("{")
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+    monkeypatch.setattr(driver.outputs, "write_json", full)
+    assert main(["render", "sphere", "--size", "8", "--backend", "golden", "--no-progress",
+                 "--out", "img.png", "--json", "s.json"]) == 2
+    assert "No space left on device" in error_line(capsys)
+    assert sorted(p.name for p in in_tmp.iterdir()) == ["img.png"]
+    assert (in_tmp / "img.png").read_bytes() == b"old image"
+
+
+def test_bare_scene_name_wins_over_a_local_file_and_says_so(capsys, in_tmp):
+    """Issue 11 #6: a file or folder named bunny here shadowed the built-in scene silently."""
+    (in_tmp / "sphere").mkdir()
+    assert main(["render", "sphere", "--size", "4", "--backend", "golden", "--no-progress"]) == 0
+    err = capsys.readouterr().err
+    assert "'sphere' is the scene" in err and "./sphere" in err
+    assert (in_tmp / "sphere.png").is_file()
 
 
 def test_console_script():

@@ -10,7 +10,9 @@ import pytest
 from PIL import Image
 
 from driver.camera import primary_rays
-from driver.render import BG_BOTTOM, BG_TOP, RenderResult, heatmap, render, save_png, shade
+from driver.outputs import save_image
+from driver.render import (BG_BOTTOM, BG_TOP, PEAK_BYTES_PER_RAY, RenderResult, check_memory,
+                           estimate_bytes, heatmap, render, shade)
 from driver.scene import load_scene
 
 SPEC10 = ("rays", "hits", "box_ops", "tri_ops", "ops", "cycles", "utilization", "latency_cycles",
@@ -43,14 +45,32 @@ def test_shade_degenerate_triangle_and_size_mismatch():
         shade(types.SimpleNamespace(prim=np.array([0, 0])), tri, np.zeros((2, 3)), 3, 3)
 
 
-def test_heatmap_and_png(tmp_path):
+def test_heatmap_and_images_by_extension(tmp_path):
     ops = np.arange(12 * 8).reshape(8, 12)
     heatmap(ops, 12, 8, tmp_path / "h.png", title="test")
     with Image.open(tmp_path / "h.png") as im:
         assert im.format == "PNG" and im.size[0] > 100
-    save_png(np.zeros((5, 7, 3), np.uint8), tmp_path / "i.png")
-    with Image.open(tmp_path / "i.png") as im:
-        assert im.size == (7, 5) and im.mode == "RGB"
+    heatmap(ops, 12, 8, tmp_path / "h.jpg", title="test")
+    for ext, fmt in ((".png", "PNG"), (".jpg", "JPEG"), (".jpeg", "JPEG"), (".tif", "TIFF"),
+                     (".webp", "WEBP")):
+        save_image(np.zeros((5, 7, 3), np.uint8), tmp_path / f"i{ext}")
+        with Image.open(tmp_path / f"i{ext}") as im:
+            assert im.size == (7, 5) and im.mode == "RGB" and im.format == fmt, ext
+    with Image.open(tmp_path / "h.jpg") as im:
+        assert im.format == "JPEG"
+
+
+def test_memory_estimate_refuses_a_frame_that_cannot_fit(monkeypatch):
+    """Issue 11 #5: --size 8192 was killed by the kernel after allocating > 15 GB."""
+    rays = 8192 * 8192
+    assert estimate_bytes(rays) > rays * PEAK_BYTES_PER_RAY
+    with pytest.raises(ValueError, match=r"GiB.*smaller --size \(at most about \d+ x \d+"):
+        check_memory(rays, available=16 * 2**30)
+    check_memory(256 * 256, available=16 * 2**30)           # the default frame fits easily
+    import driver.render
+    monkeypatch.setattr(driver.render, "available_memory", lambda: 16 * 2**30)
+    with pytest.raises(ValueError, match="GiB"):            # render() checks before any work
+        render("sphere", 8192, 8192, backend="golden", progress=False)
 
 
 def test_render_sphere_golden(tmp_path):

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import trimesh
 
 from driver.camera import Camera, check_size, primary_rays
 from driver.errors import CameraError, SceneError
-from driver.scene import BUILTINS, SCENES_DIR, Scene, available, load, load_scene
+from driver.scene import (BUILTINS, SCENES_DIR, Scene, available, load, load_scene, resolve,
+                          scene_name)
 
 
 def one_line(excinfo):
@@ -254,3 +257,46 @@ def test_bad_size(w, h):
 
 def test_size_accepts_numpy_and_integral_floats():
     assert check_size(np.int64(3), 4.0) == (3, 4)
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 11 #6: bad meshes say what is wrong, in one line, with plain numbers and no warning
+
+def test_truncated_stl_and_garbage_obj_say_what_is_wrong(tmp_path):
+    trimesh.creation.box().export(str(tmp_path / "b.stl"))
+    (tmp_path / "t.stl").write_bytes((tmp_path / "b.stl").read_bytes()[:300])
+    (tmp_path / "g.obj").write_bytes(b"garbage\nnot an obj\n\x01\x02")
+    for name in ("t.stl", "g.obj"):
+        with pytest.raises(SceneError) as e:
+            load_scene(tmp_path / name)
+        assert "No module named" not in str(e.value) and name in str(e.value)
+
+
+def test_mesh_at_one_point_is_degenerate(tmp_path):
+    (tmp_path / "d.obj").write_text("v 5 5 5\nv 5 5 5\nv 5 5 5\nf 1 2 3\n")
+    with pytest.raises(SceneError, match=r"degenerate: all 3 vertices are at one point \(5, 5, 5\)"):
+        load_scene(tmp_path / "d.obj")
+
+
+def test_camera_errors_print_plain_numbers():
+    with pytest.raises(CameraError) as e:
+        Camera((1.5, 2, 3), (1.5, 2, 3)).validate()
+    assert "(1.5, 2, 3)" in str(e.value) and "np." not in str(e.value)
+
+
+def test_coordinates_near_float32_max_fail_without_a_warning(tmp_path):
+    import warnings
+    (tmp_path / "big.obj").write_text("v 3e38 0 0\nv 0 3e38 0\nv 0 0 3e38\nf 1 2 3\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(SceneError, match="float32 range"):
+            load_scene(tmp_path / "big.obj")
+
+
+def test_bare_name_is_the_scene_even_with_a_local_file(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    trimesh.creation.box().export(str(tmp_path / "bunny"), file_type="stl")
+    assert resolve("bunny").kind == "toml" and scene_name("bunny") == "bunny"
+    assert "./bunny" in capsys.readouterr().err
+    assert resolve("./bunny") == ("mesh", Path("./bunny"))
+    assert resolve("soup") == ("builtin", "soup")                  # no scenes/soup.toml

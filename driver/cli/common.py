@@ -1,0 +1,77 @@
+"""What every ``rayflex`` command shares: exit codes, the one-line error, and the options for
+backend, image size, outputs (``--json PATH``; older spellings kept as hidden aliases) and
+progress, with their checks (all made before any work starts)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+PROG = "rayflex"
+EXIT_OK = 0
+EXIT_CHECK = 1              # a result check failed (Embree mismatch, kNN disagreement)
+EXIT_USAGE = 2              # bad input / usage / environment: one line, nothing written
+EXIT_INTERNAL = 3           # a bug
+EXIT_INTERRUPTED = 130      # SIGINT (128 + 2)
+EXIT_TERMINATED = 143       # SIGTERM (128 + 15)
+
+
+def one_line(e: BaseException) -> str:
+    """The first line of an exception's message (an OSError as 'reason: file')."""
+    if isinstance(e, OSError) and e.strerror:
+        text = f"{e.strerror}: {e.filename}" if e.filename else e.strerror
+    else:
+        text = str(e).strip() or type(e).__name__
+    return text.splitlines()[0]
+
+
+def note(text: str) -> None:
+    """A one-line note on stderr (not an error)."""
+    print(f"{PROG}: {text}", file=sys.stderr)
+
+
+# ---------------------------------------------------------------------------------------------
+# options
+
+def add_backend(p, default: str = "rtl") -> None:
+    from ..backends import BACKENDS
+    p.add_argument("--backend", default=default, metavar="NAME",
+                   help=f"datapath model: {', '.join(BACKENDS)} (default: {default})")
+
+
+def check_backend(name: str) -> str:
+    """Refuse an unknown backend name before any work (one-line BackendError)."""
+    from ..backends import BACKENDS, BackendError
+    if name not in BACKENDS:
+        raise BackendError(f"unknown backend {name!r}; available: {', '.join(BACKENDS)}")
+    return name
+
+
+def add_json(p, help_text: str, *aliases: str) -> None:
+    """``--json PATH``; each older spelling in ``aliases`` still works but is not shown."""
+    p.add_argument("--json", metavar="PATH", help=help_text)
+    for alias in aliases:
+        p.add_argument(alias, dest="json", metavar="PATH", help=argparse.SUPPRESS)
+
+
+def add_progress(p) -> None:
+    p.add_argument("--no-progress", action="store_true", help="no progress on stderr")
+
+
+def check_flag_size(flag: str, value) -> None:
+    """A --size/--width/--height value: None (not given) or 1..MAX_SIZE."""
+    from ..camera import MAX_SIZE
+    if value is not None and not 1 <= value <= MAX_SIZE:
+        raise ValueError(f"{flag} must be in 1..{MAX_SIZE}, got {value}")
+
+
+def check_positive(flag: str, value, minimum: int = 1, maximum: int | None = None) -> None:
+    if value < minimum or (maximum is not None and value > maximum):
+        rng = f"in {minimum}..{maximum}" if maximum is not None else f">= {minimum}"
+        raise ValueError(f"{flag} must be {rng}, got {value}")
+
+
+def wrote(paths) -> None:
+    paths = [str(p) for p in paths]
+    if paths:
+        print("wrote " + ", ".join(paths))
