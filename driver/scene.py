@@ -1,4 +1,5 @@
-"""Scenes: a triangle mesh, a camera and a default image size.
+"""Scenes: a triangle mesh, a camera, a default image size, and for rendering workloads (SPEC 13)
+materials, lights, double-sidedness and an AO radius.
 
 ``load(name_or_path)`` returns a ``trimesh.Trimesh``; ``load_scene(name_or_path)`` a ``Scene``.
 A name or path is resolved in this order (``resolve``):
@@ -12,7 +13,9 @@ A name or path is resolved in this order (``resolve``):
 3. ``NAME.toml`` in ``scenes/``; a built-in mesh: ``bunny`` (Stanford bunny shipped with
    pymeshfix), and the procedural ``sphere``, ``room`` (a closed box room seen from inside) and
    ``soup`` (seeded random triangles). Built-ins without a TOML get a camera framed from the mesh
-   bounds.
+   bounds. Rendering built-ins with materials and lights (``driver.builtins``): ``cornell`` (the
+   Cornell box, double-sided), ``bunny_floor`` (the bunny on a floor under a quad light) and
+   ``bunny_grid`` (21 rotated, scaled bunnies on a floor: 2.1 million triangles).
 
 ``scene_name(name_or_path)`` gives the scene's name without reading its mesh (the command line
 names its default outputs before any work).
@@ -31,13 +34,30 @@ Scene TOML (paths are relative to the TOML file)::
     look_at = [0.0, 0.0, 25.0]
     up = [0.0, 0.0, 1.0]           # optional, default +z
     fov_deg = 40.0                 # optional, vertical field of view
+    double_sided = false           # optional: trace with NO_CULL (both faces hit)
+    ao_radius = 12.5               # optional: AO ray extent (default 10 % of the bbox diagonal)
+    [[lights]]                     # optional, any number; default: a point light by the camera
+    type = "quad"                  # corner + s*u + t*v, emitting on the side of u x v
+    corner = [-10.0, -10.0, 80.0]
+    u = [0.0, 20.0, 0.0]
+    v = [20.0, 0.0, 0.0]
+    emission = [12.0, 11.0, 10.0]  # radiance
+    [[lights]]
+    type = "point"
+    position = [0.0, -50.0, 90.0]
+    intensity = [5000.0, 5000.0, 5000.0]
+
+A light inside closed geometry is allowed: its shadow rays all hit the enclosure, so it lights
+nothing (the image shows that). A glTF/GLB file is double-sided when any of its materials says
+``doubleSided`` (the flag is per ray, not per triangle: one double-sided part makes the scene so).
+Materials of mesh files are a uniform grey (``driver.workloads.DEFAULT_ALBEDO``).
 """
 
 from __future__ import annotations
 
 import importlib.resources
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
 
@@ -49,6 +69,7 @@ from .errors import CameraError, SceneError
 
 SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
 BUILTINS = ("bunny", "room", "soup", "sphere")
+RENDER_BUILTINS = ("cornell", "bunny_floor", "bunny_grid")   # with materials and lights
 DEFAULT_SIZE = 256
 _UP = {"bunny": (0.0, 0.0, 1.0), "sphere": (0.0, 0.0, 1.0), "room": (0.0, 0.0, 1.0),
        "soup": (0.0, 0.0, 1.0)}
@@ -57,12 +78,18 @@ _FILE_UP = (0.0, 1.0, 0.0)      # auto-framing of mesh files: +y up (OBJ / glTF 
 
 @dataclass
 class Scene:
-    """mesh : trimesh.Trimesh (process=False); camera : Camera; size : default (width, height)."""
+    """mesh : trimesh.Trimesh (process=False); camera : Camera; size : default (width, height);
+    materials : ``driver.workloads.Materials`` or None (uniform grey); lights : workload lights
+    (empty: a default light); double_sided : trace with NO_CULL; ao_radius : None = default."""
 
     mesh: trimesh.Trimesh
     camera: Camera
     size: tuple = (DEFAULT_SIZE, DEFAULT_SIZE)
     name: str = "scene"
+    materials: object = None
+    lights: list = field(default_factory=list)
+    double_sided: bool = False
+    ao_radius: float | None = None
 
     @property
     def triangles(self) -> np.ndarray:
@@ -99,8 +126,19 @@ def load_scene(name_or_path) -> Scene:
         return _from_toml(ref)
     if kind == "mesh":
         return _from_mesh_file(ref)
+    if ref in RENDER_BUILTINS:
+        return _rendering_builtin(ref)
     mesh = builtin(ref)
     return Scene(mesh, _frame(mesh, _UP[ref], ref), (DEFAULT_SIZE, DEFAULT_SIZE), ref)
+
+
+def _rendering_builtin(name: str) -> Scene:
+    from .builtins import BUILT
+    from .workloads import Materials
+    b = BUILT[name]()
+    mesh = _mesh(b.triangles.reshape(-1, 3), np.arange(3 * len(b.triangles)).reshape(-1, 3), name)
+    return Scene(mesh, Camera(**b.camera).validate(), (DEFAULT_SIZE, DEFAULT_SIZE), name,
+                 Materials(b.albedo, b.emission), list(b.lights), b.double_sided)
 
 
 def resolve(name_or_path) -> Source:
@@ -115,7 +153,7 @@ def resolve(name_or_path) -> Source:
     path = Path(text).expanduser()
     bare = isinstance(name_or_path, str) and path.name == text and not path.suffix
     named = SCENES_DIR / f"{text}.toml"
-    if bare and (named.is_file() or text in BUILTINS):
+    if bare and (named.is_file() or text in BUILTINS or text in RENDER_BUILTINS):
         if path.exists():
             used = f"scene {named}" if named.is_file() else "built-in scene"
             print(f"rayflex: note: {text!r} is the {used}; the "
@@ -147,7 +185,7 @@ def scene_name(name_or_path) -> str:
 def available() -> list[str]:
     """Names accepted besides paths: TOML scenes in scenes/ and built-in meshes."""
     tomls = sorted(p.stem for p in SCENES_DIR.glob("*.toml")) if SCENES_DIR.is_dir() else []
-    return sorted(set(tomls) | set(BUILTINS))
+    return sorted(set(tomls) | set(BUILTINS) | set(RENDER_BUILTINS))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -244,7 +282,21 @@ def _mesh(vertices, faces, what) -> trimesh.Trimesh:
 
 def _from_mesh_file(path: Path) -> Scene:
     mesh = _read_mesh_file(path)
-    return Scene(mesh, _frame(mesh, _FILE_UP, str(path)), (DEFAULT_SIZE, DEFAULT_SIZE), path.stem)
+    return Scene(mesh, _frame(mesh, _FILE_UP, str(path)), (DEFAULT_SIZE, DEFAULT_SIZE), path.stem,
+                 double_sided=_gltf_double_sided(path))
+
+
+def _gltf_double_sided(path: Path) -> bool:
+    """Whether a glTF/GLB file's materials ask for double-sided triangles."""
+    if path.suffix.lower() not in (".gltf", ".glb"):
+        return False
+    try:
+        loaded = trimesh.load(str(path), process=False)
+    except Exception:  # noqa: BLE001  (already read once by _read_mesh_file)
+        return False
+    geoms = loaded.geometry.values() if isinstance(loaded, trimesh.Scene) else [loaded]
+    return any(bool(getattr(getattr(getattr(g, "visual", None), "material", None),
+                            "doubleSided", False)) for g in geoms)
 
 
 def _read_mesh_file(path: Path) -> trimesh.Trimesh:
@@ -287,7 +339,10 @@ def _validated(mesh: trimesh.Trimesh, what: str) -> trimesh.Trimesh:
 # ---------------------------------------------------------------------------------------------
 # scene TOML
 
-_TOP_KEYS = {"mesh", "name", "size", "width", "height", "camera"}
+_TOP_KEYS = {"mesh", "name", "size", "width", "height", "camera", "double_sided", "ao_radius",
+             "lights"}
+_LIGHT_KEYS = {"point": {"type", "position", "intensity"},
+               "quad": {"type", "corner", "u", "v", "emission"}}
 _CAMERA_KEYS = {"position", "look_at", "up", "fov_deg"}
 
 
@@ -318,7 +373,51 @@ def _from_toml(path: Path) -> Scene:
         camera = _camera(data.get("camera"), mesh, up)
     except CameraError as e:
         raise SceneError(f"{path}: {e}") from None
-    return Scene(mesh, camera, size, name)
+    double = data.get("double_sided", _gltf_double_sided(mesh_path) if mesh_path.is_file()
+                      else False)
+    if not isinstance(double, bool):
+        raise SceneError(f"{path}: double_sided must be true or false")
+    ao = data.get("ao_radius")
+    if ao is not None and (isinstance(ao, bool) or not isinstance(ao, (int, float))
+                           or not 0 < ao < float("inf")):
+        raise SceneError(f"{path}: ao_radius must be a positive number, got {ao!r}")
+    return Scene(mesh, camera, size, name, None, _lights(path, data.get("lights", [])), double,
+                 None if ao is None else float(ao))
+
+
+def _lights(path: Path, specs) -> list:
+    """Workload lights from the TOML's [[lights]] tables."""
+    from .workloads import PointLight, QuadLight
+    if not isinstance(specs, list):
+        raise SceneError(f"{path}: lights must be an array of tables ([[lights]])")
+    out = []
+    for i, spec in enumerate(specs):
+        what = f"{path}: lights[{i}]"
+        kind = spec.get("type") if isinstance(spec, dict) else None
+        if kind not in _LIGHT_KEYS:
+            raise SceneError(f"{what}: type must be \"point\" or \"quad\"")
+        if set(spec) != _LIGHT_KEYS[kind]:
+            raise SceneError(f"{what}: a {kind} light has exactly the keys "
+                             f"{', '.join(sorted(_LIGHT_KEYS[kind]))}")
+        vec = {k: _vec3(v, f"{what}.{k}") for k, v in spec.items() if k != "type"}
+        for k in ("intensity", "emission"):
+            if k in vec and min(vec[k]) < 0:
+                raise SceneError(f"{what}: {k} must not be negative")
+        if kind == "point":
+            out.append(PointLight(vec["position"], vec["intensity"]))
+        elif np.linalg.norm(np.cross(vec["u"], vec["v"])) == 0:
+            raise SceneError(f"{what}: u and v span no area")
+        else:
+            out.append(QuadLight(vec["corner"], vec["u"], vec["v"], vec["emission"]))
+    return out
+
+
+def _vec3(v, what) -> tuple:
+    ok = isinstance(v, list) and len(v) == 3 and all(
+        isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x) for x in v)
+    if not ok:
+        raise SceneError(f"{what} must be 3 finite numbers, got {v!r}")
+    return tuple(float(x) for x in v)
 
 
 def _read_toml(path: Path) -> dict:
