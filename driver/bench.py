@@ -476,3 +476,36 @@ def plot_workload_sweep(sweep: dict, path, title: str) -> None:
     ax.set_title(title, fontsize=9)
     fig.tight_layout()
     fig.savefig(str(path), format="png")
+
+
+def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, tile=64,
+                  progress=True, **options) -> dict:
+    """The same tiled frame on "rtl" in this process and on a LocalCluster of ``workers``
+    processes: wall times (scheduler start-up and the once-per-worker set-up included), the
+    speed-up, and whether the two frames are identical (image, per-pixel ops, statistics but wall
+    times)."""
+    from .bvh4 import build
+    from .scene import load_scene
+    from .tiles import plan, render_tiles
+    from .workloads import setup_for
+
+    scene = load_scene(scene_name)
+    setup, bvh = setup_for(scene), build(scene.mesh)
+    n_tiles = len(plan(size, size, tile))
+    runs = {}
+    for n in (1, int(workers)):
+        bar = _bar(n_tiles, f"{workload} {size}x{size} on {n} worker(s)", "tile", progress)
+        t0 = time.perf_counter()
+        runs[n] = (render_tiles(setup, bvh, size, size, workload, options, "rtl", tile, n,
+                                progress=bar.hook), time.perf_counter() - t0)
+        bar.close()
+    (a, ta), (b, tb) = runs[1], runs[int(workers)]
+    keep = ("rays", "hits", "box_ops", "tri_ops", "ops", "cycles")
+    same = (np.array_equal(a.radiance, b.radiance)
+            and all(np.array_equal(a.ops[k], b.ops[k]) for k in a.ops)
+            and {k: a.stats[k] for k in keep} == {k: b.stats[k] for k in keep})
+    return {"scene": scene.name, "workload": workload, "width": size, "height": size,
+            "tile": tile, "tiles": n_tiles, **options, "workers": int(workers),
+            "wall_s_1_worker": ta, "wall_s_n_workers": tb,
+            "speedup": ta / tb if tb > 0 else None, "identical": bool(same),
+            "rays": a.stats["rays"], "ops": a.stats["ops"]}

@@ -64,8 +64,9 @@ def _quads(quads) -> np.ndarray:
     return np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
 
 
-def cornell() -> Built:
-    """The Cornell box (see the module docstring)."""
+def cornell(bunny=None) -> Built:
+    """The Cornell box (see the module docstring); ``bunny`` is not used (the ``BUILT``
+    signature)."""
     from .workloads import QuadLight
     tris, albedo = [], []
     for _, refl, quads in _CORNELL:
@@ -104,10 +105,10 @@ def floor_under(triangles: np.ndarray, margin: float = 1.5):
     return floor, light
 
 
-def bunny_floor() -> Built:
-    """The Stanford bunny (z up) on a floor, lit by a quad light above it; single-sided."""
-    from .scene import builtin, triangles
-    bunny = triangles(builtin("bunny"))
+def bunny_floor(bunny) -> Built:
+    """The Stanford bunny (``bunny``: a callable returning its (m, 3, 3) triangles, z up) on a
+    floor, lit by a quad light above it; single-sided."""
+    bunny = bunny()
     floor, light = floor_under(bunny)
     tris = np.concatenate([bunny.astype(np.float64), floor]).astype(np.float32)
     albedo = np.concatenate([np.full((len(bunny), 3), (0.80, 0.76, 0.70)),
@@ -115,11 +116,11 @@ def bunny_floor() -> Built:
     return Built(tris, albedo, np.zeros((len(tris), 3)), [light], _framing(bunny), False)
 
 
-def instanced_bunnies(count: int = 21, seed: int = 0) -> np.ndarray:
-    """(count x 99,785, 3, 3) float32: copies of the bunny on a square grid, each rotated about z
-    and scaled by a deterministic pseudo-random amount (21 copies: 2.1 million triangles)."""
-    from .scene import builtin, triangles
-    bunny = triangles(builtin("bunny")).astype(np.float64)
+def instanced_bunnies(bunny: np.ndarray, count: int = 21, seed: int = 0) -> np.ndarray:
+    """(count x len(bunny), 3, 3) float32: copies of the ``bunny`` triangles on a square grid,
+    each rotated about z and scaled by a deterministic pseudo-random amount (21 copies of the
+    99,785-triangle bunny: 2.1 million triangles)."""
+    bunny = np.asarray(bunny, np.float64)
     lo, hi = bunny.reshape(-1, 3).min(0), bunny.reshape(-1, 3).max(0)
     base = bunny - np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
     pitch = 1.6 * max(hi[0] - lo[0], hi[1] - lo[1])
@@ -135,9 +136,9 @@ def instanced_bunnies(count: int = 21, seed: int = 0) -> np.ndarray:
     return out.reshape(-1, 3, 3)
 
 
-def bunny_grid(count: int = 21) -> Built:
-    """``instanced_bunnies(count)`` on one floor with one quad light; single-sided."""
-    bunnies = instanced_bunnies(count)
+def bunny_grid(bunny, count: int = 21) -> Built:
+    """``instanced_bunnies`` of ``bunny()`` on one floor with one quad light; single-sided."""
+    bunnies = instanced_bunnies(bunny(), count)
     floor, light = floor_under(bunnies, margin=0.6)
     tris = np.concatenate([bunnies.astype(np.float64), floor]).astype(np.float32)
     albedo = np.full((len(tris), 3), (0.80, 0.76, 0.70))

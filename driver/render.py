@@ -21,16 +21,13 @@ import numpy as np
 
 from .backends import BackendError
 from .camera import check_size, primary_rays
+from .tiles import DEFAULT_TILE
 from .errors import RayflexError
 from .outputs import save_image
 from .progress import bar as progress_bar
 from .progress import phase
 from .scene import Scene, load_scene
 
-BASE_COLOUR = np.array([0.92, 0.86, 0.76])           # surface albedo
-AMBIENT = 0.08
-BG_TOP = np.array([0.42, 0.52, 0.66])
-BG_BOTTOM = np.array([0.10, 0.11, 0.14])
 # Peak resident memory of a frame, measured with /usr/bin/time -v (maximum RSS) on the sphere
 # scene at 256², 512² and 1024² (--check-embree makes no difference): golden 167 / 403 / 1,294 MB,
 # rtl 144 / 282 / 853 MB. The slope between 512² and 1024² is 1,160 bytes per ray on golden and
@@ -54,13 +51,19 @@ class RenderResult:
     stats: dict
     embree: dict | None = None
     bvh_stats: dict = field(default_factory=dict)
+    ops_by_type: dict = field(default_factory=dict)    # ray type -> (h, w) ops (workloads)
 
     def save(self, path) -> None:
         """Write the image (PNG, JPEG, ... by the extension of ``path``)."""
         save_image(self.image, path)
 
     def heatmap_image(self, title: str | None = None) -> np.ndarray:
-        """The operations-per-pixel heat map as an RGB image."""
+        """The operations-per-pixel heat map as an RGB image (one panel per ray type when the
+        frame has several)."""
+        if len(self.ops_by_type) > 1:
+            return heatmap_panels(self.ops_by_type, self.width, self.height,
+                                  title or f"{self.scene.name} {self.width}x{self.height}: "
+                                           "datapath ops per pixel, by ray type")
         return heatmap_image(self.ops, self.width, self.height,
                              title=title or f"{self.scene.name} {self.width}x{self.height}: "
                                             f"datapath ops per pixel "
@@ -72,16 +75,68 @@ class RenderResult:
 
 
 def render(scene, width=None, height=None, backend: str = "rtl", progress: bool = True,
-           check_embree: bool = False) -> RenderResult:
+           check_embree: bool = False, workload: str = "primary", spp: int = 1, bounces: int = 1,
+           ao_rays: int = 4, seed: int = 0, tile: int | None = None, workers: int = 1,
+           scheduler: str | None = None) -> RenderResult:
     """Render ``scene`` (a Scene, or anything ``load_scene`` takes) at width x height (default:
     the scene's size) with every box/triangle test on ``backend``; optionally cross-check every
-    primary ray against Embree."""
-    from .bvh4 import build
-    from .tracer import trace
+    ray against Embree.
 
+    The primary workload with one sample, untiled, is one wavefront of every pixel (the frame of
+    earlier versions, with ``trace`` the TraceResult). Any other ``workload`` (SPEC 13: shadow,
+    ao, path with ``spp``, ``bounces``, ``ao_rays``, ``seed``), a ``tile`` size, ``workers`` > 1
+    or a Dask ``scheduler`` renders through ``driver.tiles`` (``trace`` is None; statistics per
+    ray type in ``stats["by_type"]``); so does a frame too big for memory as one wavefront."""
+    from .workloads import check_arguments
+    check_arguments(spp, bounces, ao_rays, seed)
     scene = load_scene(scene)
     w, h = check_size(width if width is not None else scene.size[0],
                       height if height is not None else scene.size[1])
+    whole = (workload == "primary" and spp == 1 and tile is None and workers == 1
+             and not scheduler)
+    if whole and fits(w * h):
+        return _render_whole(scene, w, h, backend, progress, check_embree)
+    return _render_tiles(scene, w, h, backend, progress, check_embree, workload,
+                         dict(spp=spp, bounces=bounces, ao_rays=ao_rays, seed=seed),
+                         tile or DEFAULT_TILE, workers, scheduler)
+
+
+def _render_tiles(scene, w, h, backend, progress, check_embree, workload, options, tile,
+                  workers, scheduler) -> RenderResult:
+    from .bvh4 import build
+    from .tiles import plan, render_tiles
+    from .workloads import WORKLOADS, setup_for, tone_map
+    if workload not in WORKLOADS:
+        raise ValueError(f"unknown workload {workload!r}; available: {', '.join(WORKLOADS)}")
+    check_frame_memory(w * h, options["spp"], tile)
+    name = backend if isinstance(backend, str) else getattr(backend, "name", "backend")
+    spec = backend if isinstance(backend, str) else name
+    if workers == 1 and not scheduler:
+        spec = open_backend(backend)        # fail early, before a long BVH build
+    with phase(f"building the BVH4 of {len(scene.mesh.faces):,} triangles", progress):
+        bvh = build(scene.mesh)
+    setup = setup_for(scene)
+    tiles = plan(w, h, tile)
+    bar = progress_bar(len(tiles), f"{scene.name} {w}x{h} {workload} {name}", "tile", progress)
+    try:
+        res = render_tiles(setup, bvh, w, h, workload, options, spec, tile, workers, scheduler,
+                           check_embree, bar.hook)
+    finally:
+        bar.close()
+    image = tone_map(res.radiance, w, h, linear=workload in ("primary", "ao"))
+    by_type = {k: v.reshape(h, w) for k, v in res.ops.items()}
+    total = sum(v.astype(np.int64) for v in by_type.values())
+    stats = dict(res.stats)
+    stats.update(bvh=dict(bvh.stats), workload=workload, tile=tile, workers=workers, **options)
+    return RenderResult(scene, w, h, image, total, None, stats, stats.get("embree"),
+                        dict(bvh.stats), by_type)
+
+
+def _render_whole(scene, w, h, backend, progress, check_embree) -> RenderResult:
+    """The primary frame as one wavefront of every pixel."""
+    from .bvh4 import build
+    from .tracer import trace
+
     check_memory(w * h)
     origins, dirs = primary_rays(scene.camera, w, h)
     be = open_backend(backend)              # fail early, before a long BVH build
@@ -126,6 +181,40 @@ def available_memory() -> int | None:
         return None
 
 
+# a tiled frame keeps per pixel: radiance (3 float32), ops per ray type (int32, up to 4 types),
+# the image (3 bytes) and the heat map's float copy of the ops (8 bytes)
+FRAME_BYTES_PER_PIXEL = 12 + 16 + 3 + 8
+
+
+def fits(rays: int) -> bool:
+    """Whether a frame of ``rays`` primary rays fits in memory as one wavefront."""
+    return fits_in(rays, available_memory())
+
+
+def fits_in(rays: int, available: int | None) -> bool:
+    return available is None or estimate_bytes(rays) <= available
+
+
+def check_frame_memory(pixels: int, spp: int = 1, tile: int | None = None) -> None:
+    """Before any work: a frame that fits as one wavefront passes; otherwise it will be tiled
+    (``tile``, default ``DEFAULT_TILE``), and that must fit (one-line RayflexError if not)."""
+    if tile is None and spp == 1 and fits(pixels):
+        return
+    t = tile or DEFAULT_TILE
+    check_memory_tiled(pixels, t * t * spp)
+
+
+def check_memory_tiled(pixels: int, tile_rays: int, available: int | None = None) -> None:
+    """Refuse (one-line RayflexError) a tiled frame whose pixels' buffers plus one tile's rays
+    exceed the memory available."""
+    avail = available_memory() if available is None else available
+    need = BASE_BYTES + FRAME_BYTES_PER_PIXEL * int(pixels) + PEAK_BYTES_PER_RAY * int(tile_rays)
+    if avail is not None and need > avail:
+        raise RayflexError(f"a tiled frame of {pixels:,} pixels needs about {need / 2**30:.1f} "
+                           f"GiB, more than the {avail / 2**30:.1f} GiB available: use a smaller "
+                           "--size or --tile")
+
+
 def estimate_bytes(rays: int) -> int:
     """Estimated peak memory of a frame of ``rays`` primary rays (see PEAK_BYTES_PER_RAY)."""
     return BASE_BYTES + PEAK_BYTES_PER_RAY * int(rays)
@@ -141,7 +230,7 @@ def check_memory(rays: int, available: int | None = None) -> None:
         else 1
     raise RayflexError(f"a frame of {rays:,} rays needs about {need / 2**30:.1f} GiB, more than "
                        f"the {avail / 2**30:.1f} GiB of memory available: use a smaller --size "
-                       f"(at most about {fit} x {fit} here; frames are not tiled yet)")
+                       f"(at most about {fit} x {fit} here) or --tile N")
 
 
 def open_backend(name):
@@ -157,30 +246,18 @@ def open_backend(name):
 
 
 def shade(trace_result, triangles, dirs, width: int, height: int) -> np.ndarray:
-    """Lambert with a head light and flat face normals; misses get the background gradient.
+    """The primary workload's head-light shading (``driver.workloads.headlight``) of a whole
+    frame, as an (height, width, 3) uint8 image, row 0 at the top.
 
     trace_result : has ``prim`` (n,) int (-1 = miss); triangles : (m, 3, 3); dirs : (n, 3)
-    Returns an (height, width, 3) uint8 image, row 0 at the top.
     """
+    from .workloads import headlight, tone_map
     n = width * height
     prim = np.asarray(trace_result.prim, np.int64).reshape(-1)
     if len(prim) != n:
         raise ValueError(f"shade: {len(prim)} rays for a {width}x{height} image")
-    rows = np.repeat(np.linspace(0.0, 1.0, height), width)[:, None]
-    rgb = BG_TOP * (1 - rows) + BG_BOTTOM * rows                     # (n, 3) linear-ish
-    hit = prim >= 0
-    if hit.any():
-        tri = np.asarray(triangles, np.float64)[prim[hit]]
-        nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        length = np.linalg.norm(nrm, axis=1)
-        d = np.asarray(dirs, np.float64).reshape(-1, 3)[hit]
-        d = d / np.linalg.norm(d, axis=1, keepdims=True)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            lam = np.abs(np.einsum("ij,ij->i", nrm, d)) / length
-        lam = np.nan_to_num(lam, nan=0.0)                            # degenerate triangles
-        rgb[hit] = BASE_COLOUR * (AMBIENT + (1 - AMBIENT) * lam[:, None])
-    rgb = np.clip(rgb, 0.0, 1.0) ** (1 / 2.2)
-    return (rgb * 255 + 0.5).astype(np.uint8).reshape(height, width, 3)
+    return tone_map(headlight(prim, triangles, dirs, np.arange(n), width, height), width, height,
+                    linear=True)
 
 
 def heatmap_image(ops_per_pixel, width: int, height: int, title: str | None = None) -> np.ndarray:
@@ -211,3 +288,29 @@ def heatmap_image(ops_per_pixel, width: int, height: int, title: str | None = No
 def heatmap(ops_per_pixel, width: int, height: int, path, title: str | None = None) -> None:
     """Write the heat map (``heatmap_image``) to ``path`` (format by extension)."""
     save_image(heatmap_image(ops_per_pixel, width, height, title), path)
+
+
+def heatmap_panels(ops_by_type: dict, width: int, height: int, title: str) -> np.ndarray:
+    """Heat maps of datapath operations per pixel, one panel per ray type (each with its own
+    colour bar: the ray types differ by an order of magnitude), as an RGB image."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    kinds = list(ops_by_type)
+    cols = min(len(kinds), 3)
+    rows = -(-len(kinds) // cols)
+    aspect = width / height
+    fig = Figure(figsize=(cols * (3.2 * aspect + 1.0), rows * 3.4 + 0.5), dpi=100)
+    canvas = FigureCanvasAgg(fig)
+    for i, kind in enumerate(kinds):
+        ops = np.asarray(ops_by_type[kind]).reshape(height, width)
+        ax = fig.add_subplot(rows, cols, i + 1)
+        im = ax.imshow(ops, cmap="inferno", interpolation="nearest", vmin=0,
+                       vmax=max(1, int(ops.max())) if ops.size else 1)
+        ax.set_axis_off()
+        ax.set_title(f"{kind}: {int(ops.sum()):,} ops", fontsize=9)
+        fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    canvas.draw()
+    return np.asarray(canvas.buffer_rgba())[..., :3].copy()

@@ -135,7 +135,7 @@ def load_scene(name_or_path) -> Scene:
 def _rendering_builtin(name: str) -> Scene:
     from .builtins import BUILT
     from .workloads import Materials
-    b = BUILT[name]()
+    b = BUILT[name](lambda: triangles(builtin("bunny")))
     mesh = _mesh(b.triangles.reshape(-1, 3), np.arange(3 * len(b.triangles)).reshape(-1, 3), name)
     return Scene(mesh, Camera(**b.camera).validate(), (DEFAULT_SIZE, DEFAULT_SIZE), name,
                  Materials(b.albedo, b.emission), list(b.lights), b.double_sided)

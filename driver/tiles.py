@@ -67,8 +67,11 @@ class TileResult:
 
 
 def _backend(spec):
-    """This process's backend for ``spec`` (a name, or (name, options)), made once."""
+    """This process's backend for ``spec`` (a name, or (name, options)), made once; a backend
+    object is used as it is (in this process only)."""
     from .backends import backend
+    if callable(getattr(spec, "run", None)):
+        return spec
     name, options = (spec, {}) if isinstance(spec, str) else spec
     key = (name, tuple(sorted(options.items())))
     if key not in _WORKER_BACKENDS:

@@ -6,7 +6,7 @@ batch is one wavefront through the datapath with all its rays in flight; a frame
 them:
 
 - ``primary``: one camera ray per pixel and sample (pixel centre for one sample, stratified jitter
-  for more), closest hit; the image is today's head-light shading.
+  for more), closest hit; the image is head-light shading (``headlight``).
 - ``shadow``: primary rays, then from every hit one shadow ray to a point sampled on the light
   (any hit, extent just short of the light); the image is direct diffuse lighting.
 - ``ao``: primary rays, then ``ao_rays`` cosine-distributed rays per hit on the hemisphere of the
@@ -35,6 +35,10 @@ from .stats import merge
 WORKLOADS = ("primary", "shadow", "ao", "path")
 SHADOW_EXTENT = 1.0 - 1e-4     # shadow rays aim at the light sample with d = y - x: t in [0, 1)
 DEFAULT_ALBEDO = 0.75
+BASE_COLOUR = np.array([0.92, 0.86, 0.76])     # the primary workload's surface colour
+AMBIENT = 0.08
+BG_TOP = np.array([0.42, 0.52, 0.66])          # its background gradient
+BG_BOTTOM = np.array([0.10, 0.11, 0.14])
 AO_RADIUS_REL = 0.1            # default AO radius: 10 % of the scene's bounding-box diagonal
 
 
@@ -253,7 +257,8 @@ def run(setup: Setup, bvh, width: int, height: int, tracer, workload: str = "pri
     radiance = np.zeros((npix * fr.spp, 3))
     prim = fr.primary()
     if workload == "primary":
-        radiance[:] = _headlight(fr, prim)
+        radiance[:] = headlight(prim.result.prim, setup.triangles, prim.dirs, prim.pixel, width,
+                                height)
     elif workload == "ao":
         rows, p, n, _ = fr.surface(prim)
         ao = fr.hemisphere("ao", prim, rows, n, p, 0, sampling.AO, fr.ao_rays)
@@ -264,14 +269,25 @@ def run(setup: Setup, bvh, width: int, height: int, tracer, workload: str = "pri
     return _finish(fr, radiance)
 
 
-def _headlight(fr: Frame, b: Batch) -> np.ndarray:
-    """Lambert with a head light (the primary workload's look): radiance (k, 3)."""
-    out = np.zeros((len(b.pixel), 3))
-    rows, p, n, prim = fr.surface(b)
-    d = b.dirs[rows].astype(np.float64)
-    lam = -np.einsum("ij,ij->i", n, d / np.linalg.norm(d, axis=1, keepdims=True))
-    out[rows] = fr.setup.materials.albedo[prim] * (0.08 + 0.92 * np.clip(lam, 0, 1))[:, None]
-    return out
+def headlight(prim, triangles, dirs, pixels, width: int, height: int) -> np.ndarray:
+    """The primary workload's look, linear RGB (k, 3): flat face normals, Lambert with a head
+    light (the light at the camera), a little ambient; misses show a vertical background gradient
+    (the pixel's row picks it). Gamma is applied by ``tone_map(..., linear=True)``."""
+    prim = np.asarray(prim, np.int64).reshape(-1)
+    rows = np.linspace(0.0, 1.0, height)[np.asarray(pixels, np.int64) // width][:, None]
+    rgb = BG_TOP * (1 - rows) + BG_BOTTOM * rows
+    hit = prim >= 0
+    if hit.any():
+        tri = np.asarray(triangles, np.float64)[prim[hit]]
+        nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        length = np.linalg.norm(nrm, axis=1)
+        d = np.asarray(dirs, np.float64).reshape(-1, 3)[hit]
+        d = d / np.linalg.norm(d, axis=1, keepdims=True)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            lam = np.abs(np.einsum("ij,ij->i", nrm, d)) / length
+        lam = np.nan_to_num(lam, nan=0.0)                            # degenerate triangles
+        rgb[hit] = BASE_COLOUR * (AMBIENT + (1 - AMBIENT) * lam[:, None])
+    return rgb
 
 
 def _paths(fr: Frame, b: Batch, radiance: np.ndarray, bounces: int) -> None:

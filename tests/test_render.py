@@ -11,7 +11,8 @@ from PIL import Image
 
 from driver.camera import primary_rays
 from driver.outputs import save_image
-from driver.render import (BG_BOTTOM, BG_TOP, PEAK_BYTES_PER_RAY, RenderResult, check_memory,
+from driver.workloads import BG_BOTTOM, BG_TOP
+from driver.render import (PEAK_BYTES_PER_RAY, RenderResult, check_memory, check_memory_tiled,
                            estimate_bytes, heatmap, render, shade)
 from driver.scene import load_scene
 
@@ -68,8 +69,12 @@ def test_memory_estimate_refuses_a_frame_that_cannot_fit(monkeypatch):
         check_memory(rays, available=16 * 2**30)
     check_memory(256 * 256, available=16 * 2**30)           # the default frame fits easily
     import driver.render
-    monkeypatch.setattr(driver.render, "available_memory", lambda: 16 * 2**30)
-    with pytest.raises(ValueError, match="GiB"):            # render() checks before any work
+    # too big as one wavefront: tiled (issue 16), and refused only if even the tiled frame's
+    # buffers cannot fit
+    assert not driver.render.fits_in(rays, 16 * 2**30)
+    check_memory_tiled(rays, 64 * 64, available=16 * 2**30)
+    monkeypatch.setattr(driver.render, "available_memory", lambda: 1 * 2**30)
+    with pytest.raises(ValueError, match="tiled frame.*GiB"):   # render() checks before any work
         render("sphere", 8192, 8192, backend="golden", progress=False)
 
 

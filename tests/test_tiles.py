@@ -7,9 +7,9 @@ import socket
 import numpy as np
 import pytest
 
-from driver import builtins, tiles, workloads
+from driver import tiles, workloads
 from driver.bvh4 import build
-from driver.camera import Camera
+from driver.scene import load_scene
 
 OPTS = dict(spp=2, bounces=2, seed=5)
 SAME = ("rays", "hits", "box_ops", "tri_ops", "ops", "node_bytes_fetched")
@@ -17,10 +17,8 @@ SAME = ("rays", "hits", "box_ops", "tri_ops", "ops", "node_bytes_fetched")
 
 @pytest.fixture(scope="module")
 def scene():
-    b = builtins.bunny_floor()
-    setup = workloads.Setup(b.triangles, Camera(**b.camera),
-                            workloads.Materials(b.albedo, b.emission), b.lights, b.double_sided)
-    return setup, build(b.triangles)
+    b = load_scene("bunny_floor")
+    return workloads.setup_for(b), build(b.triangles)
 
 
 @pytest.fixture(scope="module")

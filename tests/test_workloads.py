@@ -4,23 +4,17 @@ traversal, per-type statistics, tiles equal to the whole frame, golden == rtl, E
 import numpy as np
 import pytest
 
-from driver import builtins, sampling, workloads
+from driver import sampling, workloads
 from driver.backends import backend
 from driver.bvh4 import build
-from driver.camera import Camera
+from driver.scene import load_scene
 from driver.tracer import trace
-
-
-def setup_of(built):
-    return workloads.Setup(built.triangles, Camera(**built.camera),
-                           workloads.Materials(built.albedo, built.emission), built.lights,
-                           built.double_sided)
 
 
 @pytest.fixture(scope="module")
 def floor_scene():
-    b = builtins.bunny_floor()
-    return setup_of(b), build(b.triangles)
+    b = load_scene("bunny_floor")
+    return workloads.setup_for(b), build(b.triangles)
 
 
 def tracer_on(be):
@@ -104,10 +98,10 @@ class Recording:
 
 
 def test_any_hit_stops_at_its_first_hit_and_returns_a_real_one():
-    b = builtins.bunny_floor()
+    b = load_scene("bunny_floor")
     bvh = build(b.triangles)
     rng = np.random.default_rng(4)
-    o = np.tile(np.asarray(b.camera["position"], np.float32), (400, 1))
+    o = np.tile(np.asarray(b.camera.position, np.float32), (400, 1))
     target = b.triangles[rng.integers(0, len(b.triangles), 400)].mean(axis=1)
     d = (target - o).astype(np.float32)
     rec = Recording()

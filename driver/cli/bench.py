@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from .common import add_json, add_progress, check_flag_size, check_positive, wrote
+from .common import (add_json, add_progress, add_workload, check_flag_size, check_positive,
+                     workload_options, wrote)
 
 
 def add_parser(subparsers):
@@ -40,6 +41,15 @@ def add_parser(subparsers):
     p.add_argument("--repeat", type=int, default=REPEAT, metavar="N",
                    help=f"timed passes of the rtl and pyverilator streams; the best counts "
                         f"(default {REPEAT})")
+    add_workload(p, default=None)
+    p.add_argument("--no-memory", action="store_true",
+                   help="no node cache and memory model (the JSON's memory object; with "
+                        "--workload, the per-type replays and the sweep with memory)")
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="also time the --workload (default path) frame tiled on a local Dask "
+                        "cluster of N processes against one process: the speed-up")
+    p.add_argument("--tile", type=int, default=64, metavar="N",
+                   help="tile size of the --workers comparison (default 64)")
     add_progress(p)
     return p
 
@@ -60,7 +70,8 @@ def _int_list(text: str, flag: str) -> list[int]:
 def run(args) -> int:
     from pathlib import Path
 
-    from ..bench import bench, table
+    from .. import rtunit
+    from ..bench import bench, bench_workers, bench_workload, table
     from ..outputs import JSON, PNG, Outputs, write_json
     from ..render import check_memory
 
@@ -70,6 +81,10 @@ def run(args) -> int:
     check_positive("--sweep-size", args.sweep_size, 0)
     check_positive("--pyverilator-requests", args.pyverilator_requests, 0)
     check_positive("--repeat", args.repeat)
+    check_positive("--workers", args.workers)
+    check_positive("--tile", args.tile)
+    options = workload_options(args)
+    memory = None if args.no_memory else rtunit.MemoryModel()
     sweep_rays = _int_list(args.sweep_rays, "--sweep-rays")
     sweep_pipes = _int_list(args.sweep_pipelines, "--sweep-pipelines")
     if max(sweep_pipes) > MAX_PIPELINES:
@@ -85,12 +100,32 @@ def run(args) -> int:
             else "rayflex_bench_rtunit.png"), PNG)
 
     with outs.commit():
+        if args.workers > 1:
+            doc = bench_workers(args.scene, args.workload or "path", args.size or 128,
+                                args.workers, args.tile, not args.no_progress, **options)
+            if js:
+                write_json(doc, outs.temp(js))
+            print("\n".join(f"{k:<18} {v}" for k, v in doc.items()))
+            wrote(outs.paths())
+            return 0 if doc["identical"] else 1
+        if args.workload:
+            doc = bench_workload(args.scene, args.workload, args.size or 64,
+                                 rays_in_flight=args.rays_in_flight, pipelines=args.pipelines,
+                                 sweep_rays=sweep_rays, plot=outs.temp(plot) if plot else None,
+                                 progress=not args.no_progress, memory=memory, **options)
+            if plot:
+                doc["plot"] = str(plot)
+            if js:
+                write_json(doc, outs.temp(js))
+            print(workload_table(doc))
+            wrote(outs.paths())
+            return 0
         doc = bench(args.scene, size=args.size, rays_in_flight=args.rays_in_flight,
                     pipelines=args.pipelines, sweep_size=args.sweep_size,
                     sweep_rays=sweep_rays, sweep_pipelines=sweep_pipes,
                     plot=outs.temp(plot) if plot else None,
                     pyverilator_requests=args.pyverilator_requests,
-                    repeat=args.repeat, progress=not args.no_progress)
+                    repeat=args.repeat, progress=not args.no_progress, memory=memory)
         if plot and doc.get("rtunit_sweep"):
             doc["rtunit_sweep"]["plot"] = str(plot)     # the target, not the temporary file
         if js:
@@ -98,3 +133,20 @@ def run(args) -> int:
     print(table(doc))
     wrote(outs.paths())
     return 0
+
+
+def workload_table(doc: dict) -> str:
+    """The per-ray-type mix of a ``bench --workload`` run, one row per ray type."""
+    head = (f"{doc['scene']} {doc['width']}x{doc['height']} {doc['workload']} (spp {doc['spp']}, "
+            f"bounces {doc['bounces']}): {doc['frame']['rays']} rays, {doc['frame']['ops']} ops")
+    rows = [head, f"{'type':>8} {'rays':>8} {'box/ray':>8} {'tri/ray':>8} {'util':>6} "
+                  f"{'util+mem':>8} {'hit rate':>8} {'B/ray':>7} {'anyhit/closest':>14}"]
+    for kind, t in doc["by_type"].items():
+        m = t.get("memory", {})
+        ratio = t.get("any_hit_vs_closest_ops")
+        rows.append(f"{kind:>8} {t['rays']:>8} {t['box_ops_per_ray']:>8.2f} "
+                    f"{t['tri_ops_per_ray']:>8.2f} {t['replay_utilization']:>6.3f} "
+                    f"{m.get('replay_utilization', float('nan')):>8.3f} "
+                    f"{m.get('hit_rate', float('nan')):>8.3f} {m.get('bytes_per_ray', 0):>7.0f} "
+                    f"{'' if ratio is None else format(ratio, '.3f'):>14}")
+    return "\n".join(rows)

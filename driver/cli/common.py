@@ -54,6 +54,41 @@ def add_json(p, help_text: str, *aliases: str) -> None:
         p.add_argument(alias, dest="json", metavar="PATH", help=argparse.SUPPRESS)
 
 
+def add_workload(p, default: str | None = "primary") -> None:
+    """The workload flags of SPEC 12/13 (render and bench)."""
+    from ..workloads import WORKLOADS
+    p.add_argument("--workload", default=default, choices=WORKLOADS,
+                   help="rays of the frame: primary (camera rays), shadow (+ one shadow ray per "
+                        "hit), ao (+ --ao-rays ambient-occlusion rays per hit), path (diffuse "
+                        "path tracing with next-event estimation)"
+                        + (f" (default: {default})" if default else ""))
+    p.add_argument("--spp", type=int, default=1, metavar="N", help="samples per pixel (default 1)")
+    p.add_argument("--bounces", type=int, default=1, metavar="N",
+                   help="path: diffuse bounces after the camera ray (default 1; 0: direct light)")
+    p.add_argument("--ao-rays", type=int, default=4, metavar="N",
+                   help="ao: rays per hit (default 4)")
+    p.add_argument("--seed", type=int, default=0, metavar="N",
+                   help="seed of the counter-based random numbers (default 0)")
+
+
+def workload_options(args) -> dict:
+    """The checked workload options of ``add_workload`` (one-line ValueError if bad)."""
+    from ..workloads import check_arguments
+    check_arguments(args.spp, args.bounces, args.ao_rays, args.seed)
+    return dict(spp=args.spp, bounces=args.bounces, ao_rays=args.ao_rays, seed=args.seed)
+
+
+def add_workers(p) -> None:
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="trace tiles on a local Dask cluster of N one-thread processes "
+                        "(default 1: this process)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="trace tiles on the Dask cluster at ADDRESS (e.g. tcp://host:8786)")
+    p.add_argument("--tile", type=int, metavar="N",
+                   help="tile size in pixels (default: the whole frame as one wavefront when it "
+                        "fits in memory and one worker traces the primary workload, else 64)")
+
+
 def add_progress(p) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress on stderr")
 

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import sys
 
-from .common import (EXIT_CHECK, PROG, add_backend, add_json, add_progress, check_backend,
-                     check_flag_size, wrote)
+from .common import (EXIT_CHECK, PROG, add_backend, add_json, add_progress, add_workers,
+                     add_workload, check_backend, check_flag_size, check_positive,
+                     workload_options, wrote)
 
 
 def add_parser(subparsers):
@@ -28,13 +29,16 @@ def add_parser(subparsers):
     p.add_argument("--height", type=int, metavar="H", help="image height (1..8192)")
     add_backend(p)
     p.add_argument("--check-embree", action="store_true",
-                   help="cross-check every primary ray's closest hit against Embree")
+                   help="cross-check every ray against Embree (closest hits, and occlusion for "
+                        "shadow and AO rays)")
     add_json(p, "write frame statistics as JSON", "--stats-json")
     p.add_argument("--out", metavar="PATH",
                    help="image file; the format follows the extension (.png, .jpg, .tif, .webp, "
                         "...; default: SCENE.png)")
     p.add_argument("--heatmap", metavar="PATH",
                    help="ops-per-pixel heat map (default: beside --out, OUT_heatmap.png)")
+    add_workload(p)
+    add_workers(p)
     add_progress(p)
     return p
 
@@ -43,7 +47,7 @@ def run(args) -> int:
     from ..camera import check_size
     from ..outputs import IMAGE, JSON, Outputs, write_json
     from ..progress import phase
-    from ..render import check_memory, open_backend, render
+    from ..render import check_frame_memory, open_backend, render
     from ..scene import load_scene, resolve, scene_name
 
     if args.size is not None and (args.width is not None or args.height is not None):
@@ -51,18 +55,25 @@ def run(args) -> int:
     for flag in ("size", "width", "height"):
         check_flag_size(f"--{flag}", getattr(args, flag))
     check_backend(args.backend)
+    options = workload_options(args)
+    check_positive("--workers", args.workers)
+    if args.tile is not None:
+        check_positive("--tile", args.tile)
     source = resolve(args.scene)
     name = scene_name(source)
     outs = Outputs(inputs=[source.ref] if source.kind != "builtin" else [])
     out = outs.add("--out", args.out or f"{name}.png", IMAGE)
     hm = outs.add("--heatmap", args.heatmap or out.with_name(f"{out.stem}_heatmap.png"), IMAGE)
     js = outs.add("--json", args.json, JSON) if args.json else None
+    tiled = args.tile if args.tile is not None or args.workload == "primary" else 64
     if args.size is not None:
-        check_memory(args.size * args.size)
+        check_frame_memory(args.size * args.size, options["spp"], tiled)
     elif args.width is not None and args.height is not None:
-        check_memory(args.width * args.height)
+        check_frame_memory(args.width * args.height, options["spp"], tiled)
 
-    backend = open_backend(args.backend)      # a backend that cannot be built fails first
+    distributed = args.workers > 1 or args.scheduler
+    # a backend that cannot be built fails first (tiles on workers build their own)
+    backend = args.backend if distributed else open_backend(args.backend)
     with phase(f"loading {name}", not args.no_progress):
         scene = load_scene(source)
     w, h = scene.size
@@ -72,7 +83,8 @@ def run(args) -> int:
     h = args.height if args.height is not None else h
     w, h = check_size(w, h)
     res = render(scene, w, h, backend=backend, progress=not args.no_progress,
-                 check_embree=args.check_embree)
+                 check_embree=args.check_embree, workload=args.workload, tile=args.tile,
+                 workers=args.workers, scheduler=args.scheduler, **options)
     with outs.commit():
         res.save(outs.temp(out))
         res.save_heatmap(outs.temp(hm))
@@ -106,6 +118,10 @@ def summary(res) -> str:
         lines.append(f"BVH4: {len(res.scene.mesh.faces)} triangles, {b.get('box_nodes', '?')} box "
                      f"nodes, depth {b.get('depth', '?')}, SAH {b.get('sah_cost', 0):.1f}, "
                      f"{b.get('bytes', 0) / 2**20:.2f} MiB, built in {b.get('build_s', 0):.2f} s")
+    for kind, t in s.get("by_type", {}).items():
+        lines.append(f"  {kind:>8}: {t['rays']} rays, {t['hits']} hits, "
+                     f"{t['box_ops_per_ray']:.1f} box + {t['tri_ops_per_ray']:.1f} tri ops per "
+                     f"ray, {t['ops']} ops")
     e = s.get("embree")
     if e:
         lines.append(f"embree: {e['rays_compared']} rays compared, {e['hit_mismatch']} hit/miss "
