@@ -12,7 +12,7 @@ from driver.backends import build, harness
 from driver.backends import BackendError
 from driver.rtunit import ReplayMismatch
 from driver.verilate import BuildError, build_library
-from fpu_model import FPU_HARNESS, FPU_TB_SOURCES
+from support.fpu import FPU_HARNESS, FPU_TB_SOURCES
 
 BASELINE = {"EXTENDED": 0, "DISJOINT": 0, "LATENCY": 11}
 
