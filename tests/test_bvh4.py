@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-import meshes
+from support import meshes
 from driver import QUADBOX, TRIANGLE, backend, prepare_rays
 from driver.bvh4 import BOX_BYTES, BOX_TYPE, NO_CHILD, TRI_BYTES, TRI_TYPE, build
 

@@ -12,8 +12,9 @@ import pytest
 
 import driver
 from driver import ANGULAR, EUCLIDEAN, REQUEST_DTYPE
-from scalar_ref import ScalarState, scalar_run
-from test_golden import assert_bit_equal, mixed_stream, random_bits
+from support.scalar_ref import ScalarState, scalar_run
+from support.scoreboard import assert_bit_equal
+from support.streams import interleave, mixed_stream, random_vectors, vector_requests
 
 F32 = np.float32
 
@@ -22,42 +23,13 @@ def golden():
     return driver.backend("golden", extended=True)
 
 
-def random_vectors(rng, n, special=True):
-    """(n, 16) a and b: mostly normal values at random scales, some special lanes."""
-    scale = rng.choice([1e-3, 1, 10, 1e3], (n, 1)).astype(F32)
-    a = (rng.normal(size=(n, 16)) * scale).astype(F32)
-    b = (a + rng.normal(size=(n, 16)).astype(F32) * scale * F32(0.5)).astype(F32)
-    if special:
-        for x in (a, b):
-            m = rng.random((n, 16)) < 0.02
-            x[m] = rng.choice(np.array([np.nan, np.inf, -np.inf, -0.0, 0.0, 1e-40, 1e-45, 3e19,
-                                        -3e19], F32), m.sum())
-            m = rng.random((n, 16)) < 0.005
-            x[m] = random_bits(rng, m.sum())
-    return a, b
-
-
-def vector_requests(rng, op, lengths, special=True, masks=None):
-    """One job per entry of ``lengths`` (beats), reset on each job's last beat."""
-    n = int(sum(lengths))
-    req = np.zeros(n, REQUEST_DTYPE)
-    req["opcode"] = op
-    req["vec_a"], req["vec_b"] = random_vectors(rng, n, special)
-    req["vec_mask"] = rng.integers(0, 2**16, n) if masks is None else masks
-    full = rng.random(n) < 0.3
-    req["vec_mask"][full] = 0xFFFF
-    req["reset_accumulator"][np.cumsum(lengths) - 1] = 1
-    req["tag"] = np.arange(n)
-    return req
-
-
 def ext_equal(req, state=None, backend=None):
     """Run req on golden and on the scalar model, assert bit-equality, return golden responses."""
     backend = backend or golden()
     state = state or ScalarState(extended=True)
     with np.errstate(all="ignore"):
         got = backend.run(req)
-    assert_bit_equal(req, got, scalar_run(req, state))
+    assert_bit_equal(req, got, scalar_run(req, state), "golden", "scalar")
     return got
 
 
@@ -225,12 +197,7 @@ def test_interleaved_jobs_and_box_triangle_requests():
     other["vec_a"], other["vec_b"] = random_vectors(rng, len(other))
     other["vec_mask"] = 0xFFFF
     other["reset_accumulator"] = rng.random(len(other)) < 0.5
-    kinds = np.concatenate([np.zeros(len(e_jobs), int), np.ones(len(a_jobs), int),
-                            np.full(len(other), 2)])
-    kinds = kinds[rng.permutation(len(kinds))]                  # order within each stream kept
-    stream = np.zeros(len(kinds), REQUEST_DTYPE)
-    for k, part in enumerate((e_jobs, a_jobs, other)):
-        stream[kinds == k] = part
+    stream, kinds = interleave(rng, (e_jobs, a_jobs, other))    # order within each stream kept
     rsp = ext_equal(stream)
     alone_e = ext_equal(e_jobs)
     alone_a = ext_equal(a_jobs)

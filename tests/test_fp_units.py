@@ -1,7 +1,7 @@
 """Bit-exact tests of the binary32 units (rtl/rf_fp_*.sv) against numpy float32, plus the
 Verilator build system (driver/verilate.py) they run on.
 
-Every unit sees the same operand mix (tests/fpu_model.py: random bits, subnormals, specials,
+Every unit sees the same operand mix (tests/support/fpu.py: random bits, subnormals, specials,
 rounding ties and near-ties, overflow, underflow, cancellation, exponent differences 20..29,
 compare edges).
 """
@@ -19,8 +19,8 @@ import pytest
 
 from driver import verilate
 from driver.verilate import BuildError, build_library, find_cxx, lint
-from fpu_model import (FPU_HARNESS, FPU_TB_SOURCES, OUTPUTS, UNIT_SOURCES, FpuModel,
-                       exact_tie_fraction, gen_add_ties, gen_mul_ties, operand_mix, reference)
+from support.fpu import (FPU_HARNESS, FPU_TB_SOURCES, OUTPUTS, UNIT_SOURCES, FpuModel,
+                        exact_tie_fraction, gen_add_ties, gen_mul_ties, operand_mix, reference)
 
 DEFAULT_PER_CATEGORY = 16384     # 12 categories -> 196,608 pairs per unit (~0.2 s)
 SLOW_PAIRS = 16_000_000          # per unit, in chunks of 12 * 131,072 (~10 s)
@@ -71,7 +71,7 @@ def test_unit_matches_numpy(fpu, mix, unit, outputs):
 
 def test_exhaustive_special_pairs(fpu):
     """Every pair of a list of special and boundary values, in both orders."""
-    from fpu_model import SPECIALS
+    from support.fpu import SPECIALS
     a, b = np.meshgrid(SPECIALS, SPECIALS)
     a, b = a.ravel().astype(np.uint32), b.ravel().astype(np.uint32)
     check(fpu, a, b, np.full(a.size, "special_pairs"))

@@ -3,7 +3,7 @@
 import pytest
 
 from driver import backend
-from cases import CASES
+from support.cases import CASES
 
 
 @pytest.mark.parametrize("name,req,check", CASES, ids=[c[0] for c in CASES])

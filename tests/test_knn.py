@@ -18,7 +18,7 @@ from driver import ANGULAR, EUCLIDEAN
 from driver.cli import main
 from driver.knn import (LANES, RunStats, _classify, beat_masks, check_matrix, datapath_distances,
                         exact_distances, job_requests, job_results, knn, pad, run_jobs, topk)
-from test_golden import mixed_stream
+from support.streams import interleave, mixed_stream
 
 F32 = np.float32
 
@@ -150,16 +150,6 @@ def test_distances_bit_exact_other_builds(name, disjoint):
 # interleaving: multi-beat jobs mixed with the other kind and with box/triangle requests
 
 
-def _interleave(rng, streams):
-    """Merge request arrays at random, keeping each stream's own order."""
-    owner = np.concatenate([np.full(len(s), i) for i, s in enumerate(streams)])
-    owner = owner[rng.permutation(len(owner))]
-    out = np.empty(len(owner), streams[0].dtype)
-    for i, s in enumerate(streams):
-        out[owner == i] = s
-    return out
-
-
 @pytest.mark.parametrize("name,pressure", [("golden", 0.0), ("rtl", 0.0), ("rtl", 0.5)],
                          ids=["golden", "rtl", "rtl-gaps-stalls"])
 def test_interleaved_jobs_give_same_distances(name, pressure):
@@ -171,7 +161,7 @@ def test_interleaved_jobs_give_same_distances(name, pressure):
     e_req = job_requests(EUCLIDEAN, eq, ec, ai, bi, dim)
     a_req = job_requests(ANGULAR, aq, ac, ai, bi, dim)
     other = mixed_stream(3, 400, 300)
-    mixed = _interleave(np.random.default_rng(4), [e_req, a_req, other])
+    mixed, _ = interleave(np.random.default_rng(4), [e_req, a_req, other])
     opts = {"gaps": pressure, "stalls": pressure, "seed": 9} if pressure else {}
     with np.errstate(all="ignore"):
         rsp = driver.backend(name, extended=True, **opts).run(mixed)
@@ -302,12 +292,6 @@ def test_full_digits_rtl(metric, tmp_path):
 # command line
 
 
-@pytest.fixture
-def in_tmp(tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)
-    return tmp_path
-
-
 def test_cli_digits_summary_and_outputs(capsys, in_tmp):
     assert main(["knn", "--queries", "5", "-k", "3", "--backend", "golden", "--no-progress",
                  "--out", "nb.json", "--json-stats", "s.json"]) == 0
@@ -351,12 +335,6 @@ def test_cli_rtl_small(in_tmp, capsys):
     assert "on rtl" in out and "agreement" in out
 
 
-def error_line(capsys):
-    err = capsys.readouterr().err.strip()
-    assert err.startswith("rayflex: error: ") and "\n" not in err and "Traceback" not in err
-    return err
-
-
 def _bad_inputs(d):
     np.save(d / "one_d.npy", np.arange(5.0))
     np.save(d / "empty.npy", np.zeros((0, 4)))
@@ -390,11 +368,11 @@ def _bad_inputs(d):
     (["ok.npy", "--json-stats", "nodir/s.json"], "does not exist"),
     (["ok.npy", "--backend", "nope"], "unknown backend"),
 ])
-def test_cli_bad_inputs_exit_2_one_line(in_tmp, capsys, argv, fragment):
+def test_cli_bad_inputs_exit_2_one_line(in_tmp, error_line, argv, fragment):
     _bad_inputs(in_tmp)
     extra = [] if "--backend" in argv else ["--backend", "golden"]
     assert main(["knn", *argv, *extra, "--no-progress"]) == 2
-    assert fragment in error_line(capsys)
+    assert fragment in error_line()
 
 
 def test_cli_bad_metric_is_usage_error(capsys):

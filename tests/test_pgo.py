@@ -12,7 +12,7 @@ from driver.backends import build, harness
 from driver.backends import BackendError
 from driver.rtunit import ReplayMismatch
 from driver.verilate import BuildError, build_library
-from fpu_model import FPU_HARNESS, FPU_TB_SOURCES
+from support.fpu import FPU_HARNESS, FPU_TB_SOURCES
 
 BASELINE = {"EXTENDED": 0, "DISJOINT": 0, "LATENCY": 11}
 
@@ -86,10 +86,10 @@ def test_profile_guided_library_is_bit_exact(monkeypatch):
     from driver.backends.golden import GoldenBackend
     from driver.scene import builtin
     from driver.tracer import trace
-    from cases import all_requests
-    from streams import mixed_stream
+    from support.cases import all_requests
+    from support.streams import mixed_stream
     monkeypatch.setenv("RAYFLEX_PGO", "1")
-    monkeypatch.setattr(harness, "_LIBS", {})            # load the PGO build in this test only
+    monkeypatch.setattr(harness, "_LIBS", {})              # load the PGO build in this test only
     mesh = builtin("soup")
     o, d = primary_rays(frame(mesh.vertices), 24, 24)
     req = np.concatenate([trace(mesh, o, d, backend="golden", record=True).record.requests(),

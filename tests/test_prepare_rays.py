@@ -7,7 +7,7 @@ import pytest
 
 import driver
 from driver import REQUEST_DTYPE
-import scalar_ref
+from support import scalar_ref
 
 F32 = np.float32
 INF = np.inf

@@ -1,9 +1,9 @@
 """The RTL datapath (baseline build) vs the golden model, bit for bit, through both RTL backends.
 
 "rtl" is the fast C++ harness, "pyverilator" the cycle-by-cycle Python driver; every test runs
-through ``bench.Bench`` (driver, monitor, golden reference, scoreboard), most of them under random
-input gaps and output stalls as well as without. Each pyverilator bench runs in its own process
-(``bench.run_isolated``: one pyverilator model per build and process). Also: cycle counts (N
+through ``support.testbench.Testbench`` (driver, monitor, golden reference, scoreboard), most of
+them under random input gaps and output stalls as well as without. Each pyverilator testbench runs
+in its own process (``run_isolated``: one pyverilator model per build and process). Also: cycle counts (N
 back-to-back requests take N + LATENCY cycles), the two backends agreeing cycle for cycle, and the
 backends' error paths.
 """
@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 import driver
-from bench import PRESSURE_IDS, PRESSURES, Bench, run_isolated
-from cases import CASES, all_requests
-from streams import mixed_stream
+from support.cases import CASES, all_requests
+from support.streams import mixed_stream
+from support.testbench import PRESSURE_IDS, PRESSURES, Testbench, run_isolated
 
 HEAVY = [(0.1, 0.1), (0.5, 0.5), (0.9, 0.9)]
 
@@ -33,7 +33,7 @@ HEAVY = [(0.1, 0.1), (0.5, 0.5), (0.9, 0.9)]
                          ids=["steady", "gaps0.5-stalls0.5", "gaps0.9-stalls0.9"])
 @pytest.mark.parametrize("name,req,check", CASES, ids=[c[0] for c in CASES])
 def test_directed_rtl(name, req, check, gaps, stalls):
-    rsp = Bench("rtl", gaps=gaps, stalls=stalls, seed=len(name)).run(req)
+    rsp = Testbench("rtl", gaps=gaps, stalls=stalls, seed=len(name)).run(req)
     check(rsp[0])
 
 
@@ -50,9 +50,9 @@ def test_directed_pyverilator_one_stream(gaps, stalls):
 
 def test_random_100k_rtl():
     req = mixed_stream(1, 60_000, 40_000)
-    bench = Bench("rtl")
-    rsp = bench.run(req)
-    assert bench.dut.cycles == 100_000 + 11
+    tb = Testbench("rtl")
+    rsp = tb.run(req)
+    assert tb.dut.cycles == 100_000 + 11
     assert 0.2 < rsp["box_hit"][req["opcode"] == driver.QUADBOX].mean() < 0.8   # both outcomes
     assert 0.1 < rsp["tri_hit"][req["opcode"] == driver.TRIANGLE].mean() < 0.7
 
@@ -60,13 +60,13 @@ def test_random_100k_rtl():
 @pytest.mark.parametrize("seed", [2, 3])
 @pytest.mark.parametrize("gaps,stalls", PRESSURES[1:], ids=PRESSURE_IDS[1:])
 def test_random_under_pressure_rtl(gaps, stalls, seed):
-    """No response lost, duplicated or reordered; results unchanged (the bench checks both)."""
+    """No response lost, duplicated or reordered; results unchanged (the testbench checks both)."""
     req = mixed_stream(seed, 6000, 4000)
-    bench = Bench("rtl", gaps=gaps, stalls=stalls, seed=seed)
-    rsp = bench.run(req)
-    assert bench.dut.cycles > len(req) + 11
+    tb = Testbench("rtl", gaps=gaps, stalls=stalls, seed=seed)
+    rsp = tb.run(req)
+    assert tb.dut.cycles > len(req) + 11
     # the same stream without pressure gives the very same responses
-    assert rsp.tobytes() == Bench("rtl").run(req).tobytes()
+    assert rsp.tobytes() == Testbench("rtl").run(req).tobytes()
 
 
 @pytest.mark.parametrize("gaps,stalls", [(0, 0), *HEAVY], ids=["steady", *PRESSURE_IDS[1:4]])
@@ -76,10 +76,10 @@ def test_random_pyverilator(gaps, stalls):
 
 def test_chunked_runs_equal_one_run():
     req = mixed_stream(8, 3000, 2000)
-    whole = Bench("rtl").run(req)
-    bench = Bench("rtl", gaps=0.3, stalls=0.3, seed=8)
+    whole = Testbench("rtl").run(req)
+    tb = Testbench("rtl", gaps=0.3, stalls=0.3, seed=8)
     cuts = np.sort(np.random.default_rng(8).choice(np.arange(1, len(req)), 20, replace=False))
-    parts = np.concatenate([bench.run(chunk) for chunk in np.split(req, [0, 1, *cuts, len(req)])])
+    parts = np.concatenate([tb.run(chunk) for chunk in np.split(req, [0, 1, *cuts, len(req)])])
     assert parts.tobytes() == whole.tobytes()          # same stamped tags too (same sequence)
 
 
@@ -92,7 +92,7 @@ def test_chunked_runs_equal_one_run():
 def test_rtl_and_pyverilator_agree(gaps, stalls, seed):
     req = mixed_stream(20 + seed, 120, 80)
     chunks = (req[:150], req[150:150], req[150:])          # two runs and an empty one
-    fast = Bench("rtl", gaps=gaps, stalls=stalls, seed=seed)
+    fast = Testbench("rtl", gaps=gaps, stalls=stalls, seed=seed)
     fast_rsp = [fast.run(c) for c in chunks]
     slow_rsp, slow_runs = run_isolated("pyverilator", dict(gaps=gaps, stalls=stalls, seed=seed),
                                        chunks)
@@ -125,23 +125,23 @@ def test_cycles_n_plus_latency(latency):
 @pytest.mark.parametrize("n", [1, 2, 12, 40])
 def test_cycles_pyverilator(n):
     req = mixed_stream(31, 30, 30)[:n]
-    _, runs = run_isolated("pyverilator", {}, [req, req[:0], req])   # the bench checks the totals
+    _, runs = run_isolated("pyverilator", {}, [req, req[:0], req])   # the testbench checks totals
     assert runs == [n + 11, 0, n + 11]
 
 
 def test_cycles_under_pressure_add_up():
     """Every run's count is at least n + 11; the backend's total is the sum of its runs."""
     req = mixed_stream(32, 300, 200)
-    bench = Bench("rtl", gaps=0.5, stalls=0.5, seed=32)
+    tb = Testbench("rtl", gaps=0.5, stalls=0.5, seed=32)
     for chunk in np.split(req, [1, 2, 100, 100, 400]):
-        bench.run(chunk)                                 # the monitor checks each run
-    assert bench.dut.cycles == sum(bench.runs) > len(req) + 11 * 5
+        tb.run(chunk)                                 # the monitor checks each run
+    assert tb.dut.cycles == sum(tb.runs) > len(req) + 11 * 5
 
 
 @pytest.mark.parametrize("gaps,stalls", [(0, 0), (0.5, 0.5)], ids=["steady", "gaps0.5-stalls0.5"])
 def test_latency_14_bit_exact(gaps, stalls):
-    bench = Bench("rtl", latency=14, gaps=gaps, stalls=stalls, seed=14)
-    bench.run(mixed_stream(14, 3000, 2000))
+    tb = Testbench("rtl", latency=14, gaps=gaps, stalls=stalls, seed=14)
+    tb.run(mixed_stream(14, 3000, 2000))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -166,12 +166,12 @@ def test_extended_opcode_on_baseline_build_is_a_datapath_error(name, op):
             driver.backend(name).run(bad)
         else:
             run_isolated(name, {}, [bad])
-    bench = Bench("rtl")
-    bench.run(req[:3])
+    tb = Testbench("rtl")
+    tb.run(req[:3])
     with pytest.raises(driver.DatapathError):
-        bench.dut.run(bad)
-    assert bench.dut.cycles == sum(bench.runs)           # nothing was simulated
-    bench.run(req)                                        # and the backend still works
+        tb.dut.run(bad)
+    assert tb.dut.cycles == sum(tb.runs)           # nothing was simulated
+    tb.run(req)                                        # and the backend still works
 
 
 def test_missing_compiler_names_it(tmp_path):
@@ -215,17 +215,17 @@ def test_pyverilator_vcd(tmp_path):
 
 @pytest.mark.slow
 def test_random_1m_rtl():
-    bench = Bench("rtl")
+    tb = Testbench("rtl")
     for seed in range(10):
-        bench.run(mixed_stream(100 + seed, 60_000, 40_000))
-    assert bench.dut.cycles == 10 * (100_000 + 11)
+        tb.run(mixed_stream(100 + seed, 60_000, 40_000))
+    assert tb.dut.cycles == 10 * (100_000 + 11)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", range(5))
 @pytest.mark.parametrize("gaps,stalls", PRESSURES[1:], ids=PRESSURE_IDS[1:])
 def test_random_under_pressure_rtl_many_seeds(gaps, stalls, seed):
-    Bench("rtl", gaps=gaps, stalls=stalls, seed=200 + seed).run(
+    Testbench("rtl", gaps=gaps, stalls=stalls, seed=200 + seed).run(
         mixed_stream(200 + seed, 60_000, 40_000))
 
 
@@ -233,14 +233,14 @@ def test_random_under_pressure_rtl_many_seeds(gaps, stalls, seed):
 @pytest.mark.parametrize("gaps,stalls", PRESSURES, ids=PRESSURE_IDS)
 def test_rtl_and_pyverilator_agree_long(gaps, stalls):
     req = mixed_stream(300, 1800, 1200)
-    fast = Bench("rtl", gaps=gaps, stalls=stalls, seed=300)
+    fast = Testbench("rtl", gaps=gaps, stalls=stalls, seed=300)
     (slow,), runs = run_isolated("pyverilator", dict(gaps=gaps, stalls=stalls, seed=300), [req])
     assert fast.run(req).tobytes() == slow.tobytes()
     assert fast.runs == runs
 
 
 # ----------------------------------------------------------------------------------------------
-# the bench itself catches what it is there to catch
+# the testbench itself catches what it is there to catch
 
 class _Faulty:
     """Golden responses with one fault injected (a lost, duplicated, reordered or flipped one)."""
@@ -268,18 +268,18 @@ class _Faulty:
 @pytest.mark.parametrize("fault,message", [
     ("lost", "responses"), ("duplicated", "duplicated"), ("reordered", "reordered"),
     ("flipped", "t_num"), ("slow", "cycles")])
-def test_bench_catches(fault, message):
-    bench = Bench("golden")
-    bench.dut = _Faulty(fault)
+def test_testbench_catches(fault, message):
+    tb = Testbench("golden")
+    tb.dut = _Faulty(fault)
     with pytest.raises((AssertionError, pytest.fail.Exception), match=message):
-        bench.run(mixed_stream(1, 10, 10))
+        tb.run(mixed_stream(1, 10, 10))
 
 
 @pytest.mark.parametrize("name", ["golden", "rtl"])
 def test_axis_index_3_rejected_by_every_backend(name):
     """kx/ky/kz = 3 has no meaning (SPEC 2); every backend refuses it before simulating."""
     import driver
-    from cases import tri_request, FRONT
+    from support.cases import tri_request, FRONT
     req = tri_request(FRONT, (0, 0, -1))
     req["kx"] = 3
     with pytest.raises(driver.DatapathError, match="kx/ky/kz"):

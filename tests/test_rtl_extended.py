@@ -13,9 +13,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench import PRESSURE_IDS, PRESSURES, Bench, burst_pattern, run_isolated
 from driver import ANGULAR, EUCLIDEAN, RESPONSE_DTYPE
-from streams import extended_stream, interleave, mixed_stream, random_vectors, vector_requests
+from support.streams import (extended_stream, interleave, mixed_stream, random_vectors,
+                             vector_requests)
+from support.testbench import PRESSURE_IDS, PRESSURES, Testbench, burst_pattern, run_isolated
 
 CONFIGS = [(False, False), (False, True), (True, False), (True, True)]
 CONFIG_IDS = ["baseline-unified", "baseline-disjoint", "extended-unified", "extended-disjoint"]
@@ -25,7 +26,7 @@ NO_TAG = [f for f in RESPONSE_DTYPE.names if f != "tag"]
 
 
 def same_but_tags(a, b):
-    """Responses identical bit for bit in every field but the (bench-stamped) tag."""
+    """Responses identical bit for bit in every field but the (testbench-stamped) tag."""
     return len(a) == len(b) and all(np.ascontiguousarray(a[f]).tobytes()
                                     == np.ascontiguousarray(b[f]).tobytes() for f in NO_TAG)
 
@@ -36,7 +37,7 @@ def same_but_tags(a, b):
 @pytest.mark.parametrize("gaps,stalls", [(0, 0), (0.5, 0.5)], ids=["steady", "gaps0.5-stalls0.5"])
 @pytest.mark.parametrize("extended,disjoint", CONFIGS, ids=CONFIG_IDS)
 def test_box_triangle_every_build(extended, disjoint, gaps, stalls):
-    Bench("rtl", extended=extended, disjoint=disjoint, gaps=gaps, stalls=stalls, seed=3).run(
+    Testbench("rtl", extended=extended, disjoint=disjoint, gaps=gaps, stalls=stalls, seed=3).run(
         mixed_stream(50 + extended + 2 * disjoint, 6000, 4000))
 
 
@@ -47,8 +48,8 @@ def test_box_triangle_every_build(extended, disjoint, gaps, stalls):
 @pytest.mark.parametrize("extended,disjoint", EXTENDED, ids=EXTENDED_IDS)
 def test_random_jobs_interleaved(extended, disjoint, gaps, stalls):
     stream, kind = extended_stream(60 + int(10 * gaps + stalls))
-    bench = Bench("rtl", extended=True, disjoint=disjoint, gaps=gaps, stalls=stalls, seed=6)
-    rsp = np.concatenate([bench.run(c) for c in np.array_split(stream, 3)])
+    tb = Testbench("rtl", extended=True, disjoint=disjoint, gaps=gaps, stalls=stalls, seed=6)
+    rsp = np.concatenate([tb.run(c) for c in np.array_split(stream, 3)])
     # the stream covers what it should: many jobs closed, NaN/inf results, masked lanes
     assert rsp["euclid_last"][kind == 0].sum() == 40 and rsp["angular_last"][kind == 1].sum() == 40
     assert np.isnan(rsp["euclid_acc"]).any() and np.isnan(rsp["angular_dot"]).any()
@@ -82,20 +83,20 @@ def test_interrupted_job_equals_uninterrupted(extended, disjoint, how):
     adds them twice), and interleaved with the other operation's jobs and QUADBOX/TRIANGLE requests
     that carry reset flags and vector data. The job's responses must be identical."""
     rng, e, a = _jobs(70)
-    alone_e = Bench("rtl", extended=True, disjoint=disjoint).run(e)
-    alone_a = Bench("rtl", extended=True, disjoint=disjoint).run(a)
+    alone_e = Testbench("rtl", extended=True, disjoint=disjoint).run(e)
+    alone_a = Testbench("rtl", extended=True, disjoint=disjoint).run(a)
     other = mixed_stream(70, 60, 40)
     other["vec_a"], other["vec_b"] = random_vectors(rng, len(other), special=False)
     other["vec_mask"] = 0xFFFF
     other["reset_accumulator"] = 1
     stream, kind = interleave(rng, (e, a, other))
     if INTERRUPTIONS[how] == "random":
-        bench = Bench("rtl", extended=True, disjoint=disjoint, gaps=0.9, stalls=0.9, seed=70)
+        tb = Testbench("rtl", extended=True, disjoint=disjoint, gaps=0.9, stalls=0.9, seed=70)
     else:
-        bench = Bench("rtl", extended=True, disjoint=disjoint)
-        bench.set_patterns(*INTERRUPTIONS[how])
-    rsp = bench.run(stream)
-    assert bench.dut.cycles > 3 * len(stream)              # it really was interrupted
+        tb = Testbench("rtl", extended=True, disjoint=disjoint)
+        tb.set_patterns(*INTERRUPTIONS[how])
+    rsp = tb.run(stream)
+    assert tb.dut.cycles > 3 * len(stream)              # it really was interrupted
     assert same_but_tags(rsp[kind == 0], alone_e)
     assert same_but_tags(rsp[kind == 1], alone_a)
     assert np.isfinite(alone_e["euclid_acc"]).all() and (alone_e["euclid_acc"] > 0).all()
@@ -105,13 +106,13 @@ def test_interrupted_job_equals_uninterrupted(extended, disjoint, how):
 def test_job_split_across_runs(extended, disjoint):
     rng, e, a = _jobs(80)
     stream, _ = interleave(rng, (e, a))
-    one = Bench("rtl", extended=True, disjoint=disjoint).run(stream)
+    one = Testbench("rtl", extended=True, disjoint=disjoint).run(stream)
     for gaps, stalls in ((0, 0), (0.5, 0.5)):
-        bench = Bench("rtl", extended=True, disjoint=disjoint, gaps=gaps, stalls=stalls, seed=8)
-        parts = [bench.run(stream[:17]),                  # jobs of both kinds left open ...
-                 bench.run(mixed_stream(80, 30, 20)),     # ... other requests in between ...
-                 bench.run(stream[:0]),                   # ... an empty run ...
-                 bench.run(stream[17:])]                  # ... and they continue
+        tb = Testbench("rtl", extended=True, disjoint=disjoint, gaps=gaps, stalls=stalls, seed=8)
+        parts = [tb.run(stream[:17]),                  # jobs of both kinds left open ...
+                 tb.run(mixed_stream(80, 30, 20)),     # ... other requests in between ...
+                 tb.run(stream[:0]),                   # ... an empty run ...
+                 tb.run(stream[17:])]                  # ... and they continue
         split = np.concatenate([parts[0], parts[3]])
         assert same_but_tags(split, one)
 
@@ -121,12 +122,12 @@ def test_job_split_across_runs(extended, disjoint):
 def test_disjoint_equals_unified(gaps, stalls):
     """Same stream, same gap/stall pattern: identical responses and cycles on every build."""
     stream, _ = extended_stream(90)
-    unified = Bench("rtl", extended=True, gaps=gaps, stalls=stalls, seed=9)
-    disjoint = Bench("rtl", extended=True, disjoint=True, gaps=gaps, stalls=stalls, seed=9)
+    unified = Testbench("rtl", extended=True, gaps=gaps, stalls=stalls, seed=9)
+    disjoint = Testbench("rtl", extended=True, disjoint=True, gaps=gaps, stalls=stalls, seed=9)
     assert unified.run(stream).tobytes() == disjoint.run(stream).tobytes()
     assert unified.dut.cycles == disjoint.dut.cycles
     boxtri = mixed_stream(91, 1200, 800)
-    got = [Bench("rtl", extended=x, disjoint=d, gaps=gaps, stalls=stalls, seed=9).run(boxtri)
+    got = [Testbench("rtl", extended=x, disjoint=d, gaps=gaps, stalls=stalls, seed=9).run(boxtri)
            for x, d in CONFIGS]
     assert all(g.tobytes() == got[0].tobytes() for g in got[1:])
 
@@ -134,10 +135,10 @@ def test_disjoint_equals_unified(gaps, stalls):
 @pytest.mark.parametrize("extended,disjoint", EXTENDED, ids=EXTENDED_IDS)
 def test_cycles_extended_builds(extended, disjoint):
     stream, _ = extended_stream(95)
-    bench = Bench("rtl", extended=True, disjoint=disjoint)
+    tb = Testbench("rtl", extended=True, disjoint=disjoint)
     for n in (1, 2, 12, 500):
-        bench.run(stream[:n])                             # the monitor checks n + 11 exactly
-    assert bench.dut.cycles == 515 + 4 * 11
+        tb.run(stream[:n])                             # the monitor checks n + 11 exactly
+    assert tb.dut.cycles == 515 + 4 * 11
 
 
 # ----------------------------------------------------------------------------------------------
@@ -148,7 +149,7 @@ def test_cycles_extended_builds(extended, disjoint):
 @pytest.mark.parametrize("gaps,stalls", PRESSURES, ids=PRESSURE_IDS)
 @pytest.mark.parametrize("extended,disjoint", CONFIGS, ids=CONFIG_IDS)
 def test_many_seeds_every_build(extended, disjoint, gaps, stalls, seed):
-    bench = Bench("rtl", extended=extended, disjoint=disjoint, gaps=gaps, stalls=stalls,
+    tb = Testbench("rtl", extended=extended, disjoint=disjoint, gaps=gaps, stalls=stalls,
                   seed=seed)
     if extended:
         stream, _ = extended_stream(1000 + seed, n_jobs=400, max_beats=40, n_box=6000,
@@ -156,7 +157,7 @@ def test_many_seeds_every_build(extended, disjoint, gaps, stalls, seed):
     else:
         stream = mixed_stream(1000 + seed, 60_000, 40_000)
     for chunk in np.array_split(stream, 7):
-        bench.run(chunk)
+        tb.run(chunk)
 
 
 @pytest.mark.slow
@@ -167,7 +168,7 @@ def test_pyverilator_extended_agrees(extended, disjoint, gaps, stalls):
     stream, _ = extended_stream(1100, n_jobs=10, max_beats=10, n_box=60, n_tri=40)
     options = dict(extended=True, disjoint=disjoint, gaps=gaps, stalls=stalls, seed=11)
     chunks = np.array_split(stream, 2)                    # a job split across the two runs
-    fast = Bench("rtl", **options)
+    fast = Testbench("rtl", **options)
     slow, runs = run_isolated("pyverilator", options, chunks)
     for chunk, rsp in zip(chunks, slow):
         assert fast.run(chunk).tobytes() == rsp.tobytes()

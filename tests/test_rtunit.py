@@ -8,7 +8,6 @@ import json
 import numpy as np
 import pytest
 
-import meshes
 import driver
 from driver import backend, prepare_rays
 from driver.bvh4 import build
@@ -16,6 +15,8 @@ from driver.backends.harness import build_requests
 from driver.layout import pack_requests, pack_responses, ray_words, unpack_requests, unpack_responses
 from driver.tracer import trace
 from driver import rtunit
+from support import meshes
+from support.recording import RecordingBackend
 
 LAT = driver.LATENCY
 
@@ -37,30 +38,9 @@ def wave(scene):
     return trace(bvh, o, d, backend="rtl", record=True)
 
 
-class Recorder:
-    """Generic backend (no run_nodes): keeps every request it is given."""
-
-    name = "recorder"
-
-    def __init__(self, inner):
-        self.inner, self.calls = inner, []
-
-    @property
-    def cycles(self):
-        return self.inner.cycles
-
-    @property
-    def latency(self):
-        return self.inner.latency
-
-    def run(self, req):
-        self.calls.append(req.copy())
-        return self.inner.run(req)
-
-
 def test_fast_path_matches_golden_and_generic_requests(scene, wave):
     bvh, o, d = scene
-    rec_be = Recorder(backend("golden"))
+    rec_be = RecordingBackend(backend("golden"))
     gold = trace(bvh, o, d, backend=rec_be, record=True)
     assert np.array_equal(wave.t.view(np.uint32), gold.t.view(np.uint32))
     assert np.array_equal(wave.prim, gold.prim) and gold.hit.sum() > 250

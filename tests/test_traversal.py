@@ -7,11 +7,12 @@ import types
 import numpy as np
 import pytest
 
-import meshes
 from driver import TRIANGLE, backend, prepare_rays
 from driver import trace as driver_trace
 from driver.bvh4 import build
 from driver.tracer import TraceResult, trace
+from support import meshes
+from support.recording import RecordingBackend
 
 
 def brute_force(tris, o, d, extent=np.inf):
@@ -157,34 +158,11 @@ def test_degenerate_mesh():
 
 # ---- statistics and plumbing ------------------------------------------------------------------
 
-class Recorder:
-    """A backend wrapper that records every run() call."""
-
-    def __init__(self, inner, corrupt=False):
-        self.inner, self.corrupt, self.calls = inner, corrupt, []
-        self.name = "recorder"
-
-    @property
-    def cycles(self):
-        return self.inner.cycles
-
-    @property
-    def latency(self):
-        return self.inner.latency
-
-    def run(self, req):
-        self.calls.append(req.copy())
-        rsp = self.inner.run(req)
-        if self.corrupt:
-            rsp["tag"][::2] += 1
-        return rsp
-
-
 def test_stats_and_steps():
     rng = np.random.default_rng(8)
     tris = meshes.box_room(2)
     o, d = rays_around(rng, 500, -0.9, 0.9, tris)
-    be = Recorder(backend("golden"))
+    be = RecordingBackend(backend("golden"))
     be.cycles                                               # property works before any run
     seen = []
     res = trace(tris, o, d, backend=be, progress=lambda done, total: seen.append((done, total)))
@@ -224,7 +202,8 @@ def test_stats_and_steps():
 def test_backend_tag_mismatch_raises():
     tris = meshes.soup(20)
     with pytest.raises(RuntimeError):
-        trace(tris, [[0, 0, -3]] * 4, [[0, 0, 1]] * 4, backend=Recorder(backend("golden"), True))
+        trace(tris, [[0, 0, -3]] * 4, [[0, 0, 1]] * 4,
+              backend=RecordingBackend(backend("golden"), corrupt=True))
 
 
 def test_inputs_and_names(monkeypatch):

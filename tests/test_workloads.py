@@ -9,6 +9,7 @@ from driver.backends import backend
 from driver.bvh4 import build
 from driver.scene import load_scene
 from driver.tracer import trace
+from support.recording import RecordingBackend
 
 
 @pytest.fixture(scope="module")
@@ -80,23 +81,6 @@ def test_offset_origins_leave_their_surface_on_the_normal_side():
 
 # ---- any-hit traversal --------------------------------------------------------------------------
 
-class Recording:
-    """A golden backend that keeps every request stream it was given."""
-
-    def __init__(self):
-        self.inner = backend("golden")
-        self.name, self.extended, self.disjoint = "recording", False, False
-        self.latency, self.calls = self.inner.latency, []
-
-    @property
-    def cycles(self):
-        return self.inner.cycles
-
-    def run(self, req):
-        self.calls.append(req.copy())
-        return self.inner.run(req)
-
-
 def test_any_hit_stops_at_its_first_hit_and_returns_a_real_one():
     b = load_scene("bunny_floor")
     bvh = build(b.triangles)
@@ -104,7 +88,7 @@ def test_any_hit_stops_at_its_first_hit_and_returns_a_real_one():
     o = np.tile(np.asarray(b.camera.position, np.float32), (400, 1))
     target = b.triangles[rng.integers(0, len(b.triangles), 400)].mean(axis=1)
     d = (target - o).astype(np.float32)
-    rec = Recording()
+    rec = RecordingBackend(backend("golden"))
     res = trace(bvh, o, d, backend=rec, extent=np.float32(2.0), any_hit=True)
     closest = trace(bvh, o, d, backend="golden", extent=np.float32(2.0))
     assert res.hit.sum() > 300

@@ -1,4 +1,4 @@
-"""Test helpers for the binary32 FP units: RTL model loader, numpy reference, operand generators.
+"""The binary32 FP units' testbench: RTL model loader, numpy reference, operand generators.
 
     fpu = FpuModel()                   # builds (cached) sim/fpu_tb_top.sv + sim/fpu_harness.cpp
     a, b, cat = operand_mix(rng, 4096) # uint32 (n,), uint32 (n,), category name per pair (n,)
@@ -9,31 +9,25 @@
 from __future__ import annotations
 
 import ctypes
-from pathlib import Path
 
 import numpy as np
 
+from driver.backends.build import RTL_DIR, SIM_DIR, source_names
 from driver.verilate import build_library
-
-REPO = Path(__file__).resolve().parents[1]
-RTL = REPO / "rtl"
-SIM = REPO / "sim"
 
 CANONICAL_NAN = np.uint32(0x7FC00000)
 
-# Each unit with the files it needs (dependencies first), for lint and builds.
-UNIT_SOURCES = {
-    "rf_fp_round": [RTL / "rf_fp_pkg.sv", RTL / "rf_fp_round.sv"],
-    "rf_fp_normalize": [RTL / "rf_fp_pkg.sv", RTL / "rf_fp_normalize.sv"],
-    "rf_fp_add": [RTL / "rf_fp_pkg.sv", RTL / "rf_fp_add.sv"],
-    "rf_fp_mul": [RTL / "rf_fp_pkg.sv", RTL / "rf_fp_mul.sv"],
-    "rf_fp_cmp": [RTL / "rf_fp_cmp.sv"],
-    "rf_fp_minmax": [RTL / "rf_fp_cmp.sv", RTL / "rf_fp_minmax.sv"],
-}
-FPU_TB_SOURCES = [RTL / f for f in ("rf_fp_pkg.sv", "rf_fp_normalize.sv", "rf_fp_round.sv",
-                                    "rf_fp_add.sv", "rf_fp_mul.sv", "rf_fp_cmp.sv",
-                                    "rf_fp_minmax.sv")] + [SIM / "fpu_tb_top.sv"]
-FPU_HARNESS = [SIM / "fpu_harness.cpp"]
+# The FP unit files are those of the datapath's one source list (rtl/sources.txt, compile order:
+# the package first) plus the two wrappers that exist only to test the package's normalize and
+# round functions on their own (the arithmetic units call the functions, not the modules).
+FP_PREFIX = "rf_fp_"
+TEST_WRAPPERS = ("rf_fp_normalize.sv", "rf_fp_round.sv")
+FP_SOURCES = [RTL_DIR / f for f in source_names() if f.startswith(FP_PREFIX)] + \
+    [RTL_DIR / f for f in TEST_WRAPPERS]
+# Every unit module (not the package) is linted on its own as the top of the FP file set.
+UNIT_SOURCES = {p.stem: FP_SOURCES for p in FP_SOURCES if not p.stem.endswith("_pkg")}
+FPU_TB_SOURCES = FP_SOURCES + [SIM_DIR / "fpu_tb_top.sv"]
+FPU_HARNESS = [SIM_DIR / "fpu_harness.cpp"]
 
 OUTPUTS = ("add", "sub", "mul", "lt", "le", "eq", "unord", "min", "max")
 

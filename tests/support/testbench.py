@@ -1,7 +1,7 @@
-"""The shared RTL test bench: driver + monitor + reference model + scoreboard in one small class.
+"""The shared RTL testbench: driver + monitor + reference model + scoreboard in one small class.
 
-    bench = Bench("rtl", extended=True, gaps=0.5, stalls=0.5, seed=3)
-    rsp = bench.run(requests)           # drives, monitors, checks; returns the DUT's responses
+    tb = Testbench("rtl", extended=True, gaps=0.5, stalls=0.5, seed=3)
+    rsp = tb.run(requests)           # drives, monitors, checks; returns the DUT's responses
 
 - driver: the backend under test (``driver.backend(name, ...)``), fed the request stream with the
   backend's own random input gaps and output stalls (``gaps=``/``stalls=`` probabilities,
@@ -17,7 +17,7 @@
 - scoreboard: every field of every response bit for bit equal to the reference; a failure names
   the first bad request with every float as its hex bit pattern.
 
-``run_isolated(name, options, chunks)`` runs a Bench in a fresh Python process and returns its
+``run_isolated(name, options, chunks)`` runs a Testbench in a fresh Python process and returns its
 responses: one process can hold only one pyverilator model of a given build (a second one aborts the
 interpreter: Verilator's "Adding model 'TOP' when time is non-zero", because the pyverilator wrapper
 keeps a global time that never resets), and other test files create pyverilator models too.
@@ -38,6 +38,8 @@ import driver
 from driver import LATENCY, RESPONSE_DTYPE
 from driver.backends.rtlbase import PATTERN_LEN
 
+from .scoreboard import assert_bit_equal
+
 PRESSURES = [(0.0, 0.0), (0.1, 0.1), (0.5, 0.5), (0.9, 0.9), (0.9, 0.1), (0.1, 0.9)]
 PRESSURE_IDS = [f"gaps{g}-stalls{s}" for g, s in PRESSURES]
 
@@ -49,30 +51,16 @@ def tags_for(seq: np.ndarray) -> np.ndarray:
     return (seq.astype(np.uint64) * _TAG_MUL + 0x5A5A5A5A).astype(np.uint32)
 
 
-def hexrow(row) -> str:
-    """A request/response row with every float shown as its uint32 hex pattern."""
-    parts = []
-    for name in row.dtype.names:
-        v = np.asarray(row[name])
-        if v.dtype.kind == "f":
-            v = np.vectorize(lambda x: f"0x{x:08x}")(np.ascontiguousarray(v).view(np.uint32))
-        parts.append(f"{name}={v.tolist()}")
-    return " ".join(parts)
-
-
-def _bits(a):
-    a = np.ascontiguousarray(a)
-    return a.view(np.uint32) if a.dtype.kind == "f" else a
-
-
 def burst_pattern(on: int, off: int, phase: int = 0) -> np.ndarray:
     """A deterministic gap/stall pattern of the backends' length: ``on`` cycles 1, ``off`` 0."""
     k = (np.arange(PATTERN_LEN) + phase) % (on + off)
     return (k < on).astype(np.uint8)
 
 
-class Bench:
+class Testbench:
     """One DUT backend and its golden reference, checked on every run (see module docstring)."""
+
+    __test__ = False                # a helper, not a test class for pytest to collect
 
     def __init__(self, name: str = "rtl", *, extended: bool = False, disjoint: bool = False,
                  latency: int = LATENCY, gaps: float = 0.0, stalls: float = 0.0, seed: int = 0,
@@ -154,26 +142,11 @@ class Bench:
         return rsp
 
 
-def assert_bit_equal(req, got, want, name="rtl"):
-    """Every field of every response equal bit for bit; on failure name the first bad request."""
-    assert got.dtype == RESPONSE_DTYPE and want.dtype == RESPONSE_DTYPE
-    assert len(got) == len(want) == len(req)
-    for field in RESPONSE_DTYPE.names:
-        g, w = _bits(got[field]), _bits(want[field])
-        bad = g != w
-        if bad.ndim > 1:
-            bad = bad.reshape(len(bad), int(np.prod(bad.shape[1:]))).any(axis=1)
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            pytest.fail(f"{name} vs golden: {int(bad.sum())} mismatches in field {field!r}; "
-                        f"first at request {i}:\n  {name}:  {hexrow(got[i])}\n"
-                        f"  golden: {hexrow(want[i])}\n  request: {hexrow(req[i])}")
-
-
 def run_isolated(name: str, options: dict, chunks, patterns=None):
-    """``Bench(name, **options)`` run over each request array in ``chunks`` (all checks applied) in
-    a fresh spawned Python process. Returns (responses per chunk, cycles per chunk). A failed check
-    fails the calling test with the child's message; other exceptions are re-raised here."""
+    """``Testbench(name, **options)`` run over each request array in ``chunks`` (all checks
+    applied) in a fresh spawned Python process. Returns (responses per chunk, cycles per chunk). A
+    failed check fails the calling test with the child's message; other exceptions are re-raised
+    here."""
     ctx = multiprocessing.get_context("spawn")
     with concurrent.futures.ProcessPoolExecutor(1, mp_context=ctx) as pool:
         status, payload = pool.submit(_isolated_child, name, options, list(chunks),
@@ -187,12 +160,12 @@ def run_isolated(name: str, options: dict, chunks, patterns=None):
 
 def _isolated_child(name, options, chunks, patterns):
     try:
-        bench = Bench(name, **options)
+        tb = Testbench(name, **options)
         if patterns is not None:
-            bench.set_patterns(*patterns)
-        out = [bench.run(c) for c in chunks]
-        assert bench.dut.cycles == sum(bench.runs)
-        return "ok", (out, bench.runs)
+            tb.set_patterns(*patterns)
+        out = [tb.run(c) for c in chunks]
+        assert tb.dut.cycles == sum(tb.runs)
+        return "ok", (out, tb.runs)
     except Exception as e:               # noqa: BLE001  (AssertionError included)
         if isinstance(e, AssertionError):
             return "failed", f"{name} (in a subprocess): AssertionError: {e}"

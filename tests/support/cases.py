@@ -16,8 +16,9 @@ FAR = (INF, INF, INF, INF, INF, INF)           # an unused box slot: a box at +i
 SLAB = lambda x0, x1: (x0, -.5, -.5, x1, .5, .5)  # noqa: E731
 
 
-def box_request(origin, direction, boxes):
-    r = prepare_rays([origin], [direction])
+def box_request(origin, direction, boxes, extent=INF):
+    """One QUADBOX request; slots after ``boxes`` hold the unused box at +inf."""
+    r = prepare_rays([origin], [direction], extent)
     r["opcode"] = QUADBOX
     boxes = list(boxes) + [FAR] * (4 - len(boxes))
     r["box"][0] = np.array(boxes, np.float32)
@@ -27,8 +28,9 @@ def box_request(origin, direction, boxes):
 FRONT = ((1, -1, -1), (0, 1, -1), (-1, -1, -1))
 
 
-def tri_request(tri, direction, origin=(0, 0, 0)):
-    r = prepare_rays([origin], [direction], extent=4000)
+def tri_request(tri, direction, origin=(0, 0, 0), extent=4000):
+    """One TRIANGLE request."""
+    r = prepare_rays([origin], [direction], extent)
     r["opcode"] = TRIANGLE
     r["tri"][0] = np.array(tri, np.float32)
     return r
