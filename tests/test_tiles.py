@@ -69,12 +69,13 @@ def test_two_workers_give_the_frame_of_one(scene):
 
 
 def test_a_killed_worker_changes_nothing(scene):
-    from distributed import Client, LocalCluster
+    from distributed import LocalCluster
     setup, bvh = scene
     one = tiles.render_tiles(setup, bvh, 40, 30, "path", OPTS, "golden", tile=8)
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                      dashboard_address=":0") as cluster, Client(cluster) as client:
-        pids = list(client.run(os.getpid).values())
+                      dashboard_address=":0") as cluster:
+        pids = [nanny.pid for nanny in cluster.workers.values()]     # the worker processes
+        assert all(pids)
         killed = []
 
         def progress(done, total):
