@@ -98,6 +98,34 @@ def test_sigterm_during_a_build_kills_the_compilers_and_leaves_nothing(tmp_path)
     assert not list(work.iterdir())
 
 
+_SLEEPING_BUILD = textwrap.dedent("""
+    from driver import verilate
+    def build(work):
+        with open(work / "build.log", "w") as log:
+            verilate._run(["sleep", "600"], work, log, "sleeping", work / "build.log", {})
+    verilate.cached_build("model-s", "lib.so", build, "test model")
+""")
+
+
+def test_sigterm_during_a_build_in_a_library_user_cleans_up_then_dies_by_sigterm(tmp_path):
+    """Outside the command line (driver used as a library, SIGTERM unhandled): the build's
+    process group and directory are cleaned up, then the process ends by SIGTERM as before."""
+    cache = tmp_path / "cache"
+    p = subprocess.Popen([sys.executable, "-c", _SLEEPING_BUILD], env=env_for(cache),
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        tmp = wait_for(lambda: next(cache.glob(".tmp-*"), None), 60, "the build to start")
+        sleeper = wait_for(lambda: processes_inside(tmp), 60, "the tool to run")
+        p.send_signal(signal.SIGTERM)
+        p.communicate(timeout=60)
+    finally:
+        p.kill()
+    assert p.returncode == -signal.SIGTERM
+    assert not list(cache.glob(".tmp-*")) and not processes_inside(cache)
+    assert not Path(f"/proc/{sleeper[0]}").exists() or \
+        Path(f"/proc/{sleeper[0]}/status").read_text().find("State:\tZ") >= 0
+
+
 def test_next_build_kills_what_a_sigkilled_build_left(tmp_path):
     """SIGKILL cannot be handled: the next build of the entry (holding its lock) kills processes
     still working inside the stale temporary directory and removes it."""
