@@ -5,7 +5,8 @@ callback the traversal, the RT-unit replay and the kNN search call) and ``close(
 does nothing. ``phase(desc, enabled)`` is a context manager for work that reports no count (BVH
 build, mesh loading, the Embree check, waiting for a lock): after a second, a tqdm line whose
 elapsed time ticks every half second from a background thread, finished with the phase's
-duration, so a long phase never looks like a hang (and a short one prints nothing).
+duration, so a long phase never looks like a hang (and a short one prints nothing). The thread
+is hand-written because tqdm redraws only when it is updated, and such a phase has no updates.
 """
 
 from __future__ import annotations

@@ -269,7 +269,9 @@ def _run(cmd: list[str], cwd: Path, log, what: str, log_path: Path, env: dict[st
 @contextlib.contextmanager
 def _sigterm_raises():
     """While building: SIGTERM raises ``Terminated`` (so the build is cleaned up) instead of
-    ending the process at once. Only in the main thread and only if nobody handles SIGTERM."""
+    ending the process at once; once the cleanup is done, the process ends by SIGTERM as it
+    would have. Only in the main thread and only if nobody handles SIGTERM (the command line
+    does: it reports and exits 143)."""
     if (threading.current_thread() is not threading.main_thread()
             or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL):
         yield
@@ -280,6 +282,10 @@ def _sigterm_raises():
     signal.signal(signal.SIGTERM, handler)
     try:
         yield
+    except Terminated:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        os.kill(os.getpid(), signal.SIGTERM)
+        raise
     finally:
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
@@ -301,7 +307,8 @@ def _lock(lock, root: Path, what: str) -> None:
     except BlockingIOError:
         pass
     from .progress import phase
-    with phase(f"waiting for the {what} build in {root} (another process holds the lock)"):
+    with phase(f"waiting for the {what} build in {root} (another process holds the lock)",
+               delay=0):
         fcntl.flock(lock, fcntl.LOCK_EX)
 
 
@@ -314,7 +321,9 @@ def _clean_stale(root: Path, entry: str) -> None:
 
 
 def _kill_inside(directory: Path) -> None:
-    """SIGKILL every process whose working directory is ``directory`` or below (Linux /proc)."""
+    """SIGKILL every process whose working directory is ``directory`` or below (Linux /proc; a
+    dozen lines, so no psutil dependency). Every build tool runs inside its build directory, so
+    this finds exactly the orphans of a dead build, whatever process group they ended up in."""
     prefix = str(directory.resolve())
     for proc in Path("/proc").glob("[0-9]*"):
         try:
@@ -351,26 +360,26 @@ def cached_build(entry: str, artifact: str, build: Callable[[Path], None], what:
         t0 = time.monotonic()
         work = Path(tempfile.mkdtemp(prefix=f".tmp-{entry}-", dir=root))
         failed = root / f"{entry}.failed"
-        try:
-            with _sigterm_raises():
+        with _sigterm_raises():
+            try:
                 build(work)
-            work.chmod(0o755)  # mkdtemp makes it private; the cache may be shared
-            try:
-                os.rename(work, final)
-            except OSError:  # a stale entry without the artifact (e.g. removed by hand)
-                shutil.rmtree(final, ignore_errors=True)
-                os.rename(work, final)
-        except BuildError:
-            shutil.rmtree(failed, ignore_errors=True)
-            try:
-                os.rename(work, failed)
-            except OSError:
+                work.chmod(0o755)  # mkdtemp makes it private; the cache may be shared
+                try:
+                    os.rename(work, final)
+                except OSError:  # a stale entry without the artifact (e.g. removed by hand)
+                    shutil.rmtree(final, ignore_errors=True)
+                    os.rename(work, final)
+            except BuildError:
+                shutil.rmtree(failed, ignore_errors=True)
+                try:
+                    os.rename(work, failed)
+                except OSError:
+                    shutil.rmtree(work, ignore_errors=True)
+                raise
+            except BaseException:
+                _kill_inside(work)
                 shutil.rmtree(work, ignore_errors=True)
-            raise
-        except BaseException:
-            _kill_inside(work)
-            shutil.rmtree(work, ignore_errors=True)
-            raise
+                raise
         if estimate_key:
             _record_time(root, estimate_key, time.monotonic() - t0)
     return out

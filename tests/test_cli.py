@@ -226,26 +226,6 @@ def test_bad_outputs_fail_before_any_work(capsys, in_tmp, monkeypatch, args, wor
     assert sorted(p.name for p in in_tmp.iterdir()) == ["adir", "same.png", "sub"]
 
 
-def test_failing_output_write_leaves_nothing(capsys, in_tmp, monkeypatch):
-    """Issue 11 #3: a failing --stats-json left the PNGs behind with exit 2. A full disk on the
-    last write leaves no file at all (and an existing image untouched)."""
-    import errno
-
-    import driver.outputs
-    (in_tmp / "img.png").write_bytes(b"old image")
-
-    def full(doc, path):
-        with open(path, "w") as f:
-            f.write("{")
-        raise OSError(errno.ENOSPC, "No space left on device", str(path))
-    monkeypatch.setattr(driver.outputs, "write_json", full)
-    assert main(["render", "sphere", "--size", "8", "--backend", "golden", "--no-progress",
-                 "--out", "img.png", "--json", "s.json"]) == 2
-    assert "No space left on device" in error_line(capsys)
-    assert sorted(p.name for p in in_tmp.iterdir()) == ["img.png"]
-    assert (in_tmp / "img.png").read_bytes() == b"old image"
-
-
 def test_bare_scene_name_wins_over_a_local_file_and_says_so(capsys, in_tmp):
     """Issue 11 #6: a file or folder named bunny here shadowed the built-in scene silently."""
     (in_tmp / "sphere").mkdir()

@@ -130,3 +130,22 @@ def test_render_bad_backend():
     import driver
     with pytest.raises(driver.BackendError):
         render("sphere", 4, 4, backend="nope", progress=False)
+
+
+def test_long_silent_phases_show_progress(capsys, monkeypatch):
+    """Issue 11 #4: a 30 s BVH build (2 M triangles) and the Embree check printed nothing. A
+    phase longer than a second now shows a ticking line that ends with its duration."""
+    import time
+
+    import driver.bvh4
+    real = driver.bvh4.build
+
+    def slow_build(mesh, *a, **k):
+        time.sleep(1.6)
+        return real(mesh, *a, **k)
+    monkeypatch.setattr(driver.bvh4, "build", slow_build)
+    render("sphere", 8, 8, backend="golden", progress=True)
+    err = capsys.readouterr().err
+    assert "building the BVH4 of 1,280 triangles" in err and "done in 1." in err
+    render("sphere", 8, 8, backend="golden", progress=False)
+    assert capsys.readouterr().err == ""
