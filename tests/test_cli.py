@@ -19,10 +19,7 @@ SPEC10 = ("rays", "hits", "box_ops", "tri_ops", "ops", "cycles", "utilization", 
 EMBREE_KEYS = ("rays_compared", "hit_mismatch", "prim_mismatch", "edge_ties", "max_t_rel_err")
 
 
-@pytest.fixture(autouse=True)
-def in_tmp(tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)
-    return tmp_path
+pytestmark = pytest.mark.usefixtures("in_tmp")      # every test in its own empty directory
 
 
 def size_of(path):
@@ -74,10 +71,6 @@ def test_render_mesh_file_and_toml(in_tmp):
     assert size_of(in_tmp / "mine.png") == (10, 6)
 
 
-def error_line(capsys):
-    err = capsys.readouterr().err.strip()
-    assert err.startswith("rayflex: error: ") and "\n" not in err and "Traceback" not in err
-    return err
 
 
 @pytest.mark.parametrize("args, words", [
@@ -91,31 +84,31 @@ def error_line(capsys):
     (["render", "sphere", "--backend", "nope"], "unknown backend"),
     (["render", "sphere", "--out", "no/such/dir/x.png"], "directory"),
 ])
-def test_user_mistakes_exit_2_with_one_line(capsys, args, words):
+def test_user_mistakes_exit_2_with_one_line(error_line, args, words):
     assert main(args + ["--backend", "golden"] * ("--backend" not in args)) == 2
-    assert words in error_line(capsys)
+    assert words in error_line()
 
 
-def test_frame_too_big_for_memory_is_refused_at_once(capsys, monkeypatch):
+def test_frame_too_big_for_memory_is_refused_at_once(error_line, monkeypatch):
     """Issue 11 #5: --size 8192 allocated > 15 GB and was killed by the kernel, no message."""
     import driver.render
     monkeypatch.setattr(driver.render, "available_memory", lambda: 1 * 2**30)
     assert main(["render", "sphere", "--size", "8192", "--backend", "golden"]) == 2
-    assert "1.0 GiB available: use a smaller --size or --tile" in error_line(capsys)
+    assert "1.0 GiB available: use a smaller --size or --tile" in error_line()
 
 
-def test_bad_files_exit_2(capsys, in_tmp):
+def test_bad_files_exit_2(error_line, in_tmp):
     (in_tmp / "bad.ply").write_bytes(b"garbage\x00")
     assert main(["render", "bad.ply", "--backend", "golden"]) == 2
-    assert "cannot read" in error_line(capsys)
+    assert "cannot read" in error_line()
     (in_tmp / "bad.toml").write_text('mesh = "sphere"\n[camera]\nposition = [0,0,0]\n'
                                      'look_at = [0,0,0]\n')
     assert main(["render", "bad.toml", "--backend", "golden"]) == 2
-    assert "same point" in error_line(capsys)
+    assert "same point" in error_line()
     (in_tmp / "fov.toml").write_text('mesh = "sphere"\n[camera]\nposition = [0,5,0]\n'
                                      'look_at = [0,0,0]\nfov_deg = 0\n')
     assert main(["render", "fov.toml", "--backend", "golden"]) == 2
-    assert "fov" in error_line(capsys)
+    assert "fov" in error_line()
 
 
 def test_camera_inside_mesh_is_legal(in_tmp):
@@ -124,14 +117,14 @@ def test_camera_inside_mesh_is_legal(in_tmp):
     assert main(["render", "in.toml", "--backend", "golden", "--no-progress"]) == 0
 
 
-def test_backend_that_cannot_be_built_exits_2(capsys, monkeypatch):
+def test_backend_that_cannot_be_built_exits_2(error_line, monkeypatch):
     import driver.backends
 
     def broken(name, **options):
         raise driver.BackendError(f"backend {name!r} cannot be built: verilator not found")
     monkeypatch.setattr(driver.backends, "backend", broken)
     assert main(["render", "sphere", "--size", "4", "--backend", "rtl"]) == 2
-    assert "cannot be built" in error_line(capsys)
+    assert "cannot be built" in error_line()
 
 
 def test_argparse_errors_exit_2(capsys):
@@ -209,7 +202,7 @@ def test_outputs_are_written_by_extension(in_tmp):
     (["--out", "/proc/x.png"], "cannot write in /proc"),
     (["--json", "/proc/s.json"], "cannot write in /proc"),
 ])
-def test_bad_outputs_fail_before_any_work(capsys, in_tmp, monkeypatch, args, words):
+def test_bad_outputs_fail_before_any_work(error_line, in_tmp, monkeypatch, args, words):
     """Issue 11 #3: a bad output path failed only after the whole render, or silently destroyed
     another output. Now: one line, exit 2, before the scene is even loaded, nothing written."""
     import driver.render
@@ -221,7 +214,7 @@ def test_bad_outputs_fail_before_any_work(capsys, in_tmp, monkeypatch, args, wor
         raise AssertionError("rendered before checking the outputs")
     monkeypatch.setattr(driver.render, "render", no_render)
     assert main(["render", "sphere", "--size", "8", "--backend", "golden", *args]) == 2
-    assert words in error_line(capsys)
+    assert words in error_line()
     assert (in_tmp / "same.png").read_bytes() == b"keep me"
     assert sorted(p.name for p in in_tmp.iterdir()) == ["adir", "same.png", "sub"]
 
