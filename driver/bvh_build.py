@@ -1,0 +1,381 @@
+"""Fast binary BVH builder and SAH-optimal 4-wide collapse (numba kernels for ``driver.bvh4``).
+
+Why hand-written kernels: no maintained Python package builds a BVH from boxes and centroids and
+hands back the binary tree (Embree's builders are not exposed by embreex; trimesh/rtree build
+R-trees of another shape), and the numpy builder in ``driver.bvh4`` (``builder="numpy"``), which
+is kept as the reference, spends its time in ``reduceat``/``ufunc.at`` passes over every level
+(30 s for 2 M triangles). numba was chosen over C++ beside the harness by measurement (see
+docs/bvh.md): it is a pip dependency, compiles once per machine into its on-disk cache, and the
+same top-down recursion runs 20-50x faster than the vectorised numpy version.
+
+Binary build (``build_binary``): exactly the numpy builder's rules, so the trees are the same:
+nodes of more than ``SWEEP_MAX`` primitives are split by binned SAH (``bins`` bins per axis over
+the node's centroid bounds, all three axes; ties go to the lowest split, then the lowest axis);
+nodes of 3..``SWEEP_MAX`` primitives try every split of the centroid order on all three axes
+(ties: lowest position, then lowest axis; equal centroids keep list order); 2 primitives split
+1 + 1; a node whose centroids all coincide splits its list in the middle. Partitions are stable.
+The tree is built depth first (smaller child first, so the stack holds at most log2(n) + 2
+entries) in resumable chunks, so that Python can show progress between chunks.
+
+Collapse (``collapse_sah``): the dynamic programme of Ylitie, Karras and Laine 2017 ("Efficient
+incoherent ray traversal on GPUs through compressed wide BVHs"), specialised to one triangle per
+leaf: the SAH cost of a wide tree is the sum of the areas of its used child slots (box and
+triangle nodes), so with ``D(n, k)`` = least cost of representing binary subtree ``n`` by at most
+``k`` slots of its wide parent::
+
+    leaf:       D(n, k) = A(n)
+    interior:   D(n, 1) = A(n) + min_{a=1..3} D(l, a) + D(r, 4 - a)     (n becomes a box node)
+                D(n, k) = min(D(n, k - 1), min_{a=1..k-1} D(l, a) + D(r, k - a))
+
+The root is always a box node; its slots come from the ``D(n, 1)`` choice. The wide nodes are
+emitted breadth first (root first; a node's box children in slot order), which is the order the
+image writer numbers them in.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor, as_completed
+
+import numpy as np
+from numba import njit
+
+from .bvh4 import SWEEP_MAX
+
+WIDTH = 4              # children per wide node
+PARALLEL_MIN = 200_000  # from this many triangles, subtrees are built on several threads
+_STACK = 72            # > log2(2**63) + 2: the depth-first stack never holds more
+
+
+@njit(cache=True, inline="always")
+def _half_area(dx, dy, dz):
+    return dx * dy + dy * dz + dz * dx
+
+
+@njit(cache=True)
+def _prim_boxes(tris):
+    """Primitive boxes (float32, exact) and box centroids (float64) of (n, 3, 3) triangles."""
+    n = tris.shape[0]
+    lo = np.empty((n, 3), np.float32)
+    hi = np.empty((n, 3), np.float32)
+    cent = np.empty((n, 3))
+    for i in range(n):
+        for a in range(3):
+            x0 = min(tris[i, 0, a], tris[i, 1, a], tris[i, 2, a])
+            x1 = max(tris[i, 0, a], tris[i, 1, a], tris[i, 2, a])
+            lo[i, a], hi[i, a] = x0, x1
+            cent[i, a] = 0.5 * (np.float64(x0) + np.float64(x1))
+    return lo, hi, cent
+
+
+@njit(cache=True)
+def _bounds(order, s, e, lo, hi, cent, box, cbox):
+    """Node box (float64, exact float32 values) into box[0:6] = (min xyz, max xyz), its
+    primitives' centroid bounds into cbox[0:6]."""
+    for a in range(3):
+        box[a] = cbox[a] = np.inf
+        box[3 + a] = cbox[3 + a] = -np.inf
+    for j in range(s, e):
+        p = order[j]
+        for a in range(3):
+            box[a] = min(box[a], lo[p, a])
+            box[3 + a] = max(box[3 + a], hi[p, a])
+            cbox[a] = min(cbox[a], cent[p, a])
+            cbox[3 + a] = max(cbox[3 + a], cent[p, a])
+
+
+@njit(cache=True)
+def _sweep(order, s, e, lo, hi, cent, go_right):
+    """Exact SAH over every split of the centroid order on each axis; fills go_right[s:e]."""
+    cnt = e - s
+    best_cost, best_axis, best_i = np.inf, 0, 0
+    srt = np.empty((3, cnt), np.int64)                     # sorted ranks per axis
+    a_r = np.empty(cnt)
+    for a in range(3):
+        idx = srt[a]
+        for r in range(cnt):                               # stable insertion sort by centroid
+            key = cent[order[s + r], a]
+            j = r
+            while j > 0 and cent[order[s + idx[j - 1]], a] > key:
+                idx[j] = idx[j - 1]
+                j -= 1
+            idx[j] = r
+        x0 = y0 = z0 = np.inf
+        x1 = y1 = z1 = -np.inf
+        for i in range(cnt - 1, 0, -1):                    # suffix areas: right = sorted i..
+            p = order[s + idx[i]]
+            x0, y0, z0 = min(x0, lo[p, 0]), min(y0, lo[p, 1]), min(z0, lo[p, 2])
+            x1, y1, z1 = max(x1, hi[p, 0]), max(y1, hi[p, 1]), max(z1, hi[p, 2])
+            a_r[i] = _half_area(x1 - x0, y1 - y0, z1 - z0)
+        x0 = y0 = z0 = np.inf
+        x1 = y1 = z1 = -np.inf
+        ai, ci = 0, np.inf
+        for i in range(cnt - 1):                           # split after sorted position i
+            p = order[s + idx[i]]
+            x0, y0, z0 = min(x0, lo[p, 0]), min(y0, lo[p, 1]), min(z0, lo[p, 2])
+            x1, y1, z1 = max(x1, hi[p, 0]), max(y1, hi[p, 1]), max(z1, hi[p, 2])
+            c = _half_area(x1 - x0, y1 - y0, z1 - z0) * (i + 1) + a_r[i + 1] * (cnt - i - 1)
+            if c < ci:
+                ci, ai = c, i
+        if ci < best_cost:
+            best_cost, best_axis, best_i = ci, a, ai
+    idx = srt[best_axis]
+    for i in range(cnt):
+        go_right[s + idx[i]] = i > best_i
+
+
+@njit(cache=True)
+def _binned(order, s, e, lo, hi, cent, cbox, bins, go_right):
+    """Binned SAH over the centroid bounds cbox; fills go_right[s:e] and returns True, or
+    returns False if no axis can split."""
+    scale = np.zeros(3)
+    for a in range(3):
+        ext = cbox[3 + a] - cbox[a]
+        if ext > 0:
+            scale[a] = bins / ext
+    count = np.zeros((3, bins))
+    blo = np.full((3, bins, 3), np.inf, np.float32)
+    bhi = np.full((3, bins, 3), -np.inf, np.float32)
+    for j in range(s, e):
+        p = order[j]
+        for a in range(3):
+            k = min(max(int((cent[p, a] - cbox[a]) * scale[a]), 0), bins - 1)
+            count[a, k] += 1
+            for c in range(3):
+                blo[a, k, c] = min(blo[a, k, c], lo[p, c])
+                bhi[a, k, c] = max(bhi[a, k, c], hi[p, c])
+    nb = bins - 1
+    cost = np.full((nb, 3), np.inf)                       # (split, axis): ties -> first in order
+    a_r = np.empty(bins)
+    n_r = np.empty(bins)
+    for a in range(3):
+        x0 = y0 = z0 = np.float32(np.inf)
+        x1 = y1 = z1 = np.float32(-np.inf)
+        nr = 0.0
+        for k in range(bins - 1, 0, -1):                   # right side = bins k..
+            x0, y0, z0 = min(x0, blo[a, k, 0]), min(y0, blo[a, k, 1]), min(z0, blo[a, k, 2])
+            x1, y1, z1 = max(x1, bhi[a, k, 0]), max(y1, bhi[a, k, 1]), max(z1, bhi[a, k, 2])
+            nr += count[a, k]
+            n_r[k] = nr
+            a_r[k] = _half_area(np.float64(x1) - x0, np.float64(y1) - y0, np.float64(z1) - z0)
+        x0 = y0 = z0 = np.float32(np.inf)
+        x1 = y1 = z1 = np.float32(-np.inf)
+        nl = 0.0
+        for i in range(nb):                                # left side = bins 0..i
+            x0, y0, z0 = min(x0, blo[a, i, 0]), min(y0, blo[a, i, 1]), min(z0, blo[a, i, 2])
+            x1, y1, z1 = max(x1, bhi[a, i, 0]), max(y1, bhi[a, i, 1]), max(z1, bhi[a, i, 2])
+            nl += count[a, i]
+            if nl > 0 and n_r[i + 1] > 0:
+                a_l = _half_area(np.float64(x1) - x0, np.float64(y1) - y0, np.float64(z1) - z0)
+                cost[i, a] = a_l * nl + a_r[i + 1] * n_r[i + 1]
+    best, bi, ba = np.inf, 0, 0
+    for i in range(nb):
+        for a in range(3):
+            if cost[i, a] < best:
+                best, bi, ba = cost[i, a], i, a
+    if not np.isfinite(best):
+        return False
+    for j in range(s, e):
+        k = min(max(int((cent[order[j], ba] - cbox[ba]) * scale[ba]), 0), bins - 1)
+        go_right[j] = k > bi
+    return True
+
+
+@njit(cache=True)
+def _partition(order, tmp, s, e, go_right):
+    """Stable partition of order[s:e] (lefts first); returns the number of lefts."""
+    nl = 0
+    for j in range(s, e):
+        if not go_right[j]:
+            order[s + nl] = order[j]
+            nl += 1
+        else:
+            tmp[j - nl] = order[j]
+    for j in range(s + nl, e):
+        order[j] = tmp[j - nl]
+    return nl
+
+
+@njit(cache=True)
+def _split(nid, s, e, cbox, lo, hi, cent, bins, order, tmp, go_right, left, right, prim,
+           node_box):
+    """Split node ``nid`` (primitives order[s:e], centroid bounds cbox, box already in
+    node_box[nid]); returns the left count (0 for a leaf). Children are numbered in pre-order
+    with contiguous subtrees: left = nid + 1, right = nid + 2 * (left count)."""
+    cnt = e - s
+    if cnt == 1:
+        prim[nid] = order[s]
+        return 0
+    if cnt == 2:
+        nl = 1
+    else:
+        ok = True
+        if cnt <= SWEEP_MAX:
+            _sweep(order, s, e, lo, hi, cent, go_right)
+        else:
+            ok = _binned(order, s, e, lo, hi, cent, cbox, bins, go_right)
+        nl = _partition(order, tmp, s, e, go_right) if ok else cnt // 2
+    left[nid], right[nid] = nid + 1, nid + 2 * nl
+    return nl
+
+
+@njit(cache=True, nogil=True)
+def _subtree(nid, s, e, lo, hi, cent, bins, order, tmp, go_right, left, right, prim, node_box):
+    """Build the whole subtree of node ``nid`` (box not yet computed), depth first with a
+    bounded stack (smaller child first: at most log2(n) + 2 entries)."""
+    stack = np.empty((_STACK, 3), np.int64)
+    cbox = np.empty(6)
+    stack[0, 0], stack[0, 1], stack[0, 2] = nid, s, e
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        nid, s, e = stack[sp, 0], stack[sp, 1], stack[sp, 2]
+        _bounds(order, s, e, lo, hi, cent, node_box[nid], cbox)
+        nl = _split(nid, s, e, cbox, lo, hi, cent, bins, order, tmp, go_right, left, right,
+                    prim, node_box)
+        if nl == 0:
+            continue
+        small_left = nl <= e - s - nl
+        for first in (not small_left, small_left):         # larger first, smaller on top
+            if first:
+                stack[sp, 0], stack[sp, 1], stack[sp, 2] = nid + 1, s, s + nl
+            else:
+                stack[sp, 0], stack[sp, 1], stack[sp, 2] = nid + 2 * nl, s + nl, e
+            sp += 1
+
+
+@njit(cache=True)
+def _top(min_tasks, lo, hi, cent, bins, order, tmp, go_right, left, right, prim, node_box):
+    """Split from the root, largest node first, until there are ``min_tasks`` unsplit nodes
+    (or none is larger than SWEEP_MAX); returns them as (k, 3) rows (node id, start, end)."""
+    n = len(order)
+    tasks = np.empty((max(min_tasks, 1) + 2, 3), np.int64)
+    tasks[0, 0], tasks[0, 1], tasks[0, 2] = 0, 0, n
+    k = 1
+    cbox = np.empty(6)
+    while k < min_tasks:
+        big = 0
+        for i in range(1, k):
+            if tasks[i, 2] - tasks[i, 1] > tasks[big, 2] - tasks[big, 1]:
+                big = i
+        nid, s, e = tasks[big, 0], tasks[big, 1], tasks[big, 2]
+        if e - s <= SWEEP_MAX:
+            break
+        _bounds(order, s, e, lo, hi, cent, node_box[nid], cbox)
+        nl = _split(nid, s, e, cbox, lo, hi, cent, bins, order, tmp, go_right, left, right,
+                    prim, node_box)
+        tasks[big, 0], tasks[big, 1], tasks[big, 2] = nid + 1, s, s + nl
+        tasks[k, 0], tasks[k, 1], tasks[k, 2] = nid + 2 * nl, s + nl, e
+        k += 1
+    return tasks[:k]
+
+
+def build_binary(tris, bins: int, progress=None):
+    """Binary BVH with one triangle per leaf. tris : (n, 3, 3) float32; progress : a tqdm-like
+    object (``update(triangles)``) or None.
+
+    Returns (left, right, prim, node_lo, node_hi) over 2n-1 nodes, node 0 the root, parents
+    numbered before children (pre-order); left/right are -1 for a leaf, prim is -1 for an
+    interior node; node_lo/node_hi (2n-1, 3) float64 views of the node boxes."""
+    n = len(tris)
+    m = 2 * n - 1
+    lo, hi, cent = _prim_boxes(tris)
+    left = np.full(m, -1, np.int64)
+    right = np.full(m, -1, np.int64)
+    prim = np.full(m, -1, np.int64)
+    node_box = np.empty((m, 6))
+    order = np.arange(n, dtype=np.int64)
+    tmp = np.empty(n, np.int64)
+    go_right = np.zeros(n, np.bool_)
+    args = (lo, hi, cent, int(bins), order, tmp, go_right, left, right, prim, node_box)
+    threads = min(os.cpu_count() or 1, 8) if n >= PARALLEL_MIN else 1
+    tasks = _top(16 * threads if threads > 1 else 1, *args)
+    tasks = tasks[np.argsort(tasks[:, 1] - tasks[:, 2], kind="stable")]     # largest first
+    with ThreadPoolExecutor(threads) as pool:
+        jobs = {pool.submit(_subtree, *row, *args): row[2] - row[1] for row in tasks.tolist()}
+        for job in as_completed(jobs):
+            job.result()
+            if progress is not None:
+                progress.update(jobs[job])
+    return left, right, prim, node_box[:, :3], node_box[:, 3:]
+
+
+@njit(cache=True)
+def _dp(left, right, area):
+    """Bottom-up D(n, k) table (see module docstring) and the choices: choice[n, k-1] = slots
+    given to the left child (0: D(n, k) = D(n, k - 1))."""
+    m = len(left)
+    d = np.empty((m, WIDTH))
+    choice = np.zeros((m, WIDTH), np.int8)
+    for n in range(m - 1, -1, -1):                         # children are numbered after parents
+        l, r = left[n], right[n]
+        if l < 0:
+            d[n, :] = area[n]
+            continue
+        best, ba = np.inf, 0
+        for a in range(1, WIDTH):
+            c = d[l, a - 1] + d[r, WIDTH - a - 1]
+            if c < best:
+                best, ba = c, a
+        d[n, 0] = area[n] + best
+        choice[n, 0] = ba
+        for k in range(2, WIDTH + 1):
+            best, ba = d[n, k - 2], 0
+            for a in range(1, k):
+                c = d[l, a - 1] + d[r, k - a - 1]
+                if c < best:
+                    best, ba = c, a
+            d[n, k - 1] = best
+            choice[n, k - 1] = ba
+    return choice
+
+
+@njit(cache=True)
+def _emit(left, right, choice):
+    """Wide nodes breadth first: (slots (k, 4) binary ids, -1 = unused, used first; depth of
+    each wide node)."""
+    m = len(left)
+    cap = max(1, (m + 1) // 2)                             # wide nodes <= interior nodes + 1
+    slots = np.full((cap, WIDTH), -1, np.int64)
+    depth = np.zeros(cap, np.int64)
+    queue = np.empty(cap, np.int64)
+    queue[0] = 0
+    head, tail = 0, 1
+    work = np.empty((2 * WIDTH + 2, 2), np.int64)         # (binary node, slots) to expand
+    while head < tail:
+        n = queue[head]
+        row = head
+        head += 1
+        used = 0
+        if left[n] < 0:                                    # single-triangle tree
+            slots[row, 0] = n
+            continue
+        a = choice[n, 0]
+        work[0, 0], work[0, 1] = right[n], WIDTH - a        # stack: right pushed first
+        work[1, 0], work[1, 1] = left[n], a
+        wp = 2
+        while wp > 0:
+            wp -= 1
+            x, k = work[wp, 0], work[wp, 1]
+            while k > 1 and choice[x, k - 1] == 0:
+                k -= 1
+            if k == 1:
+                slots[row, used] = x
+                used += 1
+                if left[x] >= 0:
+                    queue[tail] = x
+                    depth[tail] = depth[row] + 1
+                    tail += 1
+            else:
+                c = choice[x, k - 1]
+                work[wp, 0], work[wp, 1] = right[x], k - c
+                work[wp + 1, 0], work[wp + 1, 1] = left[x], c
+                wp += 2
+    return slots[:tail], depth[:tail]
+
+
+def collapse_sah(left, right, area):
+    """SAH-optimal 4-wide levels from the binary tree: a list, root level first, of (k, 4) arrays
+    of binary node ids per wide box node (-1 = unused slot; used slots first)."""
+    slots, depth = _emit(left, right, _dp(left, right, area))
+    return np.split(slots, np.flatnonzero(np.diff(depth)) + 1)
