@@ -406,6 +406,16 @@ def _grow(lo, hi, pad):
     return np.concatenate([glo, ghi], axis=-1)
 
 
+def _grown_area(lo, hi, pad, chunk=1 << 20):
+    """Half areas (float64) of the stored (grown) boxes of (m, 3) bounds, ``chunk`` rows at a
+    time (bounded temporaries): the areas ``sah_cost`` is computed from."""
+    area = np.empty(len(lo))
+    for i in range(0, len(lo), chunk):
+        g = _grow(lo[i:i + chunk], hi[i:i + chunk], pad).astype(np.float64)
+        area[i:i + chunk] = _half_area(g[:, :3], g[:, 3:])
+    return area
+
+
 def _write_image(levels, left, prim, node_lo, node_hi, tris, pad):
     """Number nodes, fill the byte image. Returns (image, depth, sah_cost)."""
     n_box = sum(len(s) for s in levels)
@@ -488,14 +498,13 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
             left, right, prim, node_lo, node_hi = _build_binary(*_prim_boxes(tris), int(bins))
             bar.update(len(tris))
         bar.set_postfix_str("collapse")
-        area = _half_area(node_lo, node_hi)
+        pad = PAD_REL * float(np.abs(tris).max())
         if collapse == "sah":
             from . import bvh_build
-            levels = bvh_build.collapse_sah(left, right, area)
+            levels = bvh_build.collapse_sah(left, right, _grown_area(node_lo, node_hi, pad))
         else:
-            levels = _collapse(left, right, area)
+            levels = _collapse(left, right, _half_area(node_lo, node_hi))
         bar.set_postfix_str("image")
-        pad = PAD_REL * float(np.abs(tris).max())
         image, depth, sah, hist = _write_image(levels, left, prim, node_lo, node_hi, tris, pad)
     n_box = sum(len(s) for s in levels)
     stats = {"box_nodes": n_box, "tri_nodes": len(tris), "depth": depth, "sah_cost": sah,

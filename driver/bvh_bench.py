@@ -2,7 +2,9 @@
 
 Big meshes are instanced bunnies (``instanced_bunnies``). Each build runs in a fresh process
 (multiprocessing "spawn") so that its peak resident memory (``ru_maxrss``) is its own; the
-figure includes the interpreter, numpy and numba (~150 MB). Tree quality before/after compares
+figure includes the interpreter, numpy and numba (~150 MB). ``build_s`` is wall time,
+``build_cpu_s`` the process CPU time (all threads; on a shared machine the steadier figure), and
+``load_average`` the machine's 1-minute load when the build ended. Tree quality before/after compares
 the greedy collapse with the SAH collapse on the bunny, by SAH cost and by the ops per ray of the
 bunny's 256 x 256 primary frame traced on the golden model, and checks that both trees find the
 same closest hits.
@@ -11,6 +13,7 @@ same closest hits.
 from __future__ import annotations
 
 import math
+import os
 import multiprocessing
 import resource
 import sys
@@ -55,9 +58,12 @@ def _build_child(count, conn):
     tris = instanced_bunnies(count) if count else load("bunny")
     build(load("bunny"), progress=False)        # load the compiled kernels before timing
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    cpu0 = time.process_time()
     bvh = build(tris, progress=None)
+    cpu = time.process_time() - cpu0
     s = bvh.stats
     conn.send({"triangles": s["tri_nodes"], "build_s": round(s["build_s"], 3),
+               "build_cpu_s": round(cpu, 3), "load_average": round(os.getloadavg()[0], 2),
                "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
                "rss_before_mb": round(rss0 / 1024, 1), "box_nodes": s["box_nodes"],
                "sah_cost": round(s["sah_cost"], 4)})
@@ -109,9 +115,11 @@ def _quality(size: int = 256) -> dict:
     return out
 
 
-def bvh_bench(counts=(0, 20, 50), quality: bool = True, progress: bool = True) -> dict:
+def bvh_bench(counts=(0, 20, 50), quality: bool = True, size: int = 256,
+              progress: bool = True) -> dict:
     """The benchmark as a dict: ``builds`` (one entry per mesh: 0 = the bunny, k = k instanced
-    bunnies, i.e. ~2 M for 20 and ~5 M for 50) and ``quality`` (``_quality``)."""
+    bunnies, i.e. ~2 M for 20 and ~5 M for 50) and ``quality`` (``_quality`` on the bunny's
+    size x size primary frame)."""
     from tqdm import tqdm
     result = {"machine_cpus": multiprocessing.cpu_count(), "builds": []}
     for count in tqdm(counts, desc="BVH bench", disable=not progress, file=sys.stderr):
@@ -120,5 +128,5 @@ def bvh_bench(counts=(0, 20, 50), quality: bool = True, progress: bool = True) -
         entry["process_wall_s"] = round(time.perf_counter() - t0, 2)
         result["builds"].append(entry)
     if quality:
-        result["quality"] = _quality()
+        result["quality"] = _quality(size)
     return result
