@@ -406,18 +406,21 @@ def _grow(lo, hi, pad):
     return np.concatenate([glo, ghi], axis=-1)
 
 
-def _grown_area(lo, hi, pad, chunk=1 << 20):
-    """Half areas (float64) of the stored (grown) boxes of (m, 3) bounds, ``chunk`` rows at a
-    time (bounded temporaries): the areas ``sah_cost`` is computed from."""
+def _stored_boxes(lo, hi, pad, chunk=1 << 20):
+    """The stored (grown) float32 boxes (m, 6) of (m, 3) bounds and their half areas (m,)
+    float64 (the areas ``sah_cost`` is computed from), ``chunk`` rows at a time (bounded
+    temporaries)."""
+    boxes = np.empty((len(lo), 6), np.float32)
     area = np.empty(len(lo))
     for i in range(0, len(lo), chunk):
-        g = _grow(lo[i:i + chunk], hi[i:i + chunk], pad).astype(np.float64)
-        area[i:i + chunk] = _half_area(g[:, :3], g[:, 3:])
-    return area
+        g = boxes[i:i + chunk] = _grow(lo[i:i + chunk], hi[i:i + chunk], pad)
+        area[i:i + chunk] = _half_area(g[:, :3].astype(np.float64), g[:, 3:])
+    return boxes, area
 
 
-def _write_image(levels, left, prim, node_lo, node_hi, tris, pad):
-    """Number nodes, fill the byte image. Returns (image, depth, sah_cost)."""
+def _write_image(levels, left, prim, node_box, node_area, tris):
+    """Number nodes, fill the byte image. node_box/node_area: ``_stored_boxes`` of the binary
+    nodes. Returns (image, depth, sah_cost, child histogram)."""
     n_box = sum(len(s) for s in levels)
     n_tri = len(tris)
     total = BOX_BYTES * n_box + TRI_BYTES * n_tri
@@ -437,7 +440,7 @@ def _write_image(levels, left, prim, node_lo, node_hi, tris, pad):
     ptrs = ptrs.reshape(slots.shape)
 
     ids = np.maximum(slots, 0)
-    boxes = _grow(_rows(node_lo, ids), _rows(node_hi, ids), pad)
+    boxes = _rows(node_box, ids)
     boxes[~used] = _EMPTY_BOX
     parent = np.full(n_box, NO_CHILD, np.uint32)
     parent_row = np.nonzero(is_box)[0]                     # row-major, same order as child_box
@@ -455,10 +458,9 @@ def _write_image(levels, left, prim, node_lo, node_hi, tris, pad):
     tw[:, 0:9] = _rows(tris, tri_prim).reshape(n_tri, 9).view("<u4")
     tw[:, 9] = tri_prim
 
-    b64 = np.where(used[..., None], boxes, 0).astype(np.float64)        # unused slots: area 0
-    area = _half_area(b64[..., :3], b64[..., 3:])
-    root_box = np.concatenate([b64[0, used[0], :3].min(axis=0), b64[0, used[0], 3:].max(axis=0)])
-    sah = 1.0 + float(area.sum()) / float(_half_area(root_box[:3], root_box[3:]))
+    r = boxes[0, used[0]].astype(np.float64)
+    root_area = _half_area(r[:, :3].min(axis=0), r[:, 3:].max(axis=0))
+    sah = 1.0 + float(node_area[slots[used]].sum()) / float(root_area)
     hist = np.bincount(used.sum(axis=1), minlength=5)[1:]
     return image, len(levels), sah, hist
 
@@ -498,14 +500,16 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
             left, right, prim, node_lo, node_hi = _build_binary(*_prim_boxes(tris), int(bins))
             bar.update(len(tris))
         bar.set_postfix_str("collapse")
-        pad = PAD_REL * float(np.abs(tris).max())
+        pad = PAD_REL * float(max(-tris.min(), tris.max()))
+        node_box, node_area = _stored_boxes(node_lo, node_hi, pad)
         if collapse == "sah":
             from . import bvh_build
-            levels = bvh_build.collapse_sah(left, right, _grown_area(node_lo, node_hi, pad))
+            levels = bvh_build.collapse_sah(left, right, node_area)
         else:
             levels = _collapse(left, right, _half_area(node_lo, node_hi))
+        del node_lo, node_hi
         bar.set_postfix_str("image")
-        image, depth, sah, hist = _write_image(levels, left, prim, node_lo, node_hi, tris, pad)
+        image, depth, sah, hist = _write_image(levels, left, prim, node_box, node_area, tris)
     n_box = sum(len(s) for s in levels)
     stats = {"box_nodes": n_box, "tri_nodes": len(tris), "depth": depth, "sah_cost": sah,
              "build_s": time.perf_counter() - t0, "bytes": int(image.nbytes),

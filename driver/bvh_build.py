@@ -69,41 +69,41 @@ def _prim_boxes(tris):
 
 
 @njit(cache=True)
-def _bounds(order, s, e, lo, hi, cent, box, cbox):
-    """Node box (float64, exact float32 values) into box[0:6] = (min xyz, max xyz), its
-    primitives' centroid bounds into cbox[0:6]."""
-    for a in range(3):
-        box[a] = cbox[a] = np.inf
-        box[3 + a] = cbox[3 + a] = -np.inf
-    for j in range(s, e):
-        p = order[j]
-        for a in range(3):
-            box[a] = min(box[a], lo[p, a])
-            box[3 + a] = max(box[3 + a], hi[p, a])
-            cbox[a] = min(cbox[a], cent[p, a])
-            cbox[3 + a] = max(cbox[3 + a], cent[p, a])
+def _bounds(s, e, lo, hi, cent, box, cbox):
+    """Node box (float64, exact float32 values) into box[0:6] = (min xyz, max xyz), the
+    centroid bounds of primitives s:e into cbox[0:6]."""
+    x0 = y0 = z0 = np.float32(np.inf)
+    x1 = y1 = z1 = np.float32(-np.inf)
+    cx0 = cy0 = cz0 = np.inf
+    cx1 = cy1 = cz1 = -np.inf
+    for p in range(s, e):                                  # scalars: kept in registers
+        x0, y0, z0 = min(x0, lo[p, 0]), min(y0, lo[p, 1]), min(z0, lo[p, 2])
+        x1, y1, z1 = max(x1, hi[p, 0]), max(y1, hi[p, 1]), max(z1, hi[p, 2])
+        cx0, cy0, cz0 = min(cx0, cent[p, 0]), min(cy0, cent[p, 1]), min(cz0, cent[p, 2])
+        cx1, cy1, cz1 = max(cx1, cent[p, 0]), max(cy1, cent[p, 1]), max(cz1, cent[p, 2])
+    box[0], box[1], box[2], box[3], box[4], box[5] = x0, y0, z0, x1, y1, z1
+    cbox[0], cbox[1], cbox[2], cbox[3], cbox[4], cbox[5] = cx0, cy0, cz0, cx1, cy1, cz1
 
 
 @njit(cache=True)
-def _sweep(order, s, e, lo, hi, cent, go_right):
-    """Exact SAH over every split of the centroid order on each axis; fills go_right[s:e]."""
+def _sweep(s, e, lo, hi, cent, go_right, srt, a_r):
+    """Exact SAH over every split of the centroid order on each axis; fills go_right[s:e].
+    Scratch: srt (3, >= cnt) int64 (sorted ranks per axis), a_r (>= cnt,) float64."""
     cnt = e - s
     best_cost, best_axis, best_i = np.inf, 0, 0
-    srt = np.empty((3, cnt), np.int64)                     # sorted ranks per axis
-    a_r = np.empty(cnt)
     for a in range(3):
         idx = srt[a]
         for r in range(cnt):                               # stable insertion sort by centroid
-            key = cent[order[s + r], a]
+            key = cent[s + r, a]
             j = r
-            while j > 0 and cent[order[s + idx[j - 1]], a] > key:
+            while j > 0 and cent[s + idx[j - 1], a] > key:
                 idx[j] = idx[j - 1]
                 j -= 1
             idx[j] = r
         x0 = y0 = z0 = np.inf
         x1 = y1 = z1 = -np.inf
         for i in range(cnt - 1, 0, -1):                    # suffix areas: right = sorted i..
-            p = order[s + idx[i]]
+            p = s + idx[i]
             x0, y0, z0 = min(x0, lo[p, 0]), min(y0, lo[p, 1]), min(z0, lo[p, 2])
             x1, y1, z1 = max(x1, hi[p, 0]), max(y1, hi[p, 1]), max(z1, hi[p, 2])
             a_r[i] = _half_area(x1 - x0, y1 - y0, z1 - z0)
@@ -111,7 +111,7 @@ def _sweep(order, s, e, lo, hi, cent, go_right):
         x1 = y1 = z1 = -np.inf
         ai, ci = 0, np.inf
         for i in range(cnt - 1):                           # split after sorted position i
-            p = order[s + idx[i]]
+            p = s + idx[i]
             x0, y0, z0 = min(x0, lo[p, 0]), min(y0, lo[p, 1]), min(z0, lo[p, 2])
             x1, y1, z1 = max(x1, hi[p, 0]), max(y1, hi[p, 1]), max(z1, hi[p, 2])
             c = _half_area(x1 - x0, y1 - y0, z1 - z0) * (i + 1) + a_r[i + 1] * (cnt - i - 1)
@@ -125,19 +125,19 @@ def _sweep(order, s, e, lo, hi, cent, go_right):
 
 
 @njit(cache=True)
-def _binned(order, s, e, lo, hi, cent, cbox, bins, go_right):
+def _binned(s, e, lo, hi, cent, cbox, bins, go_right, count, blo, bhi, cost, a_r, n_r):
     """Binned SAH over the centroid bounds cbox; fills go_right[s:e] and returns True, or
-    returns False if no axis can split."""
+    returns False if no axis can split. Scratch (``_scratch``): count (3, bins), blo/bhi
+    (3, bins, 3) float32, cost (bins - 1, 3), a_r/n_r (bins,)."""
     scale = np.zeros(3)
     for a in range(3):
         ext = cbox[3 + a] - cbox[a]
         if ext > 0:
             scale[a] = bins / ext
-    count = np.zeros((3, bins))
-    blo = np.full((3, bins, 3), np.inf, np.float32)
-    bhi = np.full((3, bins, 3), -np.inf, np.float32)
-    for j in range(s, e):
-        p = order[j]
+    count[:] = 0
+    blo[:] = np.inf
+    bhi[:] = -np.inf
+    for p in range(s, e):
         for a in range(3):
             k = min(max(int((cent[p, a] - cbox[a]) * scale[a]), 0), bins - 1)
             count[a, k] += 1
@@ -145,9 +145,7 @@ def _binned(order, s, e, lo, hi, cent, cbox, bins, go_right):
                 blo[a, k, c] = min(blo[a, k, c], lo[p, c])
                 bhi[a, k, c] = max(bhi[a, k, c], hi[p, c])
     nb = bins - 1
-    cost = np.full((nb, 3), np.inf)                       # (split, axis): ties -> first in order
-    a_r = np.empty(bins)
-    n_r = np.empty(bins)
+    cost[:] = np.inf                                      # (split, axis): ties -> first in order
     for a in range(3):
         x0 = y0 = z0 = np.float32(np.inf)
         x1 = y1 = z1 = np.float32(-np.inf)
@@ -176,30 +174,58 @@ def _binned(order, s, e, lo, hi, cent, cbox, bins, go_right):
     if not np.isfinite(best):
         return False
     for j in range(s, e):
-        k = min(max(int((cent[order[j], ba] - cbox[ba]) * scale[ba]), 0), bins - 1)
+        k = min(max(int((cent[j, ba] - cbox[ba]) * scale[ba]), 0), bins - 1)
         go_right[j] = k > bi
     return True
 
 
+@njit(cache=True, inline="always")
+def _move(dst, i, src, j):
+    for a in range(3):
+        dst[i, a] = src[j, a]
+
+
 @njit(cache=True)
-def _partition(order, tmp, s, e, go_right):
-    """Stable partition of order[s:e] (lefts first); returns the number of lefts."""
+def _partition(s, e, go_right, order, lo, hi, cent, t_order, t_lo, t_hi, t_cent):
+    """Stable partition of the primitives s:e (ids and their boxes and centroids move
+    together, so that every pass reads memory in order), lefts first; the t_* arrays are
+    scratch of the same shapes. Returns the number of lefts."""
     nl = 0
     for j in range(s, e):
         if not go_right[j]:
-            order[s + nl] = order[j]
+            i = s + nl
             nl += 1
         else:
-            tmp[j - nl] = order[j]
+            i = j - nl                                      # parked in the scratch arrays
+            t_order[i] = order[j]
+            _move(t_lo, i, lo, j)
+            _move(t_hi, i, hi, j)
+            _move(t_cent, i, cent, j)
+            continue
+        order[i] = order[j]
+        _move(lo, i, lo, j)
+        _move(hi, i, hi, j)
+        _move(cent, i, cent, j)
     for j in range(s + nl, e):
-        order[j] = tmp[j - nl]
+        order[j] = t_order[j - nl]
+        _move(lo, j, t_lo, j - nl)
+        _move(hi, j, t_hi, j - nl)
+        _move(cent, j, t_cent, j - nl)
     return nl
 
 
 @njit(cache=True)
+def _scratch(bins):
+    """Per-thread scratch arrays of ``_binned`` and ``_sweep`` (allocated once per subtree)."""
+    return (np.zeros((3, bins)), np.empty((3, bins, 3), np.float32),
+            np.empty((3, bins, 3), np.float32), np.empty((bins - 1, 3)), np.empty(bins),
+            np.empty(bins), np.empty((3, SWEEP_MAX), np.int64), np.empty(SWEEP_MAX))
+
+
+@njit(cache=True)
 def _split(nid, s, e, cbox, lo, hi, cent, bins, order, tmp, go_right, left, right, prim,
-           node_box):
-    """Split node ``nid`` (primitives order[s:e], centroid bounds cbox, box already in
+           node_box, scratch):
+    """Split node ``nid`` (primitives s:e, centroid bounds cbox, box already in
     node_box[nid]); returns the left count (0 for a leaf). Children are numbered in pre-order
     with contiguous subtrees: left = nid + 1, right = nid + 2 * (left count)."""
     cnt = e - s
@@ -211,10 +237,13 @@ def _split(nid, s, e, cbox, lo, hi, cent, bins, order, tmp, go_right, left, righ
     else:
         ok = True
         if cnt <= SWEEP_MAX:
-            _sweep(order, s, e, lo, hi, cent, go_right)
+            _sweep(s, e, lo, hi, cent, go_right, scratch[6], scratch[7])
         else:
-            ok = _binned(order, s, e, lo, hi, cent, cbox, bins, go_right)
-        nl = _partition(order, tmp, s, e, go_right) if ok else cnt // 2
+            ok = _binned(s, e, lo, hi, cent, cbox, bins, go_right, scratch[0],
+                         scratch[1], scratch[2], scratch[3], scratch[4], scratch[5])
+        nl = cnt // 2                                      # all centroids coincide: middle
+        if ok:
+            nl = _partition(s, e, go_right, order, lo, hi, cent, tmp[0], tmp[1], tmp[2], tmp[3])
     left[nid], right[nid] = nid + 1, nid + 2 * nl
     return nl
 
@@ -225,14 +254,15 @@ def _subtree(nid, s, e, lo, hi, cent, bins, order, tmp, go_right, left, right, p
     bounded stack (smaller child first: at most log2(n) + 2 entries)."""
     stack = np.empty((_STACK, 3), np.int64)
     cbox = np.empty(6)
+    scratch = _scratch(bins)
     stack[0, 0], stack[0, 1], stack[0, 2] = nid, s, e
     sp = 1
     while sp > 0:
         sp -= 1
         nid, s, e = stack[sp, 0], stack[sp, 1], stack[sp, 2]
-        _bounds(order, s, e, lo, hi, cent, node_box[nid], cbox)
+        _bounds(s, e, lo, hi, cent, node_box[nid], cbox)
         nl = _split(nid, s, e, cbox, lo, hi, cent, bins, order, tmp, go_right, left, right,
-                    prim, node_box)
+                    prim, node_box, scratch)
         if nl == 0:
             continue
         small_left = nl <= e - s - nl
@@ -253,6 +283,7 @@ def _top(min_tasks, lo, hi, cent, bins, order, tmp, go_right, left, right, prim,
     tasks[0, 0], tasks[0, 1], tasks[0, 2] = 0, 0, n
     k = 1
     cbox = np.empty(6)
+    scratch = _scratch(bins)
     while k < min_tasks:
         big = 0
         for i in range(1, k):
@@ -261,9 +292,9 @@ def _top(min_tasks, lo, hi, cent, bins, order, tmp, go_right, left, right, prim,
         nid, s, e = tasks[big, 0], tasks[big, 1], tasks[big, 2]
         if e - s <= SWEEP_MAX:
             break
-        _bounds(order, s, e, lo, hi, cent, node_box[nid], cbox)
+        _bounds(s, e, lo, hi, cent, node_box[nid], cbox)
         nl = _split(nid, s, e, cbox, lo, hi, cent, bins, order, tmp, go_right, left, right,
-                    prim, node_box)
+                    prim, node_box, scratch)
         tasks[big, 0], tasks[big, 1], tasks[big, 2] = nid + 1, s, s + nl
         tasks[k, 0], tasks[k, 1], tasks[k, 2] = nid + 2 * nl, s + nl, e
         k += 1
@@ -285,7 +316,8 @@ def build_binary(tris, bins: int, progress=None):
     prim = np.full(m, -1, np.int64)
     node_box = np.empty((m, 6))
     order = np.arange(n, dtype=np.int64)
-    tmp = np.empty(n, np.int64)
+    tmp = (np.empty(n, np.int64), np.empty((n, 3), np.float32), np.empty((n, 3), np.float32),
+           np.empty((n, 3)))                                # partition scratch
     go_right = np.zeros(n, np.bool_)
     args = (lo, hi, cent, int(bins), order, tmp, go_right, left, right, prim, node_box)
     threads = min(os.cpu_count() or 1, 8) if n >= PARALLEL_MIN else 1
