@@ -216,7 +216,7 @@ def test_bunny():
     s = bvh.stats
     print(f"\nbunny: {s}")
     assert s["tri_nodes"] == 99_785
-    assert s["build_s"] < 4.0                              # ~1 s here; the budget is 2 s
+    assert s["build_s"] < 4.0       # ~0.2 s here (bench/bvh_build.py); a loose bound only
     check_bvh(bvh)
 
 
