@@ -11,7 +11,8 @@ Build pipeline (madmann91/bvh and tinybvh style):
    primitive list. Two implementations of these same rules (they build the same tree):
    ``builder="fast"`` (default), numba kernels in ``driver.bvh_build`` (depth first, with a
    progress bar), and ``builder="numpy"``, the vectorised reference here (``_build_binary``:
-   all nodes of a tree level binned, scored and partitioned together; about 40x slower).
+   all nodes of a tree level binned, scored and partitioned together; the whole build is
+   4-8x slower with it).
 3. Collapse to 4-wide: ``collapse="sah"`` (default) picks the binary nodes that become box nodes
    by the dynamic programme of Ylitie et al. 2017 that minimises the wide tree's SAH cost
    (``driver.bvh_build.collapse_sah``); ``collapse="greedy"`` (``_collapse``) starts each 4-wide
