@@ -3,16 +3,21 @@
 Build pipeline (madmann91/bvh and tinybvh style):
 
 1. Primitive boxes and centroids only (``_prim_boxes``): the binary builder never sees triangles.
-2. Binary BVH by SAH (``_build_binary``), C_trav = C_int = 1, split until every leaf holds one
-   triangle (RDNA-style leaves): nodes of more than ``SWEEP_MAX`` (8) primitives are binned,
-   ``bins`` (16) bins per axis over the node's centroid bounds on all three axes
-   (``_binned_sah``); nodes of 3..8 primitives try every split of the centroid order on all
-   three axes (``_sweep_sah``, the exact SAH, which no binning beats); 2 primitives split 1 + 1.
-   Vectorised per tree level: all nodes of a level are binned, scored and partitioned together
-   with numpy; there is no per-triangle or per-node Python loop. A node whose centroids all
-   coincide is split in the middle of its primitive list.
-3. Collapse to 4-wide (``_collapse``): start each 4-wide node with the binary node's two children
-   and twice replace the interior child of largest surface area by its two children.
+2. Binary BVH by SAH, C_trav = C_int = 1, split until every leaf holds one triangle (RDNA-style
+   leaves): nodes of more than ``SWEEP_MAX`` (8) primitives are binned, ``bins`` (16) bins per
+   axis over the node's centroid bounds on all three axes; nodes of 3..8 primitives try every
+   split of the centroid order on all three axes (the exact SAH, which no binning beats);
+   2 primitives split 1 + 1; a node whose centroids all coincide is split in the middle of its
+   primitive list. Two implementations of these same rules (they build the same tree):
+   ``builder="fast"`` (default), numba kernels in ``driver.bvh_build`` (depth first, with a
+   progress bar), and ``builder="numpy"``, the vectorised reference here (``_build_binary``:
+   all nodes of a tree level binned, scored and partitioned together; the whole build is
+   4-8x slower with it).
+3. Collapse to 4-wide: ``collapse="sah"`` (default) picks the binary nodes that become box nodes
+   by the dynamic programme of Ylitie et al. 2017 that minimises the wide tree's SAH cost
+   (``driver.bvh_build.collapse_sah``); ``collapse="greedy"`` (``_collapse``) starts each 4-wide
+   node with the binary node's two children and twice replaces the interior child of largest
+   surface area by its two children (triangle children are never opened).
 4. Memory image (``_write_image``): SPEC section 8, layout below.
 
 Memory image (one contiguous little-endian byte buffer; every node 64-byte aligned)::
@@ -86,7 +91,9 @@ class BVH4:
     triangles : (n, 3, 3) float32, the input triangles; primitive id i is ``triangles[i]``
     stats : dict with ``box_nodes``, ``tri_nodes``, ``depth`` (box-node levels on the longest
         root-to-leaf path; a root with only triangle children has depth 1), ``sah_cost``,
-        ``build_s`` (wall seconds), ``bytes`` (= 128 * box_nodes + 64 * tri_nodes).
+        ``build_s`` (wall seconds), ``bytes`` (= 128 * box_nodes + 64 * tri_nodes),
+        ``avg_children`` (used child slots per box node), ``child_histogram`` (list: number of
+        box nodes with 1, 2, 3, 4 used slots).
 
     ``sah_cost`` is the expected number of datapath ops of a random ray that hits the root box,
     with C_trav = C_int = 1, computed from the stored (grown) float32 boxes in float64:
@@ -362,7 +369,7 @@ def _half_area_c(lo, hi):
 # binary -> 4-wide
 
 def _collapse(left, right, area):
-    """4-wide levels from the binary tree: a list, root level first, of (k, 4) arrays of binary
+    """Greedy collapse: 4-wide levels from the binary tree: a list, root level first, of (k, 4) arrays of binary
     node ids per 4-wide box node (-1 = unused slot; used slots first)."""
     levels = []
     if left[0] < 0:                                       # single triangle: root has one child
@@ -400,8 +407,21 @@ def _grow(lo, hi, pad):
     return np.concatenate([glo, ghi], axis=-1)
 
 
-def _write_image(levels, left, prim, node_lo, node_hi, tris, pad):
-    """Number nodes, fill the byte image. Returns (image, depth, sah_cost)."""
+def _stored_boxes(lo, hi, pad, chunk=1 << 20):
+    """The stored (grown) float32 boxes (m, 6) of (m, 3) bounds and their half areas (m,)
+    float64 (the areas ``sah_cost`` is computed from), ``chunk`` rows at a time (bounded
+    temporaries)."""
+    boxes = np.empty((len(lo), 6), np.float32)
+    area = np.empty(len(lo))
+    for i in range(0, len(lo), chunk):
+        g = boxes[i:i + chunk] = _grow(lo[i:i + chunk], hi[i:i + chunk], pad)
+        area[i:i + chunk] = _half_area(g[:, :3].astype(np.float64), g[:, 3:])
+    return boxes, area
+
+
+def _write_image(levels, left, prim, node_box, node_area, tris):
+    """Number nodes, fill the byte image. node_box/node_area: ``_stored_boxes`` of the binary
+    nodes. Returns (image, depth, sah_cost, child histogram)."""
     n_box = sum(len(s) for s in levels)
     n_tri = len(tris)
     total = BOX_BYTES * n_box + TRI_BYTES * n_tri
@@ -421,7 +441,7 @@ def _write_image(levels, left, prim, node_lo, node_hi, tris, pad):
     ptrs = ptrs.reshape(slots.shape)
 
     ids = np.maximum(slots, 0)
-    boxes = _grow(_rows(node_lo, ids), _rows(node_hi, ids), pad)
+    boxes = _rows(node_box, ids)
     boxes[~used] = _EMPTY_BOX
     parent = np.full(n_box, NO_CHILD, np.uint32)
     parent_row = np.nonzero(is_box)[0]                     # row-major, same order as child_box
@@ -439,30 +459,61 @@ def _write_image(levels, left, prim, node_lo, node_hi, tris, pad):
     tw[:, 0:9] = _rows(tris, tri_prim).reshape(n_tri, 9).view("<u4")
     tw[:, 9] = tri_prim
 
-    b64 = np.where(used[..., None], boxes, 0).astype(np.float64)        # unused slots: area 0
-    area = _half_area(b64[..., :3], b64[..., 3:])
-    root_box = np.concatenate([b64[0, used[0], :3].min(axis=0), b64[0, used[0], 3:].max(axis=0)])
-    sah = 1.0 + float(area.sum()) / float(_half_area(root_box[:3], root_box[3:]))
-    return image, len(levels), sah
+    r = boxes[0, used[0]].astype(np.float64)
+    root_area = _half_area(r[:, :3].min(axis=0), r[:, 3:].max(axis=0))
+    sah = 1.0 + float(node_area[slots[used]].sum()) / float(root_area)
+    hist = np.bincount(used.sum(axis=1), minlength=5)[1:]
+    return image, len(levels), sah, hist
 
 
-def build(triangles_or_trimesh, bins: int = 16) -> BVH4:
+BUILDERS = ("fast", "numpy")
+COLLAPSES = ("sah", "greedy")
+PROGRESS_MIN = 1_000_000        # progress=None shows a bar from this many triangles (~0.5 s)
+
+
+def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collapse: str = "sah",
+          progress=None) -> BVH4:
     """Build a BVH4 (binned SAH, one triangle per leaf) and its SPEC 8 memory image.
 
     triangles_or_trimesh : (n, 3, 3) array-like (converted to float32) or a trimesh.Trimesh
     bins : SAH bins per axis (>= 2; default 16)
+    builder : "fast" (numba, default) or "numpy" (the reference; same tree, ~40x slower)
+    collapse : "sah" (SAH-optimal, default) or "greedy" (the earlier collapse, for comparisons)
+    progress : True/False, or None = a tqdm bar on stderr (TTY only) from PROGRESS_MIN triangles
     Degenerate (zero-area) triangles are kept (the datapath never hits them).
-    Raises ValueError for an empty input, a wrong shape or non-finite coordinates."""
+    Raises ValueError for an empty input, a wrong shape, non-finite coordinates or a bad option."""
     t0 = time.perf_counter()
     if int(bins) < 2:
         raise ValueError(f"bins must be >= 2, got {bins}")
+    if builder not in BUILDERS:
+        raise ValueError(f"builder must be one of {BUILDERS}, got {builder!r}")
+    if collapse not in COLLAPSES:
+        raise ValueError(f"collapse must be one of {COLLAPSES}, got {collapse!r}")
     tris = as_triangles(triangles_or_trimesh)
-    lo, hi, cent = _prim_boxes(tris)
-    left, right, prim, node_lo, node_hi = _build_binary(lo, hi, cent, int(bins))
-    levels = _collapse(left, right, _half_area(node_lo, node_hi))
-    pad = PAD_REL * float(np.abs(tris).max())
-    image, depth, sah = _write_image(levels, left, prim, node_lo, node_hi, tris, pad)
+    from tqdm import tqdm
+    show = None if progress is None and len(tris) >= PROGRESS_MIN else bool(progress)
+    with tqdm(total=len(tris), desc="BVH build", unit="tri", unit_scale=True, leave=False,
+              disable=None if show is None else not show) as bar:
+        if builder == "fast":
+            from . import bvh_build
+            left, right, prim, node_lo, node_hi = bvh_build.build_binary(tris, int(bins), bar)
+        else:
+            left, right, prim, node_lo, node_hi = _build_binary(*_prim_boxes(tris), int(bins))
+            bar.update(len(tris))
+        bar.set_postfix_str("collapse")
+        pad = PAD_REL * float(max(-tris.min(), tris.max()))
+        node_box, node_area = _stored_boxes(node_lo, node_hi, pad)
+        if collapse == "sah":
+            from . import bvh_build
+            levels = bvh_build.collapse_sah(left, right, node_area)
+        else:
+            levels = _collapse(left, right, _half_area(node_lo, node_hi))
+        del node_lo, node_hi
+        bar.set_postfix_str("image")
+        image, depth, sah, hist = _write_image(levels, left, prim, node_box, node_area, tris)
     n_box = sum(len(s) for s in levels)
     stats = {"box_nodes": n_box, "tri_nodes": len(tris), "depth": depth, "sah_cost": sah,
-             "build_s": time.perf_counter() - t0, "bytes": int(image.nbytes)}
+             "build_s": time.perf_counter() - t0, "bytes": int(image.nbytes),
+             "avg_children": float((hist * np.arange(1, 5)).sum() / n_box),
+             "child_histogram": hist.tolist()}
     return BVH4(image, tris, stats)
