@@ -116,23 +116,28 @@ def bunny_floor(bunny) -> Built:
     return Built(tris, albedo, np.zeros((len(tris), 3)), [light], _framing(bunny), False)
 
 
-def instanced_bunnies(bunny: np.ndarray, count: int = 21, seed: int = 0) -> np.ndarray:
-    """(count x len(bunny), 3, 3) float32: copies of the ``bunny`` triangles on a square grid,
-    each rotated about z and scaled by a deterministic pseudo-random amount (21 copies of the
-    99,785-triangle bunny: 2.1 million triangles)."""
-    bunny = np.asarray(bunny, np.float64)
-    lo, hi = bunny.reshape(-1, 3).min(0), bunny.reshape(-1, 3).max(0)
-    base = bunny - np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
-    pitch = 1.6 * max(hi[0] - lo[0], hi[1] - lo[1])
-    side = int(np.ceil(np.sqrt(count)))
+def instanced_bunnies(bunny: np.ndarray, count: int, seed: int = 0) -> np.ndarray:
+    """(count * len(bunny), 3, 3) float32 triangles: ``count`` copies of the ``bunny`` triangles
+    (z up) on a square grid in the plane z = 0, each turned about z by a random angle and scaled
+    by a random factor in [0.6, 1.4], deterministic in ``seed``. Neighbouring copies may touch but
+    do not interpenetrate much (grid pitch = 1.5 x the largest bunny's footprint)."""
+    if int(count) < 1:
+        raise ValueError(f"count must be >= 1, got {count}")
+    count = int(count)
+    tris = np.asarray(bunny, np.float64)
+    lo, hi = tris.reshape(-1, 3).min(0), tris.reshape(-1, 3).max(0)
+    tris = tris - [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]]      # feet at the origin
+    pitch = 1.5 * 1.4 * float(np.hypot(hi[0] - lo[0], hi[1] - lo[1]))
     rng = np.random.default_rng(seed)
-    angles, scales = rng.uniform(0, 2 * np.pi, count), rng.uniform(0.6, 1.2, count)
-    out = np.empty((count,) + bunny.shape, np.float32)
+    angle = rng.uniform(0, 2 * np.pi, count)
+    scale = rng.uniform(0.6, 1.4, count)
+    side = int(np.ceil(np.sqrt(count)))
+    out = np.empty((count, len(tris), 3, 3), np.float32)
     for i in range(count):
-        c, s = np.cos(angles[i]), np.sin(angles[i])
-        rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) * scales[i]
+        c, s = np.cos(angle[i]), np.sin(angle[i])
+        rot = scale[i] * np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
         shift = np.array([(i % side) * pitch, (i // side) * pitch, 0.0])
-        out[i] = base @ rot.T + shift
+        out[i] = tris @ rot.T + shift
     return out.reshape(-1, 3, 3)
 
 

@@ -69,15 +69,12 @@ import time
 
 import numpy as np
 
-BOX_TYPE = 5
-TRI_TYPE = 0
-NO_CHILD = 0xFFFFFFFF
-BOX_BYTES = 128
-TRI_BYTES = 64
+# the node image's layout is driver.layout's (SPEC 8); the names are re-exported for users
+from .layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, NO_CHILD, TRI_BYTES, TRI_NODE,  # noqa: F401
+                     TRI_TYPE, NodeRef, read_nodes)
+
 PAD_REL = 2.0 ** -16
-SWEEP_MAX = 8          # nodes of <= 8 primitives: exact SAH sweep instead of bins
-_BOX_WORDS = BOX_BYTES // 4
-_TRI_WORDS = TRI_BYTES // 4
+from .bvh_params import SWEEP_MAX  # noqa: E402  (nodes of <= 8 primitives: exact SAH sweep)
 _EMPTY_BOX = np.full(6, np.inf, np.float32)
 
 
@@ -118,15 +115,8 @@ class BVH4:
         return (f"BVH4({len(self.triangles)} triangles, {s['box_nodes']} box nodes, depth "
                 f"{s['depth']}, SAH {s['sah_cost']:.2f}, {s['bytes']} bytes)")
 
-    @staticmethod
-    def node_type(ptrs) -> np.ndarray:
-        """Type bits of node pointers: 5 = box node, 0 = triangle node (7 for 0xFFFFFFFF)."""
-        return np.asarray(ptrs, np.uint32) & np.uint32(7)
-
-    @staticmethod
-    def node_offset(ptrs) -> np.ndarray:
-        """Byte offsets (int64) of node pointers in the image."""
-        return (np.asarray(ptrs, np.uint32) & np.uint32(0xFFFFFFF8)).astype(np.int64) << 3
+    node_type = staticmethod(NodeRef.type)        # type bits of node pointers
+    node_offset = staticmethod(NodeRef.offset)    # byte offsets (int64) of node pointers
 
     def box_nodes(self, ptrs):
         """Decode box nodes. ptrs : (m,) uint32 box-node pointers.
@@ -135,10 +125,8 @@ class BVH4:
         ptrs = np.asarray(ptrs, np.uint32)
         if (self.node_type(ptrs) != BOX_TYPE).any():
             raise ValueError("box_nodes: a pointer is not a box-node pointer")
-        words = self._words[(self.node_offset(ptrs) >> 2)[:, None] + np.arange(28)]
-        children = words[:, :4].astype(np.uint32)
-        boxes = words[:, 4:28].view("<f4").astype(np.float32).reshape(-1, 4, 6)
-        return children, boxes
+        nodes = read_nodes(self._words, ptrs, BOX_NODE)
+        return nodes["child"].astype(np.uint32), nodes["box"].astype(np.float32)
 
     def tri_nodes(self, ptrs):
         """Decode triangle nodes. ptrs : (m,) uint32 triangle-node pointers.
@@ -147,14 +135,13 @@ class BVH4:
         ptrs = np.asarray(ptrs, np.uint32)
         if (self.node_type(ptrs) != TRI_TYPE).any():
             raise ValueError("tri_nodes: a pointer is not a triangle-node pointer")
-        words = self._words[(self.node_offset(ptrs) >> 2)[:, None] + np.arange(10)]
-        tris = words[:, :9].view("<f4").astype(np.float32).reshape(-1, 3, 3)
-        return tris, words[:, 9].astype(np.int64)
+        nodes = read_nodes(self._words, ptrs, TRI_NODE)
+        return nodes["tri"].astype(np.float32), nodes["prim"].astype(np.int64)
 
     def node_extras(self, ptrs):
         """(parent pointer (m,) uint32, child count (m,) int64) of box nodes."""
-        words = self._words[(self.node_offset(ptrs) >> 2)[:, None] + np.array([28, 29])]
-        return words[:, 0].astype(np.uint32), words[:, 1].astype(np.int64)
+        nodes = read_nodes(self._words, ptrs, BOX_NODE)
+        return nodes["parent"].astype(np.uint32), nodes["count"].astype(np.int64)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -435,9 +422,9 @@ def _write_image(levels, left, prim, node_box, node_area, tris):
     # row-major slot order, which is the order _collapse emits the next level in
     flat_box, flat_tri = is_box.ravel(), is_tri.ravel()
     ptrs = np.full(slots.size, NO_CHILD, np.uint32)
-    ptrs[flat_box] = 16 * np.cumsum(flat_box)[flat_box] | BOX_TYPE
+    ptrs[flat_box] = NodeRef.encode(BOX_BYTES * np.cumsum(flat_box)[flat_box], BOX_TYPE)
     tri_index = np.cumsum(flat_tri)[flat_tri] - 1
-    ptrs[flat_tri] = (BOX_BYTES * n_box + TRI_BYTES * tri_index) >> 3 | TRI_TYPE
+    ptrs[flat_tri] = NodeRef.encode(BOX_BYTES * n_box + TRI_BYTES * tri_index, TRI_TYPE)
     ptrs = ptrs.reshape(slots.shape)
 
     ids = np.maximum(slots, 0)
@@ -445,19 +432,18 @@ def _write_image(levels, left, prim, node_box, node_area, tris):
     boxes[~used] = _EMPTY_BOX
     parent = np.full(n_box, NO_CHILD, np.uint32)
     parent_row = np.nonzero(is_box)[0]                     # row-major, same order as child_box
-    parent[1:] = (16 * parent_row | BOX_TYPE).astype(np.uint32)
+    parent[1:] = NodeRef.encode(BOX_BYTES * parent_row, BOX_TYPE)
 
     image = np.zeros(total, np.uint8)
-    words = image.view("<u4")
-    bw = words[:_BOX_WORDS * n_box].reshape(n_box, _BOX_WORDS)
-    bw[:, 0:4] = ptrs
-    bw[:, 4:28] = boxes.astype("<f4").reshape(n_box, 24).view("<u4")
-    bw[:, 28] = parent
-    bw[:, 29] = used.sum(axis=1)
+    bn = image[:BOX_BYTES * n_box].view(BOX_NODE)           # the node structs (driver.layout)
+    bn["child"] = ptrs
+    bn["box"] = boxes.astype(np.float32).reshape(n_box, 4, 6)
+    bn["parent"] = parent
+    bn["count"] = used.sum(axis=1)
     tri_prim = prim[slots[is_tri]]                         # triangle nodes in reference order
-    tw = words[_BOX_WORDS * n_box:].reshape(n_tri, _TRI_WORDS)
-    tw[:, 0:9] = _rows(tris, tri_prim).reshape(n_tri, 9).view("<u4")
-    tw[:, 9] = tri_prim
+    tn = image[BOX_BYTES * n_box:].view(TRI_NODE)
+    tn["tri"] = _rows(tris, tri_prim).reshape(n_tri, 3, 3)
+    tn["prim"] = tri_prim
 
     r = boxes[0, used[0]].astype(np.float64)
     root_area = _half_area(r[:, :3].min(axis=0), r[:, 3:].max(axis=0))

@@ -12,7 +12,6 @@ same closest hits.
 
 from __future__ import annotations
 
-import math
 import os
 import multiprocessing
 import resource
@@ -25,30 +24,10 @@ BUNNY_TRIANGLES = 99_785
 
 
 def instanced_bunnies(count: int, seed: int = 0) -> np.ndarray:
-    """(count * 99,785, 3, 3) float32 triangles: ``count`` copies of the Stanford bunny on a
-    square grid in the plane z = 0 (the bunny's up axis is +z in ``driver.scene``), each turned
-    about z by a random angle and scaled by a random factor in [0.6, 1.4], deterministic in
-    ``seed``. Neighbouring copies may touch but do not interpenetrate much (grid pitch = 1.5 x
-    the largest bunny's footprint)."""
+    """``count`` copies of the Stanford bunny (``driver.builtins.instanced_bunnies``)."""
+    from .builtins import instanced_bunnies as grid
     from .scene import load
-    if int(count) < 1:
-        raise ValueError(f"count must be >= 1, got {count}")
-    count = int(count)
-    tris = np.asarray(load("bunny").triangles, np.float64)
-    lo, hi = tris.reshape(-1, 3).min(0), tris.reshape(-1, 3).max(0)
-    tris = tris - [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]]      # feet at the origin
-    pitch = 1.5 * 1.4 * float(np.hypot(hi[0] - lo[0], hi[1] - lo[1]))
-    rng = np.random.default_rng(seed)
-    angle = rng.uniform(0, 2 * np.pi, count)
-    scale = rng.uniform(0.6, 1.4, count)
-    side = math.ceil(math.sqrt(count))
-    out = np.empty((count, len(tris), 3, 3), np.float32)
-    for i in range(count):
-        c, s = np.cos(angle[i]), np.sin(angle[i])
-        rot = scale[i] * np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
-        shift = np.array([(i % side) * pitch, (i // side) * pitch, 0.0])
-        out[i] = tris @ rot.T + shift
-    return out.reshape(-1, 3, 3)
+    return grid(load("bunny").triangles, count, seed)
 
 
 def _build_child(count, conn):

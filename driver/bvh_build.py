@@ -41,7 +41,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 import numpy as np
 from numba import njit
 
-from .bvh4 import SWEEP_MAX
+from .bvh_params import SWEEP_MAX
 
 WIDTH = 4              # children per wide node
 PARALLEL_MIN = 200_000  # from this many triangles, subtrees are built on several threads
