@@ -24,6 +24,7 @@ COMMANDS = {
     "render": "driver.cli:RenderCommand",
     "knn": "driver.knn:KnnCommand",
     "bench": "driver.bench",
+    "power": "driver.power",
 }
 
 PROG = "rayflex"
