@@ -1,47 +1,33 @@
-// Power measurement harness (driver/power): streams request words back to back through a
-// Verilated model and records switching activity, in one of two ways chosen at build time:
-//
-// * VM_TRACE (`--trace`, the RTL, level "signals"): a VCD of one run, whose toggles pw_vcd_count
-//   counts per VCD identifier. Verilator gives every variable one identifier and its aliases
-//   (the same net seen through ports and continuous assignments in several scopes) the same one,
-//   so counting per identifier counts each net once; toggle coverage would count it once per
-//   scope it appears in.
-// * VM_COVERAGE (`--coverage-toggle`, the gate-level netlist of driver/power/netlist.py, level
-//   "gates"): Verilator's per-bit toggle counters, zeroed before and written after a run. The
-//   netlist declares every net once, so there are no aliases, and the model counts by itself: a
-//   waveform of ~5 x 10^5 nets would be gigabytes.
-//
-// The model's top is called rayflex in both cases (same ports as rtl/rayflex.sv).
+// Power measurement harness (driver/power/activity.py, level "signals"): streams request words
+// back to back through the Verilated RTL built with --trace, writes a VCD of a run, and counts
+// the bit toggles of every VCD identifier (pw_vcd_count). Verilator gives every net one
+// identifier, shared by its aliases (the same net seen through ports and continuous assignments
+// in several scopes), so counting per identifier counts each net once (Verilator's toggle
+// coverage would count it once per scope it appears in). Counting in C++ keeps a run in
+// fractions of a second (a 300-request run writes ~25 MB of VCD).
 #include <algorithm>
 #include <cstdint>
 #include <cstring>
 
 #include "Vrayflex.h"
 #include "verilated.h"
-#if VM_COVERAGE
-#include "verilated_cov.h"
-#endif
-#if VM_TRACE
 #include <cstdio>
 #include <string>
 #include <unordered_map>
 
 #include "verilated_vcd_c.h"
-#endif
 
 namespace {
 
 // A context that allows tracing before the model (built from it) is constructed.
 struct Context : VerilatedContext {
-  Context() { traceEverOn(VM_TRACE != 0); }
+  Context() { traceEverOn(true); }
 };
 
 struct Sim {
   Context ctx;
   Vrayflex top{&ctx};
-#if VM_TRACE
   VerilatedVcdC* vcd = nullptr;
-#endif
   uint64_t time = 0;
 };
 
@@ -51,9 +37,7 @@ void tick(Sim* s) {
   s->top.clk_i = 0;
   s->top.eval();
   s->time++;
-#if VM_TRACE
   if (s->vcd) s->vcd->dump(s->time);  // one sample per cycle: zero-delay, no glitches
-#endif
 }
 
 constexpr int kReqWords = sizeof(Vrayflex::req_i) / 4;
@@ -81,16 +65,11 @@ void* pw_new() {
 
 void pw_free(void* h) {
   Sim* s = static_cast<Sim*>(h);
-#if VM_TRACE
   if (s->vcd) s->vcd->close();
   delete s->vcd;
-#endif
   delete s;
 }
 
-// 1 if the model records toggles as a VCD (pw_trace_*), 2 if as coverage counters (pw_zero and
-// pw_write), 0 if neither.
-int pw_mode() { return VM_TRACE ? 1 : VM_COVERAGE ? 2 : 0; }
 
 // Stream n requests (n x kReqWords words) back to back with out_ready high, until every response
 // has left, then clock `idle` more cycles with nothing valid (the inputs keep their last value).
@@ -117,13 +96,6 @@ int64_t pw_stream(void* h, const uint32_t* req, int64_t n, int64_t idle) {
   return cycles + idle;
 }
 
-#if VM_COVERAGE
-void pw_zero(void* h) { static_cast<Sim*>(h)->ctx.coveragep()->zero(); }
-
-void pw_write(void* h, const char* path) { static_cast<Sim*>(h)->ctx.coveragep()->write(path); }
-#endif
-
-#if VM_TRACE
 // Start a VCD of every signal at `path` (its first sample is the current state).
 void pw_trace_open(void* h, const char* path) {
   Sim* s = static_cast<Sim*>(h);
@@ -191,7 +163,6 @@ int64_t pw_vcd_count(const char* vcd, const char* out) {
   std::fclose(o);
   return static_cast<int64_t>(sig.size());
 }
-#endif
 
 }  // extern "C"
 #pragma GCC visibility pop

@@ -15,7 +15,7 @@ import pytest
 
 from driver import backend
 from driver.cli import main
-from driver.power import activity, liberty, measure, netlist, report, stimulus
+from driver.power import activity, gatesim, liberty, measure, netlist, report, stimulus
 from driver.wire import pack_requests
 
 BASE = {"EXTENDED": 0, "DISJOINT": 0, "LATENCY": 11}
@@ -83,15 +83,6 @@ def test_vcd_header_aliases_and_testbench_inputs(signals, tmp_path):
     assert m.codes == {"!": 0, '"': 1, "#": 2, "$": 3}
     assert m.names[1] == ["TOP.req_i", "TOP.rayflex.req_i"]
     assert list(m.weight) == [0, 0, 1, 1]
-
-
-def test_coverage_parser(tmp_path):
-    """Both directions of a net's toggle coverage points are summed per net n<id>."""
-    p = tmp_path / "cov.dat"
-    pt = "C '\x01f\x02netlist.v\x01l\x0212\x01t\x02toggle\x01o\x02n{}:{}\x01h\x02TOP.rayflex' {}\n"
-    p.write_text("# SystemC::Coverage-3\n" + pt.format(5, "0->1", 3) + pt.format(5, "1->0", 2)
-                 + pt.format(7, "0->1", 1))
-    assert list(activity.parse_coverage(p, 8)) == [0, 0, 0, 0, 0, 5, 0, 1]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -361,34 +352,93 @@ def test_liberty_errors(tmp_path):
 # ------------------------------------------------------------------------------------------------
 # gate-level netlist
 
+def _cell(t, **conn):
+    return {"type": t, "connections": {k: [v] for k, v in conn.items()},
+            "attributes": {"src": "x.sv:1"}}
+
+
 def _design():
-    """A tiny Yosys JSON design: q <= en ? (a & b) : q; y = ~q."""
-    cell = lambda t, **c: {"type": t, "connections": {k: [v] for k, v in c.items()},  # noqa
-                           "attributes": {"src": "x.sv:1"}}
+    """A one-stage pipeline with the datapath's ports, as Yosys JSON: out_valid <= in_valid;
+    rsp[0] <= req[0] & req[1] and rsp[1] <= req[2] ^ req[3] on a handshake; rsp[2] = ~rsp[0]."""
+    req = list(range(5, 5 + 32 * activity.REQ_WORDS))
+    ready = req[-1] + 1
     return {"modules": {"rayflex": {
         "ports": {"clk_i": {"direction": "input", "bits": [2]},
-                  "req_i": {"direction": "input", "bits": [3, 4, 5]},
-                  "rsp_o": {"direction": "output", "bits": [8, "0"]}},
-        "netnames": {"g_reg[0].u_reg.main_q": {"hide_name": 0, "bits": [7]}},
-        "cells": {"and": cell("$_AND_", A=3, B=4, Y=6),
-                  "ff": cell("$_DFFE_PP_", C=2, D=6, E=5, Q=7),
-                  "not": cell("$_NOT_", A=7, Y=8)}}}}
+                  "rst_ni": {"direction": "input", "bits": [3]},
+                  "in_valid_i": {"direction": "input", "bits": [4]},
+                  "in_ready_o": {"direction": "output", "bits": ["1"]},
+                  "req_i": {"direction": "input", "bits": req},
+                  "out_valid_o": {"direction": "output", "bits": [9000]},
+                  "out_ready_i": {"direction": "input", "bits": [ready]},
+                  "rsp_o": {"direction": "output", "bits": [9002, 9004, 9005, "0"]}},
+        "netnames": {"g_reg[0].u_reg.main_q": {"hide_name": 0, "bits": [9002, 9004]},
+                     "g_reg[0].u_reg.main_valid_q": {"hide_name": 0, "bits": [9000]}},
+        "cells": {"v": _cell("$_DFF_PN0_", C=2, D=4, R=3, Q=9000),
+                  "and": _cell("$_AND_", A=5, B=6, Y=9001),
+                  "ff0": _cell("$_DFFE_PP_", C=2, D=9001, E=4, Q=9002),
+                  "xor": _cell("$_XOR_", A=7, B=8, Y=9003),
+                  "ff1": _cell("$_DFFE_PP_", C=2, D=9003, E=4, Q=9004),
+                  "not": _cell("$_NOT_", A=9002, Y=9005)}}}}
 
 
-def test_netlist_writer(tmp_path):
+@pytest.fixture
+def tiny_net(tmp_path):
     info = netlist._write(_design(), tmp_path)
-    v = (tmp_path / "netlist.v").read_text()
-    assert "wire n6 = n3 & n4;" in v and "wire n8 = ~n7;" in v
-    assert "always @(posedge n2) if (n5) n7 <= n6;" in v
-    assert "assign rsp_o[0] = n8;" in v and "assign rsp_o[1] = 1'b0;" in v
-    arr = np.load(tmp_path / "nets.npz")
-    assert list(arr["fanout"][3:9]) == [1, 1, 1, 1, 1, 1]      # n8 drives the output port
-    assert arr["fanout"][2] == 0                               # clock pins do not count
+    return netlist._load(tmp_path, "k", {**info, "synth_s": 0}, cached=True), info
+
+
+def test_netlist_arrays(tiny_net):
+    net, info = tiny_net
     lab = netlist.STAGE_LABELS
-    assert lab[arr["stage"][6]] == "S1"        # the AND feeds register g_reg[0] (R1): stage S1
-    assert lab[arr["stage"][7]] == "registers"
-    assert info["cells"] == {"$_AND_": 1, "$_DFFE_PP_": 1, "$_NOT_": 1}
-    assert arr["sinks"][6].tolist() == [0, 1, 0] and arr["in0"][6] == 3
+    assert info["cells"] == {"$_AND_": 1, "$_DFFE_PP_": 2, "$_DFF_PN0_": 1, "$_NOT_": 1,
+                             "$_XOR_": 1}
+    assert info["levels"] == 1 and net.levels == 1
+    assert list(net.fanout[[5, 9001, 9002, 9005]]) == [1, 1, 2, 1]   # rsp_o ports count
+    assert net.fanout[2] == 0                                        # clock pins do not
+    assert lab[net.stage[9001]] == "S1"        # the AND feeds register g_reg[0] (R1): stage S1
+    assert lab[net.stage[9002]] == "registers"
+    t = net.cell_types
+    assert net.sinks[9001, t.index("$_DFFE_PP_")] == 1 and net.in0[9001] == 5
+    assert list(net.ports["rsp_o"]) == [9002, 9004, 9005, 0]
+
+
+def test_gate_simulator_logic(tiny_net):
+    net, _ = tiny_net
+    sim = gatesim.GateSim(net)
+    rng = np.random.default_rng(0)
+    bits = rng.integers(0, 2, (gatesim.LANES, 32 * activity.REQ_WORDS))
+    sim.set_input("rst_ni", np.ones((gatesim.LANES, 1)))
+    sim.set_input("in_valid_i", np.ones((gatesim.LANES, 1)))
+    sim.set_input("req_i", bits)
+    sim.settle()
+    sim.clock()
+    sim.settle()
+    rsp = sim.output("rsp_o")
+    assert (rsp[:, 0] == (bits[:, 0] & bits[:, 1])).all()
+    assert (rsp[:, 1] == (bits[:, 2] ^ bits[:, 3])).all()
+    assert (rsp[:, 2] == 1 - rsp[:, 0]).all() and not rsp[:, 3].any()
+    assert sim.output("out_valid_o").all() and sim.output("in_ready_o").all()
+
+
+def test_gate_model_steady_state_and_idle(tiny_net):
+    """Toggles of the second half of each stream, exactly; idle cycles toggle nothing."""
+    net, _ = tiny_net
+    m = activity.GateModel(net)
+    rng = np.random.default_rng(1)
+    streams = [rng.integers(0, 16, (12, activity.REQ_WORDS), dtype=np.uint32)
+               for _ in range(40)]                   # more than one pass of 32 pairs
+    ops, cycles, t = m.pair(streams)
+    assert (ops, cycles) == (40 * 6, 40 * 6)
+    want_and = want_xor = 0
+    for w in streams:
+        a, x = w[5:, 0] & 1 & (w[5:, 0] >> 1), (w[5:, 0] >> 2 & 1) ^ (w[5:, 0] >> 3 & 1)
+        want_and += np.count_nonzero(np.diff(a))
+        want_xor += np.count_nonzero(np.diff(x))
+    assert t[9001] == want_and and t[9002] == want_and and t[9005] == want_and
+    assert t[9003] == want_xor and t[9004] == want_xor
+    assert t[9000] == 0                               # valid stays high in both runs' windows
+    c, ti = m.idle(streams[0], 20)
+    assert c == 20 * gatesim.LANES and ti.sum() == 0
 
 
 @pytest.mark.slow

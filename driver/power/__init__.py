@@ -64,7 +64,7 @@ def measure(model, extended: bool, n: int = DEFAULT_OPS, seed: int = 0,
     counted = w > 0
     out: dict = {}
     first = pack_requests(stimulus.requests(names[0], n, seed))
-    c, t = model.run(first, idle=idle_cycles, only_idle=True)
+    c, t = model.idle(first, idle_cycles)
     idle = t / c
     out["idle_per_cycle"] = {"toggles": float(idle[counted].sum()),
                              "energy": float(w @ idle), "unit": model.unit,
@@ -72,16 +72,17 @@ def measure(model, extended: bool, n: int = DEFAULT_OPS, seed: int = 0,
     for op in names:
         if progress:
             progress(op)
-        words = pack_requests(stimulus.requests(op, 2 * n, seed))
-        c1, t1 = model.run(words[:n])
-        c2, t2 = model.run(words)
-        d = (t2 - t1) - idle * (c2 - c1)
+        streams = [pack_requests(stimulus.requests(op, 2 * n, [seed, k]))
+                   for k in range(model.streams)]
+        ops_done, cycles, dt = model.pair(streams)
+        d = dt - idle * cycles
         e = d * w
         total = float(e.sum())
         shares = np.bincount(model.stage, weights=e, minlength=len(STAGE_LABELS))
-        out[op] = {"toggles_per_op": float(d[counted].sum() / n),
-                   "energy_per_op": total / n, "unit": model.unit,
-                   "cycles_per_op": (c2 - c1) / n,
+        out[op] = {"toggles_per_op": float(d[counted].sum() / ops_done),
+                   "energy_per_op": total / ops_done, "unit": model.unit,
+                   "cycles_per_op": cycles / ops_done, "ops": ops_done,
+                   "streams": len(streams),
                    "stages": {s: round(float(v / total), 4) if total else 0.0
                               for s, v in zip(STAGE_LABELS, shares)}}
     for op, why in stimulus.pending().items():
@@ -105,10 +106,7 @@ def run_level(level: str, cfgs: list[str], n: int = DEFAULT_OPS, seed: int = 0,
                                      progress=progress)
             notes.setdefault("synth_s", {})[cfg] = {"seconds": net.synth_s, "cached": net.cached,
                                                    "cells": sum(net.cells.values())}
-            if progress:
-                progress(f"{cfg}: building the gate-level model with Verilator "
-                         "(first time: minutes)")
-            model = activity.GateModel(net, p)
+            model = activity.GateModel(net)
             if level == "liberty":
                 from . import liberty
                 model = liberty.price(model, net, liberty_path)

@@ -1,18 +1,18 @@
-"""Switching activity of one configuration: a Verilated model that counts the toggles of every
-net while request streams run through it (sim/power_harness.cpp).
+"""Switching activity of one configuration: models that count the toggles of every net while
+request streams run through them.
 
-Two models share one interface, ``run(words, idle=0, only_idle=False) -> (cycles, toggles)``,
-where ``toggles`` is a float64 vector over the model's nets:
+* ``SignalModel`` (level ``signals``): the RTL built by Verilator with ``--trace``
+  (sim/power_harness.cpp); a run writes a VCD and the harness counts bit toggles per VCD
+  identifier, in C++ (a 300-request run: ~25 MB, ~0.1 s). Verilator gives each net one
+  identifier however many scopes it appears in (ports, continuous assignments), so each net
+  counts once. Built once per configuration and cached by ``driver.verilate``.
+* ``GateModel`` (level ``gates``): the generic-gate netlist (``netlist.py``) on the 64-lane
+  simulator ``gatesim``; toggles counted per net with ``np.bitwise_count``.
 
-* ``SignalModel`` (level ``signals``): the RTL built with ``--trace``; a run writes a VCD and the
-  harness counts bit toggles per VCD identifier (one per net: aliases share it). The VCD is
-  written to a temporary file and counted in C++ (a 300-request run: ~25 MB, ~0.1 s).
-* ``GateModel`` (level ``gates``): the generic-gate netlist (``netlist.py``) built with
-  ``--coverage-toggle``; a run zeroes Verilator's toggle counters and writes them afterwards.
-
-Both are built once per configuration and cached by ``driver.verilate`` (hash of the sources,
-parameters and recipe). Each run uses a fresh model instance (reset, all registers zero), so a
-run's toggles depend only on its requests: the same seed gives the same numbers.
+Both give the steady state of a list of streams (``pair``: each stream's first half, and the
+whole stream, run from reset; their difference is the second half's operations with the
+pipeline full) and the toggles of idle cycles after a drained stream (``idle``). Every run
+starts from reset, so a run's toggles depend only on its requests: same seed, same numbers.
 """
 
 from __future__ import annotations
@@ -27,15 +27,12 @@ import numpy as np
 from .. import verilate
 from ..rtl import RTL_DIR, LINT_WAIVERS, SIM_DIR, rtl_sources
 from ..wire import REQ_WORDS
+from . import gatesim
 from .netlist import STAGE_LABELS, Netlist
 
 HARNESS = SIM_DIR / "power_harness.cpp"
 # inputs driven by the test bench (their toggles are the driver's, and the clock has no tree here)
 TB_INPUTS = ("clk_i", "rst_ni", "in_valid_i", "req_i", "out_ready_i")
-# the netlist is ~5 x 10^5 single-bit assigns: split the C++ into files and functions so that
-# the compiler sees many small functions (one huge one is slow to optimise)
-_GATE_VARGS = ["--coverage-toggle", "--output-split", "20000", "--output-split-cfuncs", "2000",
-               "-Wno-fatal", "-Wno-lint", "-Wno-style"]
 
 
 def _load(path: Path) -> ctypes.CDLL:
@@ -47,14 +44,10 @@ def _load(path: Path) -> ctypes.CDLL:
     lib.pw_stream.argtypes = [vp, vp, i64, i64]
     if lib.pw_req_words() != REQ_WORDS:
         raise OSError("power harness and driver disagree on the request width; rebuild")
-    if lib.pw_mode() == 1:
-        lib.pw_trace_open.argtypes = [vp, ctypes.c_char_p]
-        lib.pw_trace_close.argtypes = [vp]
-        lib.pw_vcd_count.argtypes = [ctypes.c_char_p, ctypes.c_char_p]
-        lib.pw_vcd_count.restype = i64
-    else:
-        lib.pw_zero.argtypes = [vp]
-        lib.pw_write.argtypes = [vp, ctypes.c_char_p]
+    lib.pw_trace_open.argtypes = [vp, ctypes.c_char_p]
+    lib.pw_trace_close.argtypes = [vp]
+    lib.pw_vcd_count.argtypes = [ctypes.c_char_p, ctypes.c_char_p]
+    lib.pw_vcd_count.restype = i64
     return lib
 
 
@@ -66,13 +59,22 @@ def _build(sv, params, name, vargs) -> Path:
         raise OSError(f"cannot build the power model: {e}") from None
 
 
-class _Model:
-    level = ""
-    unit = ""
+class SignalModel:
+    """Level ``signals``: every traced RTL net (one per VCD identifier), weight 1 per bit toggle."""
 
-    def __init__(self):
+    level = "signals"
+    unit = "bit toggles"
+    streams = 1
+
+    def __init__(self, params: dict[str, int]):
         self._tmp = tempfile.TemporaryDirectory(prefix="rayflex-power-")
         self.tmp = Path(self._tmp.name)
+        name = "rayflex_power_" + "_".join(f"{k[0].lower()}{v}" for k, v in params.items())
+        self.lib = _load(_build([RTL_DIR / LINT_WAIVERS, *rtl_sources()], params, name,
+                                ["--trace"]))
+        self.codes: dict[str, int] | None = None
+        self.names: list[list[str]] = []
+        self.run(np.zeros((0, REQ_WORDS), np.uint32), idle=1)    # reads the net declarations
 
     def run(self, words: np.ndarray, idle: int = 0, only_idle: bool = False):
         """Stream ``words`` ((n, REQ_WORDS) uint32) back to back in a fresh model, then ``idle``
@@ -82,37 +84,27 @@ class _Model:
         s = self.lib.pw_new()
         try:
             if only_idle:
-                self._check(self.lib.pw_stream(s, words.ctypes.data, len(words), 0))
+                _check(self.lib.pw_stream(s, words.ctypes.data, len(words), 0))
                 self._start(s)
-                cycles = self._check(self.lib.pw_stream(s, None, 0, idle))
+                cycles = _check(self.lib.pw_stream(s, None, 0, idle))
             else:
                 self._start(s)
-                cycles = self._check(self.lib.pw_stream(s, words.ctypes.data, len(words), idle))
+                cycles = _check(self.lib.pw_stream(s, words.ctypes.data, len(words), idle))
             return cycles, self._stop(s)
         finally:
             self.lib.pw_free(s)
 
-    @staticmethod
-    def _check(cycles: int) -> int:
-        if cycles < 0:
-            raise RuntimeError("power model deadlocked: no handshake for 1000 cycles")
-        return int(cycles)
+    def pair(self, streams: list[np.ndarray]):
+        """Steady state: (ops, cycles, toggles per net) of each stream's second half."""
+        ops, cycles, t = 0, 0, 0.0
+        for w in streams:
+            c1, t1 = self.run(w[:len(w) // 2])
+            c2, t2 = self.run(w)
+            ops, cycles, t = ops + len(w) - len(w) // 2, cycles + c2 - c1, t + (t2 - t1)
+        return ops, cycles, t
 
-
-class SignalModel(_Model):
-    """Level ``signals``: every traced RTL net (one per VCD identifier), weight 1 per bit toggle."""
-
-    level = "signals"
-    unit = "bit toggles"
-
-    def __init__(self, params: dict[str, int]):
-        super().__init__()
-        name = "rayflex_power_" + "_".join(f"{k[0].lower()}{v}" for k, v in params.items())
-        self.lib = _load(_build([RTL_DIR / LINT_WAIVERS, *rtl_sources()], params, name,
-                                ["--trace"]))
-        self.codes: dict[str, int] | None = None
-        self.names: list[list[str]] = []
-        self.run(np.zeros((0, REQ_WORDS), np.uint32), idle=1)    # reads the net declarations
+    def idle(self, words: np.ndarray, cycles: int):
+        return self.run(words, idle=cycles, only_idle=True)
 
     def _start(self, s):
         self.lib.pw_trace_open(s, str(self.tmp / "run.vcd").encode())
@@ -159,6 +151,12 @@ class SignalModel(_Model):
         self.stage = np.array([_signal_stage(ps) for ps in names], np.int8)
 
 
+def _check(cycles: int) -> int:
+    if cycles < 0:
+        raise RuntimeError("power model deadlocked: no handshake for 1000 cycles")
+    return int(cycles)
+
+
 def _is_tb_input(path: str) -> bool:
     parts = path.split(".")
     return len(parts) == 2 and parts[1] in TB_INPUTS        # TOP.<port>
@@ -181,41 +179,100 @@ def _signal_stage(paths: list[str]) -> int:
     return STAGE_LABELS.index("control")
 
 
-class GateModel(_Model):
-    """Level ``gates``: every gate output of the generic-gate netlist, weight = its fan-out."""
+class GateModel:
+    """Level ``gates``: every gate output of the generic-gate netlist, weight = its fan-out,
+    simulated by ``gatesim`` on 64 lanes: up to 32 stream pairs per pass."""
 
     level = "gates"
     unit = "fan-out-weighted toggles"
+    streams = gatesim.LANES // 2
 
-    def __init__(self, net: Netlist, params: dict[str, int]):
-        super().__init__()
-        name = "rayflex_gates_" + "_".join(f"{k[0].lower()}{v}" for k, v in params.items())
-        self.lib = _load(_build([net.verilog_path], {}, name, _GATE_VARGS))
+    def __init__(self, net: Netlist):
         self.net = net
-        n = len(net.fanout)
         driven = net.driver >= 0
         self.weight = np.where(driven, net.fanout, 0).astype(np.float64)
         self.stage = np.where(driven, net.stage, STAGE_LABELS.index("control")).astype(np.int8)
-        self.n = n
 
-    def _start(self, s):
-        self.lib.pw_zero(s)
+    def _simulate(self, streams: list[np.ndarray], idle: int, count_from_idle: bool):
+        """Stream ``streams[k]`` (n_k x REQ_WORDS) back to back in lane k, then ``idle`` cycles.
+        Returns (cycles per lane, toggles per net in lanes 0..31, in lanes 32..63); the counts
+        cover each lane's run or, with ``count_from_idle``, only the transitions between two idle
+        cycles (the last response leaving is the stream's activity, not idle activity)."""
+        L = gatesim.LANES
+        if len(streams) > L:
+            raise ValueError(f"at most {L} streams per pass")
+        sim = gatesim.GateSim(self.net)
+        length = np.array([len(w) for w in streams] + [0] * (L - len(streams)))
+        words = np.zeros((L, max(1, length.max()) + 1, REQ_WORDS), np.uint32)
+        for k, w in enumerate(streams):
+            words[k, :len(w)] = w
+            words[k, len(w):] = w[-1] if len(w) else 0      # inputs keep their last value
+        sent = np.zeros(L, np.int64)
+        taken = np.zeros(L, np.int64)
+        done_at = np.zeros(L, np.int64)
+        lo = np.uint64((1 << (L // 2)) - 1)
+        hi = ~lo
+        count = [np.zeros(sim.n), np.zeros(sim.n)]
+        prev = None
+        prev_busy = np.zeros(L, bool)
+        bit = np.uint64(1) << np.arange(L, dtype=np.uint64)
+        sim.set_input("rst_ni", np.ones((L, 1)))
+        sim.set_input("out_ready_i", np.ones((L, 1)))
+        sim.set_input("clk_i", np.zeros((L, 1)))
+        cycle = 0
+        idle_left = idle
+        while True:
+            busy = taken < length
+            if not busy.any() and not prev_busy.any():
+                if idle_left == 0:
+                    break
+                idle_left -= 1
+            valid = sent < length
+            sim.set_input("in_valid_i", valid[:, None])
+            req = words[np.arange(L), np.minimum(sent, words.shape[1] - 1)]
+            sim.set_input("req_i", np.unpackbits(req.view(np.uint8), axis=1,
+                                                 bitorder="little"))
+            sim.settle()
+            # a lane counts the transition into this cycle's state if it was busy in the
+            # previous cycle (as the VCD of the RTL harness ends with the state after the last
+            # response's clock); an idle run counts transitions between two idle cycles only
+            if count_from_idle:
+                mask = ~np.uint64(0) if not busy.any() and not prev_busy.any() else np.uint64(0)
+            else:
+                mask = np.bitwise_or.reduce(bit[prev_busy]) if prev_busy.any() else np.uint64(0)
+            if prev is not None and mask:
+                x = (sim.v ^ prev) & mask
+                count[0] += np.bitwise_count(x & lo)
+                count[1] += np.bitwise_count(x & hi)
+            prev = sim.v.copy()
+            prev_busy = busy
+            in_fire = valid & sim.output("in_ready_o")[:, 0]
+            out_fire = sim.output("out_valid_o")[:, 0] & busy
+            sim.clock()
+            cycle += 1
+            sent += in_fire
+            taken += out_fire
+            done_at[busy & (taken == length)] = cycle
+            if cycle > 4 * (length.max() + 50) + idle:
+                raise RuntimeError("gate-level model deadlocked")
+        return done_at, count[0], count[1]
 
-    def _stop(self, s) -> np.ndarray:
-        path = self.tmp / "cov.dat"
-        self.lib.pw_write(s, str(path).encode())
-        return parse_coverage(path, self.n)
+    def pair(self, streams: list[np.ndarray]):
+        """Steady state of ``streams`` (each 2n requests): the first halves in lanes 0..31 and the
+        whole streams in lanes 32..63. Returns (ops, cycles, toggles per net) of the difference."""
+        out_ops, out_cycles, out_t = 0, 0, 0.0
+        half = self.streams
+        for i in range(0, len(streams), half):
+            chunk = streams[i:i + half]
+            firsts = [w[:len(w) // 2] for w in chunk]
+            lanes = firsts + [np.zeros((0, REQ_WORDS), np.uint32)] * (half - len(chunk)) + chunk
+            done, t_first, t_full = self._simulate(lanes, 0, False)
+            out_ops += sum(len(w) - len(w) // 2 for w in chunk)
+            out_cycles += int(done[half:half + len(chunk)].sum() - done[:len(chunk)].sum())
+            out_t = out_t + (t_full - t_first)
+        return out_ops, out_cycles, out_t
 
-
-_COV = re.compile(rb"\x01o\x02n(\d+)(?:\[\d+\])?:[01]->[01]\x01.*' (\d+)$")
-
-
-def parse_coverage(path: Path, n: int) -> np.ndarray:
-    """Toggles per net ``n<id>`` from a Verilator coverage file (both directions summed)."""
-    out = np.zeros(n)
-    with open(path, "rb") as f:
-        for line in f:
-            m = _COV.search(line.rstrip(b"\n"))
-            if m:
-                out[int(m.group(1))] += int(m.group(2))
-    return out
+    def idle(self, words: np.ndarray, cycles: int):
+        """Toggles of ``cycles`` idle cycles after ``words`` drained (summed over 64 lanes)."""
+        _, a, b = self._simulate([words] * gatesim.LANES, cycles, True)
+        return cycles * gatesim.LANES, a + b

