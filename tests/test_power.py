@@ -272,6 +272,25 @@ library (tiny) {
       internal_power () { rise_power (e2x2) { values ("0.5, 0.5", "0.5, 0.5"); }
                           fall_power (e2x2) { values ("0.5, 0.5", "0.5, 0.5"); } } }
   }
+  cell (XOR2) {
+    area : 6;
+    cell_leakage_power : 1.5;
+    pin (A) { direction : input; capacitance : 0.01; }
+    pin (B) { direction : input; capacitance : 0.01; }
+    pin (Y) { direction : output; function : "(A^B)";
+      internal_power () { rise_power (e2x2) { values ("0.3, 0.3", "0.3, 0.3"); }
+                          fall_power (e2x2) { values ("0.3, 0.3", "0.3, 0.3"); } } }
+  }
+  cell (MUX2) {
+    area : 5;
+    cell_leakage_power : 2.0;
+    pin (A) { direction : input; capacitance : 0.01; }
+    pin (B) { direction : input; capacitance : 0.01; }
+    pin (S) { direction : input; capacitance : 0.01; }
+    pin (Y) { direction : output; function : "(S B) + (!S A)";
+      internal_power () { rise_power (e2x2) { values ("0.25, 0.25", "0.25, 0.25"); }
+                          fall_power (e2x2) { values ("0.25, 0.25", "0.25, 0.25"); } } }
+  }
   cell (DFF) {
     area : 8;
     cell_leakage_power : 10.0;
@@ -316,8 +335,9 @@ def test_liberty_mapping_and_net_energies(tiny):
     names = lambda g: [c.name for c in liberty.map_gate(tiny, g)]  # noqa: E731
     assert names("$_AND_") == ["AND2"] and names("$_NAND_") == ["NAND2"]
     assert names("$_NOT_") == ["INV"] and names("$_DFF_P_") == ["DFF"]
+    assert names("$_MUX_") == ["MUX2"] and names("$_DFFE_PP_") == ["DFF", "MUX2"]
     with pytest.raises(ValueError, match="no cell implements"):
-        liberty.map_gate(tiny, "$_XOR_")
+        liberty.map_gate(tiny, "$_NOR_")
     # nets: 0 driven by AND (drives 2 AND pins and 1 INV pin), 1 by INV (drives nothing)
     types = ["$_AND_", "$_NOT_"]
     driver = np.array([0, 1, -1])
@@ -439,6 +459,25 @@ def test_gate_model_steady_state_and_idle(tiny_net):
     assert t[9000] == 0                               # valid stays high in both runs' windows
     c, ti = m.idle(streams[0], 20)
     assert c == 20 * gatesim.LANES and ti.sum() == 0
+
+
+def test_liberty_level_on_the_gate_model(tiny_net, tiny):
+    """The gate model's toggles priced in pJ; clock pins and leakage come on top per cycle."""
+    net, _ = tiny_net
+    priced = liberty.Priced(activity.GateModel(net), liberty.net_energies(
+        tiny, net.cell_types, net.driver, net.sinks, net.in0))
+    gates = measure(activity.GateModel(net), extended=False, n=8, idle_cycles=10)
+    r = measure(priced, extended=False, n=8, idle_cycles=10)
+    assert r["box"]["unit"] == "pJ" and r["box"]["energy_per_op"] > 0
+    assert r["box"]["toggles_per_op"] == gates["box"]["toggles_per_op"]
+    # 3 flip-flops (clock pin 0.2 pJ each at slew 0) and the leakage of every cell (nW) over
+    # 1 ns: AND2 3 + 2 x (DFF 10 + MUX2 2) + DFF 10 (no cell with a clear: the plain one)
+    # + INV 0.5 + XOR2 1.5 = 39 nW
+    assert priced.per_cycle == pytest.approx(3 * 0.2 + 39e-9 * 1e-9 * 1e12, rel=1e-9)
+    assert r["box"]["energy_per_op_total"] == pytest.approx(
+        r["box"]["energy_per_op"] + priced.per_cycle)
+    assert r["idle_per_cycle"]["energy"] == 0
+    assert r["idle_per_cycle"]["energy_total"] == pytest.approx(priced.per_cycle)
 
 
 @pytest.mark.slow

