@@ -219,11 +219,12 @@ def plot(rep: dict, path) -> None:
     for i, (cfg, r) in enumerate(cfgs.items()):
         vals = [r.get(op, {}).get("energy_per_op", np.nan) for op in ops]
         bars = ax.bar(x + (i - (len(cfgs) - 1) / 2) * width, vals, width, label=cfg)
-        ax.bar_label(bars, fmt="%.3g", fontsize=6, rotation=90, padding=2)
+        ax.bar_label(bars, labels=["" if np.isnan(v) else _fmt(v) for v in vals], fontsize=6,
+                     rotation=90, padding=2)
     ax.set_xticks(x, ops)
     ax.set_ylabel(f"energy per operation ({rep['unit']})")
     ax.set_title(f"RayFlex energy per operation, level {rep['level']} "
-                 f"({rep['ops_per_type']} random ops each)", fontsize=9)
+                 f"({rep['ops_per_type']} random back-to-back ops per stream)", fontsize=9)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     ax.margins(y=0.2)
     fig.tight_layout()
