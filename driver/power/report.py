@@ -8,6 +8,8 @@ within +-2.5 % for box/triangle, -9 % Euclidean, -3 % cosine; all at 60-85 mW at
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from . import stimulus
@@ -222,7 +224,8 @@ def plot(rep: dict, path) -> None:
         ax.bar_label(bars, labels=["" if np.isnan(v) else _fmt(v) for v in vals], fontsize=6,
                      rotation=90, padding=2)
     ax.set_xticks(x, ops)
-    ax.set_ylabel(f"energy per operation ({rep['unit']})")
+    unit = rep["unit"] + (f", {Path(rep['liberty']).stem}" if rep.get("liberty") else "")
+    ax.set_ylabel(f"energy per operation ({unit})", fontsize=8)
     ax.set_title(f"RayFlex energy per operation, level {rep['level']} "
                  f"({rep['ops_per_type']} random back-to-back ops per stream)", fontsize=9)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0))
