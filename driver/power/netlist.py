@@ -108,7 +108,7 @@ def synthesize(params: dict[str, int], sources=None, progress=None) -> Netlist:
         info = json.loads((entry / "done.json").read_text())
         return _load(entry, key, info, cached=True)
     entry.parent.mkdir(parents=True, exist_ok=True)
-    est = _estimate(entry.parent)
+    est = _estimate(entry.parent, _pname(params))
     if progress:
         progress(f"synthesizing the generic-gate netlist of {_pname(params)} with Yosys "
                  f"(first time, ~{est / 60:.0f} min)")
@@ -130,7 +130,7 @@ def synthesize(params: dict[str, int], sources=None, progress=None) -> Netlist:
             os.rename(work / "out", entry)
         except OSError:          # another process finished first
             pass
-    _record(entry.parent, time.perf_counter() - t0)
+    _record(entry.parent, _pname(params), time.perf_counter() - t0)
     return _load(entry, key, json.loads((entry / "done.json").read_text()), cached=False)
 
 
@@ -138,16 +138,23 @@ def _pname(params):
     return f"EXTENDED={params.get('EXTENDED', 0)} DISJOINT={params.get('DISJOINT', 0)}"
 
 
-def _estimate(root: Path) -> float:
+def _estimate(root: Path, name: str) -> float:
+    """Seconds the last synthesis of this configuration took here (default 4 min)."""
     try:
-        return float(json.loads((root / "timings.json").read_text())["gates"])
+        return float(json.loads((root / "timings.json").read_text())[name])
     except (OSError, ValueError, KeyError, TypeError):
         return 240.0
 
 
-def _record(root: Path, seconds: float) -> None:
+def _record(root: Path, name: str, seconds: float) -> None:
+    try:
+        data = json.loads((root / "timings.json").read_text())
+        data = data if isinstance(data, dict) else {}
+    except (OSError, ValueError):
+        data = {}
+    data[name] = round(seconds, 1)
     tmp = root / f".timings.{os.getpid()}"
-    tmp.write_text(json.dumps({"gates": round(seconds, 1)}))
+    tmp.write_text(json.dumps(data, indent=1, sort_keys=True))
     os.replace(tmp, root / "timings.json")
 
 
