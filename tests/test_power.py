@@ -203,6 +203,11 @@ def test_liberty_level_skipped_without_the_file(tmp_path, capsys):
     assert main(["power", "--level", "liberty", "--liberty", str(tmp_path / "none.lib")]) == 0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "liberty level skipped" in err[0]
+    bad = tmp_path / "bad.lib"
+    bad.write_text("library (x) { cell (A) {")
+    assert main(["power", "--level", "liberty", "--liberty", str(bad)]) == 2   # before synthesis
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "end of file" in err[0]
 
 
 # ------------------------------------------------------------------------------------------------

@@ -203,6 +203,7 @@ def run(args) -> int:
         if path is None:
             print(f"rayflex power: liberty level skipped: {why}", file=sys.stderr)
             return 0
+        liberty.load(path)                   # a bad file fails now, not after synthesis
         args.liberty = str(path)
     t0 = time.perf_counter()
     res = run_level(args.level, cfgs, args.ops, args.seed, args.liberty, progress=log)
