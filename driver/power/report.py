@@ -1,0 +1,235 @@
+"""The power report: the paper's ratios side by side, markdown tables, the plot, energy per ray.
+
+``PAPER`` holds the paper's power-vs-operation results (section "Power Consumption"): the
+extended datapath costs +18 % (box) / +20 % (triangle) over the baseline; disjoint vs unified is
+within +-2.5 % for box/triangle, -9 % Euclidean, -3 % cosine; all at 60-85 mW at 1 GHz, i.e.
+60-85 pJ per operation at one operation per cycle.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from . import stimulus
+
+PAPER = {
+    "source": "RayFlex paper, Power Consumption (Genus, VCD of 100 random tests, 1 GHz)",
+    "extended_vs_baseline": {"box": 0.18, "triangle": 0.20},
+    "disjoint_vs_unified": {"box": [-0.025, 0.025], "triangle": [-0.025, 0.025],
+                            "euclidean": -0.09, "cosine": -0.03},
+    "power_mW_at_1GHz": [60, 85],
+}
+UNITS = {"signals": "bit toggles", "gates": "fan-out-weighted toggles", "liberty": "pJ"}
+DEFAULT_WORKLOAD_SIZE = 32
+
+
+def _e(cfgs, cfg, op):
+    r = cfgs.get(cfg, {}).get(op, {})
+    return r.get("energy_per_op")
+
+
+def _rel(a, b):
+    return None if a is None or b in (None, 0) else round(a / b - 1, 4)
+
+
+def ratios(cfgs: dict) -> dict:
+    """The paper's comparisons on our numbers (relative change, 0.18 = +18 %)."""
+    out = {"extended_vs_baseline": {}, "disjoint_vs_unified": {}, "triangle_vs_box": {}}
+    for kind in ("unified", "disjoint"):
+        out["extended_vs_baseline"][kind] = {
+            op: _rel(_e(cfgs, f"extended-{kind}", op), _e(cfgs, f"baseline-{kind}", op))
+            for op in ("box", "triangle")}
+    for kind in ("baseline", "extended"):
+        ops = stimulus.measurable(kind == "extended")
+        out["disjoint_vs_unified"][kind] = {
+            op: _rel(_e(cfgs, f"{kind}-disjoint", op), _e(cfgs, f"{kind}-unified", op))
+            for op in ops}
+    for cfg in cfgs:
+        t, b = _e(cfgs, cfg, "triangle"), _e(cfgs, cfg, "box")
+        out["triangle_vs_box"][cfg] = None if t is None or not b else round(t / b, 4)
+    return out
+
+
+def parse_workload(text: str) -> tuple[str, int]:
+    """``SCENE[:SIZE]`` -> (scene, size)."""
+    scene, _, size = text.partition(":")
+    if not scene:
+        raise ValueError(f"--workload {text!r}: give a scene name, e.g. bunny or bunny:32")
+    try:
+        n = int(size) if size else DEFAULT_WORKLOAD_SIZE
+    except ValueError:
+        raise ValueError(f"--workload {text!r}: the size after ':' must be an integer") from None
+    if not 1 <= n <= 1024:
+        raise ValueError(f"--workload {text!r}: size must be in 1..1024")
+    return scene, n
+
+
+def frame_mix(scene: str, size: int) -> dict:
+    """A frame's operation mix per ray type: {type: {box_ops, tri_ops, rays}} (the stats'
+    ``by_type`` when present, else all rays are primary)."""
+    from ..render import render
+    stats = render(scene, size, size, backend="golden", progress=False).stats
+    return mix_of(stats)
+
+
+def mix_of(stats: dict) -> dict:
+    if stats.get("by_type"):
+        return {t: {k: int(v[k]) for k in ("box_ops", "tri_ops", "rays")}
+                for t, v in stats["by_type"].items()}
+    return {"primary": {k: int(stats[k]) for k in ("box_ops", "tri_ops", "rays")}}
+
+
+def per_ray(mix: dict, cfgs: dict) -> dict:
+    """Energy per ray and per frame for each ray type and configuration (box/triangle energy)."""
+    out = {}
+    for rtype, m in mix.items():
+        row = {"rays": m["rays"], "box_ops_per_ray": m["box_ops"] / m["rays"] if m["rays"] else 0,
+               "tri_ops_per_ray": m["tri_ops"] / m["rays"] if m["rays"] else 0, "configs": {}}
+        for cfg in cfgs:
+            eb, et = _e(cfgs, cfg, "box"), _e(cfgs, cfg, "triangle")
+            if eb is None or et is None:
+                continue
+            frame = m["box_ops"] * eb + m["tri_ops"] * et
+            row["configs"][cfg] = {"energy_per_ray": frame / m["rays"] if m["rays"] else 0.0,
+                                   "energy_per_frame": frame}
+            tb = cfgs[cfg].get("box", {}).get("energy_per_op_total")
+            tt = cfgs[cfg].get("triangle", {}).get("energy_per_op_total")
+            if tb is not None and tt is not None:      # liberty: with clock pins and leakage
+                total = m["box_ops"] * tb + m["tri_ops"] * tt
+                row["configs"][cfg]["energy_per_ray_total"] = total / m["rays"] if m["rays"] \
+                    else 0.0
+                row["configs"][cfg]["energy_per_frame_total"] = total
+        out[rtype] = row
+    return out
+
+
+def build(level: str, res: dict, n: int, seed: int, workloads=(), liberty=None) -> dict:
+    cfgs = res["configs"]
+    rep = {"level": level, "unit": UNITS[level], "ops_per_type": n, "seed": seed,
+           "configs": cfgs, "ratios": ratios(cfgs), "paper": PAPER,
+           "pending": stimulus.pending()}
+    if "synth_s" in res:
+        rep["synthesis"] = res["synth_s"]
+    if liberty:
+        rep["liberty"] = str(liberty)
+    if workloads:
+        rep["per_ray"] = {}
+        for scene, size in workloads:
+            mix = frame_mix(scene, size)
+            rep["per_ray_workloads"] = rep.get("per_ray_workloads", []) + [f"{scene}:{size}"]
+            for rtype, row in per_ray(mix, cfgs).items():
+                rep["per_ray"][rtype if len(workloads) == 1 else f"{scene}:{size}:{rtype}"] = row
+    return rep
+
+
+def _fmt(x, digits=3):
+    if x is None:
+        return "–"
+    if abs(x) >= 1000:
+        return f"{x:,.0f}"
+    return f"{x:.{digits}g}"
+
+
+def _pct(x):
+    if x is None:
+        return "–"
+    if isinstance(x, list):
+        return f"{x[0] * 100:+.1f} … {x[1] * 100:+.1f} %"
+    return f"{x * 100:+.1f} %"
+
+
+def markdown(rep: dict) -> str:
+    """Energy per operation per configuration, the ratios next to the paper's, stage shares."""
+    cfgs = rep["configs"]
+    ops = list(stimulus.OPS)
+    lines = [f"Energy per operation ({rep['unit']}; level {rep['level']}, "
+             f"{rep['ops_per_type']} ops per type, seed {rep['seed']})", "",
+             *(["(in parentheses: with every flip-flop's clock pin and the leakage of the "
+                "cycle, i.e. the power at 1 GHz in mW)", ""] if rep["level"] == "liberty"
+               else []),
+             "| configuration | " + " | ".join(ops) + " | idle per cycle |",
+             "|---|" + "---:|" * (len(ops) + 1)]
+    for cfg, r in cfgs.items():
+        cells = []
+        for op in ops:
+            v = r.get(op, {})
+            cell = "pending" if "pending" in v else _fmt(v.get("energy_per_op"))
+            if "energy_per_op_total" in v:
+                cell += f" ({_fmt(v['energy_per_op_total'])})"
+            cells.append(cell)
+        idle = r["idle_per_cycle"]
+        cells.append(_fmt(idle["energy"]) + (f" ({_fmt(idle['energy_total'])})"
+                                             if "energy_total" in idle else ""))
+        lines.append(f"| {cfg} | " + " | ".join(cells) + " |")
+    rt, paper = rep["ratios"], rep["paper"]
+    lines += ["", "| comparison | op | ours | paper |", "|---|---|---:|---:|"]
+    for kind, row in rt["extended_vs_baseline"].items():
+        for op, v in row.items():
+            if v is not None:
+                lines.append(f"| extended vs baseline ({kind}) | {op} | {_pct(v)} | "
+                             f"{_pct(paper['extended_vs_baseline'].get(op))} |")
+    for kind, row in rt["disjoint_vs_unified"].items():
+        for op, v in row.items():
+            if v is not None:
+                lines.append(f"| disjoint vs unified ({kind}) | {op} | {_pct(v)} | "
+                             f"{_pct(paper['disjoint_vs_unified'].get(op))} |")
+    for cfg, v in rt["triangle_vs_box"].items():
+        if v is not None:
+            lines.append(f"| triangle / box ({cfg}) | – | {v:.3f} | – |")
+    lines += ["", "Share of each operation's energy by stage (%):", "",
+              "| configuration | op | " + " | ".join(_stage_labels()) + " |",
+              "|---|---|" + "---:|" * len(_stage_labels())]
+    for cfg, r in cfgs.items():
+        for op in ops:
+            st = r.get(op, {}).get("stages")
+            if st:
+                lines.append(f"| {cfg} | {op} | " + " | ".join(
+                    f"{st[s] * 100:.1f}" for s in _stage_labels()) + " |")
+    if rep.get("per_ray"):
+        lines += ["", f"Energy per ray ({rep['unit']}):", "",
+                  "| ray type | box ops/ray | tri ops/ray | " + " | ".join(cfgs) + " |",
+                  "|---|---:|---:|" + "---:|" * len(cfgs)]
+        for rtype, row in rep["per_ray"].items():
+            lines.append(f"| {rtype} | {row['box_ops_per_ray']:.2f} | "
+                         f"{row['tri_ops_per_ray']:.2f} | " + " | ".join(
+                             _fmt(row["configs"].get(c, {}).get("energy_per_ray"))
+                             for c in cfgs) + " |")
+    if rep.get("pending"):
+        lines += [""] + [f"{op}: {why}" for op, why in rep["pending"].items()]
+    return "\n".join(lines)
+
+
+def _stage_labels():
+    from .netlist import STAGE_LABELS
+    return STAGE_LABELS
+
+
+def plot(rep: dict, path) -> None:
+    """Grouped bars of energy per operation, one group per operation, one bar per configuration
+    (the layout of the paper's power-vs-operation figure)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    cfgs = rep["configs"]
+    ops = [op for op in stimulus.OPS if any("energy_per_op" in r.get(op, {})
+                                           for r in cfgs.values())]
+    fig, ax = plt.subplots(figsize=(7, 3.6), dpi=120)
+    width = 0.8 / max(1, len(cfgs))
+    x = np.arange(len(ops))
+    for i, (cfg, r) in enumerate(cfgs.items()):
+        vals = [r.get(op, {}).get("energy_per_op", np.nan) for op in ops]
+        bars = ax.bar(x + (i - (len(cfgs) - 1) / 2) * width, vals, width, label=cfg)
+        ax.bar_label(bars, labels=["" if np.isnan(v) else _fmt(v) for v in vals], fontsize=6,
+                     rotation=90, padding=2)
+    ax.set_xticks(x, ops)
+    unit = rep["unit"] + (f", {Path(rep['liberty']).stem}" if rep.get("liberty") else "")
+    ax.set_ylabel(f"energy per operation ({unit})", fontsize=8)
+    ax.set_title(f"RayFlex energy per operation, level {rep['level']} "
+                 f"({rep['ops_per_type']} random back-to-back ops per stream)", fontsize=9)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    ax.margins(y=0.2)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
