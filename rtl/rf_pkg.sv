@@ -1,10 +1,11 @@
-// RayFlex package: opcodes, IO structs, the shared stage struct and the stage/FU-pool plan.
+// RayFlex package: opcodes, IO structs, the shared stage struct and the FU pools' size helper.
 //
 // Everything the pipeline carries is defined here once (the paper's "Shared RayFlex Data
 // Structure"): the input stage turns a req_t into a stage_t, every inner stage reads a stage_t and
 // writes a stage_t (copying it and overwriting the fields it produces), the output stage turns a
 // stage_t into a rsp_t. The operations share the payload bits (one view per operation and group of
-// stages, see below): a stage register holds 963 bits (one field per value would need 5,674).
+// stages, see below): a stage register holds 3 + 32 + PAYLOAD_W = 963 bits, where the eight views
+// side by side would need 4,437.
 //
 // Numbers are IEEE-754 binary32 throughout (fp32_t); every add/multiply rounds to nearest-even.
 package rf_pkg;
@@ -34,13 +35,14 @@ package rf_pkg;
 
   // ---------------------------------------------------------------------------------------------
   // IO structs: a word-aligned wire format, word 0 at the least significant bits, so that a host
-  // packs a request as an array of little-endian uint32 words (driver/wire.py mirrors this).
+  // packs a request as an array of little-endian uint32 words (driver/layout.py mirrors this, and
+  // tests/test_layout.py checks every field against it).
   // Packed arrays put element 0 at the low end: box[i][j] is word 15 + 6*i + j.
   // ---------------------------------------------------------------------------------------------
   typedef struct packed {
     fp32_t [15:0]     vec_b;              // words 64..79  (extended)
     fp32_t [15:0]     vec_a;              // words 48..63  (extended)
-    fp32_t [2:0][2:0] triangle;              // words 39..47  [vertex A,B,C][axis]
+    fp32_t [2:0][2:0] triangle;           // words 39..47  [vertex A,B,C][axis]
     fp32_t [3:0][5:0] box;                // words 15..38  box[i] = xmin ymin zmin xmax ymax zmax
     fp32_t [2:0]      shear;              // words 12..14  Sx Sy Sz
     fp32_t            extent;             // word  11

@@ -1,7 +1,7 @@
-// Stage 9.
+// Stage 9, sort_trihit: sorting network layer 2; the triangle hit test.
 //   QUADBOX   sorting network layer 2 (last)
 //   TRIANGLE  hit = U >= 0 and V >= 0 and W >= 0 and t_num >= 0 and t_den != 0 (IEEE: NaN misses)
-module rf_st09 import rf_pkg::*; (
+module rf_s09_sort_trihit import rf_pkg::*; (
   input  stage_t st_i,
   output stage_t st_o
 );
@@ -10,11 +10,8 @@ module rf_st09 import rf_pkg::*; (
   assign v_box = st_i.pl.box_sort;
   assign v_tri = st_i.pl.tri_edge;
 
-  fp32_t [3:0]      tmin;
-  logic  [3:0][1:0] idx;
-  logic  [3:0]      hit;
-  rf_sort4 #(.LAYER(2)) u_sort (.tmin_i(v_box.tmin), .idx_i(v_box.idx), .hit_i(v_box.hit),
-                                .tmin_o(tmin), .idx_o(idx), .hit_o(hit));
+  box_sort_t box_sorted;
+  rf_sort_layer #(.LAYER(2)) u_sort (.box_i(v_box), .box_o(box_sorted));
 
   // 0 <= U, V, W, t_num (IEEE: false on NaN) and t_den == 0
   fp32_t [3:0] x;
@@ -33,11 +30,7 @@ module rf_st09 import rf_pkg::*; (
   always_comb begin
     st_o = st_i;
     unique case (st_i.op)
-      OP_QUADBOX: begin
-        st_o.pl.box_sort.tmin = tmin;
-        st_o.pl.box_sort.idx  = idx;
-        st_o.pl.box_sort.hit  = hit;
-      end
+      OP_QUADBOX:  st_o.pl.box_sort = box_sorted;
       OP_TRIANGLE: st_o.pl.tri_edge.hit = &nonneg & ~den_zero;
       default: ;
     endcase

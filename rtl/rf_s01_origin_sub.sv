@@ -1,9 +1,10 @@
-// Stage 1 (input): convert the request into the stage struct and do the first subtractions.
+// Stage 1, origin_sub (the input stage): convert the request into the stage struct and subtract
+// the origin (QUADBOX, TRIANGLE) or b (EUCLIDEAN).
 //   QUADBOX   24 x  bound - origin            (box_slab.slab)
 //   TRIANGLE   9 x  P - origin                (tri_vert.p)
-//   EUCLIDEAN 16 x  a - b                     (v_euc.e)
-//   ANGULAR         lanes a, b pass through   (v_ang.dot, v_ang.norm)
-module rf_st01_sub import rf_pkg::*; #(
+//   EUCLIDEAN 16 x  a - b                     (euc.e)
+//   ANGULAR         lanes a, b pass through   (ang.dot, ang.norm)
+module rf_s01_origin_sub import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
   parameter bit DISJOINT = 1'b0
 ) (
