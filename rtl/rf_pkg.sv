@@ -5,7 +5,7 @@
 // writes a stage_t (copying it and overwriting the fields it produces), the output stage turns a
 // stage_t into a rsp_t. The operations share the payload bits (one view per operation and group of
 // stages, see below): a stage register holds 3 + 32 + PAYLOAD_W = 963 bits, where the eight views
-// side by side would need 4,437.
+// side by side would need 4,440.
 //
 // Numbers are IEEE-754 binary32 throughout (fp32_t); every add/multiply rounds to nearest-even.
 package rf_pkg;
@@ -25,6 +25,9 @@ package rf_pkg;
     OP_ANGULAR   = 2'd3
   } opcode_e;
 
+  // Request flags (SPEC 3): bit indices into req_t.flags; the other bits are reserved (0).
+  localparam int unsigned FLAG_NO_CULL_BIT = 0;  // TRIANGLE accepts both faces (SPEC 5)
+
   localparam int unsigned EUC_LANES = 16;
   localparam int unsigned ANG_LANES = 8;
 
@@ -40,6 +43,8 @@ package rf_pkg;
   // Packed arrays put element 0 at the low end: box[i][j] is word 15 + 6*i + j.
   // ---------------------------------------------------------------------------------------------
   typedef struct packed {
+    logic  [30:0]     rsvd_80;            // word 80 [31:1]
+    logic             reset_accumulator;  // word 80 [0]     (extended)
     fp32_t [15:0]     vec_b;              // words 64..79  (extended)
     fp32_t [15:0]     vec_a;              // words 48..63  (extended)
     fp32_t [2:0][2:0] triangle;           // words 39..47  [vertex A,B,C][axis]
@@ -50,8 +55,7 @@ package rf_pkg;
     fp32_t [2:0]      dir;                // words  5..7
     fp32_t [2:0]      origin;             // words  2..4
     logic  [15:0]     vec_mask;           // word 1 [31:16] (extended)
-    logic  [6:0]      rsvd;               // word 1 [15:9]
-    logic             reset_accumulator;  // word 1 [8]     (extended)
+    logic  [7:0]      flags;              // word 1 [15:8]  FLAG_* bits, part of the ray
     logic  [1:0]      kz;                 // word 1 [7:6]
     logic  [1:0]      ky;                 // word 1 [5:4]
     logic  [1:0]      kx;                 // word 1 [3:2]
@@ -118,7 +122,8 @@ package rf_pkg;
 
   // TRIANGLE, R1
   typedef struct packed {
-    logic [PAYLOAD_W-12*32-6-1:0] rsvd;
+    logic [PAYLOAD_W-12*32-7-1:0] rsvd;
+    logic             no_cull;       // S1: flags[FLAG_NO_CULL_BIT]
     logic  [1:0]      kx, ky, kz;    // S1
     fp32_t [2:0]      shear;         // S1: Sx, Sy, Sz
     fp32_t [2:0][2:0] p;             // S1: P' = P - origin  [vertex A, B, C][axis]
@@ -126,7 +131,8 @@ package rf_pkg;
 
   // TRIANGLE, R2
   typedef struct packed {
-    logic [PAYLOAD_W-15*32-1:0] rsvd;
+    logic [PAYLOAD_W-15*32-1-1:0] rsvd;
+    logic             no_cull;       // from S1
     fp32_t [2:0]      px, py;        // S2: P'[kx], P'[ky] per vertex
     fp32_t [2:0]      sx, sy;        // S2: Sx*P'[kz], Sy*P'[kz]
     fp32_t [2:0]      z;             // S2: Z = Sz*P'[kz]
@@ -134,7 +140,8 @@ package rf_pkg;
 
   // TRIANGLE, R3..R9
   typedef struct packed {
-    logic [PAYLOAD_W-25*32-1-1:0] rsvd;
+    logic [PAYLOAD_W-25*32-2-1:0] rsvd;
+    logic             no_cull;       // from S1
     logic             hit;           // S9
     fp32_t [2:0]      z;             // from S2
     fp32_t [2:0]      x, y;          // S3: X, Y per vertex

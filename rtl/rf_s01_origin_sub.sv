@@ -64,10 +64,11 @@ module rf_s01_origin_sub import rf_pkg::*; #(
         end
       end
       OP_TRIANGLE: begin
-        st_o.pl.tri_vert.kx    = req_i.kx;
-        st_o.pl.tri_vert.ky    = req_i.ky;
-        st_o.pl.tri_vert.kz    = req_i.kz;
-        st_o.pl.tri_vert.shear = req_i.shear;
+        st_o.pl.tri_vert.no_cull = req_i.flags[FLAG_NO_CULL_BIT];
+        st_o.pl.tri_vert.kx      = req_i.kx;
+        st_o.pl.tri_vert.ky      = req_i.ky;
+        st_o.pl.tri_vert.kz      = req_i.kz;
+        st_o.pl.tri_vert.shear   = req_i.shear;
         for (int v = 0; v < 3; v++) begin
           for (int ax = 0; ax < 3; ax++) st_o.pl.tri_vert.p[v][ax] = tri_y[3*v+ax];
         end

@@ -81,6 +81,7 @@ module rf_s02_scale_mul import rf_pkg::*; #(
         end
       end
       OP_TRIANGLE: begin
+        st_o.pl.tri_shear.no_cull = v_tri.no_cull;
         for (int v = 0; v < 3; v++) begin
           st_o.pl.tri_shear.px[v] = pick(v_tri.p[v], v_tri.kx);
           st_o.pl.tri_shear.py[v] = pick(v_tri.p[v], v_tri.ky);

@@ -96,7 +96,8 @@ module rf_s03_nearfar_xy import rf_pkg::*; #(
         end
       end
       OP_TRIANGLE: begin
-        st_o.pl.tri_edge.z = v_tri.z;
+        st_o.pl.tri_edge.no_cull = v_tri.no_cull;
+        st_o.pl.tri_edge.z       = v_tri.z;
         for (int v = 0; v < 3; v++) begin
           st_o.pl.tri_edge.x[v] = tri_y[v];
           st_o.pl.tri_edge.y[v] = tri_y[3 + v];
