@@ -74,7 +74,7 @@ def test_prepare_rays_flags_scalar_or_per_ray():
 
 
 @pytest.mark.parametrize("name", ["golden", "rtl"])
-@pytest.mark.parametrize("opcode", [TRIANGLE, QUADBOX])
+@pytest.mark.parametrize("opcode", [TRIANGLE, QUADBOX], ids=["TRIANGLE", "QUADBOX"])
 def test_reserved_flag_bits_are_rejected(name, opcode):
     req = tri_request(FRONT, (0, 0, -1))
     req["opcode"] = opcode
