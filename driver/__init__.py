@@ -2,11 +2,11 @@
 
 from .backends import BACKENDS, BackendError, backend
 from .datapath import (ANGULAR, EUCLIDEAN, LATENCY, QUADBOX, REQUEST_DTYPE, RESPONSE_DTYPE,
-                       TRIANGLE, DatapathError, prepare_rays)
+                       TRIANGLE, DatapathError, FLAG_NO_CULL, prepare_rays)
 
-__all__ = ["ANGULAR", "BACKENDS", "BackendError", "DatapathError", "EUCLIDEAN", "LATENCY",
-           "QUADBOX", "REQUEST_DTYPE", "RESPONSE_DTYPE", "TRIANGLE", "backend", "prepare_rays",
-           "trace"]
+__all__ = ["ANGULAR", "BACKENDS", "BackendError", "DatapathError", "EUCLIDEAN", "FLAG_NO_CULL",
+           "LATENCY", "QUADBOX", "REQUEST_DTYPE", "RESPONSE_DTYPE", "TRIANGLE", "backend",
+           "prepare_rays", "trace"]
 
 
 def trace(scene, origins, directions, backend="rtl", **options):

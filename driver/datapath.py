@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .layout import (ANGULAR, EUCLIDEAN, QUADBOX, REQUEST_DTYPE, RESPONSE_DTYPE,  # noqa: F401
-                     TRIANGLE)
+from .layout import (ANGULAR, EUCLIDEAN, FLAG_NO_CULL, FLAGS_DEFINED, QUADBOX,  # noqa: F401
+                     REQUEST_DTYPE, RESPONSE_DTYPE, TRIANGLE)
 
 LATENCY = 11
 CANONICAL_NAN = np.uint32(0x7FC00000)
@@ -26,7 +26,8 @@ class DatapathError(ValueError):
 
 def check_requests(req: np.ndarray, extended: bool) -> None:
     """Reject what no backend simulates (the same check for every backend): an extended opcode on a
-    baseline build, and a TRIANGLE whose kx/ky/kz is not 0, 1 or 2. Raises DatapathError."""
+    baseline build, a TRIANGLE whose kx/ky/kz is not 0, 1 or 2, and a reserved flag bit set (any
+    opcode: the flags are part of the ray). Raises DatapathError."""
     if not len(req):
         return
     ops = req["opcode"]
@@ -38,15 +39,22 @@ def check_requests(req: np.ndarray, extended: bool) -> None:
     tri = ops == TRIANGLE
     if tri.any() and ((req["kx"][tri] > 2) | (req["ky"][tri] > 2) | (req["kz"][tri] > 2)).any():
         raise DatapathError("kx/ky/kz must be 0, 1 or 2")
+    reserved = req["flags"] & np.uint8(0xFF & ~FLAGS_DEFINED)
+    if reserved.any():
+        i = int(np.flatnonzero(reserved)[0])
+        raise DatapathError(f"request {i}: flags {int(req['flags'][i]):#04x} set reserved bits "
+                            f"(only {FLAGS_DEFINED:#04x} is defined: FLAG_NO_CULL)")
 
 
-def prepare_rays(origins, directions, extent=np.inf) -> np.ndarray:
-    """Fill the ray fields of a new request array (SPEC section 2).
+def prepare_rays(origins, directions, extent=np.inf, flags=0) -> np.ndarray:
+    """Fill the ray fields of a new request array (SPEC sections 2, 3).
 
     origins, directions : (n, 3) array-like, converted to float32
     extent : scalar or (n,) ray extent (tmax)
+    flags : scalar or (n,) request flags (``FLAG_NO_CULL`` or 0)
     Returns an (n,) ``REQUEST_DTYPE`` array, every non-ray field zero.
-    Raises ValueError for non-finite origins/directions or an all-zero direction.
+    Raises ValueError for non-finite origins/directions, an all-zero direction, or flags that are
+    not integers made of defined flag bits.
     """
     o = np.asarray(origins, dtype=np.float32).reshape(-1, 3)
     d = np.asarray(directions, dtype=np.float32).reshape(-1, 3)
@@ -57,7 +65,14 @@ def prepare_rays(origins, directions, extent=np.inf) -> np.ndarray:
     if (d == 0).all(axis=1).any():
         raise ValueError("a ray direction is the zero vector")
     n = len(o)
+    fl = np.asarray(flags)
+    if fl.ndim > 1 or (fl.ndim == 1 and len(fl) != n):
+        raise ValueError(f"flags must be a scalar or one per ray ({n}), not shape {fl.shape}")
+    if fl.dtype.kind not in "biu" or (fl.astype(np.int64) & ~FLAGS_DEFINED).any():
+        raise ValueError(f"flags must be integers made of defined bits ({FLAGS_DEFINED:#x}: "
+                         f"FLAG_NO_CULL), not {fl.ravel()[:4].tolist()}")
     req = np.zeros(n, REQUEST_DTYPE)
+    req["flags"] = np.broadcast_to(fl, (n,))
     req["origin"] = o
     req["dir"] = d
     req["extent"] = np.broadcast_to(np.asarray(extent, np.float32), (n,))

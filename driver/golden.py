@@ -55,8 +55,9 @@ def sort4(hit, tmin):
     return order, np.take_along_axis(hit, order, 1), np.take_along_axis(tmin, order, 1)
 
 
-def triangle(origin, kxyz, shear, tri):
-    """SPEC section 5. origin (n,3), kxyz (n,3) int, shear (n,3), tri (n,3,3).
+def triangle(origin, kxyz, shear, tri, no_cull=False):
+    """SPEC section 5. origin (n,3), kxyz (n,3) int, shear (n,3), tri (n,3,3); no_cull: bool,
+    scalar or (n,), the NO_CULL flag (both faces hit).
 
     Returns (hit (n,) bool, t_num (n,), t_den (n,))."""
     p = tri - origin[:, None, :]                                  # P' = P - o
@@ -73,7 +74,11 @@ def triangle(origin, kxyz, shear, tri):
     w = bx * ay - by * ax
     t_den = (u + v) + w
     t_num = ((u * az) + (v * bz)) + (w * cz)
-    hit = (u >= 0) & (v >= 0) & (w >= 0) & (t_num >= 0) & (t_den != 0)
+    front = (u >= 0) & (v >= 0) & (w >= 0)
+    culled = front & (t_num >= 0) & (t_den != 0)
+    back = (u <= 0) & (v <= 0) & (w <= 0)
+    both = (front | back) & (t_den != 0) & np.where(t_den > 0, t_num >= 0, t_num <= 0)
+    hit = np.where(no_cull, both, culled)
     return hit, t_num, t_den
 
 

@@ -29,9 +29,13 @@ import numpy as np
 OPCODES = {"TRIANGLE": 0, "QUADBOX": 1, "EUCLIDEAN": 2, "ANGULAR": 3}
 TRIANGLE, QUADBOX, EUCLIDEAN, ANGULAR = (OPCODES[k] for k in
                                          ("TRIANGLE", "QUADBOX", "EUCLIDEAN", "ANGULAR"))
-FLAG_NO_CULL = 1    # request flags bit 0: the TRIANGLE test accepts both faces (SPEC 3, 5)
 EUC_LANES = 16      # rf_pkg::EUC_LANES: lanes of one EUCLIDEAN beat
 ANG_LANES = 8       # rf_pkg::ANG_LANES: lanes of one ANGULAR beat
+
+# Request flags (SPEC 3): bit masks of the ``flags`` field (rf_pkg::FLAG_*_BIT are their bit
+# indices). The other bits are reserved and must be 0.
+FLAG_NO_CULL = 1    # TRIANGLE accepts both faces (SPEC 5)
+FLAGS_DEFINED = FLAG_NO_CULL
 
 
 @dataclass(frozen=True)
@@ -152,15 +156,16 @@ REQUEST = Wire("request", "req_t", [
     _uint("kx", 1, 2, 2),
     _uint("ky", 1, 4, 2),
     _uint("kz", 1, 6, 2),
+    _uint("flags", 1, 8, 8),            # FLAG_* bits of the ray (SPEC 3); the others must be 0
     _f32("shear", 12, (3,)),
     _f32("box", 15, (4, 6)),            # per box: xmin, ymin, zmin, xmax, ymax, zmax
     _f32("tri", 39, (3, 3), sv="triangle"),   # A, B, C
     _f32("vec_a", 48, (EUC_LANES,)),
     _f32("vec_b", 64, (EUC_LANES,)),
     _uint("vec_mask", 1, 16, 16, kind="u2"),
-    _uint("reset_accumulator", 1, 8, 1),
+    _uint("reset_accumulator", 80, 0, 1),   # an extended-op field, not part of a ray
     _uint("tag", 0, 0, 32, kind="u4"),  # opaque, carried through unchanged
-], words=80)
+], words=81)
 
 RESPONSE = Wire("response", "rsp_t", [
     _uint("opcode", 1, 0, 2),
@@ -183,10 +188,11 @@ RESPONSE_DTYPE = RESPONSE.dtype
 REQ_WORDS = REQUEST.words
 RSP_WORDS = RESPONSE.words
 
-# A traversal request is a ray (the first RAY_WORDS words: every field but the operands) plus
-# one node's box or triangle: the harness keeps a table of packed rays and fills the rest.
-RAY_FIELDS = ("tag", "opcode", "kx", "ky", "kz", "reset_accumulator", "vec_mask", "origin",
-              "dir", "inv", "extent", "shear")
+# A traversal request is a ray (the first RAY_WORDS words: the ray fields and whatever shares
+# their words) plus one node's box or triangle: the harness keeps a table of packed rays and fills
+# the rest.
+RAY_FIELDS = ("tag", "opcode", "kx", "ky", "kz", "flags", "vec_mask", "origin", "dir", "inv",
+              "extent", "shear")
 RAY_WORDS = max(REQUEST.field[f].word + REQUEST.field[f].words for f in RAY_FIELDS)
 CONTROL_WORD = REQUEST.field["opcode"].word          # the word of opcode, kx/ky/kz and flags
 

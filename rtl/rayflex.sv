@@ -1,7 +1,7 @@
 // RayFlex datapath top: an elastic pipeline of LATENCY skid-buffer registers with stage logic in
 // front of each. It only wires stages.
 //
-//   req_i -> [R_in] -> S1 sub -> [R1] -> S2 mul -> [R2] -> ... -> S9 -> [R9]
+//   req_i -> [R_in] -> S1 origin_sub -> [R1] -> S2 scale_mul -> [R2] -> ... -> S9 -> [R9]
 //         -> (LATENCY - 11 pass-through registers) -> output format -> [R_out] -> rsp_o
 //
 // The request is registered as it arrives (the paper's input stage), so no logic sits between the
@@ -47,16 +47,23 @@ module rayflex import rf_pkg::*; #(
   logic   [NUM_REGS-1:0] d_valid, d_ready, q_valid, q_ready;
 
   // ---- compute stages ----
-  rf_st01_sub #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s1 (.req_i(req_q), .st_o(d_st[0]));
-  rf_st02_mul #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s2 (.st_i(q_st[0]), .st_o(d_st[1]));
-  rf_st03     #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s3 (.st_i(q_st[1]), .st_o(d_st[2]));
-  rf_st04     #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s4 (.st_i(q_st[2]), .st_o(d_st[3]));
-  rf_st05     #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s5 (.st_i(q_st[3]), .st_o(d_st[4]));
-  rf_st06     #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s6 (.st_i(q_st[4]), .st_o(d_st[5]));
-  rf_st07     #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s7 (
+  rf_s01_origin_sub #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s1 (
+    .req_i(req_q), .st_o(d_st[0]));
+  rf_s02_scale_mul #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s2 (
+    .st_i(q_st[0]), .st_o(d_st[1]));
+  rf_s03_nearfar_xy #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s3 (
+    .st_i(q_st[1]), .st_o(d_st[2]));
+  rf_s04_nearfar_z #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s4 (
+    .st_i(q_st[2]), .st_o(d_st[3]));
+  rf_s05_clamp_uvw #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s5 (
+    .st_i(q_st[3]), .st_o(d_st[4]));
+  rf_s06_slab_hit #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s6 (
+    .st_i(q_st[4]), .st_o(d_st[5]));
+  rf_s07_sort_acc #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s7 (
     .clk_i, .rst_ni, .fire_i(d_valid[6] & d_ready[6]), .st_i(q_st[5]), .st_o(d_st[6]));
-  rf_st08     #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s8 (.st_i(q_st[6]), .st_o(d_st[7]));
-  rf_st09                                                 u_s9 (.st_i(q_st[7]), .st_o(d_st[8]));
+  rf_s08_sort_tnum #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s8 (
+    .st_i(q_st[6]), .st_o(d_st[7]));
+  rf_s09_sort_trihit u_s9 (.st_i(q_st[7]), .st_o(d_st[8]));
 
   // ---- pass-through stages (pad the latency) ----
   for (genvar k = NUM_STAGES; k < NUM_REGS; k++) begin : g_pass
@@ -79,7 +86,7 @@ module rayflex import rf_pkg::*; #(
 
   // ---- output stage ----
   rsp_t rsp_d;
-  rf_st_output #(.EXTENDED(EXTENDED)) u_out (.st_i(q_st[NUM_REGS-1]), .rsp_o(rsp_d));
+  rf_output #(.EXTENDED(EXTENDED)) u_out (.st_i(q_st[NUM_REGS-1]), .rsp_o(rsp_d));
   rf_skid #(.T(rsp_t)) u_out_reg (
     .clk_i, .rst_ni,
     .valid_i(q_valid[NUM_REGS-1]), .ready_o(q_ready[NUM_REGS-1]), .data_i(rsp_d),

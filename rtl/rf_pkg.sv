@@ -1,10 +1,11 @@
-// RayFlex package: opcodes, IO structs, the shared stage struct and the stage/FU-pool plan.
+// RayFlex package: opcodes, IO structs, the shared stage struct and the FU pools' size helper.
 //
 // Everything the pipeline carries is defined here once (the paper's "Shared RayFlex Data
 // Structure"): the input stage turns a req_t into a stage_t, every inner stage reads a stage_t and
 // writes a stage_t (copying it and overwriting the fields it produces), the output stage turns a
 // stage_t into a rsp_t. The operations share the payload bits (one view per operation and group of
-// stages, see below): a stage register holds 963 bits (one field per value would need 5,674).
+// stages, see below): a stage register holds 3 + 32 + PAYLOAD_W = 963 bits, where the eight views
+// side by side would need 4,440.
 //
 // Numbers are IEEE-754 binary32 throughout (fp32_t); every add/multiply rounds to nearest-even.
 package rf_pkg;
@@ -24,6 +25,9 @@ package rf_pkg;
     OP_ANGULAR   = 2'd3
   } opcode_e;
 
+  // Request flags (SPEC 3): bit indices into req_t.flags; the other bits are reserved (0).
+  localparam int unsigned FLAG_NO_CULL_BIT = 0;  // TRIANGLE accepts both faces (SPEC 5)
+
   localparam int unsigned EUC_LANES = 16;
   localparam int unsigned ANG_LANES = 8;
 
@@ -34,13 +38,16 @@ package rf_pkg;
 
   // ---------------------------------------------------------------------------------------------
   // IO structs: a word-aligned wire format, word 0 at the least significant bits, so that a host
-  // packs a request as an array of little-endian uint32 words (driver/wire.py mirrors this).
+  // packs a request as an array of little-endian uint32 words (driver/layout.py mirrors this, and
+  // tests/test_layout.py checks every field against it).
   // Packed arrays put element 0 at the low end: box[i][j] is word 15 + 6*i + j.
   // ---------------------------------------------------------------------------------------------
   typedef struct packed {
+    logic  [30:0]     rsvd_80;            // word 80 [31:1]
+    logic             reset_accumulator;  // word 80 [0]     (extended)
     fp32_t [15:0]     vec_b;              // words 64..79  (extended)
     fp32_t [15:0]     vec_a;              // words 48..63  (extended)
-    fp32_t [2:0][2:0] triangle;              // words 39..47  [vertex A,B,C][axis]
+    fp32_t [2:0][2:0] triangle;           // words 39..47  [vertex A,B,C][axis]
     fp32_t [3:0][5:0] box;                // words 15..38  box[i] = xmin ymin zmin xmax ymax zmax
     fp32_t [2:0]      shear;              // words 12..14  Sx Sy Sz
     fp32_t            extent;             // word  11
@@ -48,8 +55,7 @@ package rf_pkg;
     fp32_t [2:0]      dir;                // words  5..7
     fp32_t [2:0]      origin;             // words  2..4
     logic  [15:0]     vec_mask;           // word 1 [31:16] (extended)
-    logic  [6:0]      rsvd;               // word 1 [15:9]
-    logic             reset_accumulator;  // word 1 [8]     (extended)
+    logic  [7:0]      flags;              // word 1 [15:8]  FLAG_* bits, part of the ray
     logic  [1:0]      kz;                 // word 1 [7:6]
     logic  [1:0]      ky;                 // word 1 [5:4]
     logic  [1:0]      kx;                 // word 1 [3:2]
@@ -116,7 +122,8 @@ package rf_pkg;
 
   // TRIANGLE, R1
   typedef struct packed {
-    logic [PAYLOAD_W-12*32-6-1:0] rsvd;
+    logic [PAYLOAD_W-12*32-7-1:0] rsvd;
+    logic             no_cull;       // S1: flags[FLAG_NO_CULL_BIT]
     logic  [1:0]      kx, ky, kz;    // S1
     fp32_t [2:0]      shear;         // S1: Sx, Sy, Sz
     fp32_t [2:0][2:0] p;             // S1: P' = P - origin  [vertex A, B, C][axis]
@@ -124,7 +131,8 @@ package rf_pkg;
 
   // TRIANGLE, R2
   typedef struct packed {
-    logic [PAYLOAD_W-15*32-1:0] rsvd;
+    logic [PAYLOAD_W-15*32-1-1:0] rsvd;
+    logic             no_cull;       // from S1
     fp32_t [2:0]      px, py;        // S2: P'[kx], P'[ky] per vertex
     fp32_t [2:0]      sx, sy;        // S2: Sx*P'[kz], Sy*P'[kz]
     fp32_t [2:0]      z;             // S2: Z = Sz*P'[kz]
@@ -132,7 +140,8 @@ package rf_pkg;
 
   // TRIANGLE, R3..R9
   typedef struct packed {
-    logic [PAYLOAD_W-25*32-1-1:0] rsvd;
+    logic [PAYLOAD_W-25*32-2-1:0] rsvd;
+    logic             no_cull;       // from S1
     logic             hit;           // S9
     fp32_t [2:0]      z;             // from S2
     fp32_t [2:0]      x, y;          // S3: X, Y per vertex

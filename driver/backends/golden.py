@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..datapath import (ANGULAR, EUCLIDEAN, LATENCY, QUADBOX, RESPONSE_DTYPE, TRIANGLE,
-                        check_requests)
+from ..datapath import (ANGULAR, EUCLIDEAN, FLAG_NO_CULL, LATENCY, QUADBOX, RESPONSE_DTYPE,
+                        TRIANGLE, check_requests)
 from ..golden import (F32, accumulate, angular_beat, canonical, euclid_beat, quadbox, sort4,
                       triangle)
 
@@ -63,9 +63,10 @@ class GoldenBackend:
     def _triangles(self, req, rsp, i):
         if not len(i):
             return
-        r = _fields(req, i, ("kx", "ky", "kz", "origin", "shear", "tri"))
+        r = _fields(req, i, ("kx", "ky", "kz", "origin", "shear", "tri", "flags"))
         k = np.stack([r["kx"], r["ky"], r["kz"]], axis=1).astype(np.intp)
-        hit, num, den = triangle(r["origin"], k, r["shear"], r["tri"])
+        no_cull = (r["flags"] & FLAG_NO_CULL) != 0
+        hit, num, den = triangle(r["origin"], k, r["shear"], r["tri"], no_cull)
         rsp["tri_hit"][i] = hit
         rsp["t_num"][i] = canonical(num)
         rsp["t_den"][i] = canonical(den)

@@ -1,9 +1,9 @@
-// Stage 2: the first multiplications.
+// Stage 2, scale_mul: the first multiplications (slab scaling, shear, lane products).
 //   QUADBOX   24 x  (bound - origin) * inv[axis]
 //   TRIANGLE   9 x  Sx*P'[kz], Sy*P'[kz], Sz*P'[kz] per vertex (and selects P'[kx], P'[ky])
 //   EUCLIDEAN 16 x  (a - b)^2               masked lanes +0
 //   ANGULAR   16 x  a*b and b*b over 8 lanes, masked lanes +0
-module rf_st02_mul import rf_pkg::*; #(
+module rf_s02_scale_mul import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
   parameter bit DISJOINT = 1'b0
 ) (
@@ -81,6 +81,7 @@ module rf_st02_mul import rf_pkg::*; #(
         end
       end
       OP_TRIANGLE: begin
+        st_o.pl.tri_shear.no_cull = v_tri.no_cull;
         for (int v = 0; v < 3; v++) begin
           st_o.pl.tri_shear.px[v] = pick(v_tri.p[v], v_tri.kx);
           st_o.pl.tri_shear.py[v] = pick(v_tri.p[v], v_tri.ky);

@@ -1,9 +1,9 @@
-// Stage 3.
+// Stage 3, nearfar_xy: the slab interval of the x and y axes; the sheared 2-D vertices.
 //   QUADBOX   near/far by the sign of dir, NaN flag, max(near_x, near_y), min(far_x, far_y)
 //   TRIANGLE   6 x  X = P'[kx] - Sx*P'[kz],  Y = P'[ky] - Sy*P'[kz]
 //   EUCLIDEAN  8 x  tree level 1: e[i] + e[i+8]
 //   ANGULAR    8 x  tree level 1: dot[i] + dot[i+4], norm[i] + norm[i+4]
-module rf_st03 import rf_pkg::*; #(
+module rf_s03_nearfar_xy import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
   parameter bit DISJOINT = 1'b0
 ) (
@@ -96,7 +96,8 @@ module rf_st03 import rf_pkg::*; #(
         end
       end
       OP_TRIANGLE: begin
-        st_o.pl.tri_edge.z = v_tri.z;
+        st_o.pl.tri_edge.no_cull = v_tri.no_cull;
+        st_o.pl.tri_edge.z       = v_tri.z;
         for (int v = 0; v < 3; v++) begin
           st_o.pl.tri_edge.x[v] = tri_y[v];
           st_o.pl.tri_edge.y[v] = tri_y[3 + v];

@@ -1,6 +1,6 @@
 // Output stage: the stage struct to the response format. Fields the beat's operation does not
 // produce are driven to zero.
-module rf_st_output import rf_pkg::*; #(
+module rf_output import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0
 ) (
   input  stage_t st_i,

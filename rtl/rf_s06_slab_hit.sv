@@ -1,8 +1,8 @@
-// Stage 6.
+// Stage 6, slab_hit: the box hit flags; the depth products U*Az, V*Bz, W*Cz.
 //   QUADBOX   hit = no NaN and tmin < tmax; tmin out = hit ? tmin : +inf; indices 0..3
 //   TRIANGLE   3 x  U*Az, V*Bz, W*Cz (multipliers);  1 x  U + V (adder)
 //   EUCLIDEAN  1 x  tree level 4 (last): e[0] + e[1]
-module rf_st06 import rf_pkg::*; #(
+module rf_s06_slab_hit import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
   parameter bit DISJOINT = 1'b0
 ) (

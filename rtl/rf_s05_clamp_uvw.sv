@@ -1,9 +1,9 @@
-// Stage 5.
+// Stage 5, clamp_uvw: the interval clamped to [+0, extent]; the edge functions U, V, W.
 //   QUADBOX   tmin = max(.., +0), tmax = min(.., extent)
 //   TRIANGLE   3 x  U = Cx*By - Cy*Bx,  V = Ax*Cy - Ay*Cx,  W = Bx*Ay - By*Ax
 //   EUCLIDEAN  2 x  tree level 3: e[i] + e[i+2]
 //   ANGULAR    2 x  tree level 3 (last): dot[0] + dot[1], norm[0] + norm[1]
-module rf_st05 import rf_pkg::*; #(
+module rf_s05_clamp_uvw import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
   parameter bit DISJOINT = 1'b0
 ) (

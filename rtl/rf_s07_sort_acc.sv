@@ -1,4 +1,4 @@
-// Stage 7.
+// Stage 7, sort_acc: sorting network layer 0; the accumulators; t_den.
 //   QUADBOX   sorting network layer 0
 //   TRIANGLE   2 x  U*Az + V*Bz,  t_den = (U + V) + W
 //   EUCLIDEAN  1 x  acc + beat  (accumulator)
@@ -7,7 +7,7 @@
 // operation is accepted into this stage's register (fire_i): bubbles, back-pressure and other
 // operations never touch them. On a beat with `last` set the output carries the sum including this
 // beat and the accumulator clears to +0 for the next job.
-module rf_st07 import rf_pkg::*; #(
+module rf_s07_sort_acc import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
   parameter bit DISJOINT = 1'b0
 ) (
@@ -29,11 +29,8 @@ module rf_st07 import rf_pkg::*; #(
   assign v_ang = st_i.pl.ang;
 
   // ---- QUADBOX ----
-  fp32_t [3:0]      tmin;
-  logic  [3:0][1:0] idx;
-  logic  [3:0]      hit;
-  rf_sort4 #(.LAYER(0)) u_sort (.tmin_i(v_box.tmin), .idx_i(v_box.idx), .hit_i(v_box.hit),
-                                .tmin_o(tmin), .idx_o(idx), .hit_o(hit));
+  box_sort_t box_sorted;
+  rf_sort_layer #(.LAYER(0)) u_sort (.box_i(v_box), .box_o(box_sorted));
 
   // ---- accumulator state ----
   fp32_t euc_acc_q, dot_acc_q, norm_acc_q;
@@ -94,11 +91,7 @@ module rf_st07 import rf_pkg::*; #(
   always_comb begin
     st_o = st_i;
     unique case (st_i.op)
-      OP_QUADBOX: begin
-        st_o.pl.box_sort.tmin = tmin;
-        st_o.pl.box_sort.idx  = idx;
-        st_o.pl.box_sort.hit  = hit;
-      end
+      OP_QUADBOX:  st_o.pl.box_sort = box_sorted;
       OP_TRIANGLE: begin
         st_o.pl.tri_edge.num_part = tri_y[0];
         st_o.pl.tri_edge.den      = tri_y[1];

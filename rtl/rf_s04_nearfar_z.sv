@@ -1,9 +1,9 @@
-// Stage 4.
+// Stage 4, nearfar_z: the slab interval with the z axis; the 2-D cross products.
 //   QUADBOX   max(.., near_z), min(.., far_z)
 //   TRIANGLE   6 x  Cx*By, Cy*Bx, Ax*Cy, Ay*Cx, Bx*Ay, By*Ax   (multipliers)
 //   EUCLIDEAN  4 x  tree level 2: e[i] + e[i+4]                  (adders)
 //   ANGULAR    4 x  tree level 2 on dot and norm                  (adders)
-module rf_st04 import rf_pkg::*; #(
+module rf_s04_nearfar_z import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
   parameter bit DISJOINT = 1'b0
 ) (

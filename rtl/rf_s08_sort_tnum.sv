@@ -1,7 +1,7 @@
-// Stage 8.
+// Stage 8, sort_tnum: sorting network layer 1; t_num.
 //   QUADBOX   sorting network layer 1
 //   TRIANGLE   1 x  t_num = (U*Az + V*Bz) + W*Cz
-module rf_st08 import rf_pkg::*; #(
+module rf_s08_sort_tnum import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
   parameter bit DISJOINT = 1'b0
 ) (
@@ -13,11 +13,8 @@ module rf_st08 import rf_pkg::*; #(
   assign v_box = st_i.pl.box_sort;
   assign v_tri = st_i.pl.tri_edge;
 
-  fp32_t [3:0]      tmin;
-  logic  [3:0][1:0] idx;
-  logic  [3:0]      hit;
-  rf_sort4 #(.LAYER(1)) u_sort (.tmin_i(v_box.tmin), .idx_i(v_box.idx), .hit_i(v_box.hit),
-                                .tmin_o(tmin), .idx_o(idx), .hit_o(hit));
+  box_sort_t box_sorted;
+  rf_sort_layer #(.LAYER(1)) u_sort (.box_i(v_box), .box_o(box_sorted));
 
   fp32_t tri_y, unused_box_y, unused_euc_y, unused_ang_y;
   rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(1), .N_BOX(0), .N_EUC(0), .N_ANG(0))
@@ -30,11 +27,7 @@ module rf_st08 import rf_pkg::*; #(
   always_comb begin
     st_o = st_i;
     unique case (st_i.op)
-      OP_QUADBOX: begin
-        st_o.pl.box_sort.tmin = tmin;
-        st_o.pl.box_sort.idx  = idx;
-        st_o.pl.box_sort.hit  = hit;
-      end
+      OP_QUADBOX:  st_o.pl.box_sort = box_sorted;
       OP_TRIANGLE: st_o.pl.tri_edge.num = tri_y;
       default: ;
     endcase

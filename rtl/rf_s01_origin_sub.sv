@@ -1,9 +1,10 @@
-// Stage 1 (input): convert the request into the stage struct and do the first subtractions.
+// Stage 1, origin_sub (the input stage): convert the request into the stage struct and subtract
+// the origin (QUADBOX, TRIANGLE) or b (EUCLIDEAN).
 //   QUADBOX   24 x  bound - origin            (box_slab.slab)
 //   TRIANGLE   9 x  P - origin                (tri_vert.p)
-//   EUCLIDEAN 16 x  a - b                     (v_euc.e)
-//   ANGULAR         lanes a, b pass through   (v_ang.dot, v_ang.norm)
-module rf_st01_sub import rf_pkg::*; #(
+//   EUCLIDEAN 16 x  a - b                     (euc.e)
+//   ANGULAR         lanes a, b pass through   (ang.dot, ang.norm)
+module rf_s01_origin_sub import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
   parameter bit DISJOINT = 1'b0
 ) (
@@ -63,10 +64,11 @@ module rf_st01_sub import rf_pkg::*; #(
         end
       end
       OP_TRIANGLE: begin
-        st_o.pl.tri_vert.kx    = req_i.kx;
-        st_o.pl.tri_vert.ky    = req_i.ky;
-        st_o.pl.tri_vert.kz    = req_i.kz;
-        st_o.pl.tri_vert.shear = req_i.shear;
+        st_o.pl.tri_vert.no_cull = req_i.flags[FLAG_NO_CULL_BIT];
+        st_o.pl.tri_vert.kx      = req_i.kx;
+        st_o.pl.tri_vert.ky      = req_i.ky;
+        st_o.pl.tri_vert.kz      = req_i.kz;
+        st_o.pl.tri_vert.shear   = req_i.shear;
         for (int v = 0; v < 3; v++) begin
           for (int ax = 0; ax < 3; ax++) st_o.pl.tri_vert.p[v][ax] = tri_y[3*v+ax];
         end
