@@ -185,6 +185,7 @@ class Frame:
         d = b.dirs[rows].astype(np.float64)
         n = np.where((np.einsum("ij,ij->i", n, d) > 0)[:, None], -n, n)
         p = b.origins[rows].astype(np.float64) + res.t[rows, None].astype(np.float64) * d
+        p -= np.einsum("ij,ij->i", p - tri[:, 0], n)[:, None] * n      # back onto the plane
         return rows, p, n, prim
 
     def shadow(self, b: Batch, depth: int, rows, p, n):
