@@ -1,6 +1,6 @@
 """The NO_CULL request flag (SPEC 3, 5): the TRIANGLE test accepts both faces.
 
-Golden model, the fast RTL harness ("rtl") and pyverilator, bit for bit, through ``bench.Bench``
+Golden model, the fast RTL harness ("rtl") and pyverilator, bit for bit, through the testbench
 (driver, monitor, golden scoreboard): random streams where half the requests set NO_CULL (random
 triangles of both windings with the golden tests' special cases, boxes that must ignore the flag)
 under gaps and stalls on every build; the paper's 11 TRIANGLE cases with NO_CULL (the same results
@@ -19,9 +19,9 @@ import driver
 from driver import FLAG_NO_CULL, QUADBOX, TRIANGLE, DatapathError
 from driver.backends.build import RTL_DIR
 from driver.layout import CONTROL_WORD, RAY_FIELDS, RAY_WORDS, REQUEST, ray_words
-from bench import PRESSURE_IDS, PRESSURES, Bench, run_isolated
-from cases import CASES, FRONT, expect_tri, t_of, tri_request
-from streams import mixed_stream
+from support.cases import CASES, FRONT, expect_tri, t_of, tri_request
+from support.streams import mixed_stream
+from support.testbench import PRESSURE_IDS, PRESSURES, Testbench, run_isolated
 
 CONFIGS = [(False, False), (False, True), (True, False), (True, True)]
 CONFIG_IDS = ["baseline-unified", "baseline-disjoint", "extended-unified", "extended-disjoint"]
@@ -106,11 +106,11 @@ def _no_cull_check(name, check):
 def test_spec11_triangle_cases_with_no_cull():
     assert len(TRI_CASES) == 11
     for gaps, stalls in ((0, 0), (0.5, 0.5)):
-        bench = Bench("rtl", gaps=gaps, stalls=stalls, seed=11)
+        tb = Testbench("rtl", gaps=gaps, stalls=stalls, seed=11)
         for name, req, check in TRI_CASES:
-            rsp = bench.run(with_flags(req, FLAG_NO_CULL))
+            rsp = tb.run(with_flags(req, FLAG_NO_CULL))
             _no_cull_check(name, check)(rsp[0])
-            check(bench.run(req)[0])                       # and the flag off: the paper's result
+            check(tb.run(req)[0])                       # and the flag off: the paper's result
 
 
 def test_spec11_triangle_cases_with_no_cull_pyverilator():
@@ -164,7 +164,7 @@ def test_directed_cases_are_what_they_claim():
 @pytest.mark.parametrize("name", ["golden", "rtl"])
 def test_directed_both_faces_edge_on_neg0_nan(name):
     req = np.concatenate([r for _, r, *_ in DIRECTED])
-    rsp = Bench(name, gaps=0.5, stalls=0.5, seed=3).run(req)
+    rsp = Testbench(name, gaps=0.5, stalls=0.5, seed=3).run(req)
     for (case, _, hit, t, sees_front), row in zip(DIRECTED, rsp):
         assert bool(row["tri_hit"]) == hit, case
         if hit:
@@ -200,7 +200,7 @@ FAST_PRESSURES = [(0.0, 0.0), (0.5, 0.5)]
 @pytest.mark.parametrize("extended,disjoint", CONFIGS, ids=CONFIG_IDS)
 def test_random_no_cull_stream_rtl(extended, disjoint, gaps, stalls):
     req = no_cull_stream(31, 1500, 2500)
-    rsp = Bench("rtl", extended=extended, disjoint=disjoint, gaps=gaps, stalls=stalls,
+    rsp = Testbench("rtl", extended=extended, disjoint=disjoint, gaps=gaps, stalls=stalls,
                 seed=31).run(req)
     tri = req["opcode"] == TRIANGLE
     back = tri & (rsp["t_den"] < 0) & rsp["tri_hit"].astype(bool)
@@ -211,7 +211,7 @@ def test_random_no_cull_stream_rtl(extended, disjoint, gaps, stalls):
 @pytest.mark.parametrize("gaps,stalls", PRESSURES, ids=PRESSURE_IDS)
 @pytest.mark.parametrize("extended,disjoint", CONFIGS, ids=CONFIG_IDS)
 def test_random_no_cull_stream_rtl_all_pressures(extended, disjoint, gaps, stalls):
-    Bench("rtl", extended=extended, disjoint=disjoint, gaps=gaps, stalls=stalls,
+    Testbench("rtl", extended=extended, disjoint=disjoint, gaps=gaps, stalls=stalls,
           seed=32).run(no_cull_stream(32, 20_000, 30_000))
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 from .common import (add_json, add_progress, add_workload, check_flag_size, check_positive,
                      workload_options, wrote)
 
@@ -50,6 +52,9 @@ def add_parser(subparsers):
                         "cluster of N processes against one process: the speed-up")
     p.add_argument("--tile", type=int, default=64, metavar="N",
                    help="tile size of the --workers comparison (default 64)")
+    p.add_argument("--bvh", action="store_true",
+                   help="the BVH builder instead: build time and peak memory for the bunny and "
+                        "2 M / 5 M instanced bunnies, tree quality of the SAH vs greedy collapse")
     add_progress(p)
     return p
 
@@ -100,6 +105,14 @@ def run(args) -> int:
             else "rayflex_bench_rtunit.png"), PNG)
 
     with outs.commit():
+        if args.bvh:
+            from ..bvh_bench import bvh_bench
+            doc = bvh_bench(progress=not args.no_progress)
+            if js:
+                write_json(doc, outs.temp(js))
+            print(json.dumps(doc, indent=1))
+            wrote(outs.paths())
+            return 0
         if args.workers > 1:
             doc = bench_workers(args.scene, args.workload or "path", args.size or 128,
                                 args.workers, args.tile, not args.no_progress, **options)
