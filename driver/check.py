@@ -23,6 +23,7 @@ import numpy as np
 T_REL = 1e-5          # relative t agreement of an edge tie
 POINT_REL = 1e-5      # hit point to triangle distance, relative to the scene's coordinate scale
 MAX_RECAST = 64       # bounded back-face re-casting per ray
+NEAR_REL = 1e-3       # t errors of hits nearer than this fraction of the scene's size: see check_rays
 SPEC_KEYS = ("rays_compared", "hit_mismatch", "prim_mismatch", "edge_ties", "max_t_rel_err")
 
 
@@ -237,7 +238,9 @@ def exact_t(triangles, prim, origins, dirs) -> np.ndarray:
 def check_rays(triangles, origins, dirs, extent, our_t, our_prim, any_hit: bool,
                double_sided: bool) -> dict:
     """Embree check of one batch of rays (SPEC 10 ``embree`` keys plus ``max_t_rel_err_exact``:
-    our t against the exact plane intersection of our triangle). Closest-hit rays: ``compare``
+    our t against the exact plane intersection of our triangle, relative to that t, or to
+    ``NEAR_REL`` of the scene's size for nearer hits, where a secondary ray starting next to a
+    wall meets it after a tiny t that float32 scene coordinates cannot resolve relatively). Closest-hit rays: ``compare``
     with Embree's closest hit within the extent. Any-hit rays: hit/miss against Embree's occlusion
     query; a hit whose point is not on its triangle or not within the extent counts as a
     primitive mismatch (any triangle in the extent is a correct answer)."""
@@ -255,22 +258,34 @@ def check_rays(triangles, origins, dirs, extent, our_t, our_prim, any_hit: bool,
         o, d = np.asarray(origins, np.float64), np.asarray(dirs, np.float64)
         rows = np.flatnonzero(ours)
         p = o[rows] + np.asarray(our_t, np.float64)[rows, None] * d[rows]
-        scale = max(float(np.abs(tri).max()) if tri.size else 0.0, float(np.abs(o).max()) if
-                    o.size else 0.0, 1e-30)
-        off = point_triangle_distance(p, tri[prim[rows]].astype(np.float64)) > POINT_REL * scale
+        off = (point_triangle_distance(p, tri[prim[rows]].astype(np.float64))
+               > POINT_REL * _scale(tri, o))
         bad = rows[off | (np.asarray(our_t)[rows] >= ext[rows])]
         result = {"rays_compared": int(len(prim)),
                   "hit_mismatch": int((ours != theirs).sum()), "prim_mismatch": int(len(bad)),
                   "edge_ties": 0, "hit_mismatch_rays": np.flatnonzero(ours != theirs),
                   "prim_mismatch_rays": bad}
     rows = np.flatnonzero(ours)
+    d = np.asarray(dirs, np.float64)[rows]
     with np.errstate(invalid="ignore", divide="ignore"):
-        te = exact_t(tri, prim[rows], np.asarray(origins)[rows], np.asarray(dirs)[rows])
-        rel = np.abs(np.asarray(our_t, np.float64)[rows] - te) / np.maximum(np.abs(te), 1e-30)
+        te = exact_t(tri, prim[rows], np.asarray(origins)[rows], d)
+        # hits closer than NEAR_REL of the scene's size are measured against that distance: there
+        # the float32 coordinates (of the scene and of P - o), not the datapath, set the error
+        near = NEAR_REL * _scale(tri, origins) / np.maximum(np.linalg.norm(d, axis=1), 1e-30)
+        rel = (np.abs(np.asarray(our_t, np.float64)[rows] - te)
+               / np.maximum(np.abs(te), near))
     result["max_t_rel_err_exact"] = float(np.nanmax(rel)) if len(rel) else 0.0
     if any_hit:
         result["max_t_rel_err"] = result["max_t_rel_err_exact"]
     return result
+
+
+def _scale(tri, origins) -> float:
+    """The scene's coordinate scale: the largest |coordinate| of its triangles and ray origins."""
+    t = np.asarray(tri)
+    o = np.asarray(origins)
+    return max(float(np.abs(t).max()) if t.size else 0.0,
+               float(np.abs(o).max()) if o.size else 0.0, 1e-30)
 
 
 def merge_checks(parts: list[dict]) -> dict:
