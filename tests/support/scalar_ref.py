@@ -28,6 +28,7 @@ import numpy as np
 
 from driver.datapath import (ANGULAR, EUCLIDEAN, LATENCY, QUADBOX, RESPONSE_DTYPE, TRIANGLE,
                              DatapathError)
+from driver.layout import FLAG_NO_CULL
 
 F32 = np.float32
 ZERO = F32(0.0)          # +0
@@ -198,7 +199,12 @@ def triangle(row):
     w = sub(mul(bx, ay), mul(by, ax))
     t_den = add(add(u, v), w)
     t_num = add(add(mul(u, az), mul(v, bz)), mul(w, cz))
-    hit = (u >= ZERO) and (v >= ZERO) and (w >= ZERO) and (t_num >= ZERO) and (t_den != ZERO)
+    front = (u >= ZERO) and (v >= ZERO) and (w >= ZERO)
+    if int(row["flags"]) & FLAG_NO_CULL:        # SPEC 5 with NO_CULL: either face
+        both = front or ((u <= ZERO) and (v <= ZERO) and (w <= ZERO))
+        hit = both and (t_den != ZERO) and ((t_num >= ZERO) if t_den > ZERO else (t_num <= ZERO))
+    else:
+        hit = front and (t_num >= ZERO) and (t_den != ZERO)
     return bool(hit), t_num, t_den
 
 
