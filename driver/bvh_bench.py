@@ -68,7 +68,7 @@ def _quality(size: int = 256) -> dict:
     from .bvh4 import build
     from .camera import primary_rays
     from .scene import load_scene
-    from .traversal import trace
+    from .tracer import trace
     scene = load_scene("bunny")
     o, d = primary_rays(scene.camera, size, size)
     out, traces = {}, {}

@@ -85,7 +85,8 @@ def layout_header_dir() -> Path:
     for name in HARNESS_HEADERS:
         text += (SIM_DIR / name).read_text()     # the shared harness header travels along
     digest = hashlib.sha256(text.encode()).hexdigest()[:16]
-    out = verilate.cache_dir() / "gen" / f"layout-{digest}"
+    root = verilate.cache_dir()
+    out = root / "gen" / f"layout-{digest}"
     header = out / "rf_layout.h"
     if not header.is_file():
         try:
@@ -94,8 +95,8 @@ def layout_header_dir() -> Path:
             tmp.write_text(layout.c_header())
             os.replace(tmp, header)
         except OSError as e:
-            raise BackendError(f"cannot write the layout header into the build cache {out}: "
-                               f"{e.strerror} (set RAYFLEX_CACHE to a writable directory)") from None
+            raise BackendError(f"cannot write the build cache {root}: {e.strerror} (set "
+                               "RAYFLEX_CACHE to a writable directory)") from None
     return out
 
 

@@ -7,8 +7,8 @@ no activity comes from data the operation ignores.
 
 ``OPS`` is the one table of measured operation types: the name used in the JSON, the opcode and
 the request flags. An entry whose value is a string is not measurable yet (the reason is reported
-instead of a number); adding ``triangle_no_cull`` once the RTL has the NO_CULL request flag (SPEC
-sections 3 and 5) is one line here.
+instead of a number). ``triangle_no_cull`` draws the same random triangles as ``triangle`` (the
+stream's seed depends on the opcode only) with the NO_CULL flag (SPEC 3, 5) set.
 """
 
 from __future__ import annotations
@@ -16,12 +16,13 @@ from __future__ import annotations
 import numpy as np
 
 from ..datapath import ANGULAR, EUCLIDEAN, QUADBOX, TRIANGLE, prepare_rays
+from ..layout import FLAG_NO_CULL
 
 # name -> (opcode, extra request fields) or a string: why it cannot be measured yet
 OPS: dict[str, tuple[int, dict] | str] = {
     "box": (QUADBOX, {}),
     "triangle": (TRIANGLE, {}),
-    "triangle_no_cull": "pending NO_CULL (request flag of SPEC 3/5, not in the RTL yet)",
+    "triangle_no_cull": (TRIANGLE, {"flags": FLAG_NO_CULL}),   # the same triangles, both faces
     "euclidean": (EUCLIDEAN, {}),
     "cosine": (ANGULAR, {}),
 }
