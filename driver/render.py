@@ -96,9 +96,10 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
              and not scheduler)
     if whole and fits(w * h):
         return _render_whole(scene, w, h, backend, progress, check_embree)
+    # tiled because the frame does not fit as one wavefront: big tiles (fewer traversal steps)
     return _render_tiles(scene, w, h, backend, progress, check_embree, workload,
                          dict(spp=spp, bounces=bounces, ao_rays=ao_rays, seed=seed),
-                         tile or DEFAULT_TILE, workers, scheduler)
+                         tile or (MEMORY_TILE if whole else DEFAULT_TILE), workers, scheduler)
 
 
 def _render_tiles(scene, w, h, backend, progress, check_embree, workload, options, tile,
@@ -181,6 +182,7 @@ def available_memory() -> int | None:
         return None
 
 
+MEMORY_TILE = 256      # the tile of a frame tiled only because it does not fit (65,536 rays)
 # a tiled frame keeps per pixel: radiance (3 float32), ops per ray type (int32, up to 4 types),
 # the image (3 bytes) and the heat map's float copy of the ops (8 bytes)
 FRAME_BYTES_PER_PIXEL = 12 + 16 + 3 + 8

@@ -134,3 +134,47 @@ def test_default_frame_utilization():
     s = res.stats
     assert s["rays"] == 65536 and s["responses_verified"]
     assert s["utilization"] >= 0.98 and s["wavefront_utilization"] >= 0.98
+
+
+def test_memory_object(doc):
+    """The default frame replayed with the node cache and memory (issue 14)."""
+    m = doc["memory"]
+    for k in ("cache_bytes", "ways", "line_bytes", "latency_cycles", "bytes_per_cycle", "hit_rate",
+              "bytes_per_ray", "cycles", "utilization"):
+        assert k in m, k
+    assert m["responses_verified"] and 0 < m["hit_rate"] < 1
+    assert m["cycles"] > doc["frame"]["cycles"]                  # fetches cost time, never less
+    assert m["bytes_per_ray"] * doc["frame"]["rays"] == 64 * m["line_misses"]
+
+
+def test_no_memory_drops_the_object(tmp_path):
+    out = tmp_path / "b.json"
+    assert main(["bench", "--size", "8", "--json", str(out), "--pyverilator-requests", "0",
+                 "--sweep-size", "0", "--repeat", "1", "--no-memory", "--no-progress"]) == 0
+    assert json.loads(out.read_text())["memory"] is None
+
+
+def test_workload_bench_per_ray_type(tmp_path, capsys):
+    out = tmp_path / "w.json"
+    assert main(["bench", "--scene", "bunny_floor", "--workload", "path", "--size", "12",
+                 "--bounces", "1", "--sweep-rays", "1,16", "--json", str(out),
+                 "--no-progress"]) == 0
+    d = json.loads(out.read_text())
+    assert set(d["by_type"]) == {"primary", "shadow", "bounce1"} == set(d["sweep"])
+    assert d["frame"]["ops"] == sum(t["ops"] for t in d["by_type"].values())
+    sh = d["by_type"]["shadow"]
+    assert 0 < sh["any_hit_vs_closest_ops"] <= 1                 # any hit never issues more
+    for t in d["by_type"].values():
+        assert t["responses_verified"] and t["memory"]["replay_cycles"] >= t["replay_cycles"]
+    assert d["frame"]["embree"]["hit_mismatch"] == 0
+    assert (tmp_path / "w_rtunit.png").stat().st_size > 1000
+    assert "anyhit/closest" in capsys.readouterr().out
+
+
+def test_workers_bench_is_identical(tmp_path):
+    out = tmp_path / "k.json"
+    assert main(["bench", "--workers", "2", "--scene", "bunny_floor", "--workload", "ao",
+                 "--size", "16", "--tile", "8", "--json", str(out), "--no-progress"]) == 0
+    d = json.loads(out.read_text())
+    assert d["identical"] and d["tiles"] == 4 and d["speedup"] > 0
+    assert not list(tmp_path.glob("*.png"))

@@ -99,7 +99,7 @@ def run(args) -> int:
     outs = Outputs()
     js = outs.add("--json", args.json, JSON) if args.json else None
     plot = None
-    if args.sweep_size:
+    if args.sweep_size and not args.bvh and args.workers == 1:      # those two draw no plot
         plot = outs.add("--plot", args.plot or (
             Path(args.json).with_name(Path(args.json).stem + "_rtunit.png") if args.json
             else "rayflex_bench_rtunit.png"), PNG)

@@ -86,7 +86,8 @@ def add_workers(p) -> None:
                    help="trace tiles on the Dask cluster at ADDRESS (e.g. tcp://host:8786)")
     p.add_argument("--tile", type=int, metavar="N",
                    help="tile size in pixels (default: the whole frame as one wavefront when it "
-                        "fits in memory and one worker traces the primary workload, else 64)")
+                        "fits in memory and one worker traces the primary workload; 256 when it "
+                        "does not fit; else 64)")
 
 
 def add_progress(p) -> None:

@@ -48,6 +48,7 @@ def run(args) -> int:
     from ..outputs import IMAGE, JSON, Outputs, write_json
     from ..progress import phase
     from ..render import check_frame_memory, open_backend, render
+    from ..tiles import DEFAULT_TILE
     from ..scene import load_scene, resolve, scene_name
 
     if args.size is not None and (args.width is not None or args.height is not None):
@@ -65,7 +66,7 @@ def run(args) -> int:
     out = outs.add("--out", args.out or f"{name}.png", IMAGE)
     hm = outs.add("--heatmap", args.heatmap or out.with_name(f"{out.stem}_heatmap.png"), IMAGE)
     js = outs.add("--json", args.json, JSON) if args.json else None
-    tiled = args.tile if args.tile is not None or args.workload == "primary" else 64
+    tiled = args.tile if args.tile is not None or args.workload == "primary" else DEFAULT_TILE
     if args.size is not None:
         check_frame_memory(args.size * args.size, options["spp"], tiled)
     elif args.width is not None and args.height is not None:
