@@ -178,3 +178,58 @@ def test_a_scene_without_a_light_gets_the_default_one(floor_scene):
     assert len(bare.lights) == 1 and isinstance(bare.lights[0], workloads.PointLight)
     res = workloads.run(bare, bvh, 24, 24, tracer_on("golden"), "shadow")
     assert res.radiance.max() > 0
+
+
+def test_culled_hits_are_all_front_faces(floor_scene):
+    """Without NO_CULL every hit of every ray type is a front face (d . n < 0)."""
+    setup, bvh = floor_scene
+    assert not setup.double_sided
+    res = workloads.run(setup, bvh, 24, 24, tracer_on("golden"), "path", spp=2, bounces=2)
+    for b in res.batches:
+        hit = b.result.hit
+        tri = setup.triangles[b.result.prim[hit]].astype(np.float64)
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        assert (np.einsum("ij,ij->i", b.dirs[hit].astype(np.float64), n) < 0).all(), b.kind
+
+
+def test_double_sided_scenes_hit_back_faces():
+    """The Cornell box is double-sided: rays from behind its back wall (z = 559.2) stop there, at
+    faces wound the other way; without NO_CULL the same rays pass through that wall."""
+    scene = load_scene("cornell")
+    setup, bvh = workloads.setup_for(scene), build(scene.triangles)
+    assert setup.double_sided
+    rng = np.random.default_rng(1)
+    o = np.column_stack([rng.uniform(100, 450, 64), rng.uniform(100, 450, 64), np.full(64, 700.0)])
+    d = np.tile([0.0, 0.0, -1.0], (64, 1))
+    both = trace(bvh, o, d, backend="golden", double_sided=True)
+    culled = trace(bvh, o, d, backend="golden")
+    assert both.hit.all() and np.allclose(both.t, 700 - 559.2, rtol=1e-5)
+    tri = setup.triangles[both.prim].astype(np.float64)
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    assert (np.einsum("ij,ij->i", d, n) > 0).all()              # back faces, seen from the ray
+    assert (culled.t[culled.hit] > 700 - 559.2 + 1).all()        # culled: through the wall
+
+
+def test_gltf_double_sided_material_and_toml_lights(tmp_path):
+    """A glTF written here: its material's doubleSided makes the scene double-sided; a TOML scene
+    names point and quad lights; bad lights are one-line errors."""
+    import trimesh
+    from trimesh.visual.material import PBRMaterial
+    quad = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3]],
+                           process=False)
+    for double in (True, False):
+        quad.visual = trimesh.visual.TextureVisuals(material=PBRMaterial(doubleSided=double))
+        path = tmp_path / f"quad_{double}.glb"
+        path.write_bytes(trimesh.exchange.gltf.export_glb(trimesh.Scene(quad)))
+        assert load_scene(str(path)).double_sided is double
+    (tmp_path / "lit.toml").write_text(
+        'mesh = "quad_True.glb"\nao_radius = 0.5\n[[lights]]\ntype = "point"\n'
+        'position = [0.5, 0.5, 2.0]\nintensity = [4.0, 4.0, 4.0]\n[[lights]]\ntype = "quad"\n'
+        'corner = [0.0, 0.0, 3.0]\nu = [0.0, 1.0, 0.0]\nv = [1.0, 0.0, 0.0]\n'
+        'emission = [1.0, 1.0, 1.0]\n')
+    s = load_scene(str(tmp_path / "lit.toml"))
+    assert s.double_sided and s.ao_radius == 0.5
+    assert [type(x).__name__ for x in s.lights] == ["PointLight", "QuadLight"]
+    (tmp_path / "bad.toml").write_text('mesh = "quad_True.glb"\n[[lights]]\ntype = "spot"\n')
+    with pytest.raises(ValueError, match=r"lights\[0\]: type must be"):
+        load_scene(str(tmp_path / "bad.toml"))
