@@ -126,7 +126,7 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, workload, option
         bar.close()
     image = tone_map(res.radiance, w, h, linear=workload in ("primary", "ao"))
     by_type = {k: v.reshape(h, w) for k, v in res.ops.items()}
-    total = sum(v.astype(np.int64) for v in by_type.values())
+    total = sum(by_type.values())                   # int32: ops per pixel stay far below 2**31
     stats = dict(res.stats)
     stats.update(bvh=dict(bvh.stats), workload=workload, tile=tile, workers=workers, **options)
     return RenderResult(scene, w, h, image, total, None, stats, stats.get("embree"),
@@ -271,7 +271,7 @@ def heatmap_image(ops_per_pixel, width: int, height: int, title: str | None = No
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    ops = np.asarray(ops_per_pixel).reshape(height, width)
+    ops = display_ops(np.asarray(ops_per_pixel).reshape(height, width))
     aspect = width / height
     fig = Figure(figsize=(min(4.8 * aspect, 12) + 1.4, 4.8), dpi=100)
     canvas = FigureCanvasAgg(fig)
@@ -305,14 +305,35 @@ def heatmap_panels(ops_by_type: dict, width: int, height: int, title: str) -> np
     fig = Figure(figsize=(cols * (3.2 * aspect + 1.0), rows * 3.4 + 0.5), dpi=100)
     canvas = FigureCanvasAgg(fig)
     for i, kind in enumerate(kinds):
-        ops = np.asarray(ops_by_type[kind]).reshape(height, width)
+        full = np.asarray(ops_by_type[kind]).reshape(height, width)
+        ops = display_ops(full)
         ax = fig.add_subplot(rows, cols, i + 1)
         im = ax.imshow(ops, cmap="inferno", interpolation="nearest", vmin=0,
                        vmax=max(1, int(ops.max())) if ops.size else 1)
         ax.set_axis_off()
-        ax.set_title(f"{kind}: {int(ops.sum()):,} ops", fontsize=9)
+        ax.set_title(f"{kind}: {int(full.sum(dtype=np.int64)):,} ops", fontsize=9)
         fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     canvas.draw()
     return np.asarray(canvas.buffer_rgba())[..., :3].copy()
+
+
+HEATMAP_MAX_SIDE = 1024      # a heat map shows at most this many pixels per side
+
+
+def display_ops(ops: np.ndarray) -> np.ndarray:
+    """Ops per pixel as a heat map shows them: as they are up to ``HEATMAP_MAX_SIDE`` pixels per
+    side, else the mean of k x k blocks (k the smallest factor that fits), so that a huge frame's
+    heat map costs memory for what the figure can show, not for every pixel."""
+    h, w = ops.shape
+    k = -(-max(h, w) // HEATMAP_MAX_SIDE)
+    if k <= 1:
+        return ops
+    hh, ww = -(-h // k) * k, -(-w // k) * k
+    pad = np.zeros((hh, ww), np.float32)
+    cnt = np.zeros((hh, ww), np.float32)
+    pad[:h, :w] = ops
+    cnt[:h, :w] = 1
+    blocks = lambda a: a.reshape(hh // k, k, ww // k, k).sum(axis=(1, 3))  # noqa: E731
+    return blocks(pad) / np.maximum(blocks(cnt), 1)

@@ -35,6 +35,7 @@ from .stats import merge
 WORKLOADS = ("primary", "shadow", "ao", "path")
 SHADOW_EXTENT = 1.0 - 1e-4     # shadow rays aim at the light sample with d = y - x: t in [0, 1)
 DEFAULT_ALBEDO = 0.75
+TONE_ROWS = 256                                # tone mapping works on this many rows at a time
 BASE_COLOUR = np.array([0.92, 0.86, 0.76])     # the primary workload's surface colour
 AMBIENT = 0.08
 BG_TOP = np.array([0.42, 0.52, 0.66])          # its background gradient
@@ -337,18 +338,21 @@ def tone_map(radiance: np.ndarray, width: int, height: int, exposure: float | No
              linear: bool = False):
     """(h, w, 3) uint8: exposure (default: the 99th percentile of luminance maps to 1), Reinhard
     on luminance, gamma 2.2; ``linear``: values in [0, 1] as they are (AO), gamma 2.2 only."""
-    rgb = np.asarray(radiance, np.float64).reshape(height, width, 3)
-    if linear:
-        return (np.clip(rgb, 0.0, 1.0) ** (1 / 2.2) * 255 + 0.5).astype(np.uint8)
-    lum = rgb @ np.array([0.2126, 0.7152, 0.0722])
-    if exposure is None:
-        top = float(np.percentile(lum, 99)) if lum.size else 1.0
+    rgb = np.asarray(radiance).reshape(height, width, 3)
+    weights = np.array([0.2126, 0.7152, 0.0722])
+    if not linear and exposure is None:
+        lum = np.concatenate([(rgb[r:r + TONE_ROWS].astype(np.float64) @ weights).ravel()
+                              for r in range(0, height, TONE_ROWS)]) if rgb.size else np.ones(1)
+        top = float(np.percentile(lum, 99))
         exposure = 1.0 / top if top > 0 else 1.0
-    x = rgb * exposure
-    lx = x @ np.array([0.2126, 0.7152, 0.0722])
-    x = x / (1.0 + lx[..., None]) * 2.0
-    x = np.clip(x, 0.0, 1.0) ** (1 / 2.2)
-    return (x * 255 + 0.5).astype(np.uint8)
+    out = np.empty((height, width, 3), np.uint8)
+    for r in range(0, height, TONE_ROWS):            # in row blocks: bounded float64 copies
+        x = rgb[r:r + TONE_ROWS].astype(np.float64)
+        if not linear:
+            x = x * exposure
+            x = x / (1.0 + (x @ weights)[..., None]) * 2.0
+        out[r:r + TONE_ROWS] = (np.clip(x, 0.0, 1.0) ** (1 / 2.2) * 255 + 0.5).astype(np.uint8)
+    return out
 
 
 def embree_check(result: FrameResult, setup: Setup) -> dict:
