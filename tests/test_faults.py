@@ -231,7 +231,8 @@ def test_concurrent_cold_cache_renders_with_both_backends(tmp_path):
 @contextlib.contextmanager
 def read_only_dir(path: Path):
     """A directory that cannot be written: chmod 555, or for root (who ignores modes) a
-    read-only tmpfs mounted on it."""
+    read-only tmpfs mounted on it; where root cannot mount either, sysfs's /sys/kernel, in which
+    no one can create a file (so the test never skips)."""
     path.mkdir()
     if os.geteuid() != 0:
         path.chmod(0o555)
@@ -243,7 +244,8 @@ def read_only_dir(path: Path):
     r = subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=64k", "tmpfs", str(path)],
                        capture_output=True)
     if r.returncode != 0:
-        pytest.skip("running as root and cannot mount a read-only file system")
+        yield Path("/sys/kernel")
+        return
     try:
         yield path
     finally:
