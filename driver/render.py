@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .backends import BackendError
+from .backends import resolve
 from .camera import check_size, primary_rays
 from .tiles import DEFAULT_TILE
 from .errors import RayflexError
@@ -92,14 +92,26 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
     scene = load_scene(scene)
     w, h = check_size(width if width is not None else scene.size[0],
                       height if height is not None else scene.size[1])
-    whole = (workload == "primary" and spp == 1 and tile is None and workers == 1
-             and not scheduler)
-    if whole and fits(w * h):
+    tile = plan_tile(w * h, workload, spp, tile, workers, scheduler)
+    check_frame_memory(w * h, spp, tile)
+    if tile is None:
         return _render_whole(scene, w, h, backend, progress, check_embree)
-    # tiled because the frame does not fit as one wavefront: big tiles (fewer traversal steps)
     return _render_tiles(scene, w, h, backend, progress, check_embree, workload,
-                         dict(spp=spp, bounces=bounces, ao_rays=ao_rays, seed=seed),
-                         tile or (MEMORY_TILE if whole else DEFAULT_TILE), workers, scheduler)
+                         dict(spp=spp, bounces=bounces, ao_rays=ao_rays, seed=seed), tile,
+                         workers, scheduler)
+
+
+def plan_tile(pixels: int, workload: str, spp: int, tile: int | None, workers: int,
+              scheduler: str | None) -> int | None:
+    """How ``render`` traces a frame: None = one wavefront of every pixel (the primary workload,
+    one sample, one worker, no tile asked for, and it fits in memory); else the tile size:
+    ``tile`` if given, ``MEMORY_TILE`` for a frame tiled only because it does not fit (big
+    tiles: fewer traversal steps), ``DEFAULT_TILE`` otherwise."""
+    if tile is not None:
+        return tile
+    if workload == "primary" and spp == 1 and workers == 1 and not scheduler:
+        return None if fits(pixels) else MEMORY_TILE
+    return DEFAULT_TILE
 
 
 def _render_tiles(scene, w, h, backend, progress, check_embree, workload, options, tile,
@@ -109,11 +121,10 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, workload, option
     from .workloads import WORKLOADS, setup_for, tone_map
     if workload not in WORKLOADS:
         raise ValueError(f"unknown workload {workload!r}; available: {', '.join(WORKLOADS)}")
-    check_frame_memory(w * h, options["spp"], tile)
     name = backend if isinstance(backend, str) else getattr(backend, "name", "backend")
     spec = backend if isinstance(backend, str) else name
     if workers == 1 and not scheduler:
-        spec = open_backend(backend)        # fail early, before a long BVH build
+        spec = resolve(backend)[0]          # fail early, before a long BVH build
     with phase(f"building the BVH4 of {len(scene.mesh.faces):,} triangles", progress):
         bvh = build(scene.mesh)
     setup = setup_for(scene)
@@ -138,9 +149,8 @@ def _render_whole(scene, w, h, backend, progress, check_embree) -> RenderResult:
     from .bvh4 import build
     from .tracer import trace
 
-    check_memory(w * h)
     origins, dirs = primary_rays(scene.camera, w, h)
-    be = open_backend(backend)              # fail early, before a long BVH build
+    be = resolve(backend)[0]                # fail early, before a long BVH build
     with phase(f"building the BVH4 of {len(scene.mesh.faces):,} triangles", progress):
         bvh = build(scene.mesh)
     bvh_stats = dict(getattr(bvh, "stats", {}) or {})
@@ -197,13 +207,13 @@ def fits_in(rays: int, available: int | None) -> bool:
     return available is None or estimate_bytes(rays) <= available
 
 
-def check_frame_memory(pixels: int, spp: int = 1, tile: int | None = None) -> None:
-    """Before any work: a frame that fits as one wavefront passes; otherwise it will be tiled
-    (``tile``, default ``DEFAULT_TILE``), and that must fit (one-line RayflexError if not)."""
-    if tile is None and spp == 1 and fits(pixels):
-        return
-    t = tile or DEFAULT_TILE
-    check_memory_tiled(pixels, t * t * spp)
+def check_frame_memory(pixels: int, spp: int, tile: int | None) -> None:
+    """Before any work (one-line RayflexError): a frame traced as one wavefront (``tile`` None,
+    see ``plan_tile``) must fit as that, a tiled one as its buffers plus one tile's rays."""
+    if tile is None:
+        check_memory(pixels)
+    else:
+        check_memory_tiled(pixels, tile * tile * spp)
 
 
 def check_memory_tiled(pixels: int, tile_rays: int, available: int | None = None) -> None:
@@ -233,18 +243,6 @@ def check_memory(rays: int, available: int | None = None) -> None:
     raise RayflexError(f"a frame of {rays:,} rays needs about {need / 2**30:.1f} GiB, more than "
                        f"the {avail / 2**30:.1f} GiB of memory available: use a smaller --size "
                        f"(at most about {fit} x {fit} here) or --tile N")
-
-
-def open_backend(name):
-    """Build the backend once up front so a missing or broken one fails before any work.
-    Returns the backend object (passed to trace) or the name if it is already an object."""
-    if not isinstance(name, str):
-        return name
-    from .backends import backend
-    try:
-        return backend(name)
-    except ImportError as e:
-        raise BackendError(f"backend {name!r} is not available: {e}") from None
 
 
 def shade(trace_result, triangles, dirs, width: int, height: int) -> np.ndarray:

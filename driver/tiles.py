@@ -69,13 +69,13 @@ class TileResult:
 def _backend(spec):
     """This process's backend for ``spec`` (a name, or (name, options)), made once; a backend
     object is used as it is (in this process only)."""
-    from .backends import backend
-    if callable(getattr(spec, "run", None)):
+    from .backends import resolve
+    if not isinstance(spec, (str, tuple)):
         return spec
     name, options = (spec, {}) if isinstance(spec, str) else spec
     key = (name, tuple(sorted(options.items())))
     if key not in _WORKER_BACKENDS:
-        _WORKER_BACKENDS[key] = backend(name, **options)
+        _WORKER_BACKENDS[key] = resolve(name, **options)[0]
     return _WORKER_BACKENDS[key]
 
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .backends import resolve
 from .bvh4 import BVH4, build
 from .datapath import prepare_rays
 from .layout import FLAG_NO_CULL
@@ -61,13 +62,6 @@ def as_bvh(scene) -> BVH4:
     return build(scene)
 
 
-def _backend(backend):
-    if isinstance(backend, str):
-        from .backends import backend as make
-        return make(backend), backend
-    return backend, str(getattr(backend, "name", type(backend).__name__))
-
-
 def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np.inf,
           progress=None, rays_in_flight=None, pipelines=1, turnaround=None, record=False,
           any_hit=False, double_sided=False) -> TraceResult:
@@ -95,7 +89,7 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
         in ``TraceResult.record`` (always kept when ``rays_in_flight`` is given).
     """
     bvh = as_bvh(scene_or_mesh_or_bvh)
-    be, be_name = _backend(backend)
+    be, be_name = resolve(backend)
     rays = prepare_rays(origins, directions, extent,
                         **({"flags": FLAG_NO_CULL} if double_sided else {}))
     timed = rays_in_flight is not None

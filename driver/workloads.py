@@ -319,12 +319,11 @@ def _finish(fr: Frame, radiance: np.ndarray) -> FrameResult:
     """Average samples per pixel, ops per pixel per ray type, statistics per ray type."""
     npix = len(fr.pixels)
     per_pixel = radiance.reshape(npix, fr.spp, 3).mean(axis=1)
-    local = {p: i for i, p in enumerate(fr.pixels.tolist())} if npix != fr.w * fr.h else None
+    order = np.argsort(fr.pixels, kind="stable")      # pixel index -> row of this frame's arrays
     ops, stats = {}, {}
     for b in fr.batches:
         k = b.result.box_ops + b.result.tri_ops
-        idx = b.pixel if local is None else np.array([local[p] for p in b.pixel.tolist()],
-                                                     np.int64)
+        idx = order[np.searchsorted(fr.pixels, b.pixel, sorter=order)]
         ops.setdefault(b.kind, np.zeros(npix, np.int64))
         np.add.at(ops[b.kind], idx, k)
         stats.setdefault(b.kind, []).append(b.result.stats)

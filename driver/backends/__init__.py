@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from .base import BACKENDS, Backend, BackendError, NodeBackend
 
-__all__ = ["BACKENDS", "Backend", "BackendError", "NodeBackend", "backend"]
+__all__ = ["BACKENDS", "Backend", "BackendError", "NodeBackend", "backend", "resolve"]
 
 
 def backend(name: str, **options) -> Backend:
@@ -21,11 +21,22 @@ def backend(name: str, **options) -> Backend:
     RTL backends latency= (pipeline depth) and backend-specific ones (see their classes)."""
     if not isinstance(name, str) or name not in BACKENDS:
         raise BackendError(f"unknown backend {name!r}; available: {', '.join(BACKENDS)}")
-    if name == "golden":
-        from .golden import GoldenBackend
-        return GoldenBackend(**options)
-    if name == "rtl":
-        from .harness import HarnessBackend       # builds the Verilated model on first use
-        return HarnessBackend(**options)
-    from .pyverilator import PyverilatorBackend
-    return PyverilatorBackend(**options)
+    try:
+        if name == "golden":
+            from .golden import GoldenBackend
+            return GoldenBackend(**options)
+        if name == "rtl":
+            from .harness import HarnessBackend       # builds the Verilated model on first use
+            return HarnessBackend(**options)
+        from .pyverilator import PyverilatorBackend
+        return PyverilatorBackend(**options)
+    except ImportError as e:
+        raise BackendError(f"backend {name!r} is not available: {e}") from None
+
+
+def resolve(spec, **options) -> tuple[Backend, str]:
+    """(backend, its name) for a backend name (made by ``backend``) or a backend object (used as
+    it is)."""
+    if isinstance(spec, str):
+        return backend(spec, **options), spec
+    return spec, str(getattr(spec, "name", type(spec).__name__))

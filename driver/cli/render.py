@@ -47,8 +47,8 @@ def run(args) -> int:
     from ..camera import check_size
     from ..outputs import IMAGE, JSON, Outputs, write_json
     from ..progress import phase
-    from ..render import check_frame_memory, open_backend, render
-    from ..tiles import DEFAULT_TILE
+    from ..backends import resolve as resolve_backend
+    from ..render import check_frame_memory, plan_tile, render
     from ..scene import load_scene, resolve, scene_name
 
     if args.size is not None and (args.width is not None or args.height is not None):
@@ -66,15 +66,14 @@ def run(args) -> int:
     out = outs.add("--out", args.out or f"{name}.png", IMAGE)
     hm = outs.add("--heatmap", args.heatmap or out.with_name(f"{out.stem}_heatmap.png"), IMAGE)
     js = outs.add("--json", args.json, JSON) if args.json else None
-    tiled = args.tile if args.tile is not None or args.workload == "primary" else DEFAULT_TILE
-    if args.size is not None:
-        check_frame_memory(args.size * args.size, options["spp"], tiled)
-    elif args.width is not None and args.height is not None:
-        check_frame_memory(args.width * args.height, options["spp"], tiled)
+    if args.size is not None or (args.width is not None and args.height is not None):
+        pixels = args.size ** 2 if args.size is not None else args.width * args.height
+        check_frame_memory(pixels, options["spp"], plan_tile(
+            pixels, args.workload, options["spp"], args.tile, args.workers, args.scheduler))
 
     distributed = args.workers > 1 or args.scheduler
     # a backend that cannot be built fails first (tiles on workers build their own)
-    backend = args.backend if distributed else open_backend(args.backend)
+    backend = args.backend if distributed else resolve_backend(args.backend)[0]
     with phase(f"loading {name}", not args.no_progress):
         scene = load_scene(source)
     w, h = scene.size
