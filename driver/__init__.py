@@ -10,7 +10,8 @@ __all__ = ["ANGULAR", "BACKENDS", "BackendError", "DatapathError", "EUCLIDEAN", 
 
 
 def trace(scene, origins, directions, backend="rtl", **options):
-    """Closest-hit trace of rays through a scene (name, path, trimesh mesh or built BVH4) with every
-    box and triangle test run on ``backend``; see ``driver.tracer.trace``."""
+    """Trace rays through a scene (name, path, trimesh mesh or built BVH4) with every box and
+    triangle test run on ``backend``: closest hit, or ``any_hit=True`` (occlusion), with
+    ``double_sided=True`` for NO_CULL; see ``driver.tracer.trace``."""
     from .tracer import trace as _trace
     return _trace(scene, origins, directions, backend=backend, **options)

@@ -419,7 +419,10 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
                                          "vs rays in flight, one pipeline")
     total = dict(res.stats)
     total.pop("by_type")
-    total.update(_replay_all([b.result.record for b in res.batches], rays_in_flight, pipelines))
+    cycles = sum(t["replay_cycles"] for t in by_type.values())     # the per-type replays, added
+    total.update(replay_cycles=cycles, rays_in_flight=rays_in_flight, pipelines=pipelines,
+                 replay_utilization=total["ops"] / (pipelines * cycles) if cycles else 0.0,
+                 responses_verified=all(t["responses_verified"] for t in by_type.values()))
     return {"scene": scene.name, "workload": workload, "width": size, "height": size,
             "spp": spp, "bounces": bounces, "ao_rays": ao_rays, "seed": seed,
             "frame": total, "by_type": by_type, "sweep": sweep, "plot": str(plot) if plot else None,
