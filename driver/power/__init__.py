@@ -24,14 +24,14 @@ liberty reader and per-net energies), ``report`` (JSON, tables, plot, per-ray en
 
 from __future__ import annotations
 
-import json
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
+from ..cli.common import add_json, add_progress, wrote
 from ..layout import pack_requests
+from ..outputs import JSON, PNG, Outputs, write_json
 from . import stimulus
 from .netlist import STAGE_LABELS, _area
 
@@ -178,9 +178,10 @@ def add_parser(subparsers):
                    help="energy per ray and per frame of a scene's frame (golden traversal, "
                         "default size 32); repeatable")
     p.add_argument("--seed", type=int, default=0, help="request stream seed (default 0)")
-    p.add_argument("--json", metavar="PATH", help="write the report as JSON")
+    add_json(p, "write the report as JSON")
     p.add_argument("--plot", metavar="PATH",
                    help="PNG of energy per operation (default: none)")
+    add_progress(p)
     return p
 
 
@@ -194,7 +195,10 @@ def run(args) -> int:
     if args.ops < 1:
         raise ValueError(f"--ops must be >= 1, got {args.ops}")
     workloads = [report.parse_workload(w) for w in args.workload]
-    log = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
+    outs = Outputs()                 # checked before any work, written all or nothing at the end
+    js = outs.add("--json", args.json, JSON) if args.json else None
+    png = outs.add("--plot", args.plot, PNG) if args.plot else None
+    log = None if args.no_progress else (lambda m: print(m, file=sys.stderr, flush=True))
     if args.level == "liberty":
         from . import liberty
         path, why = liberty.find(args.liberty)
@@ -210,8 +214,10 @@ def run(args) -> int:
     rep = report.build(args.level, res, args.ops, args.seed, workloads, liberty=args.liberty)
     rep["seconds"] = round(time.perf_counter() - t0, 1)
     print(report.markdown(rep))
-    if args.json:
-        Path(args.json).write_text(json.dumps(rep, indent=1) + "\n")
-    if args.plot:
-        report.plot(rep, args.plot)
+    with outs.commit():
+        if js:
+            write_json(rep, outs.temp(js))
+        if png:
+            report.plot(rep, outs.temp(png))
+    wrote(outs.paths())
     return 0
