@@ -497,3 +497,39 @@ def test_gates_level_baseline(tmp_path):
     cfg = rep["configs"]["baseline-unified"]
     assert cfg["box"]["energy_per_op"] > cfg["box"]["toggles_per_op"] > 0
     assert cfg["idle_per_cycle"]["energy"] == 0
+
+
+def test_cold_syntheses_run_side_by_side_longest_first(monkeypatch):
+    import threading
+    import time
+
+    import driver.power as power
+    est = {"baseline-unified": 1, "baseline-disjoint": 2, "extended-unified": 3,
+           "extended-disjoint": 9}
+    by_params = {tuple(power.params_of(c)[k] for k in ("EXTENDED", "DISJOINT")): c for c in est}
+    lock, active, started, peak = threading.Lock(), [0], [], [0]
+
+    def fake(params, progress=None):
+        cfg = by_params[(params["EXTENDED"], params["DISJOINT"])]
+        with lock:
+            started.append(cfg)
+            active[0] += 1
+            peak[0] = max(peak[0], active[0])
+        time.sleep(0.2)
+        with lock:
+            active[0] -= 1
+        if cfg == "baseline-disjoint" and fail:
+            raise OSError("Yosys failed: test")
+        return cfg
+
+    monkeypatch.setattr(netlist, "synthesize", fake)
+    monkeypatch.setattr(netlist, "estimate", lambda p: est[by_params[(p["EXTENDED"],
+                                                                       p["DISJOINT"])]])
+    monkeypatch.setattr(power.os, "cpu_count", lambda: 2)
+    fail = False
+    got = power._netlists(list(est))
+    assert got == {c: c for c in est}                 # each configuration its own netlist
+    assert peak[0] == 2 and started[0] == "extended-disjoint"
+    fail = True
+    with pytest.raises(OSError, match="Yosys failed"):
+        power._netlists(list(est))
