@@ -487,6 +487,30 @@ def test_liberty_level_on_the_gate_model(tiny_net, tiny):
     assert r["idle_per_cycle"]["energy_total"] == pytest.approx(priced.per_cycle)
 
 
+def test_configurations_measured_side_by_side_in_processes(tiny_net, monkeypatch):
+    """With two cores the configurations are measured in child processes, with the numbers a
+    single process gives; an error in a child reaches the caller."""
+    import driver.power as power
+    net, _ = tiny_net
+    nets = {"baseline-unified": net, "baseline-disjoint": net}
+    monkeypatch.setattr(power.os, "cpu_count", lambda: 1)
+    alone = power._measure_nets("gates", nets, n=8, seed=3, liberty_path=None)
+    monkeypatch.setattr(power.os, "cpu_count", lambda: 2)
+
+    def not_here(*a, **k):
+        raise AssertionError("measured in the parent process")
+
+    monkeypatch.setattr(power, "_measure_net", not_here)   # spawned children are unaffected
+    side = power._measure_nets("gates", nets, n=8, seed=3, liberty_path=None,
+                               progress=print)
+    for r in (alone, side):
+        for v in r.values():
+            v.pop("seconds")
+    assert side == alone and side["baseline-unified"]["box"]["toggles_per_op"] > 0
+    with pytest.raises(OSError, match="cannot read liberty file /nonexistent.lib"):
+        power._measure_nets("liberty", nets, n=8, seed=3, liberty_path="/nonexistent.lib")
+
+
 @pytest.mark.slow
 def test_gates_level_baseline(tmp_path):
     """Synthesis (minutes, cached), the gate-level model, and its toggles vs the RTL's."""

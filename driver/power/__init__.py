@@ -100,31 +100,98 @@ def measure(model, extended: bool, n: int = DEFAULT_OPS, seed: int = 0,
 def run_level(level: str, cfgs: list[str], n: int = DEFAULT_OPS, seed: int = 0,
               liberty_path: str | None = None, progress=None) -> dict:
     """Measure ``cfgs`` at ``level``; returns the report's ``configs`` part and notes."""
+    if level == "signals":
+        from . import activity
+        out = {}
+        for cfg in cfgs:
+            t0 = time.perf_counter()
+            p = params_of(cfg)
+            bar = _bar(progress, {cfg: len(stimulus.measurable(bool(p["EXTENDED"])))})
+            out[cfg] = measure(activity.SignalModel(p), bool(p["EXTENDED"]), n, seed,
+                               progress=(lambda op, c=cfg: bar.step(c, op)) if bar else None)
+            if bar:
+                bar.close()
+            out[cfg]["seconds"] = round(time.perf_counter() - t0, 1)
+        return {"configs": out}
+    nets = _netlists(cfgs, progress)
+    notes = {cfg: {"seconds": nets[cfg].synth_s, "cached": nets[cfg].cached,
+                   "cells": sum(nets[cfg].cells.values())} for cfg in cfgs}
+    return {"configs": _measure_nets(level, nets, n, seed, liberty_path, progress),
+            "synth_s": notes}
+
+
+def _measure_net(level, cfg, net, n, seed, liberty_path, step=None) -> dict:
+    """One configuration at level ``gates`` or ``liberty`` (``step(cfg, op)``: progress)."""
     from . import activity
-    out, notes = {}, {}
-    nets = _netlists(cfgs, progress) if level != "signals" else {}
-    for cfg in cfgs:
-        p = params_of(cfg)
-        t0 = time.perf_counter()
-        if level == "signals":
-            model = activity.SignalModel(p)
-        else:
-            net = nets[cfg]
-            notes.setdefault("synth_s", {})[cfg] = {"seconds": net.synth_s, "cached": net.cached,
-                                                   "cells": sum(net.cells.values())}
-            model = activity.GateModel(net)
-            if level == "liberty":
-                from . import liberty
-                model = liberty.price(model, net, liberty_path)
-        bar = _bar(cfg, progress, len(stimulus.measurable(bool(p["EXTENDED"]))))
-        out[cfg] = measure(model, bool(p["EXTENDED"]), n, seed,
-                           progress=bar.step if bar else None)
+    t0 = time.perf_counter()
+    model = activity.GateModel(net)
+    if level == "liberty":
+        from . import liberty
+        model = liberty.price(model, net, liberty_path)
+    out = measure(model, bool(params_of(cfg)["EXTENDED"]), n, seed,
+                  progress=(lambda op: step(cfg, op)) if step else None)
+    out["seconds"] = round(time.perf_counter() - t0, 1)
+    if level == "liberty":
+        out["leakage"] = model.leakage
+    return out
+
+
+_steps = None                         # a child process's progress queue
+
+
+def _child_init(queue):
+    global _steps
+    _steps = queue
+
+
+def _child_measure(*args) -> dict:
+    return _measure_net(*args, step=lambda cfg, op: _steps.put((cfg, op)))
+
+
+def _measure_nets(level, nets: dict, n, seed, liberty_path, progress=None) -> dict:
+    """Measure every configuration's netlist, side by side in one process per core (the gate
+    simulation is numpy on one thread; the biggest netlist starts first), so a warm run takes
+    about its longest configuration, not their sum. The numbers do not depend on where a
+    configuration ran: each is a deterministic function of its netlist, ``n`` and ``seed``."""
+    import multiprocessing as mp
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from queue import Empty
+    cfgs = list(nets)
+    bar = _bar(progress, {c: len(stimulus.measurable(bool(params_of(c)["EXTENDED"])))
+                          for c in cfgs})
+    step = bar.step if bar else None
+    lanes = max(1, min(len(cfgs), os.cpu_count() or 1))
+    try:
+        if lanes == 1:
+            return {c: _measure_net(level, c, nets[c], n, seed, liberty_path, step)
+                    for c in cfgs}
+        ctx = mp.get_context("spawn")          # the parent may hold threads: never fork it
+        queue = ctx.Queue()
+        order = sorted(cfgs, key=lambda c: -sum(nets[c].cells.values()))
+        pending: set = set()
+        pool = ProcessPoolExecutor(lanes, mp_context=ctx, initializer=_child_init,
+                                   initargs=(queue,))
+        try:
+            jobs = {c: pool.submit(_child_measure, level, c, nets[c], n, seed, liberty_path)
+                    for c in order}
+            pending = set(jobs.values())
+            while pending:
+                done, pending = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
+                for f in done:
+                    f.result()                 # an error stops the run now
+                while True:
+                    try:
+                        msg = queue.get_nowait()
+                    except Empty:
+                        break
+                    if step:
+                        step(*msg)
+            return {c: jobs[c].result() for c in cfgs}
+        finally:
+            pool.shutdown(wait=not pending, cancel_futures=True)
+    finally:
         if bar:
             bar.close()
-        out[cfg]["seconds"] = round(time.perf_counter() - t0, 1)
-        if level == "liberty":
-            out[cfg]["leakage"] = model.leakage
-    return {"configs": out, **notes}
 
 
 def _netlists(cfgs: list[str], progress=None) -> dict:
@@ -152,23 +219,27 @@ def _have_yosys() -> bool:
 
 
 class _Bar:
-    def __init__(self, cfg, total):
-        from tqdm import tqdm
-        self.bar = tqdm(total=total, desc=cfg, unit="op type", leave=False, file=sys.stderr)
-        self.started = False
+    """One bar over the operation types of every configuration being measured."""
 
-    def step(self, op):
-        if self.started:              # called before each operation type
+    def __init__(self, per_cfg: dict[str, int]):
+        from tqdm import tqdm
+        self.bar = tqdm(total=sum(per_cfg.values()), desc="measuring", unit="op type",
+                        leave=False, file=sys.stderr)
+        self.current: dict[str, str] = {}
+
+    def step(self, cfg, op):
+        if cfg in self.current:       # called before each operation type
             self.bar.update(1)
-        self.started = True
-        self.bar.set_postfix_str(op)
+        self.current[cfg] = op
+        self.bar.set_postfix_str(", ".join(f"{c} {o}" for c, o in self.current.items()))
 
     def close(self):
+        self.bar.update(self.bar.total - self.bar.n)
         self.bar.close()
 
 
-def _bar(cfg, progress, total):
-    return _Bar(cfg, total) if progress else None
+def _bar(progress, per_cfg):
+    return _Bar(per_cfg) if progress else None
 
 
 # ------------------------------------------------------------------------------------------------
