@@ -488,7 +488,10 @@ def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, ti
     """The same tiled frame on "rtl" in this process and on a LocalCluster of ``workers``
     processes: wall times (scheduler start-up and the once-per-worker set-up included), the
     speed-up, and whether the two frames are identical (image, per-pixel ops, statistics but wall
-    times)."""
+    times). ``phases_n_workers``: where the distributed frame's wall time went
+    (``tiles.render_tiles``); ``speedup_tiles`` compares the tiles after the first result with
+    the same share of the one-process frame, i.e. the scaling the machine gives once every fixed
+    cost is paid."""
     from .bvh4 import build
     from .scene import load_scene
     from .tiles import plan, render_tiles
@@ -497,12 +500,13 @@ def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, ti
     scene = load_scene(scene_name)
     setup, bvh = setup_for(scene), build(scene.mesh)
     n_tiles = len(plan(size, size, tile))
-    runs = {}
+    runs, phases = {}, {}
     for n in (1, int(workers)):
         bar = _bar(n_tiles, f"{workload} {size}x{size} on {n} worker(s)", "tile", progress)
         t0 = time.perf_counter()
         runs[n] = (render_tiles(setup, bvh, size, size, workload, options, "rtl", tile, n,
-                                progress=bar.hook), time.perf_counter() - t0)
+                                progress=bar.hook, timings=phases if n > 1 else None),
+                   time.perf_counter() - t0)
         bar.close()
     (a, ta), (b, tb) = runs[1], runs[int(workers)]
     keep = ("rays", "hits", "box_ops", "tri_ops", "ops", "cycles")
@@ -513,4 +517,7 @@ def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, ti
             "tile": tile, "tiles": n_tiles, **options, "workers": int(workers),
             "wall_s_1_worker": ta, "wall_s_n_workers": tb,
             "speedup": ta / tb if tb > 0 else None, "identical": bool(same),
+            "phases_n_workers": {k: round(v, 3) for k, v in phases.items()},
+            "speedup_tiles": (ta * (n_tiles - 1) / n_tiles / phases["tiles_s"]
+                              if n_tiles > 1 and phases.get("tiles_s") else None),
             "rays": a.stats["rays"], "ops": a.stats["ops"]}

@@ -146,10 +146,14 @@ class Assembler:
 def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
                  options: dict | None = None, backend="rtl", tile: int = DEFAULT_TILE,
                  workers: int = 1, scheduler: str | None = None, check_embree: bool = False,
-                 progress=None) -> FrameResult:
+                 progress=None, timings: dict | None = None) -> FrameResult:
     """Trace a frame tile by tile: in this process (``workers=1`` and no ``scheduler``), or as
     Dask tasks on a new ``LocalCluster`` of ``workers`` processes or on the cluster at
-    ``scheduler``. ``progress(done_tiles, total_tiles)``. Returns the merged ``FrameResult``."""
+    ``scheduler``. ``progress(done_tiles, total_tiles)``. Returns the merged ``FrameResult``.
+    ``timings`` (a dict) receives the distributed run's wall-time phases in seconds:
+    ``start_s`` (importing Dask, starting the cluster or connecting, sending the scene and
+    BVH), ``first_tile_s`` (from then to the first tile's result: a worker's one-time set-up and
+    one tile), ``tiles_s`` (from then to the last result) and ``close_s``."""
     options = dict(options or {})
     tiles = plan(width, height, tile)
     asm = Assembler(width, height)
@@ -160,8 +164,10 @@ def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
             if progress:
                 progress(i + 1, len(tiles))
         return asm.frame()
+    clock = _Phases(timings)
     with _client(workers, scheduler) as client:
         setup_f, bvh_f = client.scatter([setup, bvh], broadcast=True)
+        clock.mark("start_s")
         frame_id = uuid.uuid4().hex[:12]
         futures = [client.submit(run_tile, setup_f, bvh_f, width, height, px, workload, options,
                                  backend, check_embree, key=f"rayflex-tile-{frame_id}-{i}",
@@ -171,11 +177,30 @@ def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
         try:
             for done, fut in enumerate(as_completed(futures), 1):
                 asm.add(fut.result())
+                clock.mark("first_tile_s" if done == 1 else None)
                 if progress:
                     progress(done, len(tiles))
         finally:
             client.cancel(futures)
+        clock.mark("tiles_s")
+    clock.mark("close_s")
     return asm.frame()
+
+
+class _Phases:
+    """Wall-clock phases of a distributed frame, written into ``out`` (nothing if ``None``)."""
+
+    def __init__(self, out: dict | None):
+        import time
+        self.out, self.now = out, time.perf_counter
+        self.last = self.now()
+
+    def mark(self, name: str | None) -> None:
+        if self.out is None or name is None:
+            return
+        t = self.now()
+        self.out[name] = self.out.get(name, 0.0) + t - self.last
+        self.last = t
 
 
 class _client:

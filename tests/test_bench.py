@@ -177,4 +177,9 @@ def test_workers_bench_is_identical(tmp_path):
                  "--size", "16", "--tile", "8", "--json", str(out), "--no-progress"]) == 0
     d = json.loads(out.read_text())
     assert d["identical"] and d["tiles"] == 4 and d["speedup"] > 0
+    ph = d["phases_n_workers"]
+    assert set(ph) == {"start_s", "first_tile_s", "tiles_s", "close_s"}
+    assert all(v >= 0 for v in ph.values())
+    assert sum(ph.values()) == pytest.approx(d["wall_s_n_workers"], abs=0.05)
+    assert d["speedup_tiles"] > 0
     assert not list(tmp_path.glob("*.png"))
