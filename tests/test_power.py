@@ -511,6 +511,26 @@ def test_configurations_measured_side_by_side_in_processes(tiny_net, monkeypatch
         power._measure_nets("liberty", nets, n=8, seed=3, liberty_path="/nonexistent.lib")
 
 
+class _DiesInChild:
+    """A netlist whose unpickling ends the process at once, as the OOM killer would."""
+
+    cells = {"$_AND_": 1}
+
+    def __reduce__(self):
+        import os
+        return os._exit, (3,)
+
+
+def test_a_dead_measurement_process_is_a_one_line_error(monkeypatch):
+    import driver.power as power
+    monkeypatch.setattr(power.os, "cpu_count", lambda: 2)
+
+    net = _DiesInChild()
+    with pytest.raises(OSError, match="measurement process died"):
+        power._measure_nets("gates", {"baseline-unified": net, "baseline-disjoint": net},
+                            n=8, seed=0, liberty_path=None)
+
+
 @pytest.mark.slow
 def test_gates_level_baseline(tmp_path):
     """Synthesis (minutes, cached), the gate-level model, and its toggles vs the RTL's."""

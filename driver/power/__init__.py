@@ -155,6 +155,7 @@ def _measure_nets(level, nets: dict, n, seed, liberty_path, progress=None) -> di
     configuration ran: each is a deterministic function of its netlist, ``n`` and ``seed``."""
     import multiprocessing as mp
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
     from queue import Empty
     cfgs = list(nets)
     bar = _bar(progress, {c: len(stimulus.measurable(bool(params_of(c)["EXTENDED"])))
@@ -178,7 +179,12 @@ def _measure_nets(level, nets: dict, n, seed, liberty_path, progress=None) -> di
             while pending:
                 done, pending = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
                 for f in done:
-                    f.result()                 # an error stops the run now
+                    try:
+                        f.result()             # an error stops the run now
+                    except BrokenProcessPool:
+                        raise OSError("a gate-level measurement process died (out of memory? "
+                                      "--config NAME measures one configuration at a time)"
+                                      ) from None
                 while True:
                     try:
                         msg = queue.get_nowait()
