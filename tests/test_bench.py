@@ -171,6 +171,29 @@ def test_workload_bench_per_ray_type(tmp_path, capsys):
     assert "anyhit/closest" in capsys.readouterr().out
 
 
+def test_workers_bench_builds_the_model_before_timing(monkeypatch):
+    """A cold build cache must not land in the one-process time (it did: 54 s vs 1.2 s)."""
+    import driver.backends.build as build
+    import driver.bench as bench
+    import driver.tiles as tiles
+    calls = []
+    real = build.build_harness
+    monkeypatch.setattr(build, "build_harness", lambda p: calls.append(("build", p)) or real(p))
+
+    class Timed(Exception):
+        pass
+
+    def render(*a, **k):
+        calls.append(("render",))
+        raise Timed
+
+    monkeypatch.setattr(tiles, "render_tiles", render)
+    with pytest.raises(Timed):
+        bench.bench_workers("cornell", "primary", 8, 2, 8, progress=False)
+    assert calls[0][0] == "build" and calls[1] == ("render",)
+    assert calls[0][1] == tiles._backend("rtl").params      # the model the tiles will load
+
+
 def test_workers_bench_is_identical(tmp_path):
     out = tmp_path / "k.json"
     assert main(["bench", "--workers", "2", "--scene", "bunny_floor", "--workload", "ao",
