@@ -492,13 +492,12 @@ def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, ti
     (``tiles.render_tiles``); ``speedup_tiles`` compares the tiles after the first result with
     the same share of the one-process frame, i.e. the scaling the machine gives once every fixed
     cost is paid."""
+    from .backends.build import build_harness, rtl_params
     from .bvh4 import build
+    from .datapath import LATENCY
     from .scene import load_scene
     from .tiles import plan, render_tiles
     from .workloads import setup_for
-
-    from .backends.build import build_harness, rtl_params
-    from .datapath import LATENCY
 
     scene = load_scene(scene_name)
     setup, bvh = setup_for(scene), build(scene.mesh)

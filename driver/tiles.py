@@ -34,6 +34,7 @@ cluster given by ``--scheduler`` keep whatever their operator configured (docs/w
 
 from __future__ import annotations
 
+import time
 import uuid
 from dataclasses import dataclass, field
 
@@ -191,16 +192,13 @@ class _Phases:
     """Wall-clock phases of a distributed frame, written into ``out`` (nothing if ``None``)."""
 
     def __init__(self, out: dict | None):
-        import time
-        self.out, self.now = out, time.perf_counter
-        self.last = self.now()
+        self.out, self.last = out, time.perf_counter()
 
     def mark(self, name: str | None) -> None:
         if self.out is None or name is None:
             return
-        t = self.now()
-        self.out[name] = self.out.get(name, 0.0) + t - self.last
-        self.last = t
+        t = time.perf_counter()
+        self.out[name], self.last = t - self.last, t
 
 
 class _client:

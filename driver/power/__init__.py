@@ -161,7 +161,7 @@ def _measure_nets(level, nets: dict, n, seed, liberty_path, progress=None) -> di
     bar = _bar(progress, {c: len(stimulus.measurable(bool(params_of(c)["EXTENDED"])))
                           for c in cfgs})
     step = bar.step if bar else None
-    lanes = max(1, min(len(cfgs), os.cpu_count() or 1))
+    lanes = _lanes(len(cfgs))
     try:
         if lanes == 1:
             return {c: _measure_net(level, c, nets[c], n, seed, liberty_path, step)
@@ -207,13 +207,17 @@ def _netlists(cfgs: list[str], progress=None) -> dict:
     from . import netlist
     wanted = {c: {k: params_of(c)[k] for k in ("EXTENDED", "DISJOINT")} for c in cfgs}
     order = sorted(cfgs, key=lambda c: -netlist.estimate(wanted[c]))
-    lanes = max(1, min(len(cfgs), os.cpu_count() or 1))
-    pool = ThreadPoolExecutor(lanes, thread_name_prefix="rayflex-synth")
+    pool = ThreadPoolExecutor(_lanes(len(cfgs)), thread_name_prefix="rayflex-synth")
     try:
         jobs = {c: pool.submit(netlist.synthesize, wanted[c], progress=progress) for c in order}
         return {c: jobs[c].result() for c in cfgs}
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _lanes(jobs: int) -> int:
+    """Side-by-side lanes for ``jobs`` single-threaded jobs: one per core, at most one per job."""
+    return max(1, min(jobs, os.cpu_count() or 1))
 
 
 def _have_yosys() -> bool:
