@@ -57,9 +57,10 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
           pipelines=1, sweep_size=SWEEP_SIZE, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT,
           sweep_pipelines=rtunit.SWEEP_PIPELINES, plot=None,
           pyverilator_requests=PYVERILATOR_REQUESTS, repeat=REPEAT, progress=True,
-          memory=rtunit.MemoryModel()) -> dict:
+          memory=rtunit.MemoryModel(), fill=0, cull_stack=False) -> dict:
     """Run the benchmark; returns the JSON document (see the module docstring). ``memory``: the
-    node memory of the ``memory`` object's replay (None: no such object)."""
+    node memory of the ``memory`` object's replay (None: no such object); ``fill`` (BVH build)
+    and ``cull_stack`` (traversal) apply to every trace of the run."""
     from .backends import backend
     from .camera import check_size, primary_rays
     from .scene import load_scene
@@ -71,8 +72,9 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
     n = len(origins)
     rtl = backend("rtl")                            # build (or load) first: fail early
 
+    tree = dict(fill=fill, cull_stack=cull_stack)
     frame, res, bvh, rep = _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines,
-                                  f"{w}x{h}", progress)
+                                  f"{w}x{h}", progress, **tree)
     rec = res.record
     mem = _memory_frame(rec, rays_in_flight, pipelines, memory) if memory else None
     rtl_runs = [res.stats["sim_cycles_per_s"]]
@@ -87,7 +89,7 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
     emb_t, emb_prim = embree_closest_front(tri, origins, dirs)
     frame["embree"] = embree_json(compare(res.t, res.prim, emb_t, emb_prim, tri, origins, dirs))
 
-    t_gold, golden_same = _golden(bvh, origins, dirs, res, f"{w}x{h}", progress)
+    t_gold, golden_same = _golden(bvh, origins, dirs, res, f"{w}x{h}", progress, cull_stack)
 
     # ---- pyverilator on a short stream of the frame's requests --------------------------------
     pyv = None
@@ -99,12 +101,13 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
     sweep = None
     if sweep_size:
         sweep = _sweep(scene, bvh, rtl, min(int(sweep_size), w, h), sweep_rays, sweep_pipelines,
-                       rep, plot, progress)
+                       rep, plot, progress, cull_stack)
 
     doc = {
         "scene": scene.name,
         "width": w,
         "height": h,
+        **tree,
         "frame": frame,
         "rtl_cycles_per_s": rtl_cps,
         "rtl_cycles_per_s_runs": rtl_runs,
@@ -129,7 +132,8 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
     return doc
 
 
-def _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines, label, progress):
+def _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines, label, progress, fill=0,
+           cull_stack=False):
     """The frame on "rtl": BVH build, wavefront traversal (recorded), RT-unit replay. Returns
     (frame statistics, trace result, BVH, replay result)."""
     from .bvh4 import build, warm_up
@@ -137,11 +141,12 @@ def _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines, label, progress
 
     t_kernels = warm_up()                           # the builder's JIT, like the model's build
     t0 = time.perf_counter()
-    bvh = build(scene.mesh)
+    bvh = build(scene.mesh, fill=fill)
     t_bvh = time.perf_counter() - t0
     bar = _bar(len(origins), f"frame {label} rtl", "ray", progress)
     t1 = time.perf_counter()
-    res = trace(bvh, origins, dirs, backend=rtl, record=True, progress=bar.hook)
+    res = trace(bvh, origins, dirs, backend=rtl, record=True, progress=bar.hook,
+                cull_stack=cull_stack)
     t_trace = time.perf_counter() - t1
     bar.close()
     bar = _bar(1, f"RT-unit replay R={rays_in_flight} P={pipelines}", "run", progress)
@@ -169,12 +174,12 @@ def _memory_frame(rec, rays_in_flight, pipelines, memory) -> dict:
             "responses_verified": rep.verified}
 
 
-def _golden(bvh, origins, dirs, res, label, progress):
+def _golden(bvh, origins, dirs, res, label, progress, cull_stack=False):
     """The whole frame on the numpy model: (wall seconds, hits equal to the RTL's)."""
     from .tracer import trace
     bar = _bar(len(origins), f"frame {label} golden", "ray", progress)
     t0 = time.perf_counter()
-    gold = trace(bvh, origins, dirs, backend="golden", progress=bar.hook)
+    gold = trace(bvh, origins, dirs, backend="golden", progress=bar.hook, cull_stack=cull_stack)
     t_gold = time.perf_counter() - t0
     bar.close()
     same = bool(np.array_equal(gold.t.view(np.uint32), res.t.view(np.uint32))
@@ -182,12 +187,13 @@ def _golden(bvh, origins, dirs, res, label, progress):
     return t_gold, same
 
 
-def _sweep(scene, bvh, rtl, ss, sweep_rays, sweep_pipelines, rep, plot, progress) -> dict:
+def _sweep(scene, bvh, rtl, ss, sweep_rays, sweep_pipelines, rep, plot, progress,
+           cull_stack=False) -> dict:
     """The RT-unit sweep on a smaller frame (ss x ss) of the same view, and its plot."""
     from .camera import primary_rays
     from .tracer import trace
     so, sd = primary_rays(scene.camera, ss, ss)
-    srec = trace(bvh, so, sd, backend=rtl, record=True).record
+    srec = trace(bvh, so, sd, backend=rtl, record=True, cull_stack=cull_stack).record
     pairs = len(sweep_rays) * len(sweep_pipelines)
     bar = _bar(pairs, f"RT-unit sweep {ss}x{ss}", "point", progress)
     t0 = time.perf_counter()
@@ -360,11 +366,12 @@ WORKLOAD_SIZE = 64
 def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, ao_rays=4,
                    seed=0, rays_in_flight=rtunit.DEFAULT_RAYS_IN_FLIGHT, pipelines=1,
                    sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, plot=None, progress=True,
-                   memory=rtunit.MemoryModel()) -> dict:
+                   memory=rtunit.MemoryModel(), fill=0, cull_stack=False) -> dict:
     """One workload frame on "rtl" (every batch recorded), checked against Embree; per ray type:
     the op mix, the RT-unit replay at (R, P) without and with the node memory (``memory``; None:
     without only), any-hit vs closest-hit ops of the same rays, and a sweep of utilization over
-    rays in flight (one pipeline), plotted per ray type."""
+    rays in flight (one pipeline), plotted per ray type. ``fill``: the BVH build's;
+    ``cull_stack``: the traversal's (``driver.tracer.trace``)."""
     from . import workloads
     from .backends import backend
     from .bvh4 import build
@@ -375,11 +382,11 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
     setup = workloads.setup_for(scene)
     rtl = backend("rtl")
     t0 = time.perf_counter()
-    bvh = build(scene.triangles)
+    bvh = build(scene.triangles, fill=fill)
     t_bvh = time.perf_counter() - t0
 
     def tracer(bvh_, o, d, **kw):
-        return trace(bvh_, o, d, backend=rtl, record=True, **kw)
+        return trace(bvh_, o, d, backend=rtl, record=True, cull_stack=cull_stack, **kw)
 
     t1 = time.perf_counter()
     res = workloads.run(setup, bvh, size, size, tracer, workload, spp=spp, bounces=bounces,
@@ -424,8 +431,8 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
                  replay_utilization=total["ops"] / (pipelines * cycles) if cycles else 0.0,
                  responses_verified=all(t["responses_verified"] for t in by_type.values()))
     return {"scene": scene.name, "workload": workload, "width": size, "height": size,
-            "spp": spp, "bounces": bounces, "ao_rays": ao_rays, "seed": seed,
-            "frame": total, "by_type": by_type, "sweep": sweep, "plot": str(plot) if plot else None,
+            "spp": spp, "bounces": bounces, "ao_rays": ao_rays, "seed": seed, "fill": fill,
+            "cull_stack": cull_stack, "frame": total, "by_type": by_type, "sweep": sweep, "plot": str(plot) if plot else None,
             "wall_parts_s": {"bvh_build": t_bvh, "traversal": t_trace}}
 
 
@@ -484,14 +491,14 @@ def plot_workload_sweep(sweep: dict, path, title: str) -> None:
 
 
 def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, tile=64,
-                  progress=True, **options) -> dict:
+                  progress=True, fill=0, **options) -> dict:
     """The same tiled frame on "rtl" in this process and on a LocalCluster of ``workers``
     processes: wall times (scheduler start-up and the once-per-worker set-up included), the
     speed-up, and whether the two frames are identical (image, per-pixel ops, statistics but wall
     times). ``phases_n_workers``: where the distributed frame's wall time went
     (``tiles.render_tiles``); ``speedup_tiles`` compares the tiles after the first result with
     the same share of the one-process frame, i.e. the scaling the machine gives once every fixed
-    cost is paid."""
+    cost is paid. ``fill``: the BVH build's; ``options``: the workload's and ``cull_stack``."""
     from .backends.build import build_harness, rtl_params
     from .bvh4 import build
     from .datapath import LATENCY
@@ -500,7 +507,7 @@ def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, ti
     from .workloads import setup_for
 
     scene = load_scene(scene_name)
-    setup, bvh = setup_for(scene), build(scene.mesh)
+    setup, bvh = setup_for(scene), build(scene.mesh, fill=fill)
     n_tiles = len(plan(size, size, tile))
     # a first use on this machine builds the Verilated model (minutes): build it before either
     # clock starts, so that both runs pay only what every run pays, loading it from the cache
@@ -519,7 +526,7 @@ def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, ti
             and all(np.array_equal(a.ops[k], b.ops[k]) for k in a.ops)
             and {k: a.stats[k] for k in keep} == {k: b.stats[k] for k in keep})
     return {"scene": scene.name, "workload": workload, "width": size, "height": size,
-            "tile": tile, "tiles": n_tiles, **options, "workers": int(workers),
+            "tile": tile, "tiles": n_tiles, **options, "fill": fill, "workers": int(workers),
             "wall_s_1_worker": ta, "wall_s_n_workers": tb,
             "speedup": ta / tb if tb > 0 else None, "identical": bool(same),
             "phases_n_workers": {k: round(v, 3) for k, v in phases.items()},

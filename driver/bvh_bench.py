@@ -7,7 +7,9 @@ figure includes the interpreter, numpy and numba (~150 MB). ``build_s`` is wall 
 ``load_average`` the machine's 1-minute load when the build ended. Tree quality before/after compares
 the greedy collapse with the SAH collapse on the bunny, by SAH cost and by the ops per ray of the
 bunny's 256 x 256 primary frame traced on the golden model, and checks that both trees find the
-same closest hits.
+same closest hits; then the shape trade-off: box nodes and ops per ray for each ``--bvh-fill``
+in ``FILLS``, with the SPEC 9 traversal and with the distance-culled stack (``cull_stack``),
+against issue 14's targets (``TARGETS``), optionally plotted.
 """
 
 from __future__ import annotations
@@ -21,6 +23,9 @@ import time
 import numpy as np
 
 BUNNY_TRIANGLES = 99_785
+FILLS = (0, 8, 16, 32, 40, 64, 256, 1 << 30)     # --bvh-fill values of the shape trade-off
+# issue 14's targets on the bunny frame: box nodes, and 0.95 x the 6.29 ops per ray of before
+TARGETS = {"box_nodes": 36_000, "ops_per_ray": 0.95 * 6.29}
 
 
 def instanced_bunnies(count: int, seed: int = 0) -> np.ndarray:
@@ -63,8 +68,79 @@ def _timed_build(count: int) -> dict:
     return result
 
 
-def _quality(size: int = 256) -> dict:
-    """Greedy vs SAH collapse on the bunny frame (golden model): tree and ops per ray."""
+def _tree_row(bvh, r) -> dict:
+    s = bvh.stats
+    return {"box_nodes": s["box_nodes"], "avg_children": round(s["avg_children"], 4),
+            "child_histogram": s["child_histogram"], "depth": s["depth"],
+            "sah_cost": round(s["sah_cost"], 4), "bytes": s["bytes"],
+            "box_ops_per_ray": round(float(r.box_ops.mean()), 4),
+            "tri_ops_per_ray": round(float(r.tri_ops.mean()), 4),
+            "ops_per_ray": round(float((r.box_ops + r.tri_ops).mean()), 4)}
+
+
+def _same(a, b) -> bool:
+    """Bit-identical hits (t and primitive) of two traces of the same rays."""
+    return bool(np.array_equal(a.t.view(np.uint32), b.t.view(np.uint32))
+                and np.array_equal(a.prim, b.prim))
+
+
+def _fills(scene, o, d, ref, fills, progress) -> dict:
+    """The BVH shape trade-off: for each ``--bvh-fill``, the tree, the ops per ray of the SPEC 9
+    traversal and of the distance-culled stack, and whether the hits equal ``ref``'s."""
+    from tqdm import tqdm
+    from .bvh4 import build
+    from .tracer import trace
+    rows = []
+    for fill in tqdm(fills, desc="BVH fills", disable=not progress, file=sys.stderr):
+        bvh = build(scene.mesh, fill=fill)
+        plain = trace(bvh, o, d, backend="golden")
+        culled = trace(bvh, o, d, backend="golden", cull_stack=True)
+        row = {"fill": fill, **_tree_row(bvh, plain)}
+        row["culled_ops_per_ray"] = round(culled.stats["ops"] / len(o), 4)
+        row["culled_box_ops_per_ray"] = round(culled.stats["box_ops_per_ray"], 4)
+        row["stack_culls_per_ray"] = round(culled.stats["stack_culls"] / len(o), 4)
+        row["same_hits"] = _same(plain, ref) and _same(culled, ref)
+        rows.append(row)
+    met = [{"fill": r["fill"], "cull_stack": cull}
+           for r in rows for cull, key in ((False, "ops_per_ray"), (True, "culled_ops_per_ray"))
+           if r["box_nodes"] <= TARGETS["box_nodes"] and r[key] <= TARGETS["ops_per_ray"]
+           and r["same_hits"]]
+    return {"rows": rows, "targets": {**{k: round(v, 4) for k, v in TARGETS.items()},
+                                      "met_by": met}}
+
+
+def plot_fills(fills: dict, path, title: str) -> None:
+    """PNG: primary-ray ops per ray vs box nodes, one point per ``--bvh-fill``, for the SPEC 9
+    traversal and the distance-culled stack, with the targets."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7.0, 4.6), dpi=110)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    rows = fills["rows"]
+    x = [r["box_nodes"] for r in rows]
+    for key, label, mark in (("ops_per_ray", "SPEC 9 stack (pointers)", "o-"),
+                             ("culled_ops_per_ray", "distance-culled stack", "s-")):
+        ax.plot(x, [r[key] for r in rows], mark, label=label)
+        for r in rows:
+            ax.annotate("inf" if r["fill"] >= 1 << 30 else str(r["fill"]), (r["box_nodes"], r[key]),
+                        textcoords="offset points", xytext=(4, 4), fontsize=7)
+    t = fills["targets"]
+    ax.axvline(t["box_nodes"], color="grey", ls=":", lw=1)
+    ax.axhline(t["ops_per_ray"], color="grey", ls=":", lw=1)
+    ax.set_xlabel("box nodes (labels: --bvh-fill)")
+    ax.set_ylabel("datapath ops per primary ray")
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, format="png")
+
+
+def _quality(size: int = 256, fills=FILLS, plot=None, progress: bool = False) -> dict:
+    """Greedy vs SAH collapse on the bunny frame (golden model): tree and ops per ray; then the
+    ``fills`` trade-off (``_fills``), plotted to ``plot`` (a PNG path) if given."""
     from .bvh4 import build
     from .camera import primary_rays
     from .scene import load_scene
@@ -77,12 +153,7 @@ def _quality(size: int = 256) -> dict:
         r = trace(bvh, o, d, backend="golden")
         s = bvh.stats
         traces[collapse] = r
-        out[collapse] = {"box_nodes": s["box_nodes"], "avg_children": round(s["avg_children"], 4),
-                         "child_histogram": s["child_histogram"], "depth": s["depth"],
-                         "sah_cost": round(s["sah_cost"], 4), "bytes": s["bytes"],
-                         "box_ops_per_ray": round(float(r.box_ops.mean()), 4),
-                         "tri_ops_per_ray": round(float(r.tri_ops.mean()), 4),
-                         "ops_per_ray": round(float((r.box_ops + r.tri_ops).mean()), 4)}
+        out[collapse] = _tree_row(bvh, r)
     a, b = traces["greedy"], traces["sah"]
     both = a.hit & b.hit
     out["same_hits"] = {
@@ -91,14 +162,19 @@ def _quality(size: int = 256) -> dict:
         "prim_mismatch": int((a.prim[both] != b.prim[both]).sum()),
         "prim_mismatch_same_t": int(((a.prim != b.prim) & both & (a.t == b.t)).sum())}
     out["ops_ratio"] = round(out["sah"]["ops_per_ray"] / out["greedy"]["ops_per_ray"], 4)
+    if fills:
+        out["fills"] = _fills(scene, o, d, b, fills, progress)
+        if plot:
+            plot_fills(out["fills"], plot, f"bunny {size}x{size} primary rays: BVH4 size vs "
+                                           "datapath ops")
     return out
 
 
 def bvh_bench(counts=(0, 20, 50), quality: bool = True, size: int = 256,
-              progress: bool = True) -> dict:
+              progress: bool = True, fills=FILLS, plot=None) -> dict:
     """The benchmark as a dict: ``builds`` (one entry per mesh: 0 = the bunny, k = k instanced
     bunnies, i.e. ~2 M for 20 and ~5 M for 50) and ``quality`` (``_quality`` on the bunny's
-    size x size primary frame)."""
+    size x size primary frame, with the ``fills`` trade-off plotted to ``plot``)."""
     from tqdm import tqdm
     result = {"machine_cpus": multiprocessing.cpu_count(), "builds": []}
     for count in tqdm(counts, desc="BVH bench", disable=not progress, file=sys.stderr):
@@ -107,5 +183,5 @@ def bvh_bench(counts=(0, 20, 50), quality: bool = True, size: int = 256,
         entry["process_wall_s"] = round(time.perf_counter() - t0, 2)
         result["builds"].append(entry)
     if quality:
-        result["quality"] = _quality(size)
+        result["quality"] = _quality(size, fills, plot, progress)
     return result

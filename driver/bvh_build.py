@@ -18,6 +18,16 @@ The top of the tree is split serially (``_top``) into subtree tasks, which are b
 (``_subtree``; smaller child first, so the stack holds at most log2(n) + 2 entries) on a thread
 pool (the kernels release the GIL); progress advances as each task finishes.
 
+Fillable splits (``fill`` > 0, off by default): a subtree of n triangles needs at least
+ceil((n - 1) / 3) 4-wide box nodes, and reaches that only if every wide node below its root has 4
+children: a node of 1 mod 3 triangles split into two of 2 mod 3, each of those into two of 1 mod 3,
+and so on down to single triangles. Nodes of at most ``fill`` triangles keep to that rule: the
+sweep only considers the split positions that do, and a binned split moves the one or two
+primitives nearest its boundary across it (a node of 0 mod 3 triangles, e.g. the root, splits
+into 1 and 2 mod 3 and costs one non-full node). The collapse still minimises SAH, so it may
+leave a node non-full where that is cheaper. Fuller nodes shrink the tree and its memory but
+raise SAH and primary-ray ops a little (docs/bvh.md measures the trade-off).
+
 Collapse (``collapse_sah``): the dynamic programme of Ylitie, Karras and Laine 2017 ("Efficient
 incoherent ray traversal on GPUs through compressed wide BVHs"), specialised to one triangle per
 leaf: the SAH cost of a wide tree is the sum of the areas of its used child slots (box and
@@ -86,10 +96,26 @@ def _bounds(s, e, lo, hi, cent, box, cbox):
     cbox[0], cbox[1], cbox[2], cbox[3], cbox[4], cbox[5] = cx0, cy0, cz0, cx1, cy1, cz1
 
 
+@njit(cache=True, inline="always")
+def _fills(nl, cnt, fill):
+    """Whether a split of ``cnt`` primitives with ``nl`` on the left keeps the subtree fillable
+    (``fill``: see ``build_binary``): always for ``cnt > fill``; else the left count must be
+    2 mod 3 when cnt is 1 mod 3, 1 mod 3 when cnt is 2 mod 3, and not 0 mod 3 when cnt is."""
+    if cnt > fill:
+        return True
+    r = cnt % 3
+    if r == 1:
+        return nl % 3 == 2
+    if r == 2:
+        return nl % 3 == 1
+    return nl % 3 != 0
+
+
 @njit(cache=True)
-def _sweep(s, e, lo, hi, cent, go_right, srt, a_r):
-    """Exact SAH over every split of the centroid order on each axis; fills go_right[s:e].
-    Scratch: srt (3, >= cnt) int64 (sorted ranks per axis), a_r (>= cnt,) float64."""
+def _sweep(s, e, lo, hi, cent, go_right, srt, a_r, fill):
+    """Exact SAH over every split of the centroid order on each axis that ``_fills``; fills
+    go_right[s:e]. Scratch: srt (3, >= cnt) int64 (sorted ranks per axis), a_r (>= cnt,)
+    float64."""
     cnt = e - s
     best_cost, best_axis, best_i = np.inf, 0, 0
     for a in range(3):
@@ -116,7 +142,7 @@ def _sweep(s, e, lo, hi, cent, go_right, srt, a_r):
             x0, y0, z0 = min(x0, lo[p, 0]), min(y0, lo[p, 1]), min(z0, lo[p, 2])
             x1, y1, z1 = max(x1, hi[p, 0]), max(y1, hi[p, 1]), max(z1, hi[p, 2])
             c = _half_area(x1 - x0, y1 - y0, z1 - z0) * (i + 1) + a_r[i + 1] * (cnt - i - 1)
-            if c < ci:
+            if c < ci and _fills(i + 1, cnt, fill):
                 ci, ai = c, i
         if ci < best_cost:
             best_cost, best_axis, best_i = ci, a, ai
@@ -126,10 +152,12 @@ def _sweep(s, e, lo, hi, cent, go_right, srt, a_r):
 
 
 @njit(cache=True)
-def _binned(s, e, lo, hi, cent, cbox, bins, go_right, count, blo, bhi, cost, a_r, n_r):
+def _binned(s, e, lo, hi, cent, cbox, bins, fill, go_right, count, blo, bhi, cost, a_r, n_r):
     """Binned SAH over the centroid bounds cbox; fills go_right[s:e] and returns True, or
-    returns False if no axis can split. Scratch (``_scratch``): count (3, bins), blo/bhi
-    (3, bins, 3) float32, cost (bins - 1, 3), a_r/n_r (bins,)."""
+    returns False if no axis can split. A split that does not ``_fills`` moves the one or two
+    primitives nearest the bin boundary (by centroid on the split axis) across it. Scratch
+    (``_scratch``): count (3, bins), blo/bhi (3, bins, 3) float32, cost (bins - 1, 3), a_r/n_r
+    (bins,)."""
     scale = np.zeros(3)
     for a in range(3):
         ext = cbox[3 + a] - cbox[a]
@@ -174,10 +202,36 @@ def _binned(s, e, lo, hi, cent, cbox, bins, go_right, count, blo, bhi, cost, a_r
                 best, bi, ba = cost[i, a], i, a
     if not np.isfinite(best):
         return False
+    nl = 0
     for j in range(s, e):
         k = min(max(int((cent[j, ba] - cbox[ba]) * scale[ba]), 0), bins - 1)
         go_right[j] = k > bi
+        nl += k <= bi
+    want = _fillable_count(nl, e - s, fill)
+    while nl < want:                                       # nearest right primitive goes left
+        bj, bv = -1, np.inf
+        for j in range(s, e):
+            if go_right[j] and cent[j, ba] < bv:
+                bj, bv = j, cent[j, ba]
+        go_right[bj] = False
+        nl += 1
+    while nl > want:                                       # nearest left primitive goes right
+        bj, bv = -1, -np.inf
+        for j in range(s, e):
+            if not go_right[j] and cent[j, ba] >= bv:
+                bj, bv = j, cent[j, ba]
+        go_right[bj] = True
+        nl -= 1
     return True
+
+
+@njit(cache=True)
+def _fillable_count(nl, cnt, fill):
+    """The left count nearest ``nl`` (within 2; the smaller on a tie) that ``_fills``."""
+    for dd in (0, -1, 1, -2, 2):
+        if 1 <= nl + dd <= cnt - 1 and _fills(nl + dd, cnt, fill):
+            return nl + dd
+    return nl
 
 
 @njit(cache=True, inline="always")
@@ -224,7 +278,7 @@ def _scratch(bins):
 
 
 @njit(cache=True)
-def _split(nid, s, e, cbox, lo, hi, cent, bins, order, tmp, go_right, left, right, prim,
+def _split(nid, s, e, cbox, lo, hi, cent, bins, fill, order, tmp, go_right, left, right, prim,
            node_box, scratch):
     """Split node ``nid`` (primitives s:e, centroid bounds cbox, box already in
     node_box[nid]); returns the left count (0 for a leaf). Children are numbered in pre-order
@@ -238,11 +292,11 @@ def _split(nid, s, e, cbox, lo, hi, cent, bins, order, tmp, go_right, left, righ
     else:
         ok = True
         if cnt <= SWEEP_MAX:
-            _sweep(s, e, lo, hi, cent, go_right, scratch[6], scratch[7])
+            _sweep(s, e, lo, hi, cent, go_right, scratch[6], scratch[7], fill)
         else:
-            ok = _binned(s, e, lo, hi, cent, cbox, bins, go_right, scratch[0],
+            ok = _binned(s, e, lo, hi, cent, cbox, bins, fill, go_right, scratch[0],
                          scratch[1], scratch[2], scratch[3], scratch[4], scratch[5])
-        nl = cnt // 2                                      # all centroids coincide: middle
+        nl = _fillable_count(cnt // 2, cnt, fill)          # all centroids coincide: middle
         if ok:
             nl = _partition(s, e, go_right, order, lo, hi, cent, tmp[0], tmp[1], tmp[2], tmp[3])
     left[nid], right[nid] = nid + 1, nid + 2 * nl
@@ -250,7 +304,8 @@ def _split(nid, s, e, cbox, lo, hi, cent, bins, order, tmp, go_right, left, righ
 
 
 @njit(cache=True, nogil=True)
-def _subtree(nid, s, e, lo, hi, cent, bins, order, tmp, go_right, left, right, prim, node_box):
+def _subtree(nid, s, e, lo, hi, cent, bins, fill, order, tmp, go_right, left, right, prim,
+             node_box):
     """Build the whole subtree of node ``nid`` (box not yet computed), depth first with a
     bounded stack (smaller child first: at most log2(n) + 2 entries)."""
     stack = np.empty((_STACK, 3), np.int64)
@@ -262,8 +317,8 @@ def _subtree(nid, s, e, lo, hi, cent, bins, order, tmp, go_right, left, right, p
         sp -= 1
         nid, s, e = stack[sp, 0], stack[sp, 1], stack[sp, 2]
         _bounds(s, e, lo, hi, cent, node_box[nid], cbox)
-        nl = _split(nid, s, e, cbox, lo, hi, cent, bins, order, tmp, go_right, left, right,
-                    prim, node_box, scratch)
+        nl = _split(nid, s, e, cbox, lo, hi, cent, bins, fill, order, tmp, go_right, left,
+                    right, prim, node_box, scratch)
         if nl == 0:
             continue
         small_left = nl <= e - s - nl
@@ -276,7 +331,8 @@ def _subtree(nid, s, e, lo, hi, cent, bins, order, tmp, go_right, left, right, p
 
 
 @njit(cache=True)
-def _top(min_tasks, lo, hi, cent, bins, order, tmp, go_right, left, right, prim, node_box):
+def _top(min_tasks, lo, hi, cent, bins, fill, order, tmp, go_right, left, right, prim,
+         node_box):
     """Split from the root, largest node first, until there are ``min_tasks`` unsplit nodes
     (or none is larger than SWEEP_MAX); returns them as (k, 3) rows (node id, start, end)."""
     n = len(order)
@@ -294,17 +350,19 @@ def _top(min_tasks, lo, hi, cent, bins, order, tmp, go_right, left, right, prim,
         if e - s <= SWEEP_MAX:
             break
         _bounds(s, e, lo, hi, cent, node_box[nid], cbox)
-        nl = _split(nid, s, e, cbox, lo, hi, cent, bins, order, tmp, go_right, left, right,
-                    prim, node_box, scratch)
+        nl = _split(nid, s, e, cbox, lo, hi, cent, bins, fill, order, tmp, go_right, left,
+                    right, prim, node_box, scratch)
         tasks[big, 0], tasks[big, 1], tasks[big, 2] = nid + 1, s, s + nl
         tasks[k, 0], tasks[k, 1], tasks[k, 2] = nid + 2 * nl, s + nl, e
         k += 1
     return tasks[:k]
 
 
-def build_binary(tris, bins: int, progress=None):
+def build_binary(tris, bins: int, progress=None, fill: int = 0):
     """Binary BVH with one triangle per leaf. tris : (n, 3, 3) float32; progress : a tqdm-like
-    object (``update(triangles)``) or None.
+    object (``update(triangles)``) or None; fill : split every node of at most ``fill``
+    primitives so that its subtree can be collapsed into full 4-wide nodes (0: never; module
+    docstring).
 
     Returns (left, right, prim, node_lo, node_hi) over 2n-1 nodes, node 0 the root, parents
     numbered before children (pre-order); left/right are -1 for a leaf, prim is -1 for an
@@ -320,7 +378,8 @@ def build_binary(tris, bins: int, progress=None):
     tmp = (np.empty(n, np.int64), np.empty((n, 3), np.float32), np.empty((n, 3), np.float32),
            np.empty((n, 3)))                                # partition scratch
     go_right = np.zeros(n, np.bool_)
-    args = (lo, hi, cent, int(bins), order, tmp, go_right, left, right, prim, node_box)
+    args = (lo, hi, cent, int(bins), int(fill), order, tmp, go_right, left, right, prim,
+            node_box)
     threads = min(os.cpu_count() or 1, 8) if n >= PARALLEL_MIN else 1
     tasks = _top(16 * threads if threads > 1 else 1, *args)
     tasks = tasks[np.argsort(tasks[:, 1] - tasks[:, 2], kind="stable")]     # largest first

@@ -32,7 +32,10 @@ def _bits(words: np.ndarray, name: str) -> np.ndarray:
 
 
 def _float(words: np.ndarray, name: str) -> np.ndarray:
-    return words[:, RESPONSE.field[name].word].view(np.float32)
+    """Float32 field ``name``: (m,) for a scalar field, (m, count) for an array field."""
+    f = RESPONSE.field[name]
+    vals = words[:, f.word:f.word + f.words].view(np.float32)
+    return vals if f.shape else vals[:, 0]
 
 
 def _check_order(got_tags: np.ndarray, active: np.ndarray, name: str) -> None:
@@ -58,7 +61,7 @@ class NodeIssue:
         wb, wt = words[bi], words[ti]
         return StepResponses(_bits(wb, "box_index"), _bits(wb, "box_hit").astype(bool),
                              _bits(wt, "tri_hit").astype(bool), _float(wt, "t_num"),
-                             _float(wt, "t_den"), words)
+                             _float(wt, "t_den"), words, _float(wb, "box_tmin"))
 
 
 class RequestIssue:
@@ -85,7 +88,8 @@ class RequestIssue:
                              rsp["tri_hit"][ti].astype(bool),
                              rsp["t_num"][ti].astype(np.float32),
                              rsp["t_den"][ti].astype(np.float32),
-                             pack_responses(rsp) if self.words else None)
+                             pack_responses(rsp) if self.words else None,
+                             rsp["box_tmin"][bi].astype(np.float32))
 
 
 class Recorder:

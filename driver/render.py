@@ -77,7 +77,7 @@ class RenderResult:
 def render(scene, width=None, height=None, backend: str = "rtl", progress: bool = True,
            check_embree: bool = False, workload: str = "primary", spp: int = 1, bounces: int = 1,
            ao_rays: int = 4, seed: int = 0, tile: int | None = None, workers: int = 1,
-           scheduler: str | None = None) -> RenderResult:
+           scheduler: str | None = None, fill: int = 0, cull_stack: bool = False) -> RenderResult:
     """Render ``scene`` (a Scene, or anything ``load_scene`` takes) at width x height (default:
     the scene's size) with every box/triangle test on ``backend``; optionally cross-check every
     ray against Embree.
@@ -86,7 +86,9 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
     earlier versions, with ``trace`` the TraceResult). Any other ``workload`` (SPEC 13: shadow,
     ao, path with ``spp``, ``bounces``, ``ao_rays``, ``seed``), a ``tile`` size, ``workers`` > 1
     or a Dask ``scheduler`` renders through ``driver.tiles`` (``trace`` is None; statistics per
-    ray type in ``stats["by_type"]``); so does a frame too big for memory as one wavefront."""
+    ray type in ``stats["by_type"]``); so does a frame too big for memory as one wavefront.
+    ``fill`` is the BVH build's (``driver.bvh4.build``), ``cull_stack`` the traversal's
+    (``driver.tracer.trace``)."""
     from .workloads import check_arguments
     check_arguments(spp, bounces, ao_rays, seed)
     scene = load_scene(scene)
@@ -95,10 +97,10 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
     tile = plan_tile(w * h, workload, spp, tile, workers, scheduler)
     check_frame_memory(w * h, spp, tile)
     if tile is None:
-        return _render_whole(scene, w, h, backend, progress, check_embree)
+        return _render_whole(scene, w, h, backend, progress, check_embree, fill, cull_stack)
     return _render_tiles(scene, w, h, backend, progress, check_embree, workload,
                          dict(spp=spp, bounces=bounces, ao_rays=ao_rays, seed=seed), tile,
-                         workers, scheduler)
+                         workers, scheduler, fill, cull_stack)
 
 
 def plan_tile(pixels: int, workload: str, spp: int, tile: int | None, workers: int,
@@ -115,7 +117,7 @@ def plan_tile(pixels: int, workload: str, spp: int, tile: int | None, workers: i
 
 
 def _render_tiles(scene, w, h, backend, progress, check_embree, workload, options, tile,
-                  workers, scheduler) -> RenderResult:
+                  workers, scheduler, fill, cull_stack) -> RenderResult:
     from .bvh4 import build
     from .tiles import plan, render_tiles
     from .workloads import WORKLOADS, setup_for, tone_map
@@ -126,25 +128,27 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, workload, option
     if workers == 1 and not scheduler:
         spec = resolve(backend)[0]          # fail early, before a long BVH build
     with phase(f"building the BVH4 of {len(scene.mesh.faces):,} triangles", progress):
-        bvh = build(scene.mesh)
+        bvh = build(scene.mesh, fill=fill)
     setup = setup_for(scene)
     tiles = plan(w, h, tile)
     bar = progress_bar(len(tiles), f"{scene.name} {w}x{h} {workload} {name}", "tile", progress)
     try:
-        res = render_tiles(setup, bvh, w, h, workload, options, spec, tile, workers, scheduler,
-                           check_embree, bar.hook)
+        res = render_tiles(setup, bvh, w, h, workload, options | {"cull_stack": cull_stack},
+                           spec, tile, workers, scheduler, check_embree, bar.hook)
     finally:
         bar.close()
     image = tone_map(res.radiance, w, h, linear=workload in ("primary", "ao"))
     by_type = {k: v.reshape(h, w) for k, v in res.ops.items()}
     total = sum(by_type.values())                   # int32: ops per pixel stay far below 2**31
     stats = dict(res.stats)
-    stats.update(bvh=dict(bvh.stats), workload=workload, tile=tile, workers=workers, **options)
+    stats.update(bvh=dict(bvh.stats), workload=workload, tile=tile, workers=workers, **options,
+                 cull_stack=cull_stack)
     return RenderResult(scene, w, h, image, total, None, stats, stats.get("embree"),
                         dict(bvh.stats), by_type)
 
 
-def _render_whole(scene, w, h, backend, progress, check_embree) -> RenderResult:
+def _render_whole(scene, w, h, backend, progress, check_embree, fill=0,
+                  cull_stack=False) -> RenderResult:
     """The primary frame as one wavefront of every pixel."""
     from .bvh4 import build
     from .tracer import trace
@@ -152,13 +156,13 @@ def _render_whole(scene, w, h, backend, progress, check_embree) -> RenderResult:
     origins, dirs = primary_rays(scene.camera, w, h)
     be = resolve(backend)[0]                # fail early, before a long BVH build
     with phase(f"building the BVH4 of {len(scene.mesh.faces):,} triangles", progress):
-        bvh = build(scene.mesh)
+        bvh = build(scene.mesh, fill=fill)
     bvh_stats = dict(getattr(bvh, "stats", {}) or {})
 
     name = backend if isinstance(backend, str) else getattr(backend, "name", "backend")
     bar = progress_bar(len(origins), f"{scene.name} {w}x{h} {name}", "ray", progress)
     try:
-        result = trace(bvh, origins, dirs, backend=be, progress=bar.hook)
+        result = trace(bvh, origins, dirs, backend=be, progress=bar.hook, cull_stack=cull_stack)
     finally:
         bar.close()
 

@@ -11,6 +11,7 @@ import numpy as np
 
 from .layout import BOX_BYTES, TRI_BYTES
 
+STACK_CULLS = "stack_culls"     # beyond SPEC 10: box nodes a distance-culled stack dropped
 # the replay's figures that replace the wavefront's (which are kept as wavefront_<name>)
 REPLAYED = ("cycles", "utilization", "sim_wall_s", "sim_cycles_per_s")
 # the replay's own figures that join the frame's statistics
@@ -19,13 +20,16 @@ REPLAY_KEYS = ("frame_us_at_1ghz", "rays_in_flight", "pipelines", "turnaround_cy
 
 
 def frame_stats(box_ops: np.ndarray, tri_ops: np.ndarray, hit: np.ndarray, cycles: int,
-                latency: int, sim_wall_s: float, backend: str) -> dict:
+                latency: int, sim_wall_s: float, backend: str,
+                culled: np.ndarray | None = None) -> dict:
     """SPEC 10 statistics of a traversal: per-ray op counts (n,), hit mask (n,), the datapath
-    cycles it took, the pipeline latency, the wall time inside the backend, the backend's name."""
+    cycles it took, the pipeline latency, the wall time inside the backend, the backend's name;
+    with ``culled`` (per-ray box nodes dropped by a distance-culled stack, ``driver.traversal``)
+    also ``stack_culls``, their total (absent when the traversal does not cull)."""
     n = len(box_ops)
     nb, nt = int(np.sum(box_ops)), int(np.sum(tri_ops))
     ops = nb + nt
-    return {
+    out = {
         "rays": n,
         "hits": int(np.sum(hit)),
         "box_ops": nb,
@@ -42,6 +46,9 @@ def frame_stats(box_ops: np.ndarray, tri_ops: np.ndarray, hit: np.ndarray, cycle
         "frame_us_at_1ghz": cycles / 1000,
         "backend": backend,
     }
+    if culled is not None:
+        out[STACK_CULLS] = int(np.sum(culled))
+    return out
 
 
 def with_replay(stats: dict, replay: dict) -> dict:
@@ -68,6 +75,8 @@ def merge(parts: list[dict]) -> dict:
     if not parts:
         return frame_stats(np.zeros(0), np.zeros(0), np.zeros(0, bool), 0, 0, 0.0, "")
     s = {k: sum(p[k] for p in parts) for k in _SUMMED}
+    if all(STACK_CULLS in p for p in parts):
+        s[STACK_CULLS] = sum(p[STACK_CULLS] for p in parts)
     n, cycles, wall = s["rays"], s["cycles"], s["sim_wall_s"]
     s.update({
         "utilization": s["ops"] / cycles if cycles else 0.0,

@@ -97,9 +97,11 @@ def run_tile(setup, bvh, width: int, height: int, pixels, workload: str, options
     from .workloads import embree_check, run
 
     be = _backend(backend_spec)
+    options = dict(options)
+    cull = bool(options.pop("cull_stack", False))
 
     def tracer(bvh_, o, d, **kw):
-        return trace(bvh_, o, d, backend=be, **kw)
+        return trace(bvh_, o, d, backend=be, cull_stack=cull, **kw)
 
     res = run(setup, bvh, width, height, tracer, workload, pixels=pixels, **options)
     embree = {}

@@ -64,7 +64,7 @@ def as_bvh(scene) -> BVH4:
 
 def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np.inf,
           progress=None, rays_in_flight=None, pipelines=1, turnaround=None, record=False,
-          any_hit=False, double_sided=False) -> TraceResult:
+          any_hit=False, double_sided=False, cull_stack=False) -> TraceResult:
     """Trace rays with every box and triangle test run on ``backend``.
 
     scene_or_mesh_or_bvh : BVH4, trimesh mesh, (n, 3, 3) triangles, or a scene name/path
@@ -75,6 +75,10 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
     any_hit : occlusion rays (SPEC 9): a ray ends at its first accepted triangle (``hit``,
         ``prim``, ``t`` of that triangle); otherwise the closest hit
     double_sided : set ``NO_CULL`` on every ray (SPEC 3, 5): triangles are hit from both sides
+    cull_stack : keep each stack entry's entry distance (the response's ``box_tmin``) and drop
+        a popped box node that lies beyond the nearest hit without a request (beyond SPEC 9,
+        off by default; ``driver.traversal``): the same hits with fewer box requests; the
+        statistics gain ``stack_culls``, the box nodes so dropped
     progress : optional callable(done_rays, total_rays), called once per step
     rays_in_flight, pipelines, turnaround : RT-unit model (``driver.rtunit``). With
         ``rays_in_flight=None`` (default) the statistics are the wavefront's: every ray in
@@ -95,11 +99,13 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
     timed = rays_in_flight is not None
     issue = issuer(be, rays, bvh, be_name, record=bool(record) or timed)
     cycles0 = int(be.cycles)
-    trav = traverse(bvh, rays["extent"], issue, any_hit=any_hit, progress=progress)
+    trav = traverse(bvh, rays["extent"], issue, any_hit=any_hit, progress=progress,
+                    cull=cull_stack)
     hit = trav.prim >= 0
     t = np.where(hit, trav.nearest, np.float32(np.inf)).astype(np.float32)
     stats = frame_stats(trav.box_ops, trav.tri_ops, hit, int(be.cycles) - cycles0,
-                        int(getattr(be, "latency", 0)), issue.wall_s, be_name)
+                        int(getattr(be, "latency", 0)), issue.wall_s, be_name,
+                        trav.culled if cull_stack else None)
     rec = issue.record(_replay_params(be)) if hasattr(issue, "record") else None
     if timed:
         from . import rtunit

@@ -11,6 +11,17 @@ pops one node and turns it into one datapath request:
   tie the triangle found first stays). An any-hit ray (occlusion) is finished by that first
   accepted triangle: the rest of its stack is dropped and never issued.
 
+``cull=True`` (off by default: SPEC 9 has a stack of node pointers only) also keeps each pushed
+child's entry distance (the response's ``box_tmin``) on the stack, as CPU traversals such as
+Embree's do, and drops a popped box node without a request when that distance is not below the
+ray's nearest hit. The request it saves would have come back with four misses: the node's child
+boxes lie inside its own stored box (the builder grows boxes monotonically), so each child's
+``tmin`` is at least the node's, hence at least the ray's extent, and QUADBOX's ``tmin < tmax``
+fails. So hits are exactly those of ``cull=False`` and only box requests (and the bytes their
+nodes would have cost) disappear. Triangle nodes are never dropped: their ``t`` is not bounded
+by their box's rounded ``tmin``. The stack then holds a float32 per entry beside the pointer,
+which an RT unit would pay for in stack storage.
+
 All of a step's requests go to the datapath through one ``issue`` call (``driver.issue``: the
 "rtl" harness assembles them from the ray table and the BVH4 image; other backends get request
 arrays), so the datapath sees a full stream and Python does a handful of vectorised numpy
@@ -40,6 +51,7 @@ class StepResponses:
     box_index : (nb, 4) integer, child slots nearest first; box_hit : (nb, 4) bool, same order
     tri_hit : (nt,) bool; t_num, t_den : (nt,) float32
     words : (n, RSP_WORDS) uint32 response words of the whole step, when the issuer has them
+    box_tmin : (nb, 4) float32, entry distances in box_index order (needed by ``cull``)
     """
 
     box_index: np.ndarray
@@ -48,6 +60,7 @@ class StepResponses:
     t_num: np.ndarray
     t_den: np.ndarray
     words: np.ndarray | None = None
+    box_tmin: np.ndarray | None = None
 
 
 # issue(active rays (n,) int64, node pointers (n,) uint32, extents (n,) float32,
@@ -62,6 +75,7 @@ class Traversal:
     nearest : (n,) float32, t of the hit (the ray's extent where it found none)
     prim : (n,) int64, primitive id of the hit (-1: none)
     box_ops, tri_ops : (n,) int64, QUADBOX / TRIANGLE requests issued for each ray
+    culled : (n,) int64, box nodes dropped from each ray's stack by ``cull`` (no request)
     step_requests, step_box_requests : (steps,) int64, requests (all / QUADBOX) per step
     """
 
@@ -71,14 +85,17 @@ class Traversal:
     tri_ops: np.ndarray
     step_requests: np.ndarray
     step_box_requests: np.ndarray
+    culled: np.ndarray
 
 
 def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
-             progress: Callable[[int, int], None] | None = None) -> Traversal:
+             progress: Callable[[int, int], None] | None = None,
+             cull: bool = False) -> Traversal:
     """Traverse ``bvh`` (a ``driver.bvh4.BVH4``) for n rays whose extents are ``extent`` (n,)
     float32; ``issue`` runs each step's requests on a datapath (see ``Issue``). ``any_hit``: a ray
-    ends at its first accepted triangle (occlusion). ``progress(done_rays, total_rays)`` is called
-    once per step."""
+    ends at its first accepted triangle (occlusion). ``cull``: drop box nodes whose entry
+    distance is not below the nearest hit (module docstring). ``progress(done_rays,
+    total_rays)`` is called once per step."""
     n = len(extent)
     nearest = np.array(extent, np.float32, copy=True)
     prim = np.full(n, -1, np.int64)
@@ -87,12 +104,20 @@ def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
     # a popped box node leaves <= 3 siblings per level on the stack and pushes <= 4 children
     stack = np.empty((n, 3 * bvh.stats["depth"] + 2), np.uint32)
     stack[:, 0] = bvh.root
+    dist = np.zeros(stack.shape, np.float32) if cull else None    # entry distances (root: 0)
+    culled = np.zeros(n, np.int64)
     sp = np.ones(n, np.int64)
     steps, steps_box = [], []
     image = bvh.image.view("<u4")
     active = np.arange(n)
     while len(active):
         sp[active] -= 1
+        if cull:
+            active = _cull(active, stack, dist, sp, nearest, culled)
+            if not len(active):
+                if progress is not None:
+                    progress(n, n)
+                break
         ptr = stack[active, sp[active]]
         is_box = NodeRef.is_box(ptr)
         bi, ti = np.flatnonzero(is_box), np.flatnonzero(~is_box)
@@ -112,6 +137,8 @@ def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
         col = sp[ray_b][:, None] + np.cumsum(hit, axis=1) - 1
         r, c = np.nonzero(hit)
         stack[ray_b[r], col[r, c]] = child[r, c]
+        if cull:
+            dist[ray_b[r], col[r, c]] = rsp.box_tmin[:, ::-1][r, c]
         sp[ray_b] += hit.sum(axis=1)
 
         # triangle nodes: keep a strictly nearer hit; an any-hit ray is done at its first one
@@ -129,4 +156,20 @@ def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
         if progress is not None:
             progress(n - len(active), n)
     return Traversal(nearest, prim, box_ops, tri_ops, np.array(steps, np.int64),
-                     np.array(steps_box, np.int64))
+                     np.array(steps_box, np.int64), culled)
+
+
+def _cull(active, stack, dist, sp, nearest, culled) -> np.ndarray:
+    """Pop, for every active ray, the box nodes on top of its stack whose entry distance is not
+    below its nearest hit (``sp`` already points at the top entry); returns the rays that still
+    have an entry to issue."""
+    while True:
+        top = sp[active]
+        drop = NodeRef.is_box(stack[active, top]) & (dist[active, top] >= nearest[active])
+        if not drop.any():
+            return active
+        gone = active[drop]
+        culled[gone] += 1
+        sp[gone] -= 1
+        active = active[sp[active] >= 0]
+        sp[gone[sp[gone] < 0]] = 0

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import json
 
-from .common import (add_json, add_progress, add_workload, check_flag_size, check_positive,
-                     workload_options, wrote)
+from .common import (add_json, add_progress, add_tree, add_workload, check_flag_size,
+                     check_positive, tree_options, workload_options, wrote)
 
 
 def add_parser(subparsers):
@@ -36,7 +36,8 @@ def add_parser(subparsers):
                    metavar="LIST", help="pipeline counts of the sweep (comma-separated)")
     p.add_argument("--plot", metavar="PATH",
                    help="sweep plot PNG (default: beside --json as JSONSTEM_rtunit.png, else "
-                        "rayflex_bench_rtunit.png)")
+                        "rayflex_bench_rtunit.png; with --bvh, the BVH shape plot "
+                        "JSONSTEM_bvh.png or rayflex_bench_bvh.png)")
     p.add_argument("--pyverilator-requests", type=int, default=PYVERILATOR_REQUESTS,
                    metavar="N", help=f"requests streamed through pyverilator (default "
                                      f"{PYVERILATOR_REQUESTS}; 0: skip)")
@@ -44,6 +45,7 @@ def add_parser(subparsers):
                    help=f"timed passes of the rtl and pyverilator streams; the best counts "
                         f"(default {REPEAT})")
     add_workload(p, default=None)
+    add_tree(p)
     p.add_argument("--no-memory", action="store_true",
                    help="no node cache and memory model (the JSON's memory object; with "
                         "--workload, the per-type replays and the sweep with memory)")
@@ -54,7 +56,9 @@ def add_parser(subparsers):
                    help="tile size of the --workers comparison (default 64)")
     p.add_argument("--bvh", action="store_true",
                    help="the BVH builder instead: build time and peak memory for the bunny and "
-                        "2 M / 5 M instanced bunnies, tree quality of the SAH vs greedy collapse")
+                        "2 M / 5 M instanced bunnies, tree quality of the SAH vs greedy collapse, "
+                        "box nodes vs ops per ray for each --bvh-fill with and without "
+                        "--cull-stack (PNG plot)")
     add_progress(p)
     return p
 
@@ -89,6 +93,10 @@ def run(args) -> int:
     check_positive("--workers", args.workers)
     check_positive("--tile", args.tile)
     options = workload_options(args)
+    tree = tree_options(args)
+    if args.bvh and (tree["fill"] or tree["cull_stack"]):
+        raise ValueError("--bvh measures the BVH fills and the culled stack itself; drop "
+                         "--bvh-fill/--cull-stack")
     memory = None if args.no_memory else rtunit.MemoryModel()
     sweep_rays = _int_list(args.sweep_rays, "--sweep-rays")
     sweep_pipes = _int_list(args.sweep_pipelines, "--sweep-pipelines")
@@ -99,15 +107,17 @@ def run(args) -> int:
     outs = Outputs()
     js = outs.add("--json", args.json, JSON) if args.json else None
     plot = None
-    if args.sweep_size and not args.bvh and args.workers == 1:      # those two draw no plot
+    if args.bvh or (args.sweep_size and args.workers == 1):        # --workers draws no plot
+        kind = "bvh" if args.bvh else "rtunit"
         plot = outs.add("--plot", args.plot or (
-            Path(args.json).with_name(Path(args.json).stem + "_rtunit.png") if args.json
-            else "rayflex_bench_rtunit.png"), PNG)
+            Path(args.json).with_name(f"{Path(args.json).stem}_{kind}.png") if args.json
+            else f"rayflex_bench_{kind}.png"), PNG)
 
     with outs.commit():
         if args.bvh:
             from ..bvh_bench import bvh_bench
-            doc = bvh_bench(progress=not args.no_progress)
+            doc = bvh_bench(progress=not args.no_progress, plot=outs.temp(plot))
+            doc["quality"]["fills"]["plot"] = str(plot)
             if js:
                 write_json(doc, outs.temp(js))
             print(json.dumps(doc, indent=1))
@@ -115,7 +125,7 @@ def run(args) -> int:
             return 0
         if args.workers > 1:
             doc = bench_workers(args.scene, args.workload or "path", args.size or 128,
-                                args.workers, args.tile, not args.no_progress, **options)
+                                args.workers, args.tile, not args.no_progress, **options, **tree)
             if js:
                 write_json(doc, outs.temp(js))
             print("\n".join(f"{k:<18} {v}" for k, v in doc.items()))
@@ -125,7 +135,7 @@ def run(args) -> int:
             doc = bench_workload(args.scene, args.workload, args.size or 64,
                                  rays_in_flight=args.rays_in_flight, pipelines=args.pipelines,
                                  sweep_rays=sweep_rays, plot=outs.temp(plot) if plot else None,
-                                 progress=not args.no_progress, memory=memory, **options)
+                                 progress=not args.no_progress, memory=memory, **options, **tree)
             if plot:
                 doc["plot"] = str(plot)
             if js:
@@ -138,7 +148,7 @@ def run(args) -> int:
                     sweep_rays=sweep_rays, sweep_pipelines=sweep_pipes,
                     plot=outs.temp(plot) if plot else None,
                     pyverilator_requests=args.pyverilator_requests,
-                    repeat=args.repeat, progress=not args.no_progress, memory=memory)
+                    repeat=args.repeat, progress=not args.no_progress, memory=memory, **tree)
         if plot and doc.get("rtunit_sweep"):
             doc["rtunit_sweep"]["plot"] = str(plot)     # the target, not the temporary file
         if js:

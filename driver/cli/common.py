@@ -71,6 +71,24 @@ def add_workload(p, default: str | None = "primary") -> None:
                    help="seed of the counter-based random numbers (default 0)")
 
 
+def add_tree(p) -> None:
+    """The BVH shape and traversal flags (render and bench): ``tree_options`` checks them."""
+    p.add_argument("--bvh-fill", type=int, default=0, metavar="N",
+                   help="split subtrees of at most N triangles so that their 4-wide nodes can "
+                        "all be full: fewer box nodes and bytes, slightly more ops per ray "
+                        "(default 0: plain SAH; docs/bvh.md)")
+    p.add_argument("--cull-stack", action="store_true",
+                   help="keep each stack entry's entry distance and drop box nodes beyond the "
+                        "nearest hit without a request: the same hits, fewer box ops (beyond "
+                        "SPEC 9: a float per stack entry in the RT unit)")
+
+
+def tree_options(args) -> dict:
+    """The checked flags of ``add_tree`` as keyword arguments: ``fill``, ``cull_stack``."""
+    check_positive("--bvh-fill", args.bvh_fill, 0)
+    return dict(fill=args.bvh_fill, cull_stack=bool(args.cull_stack))
+
+
 def workload_options(args) -> dict:
     """The checked workload options of ``add_workload`` (one-line ValueError if bad)."""
     from ..workloads import check_arguments

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import sys
 
-from .common import (EXIT_CHECK, PROG, add_backend, add_json, add_progress, add_workers,
-                     add_workload, check_backend, check_flag_size, check_positive,
-                     workload_options, wrote)
+from .common import (EXIT_CHECK, PROG, add_backend, add_json, add_progress, add_tree,
+                     add_workers, add_workload, check_backend, check_flag_size, check_positive,
+                     tree_options, workload_options, wrote)
 
 
 def add_parser(subparsers):
@@ -38,6 +38,7 @@ def add_parser(subparsers):
     p.add_argument("--heatmap", metavar="PATH",
                    help="ops-per-pixel heat map (default: beside --out, OUT_heatmap.png)")
     add_workload(p)
+    add_tree(p)
     add_workers(p)
     add_progress(p)
     return p
@@ -57,6 +58,7 @@ def run(args) -> int:
         check_flag_size(f"--{flag}", getattr(args, flag))
     check_backend(args.backend)
     options = workload_options(args)
+    tree = tree_options(args)
     check_positive("--workers", args.workers)
     if args.tile is not None:
         check_positive("--tile", args.tile)
@@ -84,7 +86,7 @@ def run(args) -> int:
     w, h = check_size(w, h)
     res = render(scene, w, h, backend=backend, progress=not args.no_progress,
                  check_embree=args.check_embree, workload=args.workload, tile=args.tile,
-                 workers=args.workers, scheduler=args.scheduler, **options)
+                 workers=args.workers, scheduler=args.scheduler, **options, **tree)
     with outs.commit():
         res.save(outs.temp(out))
         res.save_heatmap(outs.temp(hm))
