@@ -154,12 +154,32 @@ def test_no_memory_drops_the_object(tmp_path):
     assert json.loads(out.read_text())["memory"] is None
 
 
+def test_culled_stack_and_fill_in_the_bench(tmp_path, doc):
+    """--cull-stack and --bvh-fill reach every trace of the run: the frame has fewer box ops and
+    the same hits, the golden check and the replays still agree bit for bit, less memory
+    traffic per ray."""
+    out = tmp_path / "b.json"
+    assert main(["bench", "--size", "16", "--json", str(out), "--pyverilator-requests", "0",
+                 "--sweep-rays", "1,16", "--sweep-pipelines", "1", "--repeat", "1",
+                 "--cull-stack", "--bvh-fill", "40", "--no-progress"]) == 0
+    d = json.loads(out.read_text())
+    f, base = d["frame"], doc["frame"]
+    assert d["cull_stack"] is True and d["fill"] == 40 and f["bvh"]["fill"] == 40
+    assert f["bvh"]["box_nodes"] < base["bvh"]["box_nodes"]
+    assert f["stack_culls"] > 0 and f["box_ops"] < base["box_ops"]
+    assert f["hits"] == base["hits"] and d["golden_matches_rtl"] is True
+    assert d["frame"]["embree"]["hit_mismatch"] == 0 and d["memory"]["responses_verified"]
+    assert d["memory"]["bytes_per_ray"] < doc["memory"]["bytes_per_ray"]
+    assert doc["cull_stack"] is False and doc["fill"] == 0
+
+
 def test_workload_bench_per_ray_type(tmp_path, capsys):
     out = tmp_path / "w.json"
     assert main(["bench", "--scene", "bunny_floor", "--workload", "path", "--size", "12",
                  "--bounces", "1", "--sweep-rays", "1,16", "--json", str(out),
                  "--no-progress"]) == 0
     d = json.loads(out.read_text())
+    assert d["cull_stack"] is False and d["fill"] == 0
     assert set(d["by_type"]) == {"primary", "shadow", "bounce1"} == set(d["sweep"])
     assert d["frame"]["ops"] == sum(t["ops"] for t in d["by_type"].values())
     sh = d["by_type"]["shadow"]

@@ -101,10 +101,11 @@ MESHES = {
 
 
 OPTIONS = [{"builder": "fast", "collapse": "sah"}, {"builder": "fast", "collapse": "greedy"},
-           {"builder": "numpy", "collapse": "sah"}]
+           {"builder": "numpy", "collapse": "sah"}, {"builder": "fast", "fill": 40},
+           {"builder": "fast", "fill": 1 << 30}]
 
 
-@pytest.mark.parametrize("opts", OPTIONS, ids=lambda o: f"{o['builder']}-{o['collapse']}")
+@pytest.mark.parametrize("opts", OPTIONS, ids=lambda o: "-".join(map(str, o.values())))
 @pytest.mark.parametrize("name", MESHES)
 def test_invariants(name, opts):
     bvh = build(MESHES[name](), **opts)
@@ -128,6 +129,57 @@ def test_sah_collapse_never_worse_than_greedy():
         greedy = build(tris, collapse="greedy").stats
         assert sah["sah_cost"] <= greedy["sah_cost"] * (1 + 1e-12)
         assert sah["box_nodes"] <= greedy["box_nodes"] * 1.05
+
+
+def _leaf_counts(left, right):
+    """Triangles under each binary node (children are numbered after their parents)."""
+    cnt = np.ones(len(left), np.int64)
+    for n in range(len(left) - 1, -1, -1):
+        if left[n] >= 0:
+            cnt[n] = cnt[left[n]] + cnt[right[n]]
+    return cnt
+
+
+@pytest.mark.parametrize("fill", [8, 40, 1 << 30])
+def test_fillable_splits_keep_the_rule(fill):
+    """Every node of at most ``fill`` triangles splits as the rule says (n = 1 mod 3 into two of
+    2 mod 3, n = 2 mod 3 into two of 1 mod 3, n = 0 mod 3 into 1 + 2), larger nodes freely; with
+    no limit the tree then reaches the least possible number of box nodes, ceil((n - 1) / 3),
+    up to the non-full nodes the SAH collapse prefers."""
+    for tris in random_meshes():
+        tris = np.asarray(tris, np.float32)
+        left, right = bvh_build.build_binary(tris, 16, None, fill)[:2]
+        cnt = _leaf_counts(left, right)
+        inner = np.flatnonzero(left >= 0)
+        n, nl = cnt[inner], cnt[left[inner]]
+        small = n <= fill
+        assert small.any()
+        want = np.where(n % 3 == 1, nl % 3 == 2, np.where(n % 3 == 2, nl % 3 == 1, nl % 3 != 0))
+        assert want[small].all()
+    tris = meshes.soup(2000, seed=4)
+    full = build(tris, fill=1 << 30).stats
+    plain = build(tris).stats
+    least = -(-(len(tris) - 1) // 3)
+    assert least <= full["box_nodes"] < plain["box_nodes"]
+    assert full["box_nodes"] <= 1.1 * least
+    assert full["fill"] == 1 << 30 and plain["fill"] == 0
+
+
+def test_fill_zero_is_the_plain_tree():
+    """``fill=0`` is the plain SAH build, byte for byte."""
+    for tris in random_meshes()[:4]:
+        assert np.array_equal(build(tris).image, build(tris, fill=0).image)
+
+
+@pytest.mark.parametrize("fill", [-1, 2.5, True, "8"])
+def test_bad_fill(fill):
+    with pytest.raises(ValueError, match="fill must be an integer"):
+        build(meshes.soup(3), fill=fill)
+
+
+def test_fill_needs_the_fast_builder():
+    with pytest.raises(ValueError, match="fast builder"):
+        build(meshes.soup(30), fill=8, builder="numpy")
 
 
 def test_fast_builder_same_or_better_sah_than_numpy():
@@ -334,9 +386,10 @@ def test_instanced_bunnies():
         instanced_bunnies(0)
 
 
-def test_bvh_bench_dict():
+def test_bvh_bench_dict(tmp_path):
     from driver.bvh_bench import BUNNY_TRIANGLES, bvh_bench
-    r = bvh_bench(counts=(0,), size=32, progress=False)
+    r = bvh_bench(counts=(0,), size=32, progress=False, fills=(0, 1 << 30),
+                  plot=tmp_path / "fills.png")
     (b,) = r["builds"]
     assert b["triangles"] == BUNNY_TRIANGLES and b["build_s"] > 0
     assert b["peak_rss_mb"] >= b["rss_before_mb"] > 0
@@ -345,3 +398,19 @@ def test_bvh_bench_dict():
     assert q["sah"]["box_nodes"] < q["greedy"]["box_nodes"]
     assert q["same_hits"]["hit_mismatch"] == 0 and q["same_hits"]["hits"] > 0
     assert q["same_hits"]["prim_mismatch"] == q["same_hits"]["prim_mismatch_same_t"]
+    f = q["fills"]
+    plain, full = f["rows"]
+    assert plain["fill"] == 0 and plain["box_nodes"] == q["sah"]["box_nodes"]
+    assert plain["ops_per_ray"] == q["sah"]["ops_per_ray"]
+    assert full["box_nodes"] < plain["box_nodes"] and full["sah_cost"] > plain["sah_cost"]
+    for row in f["rows"]:
+        assert row["same_hits"]
+        assert row["culled_ops_per_ray"] < row["ops_per_ray"]
+        assert row["culled_box_ops_per_ray"] + row["stack_culls_per_ray"] == pytest.approx(
+            row["box_ops_per_ray"], abs=2e-4)
+    assert f["targets"]["box_nodes"] == 36_000 and f["targets"]["ops_per_ray"] == 5.9755
+    assert f["targets"]["met_by"] == [
+        {"fill": r["fill"], "cull_stack": cull} for r in f["rows"]
+        for cull, key in ((False, "ops_per_ray"), (True, "culled_ops_per_ray"))
+        if r["box_nodes"] <= 36_000 and r[key] <= 5.9755]
+    assert (tmp_path / "fills.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -61,6 +61,23 @@ def test_render_bunny_small(in_tmp):
     assert json.loads((in_tmp / "b.json").read_text())["hits"] > 50
 
 
+@pytest.mark.parametrize("tile", [[], ["--tile", "16"]], ids=["whole", "tiled"])
+def test_render_fill_and_culled_stack(in_tmp, tile):
+    """--bvh-fill shapes the tree and --cull-stack drops box requests: same image, fewer box ops,
+    ``stack_culls`` in the statistics (tiled frames too)."""
+    base = ["render", "bunny", "--size", "24", "--backend", "golden", "--no-progress", *tile]
+    assert main(base + ["--json", "a.json", "--out", "a.png"]) == 0
+    assert main(base + ["--json", "b.json", "--out", "b.png", "--cull-stack"]) == 0
+    assert main(base + ["--json", "c.json", "--out", "c.png", "--bvh-fill", "40"]) == 0
+    a, b, c = (json.loads((in_tmp / f"{k}.json").read_text()) for k in "abc")
+    assert (in_tmp / "a.png").read_bytes() == (in_tmp / "b.png").read_bytes()
+    assert "stack_culls" not in a and b["stack_culls"] > 0
+    assert a["box_ops"] == b["box_ops"] + b["stack_culls"] and a["tri_ops"] == b["tri_ops"]
+    assert a["hits"] == b["hits"] == c["hits"]
+    assert a["bvh"]["fill"] == 0 and c["bvh"]["fill"] == 40
+    assert c["bvh"]["box_nodes"] < a["bvh"]["box_nodes"]
+
+
 def test_render_mesh_file_and_toml(in_tmp):
     import trimesh
     trimesh.creation.box().export(str(in_tmp / "cube.obj"))
@@ -83,10 +100,17 @@ def test_render_mesh_file_and_toml(in_tmp):
     (["render", "sphere", "--size", "8", "--width", "4"], "either"),
     (["render", "sphere", "--backend", "nope"], "unknown backend"),
     (["render", "sphere", "--out", "no/such/dir/x.png"], "directory"),
+    (["render", "sphere", "--bvh-fill", "-1"], "--bvh-fill must be >= 0"),
 ])
 def test_user_mistakes_exit_2_with_one_line(error_line, args, words):
     assert main(args + ["--backend", "golden"] * ("--backend" not in args)) == 2
     assert words in error_line()
+
+
+@pytest.mark.parametrize("flags", [["--cull-stack"], ["--bvh-fill", "8"]])
+def test_bench_bvh_refuses_tree_flags(error_line, flags):
+    assert main(["bench", "--bvh", "--no-progress", *flags]) == 2
+    assert "--bvh measures" in error_line()
 
 
 def test_frame_too_big_for_memory_is_refused_at_once(error_line, monkeypatch):

@@ -255,3 +255,80 @@ def test_bunny_view_matches_embree():
                                 d.astype(np.float32).astype(np.float64))
     assert res.hit.sum() > 300
     assert (res.prim == first).mean() > 0.99
+
+
+# ---- the distance-culled stack (trace(cull_stack=True)) -----------------------------------------
+
+def _bunny_view(n=32):
+    m = meshes.bunny()
+    lo, hi = m.bounds
+    c, ext = (lo + hi) / 2, (hi - lo).max()
+    u = np.linspace(-0.55, 0.55, n) * ext
+    x, y = np.meshgrid(u, -u)
+    eye = c + [0, 0, 1.6 * ext]
+    d = c + np.stack([x, y, np.zeros_like(x)], -1).reshape(-1, 3) - eye
+    return np.asarray(m.triangles, np.float32), np.broadcast_to(eye, d.shape), d
+
+
+def _cull_cases():
+    rng = np.random.default_rng(11)
+    room = meshes.box_room(3)
+    soup = meshes.soup(300, seed=4)
+    sphere = meshes.icosphere(2)
+    u = rng.normal(size=(240, 3))
+    so = (3 * u / np.linalg.norm(u, axis=1, keepdims=True)).astype(np.float32)
+    return {
+        "bunny": (*_bunny_view(), {}),
+        "room_inside": (room, *rays_around(rng, 450, -0.9, 0.9, room), {}),
+        "soup": (soup, *rays_around(rng, 300, -2, 2, soup), {}),
+        "soup_extent": (soup, *rays_around(rng, 300, -2, 2, soup),
+                        {"extent": rng.uniform(0, 3, 300).astype(np.float32)}),
+        "sphere_double_sided": (sphere, so, (rng.uniform(-0.8, 0.8, (240, 3)) - so)
+                                .astype(np.float32), {"double_sided": True}),
+    }
+
+
+@pytest.mark.parametrize("case", list(_cull_cases()))
+def test_culled_stack_same_hits_fewer_box_requests(case):
+    """Dropping box nodes beyond the nearest hit changes no hit (bits of t, primitive), no
+    triangle request, and removes exactly the box requests that would have missed: per frame,
+    box ops without culling = box ops with culling + stack culls."""
+    tris, o, d, kw = _cull_cases()[case]
+    bvh = build(tris)
+    plain = trace(bvh, o, d, **kw)
+    cull = trace(bvh, o, d, cull_stack=True, **kw)
+    assert np.array_equal(plain.t.view(np.uint32), cull.t.view(np.uint32))
+    assert np.array_equal(plain.prim, cull.prim)
+    assert np.array_equal(plain.tri_ops, cull.tri_ops)
+    assert (cull.box_ops <= plain.box_ops).all() and (cull.box_ops >= 1).all()
+    assert "stack_culls" not in plain.stats
+    assert plain.stats["box_ops"] == cull.stats["box_ops"] + cull.stats["stack_culls"]
+    assert cull.stats["ops"] == cull.box_ops.sum() + cull.tri_ops.sum() == cull.step_requests.sum()
+    if case == "bunny":
+        assert cull.stats["stack_culls"] > 0.05 * plain.stats["box_ops"]
+    if case != "bunny":                                     # brute force: small meshes only
+        assert_matches_brute_force(tris, o, d, cull_stack=True, **kw)
+
+
+def test_culled_stack_any_hit_culls_nothing():
+    """An any-hit ray ends at its first accepted triangle, so its nearest never falls below the
+    extent while it still has a stack: nothing is culled, every count is the plain one."""
+    tris, o, d = _bunny_view(16)
+    bvh = build(tris)
+    plain = trace(bvh, o, d, any_hit=True)
+    cull = trace(bvh, o, d, any_hit=True, cull_stack=True)
+    assert cull.stats["stack_culls"] == 0
+    assert np.array_equal(plain.box_ops, cull.box_ops) and np.array_equal(plain.prim, cull.prim)
+
+
+def test_culled_stack_on_the_rtl_with_replay():
+    """On the Verilated datapath: the same bits as the golden model with culling, and the RT-unit
+    replay of the culled frame's requests verifies every response."""
+    tris, o, d = _bunny_view(24)
+    bvh = build(tris)
+    gold = trace(bvh, o, d, backend="golden", cull_stack=True)
+    rtl = trace(bvh, o, d, backend="rtl", cull_stack=True, rays_in_flight=64)
+    assert np.array_equal(gold.t.view(np.uint32), rtl.t.view(np.uint32))
+    assert np.array_equal(gold.box_ops, rtl.box_ops)
+    assert rtl.stats["stack_culls"] == gold.stats["stack_culls"] > 0
+    assert rtl.stats["responses_verified"] is True
