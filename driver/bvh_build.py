@@ -54,7 +54,7 @@ from numba import njit
 from .bvh_params import SWEEP_MAX
 
 WIDTH = 4              # children per wide node
-PARALLEL_MIN = 200_000  # from this many triangles, subtrees are built on several threads
+PARALLEL_MIN = 50_000   # from this many triangles, subtrees are built on several threads
 _STACK = 72            # > log2(2**63) + 2: the depth-first stack never holds more
 
 
