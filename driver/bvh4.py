@@ -76,7 +76,6 @@ from .layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, NO_CHILD, TRI_BYTES, TRI_NOD
 
 PAD_REL = 2.0 ** -16
 from .bvh_params import SWEEP_MAX  # noqa: E402  (nodes of <= 8 primitives: exact SAH sweep)
-_EMPTY_BOX = np.full(6, np.inf, np.float32)
 
 
 class BVH4:
@@ -386,71 +385,30 @@ def _collapse(left, right, area):
 # ----------------------------------------------------------------------------------------------
 # memory image
 
-def _grow(lo, hi, pad):
-    """Conservative float32 boxes (see module docstring): (..., 6) xmin ymin zmin xmax ymax zmax."""
-    f32 = np.float32
-    with np.errstate(over="ignore"):
-        glo = np.nextafter((lo - pad).astype(f32), f32(-np.inf))
-        ghi = np.nextafter((hi + pad).astype(f32), f32(np.inf))
-    return np.concatenate([glo, ghi], axis=-1)
-
-
-def _stored_boxes(lo, hi, pad, chunk=1 << 20):
-    """The stored (grown) float32 boxes (m, 6) of (m, 3) bounds and their half areas (m,)
-    float64 (the areas ``sah_cost`` is computed from), ``chunk`` rows at a time (bounded
-    temporaries)."""
-    boxes = np.empty((len(lo), 6), np.float32)
-    area = np.empty(len(lo))
-    for i in range(0, len(lo), chunk):
-        g = boxes[i:i + chunk] = _grow(lo[i:i + chunk], hi[i:i + chunk], pad)
-        area[i:i + chunk] = _half_area(g[:, :3].astype(np.float64), g[:, 3:])
-    return boxes, area
-
-
 def _write_image(levels, left, prim, node_box, node_area, tris):
-    """Number nodes, fill the byte image. node_box/node_area: ``_stored_boxes`` of the binary
-    nodes. Returns (image, depth, sah_cost, child histogram)."""
+    """Number nodes, fill the byte image (``driver.bvh_build.fill_image``). node_box/node_area:
+    ``driver.bvh_build.stored_boxes`` of the binary nodes. Returns (image, depth, sah_cost,
+    child histogram)."""
+    from .bvh_build import fill_image
     n_box = sum(len(s) for s in levels)
     n_tri = len(tris)
     total = BOX_BYTES * n_box + TRI_BYTES * n_tri
     if total >= 1 << 35:
         raise ValueError(f"BVH image of {total} bytes exceeds the 32 GiB a uint32 pointer reaches")
     slots = np.concatenate(levels)                         # (n_box, 4) binary ids, breadth-first
-    used = slots >= 0
-    is_box = used & (left[np.maximum(slots, 0)] >= 0)
-    is_tri = used & ~is_box
-    # box node i is at byte 128 i (pointer 16 i | 5); box children are numbered breadth-first in
-    # row-major slot order, which is the order _collapse emits the next level in
-    flat_box, flat_tri = is_box.ravel(), is_tri.ravel()
-    ptrs = np.full(slots.size, NO_CHILD, np.uint32)
-    ptrs[flat_box] = NodeRef.encode(BOX_BYTES * np.cumsum(flat_box)[flat_box], BOX_TYPE)
-    tri_index = np.cumsum(flat_tri)[flat_tri] - 1
-    ptrs[flat_tri] = NodeRef.encode(BOX_BYTES * n_box + TRI_BYTES * tri_index, TRI_TYPE)
-    ptrs = ptrs.reshape(slots.shape)
-
-    ids = np.maximum(slots, 0)
-    boxes = _rows(node_box, ids)
-    boxes[~used] = _EMPTY_BOX
-    parent = np.full(n_box, NO_CHILD, np.uint32)
-    parent_row = np.nonzero(is_box)[0]                     # row-major, same order as child_box
-    parent[1:] = NodeRef.encode(BOX_BYTES * parent_row, BOX_TYPE)
-
     image = np.zeros(total, np.uint8)
     bn = image[:BOX_BYTES * n_box].view(BOX_NODE)           # the node structs (driver.layout)
-    bn["child"] = ptrs
-    bn["box"] = boxes.astype(np.float32).reshape(n_box, 4, 6)
-    bn["parent"] = parent
-    bn["count"] = used.sum(axis=1)
-    tri_prim = prim[slots[is_tri]]                         # triangle nodes in reference order
     tn = image[BOX_BYTES * n_box:].view(TRI_NODE)
-    tn["tri"] = _rows(tris, tri_prim).reshape(n_tri, 3, 3)
-    tn["prim"] = tri_prim
-
-    r = boxes[0, used[0]].astype(np.float64)
+    box0, box1 = NodeRef.encode([0, BOX_BYTES], BOX_TYPE).astype(np.int64)
+    tri0, tri1 = NodeRef.encode([BOX_BYTES * n_box, BOX_BYTES * n_box + TRI_BYTES],
+                                TRI_TYPE).astype(np.int64)
+    area = fill_image(slots, left, prim, node_box, node_area, tris, bn["child"], bn["box"],
+                      bn["parent"], bn["count"], tn["tri"], tn["prim"], (box0, box1 - box0),
+                      (tri0, tri1 - tri0), NO_CHILD)
+    r = bn["box"][0, :bn["count"][0]].astype(np.float64)
     root_area = _half_area(r[:, :3].min(axis=0), r[:, 3:].max(axis=0))
-    sah = 1.0 + float(node_area[slots[used]].sum()) / float(root_area)
-    hist = np.bincount(used.sum(axis=1), minlength=5)[1:]
-    return image, len(levels), sah, hist
+    hist = np.bincount(bn["count"], minlength=5)[1:]
+    return image, len(levels), 1.0 + area / float(root_area), hist
 
 
 BUILDERS = ("fast", "numpy")
@@ -485,11 +443,12 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
         raise ValueError("fill needs the fast builder (the numpy reference has plain SAH splits)")
     tris = as_triangles(triangles_or_trimesh)
     from tqdm import tqdm
+
+    from . import bvh_build
     show = None if progress is None and len(tris) >= PROGRESS_MIN else bool(progress)
     with tqdm(total=len(tris), desc="BVH build", unit="tri", unit_scale=True, leave=False,
               disable=None if show is None else not show) as bar:
         if builder == "fast":
-            from . import bvh_build
             left, right, prim, node_lo, node_hi = bvh_build.build_binary(tris, int(bins), bar,
                                                                          int(fill))
         else:
@@ -497,9 +456,8 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
             bar.update(len(tris))
         bar.set_postfix_str("collapse")
         pad = PAD_REL * float(max(-tris.min(), tris.max()))
-        node_box, node_area = _stored_boxes(node_lo, node_hi, pad)
+        node_box, node_area = bvh_build.stored_boxes(node_lo, node_hi, pad)
         if collapse == "sah":
-            from . import bvh_build
             levels = bvh_build.collapse_sah(left, right, node_area)
         else:
             levels = _collapse(left, right, _half_area(node_lo, node_hi))

@@ -6,17 +6,25 @@ R-trees of another shape), and the numpy builder in ``driver.bvh4`` (``builder="
 is kept as the reference, spends its time in ``reduceat``/``ufunc.at`` passes over every level
 (30 s for 2 M triangles). numba rather than C++ beside the harness (see docs/bvh.md): it is a
 pip dependency, compiles once per machine into its on-disk cache, and with it the whole build is
-about 4x (bunny) to 8x (2 M triangles) faster than with the vectorised numpy builder.
+an order of magnitude faster than with the vectorised numpy builder (docs/bvh.md). The image
+writer's kernels (``stored_boxes``, ``fill_image``) are here for the same reason: as numpy
+passes they took a third of the 2 M-triangle build.
 
-Binary build (``build_binary``): exactly the numpy builder's rules, so the trees are the same:
-nodes of more than ``SWEEP_MAX`` primitives are split by binned SAH (``bins`` bins per axis over
-the node's centroid bounds, all three axes; ties go to the lowest split, then the lowest axis);
-nodes of 3..``SWEEP_MAX`` primitives try every split of the centroid order on all three axes
-(ties: lowest position, then lowest axis; equal centroids keep list order); 2 primitives split
-1 + 1; a node whose centroids all coincide splits its list in the middle. Partitions are stable.
-The top of the tree is split serially (``_top``) into subtree tasks, which are built depth first
-(``_subtree``; smaller child first, so the stack holds at most log2(n) + 2 entries) on a thread
-pool (the kernels release the GIL); progress advances as each task finishes.
+Binary build (``build_binary``): exactly the numpy builder's rules, so the trees are the same
+(tests/test_bvh4.py compares them node by node): nodes of more than ``SWEEP_MAX`` primitives are
+split by binned SAH (``bins`` bins per axis over the node's centroid bounds, all three axes, one
+pass over the primitives; ties go to the lowest split, then the lowest axis); nodes of
+3..``SWEEP_MAX`` primitives try every split of the centroid order on all three axes (ties: lowest
+position, then lowest axis; equal centroids keep list order); 2 primitives split 1 + 1; a node
+whose centroids all coincide splits its list in the middle. Partitions are stable. A node of at
+most ``SWEEP_MAX`` primitives is built whole by ``_small``, which sorts its centroids once and
+keeps the sorted lists through the splits instead of moving primitives and sorting every node
+(half the build time went there). On several threads (from ``PARALLEL_MIN`` triangles) the top
+of the tree is split node by node, both children of every split becoming tasks of a thread pool
+(so only the root's split runs alone), down to nodes of n / (8 threads) primitives, which are
+built whole depth first (``_subtree``; smaller child first, so the stack holds at most
+log2(n) + 2 entries); the kernels release the GIL, and progress advances as each subtree task
+finishes. docs/bvh.md has the build times.
 
 Fillable splits (``fill`` > 0, off by default): a subtree of n triangles needs at least
 ceil((n - 1) / 3) 4-wide box nodes, and reaches that only if every wide node below its root has 4
@@ -46,7 +54,7 @@ image writer numbers them in.
 from __future__ import annotations
 
 import os
-from concurrent.futures import ThreadPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
 import numpy as np
 from numba import njit
@@ -112,14 +120,21 @@ def _fills(nl, cnt, fill):
 
 
 @njit(cache=True)
-def _sweep(s, e, lo, hi, cent, go_right, srt, a_r, fill):
-    """Exact SAH over every split of the centroid order on each axis that ``_fills``; fills
-    go_right[s:e]. Scratch: srt (3, >= cnt) int64 (sorted ranks per axis), a_r (>= cnt,)
-    float64."""
+def _small(nid, s, e, lo, hi, cent, fill, order, left, right, prim, node_box, lists, stk, a_r):
+    """Build the whole subtree of node ``nid``, of at most SWEEP_MAX primitives (s:e), boxes
+    included. Nodes of 3 or more primitives take the exact SAH split: every split of the centroid
+    order on each axis that ``_fills`` (ties: lowest position, then lowest axis; equal centroids
+    keep list order); 2 primitives split 1 + 1. The primitives are not moved: each node is a
+    list of offsets into s:e, sorted by centroid on each axis once, at the top (a stable
+    partition of a sorted list is the child's sorted list), so the result is the one sorting and
+    partitioning every node would give. Scratch (``_scratch``): lists (SWEEP_MAX, 4, SWEEP_MAX)
+    int64 (per stack entry: the offsets sorted on x, y, z, then in list order), stk (SWEEP_MAX,
+    2) int64 (node id, count), a_r (SWEEP_MAX,) float64."""
     cnt = e - s
-    best_cost, best_axis, best_i = np.inf, 0, 0
+    for r in range(cnt):
+        lists[0, 3, r] = r
     for a in range(3):
-        idx = srt[a]
+        idx = lists[0, a]
         for r in range(cnt):                               # stable insertion sort by centroid
             key = cent[s + r, a]
             j = r
@@ -127,52 +142,97 @@ def _sweep(s, e, lo, hi, cent, go_right, srt, a_r, fill):
                 idx[j] = idx[j - 1]
                 j -= 1
             idx[j] = r
-        x0 = y0 = z0 = np.inf
-        x1 = y1 = z1 = -np.inf
-        for i in range(cnt - 1, 0, -1):                    # suffix areas: right = sorted i..
-            p = s + idx[i]
+    stk[0, 0], stk[0, 1] = nid, cnt
+    sp = 1
+    while sp > 0:                                          # a node's children: lists sp, sp + 1
+        sp -= 1
+        nid, c = stk[sp, 0], stk[sp, 1]
+        lst = lists[sp]
+        x0 = y0 = z0 = np.float32(np.inf)
+        x1 = y1 = z1 = np.float32(-np.inf)
+        for r in range(c):
+            p = s + lst[3, r]
             x0, y0, z0 = min(x0, lo[p, 0]), min(y0, lo[p, 1]), min(z0, lo[p, 2])
             x1, y1, z1 = max(x1, hi[p, 0]), max(y1, hi[p, 1]), max(z1, hi[p, 2])
-            a_r[i] = _half_area(x1 - x0, y1 - y0, z1 - z0)
-        x0 = y0 = z0 = np.inf
-        x1 = y1 = z1 = -np.inf
-        ai, ci = 0, np.inf
-        for i in range(cnt - 1):                           # split after sorted position i
-            p = s + idx[i]
-            x0, y0, z0 = min(x0, lo[p, 0]), min(y0, lo[p, 1]), min(z0, lo[p, 2])
-            x1, y1, z1 = max(x1, hi[p, 0]), max(y1, hi[p, 1]), max(z1, hi[p, 2])
-            c = _half_area(x1 - x0, y1 - y0, z1 - z0) * (i + 1) + a_r[i + 1] * (cnt - i - 1)
-            if c < ci and _fills(i + 1, cnt, fill):
-                ci, ai = c, i
-        if ci < best_cost:
-            best_cost, best_axis, best_i = ci, a, ai
-    idx = srt[best_axis]
-    for i in range(cnt):
-        go_right[s + idx[i]] = i > best_i
+        box = node_box[nid]
+        box[0], box[1], box[2], box[3], box[4], box[5] = x0, y0, z0, x1, y1, z1
+        if c == 1:
+            prim[nid] = order[s + lst[3, 0]]
+            continue
+        best_axis, best_i = 3, 0                           # 2 primitives: list order, 1 + 1
+        if c > 2:
+            best_cost, best_axis = np.inf, 0
+            for a in range(3):
+                idx = lst[a]
+                x0 = y0 = z0 = np.inf
+                x1 = y1 = z1 = -np.inf
+                for i in range(c - 1, 0, -1):              # suffix areas: right = sorted i..
+                    p = s + idx[i]
+                    x0, y0, z0 = min(x0, lo[p, 0]), min(y0, lo[p, 1]), min(z0, lo[p, 2])
+                    x1, y1, z1 = max(x1, hi[p, 0]), max(y1, hi[p, 1]), max(z1, hi[p, 2])
+                    a_r[i] = _half_area(x1 - x0, y1 - y0, z1 - z0)
+                x0 = y0 = z0 = np.inf
+                x1 = y1 = z1 = -np.inf
+                ai, ci = 0, np.inf
+                for i in range(c - 1):                     # split after sorted position i
+                    p = s + idx[i]
+                    x0, y0, z0 = min(x0, lo[p, 0]), min(y0, lo[p, 1]), min(z0, lo[p, 2])
+                    x1, y1, z1 = max(x1, hi[p, 0]), max(y1, hi[p, 1]), max(z1, hi[p, 2])
+                    cost = _half_area(x1 - x0, y1 - y0, z1 - z0) * (i + 1) + a_r[i + 1] * (c - i - 1)
+                    if cost < ci and _fills(i + 1, c, fill):
+                        ci, ai = cost, i
+                if ci < best_cost:
+                    best_cost, best_axis, best_i = ci, a, ai
+        go = a_r                                           # reused: 1.0 = goes right
+        for i in range(c):
+            go[lst[best_axis, i]] = 1.0 if i > best_i else 0.0
+        nl = best_i + 1
+        rl = lists[sp + 1]
+        for q in range(4):                                 # stable partition of every list
+            k, kr = 0, 0
+            for i in range(c):
+                o = lst[q, i]
+                if go[o] > 0.0:
+                    rl[q, kr] = o
+                    kr += 1
+                else:
+                    lst[q, k] = o
+                    k += 1
+        left[nid], right[nid] = nid + 1, nid + 2 * nl
+        stk[sp, 0], stk[sp, 1] = nid + 1, nl
+        stk[sp + 1, 0], stk[sp + 1, 1] = nid + 2 * nl, c - nl
+        sp += 2
 
 
 @njit(cache=True)
-def _binned(s, e, lo, hi, cent, cbox, bins, fill, go_right, count, blo, bhi, cost, a_r, n_r):
+def _binned(s, e, lo, hi, cent, cbox, bins, fill, go_right, count, tab, cost, a_r, n_r):
     """Binned SAH over the centroid bounds cbox; fills go_right[s:e] and returns True, or
     returns False if no axis can split. A split that does not ``_fills`` moves the one or two
     primitives nearest the bin boundary (by centroid on the split axis) across it. Scratch
-    (``_scratch``): count (3, bins), blo/bhi (3, bins, 3) float32, cost (bins - 1, 3), a_r/n_r
-    (bins,)."""
+    (``_scratch``): count (3, bins) int64, tab (3, bins, 6) float32 (bin bounds: min xyz, max
+    xyz), cost (bins - 1, 3), a_r/n_r (bins,)."""
     scale = np.zeros(3)
     for a in range(3):
         ext = cbox[3 + a] - cbox[a]
         if ext > 0:
             scale[a] = bins / ext
     count[:] = 0
-    blo[:] = np.inf
-    bhi[:] = -np.inf
-    for p in range(s, e):
-        for a in range(3):
-            k = min(max(int((cent[p, a] - cbox[a]) * scale[a]), 0), bins - 1)
+    tab[:, :, :3] = np.inf
+    tab[:, :, 3:] = -np.inf
+    c0, c1, c2, s0, s1, s2 = cbox[0], cbox[1], cbox[2], scale[0], scale[1], scale[2]
+    for p in range(s, e):                                  # one pass, all three axes
+        l0, l1, l2, h0, h1, h2 = lo[p, 0], lo[p, 1], lo[p, 2], hi[p, 0], hi[p, 1], hi[p, 2]
+        k0 = min(max(int((cent[p, 0] - c0) * s0), 0), bins - 1)
+        k1 = min(max(int((cent[p, 1] - c1) * s1), 0), bins - 1)
+        k2 = min(max(int((cent[p, 2] - c2) * s2), 0), bins - 1)
+        for a, k in ((0, k0), (1, k1), (2, k2)):
             count[a, k] += 1
-            for c in range(3):
-                blo[a, k, c] = min(blo[a, k, c], lo[p, c])
-                bhi[a, k, c] = max(bhi[a, k, c], hi[p, c])
+            tab[a, k, 0] = min(tab[a, k, 0], l0)
+            tab[a, k, 1] = min(tab[a, k, 1], l1)
+            tab[a, k, 2] = min(tab[a, k, 2], l2)
+            tab[a, k, 3] = max(tab[a, k, 3], h0)
+            tab[a, k, 4] = max(tab[a, k, 4], h1)
+            tab[a, k, 5] = max(tab[a, k, 5], h2)
     nb = bins - 1
     cost[:] = np.inf                                      # (split, axis): ties -> first in order
     for a in range(3):
@@ -180,8 +240,8 @@ def _binned(s, e, lo, hi, cent, cbox, bins, fill, go_right, count, blo, bhi, cos
         x1 = y1 = z1 = np.float32(-np.inf)
         nr = 0.0
         for k in range(bins - 1, 0, -1):                   # right side = bins k..
-            x0, y0, z0 = min(x0, blo[a, k, 0]), min(y0, blo[a, k, 1]), min(z0, blo[a, k, 2])
-            x1, y1, z1 = max(x1, bhi[a, k, 0]), max(y1, bhi[a, k, 1]), max(z1, bhi[a, k, 2])
+            x0, y0, z0 = min(x0, tab[a, k, 0]), min(y0, tab[a, k, 1]), min(z0, tab[a, k, 2])
+            x1, y1, z1 = max(x1, tab[a, k, 3]), max(y1, tab[a, k, 4]), max(z1, tab[a, k, 5])
             nr += count[a, k]
             n_r[k] = nr
             a_r[k] = _half_area(np.float64(x1) - x0, np.float64(y1) - y0, np.float64(z1) - z0)
@@ -189,8 +249,8 @@ def _binned(s, e, lo, hi, cent, cbox, bins, fill, go_right, count, blo, bhi, cos
         x1 = y1 = z1 = np.float32(-np.inf)
         nl = 0.0
         for i in range(nb):                                # left side = bins 0..i
-            x0, y0, z0 = min(x0, blo[a, i, 0]), min(y0, blo[a, i, 1]), min(z0, blo[a, i, 2])
-            x1, y1, z1 = max(x1, bhi[a, i, 0]), max(y1, bhi[a, i, 1]), max(z1, bhi[a, i, 2])
+            x0, y0, z0 = min(x0, tab[a, i, 0]), min(y0, tab[a, i, 1]), min(z0, tab[a, i, 2])
+            x1, y1, z1 = max(x1, tab[a, i, 3]), max(y1, tab[a, i, 4]), max(z1, tab[a, i, 5])
             nl += count[a, i]
             if nl > 0 and n_r[i + 1] > 0:
                 a_l = _half_area(np.float64(x1) - x0, np.float64(y1) - y0, np.float64(z1) - z0)
@@ -271,34 +331,25 @@ def _partition(s, e, go_right, order, lo, hi, cent, t_order, t_lo, t_hi, t_cent)
 
 @njit(cache=True)
 def _scratch(bins):
-    """Per-thread scratch arrays of ``_binned`` and ``_sweep`` (allocated once per subtree)."""
-    return (np.zeros((3, bins)), np.empty((3, bins, 3), np.float32),
-            np.empty((3, bins, 3), np.float32), np.empty((bins - 1, 3)), np.empty(bins),
-            np.empty(bins), np.empty((3, SWEEP_MAX), np.int64), np.empty(SWEEP_MAX))
+    """Per-thread scratch arrays of ``_binned`` and ``_small`` (allocated once per task)."""
+    return (np.zeros((3, bins), np.int64), np.empty((3, bins, 6), np.float32),
+            np.empty((bins - 1, 3)), np.empty(bins), np.empty(bins),
+            np.empty((SWEEP_MAX, 4, SWEEP_MAX), np.int64), np.empty((SWEEP_MAX, 2), np.int64),
+            np.empty(SWEEP_MAX))
 
 
 @njit(cache=True)
-def _split(nid, s, e, cbox, lo, hi, cent, bins, fill, order, tmp, go_right, left, right, prim,
-           node_box, scratch):
-    """Split node ``nid`` (primitives s:e, centroid bounds cbox, box already in
-    node_box[nid]); returns the left count (0 for a leaf). Children are numbered in pre-order
-    with contiguous subtrees: left = nid + 1, right = nid + 2 * (left count)."""
+def _split(nid, s, e, cbox, lo, hi, cent, bins, fill, order, tmp, go_right, left, right,
+           scratch):
+    """Split node ``nid`` (primitives s:e, more than SWEEP_MAX; centroid bounds cbox) by binned
+    SAH; returns the left count. Children are numbered in pre-order with contiguous subtrees:
+    left = nid + 1, right = nid + 2 * (left count)."""
     cnt = e - s
-    if cnt == 1:
-        prim[nid] = order[s]
-        return 0
-    if cnt == 2:
-        nl = 1
-    else:
-        ok = True
-        if cnt <= SWEEP_MAX:
-            _sweep(s, e, lo, hi, cent, go_right, scratch[6], scratch[7], fill)
-        else:
-            ok = _binned(s, e, lo, hi, cent, cbox, bins, fill, go_right, scratch[0],
-                         scratch[1], scratch[2], scratch[3], scratch[4], scratch[5])
-        nl = _fillable_count(cnt // 2, cnt, fill)          # all centroids coincide: middle
-        if ok:
-            nl = _partition(s, e, go_right, order, lo, hi, cent, tmp[0], tmp[1], tmp[2], tmp[3])
+    ok = _binned(s, e, lo, hi, cent, cbox, bins, fill, go_right, scratch[0], scratch[1],
+                 scratch[2], scratch[3], scratch[4])
+    nl = _fillable_count(cnt // 2, cnt, fill)              # all centroids coincide: middle
+    if ok:
+        nl = _partition(s, e, go_right, order, lo, hi, cent, tmp[0], tmp[1], tmp[2], tmp[3])
     left[nid], right[nid] = nid + 1, nid + 2 * nl
     return nl
 
@@ -316,11 +367,13 @@ def _subtree(nid, s, e, lo, hi, cent, bins, fill, order, tmp, go_right, left, ri
     while sp > 0:
         sp -= 1
         nid, s, e = stack[sp, 0], stack[sp, 1], stack[sp, 2]
+        if e - s <= SWEEP_MAX:
+            _small(nid, s, e, lo, hi, cent, fill, order, left, right, prim, node_box,
+                   scratch[5], scratch[6], scratch[7])
+            continue
         _bounds(s, e, lo, hi, cent, node_box[nid], cbox)
         nl = _split(nid, s, e, cbox, lo, hi, cent, bins, fill, order, tmp, go_right, left,
-                    right, prim, node_box, scratch)
-        if nl == 0:
-            continue
+                    right, scratch)
         small_left = nl <= e - s - nl
         for first in (not small_left, small_left):         # larger first, smaller on top
             if first:
@@ -330,32 +383,14 @@ def _subtree(nid, s, e, lo, hi, cent, bins, fill, order, tmp, go_right, left, ri
             sp += 1
 
 
-@njit(cache=True)
-def _top(min_tasks, lo, hi, cent, bins, fill, order, tmp, go_right, left, right, prim,
-         node_box):
-    """Split from the root, largest node first, until there are ``min_tasks`` unsplit nodes
-    (or none is larger than SWEEP_MAX); returns them as (k, 3) rows (node id, start, end)."""
-    n = len(order)
-    tasks = np.empty((max(min_tasks, 1) + 2, 3), np.int64)
-    tasks[0, 0], tasks[0, 1], tasks[0, 2] = 0, 0, n
-    k = 1
+@njit(cache=True, nogil=True)
+def _node(nid, s, e, lo, hi, cent, bins, fill, order, tmp, go_right, left, right, prim, node_box):
+    """Compute the box of node ``nid`` (primitives s:e, more than SWEEP_MAX) and split it;
+    returns the left count. The top of the tree is built node by node with it, in parallel."""
     cbox = np.empty(6)
-    scratch = _scratch(bins)
-    while k < min_tasks:
-        big = 0
-        for i in range(1, k):
-            if tasks[i, 2] - tasks[i, 1] > tasks[big, 2] - tasks[big, 1]:
-                big = i
-        nid, s, e = tasks[big, 0], tasks[big, 1], tasks[big, 2]
-        if e - s <= SWEEP_MAX:
-            break
-        _bounds(s, e, lo, hi, cent, node_box[nid], cbox)
-        nl = _split(nid, s, e, cbox, lo, hi, cent, bins, fill, order, tmp, go_right, left,
-                    right, prim, node_box, scratch)
-        tasks[big, 0], tasks[big, 1], tasks[big, 2] = nid + 1, s, s + nl
-        tasks[k, 0], tasks[k, 1], tasks[k, 2] = nid + 2 * nl, s + nl, e
-        k += 1
-    return tasks[:k]
+    _bounds(s, e, lo, hi, cent, node_box[nid], cbox)
+    return _split(nid, s, e, cbox, lo, hi, cent, bins, fill, order, tmp, go_right, left, right,
+                  _scratch(bins))
 
 
 def build_binary(tris, bins: int, progress=None, fill: int = 0):
@@ -381,14 +416,32 @@ def build_binary(tris, bins: int, progress=None, fill: int = 0):
     args = (lo, hi, cent, int(bins), int(fill), order, tmp, go_right, left, right, prim,
             node_box)
     threads = min(os.cpu_count() or 1, 8) if n >= PARALLEL_MIN else 1
-    tasks = _top(16 * threads if threads > 1 else 1, *args)
-    tasks = tasks[np.argsort(tasks[:, 1] - tasks[:, 2], kind="stable")]     # largest first
+    if threads == 1:
+        _subtree(0, 0, n, *args)
+        if progress is not None:
+            progress.update(n)
+        return left, right, prim, node_box[:, :3], node_box[:, 3:]
+    # nodes of more than `grain` primitives are split one task each (both children become tasks:
+    # after the root, all threads are busy); smaller ones are whole depth-first subtree tasks
+    grain = max(SWEEP_MAX, n // (8 * threads))
+
+    def task(nid, s, e):
+        if e - s > grain:
+            nl = _node(nid, s, e, *args)
+            return [(nid + 1, s, s + nl), (nid + 2 * nl, s + nl, e)]
+        _subtree(nid, s, e, *args)
+        return e - s
+
     with ThreadPoolExecutor(threads) as pool:
-        jobs = {pool.submit(_subtree, *row, *args): row[2] - row[1] for row in tasks.tolist()}
-        for job in as_completed(jobs):
-            job.result()
-            if progress is not None:
-                progress.update(jobs[job])
+        pending = {pool.submit(task, 0, 0, n)}
+        while pending:
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for job in done:
+                result = job.result()
+                if isinstance(result, list):
+                    pending |= {pool.submit(task, *child) for child in result}
+                elif progress is not None:
+                    progress.update(result)
     return left, right, prim, node_box[:, :3], node_box[:, 3:]
 
 
@@ -471,3 +524,72 @@ def collapse_sah(left, right, area):
     of binary node ids per wide box node (-1 = unused slot; used slots first)."""
     slots, depth = _emit(left, right, _dp(left, right, area))
     return np.split(slots, np.flatnonzero(np.diff(depth)) + 1)
+
+
+# ----------------------------------------------------------------------------------------------
+# memory image kernels (``driver.bvh4`` owns the layout; these only number nodes and copy rows)
+
+@njit(cache=True)
+def stored_boxes(lo, hi, pad):
+    """The stored (grown) float32 boxes (m, 6) of (m, 3) float64 bounds, and their half areas
+    (m,) float64: ``nextafter(float32(min - pad), -inf)``, ``nextafter(float32(max + pad),
+    +inf)`` (``driver.bvh4`` says why), areas from the grown float32 values in float64."""
+    m = lo.shape[0]
+    boxes = np.empty((m, 6), np.float32)
+    area = np.empty(m)
+    down, up = np.float32(-np.inf), np.float32(np.inf)
+    for i in range(m):
+        for a in range(3):
+            boxes[i, a] = np.nextafter(np.float32(lo[i, a] - pad), down)
+            boxes[i, 3 + a] = np.nextafter(np.float32(hi[i, a] + pad), up)
+        dx = boxes[i, 3] - np.float64(boxes[i, 0])
+        dy = boxes[i, 4] - np.float64(boxes[i, 1])
+        dz = boxes[i, 5] - np.float64(boxes[i, 2])
+        area[i] = _half_area(dx, dy, dz)
+    return boxes, area
+
+
+@njit(cache=True)
+def fill_image(slots, left, prim, node_box, node_area, tris, child, box, parent, count, tri,
+               tri_prim, box_ptr, tri_ptr, no_child):
+    """Number the wide tree's nodes and write them into the image's node fields; returns the
+    sum of the used slots' areas (the SAH numerator).
+
+    slots (k, 4): binary node ids per box node, breadth first (used slots first, -1 unused);
+    box node i's children that are box nodes are numbered in row-major slot order over all
+    rows (breadth first), triangle nodes in the order they are referenced. child/box/parent/
+    count: the box nodes' fields, tri/tri_prim the triangle nodes' (views into a zeroed image,
+    ``driver.layout``'s structs). Pointers are affine in the node index (``driver.bvh4`` derives
+    them from ``NodeRef``): box node i is ``box_ptr[0] + i * box_ptr[1]``, triangle node j
+    ``tri_ptr[0] + j * tri_ptr[1]``; an unused slot is ``no_child`` with a +inf box."""
+    k = slots.shape[0]
+    nb, nt = 0, 0
+    area = 0.0
+    parent[0] = no_child
+    for r in range(k):
+        used = 0
+        for j in range(WIDTH):
+            x = slots[r, j]
+            if x < 0:
+                child[r, j] = no_child
+                for c in range(6):
+                    box[r, j, c] = np.inf
+                continue
+            used += 1
+            area += node_area[x]
+            for c in range(6):
+                box[r, j, c] = node_box[x, c]
+            if left[x] >= 0:
+                nb += 1
+                child[r, j] = box_ptr[0] + nb * box_ptr[1]
+                parent[nb] = box_ptr[0] + r * box_ptr[1]
+            else:
+                child[r, j] = tri_ptr[0] + nt * tri_ptr[1]
+                p = prim[x]
+                tri_prim[nt] = p
+                for v in range(3):
+                    for c in range(3):
+                        tri[nt, v, c] = tris[p, v, c]
+                nt += 1
+        count[r] = used
+    return area

@@ -193,6 +193,28 @@ def test_fast_builder_same_or_better_sah_than_numpy():
             assert fast["box_nodes"] == ref["box_nodes"]
 
 
+def _subtrees(left, right, prim, lo, hi):
+    """{sorted primitive ids under a binary node: its box} (numbering-independent)."""
+    under = [None] * len(left)
+    for n in range(len(left) - 1, -1, -1):              # children are numbered after parents
+        under[n] = (int(prim[n]),) if left[n] < 0 else under[left[n]] + under[right[n]]
+    return {tuple(sorted(u)): tuple(np.r_[lo[n], hi[n]].tolist()) for n, u in enumerate(under)}
+
+
+def test_fast_binary_tree_is_the_numpy_tree(monkeypatch):
+    """The numba kernels (binned nodes, the small-subtree sweep that sorts once, the threaded
+    top) make the numpy reference's tree: the same primitive sets under the same boxes, on
+    meshes with equal centroids (ties keep list order) too."""
+    rng = np.random.default_rng(11)
+    dup = np.repeat(meshes.soup(40, seed=5), 3, axis=0)[rng.permutation(120)]
+    monkeypatch.setattr(bvh_build, "PARALLEL_MIN", 100)     # the threaded top from 100 triangles
+    for tris in random_meshes() + [dup]:
+        tris = np.asarray(tris, np.float32)
+        fast = bvh_build.build_binary(tris, 16)
+        ref = bvh4._build_binary(*bvh4._prim_boxes(tris), 16)
+        assert _subtrees(*fast) == _subtrees(*ref)
+
+
 def _brute_force_collapse(left, right, area):
     """Least sum of slot areas over every choice of kept interior nodes (root always kept) in
     which every kept node has at most 4 children in the contracted tree."""
@@ -215,7 +237,7 @@ def _brute_force_collapse(left, right, area):
 def test_sah_collapse_is_optimal(n, seed):
     tris = meshes.soup(n, seed=seed)
     left, right, _, lo, hi = bvh_build.build_binary(tris, 16)
-    area = bvh4._stored_boxes(lo, hi, 1e-3)[1]
+    area = bvh_build.stored_boxes(lo, hi, 1e-3)[1]
     levels = bvh_build.collapse_sah(left, right, area)
     slots = np.concatenate(levels)
     dp = area[slots[slots >= 0]].sum()
@@ -316,6 +338,26 @@ def _axis_dirs():
             d.append(v)
     d += [[-0.0, -0.0, 1.0], [-0.0, 1.0, -0.0], [1.0, -0.0, 0.0], [0.0, -1.0, -0.0]]
     return np.array(d, np.float32)
+
+
+def test_stored_boxes_are_the_grown_float32_bounds():
+    """``stored_boxes`` is the module docstring's rule, ``nextafter(float32(min - pad), -inf)``
+    and ``nextafter(float32(max + pad), +inf)``, bit for bit (zeros, tiny, huge and overflowing
+    bounds included), with the half areas of the grown boxes."""
+    rng = np.random.default_rng(8)
+    lo = np.r_[rng.normal(0, 100, (500, 3)), [[0.0, -0.0, 1e-45], [3e38, -3e38, 1e39]]]
+    hi = lo + np.r_[rng.uniform(0, 10, (500, 3)), np.zeros((2, 3))]
+    with np.errstate(over="ignore"):
+        lo32, hi32 = lo.astype(np.float32), hi.astype(np.float32)
+    for pad in (0.0, 1e-3):
+        boxes, area = bvh_build.stored_boxes(lo32.astype(np.float64), hi32.astype(np.float64), pad)
+        with np.errstate(over="ignore"):
+            want_lo = np.nextafter((lo32 - pad).astype(np.float32), np.float32(-np.inf))
+            want_hi = np.nextafter((hi32 + pad).astype(np.float32), np.float32(np.inf))
+        assert np.array_equal(boxes.view(np.uint32), np.c_[want_lo, want_hi].view(np.uint32))
+        with np.errstate(invalid="ignore", over="ignore"):
+            want_area = bvh4._half_area(want_lo.astype(np.float64), want_hi)
+        assert np.array_equal(area, want_area, equal_nan=True)
 
 
 def test_unused_slot_never_hit():
