@@ -385,10 +385,10 @@ def _collapse(left, right, area):
 # ----------------------------------------------------------------------------------------------
 # memory image
 
-def _write_image(levels, left, prim, node_box, node_area, tris):
-    """Number nodes, fill the byte image (``driver.bvh_build.fill_image``). node_box/node_area:
-    ``driver.bvh_build.stored_boxes`` of the binary nodes. Returns (image, depth, sah_cost,
-    child histogram)."""
+def _write_image(levels, left, prim, node_lo, node_hi, node_area, tris):
+    """Number nodes, fill the byte image (``driver.bvh_build.fill_image``). node_lo/node_hi/
+    node_area: the stored boxes of the binary nodes (``driver.bvh_build.grow_boxes``). Returns
+    (image, depth, sah_cost, child histogram)."""
     from .bvh_build import fill_image
     n_box = sum(len(s) for s in levels)
     n_tri = len(tris)
@@ -402,9 +402,9 @@ def _write_image(levels, left, prim, node_box, node_area, tris):
     box0, box1 = NodeRef.encode([0, BOX_BYTES], BOX_TYPE).astype(np.int64)
     tri0, tri1 = NodeRef.encode([BOX_BYTES * n_box, BOX_BYTES * n_box + TRI_BYTES],
                                 TRI_TYPE).astype(np.int64)
-    area = fill_image(slots, left, prim, node_box, node_area, tris, bn["child"], bn["box"],
-                      bn["parent"], bn["count"], tn["tri"], tn["prim"], (box0, box1 - box0),
-                      (tri0, tri1 - tri0), NO_CHILD)
+    area = fill_image(slots, left, prim, node_lo, node_hi, node_area, tris, bn["child"],
+                      bn["box"], bn["parent"], bn["count"], tn["tri"], tn["prim"],
+                      (box0, box1 - box0), (tri0, tri1 - tri0), NO_CHILD)
     r = bn["box"][0, :bn["count"][0]].astype(np.float64)
     root_area = _half_area(r[:, :3].min(axis=0), r[:, 3:].max(axis=0))
     hist = np.bincount(bn["count"], minlength=5)[1:]
@@ -456,14 +456,16 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
             bar.update(len(tris))
         bar.set_postfix_str("collapse")
         pad = PAD_REL * float(max(-tris.min(), tris.max()))
-        node_box, node_area = bvh_build.stored_boxes(node_lo, node_hi, pad)
+        if collapse == "greedy":                            # from the exact boxes
+            greedy_area = _half_area(node_lo.astype(np.float64), node_hi)
+        node_area = bvh_build.grow_boxes(node_lo, node_hi, pad)      # in place: stored boxes
         if collapse == "sah":
             levels = bvh_build.collapse_sah(left, right, node_area)
         else:
-            levels = _collapse(left, right, _half_area(node_lo, node_hi))
-        del node_lo, node_hi
+            levels = _collapse(left, right, greedy_area)
         bar.set_postfix_str("image")
-        image, depth, sah, hist = _write_image(levels, left, prim, node_box, node_area, tris)
+        image, depth, sah, hist = _write_image(levels, left, prim, node_lo, node_hi, node_area,
+                                               tris)
     n_box = sum(len(s) for s in levels)
     stats = {"box_nodes": n_box, "tri_nodes": len(tris), "depth": depth, "sah_cost": sah,
              "fill": int(fill),

@@ -73,24 +73,28 @@ def _half_area(dx, dy, dz):
 
 @njit(cache=True)
 def _prim_boxes(tris):
-    """Primitive boxes (float32, exact) and box centroids (float64) of (n, 3, 3) triangles."""
+    """Primitive boxes (float32, exact) of (n, 3, 3) triangles. Their centroids are not stored
+    (``_cent``): the kernels move and read less memory without them."""
     n = tris.shape[0]
     lo = np.empty((n, 3), np.float32)
     hi = np.empty((n, 3), np.float32)
-    cent = np.empty((n, 3))
     for i in range(n):
         for a in range(3):
-            x0 = min(tris[i, 0, a], tris[i, 1, a], tris[i, 2, a])
-            x1 = max(tris[i, 0, a], tris[i, 1, a], tris[i, 2, a])
-            lo[i, a], hi[i, a] = x0, x1
-            cent[i, a] = 0.5 * (np.float64(x0) + np.float64(x1))
-    return lo, hi, cent
+            lo[i, a] = min(tris[i, 0, a], tris[i, 1, a], tris[i, 2, a])
+            hi[i, a] = max(tris[i, 0, a], tris[i, 1, a], tris[i, 2, a])
+    return lo, hi
+
+
+@njit(cache=True, inline="always")
+def _cent(lo, hi, p, a):
+    """Centroid of primitive p's box on axis a, float64 (exact: the numpy builder's value)."""
+    return 0.5 * (np.float64(lo[p, a]) + np.float64(hi[p, a]))
 
 
 @njit(cache=True)
-def _bounds(s, e, lo, hi, cent, box, cbox):
-    """Node box (float64, exact float32 values) into box[0:6] = (min xyz, max xyz), the
-    centroid bounds of primitives s:e into cbox[0:6]."""
+def _bounds(s, e, lo, hi, box, cbox):
+    """Node box (float32) into box[0:6] = (min xyz, max xyz), the centroid bounds (float64) of
+    primitives s:e into cbox[0:6]."""
     x0 = y0 = z0 = np.float32(np.inf)
     x1 = y1 = z1 = np.float32(-np.inf)
     cx0 = cy0 = cz0 = np.inf
@@ -98,8 +102,9 @@ def _bounds(s, e, lo, hi, cent, box, cbox):
     for p in range(s, e):                                  # scalars: kept in registers
         x0, y0, z0 = min(x0, lo[p, 0]), min(y0, lo[p, 1]), min(z0, lo[p, 2])
         x1, y1, z1 = max(x1, hi[p, 0]), max(y1, hi[p, 1]), max(z1, hi[p, 2])
-        cx0, cy0, cz0 = min(cx0, cent[p, 0]), min(cy0, cent[p, 1]), min(cz0, cent[p, 2])
-        cx1, cy1, cz1 = max(cx1, cent[p, 0]), max(cy1, cent[p, 1]), max(cz1, cent[p, 2])
+        c0, c1, c2 = _cent(lo, hi, p, 0), _cent(lo, hi, p, 1), _cent(lo, hi, p, 2)
+        cx0, cy0, cz0 = min(cx0, c0), min(cy0, c1), min(cz0, c2)
+        cx1, cy1, cz1 = max(cx1, c0), max(cy1, c1), max(cz1, c2)
     box[0], box[1], box[2], box[3], box[4], box[5] = x0, y0, z0, x1, y1, z1
     cbox[0], cbox[1], cbox[2], cbox[3], cbox[4], cbox[5] = cx0, cy0, cz0, cx1, cy1, cz1
 
@@ -120,7 +125,7 @@ def _fills(nl, cnt, fill):
 
 
 @njit(cache=True)
-def _small(nid, s, e, lo, hi, cent, fill, order, left, right, prim, node_box, lists, stk, a_r):
+def _small(nid, s, e, lo, hi, fill, order, left, right, prim, node_box, lists, stk, a_r):
     """Build the whole subtree of node ``nid``, of at most SWEEP_MAX primitives (s:e), boxes
     included. Nodes of 3 or more primitives take the exact SAH split: every split of the centroid
     order on each axis that ``_fills`` (ties: lowest position, then lowest axis; equal centroids
@@ -136,9 +141,9 @@ def _small(nid, s, e, lo, hi, cent, fill, order, left, right, prim, node_box, li
     for a in range(3):
         idx = lists[0, a]
         for r in range(cnt):                               # stable insertion sort by centroid
-            key = cent[s + r, a]
+            key = _cent(lo, hi, s + r, a)
             j = r
-            while j > 0 and cent[s + idx[j - 1], a] > key:
+            while j > 0 and _cent(lo, hi, s + idx[j - 1], a) > key:
                 idx[j] = idx[j - 1]
                 j -= 1
             idx[j] = r
@@ -205,7 +210,7 @@ def _small(nid, s, e, lo, hi, cent, fill, order, left, right, prim, node_box, li
 
 
 @njit(cache=True)
-def _binned(s, e, lo, hi, cent, cbox, bins, fill, go_right, count, tab, cost, a_r, n_r):
+def _binned(s, e, lo, hi, cbox, bins, fill, go_right, count, tab, cost, a_r, n_r):
     """Binned SAH over the centroid bounds cbox; fills go_right[s:e] and returns True, or
     returns False if no axis can split. A split that does not ``_fills`` moves the one or two
     primitives nearest the bin boundary (by centroid on the split axis) across it. Scratch
@@ -222,9 +227,9 @@ def _binned(s, e, lo, hi, cent, cbox, bins, fill, go_right, count, tab, cost, a_
     c0, c1, c2, s0, s1, s2 = cbox[0], cbox[1], cbox[2], scale[0], scale[1], scale[2]
     for p in range(s, e):                                  # one pass, all three axes
         l0, l1, l2, h0, h1, h2 = lo[p, 0], lo[p, 1], lo[p, 2], hi[p, 0], hi[p, 1], hi[p, 2]
-        k0 = min(max(int((cent[p, 0] - c0) * s0), 0), bins - 1)
-        k1 = min(max(int((cent[p, 1] - c1) * s1), 0), bins - 1)
-        k2 = min(max(int((cent[p, 2] - c2) * s2), 0), bins - 1)
+        k0 = min(max(int((0.5 * (np.float64(l0) + np.float64(h0)) - c0) * s0), 0), bins - 1)
+        k1 = min(max(int((0.5 * (np.float64(l1) + np.float64(h1)) - c1) * s1), 0), bins - 1)
+        k2 = min(max(int((0.5 * (np.float64(l2) + np.float64(h2)) - c2) * s2), 0), bins - 1)
         for a, k in ((0, k0), (1, k1), (2, k2)):
             count[a, k] += 1
             tab[a, k, 0] = min(tab[a, k, 0], l0)
@@ -264,22 +269,22 @@ def _binned(s, e, lo, hi, cent, cbox, bins, fill, go_right, count, tab, cost, a_
         return False
     nl = 0
     for j in range(s, e):
-        k = min(max(int((cent[j, ba] - cbox[ba]) * scale[ba]), 0), bins - 1)
+        k = min(max(int((_cent(lo, hi, j, ba) - cbox[ba]) * scale[ba]), 0), bins - 1)
         go_right[j] = k > bi
         nl += k <= bi
     want = _fillable_count(nl, e - s, fill)
     while nl < want:                                       # nearest right primitive goes left
         bj, bv = -1, np.inf
         for j in range(s, e):
-            if go_right[j] and cent[j, ba] < bv:
-                bj, bv = j, cent[j, ba]
+            if go_right[j] and _cent(lo, hi, j, ba) < bv:
+                bj, bv = j, _cent(lo, hi, j, ba)
         go_right[bj] = False
         nl += 1
     while nl > want:                                       # nearest left primitive goes right
         bj, bv = -1, -np.inf
         for j in range(s, e):
-            if not go_right[j] and cent[j, ba] >= bv:
-                bj, bv = j, cent[j, ba]
+            if not go_right[j] and _cent(lo, hi, j, ba) >= bv:
+                bj, bv = j, _cent(lo, hi, j, ba)
         go_right[bj] = True
         nl -= 1
     return True
@@ -301,8 +306,8 @@ def _move(dst, i, src, j):
 
 
 @njit(cache=True)
-def _partition(s, e, go_right, order, lo, hi, cent, t_order, t_lo, t_hi, t_cent):
-    """Stable partition of the primitives s:e (ids and their boxes and centroids move
+def _partition(s, e, go_right, order, lo, hi, t_order, t_lo, t_hi):
+    """Stable partition of the primitives s:e (ids and their boxes move
     together, so that every pass reads memory in order), lefts first; the t_* arrays are
     scratch of the same shapes. Returns the number of lefts."""
     nl = 0
@@ -315,17 +320,14 @@ def _partition(s, e, go_right, order, lo, hi, cent, t_order, t_lo, t_hi, t_cent)
             t_order[i] = order[j]
             _move(t_lo, i, lo, j)
             _move(t_hi, i, hi, j)
-            _move(t_cent, i, cent, j)
             continue
         order[i] = order[j]
         _move(lo, i, lo, j)
         _move(hi, i, hi, j)
-        _move(cent, i, cent, j)
     for j in range(s + nl, e):
         order[j] = t_order[j - nl]
         _move(lo, j, t_lo, j - nl)
         _move(hi, j, t_hi, j - nl)
-        _move(cent, j, t_cent, j - nl)
     return nl
 
 
@@ -339,23 +341,23 @@ def _scratch(bins):
 
 
 @njit(cache=True)
-def _split(nid, s, e, cbox, lo, hi, cent, bins, fill, order, tmp, go_right, left, right,
+def _split(nid, s, e, cbox, lo, hi, bins, fill, order, tmp, go_right, left, right,
            scratch):
     """Split node ``nid`` (primitives s:e, more than SWEEP_MAX; centroid bounds cbox) by binned
     SAH; returns the left count. Children are numbered in pre-order with contiguous subtrees:
     left = nid + 1, right = nid + 2 * (left count)."""
     cnt = e - s
-    ok = _binned(s, e, lo, hi, cent, cbox, bins, fill, go_right, scratch[0], scratch[1],
+    ok = _binned(s, e, lo, hi, cbox, bins, fill, go_right, scratch[0], scratch[1],
                  scratch[2], scratch[3], scratch[4])
     nl = _fillable_count(cnt // 2, cnt, fill)              # all centroids coincide: middle
     if ok:
-        nl = _partition(s, e, go_right, order, lo, hi, cent, tmp[0], tmp[1], tmp[2], tmp[3])
+        nl = _partition(s, e, go_right, order, lo, hi, tmp[0], tmp[1], tmp[2])
     left[nid], right[nid] = nid + 1, nid + 2 * nl
     return nl
 
 
 @njit(cache=True, nogil=True)
-def _subtree(nid, s, e, lo, hi, cent, bins, fill, order, tmp, go_right, left, right, prim,
+def _subtree(nid, s, e, lo, hi, bins, fill, order, tmp, go_right, left, right, prim,
              node_box):
     """Build the whole subtree of node ``nid`` (box not yet computed), depth first with a
     bounded stack (smaller child first: at most log2(n) + 2 entries)."""
@@ -368,11 +370,11 @@ def _subtree(nid, s, e, lo, hi, cent, bins, fill, order, tmp, go_right, left, ri
         sp -= 1
         nid, s, e = stack[sp, 0], stack[sp, 1], stack[sp, 2]
         if e - s <= SWEEP_MAX:
-            _small(nid, s, e, lo, hi, cent, fill, order, left, right, prim, node_box,
+            _small(nid, s, e, lo, hi, fill, order, left, right, prim, node_box,
                    scratch[5], scratch[6], scratch[7])
             continue
-        _bounds(s, e, lo, hi, cent, node_box[nid], cbox)
-        nl = _split(nid, s, e, cbox, lo, hi, cent, bins, fill, order, tmp, go_right, left,
+        _bounds(s, e, lo, hi, node_box[nid], cbox)
+        nl = _split(nid, s, e, cbox, lo, hi, bins, fill, order, tmp, go_right, left,
                     right, scratch)
         small_left = nl <= e - s - nl
         for first in (not small_left, small_left):         # larger first, smaller on top
@@ -384,12 +386,12 @@ def _subtree(nid, s, e, lo, hi, cent, bins, fill, order, tmp, go_right, left, ri
 
 
 @njit(cache=True, nogil=True)
-def _node(nid, s, e, lo, hi, cent, bins, fill, order, tmp, go_right, left, right, prim, node_box):
+def _node(nid, s, e, lo, hi, bins, fill, order, tmp, go_right, left, right, prim, node_box):
     """Compute the box of node ``nid`` (primitives s:e, more than SWEEP_MAX) and split it;
     returns the left count. The top of the tree is built node by node with it, in parallel."""
     cbox = np.empty(6)
-    _bounds(s, e, lo, hi, cent, node_box[nid], cbox)
-    return _split(nid, s, e, cbox, lo, hi, cent, bins, fill, order, tmp, go_right, left, right,
+    _bounds(s, e, lo, hi, node_box[nid], cbox)
+    return _split(nid, s, e, cbox, lo, hi, bins, fill, order, tmp, go_right, left, right,
                   _scratch(bins))
 
 
@@ -401,19 +403,19 @@ def build_binary(tris, bins: int, progress=None, fill: int = 0):
 
     Returns (left, right, prim, node_lo, node_hi) over 2n-1 nodes, node 0 the root, parents
     numbered before children (pre-order); left/right are -1 for a leaf, prim is -1 for an
-    interior node; node_lo/node_hi (2n-1, 3) float64 views of the node boxes."""
+    interior node; node_lo/node_hi (2n-1, 3) float32 views of the node boxes."""
     n = len(tris)
     m = 2 * n - 1
-    lo, hi, cent = _prim_boxes(tris)
+    lo, hi = _prim_boxes(tris)
     left = np.full(m, -1, np.int64)
     right = np.full(m, -1, np.int64)
     prim = np.full(m, -1, np.int64)
-    node_box = np.empty((m, 6))
+    node_box = np.empty((m, 6), np.float32)                 # float32 bounds are exact
     order = np.arange(n, dtype=np.int64)
-    tmp = (np.empty(n, np.int64), np.empty((n, 3), np.float32), np.empty((n, 3), np.float32),
-           np.empty((n, 3)))                                # partition scratch
+    tmp = (np.empty(n, np.int64), np.empty((n, 3), np.float32), np.empty((n, 3), np.float32))
+    #                                                         partition scratch
     go_right = np.zeros(n, np.bool_)
-    args = (lo, hi, cent, int(bins), int(fill), order, tmp, go_right, left, right, prim,
+    args = (lo, hi, int(bins), int(fill), order, tmp, go_right, left, right, prim,
             node_box)
     threads = min(os.cpu_count() or 1, 8) if n >= PARALLEL_MIN else 1
     if threads == 1:
@@ -448,10 +450,11 @@ def build_binary(tris, bins: int, progress=None, fill: int = 0):
 @njit(cache=True)
 def _dp(left, right, area):
     """Bottom-up D(n, k) table (see module docstring) and the choices: choice[n, k-1] = slots
-    given to the left child (0: D(n, k) = D(n, k - 1))."""
+    given to the left child (0: D(n, k) = D(n, k - 1)). k runs to WIDTH - 1 only: a child of a
+    split gets at most WIDTH - 1 slots (its sibling needs one)."""
     m = len(left)
-    d = np.empty((m, WIDTH))
-    choice = np.zeros((m, WIDTH), np.int8)
+    d = np.empty((m, WIDTH - 1))
+    choice = np.zeros((m, WIDTH - 1), np.int8)
     for n in range(m - 1, -1, -1):                         # children are numbered after parents
         l, r = left[n], right[n]
         if l < 0:
@@ -464,7 +467,7 @@ def _dp(left, right, area):
                 best, ba = c, a
         d[n, 0] = area[n] + best
         choice[n, 0] = ba
-        for k in range(2, WIDTH + 1):
+        for k in range(2, WIDTH):
             best, ba = d[n, k - 2], 0
             for a in range(1, k):
                 c = d[l, a - 1] + d[r, k - a - 1]
@@ -530,28 +533,27 @@ def collapse_sah(left, right, area):
 # memory image kernels (``driver.bvh4`` owns the layout; these only number nodes and copy rows)
 
 @njit(cache=True)
-def stored_boxes(lo, hi, pad):
-    """The stored (grown) float32 boxes (m, 6) of (m, 3) float64 bounds, and their half areas
-    (m,) float64: ``nextafter(float32(min - pad), -inf)``, ``nextafter(float32(max + pad),
-    +inf)`` (``driver.bvh4`` says why), areas from the grown float32 values in float64."""
+def grow_boxes(lo, hi, pad):
+    """Grow the (m, 3) node bounds in place into the stored boxes, ``nextafter(float32(min -
+    pad), -inf)`` and ``nextafter(float32(max + pad), +inf)`` (``driver.bvh4`` says why; float32
+    values, exact in either array dtype), and return their half areas (m,) float64."""
     m = lo.shape[0]
-    boxes = np.empty((m, 6), np.float32)
     area = np.empty(m)
     down, up = np.float32(-np.inf), np.float32(np.inf)
     for i in range(m):
         for a in range(3):
-            boxes[i, a] = np.nextafter(np.float32(lo[i, a] - pad), down)
-            boxes[i, 3 + a] = np.nextafter(np.float32(hi[i, a] + pad), up)
-        dx = boxes[i, 3] - np.float64(boxes[i, 0])
-        dy = boxes[i, 4] - np.float64(boxes[i, 1])
-        dz = boxes[i, 5] - np.float64(boxes[i, 2])
+            lo[i, a] = np.nextafter(np.float32(np.float64(lo[i, a]) - pad), down)
+            hi[i, a] = np.nextafter(np.float32(np.float64(hi[i, a]) + pad), up)
+        dx = np.float64(hi[i, 0]) - np.float64(lo[i, 0])
+        dy = np.float64(hi[i, 1]) - np.float64(lo[i, 1])
+        dz = np.float64(hi[i, 2]) - np.float64(lo[i, 2])
         area[i] = _half_area(dx, dy, dz)
-    return boxes, area
+    return area
 
 
 @njit(cache=True)
-def fill_image(slots, left, prim, node_box, node_area, tris, child, box, parent, count, tri,
-               tri_prim, box_ptr, tri_ptr, no_child):
+def fill_image(slots, left, prim, node_lo, node_hi, node_area, tris, child, box, parent, count,
+               tri, tri_prim, box_ptr, tri_ptr, no_child):
     """Number the wide tree's nodes and write them into the image's node fields; returns the
     sum of the used slots' areas (the SAH numerator).
 
@@ -577,8 +579,9 @@ def fill_image(slots, left, prim, node_box, node_area, tris, child, box, parent,
                 continue
             used += 1
             area += node_area[x]
-            for c in range(6):
-                box[r, j, c] = node_box[x, c]
+            for c in range(3):
+                box[r, j, c] = node_lo[x, c]
+                box[r, j, 3 + c] = node_hi[x, c]
             if left[x] >= 0:
                 nb += 1
                 child[r, j] = box_ptr[0] + nb * box_ptr[1]

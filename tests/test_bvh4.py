@@ -237,7 +237,7 @@ def _brute_force_collapse(left, right, area):
 def test_sah_collapse_is_optimal(n, seed):
     tris = meshes.soup(n, seed=seed)
     left, right, _, lo, hi = bvh_build.build_binary(tris, 16)
-    area = bvh_build.stored_boxes(lo, hi, 1e-3)[1]
+    area = bvh_build.grow_boxes(lo, hi, 1e-3)
     levels = bvh_build.collapse_sah(left, right, area)
     slots = np.concatenate(levels)
     dp = area[slots[slots >= 0]].sum()
@@ -341,23 +341,27 @@ def _axis_dirs():
 
 
 def test_stored_boxes_are_the_grown_float32_bounds():
-    """``stored_boxes`` is the module docstring's rule, ``nextafter(float32(min - pad), -inf)``
-    and ``nextafter(float32(max + pad), +inf)``, bit for bit (zeros, tiny, huge and overflowing
-    bounds included), with the half areas of the grown boxes."""
+    """``grow_boxes`` applies the module docstring's rule in place, ``nextafter(float32(min -
+    pad), -inf)`` and ``nextafter(float32(max + pad), +inf)``, bit for bit (zeros, tiny, huge and
+    overflowing bounds included), to float32 and float64 bounds alike, and returns the half
+    areas of the grown boxes."""
     rng = np.random.default_rng(8)
     lo = np.r_[rng.normal(0, 100, (500, 3)), [[0.0, -0.0, 1e-45], [3e38, -3e38, 1e39]]]
     hi = lo + np.r_[rng.uniform(0, 10, (500, 3)), np.zeros((2, 3))]
     with np.errstate(over="ignore"):
         lo32, hi32 = lo.astype(np.float32), hi.astype(np.float32)
     for pad in (0.0, 1e-3):
-        boxes, area = bvh_build.stored_boxes(lo32.astype(np.float64), hi32.astype(np.float64), pad)
         with np.errstate(over="ignore"):
             want_lo = np.nextafter((lo32 - pad).astype(np.float32), np.float32(-np.inf))
             want_hi = np.nextafter((hi32 + pad).astype(np.float32), np.float32(np.inf))
-        assert np.array_equal(boxes.view(np.uint32), np.c_[want_lo, want_hi].view(np.uint32))
         with np.errstate(invalid="ignore", over="ignore"):
             want_area = bvh4._half_area(want_lo.astype(np.float64), want_hi)
-        assert np.array_equal(area, want_area, equal_nan=True)
+        for dtype in (np.float32, np.float64):
+            glo, ghi = lo32.astype(dtype), hi32.astype(dtype)
+            area = bvh_build.grow_boxes(glo, ghi, pad)
+            assert np.array_equal(glo.astype(np.float32).view(np.uint32), want_lo.view(np.uint32))
+            assert np.array_equal(ghi.astype(np.float32).view(np.uint32), want_hi.view(np.uint32))
+            assert np.array_equal(area, want_area, equal_nan=True)
 
 
 def test_unused_slot_never_hit():
