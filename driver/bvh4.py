@@ -12,8 +12,9 @@ Build pipeline (madmann91/bvh and tinybvh style):
    ``builder="fast"`` (default), numba kernels in ``driver.bvh_build`` (depth first, with a
    progress bar), and ``builder="numpy"``, the vectorised reference here (``_build_binary``:
    all nodes of a tree level binned, scored and partitioned together; the whole build is
-   4-8x slower with it). ``fill`` > 0 (fast builder only) constrains the split counts of
-   small nodes so that their subtrees can become full 4-wide nodes (``driver.bvh_build``).
+   about 10x slower with it: docs/bvh.md). ``fill`` > 0 (fast builder only) constrains the
+   split counts of small nodes so that their subtrees can become full 4-wide nodes
+   (``driver.bvh_build``).
 3. Collapse to 4-wide: ``collapse="sah"`` (default) picks the binary nodes that become box nodes
    by the dynamic programme of Ylitie et al. 2017 that minimises the wide tree's SAH cost
    (``driver.bvh_build.collapse_sah``); ``collapse="greedy"`` (``_collapse``) starts each 4-wide
@@ -422,7 +423,7 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
 
     triangles_or_trimesh : (n, 3, 3) array-like (converted to float32) or a trimesh.Trimesh
     bins : SAH bins per axis (>= 2; default 16)
-    builder : "fast" (numba, default) or "numpy" (the reference; same tree, ~40x slower)
+    builder : "fast" (numba, default) or "numpy" (the reference; same tree, ~10x slower)
     collapse : "sah" (SAH-optimal, default) or "greedy" (the earlier collapse, for comparisons)
     fill : subtrees of at most ``fill`` triangles are split so that their 4-wide nodes can all
         be full (``driver.bvh_build``; fast builder only): fewer box nodes and bytes for a
@@ -480,7 +481,9 @@ def warm_up() -> float:
     process) the fast builder's kernels by building a tiny mesh; returns the seconds it took.
     Benchmarks call it so that a build time is the build's, as they build the Verilated model
     before timing the simulation."""
+    from .bvh_build import build_binary
     t0 = time.perf_counter()
-    rng = np.random.default_rng(0)
-    build(rng.random((64, 3, 3)).astype(np.float32), progress=False)
+    tris = np.random.default_rng(0).random((64, 3, 3)).astype(np.float32)
+    build(tris, progress=False)
+    build_binary(tris, 16, threads=2)               # the threaded path's kernel (_node) too
     return time.perf_counter() - t0

@@ -395,11 +395,12 @@ def _node(nid, s, e, lo, hi, bins, fill, order, tmp, go_right, left, right, prim
                   _scratch(bins))
 
 
-def build_binary(tris, bins: int, progress=None, fill: int = 0):
+def build_binary(tris, bins: int, progress=None, fill: int = 0, threads: int | None = None):
     """Binary BVH with one triangle per leaf. tris : (n, 3, 3) float32; progress : a tqdm-like
     object (``update(triangles)``) or None; fill : split every node of at most ``fill``
     primitives so that its subtree can be collapsed into full 4-wide nodes (0: never; module
-    docstring).
+    docstring); threads : None = the machine's cores (at most 8) from ``PARALLEL_MIN``
+    triangles, else one (``driver.bvh4.warm_up`` forces 2 to load every kernel).
 
     Returns (left, right, prim, node_lo, node_hi) over 2n-1 nodes, node 0 the root, parents
     numbered before children (pre-order); left/right are -1 for a leaf, prim is -1 for an
@@ -417,7 +418,8 @@ def build_binary(tris, bins: int, progress=None, fill: int = 0):
     go_right = np.zeros(n, np.bool_)
     args = (lo, hi, int(bins), int(fill), order, tmp, go_right, left, right, prim,
             node_box)
-    threads = min(os.cpu_count() or 1, 8) if n >= PARALLEL_MIN else 1
+    if threads is None:
+        threads = min(os.cpu_count() or 1, 8) if n >= PARALLEL_MIN else 1
     if threads == 1:
         _subtree(0, 0, n, *args)
         if progress is not None:

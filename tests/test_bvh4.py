@@ -258,6 +258,9 @@ def test_threaded_build_is_deterministic(monkeypatch):
     monkeypatch.setattr(bvh_build, "PARALLEL_MIN", 100)
     threaded = build(tris)
     assert np.array_equal(one.image, threaded.image)
+    for a, b in zip(bvh_build.build_binary(tris, 16, threads=1),
+                    bvh_build.build_binary(tris, 16, threads=3)):
+        assert np.array_equal(a, b)
 
 
 def test_single_triangle_has_a_root_box():
