@@ -86,9 +86,28 @@ def _prim_boxes(tris):
 
 
 @njit(cache=True, inline="always")
+def _mid(l, h):
+    """Centroid of a float32 interval, float64 (exact: the numpy builder's value)."""
+    return 0.5 * (np.float64(l) + np.float64(h))
+
+
+@njit(cache=True, inline="always")
 def _cent(lo, hi, p, a):
-    """Centroid of primitive p's box on axis a, float64 (exact: the numpy builder's value)."""
-    return 0.5 * (np.float64(lo[p, a]) + np.float64(hi[p, a]))
+    """Centroid of primitive p's box on axis a."""
+    return _mid(lo[p, a], hi[p, a])
+
+
+@njit(cache=True, inline="always")
+def _scale(cbox, a, bins):
+    """Bins per unit of centroid extent on axis a (0 for a flat extent: every centroid in bin 0)."""
+    ext = cbox[3 + a] - cbox[a]
+    return bins / ext if ext > 0 else 0.0
+
+
+@njit(cache=True, inline="always")
+def _bin(c, c0, scale, bins):
+    """The bin of centroid c over bounds starting at c0."""
+    return min(max(int((c - c0) * scale), 0), bins - 1)
 
 
 @njit(cache=True)
@@ -216,20 +235,16 @@ def _binned(s, e, lo, hi, cbox, bins, fill, go_right, count, tab, cost, a_r, n_r
     primitives nearest the bin boundary (by centroid on the split axis) across it. Scratch
     (``_scratch``): count (3, bins) int64, tab (3, bins, 6) float32 (bin bounds: min xyz, max
     xyz), cost (bins - 1, 3), a_r/n_r (bins,)."""
-    scale = np.zeros(3)
-    for a in range(3):
-        ext = cbox[3 + a] - cbox[a]
-        if ext > 0:
-            scale[a] = bins / ext
     count[:] = 0
     tab[:, :, :3] = np.inf
     tab[:, :, 3:] = -np.inf
-    c0, c1, c2, s0, s1, s2 = cbox[0], cbox[1], cbox[2], scale[0], scale[1], scale[2]
+    c0, c1, c2 = cbox[0], cbox[1], cbox[2]
+    s0, s1, s2 = _scale(cbox, 0, bins), _scale(cbox, 1, bins), _scale(cbox, 2, bins)
     for p in range(s, e):                                  # one pass, all three axes
         l0, l1, l2, h0, h1, h2 = lo[p, 0], lo[p, 1], lo[p, 2], hi[p, 0], hi[p, 1], hi[p, 2]
-        k0 = min(max(int((0.5 * (np.float64(l0) + np.float64(h0)) - c0) * s0), 0), bins - 1)
-        k1 = min(max(int((0.5 * (np.float64(l1) + np.float64(h1)) - c1) * s1), 0), bins - 1)
-        k2 = min(max(int((0.5 * (np.float64(l2) + np.float64(h2)) - c2) * s2), 0), bins - 1)
+        k0 = _bin(_mid(l0, h0), c0, s0, bins)
+        k1 = _bin(_mid(l1, h1), c1, s1, bins)
+        k2 = _bin(_mid(l2, h2), c2, s2, bins)
         for a, k in ((0, k0), (1, k1), (2, k2)):
             count[a, k] += 1
             tab[a, k, 0] = min(tab[a, k, 0], l0)
@@ -267,9 +282,9 @@ def _binned(s, e, lo, hi, cbox, bins, fill, go_right, count, tab, cost, a_r, n_r
                 best, bi, ba = cost[i, a], i, a
     if not np.isfinite(best):
         return False
-    nl = 0
+    nl, sa = 0, _scale(cbox, ba, bins)
     for j in range(s, e):
-        k = min(max(int((_cent(lo, hi, j, ba) - cbox[ba]) * scale[ba]), 0), bins - 1)
+        k = _bin(_cent(lo, hi, j, ba), cbox[ba], sa, bins)
         go_right[j] = k > bi
         nl += k <= bi
     want = _fillable_count(nl, e - s, fill)
@@ -420,14 +435,9 @@ def build_binary(tris, bins: int, progress=None, fill: int = 0, threads: int | N
             node_box)
     if threads is None:
         threads = min(os.cpu_count() or 1, 8) if n >= PARALLEL_MIN else 1
-    if threads == 1:
-        _subtree(0, 0, n, *args)
-        if progress is not None:
-            progress.update(n)
-        return left, right, prim, node_box[:, :3], node_box[:, 3:]
     # nodes of more than `grain` primitives are split one task each (both children become tasks:
     # after the root, all threads are busy); smaller ones are whole depth-first subtree tasks
-    grain = max(SWEEP_MAX, n // (8 * threads))
+    grain = max(SWEEP_MAX, n // (8 * threads)) if threads > 1 else n
 
     def task(nid, s, e):
         if e - s > grain:
