@@ -75,6 +75,7 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
     tree = dict(fill=fill, cull_stack=cull_stack)
     frame, res, bvh, rep = _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines,
                                   f"{w}x{h}", progress, **tree)
+    sided = scene.double_sided
     rec = res.record
     mem = _memory_frame(rec, rays_in_flight, pipelines, memory) if memory else None
     rtl_runs = [res.stats["sim_cycles_per_s"]]
@@ -83,13 +84,14 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
     rtl_cps = max(rtl_runs)
 
     # ---- Embree: rays per second and the cross-check of every hit ---------------------------
-    from .check import compare, embree_closest_front, embree_json
+    from .check import compare, embree_closest, embree_json
     tri = scene.triangles
     t_emb_build, t_emb = _embree_rate(tri, origins, dirs)
-    emb_t, emb_prim = embree_closest_front(tri, origins, dirs)
+    emb_t, emb_prim = embree_closest(tri, origins, dirs, sided)
     frame["embree"] = embree_json(compare(res.t, res.prim, emb_t, emb_prim, tri, origins, dirs))
 
-    t_gold, golden_same = _golden(bvh, origins, dirs, res, f"{w}x{h}", progress, cull_stack)
+    t_gold, golden_same = _golden(bvh, origins, dirs, res, f"{w}x{h}", progress, cull_stack,
+                                  sided)
 
     # ---- pyverilator on a short stream of the frame's requests --------------------------------
     pyv = None
@@ -101,7 +103,7 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
     sweep = None
     if sweep_size:
         sweep = _sweep(scene, bvh, rtl, min(int(sweep_size), w, h), sweep_rays, sweep_pipelines,
-                       rep, plot, progress, cull_stack)
+                       rep, plot, progress, cull_stack, sided)
 
     doc = {
         "scene": scene.name,
@@ -146,7 +148,7 @@ def _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines, label, progress
     bar = _bar(len(origins), f"frame {label} rtl", "ray", progress)
     t1 = time.perf_counter()
     res = trace(bvh, origins, dirs, backend=rtl, record=True, progress=bar.hook,
-                cull_stack=cull_stack)
+                cull_stack=cull_stack, double_sided=scene.double_sided)
     t_trace = time.perf_counter() - t1
     bar.close()
     bar = _bar(1, f"RT-unit replay R={rays_in_flight} P={pipelines}", "run", progress)
@@ -174,12 +176,13 @@ def _memory_frame(rec, rays_in_flight, pipelines, memory) -> dict:
             "responses_verified": rep.verified}
 
 
-def _golden(bvh, origins, dirs, res, label, progress, cull_stack=False):
+def _golden(bvh, origins, dirs, res, label, progress, cull_stack=False, double_sided=False):
     """The whole frame on the numpy model: (wall seconds, hits equal to the RTL's)."""
     from .tracer import trace
     bar = _bar(len(origins), f"frame {label} golden", "ray", progress)
     t0 = time.perf_counter()
-    gold = trace(bvh, origins, dirs, backend="golden", progress=bar.hook, cull_stack=cull_stack)
+    gold = trace(bvh, origins, dirs, backend="golden", progress=bar.hook, cull_stack=cull_stack,
+                 double_sided=double_sided)
     t_gold = time.perf_counter() - t0
     bar.close()
     same = bool(np.array_equal(gold.t.view(np.uint32), res.t.view(np.uint32))
@@ -188,12 +191,13 @@ def _golden(bvh, origins, dirs, res, label, progress, cull_stack=False):
 
 
 def _sweep(scene, bvh, rtl, ss, sweep_rays, sweep_pipelines, rep, plot, progress,
-           cull_stack=False) -> dict:
+           cull_stack=False, double_sided=False) -> dict:
     """The RT-unit sweep on a smaller frame (ss x ss) of the same view, and its plot."""
     from .camera import primary_rays
     from .tracer import trace
     so, sd = primary_rays(scene.camera, ss, ss)
-    srec = trace(bvh, so, sd, backend=rtl, record=True, cull_stack=cull_stack).record
+    srec = trace(bvh, so, sd, backend=rtl, record=True, cull_stack=cull_stack,
+                 double_sided=double_sided).record
     pairs = len(sweep_rays) * len(sweep_pipelines)
     bar = _bar(pairs, f"RT-unit sweep {ss}x{ss}", "point", progress)
     t0 = time.perf_counter()

@@ -133,10 +133,11 @@ def embree_json(result: dict) -> dict:
     return {k: result[k] for k in SPEC_KEYS + ("agree",)}
 
 
-def check(triangles, origins, dirs, our_t, our_prim) -> dict:
-    """Run Embree on the same rays and ``compare``; the result also holds Embree's own
+def check(triangles, origins, dirs, our_t, our_prim, double_sided: bool = False) -> dict:
+    """Run Embree on the same rays (any face when ``double_sided``, as the frame was traced with
+    NO_CULL; else front faces only) and ``compare``; the result also holds Embree's own
     ``embree_t`` and ``embree_prim`` arrays for debugging."""
-    emb_t, emb_prim = embree_closest_front(triangles, origins, dirs)
+    emb_t, emb_prim = embree_closest(triangles, origins, dirs, double_sided)
     result = compare(our_t, our_prim, emb_t, emb_prim, triangles, origins, dirs)
     result.update(embree_t=emb_t, embree_prim=emb_prim)
     return result

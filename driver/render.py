@@ -162,7 +162,8 @@ def _render_whole(scene, w, h, backend, progress, check_embree, fill=0,
     name = backend if isinstance(backend, str) else getattr(backend, "name", "backend")
     bar = progress_bar(len(origins), f"{scene.name} {w}x{h} {name}", "ray", progress)
     try:
-        result = trace(bvh, origins, dirs, backend=be, progress=bar.hook, cull_stack=cull_stack)
+        result = trace(bvh, origins, dirs, backend=be, progress=bar.hook, cull_stack=cull_stack,
+                       double_sided=scene.double_sided)
     finally:
         bar.close()
 
@@ -175,7 +176,7 @@ def _render_whole(scene, w, h, backend, progress, check_embree, fill=0,
     if check_embree:
         from .check import check, embree_json
         with phase(f"Embree check of {len(origins):,} rays", progress):
-            emb = check(tri, origins, dirs, result.t, result.prim)
+            emb = check(tri, origins, dirs, result.t, result.prim, scene.double_sided)
         stats["embree"] = embree_json(emb)
     return RenderResult(scene, w, h, image, ops.reshape(h, w), result, stats, emb, bvh_stats)
 

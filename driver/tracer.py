@@ -64,7 +64,7 @@ def as_bvh(scene) -> BVH4:
 
 def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np.inf,
           progress=None, rays_in_flight=None, pipelines=1, turnaround=None, record=False,
-          any_hit=False, double_sided=False, cull_stack=False) -> TraceResult:
+          any_hit=False, double_sided=None, cull_stack=False) -> TraceResult:
     """Trace rays with every box and triangle test run on ``backend``.
 
     scene_or_mesh_or_bvh : BVH4, trimesh mesh, (n, 3, 3) triangles, or a scene name/path
@@ -74,7 +74,9 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
     extent : scalar or (n,): only hits with t < extent are reported
     any_hit : occlusion rays (SPEC 9): a ray ends at its first accepted triangle (``hit``,
         ``prim``, ``t`` of that triangle); otherwise the closest hit
-    double_sided : set ``NO_CULL`` on every ray (SPEC 3, 5): triangles are hit from both sides
+    double_sided : set ``NO_CULL`` on every ray (docs/datapath.md): triangles are hit from both
+        sides. None (default): the scene's own setting when ``scene_or_mesh_or_bvh`` is a scene
+        (a name, a path or a ``driver.scene.Scene``), else False
     cull_stack : keep each stack entry's entry distance (the response's ``box_tmin``) and drop
         a popped box node that lies beyond the nearest hit without a request (beyond SPEC 9,
         off by default; ``driver.traversal``): the same hits with fewer box requests; the
@@ -92,6 +94,12 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
     record : keep the ``driver.rtunit.Record`` of every request (for ``rtunit.replay``/sweeps)
         in ``TraceResult.record`` (always kept when ``rays_in_flight`` is given).
     """
+    if isinstance(scene_or_mesh_or_bvh, (str, bytes)) or hasattr(scene_or_mesh_or_bvh,
+                                                                 "__fspath__"):
+        from .scene import load_scene                      # the application layer; lazy
+        scene_or_mesh_or_bvh = load_scene(scene_or_mesh_or_bvh)
+    if double_sided is None:
+        double_sided = bool(getattr(scene_or_mesh_or_bvh, "double_sided", False))
     bvh = as_bvh(scene_or_mesh_or_bvh)
     be, be_name = resolve(backend)
     rays = prepare_rays(origins, directions, extent,
