@@ -62,8 +62,8 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
     node memory of the ``memory`` object's replay (None: no such object); ``fill`` (BVH build)
     and ``cull_stack`` (traversal) apply to every trace of the run."""
     from .backends import backend
-    from .camera import check_size, primary_rays
-    from .scene import load_scene
+    from .scenes.camera import check_size, primary_rays
+    from .scenes.scene import load_scene
 
     scene = load_scene(scene_name)
     w, h = scene.size if size is None else (size, size)
@@ -193,7 +193,7 @@ def _golden(bvh, origins, dirs, res, label, progress, cull_stack=False, double_s
 def _sweep(scene, bvh, rtl, ss, sweep_rays, sweep_pipelines, rep, plot, progress,
            cull_stack=False, double_sided=False) -> dict:
     """The RT-unit sweep on a smaller frame (ss x ss) of the same view, and its plot."""
-    from .camera import primary_rays
+    from .scenes.camera import primary_rays
     from .tracer import trace
     so, sd = primary_rays(scene.camera, ss, ss)
     srec = trace(bvh, so, sd, backend=rtl, record=True, cull_stack=cull_stack,
@@ -379,7 +379,7 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
     from . import workloads
     from .backends import backend
     from .bvh4 import build
-    from .scene import load_scene
+    from .scenes.scene import load_scene
     from .tracer import trace
 
     scene = load_scene(scene_name)
@@ -506,7 +506,7 @@ def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, ti
     from .backends.build import build_harness, rtl_params
     from .bvh4 import build
     from .datapath import LATENCY
-    from .scene import load_scene
+    from .scenes.scene import load_scene
     from .tiles import plan, render_tiles
     from .workloads import setup_for
 

@@ -76,7 +76,7 @@ from .layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, NO_CHILD, TRI_BYTES, TRI_NOD
                      TRI_TYPE, NodeRef, read_nodes)
 
 PAD_REL = 2.0 ** -16
-from .bvh_params import SWEEP_MAX  # noqa: E402  (nodes of <= 8 primitives: exact SAH sweep)
+from .bvh.params import SWEEP_MAX  # noqa: E402  (nodes of <= 8 primitives: exact SAH sweep)
 
 
 class BVH4:
@@ -390,7 +390,7 @@ def _write_image(levels, left, prim, node_lo, node_hi, node_area, tris):
     """Number nodes, fill the byte image (``driver.bvh_build.fill_image``). node_lo/node_hi/
     node_area: the stored boxes of the binary nodes (``driver.bvh_build.grow_boxes``). Returns
     (image, depth, sah_cost, child histogram)."""
-    from .bvh_build import fill_image
+    from .bvh.build import fill_image
     n_box = sum(len(s) for s in levels)
     n_tri = len(tris)
     total = BOX_BYTES * n_box + TRI_BYTES * n_tri
@@ -445,7 +445,7 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
     tris = as_triangles(triangles_or_trimesh)
     from tqdm import tqdm
 
-    from . import bvh_build
+    from .bvh import build as bvh_build
     show = None if progress is None and len(tris) >= PROGRESS_MIN else bool(progress)
     with tqdm(total=len(tris), desc="BVH build", unit="tri", unit_scale=True, leave=False,
               disable=None if show is None else not show) as bar:
@@ -481,7 +481,7 @@ def warm_up() -> float:
     process) the fast builder's kernels by building a tiny mesh; returns the seconds it took.
     Benchmarks call it so that a build time is the build's, as they build the Verilated model
     before timing the simulation."""
-    from .bvh_build import build_binary
+    from .bvh.build import build_binary
     t0 = time.perf_counter()
     tris = np.random.default_rng(0).random((64, 3, 3)).astype(np.float32)
     build(tris, progress=False)

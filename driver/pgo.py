@@ -25,10 +25,10 @@ import trimesh
 from .backends.golden import GoldenBackend
 from .backends.harness import HarnessBackend, use_library
 from .bvh4 import build
-from .camera import frame, primary_rays
+from .scenes.camera import frame, primary_rays
 from .datapath import ANGULAR, EUCLIDEAN
 from .knn import LANES, pad, run_jobs
-from .scene import load_scene
+from .scenes.scene import load_scene
 from .tracer import trace
 
 # (mesh, image size): a convex object from outside, a closed room from inside

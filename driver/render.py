@@ -20,13 +20,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .backends import resolve
-from .camera import check_size, primary_rays
+from .scenes.camera import check_size, primary_rays
 from .tiles import DEFAULT_TILE
 from .errors import RayflexError
 from .outputs import save_image
 from .progress import bar as progress_bar
 from .progress import phase
-from .scene import Scene, load_scene
+from .scenes.scene import Scene, load_scene
 
 # Peak resident memory of a frame, measured with /usr/bin/time -v (maximum RSS) on the sphere
 # scene at 256², 512² and 1024² (--check-embree makes no difference): golden 167 / 403 / 1,294 MB,

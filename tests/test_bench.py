@@ -125,8 +125,8 @@ def test_default_frame_utilization():
     """The default 256 x 256 bunny frame on "rtl" with the default ray pool keeps the datapath
     >= 98 % busy, and the replay reproduces every response."""
     from driver import rtunit
-    from driver.camera import primary_rays
-    from driver.scene import load_scene
+    from driver.scenes.camera import primary_rays
+    from driver.scenes.scene import load_scene
     from driver.tracer import trace
     scene = load_scene("bunny")
     o, d = primary_rays(scene.camera, 256, 256)

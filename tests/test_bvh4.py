@@ -5,7 +5,8 @@ import pytest
 
 from support import meshes
 from driver import QUADBOX, TRIANGLE, backend, prepare_rays
-from driver import bvh4, bvh_build
+from driver import bvh4
+from driver.bvh import build as bvh_build
 from driver.bvh4 import BOX_BYTES, BOX_TYPE, NO_CHILD, TRI_BYTES, TRI_TYPE, build
 
 
@@ -423,7 +424,7 @@ def test_boxes_conservative_on_the_datapath(name, dist):
 # ---- benchmark helpers -----------------------------------------------------------------------
 
 def test_instanced_bunnies():
-    from driver.bvh_bench import BUNNY_TRIANGLES, instanced_bunnies
+    from driver.bvh.bench import BUNNY_TRIANGLES, instanced_bunnies
     x = instanced_bunnies(2, seed=1)
     assert x.shape == (2 * BUNNY_TRIANGLES, 3, 3) and x.dtype == np.float32
     assert np.array_equal(x, instanced_bunnies(2, seed=1))
@@ -436,7 +437,7 @@ def test_instanced_bunnies():
 
 
 def test_bvh_bench_dict(tmp_path):
-    from driver.bvh_bench import BUNNY_TRIANGLES, bvh_bench
+    from driver.bvh.bench import BUNNY_TRIANGLES, bvh_bench
     r = bvh_bench(counts=(0,), size=32, progress=False, fills=(0, 1 << 30),
                   plot=tmp_path / "fills.png")
     (b,) = r["builds"]

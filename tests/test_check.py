@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 import driver
-from driver.camera import primary_rays
+from driver.scenes.camera import primary_rays
 from driver.check import (SPEC_KEYS, compare, embree_closest_front, embree_json,
                           point_triangle_distance)
 from driver.datapath import TRIANGLE, prepare_rays
-from driver.scene import load_scene
+from driver.scenes.scene import load_scene
 
 F32 = np.float32
 FRONT = [[1, -1, -1], [0, 1, -1], [-1, -1, -1]]          # SPEC 11: faces +z, seen from above

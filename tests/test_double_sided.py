@@ -11,10 +11,10 @@ import trimesh
 
 import driver
 from driver.bench import bench
-from driver.camera import Camera, primary_rays
+from driver.scenes.camera import Camera, primary_rays
 from driver.check import embree_closest
 from driver.render import render
-from driver.scene import Scene
+from driver.scenes.scene import Scene
 
 SIZE = 24
 

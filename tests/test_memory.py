@@ -11,8 +11,8 @@ from driver import rtunit
 from driver.backends.build import rtl_params
 from driver.backends.harness import memory_trace
 from driver.bvh4 import build
-from driver.camera import primary_rays
-from driver.scene import load_scene
+from driver.scenes.camera import primary_rays
+from driver.scenes.scene import load_scene
 from driver.tracer import trace
 
 PARAMS = rtl_params(False, False, 11)

@@ -82,9 +82,9 @@ def test_profile_guided_library_is_bit_exact(monkeypatch):
     """The default (profile-guided) "rtl" build, the one `rayflex` uses (the rest of the suite
     builds without PGO), against golden on requests of a scene the training did not see (the
     soup of random triangles), the directed cases and random corner-case requests."""
-    from driver.camera import frame, primary_rays
+    from driver.scenes.camera import frame, primary_rays
     from driver.backends.golden import GoldenBackend
-    from driver.scene import builtin
+    from driver.scenes.scene import builtin
     from driver.tracer import trace
     from support.cases import all_requests
     from support.streams import mixed_stream

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from driver.camera import primary_rays
+from driver.scenes.camera import primary_rays
 from driver.outputs import save_image
 from driver.workloads import BG_BOTTOM, BG_TOP
 from driver.render import (PEAK_BYTES_PER_RAY, RenderResult, check_memory, check_memory_tiled,
                            estimate_bytes, heatmap, render, shade)
-from driver.scene import load_scene
+from driver.scenes.scene import load_scene
 
 SPEC10 = ("rays", "hits", "box_ops", "tri_ops", "ops", "cycles", "utilization", "latency_cycles",
           "box_ops_per_ray", "tri_ops_per_ray", "node_bytes_fetched", "sim_wall_s",

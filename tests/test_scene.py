@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from driver.camera import Camera, check_size, primary_rays
+from driver.scenes.camera import Camera, check_size, primary_rays
 from driver.errors import CameraError, SceneError
-from driver.scene import (BUILTINS, SCENES_DIR, Scene, available, load, load_scene, resolve,
+from driver.scenes.scene import (BUILTINS, SCENES_DIR, Scene, available, load, load_scene, resolve,
                           scene_name)
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from driver import tiles, workloads
 from driver.bvh4 import build
-from driver.scene import load_scene
+from driver.scenes.scene import load_scene
 
 OPTS = dict(spp=2, bounces=2, seed=5)
 SAME = ("rays", "hits", "box_ops", "tri_ops", "ops", "node_bytes_fetched")

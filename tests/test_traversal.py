@@ -213,9 +213,9 @@ def test_inputs_and_names(monkeypatch):
     import trimesh
     mesh = trimesh.Trimesh(tris.reshape(-1, 3), np.arange(3 * len(tris)).reshape(-1, 3),
                            process=False)
-    fake = types.ModuleType("driver.scene")
+    fake = types.ModuleType("driver.scenes.scene")
     fake.load = lambda name: mesh if name == "ball" else None
-    monkeypatch.setitem(sys.modules, "driver.scene", fake)
+    monkeypatch.setitem(sys.modules, "driver.scenes.scene", fake)
     for scene in (tris, mesh, "ball"):
         res = trace(scene, o, d, backend="golden")
         assert np.array_equal(res.t, ref.t) and np.array_equal(res.prim, ref.prim)

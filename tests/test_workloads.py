@@ -4,10 +4,11 @@ traversal, per-type statistics, tiles equal to the whole frame, golden == rtl, E
 import numpy as np
 import pytest
 
-from driver import sampling, workloads
+from driver import workloads
+from driver.scenes import sampling
 from driver.backends import backend
 from driver.bvh4 import build
-from driver.scene import load_scene
+from driver.scenes.scene import load_scene
 from driver.tracer import trace
 from support.recording import RecordingBackend
 

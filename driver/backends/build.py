@@ -21,9 +21,10 @@ from .. import layout, verilate
 from ..datapath import LATENCY
 from .base import BackendError
 
-ROOT = Path(__file__).resolve().parent.parent.parent
-RTL_DIR = ROOT / "rtl"
-SIM_DIR = ROOT / "sim"
+PACKAGE = Path(__file__).resolve().parent.parent       # the driver package
+ROOT = PACKAGE.parent                                    # the directory that holds it
+RTL_DIR = PACKAGE / "rtl"
+SIM_DIR = PACKAGE / "sim"
 TOP = "rayflex"
 SOURCE_LIST = RTL_DIR / "sources.txt"
 LINT_WAIVERS = "lint.vlt"

@@ -115,7 +115,7 @@ def run(args) -> int:
 
     with outs.commit():
         if args.bvh:
-            from ..bvh_bench import bvh_bench
+            from ..bvh.bench import bvh_bench
             doc = bvh_bench(progress=not args.no_progress, plot=outs.temp(plot))
             doc["quality"]["fills"]["plot"] = str(plot)
             if js:

@@ -114,7 +114,7 @@ def add_progress(p) -> None:
 
 def check_flag_size(flag: str, value) -> None:
     """A --size/--width/--height value: None (not given) or 1..MAX_SIZE."""
-    from ..camera import MAX_SIZE
+    from ..scenes.camera import MAX_SIZE
     if value is not None and not 1 <= value <= MAX_SIZE:
         raise ValueError(f"{flag} must be in 1..{MAX_SIZE}, got {value}")
 

@@ -45,12 +45,12 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
-    from ..camera import check_size
+    from ..scenes.camera import check_size
     from ..outputs import IMAGE, JSON, Outputs, write_json
     from ..progress import phase
     from ..backends import resolve as resolve_backend
     from ..render import check_frame_memory, plan_tile, render
-    from ..scene import load_scene, resolve, scene_name
+    from ..scenes.scene import load_scene, resolve, scene_name
 
     if args.size is not None and (args.width is not None or args.height is not None):
         raise ValueError("give either --size or --width/--height, not both")

@@ -43,7 +43,7 @@ DEFAULT_OPS = 100
 
 
 def configs() -> dict[str, tuple[int, int]]:
-    """Configuration name -> (EXTENDED, DISJOINT), the table of tools/area.py."""
+    """Configuration name -> (EXTENDED, DISJOINT), the table of driver/area.py."""
     return dict(_area().CONFIGS)
 
 

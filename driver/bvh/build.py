@@ -59,7 +59,7 @@ from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 import numpy as np
 from numba import njit
 
-from .bvh_params import SWEEP_MAX
+from .params import SWEEP_MAX
 
 WIDTH = 4              # children per wide node
 PARALLEL_MIN = 50_000   # from this many triangles, subtrees are built on several threads

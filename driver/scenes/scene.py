@@ -5,12 +5,12 @@ materials, lights, double-sidedness and an AO radius.
 A name or path is resolved in this order (``resolve``):
 
 1. a *bare name* (no directory part, no extension, e.g. ``bunny``) that names a scene description
-   in the repository's ``scenes/`` directory (``NAME.toml``) or a built-in mesh is that scene,
+   in the package's ``driver/scenes/data/`` directory (``NAME.toml``) or a built-in mesh is that scene,
    even if a file or folder of that name exists in the current directory (a note on stderr then
    says which one was used; write ``./bunny`` for the file);
 2. an existing file: a ``.toml`` scene description, or any mesh trimesh reads (PLY, OBJ, STL, OFF,
    GLB, ...; multi-part files are concatenated into one mesh);
-3. ``NAME.toml`` in ``scenes/``; a built-in mesh: ``bunny`` (Stanford bunny shipped with
+3. ``NAME.toml`` in ``driver/scenes/data/``; a built-in mesh: ``bunny`` (Stanford bunny shipped with
    pymeshfix), and the procedural ``sphere``, ``room`` (a closed box room seen from inside) and
    ``soup`` (seeded random triangles). Built-ins without a TOML get a camera framed from the mesh
    bounds. Rendering built-ins with materials and lights (``driver.builtins``): ``cornell`` (the
@@ -65,9 +65,9 @@ import numpy as np
 import trimesh
 
 from .camera import Camera, check_size, fmt_vec, frame
-from .errors import CameraError, SceneError
+from ..errors import CameraError, SceneError
 
-SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
+SCENES_DIR = Path(__file__).resolve().parent / "data"
 BUILTINS = ("bunny", "room", "soup", "sphere")
 RENDER_BUILTINS = ("cornell", "bunny_floor", "bunny_grid")   # with materials and lights
 DEFAULT_SIZE = 256
@@ -134,7 +134,7 @@ def load_scene(name_or_path) -> Scene:
 
 def _rendering_builtin(name: str) -> Scene:
     from .builtins import BUILT
-    from .workloads import Materials
+    from ..workloads import Materials
     b = BUILT[name](lambda: triangles(builtin("bunny")))
     mesh = _mesh(b.triangles.reshape(-1, 3), np.arange(3 * len(b.triangles)).reshape(-1, 3), name)
     return Scene(mesh, Camera(**b.camera).validate(), (DEFAULT_SIZE, DEFAULT_SIZE), name,
@@ -183,7 +183,7 @@ def scene_name(name_or_path) -> str:
 
 
 def available() -> list[str]:
-    """Names accepted besides paths: TOML scenes in scenes/ and built-in meshes."""
+    """Names accepted besides paths: TOML scenes in driver/scenes/data/ and built-in meshes."""
     tomls = sorted(p.stem for p in SCENES_DIR.glob("*.toml")) if SCENES_DIR.is_dir() else []
     return sorted(set(tomls) | set(BUILTINS) | set(RENDER_BUILTINS))
 
@@ -387,7 +387,7 @@ def _from_toml(path: Path) -> Scene:
 
 def _lights(path: Path, specs) -> list:
     """Workload lights from the TOML's [[lights]] tables."""
-    from .workloads import PointLight, QuadLight
+    from ..workloads import PointLight, QuadLight
     if not isinstance(specs, list):
         raise SceneError(f"{path}: lights must be an array of tables ([[lights]])")
     out = []

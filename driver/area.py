@@ -12,10 +12,10 @@ weights each cell type (a flip-flop is worth several gates), for relative compar
 Results are cached (``$RAYFLEX_CACHE/area`` or ``~/.cache/rayflex/area``), keyed by the RTL
 sources, the script and the Yosys version, so a second run is instant.
 
-    python tools/area.py                      # all four configurations, markdown table on stdout
-    python tools/area.py --json area.json --markdown area.md --jobs 2
-    python tools/area.py --top rf_fp_add      # one module (no parameters)
-    python tools/area.py --check-frontends    # can read_verilog -sv / read_slang read the RTL?
+    python -m driver.area                      # all four configurations, markdown table on stdout
+    python -m driver.area --json area.json --markdown area.md --jobs 2
+    python -m driver.area --top rf_fp_add      # one module (no parameters)
+    python -m driver.area --check-frontends    # can read_verilog -sv / read_slang read the RTL?
 """
 
 from __future__ import annotations
@@ -33,8 +33,8 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-RTL_DIR = ROOT / "rtl"
+ROOT = Path(__file__).resolve().parent.parent          # the directory holding the package
+RTL_DIR = Path(__file__).resolve().parent / "rtl"
 TOP = "rayflex"
 RECIPE = 2             # bump when the script below changes meaning
 
@@ -72,11 +72,7 @@ class AreaError(RuntimeError):
 
 def rtl_files() -> list[Path]:
     """The RTL files in compile order (the same list the Verilator build uses)."""
-    sys.path.insert(0, str(ROOT))
-    try:
-        from driver.backends.build import source_names
-    finally:
-        sys.path.remove(str(ROOT))
+    from .backends.build import source_names
     return [RTL_DIR / f for f in source_names()]
 
 
@@ -356,7 +352,7 @@ def check_frontends(timeout: float | None = 300, sources=None) -> dict:
 # ------------------------------------------------------------------------------------------------
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="tools/area.py", description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="python -m driver.area", description=__doc__.split("\n\n")[0])
     p.add_argument("--configs", default=",".join(CONFIGS),
                    help=f"comma-separated subset of: {', '.join(CONFIGS)} (default: all)")
     p.add_argument("--top", help="synthesize only this module (no parameters), e.g. rf_fp_add")

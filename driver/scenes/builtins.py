@@ -67,7 +67,7 @@ def _quads(quads) -> np.ndarray:
 def cornell(bunny=None) -> Built:
     """The Cornell box (see the module docstring); ``bunny`` is not used (the ``BUILT``
     signature)."""
-    from .workloads import QuadLight
+    from ..workloads import QuadLight
     tris, albedo = [], []
     for _, refl, quads in _CORNELL:
         t = _quads(quads)
@@ -89,7 +89,7 @@ def cornell(bunny=None) -> Built:
 def floor_under(triangles: np.ndarray, margin: float = 1.5):
     """Two triangles of a floor (normal +z) just under z-up ``triangles``, ``margin`` times their
     footprint on each side, and a quad light above them (emitting downwards)."""
-    from .workloads import QuadLight
+    from ..workloads import QuadLight
     pts = triangles.reshape(-1, 3).astype(np.float64)
     lo, hi = pts.min(0), pts.max(0)
     size = hi - lo

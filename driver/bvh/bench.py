@@ -30,15 +30,15 @@ TARGETS = {"box_nodes": 36_000, "ops_per_ray": 0.95 * 6.29}
 
 def instanced_bunnies(count: int, seed: int = 0) -> np.ndarray:
     """``count`` copies of the Stanford bunny (``driver.builtins.instanced_bunnies``)."""
-    from .builtins import instanced_bunnies as grid
-    from .scene import load
+    from ..scenes.builtins import instanced_bunnies as grid
+    from ..scenes.scene import load
     return grid(load("bunny").triangles, count, seed)
 
 
 def _build_child(count, conn):
     """In a fresh process: build ``count`` bunnies (0 = the bunny itself) and send the numbers."""
-    from .bvh4 import build
-    from .scene import load
+    from ..bvh4 import build
+    from ..scenes.scene import load
     tris = instanced_bunnies(count) if count else load("bunny")
     build(load("bunny"), progress=False)        # load the compiled kernels before timing
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
@@ -88,8 +88,8 @@ def _fills(scene, o, d, ref, fills, progress) -> dict:
     """The BVH shape trade-off: for each ``--bvh-fill``, the tree, the ops per ray of the SPEC 9
     traversal and of the distance-culled stack, and whether the hits equal ``ref``'s."""
     from tqdm import tqdm
-    from .bvh4 import build
-    from .tracer import trace
+    from ..bvh4 import build
+    from ..tracer import trace
     rows = []
     for fill in tqdm(fills, desc="BVH fills", disable=not progress, file=sys.stderr):
         bvh = build(scene.mesh, fill=fill)
@@ -141,10 +141,10 @@ def plot_fills(fills: dict, path, title: str) -> None:
 def _quality(size: int = 256, fills=FILLS, plot=None, progress: bool = False) -> dict:
     """Greedy vs SAH collapse on the bunny frame (golden model): tree and ops per ray; then the
     ``fills`` trade-off (``_fills``), plotted to ``plot`` (a PNG path) if given."""
-    from .bvh4 import build
-    from .camera import primary_rays
-    from .scene import load_scene
-    from .tracer import trace
+    from ..bvh4 import build
+    from ..scenes.camera import primary_rays
+    from ..scenes.scene import load_scene
+    from ..tracer import trace
     scene = load_scene("bunny")
     o, d = primary_rays(scene.camera, size, size)
     out, traces = {}, {}

@@ -49,8 +49,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .datapath import LATENCY, QUADBOX, TRIANGLE
-from .layout import (BOX_NODE, RAY_WORDS, REQ_WORDS, TRI_NODE, NodeRef, read_nodes,
+from ..datapath import LATENCY, QUADBOX, TRIANGLE
+from ..layout import (BOX_NODE, RAY_WORDS, REQ_WORDS, TRI_NODE, NodeRef, read_nodes,
                      unpack_requests)
 
 DEFAULT_RAYS_IN_FLIGHT = 64        # the default ray pool (see the module docstring)
@@ -219,7 +219,7 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
     module docstring). ``verify``: compare every response with the functional run's (raises
     ``ReplayMismatch``); without recorded responses only the tags are checked. ``memory``: a
     ``MemoryModel`` of node fetches (None: every fetch is free)."""
-    from .backends.harness import NO_MEMORY, replay_chains
+    from ..backends.harness import NO_MEMORY, replay_chains
     r, p, ta = int(rays_in_flight), int(pipelines), int(turnaround)
     if r < 1:
         raise ValueError(f"rays in flight must be >= 1, got {rays_in_flight}")

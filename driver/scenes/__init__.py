@@ -1,0 +1,2 @@
+"""Scenes: loading (TOML, mesh files, built-ins), the rendering built-ins, cameras and the
+counter-based sampler."""
