@@ -284,6 +284,71 @@ class NodeRef:
         return NodeRef.type(ptrs) == BOX_TYPE
 
 
+# ----------------------------------------------------------------------------------------------
+# The compressed image ("q8", docs/bvh.md): 64-byte quantized box nodes and triangle-pair leaves
+
+Q8_TYPE = 4                     # q8 box node (64 B)
+PAIR_TYPE = 1                   # triangle pair leaf (64 B)
+Q8_EXP_MIN, Q8_EXP_MAX = -126, 119   # per-axis exponents: 2**exp and 255 * 2**exp are float32
+Q8_COUNT_LSB = 24               # bits 26:24 of the exponent word: used children (1..4)
+
+Q8_NODE = np.dtype([
+    ("origin", "<f4", (3,)),    # float32 x, y, z the child planes are relative to
+    ("exp", "u1", (4,)),        # int8 exp_x, exp_y, exp_z (two's complement); byte 3 = count
+    ("child", "<u4", (4,)),     # node pointers; unused slots NO_CHILD (used slots first)
+    ("q", "u1", (4, 6)),        # child i: qlo_x, qlo_y, qlo_z, qhi_x, qhi_y, qhi_z (uint8)
+    ("parent", "<u4"),
+    ("rsvd", "<u4"),
+])
+PAIR_NODE = np.dtype([
+    ("v", "<f4", (4, 3)),       # four vertices; triangle 0 = (v0, v1, v2)
+    ("prim", "<u4", (2,)),      # primitive ids; prim[1] = NO_CHILD when the leaf holds one
+    ("idx", "<u4"),             # bits 1:0, 3:2, 5:4: triangle 1 = (v[i0], v[i1], v[i2])
+    ("rsvd", "<u4"),
+])
+Q8_BYTES = Q8_NODE.itemsize
+PAIR_BYTES = PAIR_NODE.itemsize
+assert Q8_BYTES == 64 and PAIR_BYTES == 64
+assert Q8_NODE.fields["q"][1] == 32 and Q8_NODE.fields["exp"][1] == 12
+
+
+def q8_count(nodes: np.ndarray) -> np.ndarray:
+    """Used child slots (1..4) of ``Q8_NODE`` rows (byte 3 of the exponent word, bits 2:0)."""
+    return (nodes["exp"][..., 3] & 7).astype(np.int64)
+
+
+def q8_scales(nodes: np.ndarray) -> np.ndarray:
+    """(n, 3) float32 ``2**exp`` per axis of ``Q8_NODE`` rows (exact: exp in [-126, 119])."""
+    e = nodes["exp"][..., :3].view(np.int8).astype(np.int32)
+    return np.ldexp(np.float32(1.0), e).astype(np.float32)
+
+
+def decode_q8(nodes: np.ndarray) -> np.ndarray:
+    """(n, 4, 6) float32 child boxes (xmin ymin zmin xmax ymax zmax) of ``Q8_NODE`` rows: per
+    axis ``origin + float32(q) * 2**exp``; the product is exact (8-bit integer times a power of
+    two) and the add is one float32 round-to-nearest-even add, as the datapath's decode does.
+    Unused slots (index >= count) decode to the unused box: six +inf."""
+    nodes = np.asarray(nodes).reshape(-1)
+    q = nodes["q"].astype(np.float32)                              # (n, 4, 6), exact
+    scale = np.tile(q8_scales(nodes), 2)[:, None, :]               # (n, 1, 6)
+    origin = np.tile(nodes["origin"].astype(np.float32), 2)[:, None, :]
+    boxes = (origin + (q * scale).astype(np.float32)).astype(np.float32)
+    unused = np.arange(4)[None, :] >= q8_count(nodes)[:, None]
+    boxes[unused] = np.float32(np.inf)
+    return boxes
+
+
+def pair_triangles(nodes: np.ndarray) -> np.ndarray:
+    """(n, 2, 3, 3) float32 triangles of ``PAIR_NODE`` rows: (v0, v1, v2) and
+    (v[i0], v[i1], v[i2]), each in its stored vertex order (winding kept)."""
+    nodes = np.asarray(nodes).reshape(-1)
+    idx = nodes["idx"].astype(np.int64)
+    sel = np.stack([(idx >> (2 * k)) & 3 for k in range(3)], axis=1)    # (n, 3)
+    v = nodes["v"]
+    second = np.take_along_axis(v, sel[:, :, None], axis=1)
+    return np.stack([v[:, :3], second], axis=1).astype(np.float32)
+
+
 def node_word(node: np.dtype, field: str) -> int:
     """Word offset of ``field`` inside a node struct."""
     return node.fields[field][1] // 4

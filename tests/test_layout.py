@@ -146,3 +146,28 @@ def test_c_header_has_every_constant_the_harness_uses():
     assert "struct ReplayStats" in header
     for name in layout.REPLAY_STATS:
         assert f"int64_t {name};" in header
+
+
+def test_q8_node_words_and_decode():
+    """The q8 box node's words (origin 0-2, exponents + count in word 3, children 4-7, planes at
+    byte 32 + 6i + j, parent 14) and its decode: exact product, one float32 add, unused = +inf."""
+    from driver.layout import Q8_NODE, decode_q8
+    n = np.zeros(1, Q8_NODE)
+    n["origin"] = [1.0, 2.0, 3.0]
+    n["exp"][0, :3] = np.array([-2, 0, 3], np.int8).view(np.uint8)
+    n["exp"][0, 3] = 2
+    n["child"] = [8, 16, 0xFFFFFFFF, 0xFFFFFFFF]
+    n["q"][0, 1] = [0, 1, 2, 255, 254, 253]
+    n["parent"] = 77
+    w = n.view(np.uint32)
+    assert w[3] == (0x02 << 24) | (0x03 << 16) | (0x00 << 8) | 0xFE
+    assert list(w[4:8]) == [8, 16, 0xFFFFFFFF, 0xFFFFFFFF] and w[14] == 77
+    assert n.view(np.uint8)[32 + 6 * 1 + 3] == 255
+    b = decode_q8(n)[0]
+    assert b[1].tolist() == [1.0, 3.0, 19.0, 1.0 + 255 * 0.25, 256.0, 3.0 + 253 * 8]
+    assert b[0].tolist() == [1.0, 2.0, 3.0] * 2 and np.isinf(b[2:]).all()
+    # the add rounds once, to nearest even: 2**24 + 1 is not a float32
+    n["origin"] = [2.0 ** 24, 0, 0]
+    n["exp"][0, :3] = 0
+    n["q"][0, 0, 0] = 1
+    assert decode_q8(n)[0, 0, 0] == np.float32(2.0 ** 24)
