@@ -4,12 +4,18 @@
   bit position is defined once;
 - README and docs speak about the product: no development words, no "SPEC n";
 - every ``docs/...`` link and ``#section`` reference in README, docs and the driver's and tests'
-  docstrings names a file and a heading that exist.
+  docstrings names a file and a heading that exist;
+- every number the README quotes equals the JSON file it comes from (``tools/figures.py``'s
+  ``README_NUMBERS``), and every figure shown is rebuilt by ``tools/figures.py``.
 """
 
 from __future__ import annotations
 
+import functools
+import importlib.util
+import json
 import re
+import sys
 from pathlib import Path
 
 import pytest
@@ -101,7 +107,7 @@ FORBIDDEN = [
 ]
 
 
-@pytest.mark.parametrize("page", _pages()[1:], ids=lambda p: p.name)
+@pytest.mark.parametrize("page", _pages(), ids=lambda p: p.name)
 def test_pages_speak_about_the_product(page):
     bad = []
     for n, line in enumerate(page.read_text().splitlines(), 1):
@@ -160,3 +166,90 @@ def test_slug_and_reference_parsing():
     page = DOCS / "index.md"
     refs = set(_references(page))
     assert ("docs/datapath.md", None) in refs
+
+
+# ------------------------------------------------------------------------------------------------
+# the README's numbers and the figures
+
+
+@functools.lru_cache(maxsize=None)
+def _figures():
+    """tools/figures.py (tools/ is not a package)."""
+    spec = importlib.util.spec_from_file_location("rayflex_figures", ROOT / "tools" / "figures.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod                      # dataclasses look their module up
+    spec.loader.exec_module(mod)
+    return mod
+
+
+# Numbers in the README that are parameters of a command or a design, not measurements.
+PARAMETERS = {"2", "4", "5", "11", "16", "32", "64", "200", "256", "3.10",   # sizes, cores, ...
+              "2025", "2409.06000"}                                          # the paper
+
+
+def _prose_numbers(text: str) -> list[str]:
+    text = re.sub(r"```.*?```", "", text, flags=re.S)
+    text = re.sub(r"`[^`]*`", "", text)                       # commands, paths, options
+    text = re.sub(r"\]\([^)]*\)", "]", text)                  # link targets
+    return [n.rstrip(",") for n in
+            re.findall(r"(?<![\w.])[+\u2212-]?\d[\d,]*(?:\.\d+)?(?: %)?", text)]
+
+
+def test_readme_is_short_and_keeps_its_two_commands():
+    lines = (ROOT / "README.md").read_text().splitlines()
+    assert len(lines) <= 150
+    assert sum(ln.startswith(("# 1. ", "# 2. ")) for ln in lines) == 2
+
+
+def test_readme_numbers_equal_their_json():
+    readme = (ROOT / "README.md").read_text()
+    numbers = _figures().readme_numbers()
+    missing = {k: v for k, v in numbers.items() if v not in readme}
+    assert not missing, f"README does not quote these as their JSON says: {missing}"
+    quoted = set(numbers.values())
+    stray = [n for n in _prose_numbers(readme) if n not in quoted and n not in PARAMETERS]
+    assert not stray, f"README numbers that come from no JSON (add them to README_NUMBERS): {stray}"
+
+
+def test_readme_number_check_catches_drift(tmp_path):
+    figures = _figures()
+    numbers = figures.readme_numbers()
+    assert _prose_numbers("a 1,234 b `9,999` c [x](images/5.png) +3.1 % d") == ["1,234", "+3.1 %"]
+    changed = tmp_path / "images"
+    changed.mkdir()
+    (tmp_path / "docs").mkdir()
+    for file in {f for f, _, _ in figures.README_NUMBERS.values()}:
+        (tmp_path / file).write_text((ROOT / file).read_text())
+    stats = json.loads((tmp_path / "images/bunny_stats.json").read_text())
+    stats["hits"] += 1
+    (tmp_path / "images/bunny_stats.json").write_text(json.dumps(stats))
+    assert figures.readme_numbers(tmp_path)["bunny_hits"] != numbers["bunny_hits"]
+
+
+def test_every_figure_shown_is_rebuilt_by_tools_figures():
+    figures = _figures()
+    outputs = {o for f in figures.FIGURES for o in f.outputs}
+    assert all((ROOT / o).is_file() for o in outputs), sorted(o for o in outputs
+                                                              if not (ROOT / o).is_file())
+    shown = set()
+    for page in _pages():
+        for m in re.finditer(r"((?:images|docs)/[\w\-]+\.(?:png|json))|\(([\w\-]+\.(?:png|json))\)",
+                             page.read_text()):
+            name = m.group(1) or f"{page.parent.relative_to(ROOT).as_posix()}/{m.group(2)}"
+            shown.add(name.lstrip("./"))
+    shown.discard("docs/figures.json")
+    assert shown and shown <= outputs, sorted(shown - outputs)
+    manifest = json.loads((ROOT / "docs" / "figures.json").read_text())
+    assert set(manifest) == set(figures.BY_NAME)
+    for name, entry in manifest.items():
+        assert entry["command"] == figures.BY_NAME[name].shown() and entry["commit"]
+        assert entry["machine"]["cpu"] and entry["machine"]["cores"]
+
+
+def test_figures_command_lists_and_rejects_unknown_names(capsys):
+    figures = _figures()
+    assert figures.main(["--list"]) == 0
+    out = capsys.readouterr().out
+    assert all(f.name in out for f in figures.FIGURES)
+    with pytest.raises(SystemExit):
+        figures.main(["--only", "no_such_figure"])
