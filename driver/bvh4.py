@@ -20,7 +20,7 @@ Build pipeline (madmann91/bvh and tinybvh style):
    (``driver.bvh_build.collapse_sah``); ``collapse="greedy"`` (``_collapse``) starts each 4-wide
    node with the binary node's two children and twice replaces the interior child of largest
    surface area by its two children (triangle children are never opened).
-4. Memory image (``_write_image``): SPEC section 8, layout below.
+4. Memory image (``_write_image``): docs/datapath.md#bvh4-image, layout below.
 
 Memory image (one contiguous little-endian byte buffer; every node 64-byte aligned)::
 
@@ -41,8 +41,9 @@ Memory image (one contiguous little-endian byte buffer; every node 64-byte align
     120  uint32  reserved[2] (zero)
 
     Valid children come first; an unused slot has pointer 0xFFFFFFFF and the box
-    (+inf, +inf, +inf, +inf, +inf, +inf), which the SPEC 4 slab test never hits: on an axis with
-    d > 0 (or d = +0) near = +inf so tmin = +inf; with d < 0 (or d = -0) far = -inf so tmax = -inf.
+    (+inf, +inf, +inf, +inf, +inf, +inf), which the docs/datapath.md#quadbox slab test never hits:
+    on an axis with d > 0 (or d = +0) near = +inf so tmin = +inf; with d < 0 (or d = -0) far = -inf
+    so tmax = -inf.
 
 Conservative boxes. The datapath's slab test is strict (``tmin < tmax``) and rounds ``box - o``
 and ``* inv`` to float32, so an exact box would lose flat (axis-aligned) triangles entirely and
@@ -71,7 +72,8 @@ import time
 
 import numpy as np
 
-# the node image's layout is driver.layout's (SPEC 8); the names are re-exported for users
+# the node image's layout is driver.layout's (docs/datapath.md#bvh4-image); the names are
+# re-exported for users
 from .layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, NO_CHILD, TRI_BYTES, TRI_NODE,  # noqa: F401
                      TRI_TYPE, NodeRef, read_nodes)
 
@@ -84,7 +86,8 @@ class BVH4:
 
     Attributes
     ----------
-    image : (bytes,) uint8, the SPEC 8 memory image (layout in the module docstring)
+    image : (bytes,) uint8, the docs/datapath.md#bvh4-image memory image (layout in the module
+        docstring)
     root : int, pointer of the root box node (offset 0, so 5)
     triangles : (n, 3, 3) float32, the input triangles; primitive id i is ``triangles[i]``
     stats : dict with ``box_nodes``, ``tri_nodes``, ``depth`` (box-node levels on the longest
@@ -419,7 +422,8 @@ PROGRESS_MIN = 1_000_000        # progress=None shows a bar from this many trian
 
 def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collapse: str = "sah",
           fill: int = 0, progress=None) -> BVH4:
-    """Build a BVH4 (binned SAH, one triangle per leaf) and its SPEC 8 memory image.
+    """Build a BVH4 (binned SAH, one triangle per leaf) and its docs/datapath.md#bvh4-image memory
+    image.
 
     triangles_or_trimesh : (n, 3, 3) array-like (converted to float32) or a trimesh.Trimesh
     bins : SAH bins per axis (>= 2; default 16)

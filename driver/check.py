@@ -1,8 +1,8 @@
 """Cross-check of closest hits against Intel Embree (embreex).
 
 ``embree_closest_front`` gives Embree's closest *front-face* hit per ray (the datapath culls back
-faces, SPEC section 5; Embree 4 does not, so back-face hits are re-cast from just past the hit).
-``compare`` classifies every ray of our result against Embree's:
+faces, docs/datapath.md#triangle; Embree 4 does not, so back-face hits are re-cast from just past
+the hit). ``compare`` classifies every ray of our result against Embree's:
 
 - agree: same primitive, or both miss;
 - hit/miss mismatch: one hits, the other misses;
@@ -11,7 +11,7 @@ faces, SPEC section 5; Embree 4 does not, so back-face hits are re-cast from jus
   tolerance): a hit on an edge or vertex shared by two triangles, or on coplanar overlaps;
 - primitive mismatch: any other different primitive (unexplained).
 
-``embree_json(result)`` keeps the SPEC section 10 ``embree`` object (scalars only).
+``embree_json(result)`` keeps the docs/datapath.md#statistics ``embree`` object (scalars only).
 """
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ def embree_closest_front(triangles, origins, dirs):
 def compare(our_t, our_prim, emb_t, emb_prim, triangles, origins, dirs) -> dict:
     """Classify every ray (see module docstring).
 
-    Returns a dict with the SPEC keys ``rays_compared, hit_mismatch, prim_mismatch, edge_ties,
+    Returns a dict with the keys ``rays_compared, hit_mismatch, prim_mismatch, edge_ties,
     max_t_rel_err`` (max over rays where both hit), plus ``agree`` and index arrays
     ``hit_mismatch_rays, prim_mismatch_rays, edge_tie_rays`` for debugging.
     """
@@ -129,7 +129,8 @@ def compare(our_t, our_prim, emb_t, emb_prim, triangles, origins, dirs) -> dict:
 
 
 def embree_json(result: dict) -> dict:
-    """The SPEC section 10 ``embree`` object (plus ``agree``) from a ``compare`` result."""
+    """The docs/datapath.md#statistics ``embree`` object (plus ``agree``) from a ``compare``
+    result."""
     return {k: result[k] for k in SPEC_KEYS + ("agree",)}
 
 
@@ -174,7 +175,8 @@ def _segment_distance(p, a, b):
 
 
 # ----------------------------------------------------------------------------------------------
-# Secondary rays: extents, any-hit rays and double-sided triangles (SPEC 9, 13)
+# Secondary rays: extents, any-hit rays and double-sided triangles (docs/datapath.md#traversal,
+# docs/workloads.md#ray-types)
 
 
 _SCENES: dict = {}     # id(triangle array) -> (weak reference to it, its Embree scene)
@@ -238,13 +240,14 @@ def exact_t(triangles, prim, origins, dirs) -> np.ndarray:
 
 def check_rays(triangles, origins, dirs, extent, our_t, our_prim, any_hit: bool,
                double_sided: bool) -> dict:
-    """Embree check of one batch of rays (SPEC 10 ``embree`` keys plus ``max_t_rel_err_exact``:
-    our t against the exact plane intersection of our triangle, relative to that t, or to
-    ``NEAR_REL`` of the scene's size for nearer hits, where a secondary ray starting next to a
-    wall meets it after a tiny t that float32 scene coordinates cannot resolve relatively). Closest-hit rays: ``compare``
-    with Embree's closest hit within the extent. Any-hit rays: hit/miss against Embree's occlusion
-    query; a hit whose point is not on its triangle or not within the extent counts as a
-    primitive mismatch (any triangle in the extent is a correct answer)."""
+    """Embree check of one batch of rays (docs/datapath.md#statistics ``embree`` keys plus
+    ``max_t_rel_err_exact``: our t against the exact plane intersection of our triangle, relative to
+    that t, or to ``NEAR_REL`` of the scene's size for nearer hits, where a secondary ray starting
+    next to a wall meets it after a tiny t that float32 scene coordinates cannot resolve
+    relatively). Closest-hit rays: ``compare`` with Embree's closest hit within the extent. Any-hit
+    rays: hit/miss against Embree's occlusion query; a hit whose point is not on its triangle or not
+    within the extent counts as a primitive mismatch (any triangle in the extent is a correct
+    answer)."""
     tri = np.asarray(triangles)
     prim = np.asarray(our_prim, np.int64)
     ext = np.broadcast_to(np.asarray(extent, np.float64), prim.shape)
@@ -290,8 +293,8 @@ def _scale(tri, origins) -> float:
 
 
 def merge_checks(parts: list[dict]) -> dict:
-    """The SPEC 10 ``embree`` object of several checked batches (counts add, errors take the
-    maximum)."""
+    """The docs/datapath.md#statistics ``embree`` object of several checked batches (counts add,
+    errors take the maximum)."""
     out = {k: 0 for k in ("rays_compared", "hit_mismatch", "prim_mismatch", "edge_ties")}
     for p in parts:
         for k in out:

@@ -1,4 +1,5 @@
-"""Datapath IO: request checks and host-side ray preparation (SPEC sections 2, 3, 12).
+"""Datapath IO: request checks and host-side ray preparation (docs/datapath.md#ray-preparation,
+#requests-and-responses).
 
 The opcodes and the request/response dtypes are derived from the wire table in ``driver.layout``
 and re-exported here. Every tracer (golden numpy model, RTL through the fast harness, RTL through
@@ -47,7 +48,8 @@ def check_requests(req: np.ndarray, extended: bool) -> None:
 
 
 def prepare_rays(origins, directions, extent=np.inf, flags=0) -> np.ndarray:
-    """Fill the ray fields of a new request array (SPEC sections 2, 3).
+    """Fill the ray fields of a new request array (docs/datapath.md#ray-preparation,
+    #requests-and-responses).
 
     origins, directions : (n, 3) array-like, converted to float32
     extent : scalar or (n,) ray extent (tmax)

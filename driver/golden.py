@@ -1,10 +1,11 @@
 """Golden model of the RayFlex datapath: vectorised numpy float32, bit-exact by construction.
 
-One numpy float32 operation per SPEC step, in the SPEC's order (sections 4-6). numpy rounds every
-float32 add/multiply to nearest-even and keeps subnormals, which is exactly the datapath's
-arithmetic; NaN results are written as the canonical quiet NaN 0x7FC00000 at the outputs (a NaN
-anywhere in a chain of adds/multiplies stays NaN, and compares are false on NaN, so canonicalising
-at the output is the same as canonicalising after every step).
+One numpy float32 operation per step of the datapath contract, in the order of
+docs/datapath.md#quadbox, #triangle, #euclidean-and-angular. numpy rounds every float32 add/multiply
+to nearest-even and keeps subnormals, which is exactly the datapath's arithmetic; NaN results are
+written as the canonical quiet NaN 0x7FC00000 at the outputs (a NaN anywhere in a chain of
+adds/multiplies stays NaN, and compares are false on NaN, so canonicalising at the output is the
+same as canonicalising after every step).
 """
 
 from __future__ import annotations
@@ -25,12 +26,13 @@ def canonical(x: np.ndarray) -> np.ndarray:
 
 
 def quadbox(origin, inv, dirs, boxes, extent):
-    """SPEC section 4 before the sort. origin, inv, dirs: (n, 3); boxes: (n, 4, 6); extent: (n,).
+    """docs/datapath.md#quadbox before the sort. origin, inv, dirs: (n, 3); boxes: (n, 4, 6);
+    extent: (n,).
 
     Returns (hit (n, 4) bool, tmin (n, 4) float32: +0-canonical on a hit, +inf on a miss).
     Works one axis at a time on contiguous (n, 4) arrays. A NaN near/far value (0 * inf) makes the
     box a miss: np.maximum/np.minimum propagate NaN into tmin/tmax and `tmin < tmax` is then false,
-    which is exactly SPEC's "any NaN -> miss" rule.
+    which is exactly the "any NaN -> miss" rule.
     """
     near = []
     far = []
@@ -56,8 +58,8 @@ def sort4(hit, tmin):
 
 
 def triangle(origin, kxyz, shear, tri, no_cull=False):
-    """SPEC section 5. origin (n,3), kxyz (n,3) int, shear (n,3), tri (n,3,3); no_cull: bool,
-    scalar or (n,), the NO_CULL flag (both faces hit).
+    """docs/datapath.md#triangle. origin (n,3), kxyz (n,3) int, shear (n,3), tri (n,3,3); no_cull:
+    bool, scalar or (n,), the NO_CULL flag (both faces hit).
 
     Returns (hit (n,) bool, t_num (n,), t_den (n,))."""
     p = tri - origin[:, None, :]                                  # P' = P - o

@@ -1,7 +1,8 @@
 """Exact k-nearest-neighbour search with every distance computed on the RayFlex datapath.
 
 ``rayflex knn [DATASET]`` searches query vectors against a dataset (default: scikit-learn's bundled
-``load_digits``, 1,797 x 64; or a 2-D ``.npy`` file) with the extended operations of SPEC section 6:
+``load_digits``, 1,797 x 64; or a 2-D ``.npy`` file) with the extended operations of
+docs/datapath.md#euclidean-and-angular:
 
 * Euclidean: one EUCLIDEAN job per (query, candidate) pair, ``ceil(D / 16)`` beats; the job's last
   beat (``reset_accumulator = 1``) returns the squared distance in ``euclid_acc``. The reported

@@ -1,13 +1,14 @@
-"""Every layout the driver shares with the RTL and the C++ harness, defined once (SPEC 3, 8).
+"""Every layout the driver shares with the RTL and the C++ harness, defined once
+(docs/datapath.md#requests-and-responses, #bvh4-image).
 
 This table is the single source of truth on the host side for
 
 - the **wire words** of a request and a response (``REQUEST``, ``RESPONSE``): the packed
   ``req_t``/``rsp_t`` structs of ``rtl/rf_pkg.sv`` as little-endian uint32 words, word 0 holding
-  bits [31:0]; the numpy dtypes ``REQUEST_DTYPE``/``RESPONSE_DTYPE`` (SPEC 12) and the pack and
-  unpack functions are derived from it;
-- the **BVH4 node image** (SPEC 8): node pointers (``NodeRef``), the box and triangle node
-  structs as numpy dtypes (``BOX_NODE``, ``TRI_NODE``);
+  bits [31:0]; the numpy dtypes ``REQUEST_DTYPE``/``RESPONSE_DTYPE``
+  (docs/datapath.md#requests-and-responses) and the pack and unpack functions are derived from it;
+- the **BVH4 node image** (docs/datapath.md#bvh4-image): node pointers (``NodeRef``), the box and
+  triangle node structs as numpy dtypes (``BOX_NODE``, ``TRI_NODE``);
 - the **C header** of the harness (``c_header()``), generated from these tables at build time into
   the build cache (never committed), so ``sim/rayflex_harness.cpp`` names no word index itself.
 
@@ -24,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 # ----------------------------------------------------------------------------------------------
-# Opcodes (SPEC 3; rf_pkg::opcode_e)
+# Opcodes (docs/datapath.md#requests-and-responses; rf_pkg::opcode_e)
 
 OPCODES = {"TRIANGLE": 0, "QUADBOX": 1, "EUCLIDEAN": 2, "ANGULAR": 3}
 TRIANGLE, QUADBOX, EUCLIDEAN, ANGULAR = (OPCODES[k] for k in
@@ -32,9 +33,9 @@ TRIANGLE, QUADBOX, EUCLIDEAN, ANGULAR = (OPCODES[k] for k in
 EUC_LANES = 16      # rf_pkg::EUC_LANES: lanes of one EUCLIDEAN beat
 ANG_LANES = 8       # rf_pkg::ANG_LANES: lanes of one ANGULAR beat
 
-# Request flags (SPEC 3): bit masks of the ``flags`` field (rf_pkg::FLAG_*_BIT are their bit
-# indices). The other bits are reserved and must be 0.
-FLAG_NO_CULL = 1    # TRIANGLE accepts both faces (SPEC 5)
+# Request flags (docs/datapath.md#requests-and-responses): bit masks of the ``flags`` field
+# (rf_pkg::FLAG_*_BIT are their bit indices). The other bits are reserved and must be 0.
+FLAG_NO_CULL = 1    # TRIANGLE accepts both faces (docs/datapath.md#triangle)
 FLAGS_DEFINED = FLAG_NO_CULL
 
 
@@ -42,7 +43,8 @@ FLAGS_DEFINED = FLAG_NO_CULL
 class Field:
     """One field of a wire struct.
 
-    name : numpy field name (SPEC 12); sv : the SystemVerilog member name when it differs
+    name : numpy field name (docs/datapath.md#requests-and-responses); sv : the SystemVerilog member
+        name when it differs
     word, lsb : position of element 0 (word index, bit within the word)
     bits : width of one element; shape : numpy element shape (elements are consecutive, each
         ``bits`` wide: 32-bit elements take one word each, narrower ones share a word)
@@ -156,7 +158,8 @@ REQUEST = Wire("request", "req_t", [
     _uint("kx", 1, 2, 2),
     _uint("ky", 1, 4, 2),
     _uint("kz", 1, 6, 2),
-    _uint("flags", 1, 8, 8),            # FLAG_* bits of the ray (SPEC 3); the others must be 0
+    # FLAG_* bits of the ray (docs/datapath.md#requests-and-responses); the others must be 0
+    _uint("flags", 1, 8, 8),
     _f32("shear", 12, (3,)),
     _f32("box", 15, (4, 6)),            # per box: xmin, ymin, zmin, xmax, ymax, zmax
     _f32("tri", 39, (3, 3), sv="triangle"),   # A, B, C
@@ -224,7 +227,7 @@ def ray_words(rays: np.ndarray) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------------------------
-# BVH4 node image (SPEC 8)
+# BVH4 node image (docs/datapath.md#bvh4-image)
 
 BOX_TYPE = 5
 TRI_TYPE = 0

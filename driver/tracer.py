@@ -31,8 +31,8 @@ class TraceResult:
     box_ops, tri_ops : (n,) int64, QUADBOX / TRIANGLE requests issued for each ray
     step_requests, step_box_requests : (steps,) int64, requests (all / QUADBOX) in each
         traversal step (one backend call each), in order, for timing replays
-    stats : dict, SPEC section 10 names, plain Python ints/floats/str (plus the RT-unit keys
-        of ``trace(rays_in_flight=...)``)
+    stats : dict, docs/datapath.md#statistics names, plain Python ints/floats/str (plus the RT-unit
+        keys of ``trace(rays_in_flight=...)``)
     record : ``driver.rtunit.Record`` of every request, when asked for (else None)
     """
 
@@ -72,15 +72,15 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
         which raises ValueError for non-finite values or a zero direction)
     backend : backend name ("golden", "rtl", ...) or a ``driver.backends.Backend``
     extent : scalar or (n,): only hits with t < extent are reported
-    any_hit : occlusion rays (SPEC 9): a ray ends at its first accepted triangle (``hit``,
-        ``prim``, ``t`` of that triangle); otherwise the closest hit
+    any_hit : occlusion rays (docs/datapath.md#traversal): a ray ends at its first accepted triangle
+        (``hit``, ``prim``, ``t`` of that triangle); otherwise the closest hit
     double_sided : set ``NO_CULL`` on every ray (docs/datapath.md): triangles are hit from both
         sides. None (default): the scene's own setting when ``scene_or_mesh_or_bvh`` is a scene
         (a name, a path or a ``driver.scene.Scene``), else False
     cull_stack : keep each stack entry's entry distance (the response's ``box_tmin``) and drop
-        a popped box node that lies beyond the nearest hit without a request (beyond SPEC 9,
-        off by default; ``driver.traversal``): the same hits with fewer box requests; the
-        statistics gain ``stack_culls``, the box nodes so dropped
+        a popped box node that lies beyond the nearest hit without a request (beyond
+        docs/datapath.md#traversal, off by default; ``driver.traversal``): the same hits with fewer
+        box requests; the statistics gain ``stack_culls``, the box nodes so dropped
     progress : optional callable(done_rays, total_rays), called once per step
     rays_in_flight, pipelines, turnaround : RT-unit model (``driver.rtunit``). With
         ``rays_in_flight=None`` (default) the statistics are the wavefront's: every ray in

@@ -1,4 +1,4 @@
-"""BVH4 traversal, wavefront style (SPEC section 9): the loop and nothing else.
+"""BVH4 traversal, wavefront style (docs/datapath.md#traversal): the loop and nothing else.
 
 Every ray has a stack of node pointers (root first). Each step, every ray with a non-empty stack
 pops one node and turns it into one datapath request:
@@ -11,13 +11,13 @@ pops one node and turns it into one datapath request:
   tie the triangle found first stays). An any-hit ray (occlusion) is finished by that first
   accepted triangle: the rest of its stack is dropped and never issued.
 
-``cull=True`` (off by default: SPEC 9 has a stack of node pointers only) also keeps each pushed
-child's entry distance (the response's ``box_tmin``) on the stack, as CPU traversals such as
-Embree's do, and drops a popped box node without a request when that distance is not below the
-ray's nearest hit. The request it saves would have come back with four misses: the node's child
-boxes lie inside its own stored box (the builder grows boxes monotonically), so each child's
-``tmin`` is at least the node's, hence at least the ray's extent, and QUADBOX's ``tmin < tmax``
-fails. So hits are exactly those of ``cull=False`` and only box requests (and the bytes their
+``cull=True`` (off by default: docs/datapath.md#traversal has a stack of node pointers only) also
+keeps each pushed child's entry distance (the response's ``box_tmin``) on the stack, as CPU
+traversals such as Embree's do, and drops a popped box node without a request when that distance is
+not below the ray's nearest hit. The request it saves would have come back with four misses: the
+node's child boxes lie inside its own stored box (the builder grows boxes monotonically), so each
+child's ``tmin`` is at least the node's, hence at least the ray's extent, and QUADBOX's ``tmin <
+tmax`` fails. So hits are exactly those of ``cull=False`` and only box requests (and the bytes their
 nodes would have cost) disappear. Triangle nodes are never dropped: their ``t`` is not bounded
 by their box's rounded ``tmin``. The stack then holds a float32 per entry beside the pointer,
 which an RT unit would pay for in stack storage.

@@ -69,7 +69,6 @@ _PGO_USE = "-fprofile-use -fprofile-correction -Wno-missing-profile"
 # (-2%); --output-split 0 emits the model as one C++ file so the evaluation is not cut into
 # functions at file boundaries (-1%).
 _VERILATOR_OPT = ("-O3", "-fno-reloop", "-fno-split", "-fno-table", "--output-split", "0")
-_DEFAULT_BUILD_ESTIMATE_S = 30.0
 # In a training command, this word stands for the running Python interpreter; it is substituted
 # when the command runs, so the cache key does not depend on how the interpreter was spelled
 # (python, python3, a venv path).
@@ -222,11 +221,12 @@ def _cache_key(top: str, sv: Sequence[Path], cpp: Sequence[Path], params: Mappin
     return h.hexdigest()[:32]
 
 
-def _estimate(root: Path, top: str) -> float:
+def _estimate(root: Path, top: str) -> float | None:
+    """The last recorded build time of ``top`` in this cache, or None (never built here)."""
     try:
         return float(json.loads((root / "timings.json").read_text())[top])
     except (OSError, ValueError, KeyError, TypeError):
-        return _DEFAULT_BUILD_ESTIMATE_S
+        return None
 
 
 def _record_time(root: Path, top: str, seconds: float) -> None:
@@ -354,9 +354,9 @@ def cached_build(entry: str, artifact: str, build: Callable[[Path], None], what:
         if out.is_file():  # another process built it while we waited
             return out
         _clean_stale(root, entry)
-        est = f" ~{_estimate(root, estimate_key):.0f}s" if estimate_key else ""
-        print(f"building {what} (first time{',' if est else ''}{est})\u2026", file=sys.stderr,
-              flush=True)
+        last = _estimate(root, estimate_key) if estimate_key else None
+        est = f", the last build took {last:.0f} s" if last is not None else ""
+        print(f"building {what} (first time{est})\u2026", file=sys.stderr, flush=True)
         t0 = time.monotonic()
         work = Path(tempfile.mkdtemp(prefix=f".tmp-{entry}-", dir=root))
         failed = root / f"{entry}.failed"
@@ -428,7 +428,8 @@ def build_library(top: str, sv_sources: Sequence[Path], cpp_sources: Sequence[Pa
     def build(work: Path) -> None:
         _build_library_in(work, top, sv, cpp, params, vargs, name, vbin, cxx, train,
                           dict(train_env or {}), shown_log)
-    return cached_build(entry, f"lib{name}.so", build, f"Verilator model {top}", top)
+    return cached_build(entry, f"lib{name}.so", build, f"Verilator model {top}",
+                        f"{name}-pgo" if train else name)
 
 
 def _build_library_in(work: Path, top: str, sv: list[Path], cpp: list[Path],

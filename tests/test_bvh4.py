@@ -1,4 +1,5 @@
-"""BVH4 builder and memory image (SPEC 4, 8): structural invariants read back from the image."""
+"""BVH4 builder and memory image (docs/datapath.md#quadbox, #bvh4-image): structural invariants read
+back from the image."""
 
 import numpy as np
 import pytest
@@ -16,7 +17,8 @@ def half_area(b):
 
 
 def check_bvh(bvh):
-    """Walk the image breadth-first with the decoders and check every SPEC 8 invariant.
+    """Walk the image breadth-first with the decoders and check every docs/datapath.md#bvh4-image
+    invariant.
 
     Returns {prim id: the float32 box its parent stores for its triangle node}."""
     img, n = bvh.image, len(bvh.triangles)

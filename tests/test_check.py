@@ -14,7 +14,8 @@ from driver.datapath import TRIANGLE, prepare_rays
 from driver.scenes.scene import load_scene
 
 F32 = np.float32
-FRONT = [[1, -1, -1], [0, 1, -1], [-1, -1, -1]]          # SPEC 11: faces +z, seen from above
+# docs/datapath.md#directed-cases: faces +z, seen from above
+FRONT = [[1, -1, -1], [0, 1, -1], [-1, -1, -1]]
 DOWN = [[0, 0, -1]]
 # Embree's distances are a third-party float result: its kernels differ per vector ISA (SSE,
 # AVX2, AVX-512), so t of an exact hit at 1 comes back as 1 or 0.99999994 (1 ulp below) depending
@@ -67,7 +68,8 @@ def test_embree_geometric_normal_is_outward_like_trimesh():
     ng = r["Ng"][0]
     assert r["primID"][0] == 0 and r["tfar"][0] == pytest.approx(1, rel=EMBREE_RTOL)
     assert np.dot(ng, np.cross(tri[0, 1] - tri[0, 0], tri[0, 2] - tri[0, 0])) > 0
-    assert np.dot(d[0], ng) < 0                         # ... and the datapath hits it (SPEC 11 #2)
+    # ... and the datapath hits it (docs/datapath.md#directed-cases #2)
+    assert np.dot(d[0], ng) < 0
 
 
 def test_front_face_hit_and_miss():
@@ -78,7 +80,8 @@ def test_front_face_hit_and_miss():
 
 
 def test_back_face_is_recast_to_the_front_face_behind_it():
-    back = [[-1, -1, -1], [0, 1, -1], [1, -1, -1]]          # SPEC 11 #1: a back face from above
+    # docs/datapath.md#directed-cases #1: a back face from above
+    back = [[-1, -1, -1], [0, 1, -1], [1, -1, -1]]
     front = [[1, -1, -3], [0, 1, -3], [-1, -1, -3]]
     t, p = embree_closest_front(tris(back, front), *rays([[0, 0, 0]], DOWN))
     assert p.tolist() == [1] and t[0] == pytest.approx(3, rel=EMBREE_RTOL)

@@ -1,4 +1,5 @@
-"""EUCLIDEAN and ANGULAR (SPEC 6) on the golden backend (extended=True) vs the scalar reference.
+"""EUCLIDEAN and ANGULAR (docs/datapath.md#euclidean-and-angular) on the golden backend
+(extended=True) vs the scalar reference.
 
 Covers single- and multi-beat jobs, random masks, the reset rule (accumulator back to +0 after the
 last beat), jobs interleaved with QUADBOX/TRIANGLE requests and with each other, jobs split across
@@ -34,7 +35,7 @@ def ext_equal(req, state=None, backend=None):
 
 
 # ----------------------------------------------------------------------------------------------
-# independent numpy computation of the tree (SPEC 6, written out)
+# independent numpy computation of the tree (docs/datapath.md#euclidean-and-angular, written out)
 
 def np_euclid_beats(a, b, mask):
     on = ((mask[:, None].astype(np.uint32) >> np.arange(16, dtype=np.uint32)) & 1).astype(bool)

@@ -1,4 +1,5 @@
-"""Golden (vectorised numpy) model vs the scalar reference bit for bit, and SPEC 4/5 special rules.
+"""Golden (vectorised numpy) model vs the scalar reference bit for bit, and
+docs/datapath.md#quadbox, #triangle special rules.
 
 The random streams (``support.streams.mixed_stream``) mix QUADBOX and TRIANGLE requests drawn to hit
 the corner cases; the directed requests are built as in the paper's cases (``support.cases``).
@@ -74,7 +75,7 @@ def test_golden_is_stateless_across_runs_and_chunking():
 
 
 # ----------------------------------------------------------------------------------------------
-# special rules (SPEC 4, 5)
+# special rules (docs/datapath.md#quadbox, #triangle)
 
 def both(req, extended=False):
     """Run on golden and on the scalar reference; assert they agree; return the golden responses."""

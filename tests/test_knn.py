@@ -67,7 +67,7 @@ def test_job_requests_layout():
 
 
 def tree_f32(x):
-    """Independent float32 tree over the last axis (SPEC 6)."""
+    """Independent float32 tree over the last axis (docs/datapath.md#euclidean-and-angular)."""
     while x.shape[-1] > 1:
         h = x.shape[-1] // 2
         x = x[..., :h] + x[..., h:]

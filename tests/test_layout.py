@@ -120,7 +120,8 @@ def test_node_ref_and_node_dtypes():
     off = np.array([0, 64, 128, 64 * 12345], np.int64)
     ptr = layout.NodeRef.encode(off, [layout.BOX_TYPE, layout.TRI_TYPE, layout.BOX_TYPE,
                                       layout.TRI_TYPE])
-    assert ptr[0] == 5                                # SPEC 8: the root box node's pointer
+    # docs/datapath.md#bvh4-image: the root box node's pointer
+    assert ptr[0] == 5
     assert np.array_equal(layout.NodeRef.offset(ptr), off)
     assert np.array_equal(layout.NodeRef.is_box(ptr), [True, False, True, False])
     assert layout.NodeRef.type(layout.NO_CHILD) not in (layout.BOX_TYPE, layout.TRI_TYPE)

@@ -1,4 +1,5 @@
-"""The NO_CULL request flag (SPEC 3, 5): the TRIANGLE test accepts both faces.
+"""The NO_CULL request flag (docs/datapath.md#requests-and-responses, #triangle): the TRIANGLE test
+accepts both faces.
 
 Golden model, the fast RTL harness ("rtl") and pyverilator, bit for bit, through the testbench
 (driver, monitor, golden scoreboard): random streams where half the requests set NO_CULL (random
@@ -94,8 +95,9 @@ TRI_CASES = [c for c in CASES if c[0].startswith("tri")]
 
 
 def _no_cull_check(name, check):
-    """SPEC 11's TRIANGLE cases with NO_CULL: the same result, except that case 1 (the back face
-    of FRONT, 5 units per t along -z, the plane at z = -1) hits at t = 0.2 with t_den < 0."""
+    """The TRIANGLE directed cases (docs/datapath.md#directed-cases) with NO_CULL: the same
+    result, except that case 1 (the back face of FRONT, 5 units per t along -z, the plane at
+    z = -1) hits at t = 0.2 with t_den < 0."""
     if name != "tri1_back_face":
         return check
     hit = expect_tri(0.2)

@@ -1,4 +1,5 @@
-"""driver.prepare_rays (SPEC 2) against the scalar reference and the SPEC's special cases."""
+"""driver.prepare_rays (docs/datapath.md#ray-preparation) against the scalar reference and the
+special cases of docs/datapath.md#ray-preparation."""
 
 from __future__ import annotations
 

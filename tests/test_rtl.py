@@ -27,7 +27,7 @@ HEAVY = [(0.1, 0.1), (0.5, 0.5), (0.9, 0.9)]
 
 
 # ----------------------------------------------------------------------------------------------
-# the paper's 20 directed cases (SPEC 11)
+# the paper's 20 directed cases (docs/datapath.md#directed-cases)
 
 @pytest.mark.parametrize("gaps,stalls", [(0, 0), (0.5, 0.5), (0.9, 0.9)],
                          ids=["steady", "gaps0.5-stalls0.5", "gaps0.9-stalls0.9"])
@@ -277,7 +277,8 @@ def test_testbench_catches(fault, message):
 
 @pytest.mark.parametrize("name", ["golden", "rtl"])
 def test_axis_index_3_rejected_by_every_backend(name):
-    """kx/ky/kz = 3 has no meaning (SPEC 2); every backend refuses it before simulating."""
+    """kx/ky/kz = 3 has no meaning (docs/datapath.md#ray-preparation); every backend refuses it
+    before simulating."""
     import driver
     from support.cases import tri_request, FRONT
     req = tri_request(FRONT, (0, 0, -1))

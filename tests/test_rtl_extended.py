@@ -1,11 +1,12 @@
 """The RTL in all four configurations (EXTENDED x DISJOINT) vs the golden model, bit for bit.
 
-EUCLIDEAN/ANGULAR (SPEC 6) on both extended builds: random multi-beat jobs with random masks,
-interleaved with each other and with QUADBOX/TRIANGLE requests, under random gaps and stalls. The
-accumulators change only on accepted beats (the paper's code updated them every clock): a job
-interrupted by bubbles, back-pressure and other requests gives the same result as the same job run
-alone, and so does a job split across run() calls. QUADBOX/TRIANGLE on all four builds; every
-configuration gives identical responses and identical cycle counts (SPEC 7).
+EUCLIDEAN/ANGULAR (docs/datapath.md#euclidean-and-angular) on both extended builds: random
+multi-beat jobs with random masks, interleaved with each other and with QUADBOX/TRIANGLE requests,
+under random gaps and stalls. The accumulators change only on accepted beats (the paper's code
+updated them every clock): a job interrupted by bubbles, back-pressure and other requests gives the
+same result as the same job run alone, and so does a job split across run() calls. QUADBOX/TRIANGLE
+on all four builds; every configuration gives identical responses and identical cycle counts
+(docs/datapath.md#pipeline).
 """
 
 from __future__ import annotations
@@ -75,7 +76,8 @@ INTERRUPTIONS = {
 @pytest.mark.parametrize("how", list(INTERRUPTIONS))
 @pytest.mark.parametrize("extended,disjoint", EXTENDED, ids=EXTENDED_IDS)
 def test_interrupted_job_equals_uninterrupted(extended, disjoint, how):
-    """SPEC 6: bubbles, back-pressure and interleaved requests never disturb the accumulators.
+    """docs/datapath.md#euclidean-and-angular: bubbles, back-pressure and interleaved requests never
+    disturb the accumulators.
 
     Each job runs once back to back on its own and once interrupted: with long input bubbles
     between its beats (a datapath that accumulates every clock adds stale beats), with the output

@@ -1,4 +1,5 @@
-"""BVH4 traversal (SPEC 9, 10) on the golden backend against a brute-force nearest-hit search."""
+"""BVH4 traversal (docs/datapath.md#traversal, #statistics) on the golden backend against a
+brute-force nearest-hit search."""
 
 import json
 import sys

@@ -1,5 +1,6 @@
-"""Rendering workloads (SPEC 9, 13): counter-based sampling, self-intersection offsets, any-hit
-traversal, per-type statistics, tiles equal to the whole frame, golden == rtl, Embree per type."""
+"""Rendering workloads (docs/datapath.md#traversal, docs/workloads.md#ray-types): counter-based
+sampling, self-intersection offsets, any-hit traversal, per-type statistics, tiles equal to the
+whole frame, golden == rtl, Embree per type."""
 
 import numpy as np
 import pytest

@@ -8,8 +8,8 @@ figure includes the interpreter, numpy and numba (~150 MB). ``build_s`` is wall 
 the greedy collapse with the SAH collapse on the bunny, by SAH cost and by the ops per ray of the
 bunny's 256 x 256 primary frame traced on the golden model, and checks that both trees find the
 same closest hits; then the shape trade-off: box nodes and ops per ray for each ``--bvh-fill``
-in ``FILLS``, with the SPEC 9 traversal and with the distance-culled stack (``cull_stack``),
-against issue 14's targets (``TARGETS``), optionally plotted.
+in ``FILLS``, with the docs/datapath.md#traversal traversal and with the distance-culled stack
+(``cull_stack``), against the size and ops targets in ``TARGETS``, optionally plotted.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ import numpy as np
 
 BUNNY_TRIANGLES = 99_785
 FILLS = (0, 8, 16, 32, 40, 64, 256, 1 << 30)     # --bvh-fill values of the shape trade-off
-# issue 14's targets on the bunny frame: box nodes, and 0.95 x the 6.29 ops per ray of before
+# a reference point on the bunny frame: box nodes, and 0.95 x the 6.29 ops per ray of plain SAH
 TARGETS = {"box_nodes": 36_000, "ops_per_ray": 0.95 * 6.29}
 
 
@@ -85,8 +85,9 @@ def _same(a, b) -> bool:
 
 
 def _fills(scene, o, d, ref, fills, progress) -> dict:
-    """The BVH shape trade-off: for each ``--bvh-fill``, the tree, the ops per ray of the SPEC 9
-    traversal and of the distance-culled stack, and whether the hits equal ``ref``'s."""
+    """The BVH shape trade-off: for each ``--bvh-fill``, the tree, the ops per ray of the
+    docs/datapath.md#traversal traversal and of the distance-culled stack, and whether the hits
+    equal ``ref``'s."""
     from tqdm import tqdm
     from ..bvh4 import build
     from ..tracer import trace
@@ -110,8 +111,8 @@ def _fills(scene, o, d, ref, fills, progress) -> dict:
 
 
 def plot_fills(fills: dict, path, title: str) -> None:
-    """PNG: primary-ray ops per ray vs box nodes, one point per ``--bvh-fill``, for the SPEC 9
-    traversal and the distance-culled stack, with the targets."""
+    """PNG: primary-ray ops per ray vs box nodes, one point per ``--bvh-fill``, for the
+    docs/datapath.md#traversal traversal and the distance-culled stack, with the targets."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -120,7 +121,7 @@ def plot_fills(fills: dict, path, title: str) -> None:
     ax = fig.add_subplot()
     rows = fills["rows"]
     x = [r["box_nodes"] for r in rows]
-    for key, label, mark in (("ops_per_ray", "SPEC 9 stack (pointers)", "o-"),
+    for key, label, mark in (("ops_per_ray", "stack of pointers", "o-"),
                              ("culled_ops_per_ray", "distance-culled stack", "s-")):
         ax.plot(x, [r[key] for r in rows], mark, label=label)
         for r in rows:

@@ -1,4 +1,5 @@
-"""The paper's 20 directed cases (SPEC section 11) as request arrays with their expected results.
+"""The paper's 20 directed cases (docs/datapath.md#directed-cases) as request arrays with their
+expected results.
 
 Shared by the golden-model tests and the RTL tests: each case is (name, request, check) where
 ``check(response_row)`` asserts the paper's expected outcome.

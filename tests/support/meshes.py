@@ -1,6 +1,7 @@
 """Small procedural test meshes, as (n, 3, 3) float32 triangle arrays (or trimesh meshes).
 
-Winding follows SPEC 5: a face is hit from the side its (B-A)x(C-A) normal points to.
+Winding follows docs/datapath.md#triangle: a face is hit from the side its (B-A)x(C-A) normal points
+to.
 
 - ``soup(n, seed)``: random triangles of mixed size in [-1, 1]^3, random orientation.
 - ``box_room(k)``: an axis-aligned room with inward-facing walls (k x k quads per wall, all flat

@@ -1,20 +1,25 @@
-"""Scalar reference model of the RayFlex datapath, one operation at a time, from SPEC 2 and 4-6.
+"""Scalar reference model of the RayFlex datapath, one operation at a time, from
+docs/datapath.md#ray-preparation, #quadbox, #triangle, #euclidean-and-angular.
 
 This is deliberately the slow, obvious version: one request at a time, one ``np.float32`` scalar
-operation per SPEC step (every add, subtract, multiply and divide is rounded to binary32 on its own,
-nearest-even, subnormals kept), comparisons as plain IEEE compares, the box sort as five explicit
-compare-and-swap comparators. It shares nothing with ``driver/golden.py`` except the request and
-response dtypes, so the golden model and the RTL can both be checked against it bit for bit.
+operation per step of docs/datapath.md (every add, subtract, multiply and divide is rounded to
+binary32 on its own, nearest-even, subnormals kept), comparisons as plain IEEE compares, the box
+sort as five explicit compare-and-swap comparators. It shares nothing with ``driver/golden.py``
+except the request and response dtypes, so the golden model and the RTL can both be checked against
+it bit for bit.
 
 Public surface:
 
-- ``prepare_ray(origin, direction, extent)`` -> dict of SPEC 2 ray fields for one ray
-- ``quadbox(row)``, ``triangle(row)`` -> per-request results (SPEC 4, 5)
-- ``euclid_beat(row)``, ``angular_beat(row)`` -> one beat's tree sums (SPEC 6)
+- ``prepare_ray(origin, direction, extent)`` -> dict of docs/datapath.md#ray-preparation ray fields
+  for one ray
+- ``quadbox(row)``, ``triangle(row)`` -> per-request results (docs/datapath.md#quadbox, #triangle)
+- ``euclid_beat(row)``, ``angular_beat(row)`` -> one beat's tree sums
+  (docs/datapath.md#euclidean-and-angular)
 - ``ScalarState`` -> the two stateful accumulators (Euclidean; angular dot and norm) and cycle count
 - ``scalar_run(requests, state)`` -> ``RESPONSE_DTYPE`` array (same length and order)
 
-Choices where the SPEC is silent (all shared with the golden model):
+Choices the contract leaves open (docs/datapath.md#choices-the-paper-leaves-open) (all shared with
+the golden model):
 
 - non-final EUCLIDEAN/ANGULAR beats output the running accumulator value (``*_last = 0``);
 - ``min``/``max`` are comparator selects (``a if a < b else b``); NaN never reaches them from the
@@ -92,10 +97,11 @@ def out_f32(x) -> F32:
 
 
 # ----------------------------------------------------------------------------------------------
-# SPEC 2: ray prepared on the host
+# docs/datapath.md#ray-preparation: ray prepared on the host
 
 def prepare_ray(origin, direction, extent=np.inf) -> dict:
-    """Ray fields of SPEC 2 for one ray: origin, dir, inv, extent, kx, ky, kz, shear."""
+    """Ray fields of docs/datapath.md#ray-preparation for one ray: origin, dir, inv, extent, kx, ky,
+    kz, shear."""
     o = [f(v) for v in origin]
     d = [f(v) for v in direction]
     inv = [div(ONE, d[0]), div(ONE, d[1]), div(ONE, d[2])]
@@ -115,7 +121,7 @@ def prepare_ray(origin, direction, extent=np.inf) -> dict:
 
 
 # ----------------------------------------------------------------------------------------------
-# SPEC 4: QUADBOX
+# docs/datapath.md#quadbox: QUADBOX
 
 def slab_box(o, d, inv, box, extent):
     """One box: returns (hit, tmin) with tmin +0 on a zero-distance hit and +inf on a miss."""
@@ -164,7 +170,8 @@ def sort4(entries):
 
 
 def quadbox(row):
-    """SPEC 4 for one request row: returns (index[4], hit[4], tmin[4]) in sorted order."""
+    """docs/datapath.md#quadbox for one request row: returns (index[4], hit[4], tmin[4]) in sorted
+    order."""
     o = [f(v) for v in row["origin"]]
     d = [f(v) for v in row["dir"]]
     inv = [f(v) for v in row["inv"]]
@@ -179,10 +186,11 @@ def quadbox(row):
 
 
 # ----------------------------------------------------------------------------------------------
-# SPEC 5: TRIANGLE
+# docs/datapath.md#triangle: TRIANGLE
 
 def triangle(row):
-    """SPEC 5 for one request row: returns (hit, t_num, t_den) (t_num, t_den not canonicalised)."""
+    """docs/datapath.md#triangle for one request row: returns (hit, t_num, t_den) (t_num, t_den not
+    canonicalised)."""
     o = [f(v) for v in row["origin"]]
     kx, ky, kz = int(row["kx"]), int(row["ky"]), int(row["kz"])
     sx, sy, sz = (f(v) for v in row["shear"])
@@ -200,7 +208,8 @@ def triangle(row):
     t_den = add(add(u, v), w)
     t_num = add(add(mul(u, az), mul(v, bz)), mul(w, cz))
     front = (u >= ZERO) and (v >= ZERO) and (w >= ZERO)
-    if int(row["flags"]) & FLAG_NO_CULL:        # SPEC 5 with NO_CULL: either face
+    # docs/datapath.md#triangle with NO_CULL: either face
+    if int(row["flags"]) & FLAG_NO_CULL:
         both = front or ((u <= ZERO) and (v <= ZERO) and (w <= ZERO))
         hit = both and (t_den != ZERO) and ((t_num >= ZERO) if t_den > ZERO else (t_num <= ZERO))
     else:
@@ -209,7 +218,7 @@ def triangle(row):
 
 
 # ----------------------------------------------------------------------------------------------
-# SPEC 6: EUCLIDEAN and ANGULAR
+# docs/datapath.md#euclidean-and-angular: EUCLIDEAN and ANGULAR
 
 def _mask_bit(mask, i) -> bool:
     return bool((int(mask) >> i) & 1)

@@ -1,6 +1,6 @@
 """Random request streams drawn to hit the datapath's corner cases (golden, RTL and kNN tests).
 
-QUADBOX / TRIANGLE (SPEC 4, 5):
+QUADBOX / TRIANGLE (docs/datapath.md#quadbox, #triangle):
 
 - ``mixed_stream(seed, n_box, n_tri)``: random interleaved QUADBOX/TRIANGLE requests: axis-parallel
   rays (exact +-0 components), origins on slab planes, boxes around / near / containing the origin,
@@ -9,7 +9,7 @@ QUADBOX / TRIANGLE (SPEC 4, 5):
   random bit patterns (built from ``quadbox_requests`` and ``triangle_requests``).
 - ``random_bits(rng, shape)``: raw float32 bit patterns.
 
-EUCLIDEAN / ANGULAR (SPEC 6):
+EUCLIDEAN / ANGULAR (docs/datapath.md#euclidean-and-angular):
 
 - ``random_vectors(rng, n)``: (n, 16) operand lanes, some special.
 - ``vector_requests(rng, op, lengths)``: jobs of the given beat counts with random masks, reset on
@@ -167,7 +167,7 @@ def quadbox_requests(rng, n):
     m = rng.random(n) < 0.02
     req["origin"][m, rng.integers(0, 3)] = rng.choice([np.nan, INF, -INF])
     # a few with an inv that disagrees with dir (negated / random bits): the near/far swap follows
-    # the sign of dir (SPEC 4), the products use inv as given
+    # the sign of dir (docs/datapath.md#quadbox), the products use inv as given
     m = rng.random(n) < 0.02
     req["inv"][m] = -req["inv"][m]
     m = rng.random(n) < 0.01

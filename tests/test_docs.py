@@ -1,0 +1,255 @@
+"""The documentation as a reference that cannot drift.
+
+- docs/datapath.md's field tables equal the one layout table (``driver.layout``): a width or a
+  bit position is defined once;
+- README and docs speak about the product: no development words, no "SPEC n";
+- every ``docs/...`` link and ``#section`` reference in README, docs and the driver's and tests'
+  docstrings names a file and a heading that exist;
+- every number the README quotes equals the JSON file it comes from (``tools/figures.py``'s
+  ``README_NUMBERS``), and every figure shown is rebuilt by ``tools/figures.py``.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.util
+import json
+import re
+import sys
+from pathlib import Path
+
+import pytest
+
+from driver import layout
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = ROOT / "docs"
+# Pages another part of the project writes; until they land, links to them are only checked for
+# the anchor when the file is there.
+WRITTEN_ELSEWHERE = {"docs/statistics.md", "docs/scenes.md"}
+
+
+def _pages() -> list[Path]:
+    return [ROOT / "README.md", *sorted(DOCS.glob("*.md"))]
+
+
+def _slug(heading: str) -> str:
+    """GitHub's anchor of a markdown heading."""
+    text = re.sub(r"[^\w\- ]", "", heading.strip().lower())
+    return text.replace(" ", "-")
+
+
+def _anchors(path: Path) -> set[str]:
+    text = re.sub(r"```.*?```", "", path.read_text(), flags=re.S)
+    return {_slug(m.group(1)) for m in re.finditer(r"^#{1,6} (.+)$", text, flags=re.M)}
+
+
+def _table(text: str, heading: str) -> list[list[str]]:
+    """The rows (cells) of the first table after ``heading``."""
+    after = text.split(heading, 1)[1]
+    rows = []
+    for line in after.splitlines()[1:]:
+        s = line.strip()
+        if not s.startswith("|"):
+            if rows:
+                break
+            continue
+        cells = [c.strip() for c in s.strip("|").split("|")]
+        if set(cells[0]) <= set("-: "):
+            continue
+        rows.append(cells)
+    return rows[1:]                                     # without the header
+
+
+# ------------------------------------------------------------------------------------------------
+# docs/datapath.md against driver.layout
+
+
+@pytest.mark.parametrize("wire,heading", [(layout.REQUEST, "### Request fields"),
+                                          (layout.RESPONSE, "### Response fields")])
+def test_datapath_field_tables_equal_the_layout(wire, heading):
+    rows = _table((DOCS / "datapath.md").read_text(), heading)
+    doc = {}
+    for name, word, bit, bits, elements, kind, _ in rows:
+        shape = tuple(int(x) for x in elements.split("×"))
+        doc[name.strip("`")] = (int(word), int(bit), int(bits), shape if shape != (1,) else (),
+                                kind)
+    want = {f.name: (f.word, f.lsb, f.bits, f.shape, "float32" if f.kind == "f32" else "uint")
+            for f in wire.fields}
+    assert doc == want
+
+
+def test_datapath_words_and_node_tables_equal_the_layout():
+    text = (DOCS / "datapath.md").read_text()
+    assert f"A request is {layout.REQ_WORDS} little-endian 32-bit words and a response " \
+           f"{layout.RSP_WORDS}" in " ".join(text.split())
+    assert f"The first {layout.RAY_WORDS} words" in text
+    for node, heading in ((layout.BOX_NODE, "**Box node**"), (layout.TRI_NODE, "**Triangle node**")):
+        rows = _table(text, heading)
+        doc = [(r[0].strip("`"), int(r[1]), int(r[2])) for r in rows]
+        assert doc == [(n, node.fields[n][1], node.fields[n][0].itemsize) for n in node.names]
+        assert f"{heading}, {node.itemsize} bytes" in text
+    for name, code in layout.OPCODES.items():
+        assert f"`{name}` = {code}" in text
+
+
+# ------------------------------------------------------------------------------------------------
+# words and references
+
+
+FORBIDDEN = [
+    (re.compile(r"\bsessions?\b", re.I), "development history"),
+    (re.compile(r"\bVMs?\b"), "the development machine"),
+    (re.compile(r"\bissue\b(?!\.py)", re.I), "issue numbers"),
+    (re.compile(r"\btargets?\b", re.I), "development targets"),
+    (re.compile(r"\bSPEC(?:'s)?\s*(?:sections?\s*)?\d", re.I), "an unshipped document"),
+    (re.compile(r"\bnot met\b|\bmet in every\b", re.I), "development targets"),
+]
+
+
+@pytest.mark.parametrize("page", _pages(), ids=lambda p: p.name)
+def test_pages_speak_about_the_product(page):
+    bad = []
+    for n, line in enumerate(page.read_text().splitlines(), 1):
+        for pattern, why in FORBIDDEN:
+            if pattern.search(line):
+                bad.append(f"{page.name}:{n}: {why}: {line.strip()[:100]}")
+    assert not bad, "\n".join(bad)
+
+
+_MD_LINK = re.compile(r"\]\(([^)\s]+)\)")
+_BARE_REF = re.compile(r"(?<![\w/(])(docs/[\w\-]+\.md)(#[\w\-]+(?:, #[\w\-]+)*)?")
+
+
+def _references(path: Path):
+    """(target file relative to ROOT, anchor or None) of every reference in ``path``."""
+    text = path.read_text()
+    if path.suffix == ".md":
+        for m in _MD_LINK.finditer(text):
+            target = m.group(1)
+            if re.match(r"^[a-z]+:", target):            # http:, https:, mailto:
+                continue
+            file, _, anchor = target.partition("#")
+            rel = (path.parent / file).resolve() if file else path.resolve()
+            yield rel.relative_to(ROOT).as_posix(), anchor or None
+    for m in _BARE_REF.finditer(text):
+        anchors = re.findall(r"#([\w\-]+)", m.group(2) or "")
+        for a in anchors or [None]:
+            yield m.group(1), a
+
+
+def _reference_sources() -> list[Path]:
+    code = [p for p in (ROOT / "driver").rglob("*.py")] + list((ROOT / "tests").rglob("*.py"))
+    return _pages() + sorted(code)
+
+
+def test_every_docs_reference_resolves():
+    bad, seen = [], 0
+    for src in _reference_sources():
+        for target, anchor in _references(src):
+            seen += 1
+            path = ROOT / target
+            if not path.exists():
+                if target not in WRITTEN_ELSEWHERE:
+                    bad.append(f"{src.relative_to(ROOT)}: {target} does not exist")
+                continue
+            if anchor and path.suffix == ".md" and anchor not in _anchors(path):
+                bad.append(f"{src.relative_to(ROOT)}: {target}#{anchor}: no such section")
+    assert seen > 50
+    assert not bad, "\n".join(bad)
+
+
+def test_slug_and_reference_parsing():
+    assert _slug("Choices the paper leaves open") == "choices-the-paper-leaves-open"
+    assert _slug("The node memory of the RT-unit model (`sim/rf_memory.h`)") == \
+        "the-node-memory-of-the-rt-unit-model-simrf_memoryh"
+    page = DOCS / "index.md"
+    refs = set(_references(page))
+    assert ("docs/datapath.md", None) in refs
+
+
+# ------------------------------------------------------------------------------------------------
+# the README's numbers and the figures
+
+
+@functools.lru_cache(maxsize=None)
+def _figures():
+    """tools/figures.py (tools/ is not a package)."""
+    spec = importlib.util.spec_from_file_location("rayflex_figures", ROOT / "tools" / "figures.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod                      # dataclasses look their module up
+    spec.loader.exec_module(mod)
+    return mod
+
+
+# Numbers in the README that are parameters of a command or a design, not measurements.
+PARAMETERS = {"2", "4", "5", "11", "16", "32", "64", "200", "256", "3.10",   # sizes, cores, ...
+              "2025", "2409.06000"}                                          # the paper
+
+
+def _prose_numbers(text: str) -> list[str]:
+    text = re.sub(r"```.*?```", "", text, flags=re.S)
+    text = re.sub(r"`[^`]*`", "", text)                       # commands, paths, options
+    text = re.sub(r"\]\([^)]*\)", "]", text)                  # link targets
+    return [n.rstrip(",") for n in
+            re.findall(r"(?<![\w.])[+\u2212-]?\d[\d,]*(?:\.\d+)?(?: %)?", text)]
+
+
+def test_readme_is_short_and_keeps_its_two_commands():
+    lines = (ROOT / "README.md").read_text().splitlines()
+    assert len(lines) <= 150
+    assert sum(ln.startswith(("# 1. ", "# 2. ")) for ln in lines) == 2
+
+
+def test_readme_numbers_equal_their_json():
+    readme = (ROOT / "README.md").read_text()
+    numbers = _figures().readme_numbers()
+    missing = {k: v for k, v in numbers.items() if v not in readme}
+    assert not missing, f"README does not quote these as their JSON says: {missing}"
+    quoted = set(numbers.values())
+    stray = [n for n in _prose_numbers(readme) if n not in quoted and n not in PARAMETERS]
+    assert not stray, f"README numbers that come from no JSON (add them to README_NUMBERS): {stray}"
+
+
+def test_readme_number_check_catches_drift(tmp_path):
+    figures = _figures()
+    numbers = figures.readme_numbers()
+    assert _prose_numbers("a 1,234 b `9,999` c [x](images/5.png) +3.1 % d") == ["1,234", "+3.1 %"]
+    changed = tmp_path / "images"
+    changed.mkdir()
+    (tmp_path / "docs").mkdir()
+    for file in {f for f, _, _ in figures.README_NUMBERS.values()}:
+        (tmp_path / file).write_text((ROOT / file).read_text())
+    stats = json.loads((tmp_path / "images/bunny_stats.json").read_text())
+    stats["hits"] += 1
+    (tmp_path / "images/bunny_stats.json").write_text(json.dumps(stats))
+    assert figures.readme_numbers(tmp_path)["bunny_hits"] != numbers["bunny_hits"]
+
+
+def test_every_figure_shown_is_rebuilt_by_tools_figures():
+    figures = _figures()
+    outputs = {o for f in figures.FIGURES for o in f.outputs}
+    assert all((ROOT / o).is_file() for o in outputs), sorted(o for o in outputs
+                                                              if not (ROOT / o).is_file())
+    shown = set()
+    for page in _pages():
+        for m in re.finditer(r"((?:images|docs)/[\w\-]+\.(?:png|json))|\(([\w\-]+\.(?:png|json))\)",
+                             page.read_text()):
+            name = m.group(1) or f"{page.parent.relative_to(ROOT).as_posix()}/{m.group(2)}"
+            shown.add(name.lstrip("./"))
+    shown.discard("docs/figures.json")
+    assert shown and shown <= outputs, sorted(shown - outputs)
+    manifest = json.loads((ROOT / "docs" / "figures.json").read_text())
+    assert set(manifest) == set(figures.BY_NAME)
+    for name, entry in manifest.items():
+        assert entry["command"] == figures.BY_NAME[name].shown() and entry["commit"]
+        assert entry["machine"]["cpu"] and entry["machine"]["cores"]
+
+
+def test_figures_command_lists_and_rejects_unknown_names(capsys):
+    figures = _figures()
+    assert figures.main(["--list"]) == 0
+    out = capsys.readouterr().out
+    assert all(f.name in out for f in figures.FIGURES)
+    with pytest.raises(SystemExit):
+        figures.main(["--only", "no_such_figure"])

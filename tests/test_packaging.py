@@ -1,0 +1,113 @@
+"""The wheel carries everything the tool reads at run time.
+
+Builds the wheel of this checkout into a temporary directory (``pip wheel``, about 10 s) and
+checks its contents against the source tree: every file of the package (RTL, source list, lint
+waivers, C++ harness, TOML scenes, Python), the files the RTL build names, the license files and
+the console script. Installing the wheel and rendering from outside the checkout is ``.ci/run``'s
+last step (it builds a Verilated model, minutes on a cold cache).
+"""
+
+from __future__ import annotations
+
+import configparser
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+import yaml
+
+from driver.backends import build
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGE = ROOT / "driver"
+
+
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory) -> zipfile.ZipFile:
+    out = tmp_path_factory.mktemp("dist")
+    r = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(out),
+                        str(ROOT)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-2000:]
+    (whl,) = out.glob("rayflex_driver-*.whl")
+    with zipfile.ZipFile(whl) as z:
+        yield z
+
+
+def _names(wheel) -> set[str]:
+    return set(wheel.namelist())
+
+
+def _tracked_package_files() -> set[str]:
+    """The package's files in git (falls back to the directory tree outside a git checkout)."""
+    r = subprocess.run(["git", "-C", str(ROOT), "ls-files", "driver"], capture_output=True,
+                       text=True)
+    if r.returncode == 0 and r.stdout.strip():
+        return {ln for ln in r.stdout.splitlines() if (ROOT / ln).is_file()}
+    return {p.relative_to(ROOT).as_posix() for p in PACKAGE.rglob("*")
+            if p.is_file() and "__pycache__" not in p.parts}
+
+
+def test_wheel_holds_every_file_of_the_package(wheel):
+    tracked = _tracked_package_files()
+    assert any(f.endswith(".sv") for f in tracked) and any(f.endswith(".toml") for f in tracked)
+    missing = sorted(tracked - _names(wheel))
+    assert not missing, f"files of driver/ not in the wheel: {missing}"
+
+
+def test_wheel_holds_what_the_rtl_build_reads(wheel):
+    names = _names(wheel)
+    pkg = build.PACKAGE.relative_to(ROOT).as_posix()
+    needed = [build.SOURCE_LIST, build.RTL_DIR / build.LINT_WAIVERS,
+              *(build.RTL_DIR / f for f in build.source_names()),
+              *(build.SIM_DIR / f for f in build.HARNESS_SOURCES + build.HARNESS_HEADERS)]
+    for path in needed:
+        rel = f"{pkg}/{path.relative_to(build.PACKAGE).as_posix()}"
+        assert rel in names, f"{rel} (read by the RTL build) is not in the wheel"
+        assert wheel.read(rel) == path.read_bytes()
+
+
+def test_wheel_holds_the_scenes_and_the_generated_header_code(wheel):
+    from driver.scenes import scene
+    names = _names(wheel)
+    scenes = sorted(scene.SCENES_DIR.glob("*.toml"))
+    assert scenes
+    for s in scenes:
+        assert f"driver/scenes/data/{s.name}" in names
+    assert "driver/layout.py" in names               # generates the harness's rf_layout.h
+    assert not any(n.startswith(("tests/", "tools/", "bench/", "docs/", "images/")) for n in names)
+
+
+def test_wheel_metadata_license_and_script(wheel):
+    names = _names(wheel)
+    info = next(n.split("/")[0] for n in names if n.endswith(".dist-info/METADATA"))
+    meta = wheel.read(f"{info}/METADATA").decode()
+    assert "License-Expression: MIT" in meta
+    for f in ("LICENSE", "THIRD_PARTY_NOTICES.md"):
+        assert wheel.read(f"{info}/licenses/{f}") == (ROOT / f).read_bytes()
+    ep = configparser.ConfigParser()
+    ep.read_string(wheel.read(f"{info}/entry_points.txt").decode())
+    assert ep["console_scripts"]["rayflex"] == "driver.cli:main"
+
+
+def test_license_and_citation_files():
+    lic = (ROOT / "LICENSE").read_text()
+    assert lic.startswith("MIT License") and "RayFlex driver contributors" in lic
+    cff = yaml.safe_load((ROOT / "CITATION.cff").read_text())
+    assert cff["cff-version"] == "1.2.0" and cff["license"] == "MIT"
+    (paper,) = cff["references"]
+    assert paper["title"].startswith("RayFlex: An Open-Source RTL Implementation")
+    assert [a["family-names"] for a in paper["authors"]] == ["Shen", "Barnes", "Nallathambi",
+                                                             "Rogers"]
+    assert paper["identifiers"][0]["value"] == "arXiv:2409.06000"
+
+
+def test_ci_runs_the_readme_commands_and_the_wheel():
+    readme = (ROOT / "README.md").read_text().splitlines()
+    ci = (ROOT / ".ci" / "run").read_text()
+    commands = [readme[i + 1] for i, ln in enumerate(readme) if ln.startswith(("# 1.", "# 2."))]
+    assert len(commands) == 2
+    for c in commands:
+        assert c in ci.splitlines(), f"README command not run verbatim by .ci/run: {c}"
+    assert "pip wheel" in ci and "--backend rtl" in ci.split("pip wheel", 1)[1]

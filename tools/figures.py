@@ -1,0 +1,299 @@
+#!/usr/bin/env python3
+"""Rebuild every image and JSON file the README and docs/ show, from the tool itself.
+
+    python tools/figures.py --list               # the figures: name, cost, outputs, last run
+    python tools/figures.py --only power_signals  # rebuild one (repeatable)
+    python tools/figures.py --light               # rebuild the ones that take about a minute
+    python tools/figures.py                       # rebuild all (tens of minutes on 2 cores)
+    python tools/figures.py --numbers             # the numbers the README quotes, from the JSON
+
+Each figure is one command of the tool (``rayflex render|bench|power`` or ``python -m
+driver.area``) run from the checkout on its own code (``PYTHONPATH`` = the checkout). After a
+figure is rebuilt, ``docs/figures.json`` records its command, the commit it ran on and the
+machine (CPU model, cores), which is what the docs cite for a measurement.
+
+``README_NUMBERS`` is the one table of the numbers the README quotes: quoted name -> (JSON file,
+key path, format). ``tests/test_docs.py`` checks that each appears in the README exactly as the
+JSON it comes from says, so the README cannot drift from its data.
+
+tools/ is not part of the installed package; this script needs a checkout.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+MANIFEST = ROOT / "docs" / "figures.json"
+RAYFLEX = [sys.executable, "-m", "driver.cli"]
+TMP = "{tmp}"                       # an output nobody shows (e.g. a heat map), in a temp directory
+
+
+@dataclass(frozen=True)
+class Figure:
+    name: str
+    argv: tuple                      # the command; "{tmp}" stands for a scratch directory
+    outputs: tuple                   # files it writes that the README or docs show
+    minutes: float                   # rough cost on the reference machine (2 cores, warm caches)
+    about: str
+
+    def command(self, tmp: str = "TMP") -> list[str]:
+        return [a.replace(TMP, tmp) for a in self.argv]
+
+    def shown(self) -> str:
+        """The command as a user types it."""
+        words = self.command()
+        if words[:3] == RAYFLEX:
+            words = ["rayflex", *words[3:]]
+        elif words[:1] == [sys.executable]:
+            words = ["python", *words[1:]]
+        return " ".join(words)
+
+
+def _render(name, scene, *extra, heatmap=True, json_out=None, minutes=5.0, about=""):
+    out = f"images/{name}.png"
+    heat = f"images/{name}_heatmap.png" if heatmap else f"{TMP}/{name}_heatmap.png"
+    argv = (*RAYFLEX, "render", scene, "--size", "256", "--backend", "rtl", "--check-embree",
+            *extra, "--out", out, "--heatmap", heat, "--no-progress")
+    outputs = (out, *([heat] if heatmap else []))
+    if json_out:
+        argv += ("--json", json_out)
+        outputs += (json_out,)
+    return Figure(name, argv, outputs, minutes, about)
+
+
+def _bench_workload(scene, workload):
+    stem = f"images/bench_{scene}_{workload}64"
+    return Figure(f"bench_{scene}_{workload}64",
+                  (*RAYFLEX, "bench", "--scene", scene, "--workload", workload, "--size", "64",
+                   "--spp", "2", "--bounces", "2", "--json", f"{stem}.json", "--plot",
+                   f"{stem}_sweep.png", "--no-progress"),
+                  (f"{stem}.json", f"{stem}_sweep.png"), 4.0,
+                  f"datapath mix per ray type and the rays-in-flight sweep, {scene} {workload}")
+
+
+def _power(level, minutes, workloads=True):
+    return Figure(f"power_{level}",
+                  (*RAYFLEX, "power", "--level", level,
+                   *(("--workload", "bunny:32") if workloads else ()),
+                   "--json", f"docs/power_{level}.json", "--plot", f"images/power_{level}.png",
+                   "--no-progress"),
+                  (f"docs/power_{level}.json", f"images/power_{level}.png"), minutes,
+                  f"energy per operation (and per ray) of the four configurations, {level} level")
+
+
+FIGURES = [
+    _render("bunny", "bunny", json_out="images/bunny_stats.json", minutes=1.0,
+            about="the 256 x 256 bunny on the RTL with its heat map and frame statistics"),
+    _render("cornell_path", "cornell", "--workload", "path", "--spp", "16", minutes=15.0,
+            about="Cornell box, path traced, 16 samples per pixel"),
+    _render("cornell_ao", "cornell", "--workload", "ao", "--spp", "4", "--ao-rays", "4",
+            heatmap=False, minutes=8.0, about="Cornell box, ambient occlusion, 4 x 4 rays"),
+    _render("bunny_floor_path", "bunny_floor", "--workload", "path", "--spp", "16",
+            minutes=15.0, about="the bunny on a floor, path traced, 16 samples per pixel"),
+    _render("bunny_floor_ao", "bunny_floor", "--workload", "ao", "--spp", "4", "--ao-rays", "4",
+            heatmap=False, minutes=8.0, about="the bunny on a floor, ambient occlusion"),
+    Figure("bench_bunny256",
+           (*RAYFLEX, "bench", "--json", "images/bench_bunny256.json", "--plot",
+            "images/bench_bunny256_rtunit.png", "--no-progress"),
+           ("images/bench_bunny256.json", "images/bench_bunny256_rtunit.png"), 3.0,
+           "the default bench frame: RT-unit replay, memory, simulation speeds, sweep"),
+    *(_bench_workload(s, w) for s in ("cornell", "bunny_floor") for w in ("path", "ao")),
+    Figure("bvh_bench",
+           (*RAYFLEX, "bench", "--bvh", "--json", "docs/bvh_bench.json", "--plot",
+            "docs/bvh_bench_bvh.png", "--no-progress"),
+           ("docs/bvh_bench.json", "docs/bvh_bench_bvh.png"), 10.0,
+           "BVH build times (1, 20 and 50 bunnies) and the --bvh-fill x --cull-stack trade-off"),
+    _power("signals", 1.0, workloads=False),
+    _power("gates", 12.0),
+    _power("liberty", 12.0),
+    Figure("area", (sys.executable, "-m", "driver.area", "--jobs", "2", "--json",
+                    "docs/area.json"),
+           ("docs/area.json",), 60.0, "Yosys cell counts of the four configurations"),
+]
+BY_NAME = {f.name: f for f in FIGURES}
+LIGHT_MINUTES = 1.5        # --light: the figures at most this long
+
+
+# --------------------------------------------------------------------------------------------
+# The numbers the README quotes: name -> (JSON file, key path, format)
+
+README_NUMBERS = {
+    "bunny_rays": ("images/bunny_stats.json", "rays", "{:,}"),
+    "bunny_hits": ("images/bunny_stats.json", "hits", "{:,}"),
+    "bunny_ops": ("images/bunny_stats.json", "ops", "{:,}"),
+    "bunny_box_per_ray": ("images/bunny_stats.json", "box_ops_per_ray", "{:.2f}"),
+    "bunny_tri_per_ray": ("images/bunny_stats.json", "tri_ops_per_ray", "{:.2f}"),
+    "bunny_wavefront_cycles": ("images/bunny_stats.json", "cycles", "{:,}"),
+    "bunny_embree_mismatch": ("images/bunny_stats.json", "embree.prim_mismatch", "{:d}"),
+    "bunny_edge_ties": ("images/bunny_stats.json", "embree.edge_ties", "{:d}"),
+    "bench_replay_cycles": ("images/bench_bunny256.json", "frame.cycles", "{:,}"),
+    "bench_replay_utilization": ("images/bench_bunny256.json", "frame.utilization", "{:.3f}"),
+    "bench_memory_cycles": ("images/bench_bunny256.json", "memory.cycles", "{:,}"),
+    "bench_memory_utilization": ("images/bench_bunny256.json", "memory.utilization", "{:.2f}"),
+    "bench_memory_hit_rate": ("images/bench_bunny256.json", "memory.hit_rate", "{:.2f}"),
+    "bench_memory_bytes_per_ray": ("images/bench_bunny256.json", "memory.bytes_per_ray",
+                                   "{:.0f}"),
+    "bench_rtl_cycles_per_s": ("images/bench_bunny256.json", "rtl_cycles_per_s", "{:,.0f}"),
+    "bench_speedup": ("images/bench_bunny256.json", "rtl_vs_pyverilator_speedup", "{:.0f}"),
+    "floor_path_bounce1_util_mem": ("images/bench_bunny_floor_path64.json",
+                                    "by_type.bounce1.memory.replay_utilization", "{:.2f}"),
+    "floor_path_primary_util_mem": ("images/bench_bunny_floor_path64.json",
+                                    "by_type.primary.memory.replay_utilization", "{:.2f}"),
+    "floor_path_bounce1_bytes": ("images/bench_bunny_floor_path64.json",
+                                 "by_type.bounce1.memory.bytes_per_ray", "{:.0f}"),
+    "cornell_path_shadow_util_mem": ("images/bench_cornell_path64.json",
+                                     "by_type.shadow.memory.replay_utilization", "{:.2f}"),
+    "power_gates_ext_box": ("docs/power_gates.json",
+                            "ratios.extended_vs_baseline.unified.box", "{:+.1%}"),
+    "power_gates_ext_tri": ("docs/power_gates.json",
+                            "ratios.extended_vs_baseline.unified.triangle", "{:+.1%}"),
+    "power_gates_tri_vs_box": ("docs/power_gates.json",
+                               "ratios.triangle_vs_box.baseline-unified", "{:.2f}"),
+    "paper_power_ext_box": ("docs/power_gates.json", "paper.extended_vs_baseline.box", "{:+.0%}"),
+    "paper_power_ext_tri": ("docs/power_gates.json", "paper.extended_vs_baseline.triangle",
+                            "{:+.0%}"),
+    "paper_area_disjoint": ("docs/area.json", "configs.baseline-disjoint.paper_ratio", "{:.2f}"),
+    "paper_area_extended": ("docs/area.json", "configs.extended-unified.paper_ratio", "{:.2f}"),
+    "paper_area_both": ("docs/area.json", "configs.extended-disjoint.paper_ratio", "{:.2f}"),
+    "area_disjoint": ("docs/area.json", "configs.baseline-disjoint.ratio.cells", "{:.2f}"),
+    "area_extended": ("docs/area.json", "configs.extended-unified.ratio.cells", "{:.2f}"),
+    "area_both": ("docs/area.json", "configs.extended-disjoint.ratio.cells", "{:.2f}"),
+    "bvh_build_bunny": ("docs/bvh_bench.json", "builds.0.build_s", "{:.2f}"),
+    "bvh_build_5m": ("docs/bvh_bench.json", "builds.2.build_s", "{:.1f}"),
+}
+
+
+def lookup(data, path: str):
+    """``data`` at a dotted key path (list indices are integers)."""
+    for key in path.split("."):
+        data = data[int(key)] if isinstance(data, list) else data[key]
+    return data
+
+
+def readme_numbers(root: Path = ROOT) -> dict[str, str]:
+    """Every quoted README number, formatted from its JSON file."""
+    cache: dict[str, object] = {}
+    out = {}
+    for name, (file, path, fmt) in README_NUMBERS.items():
+        if file not in cache:
+            cache[file] = json.loads((root / file).read_text())
+        value = lookup(cache[file], path)
+        out[name] = fmt.format(value).replace("%", " %")
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# the manifest: which command, commit and machine made each figure
+
+
+def machine() -> dict:
+    cpu = platform.processor() or "unknown"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {"cpu": cpu, "cores": os.cpu_count()}
+
+
+def _git(*args) -> str:
+    r = subprocess.run(["git", "-C", str(ROOT), *args], capture_output=True, text=True)
+    return r.stdout.strip() if r.returncode == 0 else ""
+
+
+def head_commit() -> str:
+    commit = _git("rev-parse", "--short", "HEAD") or "unknown"
+    dirty = _git("status", "--porcelain", "--untracked-files=no", "driver")
+    return commit + ("-dirty" if dirty else "")
+
+
+def load_manifest() -> dict:
+    try:
+        return json.loads(MANIFEST.read_text())
+    except (OSError, ValueError):
+        return {}
+
+
+def _write_manifest(data: dict) -> None:
+    tmp = MANIFEST.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
+    os.replace(tmp, MANIFEST)
+
+
+def record_existing() -> None:
+    """Manifest entries for figures never rebuilt by this script: the commit that last wrote
+    their first output (from git) and the reference machine."""
+    data = load_manifest()
+    for fig in FIGURES:
+        if fig.name in data:
+            continue
+        commit = _git("log", "-1", "--format=%h", "--", fig.outputs[0]) or "unknown"
+        data[fig.name] = {"command": fig.shown(), "outputs": list(fig.outputs),
+                          "commit": commit, "machine": {"cpu": "AMD EPYC", "cores": 2},
+                          "date": _git("log", "-1", "--format=%cs", commit) or None}
+    _write_manifest(data)
+
+
+def rebuild(fig: Figure) -> None:
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]))
+    print(f"[{fig.name}] {fig.shown()}", file=sys.stderr, flush=True)
+    with tempfile.TemporaryDirectory(prefix="figures-") as tmp:
+        r = subprocess.run(fig.command(tmp), cwd=ROOT, env=env)
+    if r.returncode != 0:
+        raise SystemExit(f"figures: error: {fig.name} failed (exit {r.returncode})")
+    data = load_manifest()
+    data[fig.name] = {"command": fig.shown(), "outputs": list(fig.outputs),
+                      "commit": head_commit(), "machine": machine(),
+                      "date": datetime.date.today().isoformat()}
+    _write_manifest(data)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python tools/figures.py", description=__doc__.split("\n\n")[0])
+    p.add_argument("--list", action="store_true", help="list the figures and exit")
+    p.add_argument("--only", action="append", metavar="NAME", choices=sorted(BY_NAME),
+                   help="rebuild only this figure (repeatable)")
+    p.add_argument("--light", action="store_true",
+                   help=f"rebuild the figures of at most {LIGHT_MINUTES} min")
+    p.add_argument("--numbers", action="store_true",
+                   help="print the README's numbers as their JSON files give them")
+    p.add_argument("--record-existing", action="store_true",
+                   help="add manifest entries (from git) for figures never rebuilt here")
+    args = p.parse_args(argv)
+    if args.list:
+        data = load_manifest()
+        for fig in FIGURES:
+            made = data.get(fig.name, {})
+            print(f"{fig.name:24} ~{fig.minutes:g} min  {fig.about}\n"
+                  f"{'':24} {fig.shown()}\n{'':24} -> {', '.join(fig.outputs)}"
+                  f"  (last: commit {made.get('commit', '?')})")
+        return 0
+    if args.numbers:
+        for name, value in readme_numbers().items():
+            print(f"{name:32} {value}")
+        return 0
+    if args.record_existing:
+        record_existing()
+        return 0
+    chosen = ([BY_NAME[n] for n in args.only] if args.only else
+              [f for f in FIGURES if f.minutes <= LIGHT_MINUTES] if args.light else FIGURES)
+    for fig in chosen:
+        rebuild(fig)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
