@@ -97,15 +97,18 @@ def workload_options(args) -> dict:
 
 
 def add_workers(p) -> None:
+    from ..render import MEMORY_TILE, WHOLE_FRAME_PIXELS
+    from ..tiles import DEFAULT_TILE
     p.add_argument("--workers", type=int, default=1, metavar="N",
                    help="trace tiles on a local Dask cluster of N one-thread processes "
                         "(default 1: this process)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="trace tiles on the Dask cluster at ADDRESS (e.g. tcp://host:8786)")
     p.add_argument("--tile", type=int, metavar="N",
-                   help="tile size in pixels (default: the whole frame as one wavefront when it "
-                        "fits in memory and one worker traces the primary workload; 256 when it "
-                        "does not fit; else 64)")
+                   help="tile size in pixels (default: a primary frame traced by one worker is "
+                        "one wavefront up to "
+                        f"{WHOLE_FRAME_PIXELS:,} pixels, tiles of {MEMORY_TILE} above; else "
+                        f"{DEFAULT_TILE})")
 
 
 def add_progress(p) -> None:
