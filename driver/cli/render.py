@@ -11,6 +11,7 @@ import sys
 from .common import (EXIT_CHECK, PROG, add_backend, add_json, add_progress, add_tree,
                      add_workers, add_workload, check_backend, check_flag_size, check_positive,
                      tree_options, workload_options, wrote)
+from .export import Export, add_export
 
 
 def add_parser(subparsers):
@@ -41,6 +42,7 @@ def add_parser(subparsers):
     add_tree(p)
     add_workers(p)
     add_progress(p)
+    add_export(p)
     return p
 
 
@@ -68,6 +70,7 @@ def run(args) -> int:
     out = outs.add("--out", args.out or f"{name}.png", IMAGE)
     hm = outs.add("--heatmap", args.heatmap or out.with_name(f"{out.stem}_heatmap.png"), IMAGE)
     js = outs.add("--json", args.json, JSON) if args.json else None
+    dump = Export(args, outs)
     if args.size is not None or (args.width is not None and args.height is not None):
         pixels = args.size ** 2 if args.size is not None else args.width * args.height
         check_frame_memory(pixels, options["spp"], plan_tile(
@@ -92,6 +95,9 @@ def run(args) -> int:
         res.save_heatmap(outs.temp(hm))
         if js:
             write_json({"scene": scene.name, "width": w, "height": h, **res.stats}, outs.temp(js))
+        if dump:
+            dump.write(scene, w, h, args.workload, options, res.stats.get("tile"), tree,
+                       not args.no_progress)
     print(summary(res))
     wrote(outs.paths())
     emb = res.stats.get("embree")
