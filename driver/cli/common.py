@@ -132,3 +132,34 @@ def wrote(paths) -> None:
     paths = [str(p) for p in paths]
     if paths:
         print("wrote " + ", ".join(paths))
+
+
+def add_view(p) -> None:
+    """The camera override and the up axis of mesh files: ``view_options`` checks them."""
+    from ..scenes.scene import UP_AXES
+    g = p.add_argument_group("camera", "replace parts of the scene's camera (the rest stays the "
+                             "scene's); write --camera=-1,2,3 when a value starts with a minus")
+    g.add_argument("--camera", metavar="X,Y,Z", help="camera position")
+    g.add_argument("--look-at", metavar="X,Y,Z", help="the point the camera looks at")
+    g.add_argument("--up", metavar="X,Y,Z", help="the camera's up direction (fixes the roll)")
+    g.add_argument("--fov", metavar="DEG", help="vertical field of view in degrees, in (0, 180)")
+    g.add_argument("--up-axis", choices=list(UP_AXES),
+                   help="mesh files: the axis pointing up for the automatic camera (default y, "
+                        "the glTF and usual OBJ convention; z for most CAD and scan data)")
+
+
+def view_options(args, source) -> dict:
+    """The checked camera flags of ``add_view`` as ``driver.scenes.scene.with_camera`` keywords
+    (one-line ValueError if bad; the camera as a whole is validated once the scene is loaded,
+    here already when position, look-at and up are all given)."""
+    from ..scenes.camera import Camera, check_fov, parse_number, parse_vec3
+    from ..scenes.scene import check_up_axis
+    check_up_axis(args.up_axis, source.kind)
+    view = {k: parse_vec3(getattr(args, a), f"--{a.replace('_', '-')}")
+            for k, a in (("position", "camera"), ("look_at", "look_at"), ("up", "up"))}
+    view["fov_deg"] = parse_number(args.fov, "--fov")
+    if view["fov_deg"] is not None:
+        check_fov(view["fov_deg"])
+    if all(view[k] is not None for k in ("position", "look_at", "up")):
+        Camera(view["position"], view["look_at"], view["up"]).validate()
+    return view
