@@ -54,7 +54,9 @@ IMAGE = "image"
 JSON = "json"
 TABLE = "table"           # kNN neighbours: .json or .csv
 PNG = "png"               # plots matplotlib writes as PNG
-_KIND_EXT = {JSON: (".json",), TABLE: (".json", ".csv"), PNG: (".png",)}
+NPZ, VCD, HEX, TEXT = "npz", "vcd", "hex", "text"       # request-stream export (driver.export)
+_KIND_EXT = {JSON: (".json",), TABLE: (".json", ".csv"), PNG: (".png",), NPZ: (".npz",),
+             VCD: (".vcd",), HEX: (".hex",), TEXT: (".txt",)}
 
 
 def extensions(kind: str) -> tuple[str, ...]:

@@ -97,15 +97,18 @@ def workload_options(args) -> dict:
 
 
 def add_workers(p) -> None:
+    from ..render import MEMORY_TILE, WHOLE_FRAME_PIXELS
+    from ..tiles import DEFAULT_TILE
     p.add_argument("--workers", type=int, default=1, metavar="N",
                    help="trace tiles on a local Dask cluster of N one-thread processes "
                         "(default 1: this process)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="trace tiles on the Dask cluster at ADDRESS (e.g. tcp://host:8786)")
     p.add_argument("--tile", type=int, metavar="N",
-                   help="tile size in pixels (default: the whole frame as one wavefront when it "
-                        "fits in memory and one worker traces the primary workload; 256 when it "
-                        "does not fit; else 64)")
+                   help="tile size in pixels (default: a primary frame traced by one worker is "
+                        "one wavefront up to "
+                        f"{WHOLE_FRAME_PIXELS:,} pixels, tiles of {MEMORY_TILE} above; else "
+                        f"{DEFAULT_TILE})")
 
 
 def add_progress(p) -> None:
@@ -129,3 +132,34 @@ def wrote(paths) -> None:
     paths = [str(p) for p in paths]
     if paths:
         print("wrote " + ", ".join(paths))
+
+
+def add_view(p) -> None:
+    """The camera override and the up axis of mesh files: ``view_options`` checks them."""
+    from ..scenes.scene import UP_AXES
+    g = p.add_argument_group("camera", "replace parts of the scene's camera (the rest stays the "
+                             "scene's); write --camera=-1,2,3 when a value starts with a minus")
+    g.add_argument("--camera", metavar="X,Y,Z", help="camera position")
+    g.add_argument("--look-at", metavar="X,Y,Z", help="the point the camera looks at")
+    g.add_argument("--up", metavar="X,Y,Z", help="the camera's up direction (fixes the roll)")
+    g.add_argument("--fov", metavar="DEG", help="vertical field of view in degrees, in (0, 180)")
+    g.add_argument("--up-axis", choices=list(UP_AXES),
+                   help="mesh files: the axis pointing up for the automatic camera (default y, "
+                        "the glTF and usual OBJ convention; z for most CAD and scan data)")
+
+
+def view_options(args, source) -> dict:
+    """The checked camera flags of ``add_view`` as ``driver.scenes.scene.with_camera`` keywords
+    (one-line ValueError if bad; the camera as a whole is validated once the scene is loaded,
+    here already when position, look-at and up are all given)."""
+    from ..scenes.camera import Camera, check_fov, parse_number, parse_vec3
+    from ..scenes.scene import check_up_axis
+    check_up_axis(args.up_axis, source.kind)
+    view = {k: parse_vec3(getattr(args, a), f"--{a.replace('_', '-')}")
+            for k, a in (("position", "camera"), ("look_at", "look_at"), ("up", "up"))}
+    view["fov_deg"] = parse_number(args.fov, "--fov")
+    if view["fov_deg"] is not None:
+        check_fov(view["fov_deg"])
+    if all(view[k] is not None for k in ("position", "look_at", "up")):
+        Camera(view["position"], view["look_at"], view["up"]).validate()
+    return view

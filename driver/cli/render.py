@@ -8,21 +8,23 @@ from __future__ import annotations
 
 import sys
 
-from .common import (EXIT_CHECK, PROG, add_backend, add_json, add_progress, add_tree,
+from .common import (EXIT_CHECK, PROG, add_backend, add_json, add_progress, add_tree, add_view,
                      add_workers, add_workload, check_backend, check_flag_size, check_positive,
-                     tree_options, workload_options, wrote)
+                     tree_options, view_options, workload_options, wrote)
+from .export import Export, add_export
 
 
 def add_parser(subparsers):
+    from ..scenes.scene import MESH_TYPES, available
     p = subparsers.add_parser(
         "render", help="render a scene through the datapath",
         description="Render SCENE with every box/triangle test run on the datapath model; write "
                     "the image, an operations-per-pixel heat map and statistics.")
     p.add_argument("scene", metavar="SCENE",
-                   help="scene name (scenes/*.toml or built-in: bunny, sphere, room, soup; a bare "
-                        "name is the scene even if a file of that name exists here: write "
-                        "./NAME for the file), a .toml scene file or a mesh file (PLY, OBJ, STL, "
-                        "OFF, GLB)")
+                   help=f"a scene name ({', '.join(available())}; a bare name is the scene even "
+                        "if a file of that name exists here: write ./NAME for the file), a .toml "
+                        "scene file or a mesh file "
+                        f"({', '.join('.' + t for t in MESH_TYPES)}); docs/scenes.md")
     p.add_argument("--size", type=int, metavar="N",
                    help="square image N x N (default: the scene's size, 256)")
     p.add_argument("--width", type=int, metavar="W", help="image width (1..8192)")
@@ -37,10 +39,12 @@ def add_parser(subparsers):
                         "...; default: SCENE.png)")
     p.add_argument("--heatmap", metavar="PATH",
                    help="ops-per-pixel heat map (default: beside --out, OUT_heatmap.png)")
+    add_view(p)
     add_workload(p)
     add_tree(p)
     add_workers(p)
     add_progress(p)
+    add_export(p)
     return p
 
 
@@ -50,7 +54,7 @@ def run(args) -> int:
     from ..progress import phase
     from ..backends import resolve as resolve_backend
     from ..render import check_frame_memory, plan_tile, render
-    from ..scenes.scene import load_scene, resolve, scene_name
+    from ..scenes.scene import load_scene, resolve, scene_name, with_camera
 
     if args.size is not None and (args.width is not None or args.height is not None):
         raise ValueError("give either --size or --width/--height, not both")
@@ -64,10 +68,12 @@ def run(args) -> int:
         check_positive("--tile", args.tile)
     source = resolve(args.scene)
     name = scene_name(source)
+    view = view_options(args, source)
     outs = Outputs(inputs=[source.ref] if source.kind != "builtin" else [])
     out = outs.add("--out", args.out or f"{name}.png", IMAGE)
     hm = outs.add("--heatmap", args.heatmap or out.with_name(f"{out.stem}_heatmap.png"), IMAGE)
     js = outs.add("--json", args.json, JSON) if args.json else None
+    dump = Export(args, outs)
     if args.size is not None or (args.width is not None and args.height is not None):
         pixels = args.size ** 2 if args.size is not None else args.width * args.height
         check_frame_memory(pixels, options["spp"], plan_tile(
@@ -77,7 +83,7 @@ def run(args) -> int:
     # a backend that cannot be built fails first (tiles on workers build their own)
     backend = args.backend if distributed else resolve_backend(args.backend)[0]
     with phase(f"loading {name}", not args.no_progress):
-        scene = load_scene(source)
+        scene = with_camera(load_scene(source, args.up_axis), **view)
     w, h = scene.size
     if args.size is not None:
         w = h = args.size
@@ -92,6 +98,9 @@ def run(args) -> int:
         res.save_heatmap(outs.temp(hm))
         if js:
             write_json({"scene": scene.name, "width": w, "height": h, **res.stats}, outs.temp(js))
+        if dump:
+            dump.write(scene, w, h, args.workload, options, res.stats.get("tile"), tree,
+                       not args.no_progress)
     print(summary(res))
     wrote(outs.paths())
     emb = res.stats.get("embree")

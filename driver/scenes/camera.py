@@ -35,9 +35,7 @@ class Camera:
     def validate(self) -> "Camera":
         """Raise ``CameraError`` (one line) unless the camera defines a proper view; return self."""
         pos, at, up = (_vec3(getattr(self, k), k) for k in ("position", "look_at", "up"))
-        fov = _number(self.fov_deg, "fov_deg")
-        if not 0.0 < fov < 180.0:
-            raise CameraError(f"camera fov_deg must be in (0, 180) degrees, got {fov:g}")
+        check_fov(self.fov_deg)
         view = at - pos
         scale = max(np.abs(pos).max(), np.abs(at).max(), 1e-30)
         if np.linalg.norm(view) <= 1e-9 * scale:
@@ -60,6 +58,14 @@ class Camera:
         r = np.cross(f, up)
         r /= np.linalg.norm(r)
         return f, r, np.cross(r, f)
+
+
+def check_fov(fov_deg) -> float:
+    """A vertical field of view in (0, 180) degrees, as a float; one-line CameraError if not."""
+    fov = _number(fov_deg, "fov_deg")
+    if not 0.0 < fov < 180.0:
+        raise CameraError(f"camera fov_deg must be in (0, 180) degrees, got {fov:g}")
+    return fov
 
 
 def check_size(width, height) -> tuple[int, int]:
@@ -161,3 +167,31 @@ def camera_rays(camera: Camera, width: int, height: int, pixels, jx=0.5, jy=0.5)
     d = (d / np.linalg.norm(d, axis=1, keepdims=True)).astype(np.float32)
     o = np.broadcast_to(np.asarray(camera.position, np.float32), d.shape).copy()
     return o, d
+
+
+def parse_vec3(text: str | None, flag: str) -> tuple | None:
+    """A command-line vector ``X,Y,Z`` as 3 finite floats (None stays None); one-line
+    CameraError otherwise."""
+    if text is None:
+        return None
+    parts = str(text).split(",")
+    try:
+        v = tuple(float(x) for x in parts)
+    except ValueError:
+        v = ()
+    if len(v) != 3 or not all(math.isfinite(x) for x in v):
+        raise CameraError(f"{flag} must be three finite numbers X,Y,Z, got {text!r}")
+    return v
+
+
+def parse_number(text: str | None, flag: str) -> float | None:
+    """A finite command-line number (None stays None); one-line CameraError otherwise."""
+    if text is None:
+        return None
+    try:
+        x = float(text)
+    except ValueError:
+        x = math.nan
+    if not math.isfinite(x):
+        raise CameraError(f"{flag} must be a finite number, got {text!r}")
+    return x

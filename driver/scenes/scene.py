@@ -1,63 +1,23 @@
-"""Scenes: a triangle mesh, a camera, a default image size, and for rendering workloads (SPEC 13)
-materials, lights, double-sidedness and an AO radius.
+"""Scenes: a triangle mesh, a camera, a default image size, and for rendering workloads
+(docs/workloads.md) materials, lights, double-sidedness and an AO radius.
 
-``load(name_or_path)`` returns a ``trimesh.Trimesh``; ``load_scene(name_or_path)`` a ``Scene``.
-A name or path is resolved in this order (``resolve``):
-
-1. a *bare name* (no directory part, no extension, e.g. ``bunny``) that names a scene description
-   in the package's ``driver/scenes/data/`` directory (``NAME.toml``) or a built-in mesh is that scene,
-   even if a file or folder of that name exists in the current directory (a note on stderr then
-   says which one was used; write ``./bunny`` for the file);
-2. an existing file: a ``.toml`` scene description, or any mesh trimesh reads (PLY, OBJ, STL, OFF,
-   GLB, ...; multi-part files are concatenated into one mesh);
-3. ``NAME.toml`` in ``driver/scenes/data/``; a built-in mesh: ``bunny`` (Stanford bunny shipped with
-   pymeshfix), and the procedural ``sphere``, ``room`` (a closed box room seen from inside) and
-   ``soup`` (seeded random triangles). Built-ins without a TOML get a camera framed from the mesh
-   bounds. Rendering built-ins with materials and lights (``driver.builtins``): ``cornell`` (the
-   Cornell box, double-sided), ``bunny_floor`` (the bunny on a floor under a quad light) and
-   ``bunny_grid`` (21 rotated, scaled bunnies on a floor: 2.1 million triangles).
-
-``scene_name(name_or_path)`` gives the scene's name without reading its mesh (the command line
-names its default outputs before any work).
+``load(name_or_path)`` returns a ``trimesh.Trimesh``; ``load_scene(name_or_path)`` a ``Scene``;
+``resolve`` says where a name or path comes from without reading any mesh, ``scene_name`` gives
+its name (the command line names its outputs before any work), ``with_camera`` replaces parts of
+its camera. How names resolve, the built-in scenes, the mesh file types (``MESH_TYPES``), glTF
+materials and the TOML scene format are documented in docs/scenes.md (tests check that it names
+every built-in, mesh type and TOML key accepted here).
 
 Meshes are loaded with ``process=False``: no vertex merging, no face removal, so primitive ids are
 face indices in the file. Degenerate (zero-area) triangles are kept. Invalid input raises
 ``SceneError`` (a ``ValueError``) with a one-line message.
-
-Scene TOML (paths are relative to the TOML file)::
-
-    mesh = "bunny"                 # built-in name or mesh file path
-    name = "bunny"                 # optional, default: the file's stem
-    size = 256                     # or width = ..., height = ...; default 256 x 256
-    [camera]                       # optional; without it the camera is framed automatically
-    position = [0.0, -120.0, 40.0]
-    look_at = [0.0, 0.0, 25.0]
-    up = [0.0, 0.0, 1.0]           # optional, default +z
-    fov_deg = 40.0                 # optional, vertical field of view
-    double_sided = false           # optional: trace with NO_CULL (both faces hit)
-    ao_radius = 12.5               # optional: AO ray extent (default 10 % of the bbox diagonal)
-    [[lights]]                     # optional, any number; default: a point light by the camera
-    type = "quad"                  # corner + s*u + t*v, emitting on the side of u x v
-    corner = [-10.0, -10.0, 80.0]
-    u = [0.0, 20.0, 0.0]
-    v = [20.0, 0.0, 0.0]
-    emission = [12.0, 11.0, 10.0]  # radiance
-    [[lights]]
-    type = "point"
-    position = [0.0, -50.0, 90.0]
-    intensity = [5000.0, 5000.0, 5000.0]
-
-A light inside closed geometry is allowed: its shadow rays all hit the enclosure, so it lights
-nothing (the image shows that). A glTF/GLB file is double-sided when any of its materials says
-``doubleSided`` (the flag is per ray, not per triangle: one double-sided part makes the scene so).
-Materials of mesh files are a uniform grey (``driver.workloads.DEFAULT_ALBEDO``).
 """
 
 from __future__ import annotations
 
 import importlib.resources
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import NamedTuple
 
@@ -73,7 +33,12 @@ RENDER_BUILTINS = ("cornell", "bunny_floor", "bunny_grid")   # with materials an
 DEFAULT_SIZE = 256
 _UP = {"bunny": (0.0, 0.0, 1.0), "sphere": (0.0, 0.0, 1.0), "room": (0.0, 0.0, 1.0),
        "soup": (0.0, 0.0, 1.0)}
-_FILE_UP = (0.0, 1.0, 0.0)      # auto-framing of mesh files: +y up (OBJ / glTF convention)
+UP_AXES = {"y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}     # --up-axis of mesh files
+_FILE_UP = UP_AXES["y"]        # auto-framing of mesh files: +y up (OBJ / glTF convention)
+# what trimesh reads as triangle meshes, by file extension: its mesh loaders, without type names
+# that are no extension (stl_ascii: trimesh tells ASCII STL by content) and point clouds
+_NOT_MESH_FILES = {"stl_ascii", "xyz"}
+MESH_TYPES = tuple(sorted(set(trimesh.exchange.load.mesh_formats()) - _NOT_MESH_FILES))
 
 
 @dataclass
@@ -116,16 +81,18 @@ class Source(NamedTuple):
     ref: object
 
 
-def load_scene(name_or_path) -> Scene:
-    """Resolve ``name_or_path`` (or a ``Source`` from ``resolve``) to a ``Scene`` (see module
-    docstring)."""
+def load_scene(name_or_path, up_axis: str | None = None) -> Scene:
+    """Resolve ``name_or_path`` (or a ``Source`` from ``resolve``) to a ``Scene`` (see
+    docs/scenes.md). ``up_axis`` ("y" or "z", ``UP_AXES``): the up direction of a mesh file's
+    automatic camera (default y); SceneError for any other scene."""
     if isinstance(name_or_path, Scene):
         return name_or_path
     kind, ref = name_or_path if isinstance(name_or_path, Source) else resolve(name_or_path)
+    check_up_axis(up_axis, kind)
     if kind == "toml":
         return _from_toml(ref)
     if kind == "mesh":
-        return _from_mesh_file(ref)
+        return _from_mesh_file(ref, UP_AXES[up_axis or "y"])
     if ref in RENDER_BUILTINS:
         return _rendering_builtin(ref)
     mesh = builtin(ref)
@@ -139,6 +106,27 @@ def _rendering_builtin(name: str) -> Scene:
     mesh = _mesh(b.triangles.reshape(-1, 3), np.arange(3 * len(b.triangles)).reshape(-1, 3), name)
     return Scene(mesh, Camera(**b.camera).validate(), (DEFAULT_SIZE, DEFAULT_SIZE), name,
                  Materials(b.albedo, b.emission), list(b.lights), b.double_sided)
+
+
+def check_up_axis(up_axis: str | None, kind: str) -> None:
+    """SceneError unless ``up_axis`` is None, or one of ``UP_AXES`` for a mesh file."""
+    if up_axis is None:
+        return
+    if up_axis not in UP_AXES:
+        raise SceneError(f"--up-axis must be {' or '.join(UP_AXES)}, got {up_axis!r}")
+    if kind != "mesh":
+        raise SceneError("--up-axis applies to mesh files (their automatic camera); a built-in "
+                         "scene has its own camera and a TOML scene sets [camera] up")
+
+
+def with_camera(scene: Scene, position=None, look_at=None, up=None, fov_deg=None) -> Scene:
+    """``scene`` with the given parts of its camera replaced (None keeps the scene's); the new
+    camera is validated (one-line CameraError)."""
+    cam = scene.camera
+    keep = lambda v, old: old if v is None else v  # noqa: E731
+    new = Camera(keep(position, cam.position), keep(look_at, cam.look_at), keep(up, cam.up),
+                 keep(fov_deg, cam.fov_deg))
+    return replace(scene, camera=new.validate())
 
 
 def resolve(name_or_path) -> Source:
@@ -280,31 +268,50 @@ def _mesh(vertices, faces, what) -> trimesh.Trimesh:
 # ---------------------------------------------------------------------------------------------
 # files
 
-def _from_mesh_file(path: Path) -> Scene:
+def _from_mesh_file(path: Path, up=_FILE_UP) -> Scene:
     mesh = _read_mesh_file(path)
-    return Scene(mesh, _frame(mesh, _FILE_UP, str(path)), (DEFAULT_SIZE, DEFAULT_SIZE), path.stem,
-                 double_sided=_gltf_double_sided(path))
+    double, materials = _gltf_materials(path, len(mesh.faces))
+    return Scene(mesh, _frame(mesh, up, str(path)), (DEFAULT_SIZE, DEFAULT_SIZE), path.stem,
+                 materials, double_sided=double)
 
 
-def _gltf_double_sided(path: Path) -> bool:
-    """Whether a glTF/GLB file's materials ask for double-sided triangles."""
+def _gltf_materials(path: Path, faces: int):
+    """(double_sided, materials) of a glTF/GLB file: double-sided when any material says
+    ``doubleSided``; a part's ``baseColorFactor`` (RGB, linear as glTF defines it) is the albedo
+    of its triangles, ``DEFAULT_ALBEDO`` where a part has none; materials None (the default grey
+    everywhere) when no part has one, or for any other file type."""
+    from ..workloads import DEFAULT_ALBEDO, Materials
     if path.suffix.lower() not in (".gltf", ".glb"):
-        return False
+        return False, None
     try:
-        loaded = trimesh.load(str(path), process=False)
+        loaded = trimesh.load_scene(str(path), process=False)
     except Exception:  # noqa: BLE001  (already read once by _read_mesh_file)
-        return False
-    geoms = loaded.geometry.values() if isinstance(loaded, trimesh.Scene) else [loaded]
-    return any(bool(getattr(getattr(getattr(g, "visual", None), "material", None),
-                            "doubleSided", False)) for g in geoms)
+        return False, None
+    # the parts in the order trimesh concatenates them into the mesh (Scene.to_mesh)
+    parts = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)]
+    mats = [getattr(getattr(g, "visual", None), "material", None) for g in parts]
+    double = any(bool(getattr(m, "doubleSided", False)) for m in mats)
+    colours = [getattr(m, "baseColorFactor", None) for m in mats]
+    if all(c is None for c in colours) or sum(len(g.faces) for g in parts) != faces:
+        return double, None
+    albedo = np.concatenate([np.broadcast_to(
+        DEFAULT_ALBEDO if c is None else _unit_rgb(c), (len(g.faces), 3))
+        for g, c in zip(parts, colours)])
+    return double, Materials(albedo.astype(np.float64), np.zeros((faces, 3)))
+
+
+def _unit_rgb(colour) -> np.ndarray:
+    """RGB in [0, 1] of a colour trimesh keeps as uint8 RGBA (or as floats in [0, 1])."""
+    c = np.asarray(colour)
+    return c[:3] / 255.0 if c.dtype.kind in "ui" else c[:3].astype(np.float64)
 
 
 def _read_mesh_file(path: Path) -> trimesh.Trimesh:
     """Read a mesh file with process=False, concatenating multi-part files; validate it."""
     suffix = path.suffix.lower().lstrip(".")
-    if suffix not in trimesh.available_formats():
+    if suffix not in MESH_TYPES:
         raise SceneError(f"unsupported mesh file type {path.suffix or '(none)'!r}: {path} "
-                         "(use PLY, OBJ, STL, OFF, GLB or a .toml scene)")
+                         f"(use {', '.join(t.upper() for t in MESH_TYPES)} or a .toml scene)")
     try:
         mesh = trimesh.load(str(path), force="mesh", process=False)
     except Exception as e:  # noqa: BLE001  (trimesh raises anything on a broken file)
@@ -356,10 +363,12 @@ def _from_toml(path: Path) -> Scene:
         raise SceneError(f"{path}: needs mesh = \"<built-in name or mesh file>\"")
     mesh_ref = data["mesh"]
     mesh_path = (path.parent / mesh_ref).expanduser()
+    double, materials = False, None
     if mesh_path.is_file():
         if mesh_path.suffix.lower() == ".toml":
             raise SceneError(f"{path}: mesh must be a mesh file or built-in, not a .toml")
         mesh, up = _read_mesh_file(mesh_path), _FILE_UP
+        double, materials = _gltf_materials(mesh_path, len(mesh.faces))
     elif mesh_ref in BUILTINS:
         mesh, up = builtin(mesh_ref), _UP[mesh_ref]
     else:
@@ -373,15 +382,14 @@ def _from_toml(path: Path) -> Scene:
         camera = _camera(data.get("camera"), mesh, up)
     except CameraError as e:
         raise SceneError(f"{path}: {e}") from None
-    double = data.get("double_sided", _gltf_double_sided(mesh_path) if mesh_path.is_file()
-                      else False)
+    double = data.get("double_sided", double)
     if not isinstance(double, bool):
         raise SceneError(f"{path}: double_sided must be true or false")
     ao = data.get("ao_radius")
     if ao is not None and (isinstance(ao, bool) or not isinstance(ao, (int, float))
                            or not 0 < ao < float("inf")):
         raise SceneError(f"{path}: ao_radius must be a positive number, got {ao!r}")
-    return Scene(mesh, camera, size, name, None, _lights(path, data.get("lights", [])), double,
+    return Scene(mesh, camera, size, name, materials, _lights(path, data.get("lights", [])), double,
                  None if ao is None else float(ao))
 
 
