@@ -263,7 +263,8 @@ def rebuild(fig: Figure) -> None:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python tools/figures.py", description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="python tools/figures.py",
+                                description=__doc__.split("\n\n")[0])
     p.add_argument("--list", action="store_true", help="list the figures and exit")
     p.add_argument("--only", action="append", metavar="NAME", choices=sorted(BY_NAME),
                    help="rebuild only this figure (repeatable)")
