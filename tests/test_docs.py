@@ -84,7 +84,8 @@ def test_datapath_words_and_node_tables_equal_the_layout():
     assert f"A request is {layout.REQ_WORDS} little-endian 32-bit words and a response " \
            f"{layout.RSP_WORDS}" in " ".join(text.split())
     assert f"The first {layout.RAY_WORDS} words" in text
-    for node, heading in ((layout.BOX_NODE, "**Box node**"), (layout.TRI_NODE, "**Triangle node**")):
+    for node, heading in ((layout.BOX_NODE, "**Box node**"),
+                          (layout.TRI_NODE, "**Triangle node**")):
         rows = _table(text, heading)
         doc = [(r[0].strip("`"), int(r[1]), int(r[2])) for r in rows]
         assert doc == [(n, node.fields[n][1], node.fields[n][0].itemsize) for n in node.names]

@@ -10,6 +10,7 @@ last step (it builds a Verilated model, minutes on a cold cache).
 from __future__ import annotations
 
 import configparser
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -20,15 +21,28 @@ import yaml
 
 from driver.backends import build
 
+try:
+    import tomllib
+except ModuleNotFoundError:                                 # Python 3.10
+    from pip._vendor import tomli as tomllib
+
 ROOT = Path(__file__).resolve().parent.parent
-PACKAGE = ROOT / "driver"
 
 
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory) -> zipfile.ZipFile:
+    """The wheel of a clean copy of what the build reads (pyproject.toml, the files it names and
+    the package): a stale ``build/`` directory in the checkout cannot leak into it, and the
+    checkout is left untouched."""
+    src = tmp_path_factory.mktemp("src")
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    files = {"pyproject.toml", project["readme"], *project["license-files"], *_tracked("driver")}
+    for rel in files:
+        (src / rel).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(ROOT / rel, src / rel)
     out = tmp_path_factory.mktemp("dist")
     r = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(out),
-                        str(ROOT)], capture_output=True, text=True)
+                        str(src)], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr[-2000:]
     (whl,) = out.glob("rayflex_driver-*.whl")
     with zipfile.ZipFile(whl) as z:
@@ -39,21 +53,25 @@ def _names(wheel) -> set[str]:
     return set(wheel.namelist())
 
 
-def _tracked_package_files() -> set[str]:
-    """The package's files in git (falls back to the directory tree outside a git checkout)."""
-    r = subprocess.run(["git", "-C", str(ROOT), "ls-files", "driver"], capture_output=True,
+def _tracked(where: str) -> set[str]:
+    """The files under ``where`` that git tracks (and the working tree has), or, outside a git
+    checkout, every file there except caches and build products."""
+    r = subprocess.run(["git", "-C", str(ROOT), "ls-files", "--", where], capture_output=True,
                        text=True)
     if r.returncode == 0 and r.stdout.strip():
         return {ln for ln in r.stdout.splitlines() if (ROOT / ln).is_file()}
-    return {p.relative_to(ROOT).as_posix() for p in PACKAGE.rglob("*")
-            if p.is_file() and "__pycache__" not in p.parts}
+    skip = {"__pycache__", "build", ".venv", ".git", ".pytest_cache"}
+    return {p.relative_to(ROOT).as_posix() for p in (ROOT / where).rglob("*")
+            if p.is_file() and not skip & set(p.relative_to(ROOT).parts)
+            and ".egg-info" not in p.as_posix()}
 
 
-def test_wheel_holds_every_file_of_the_package(wheel):
-    tracked = _tracked_package_files()
+def test_wheel_holds_exactly_the_files_of_the_package(wheel):
+    tracked = _tracked("driver")
     assert any(f.endswith(".sv") for f in tracked) and any(f.endswith(".toml") for f in tracked)
-    missing = sorted(tracked - _names(wheel))
-    assert not missing, f"files of driver/ not in the wheel: {missing}"
+    in_wheel = {n for n in _names(wheel) if n.startswith("driver/")}
+    assert in_wheel == tracked, (f"missing: {sorted(tracked - in_wheel)}; "
+                                 f"not in the source tree: {sorted(in_wheel - tracked)}")
 
 
 def test_wheel_holds_what_the_rtl_build_reads(wheel):

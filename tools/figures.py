@@ -250,19 +250,21 @@ def rebuild(fig: Figure) -> None:
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(
         [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]))
     print(f"[{fig.name}] {fig.shown()}", file=sys.stderr, flush=True)
+    commit = head_commit()                        # the code it runs on (before any later commit)
     with tempfile.TemporaryDirectory(prefix="figures-") as tmp:
         r = subprocess.run(fig.command(tmp), cwd=ROOT, env=env)
     if r.returncode != 0:
         raise SystemExit(f"figures: error: {fig.name} failed (exit {r.returncode})")
     data = load_manifest()
     data[fig.name] = {"command": fig.shown(), "outputs": list(fig.outputs),
-                      "commit": head_commit(), "machine": machine(),
+                      "commit": commit, "machine": machine(),
                       "date": datetime.date.today().isoformat()}
     _write_manifest(data)
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python tools/figures.py", description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="python tools/figures.py",
+                                description=__doc__.split("\n\n")[0])
     p.add_argument("--list", action="store_true", help="list the figures and exit")
     p.add_argument("--only", action="append", metavar="NAME", choices=sorted(BY_NAME),
                    help="rebuild only this figure (repeatable)")
