@@ -5,8 +5,10 @@ arguments fail before any work with nothing written."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -95,7 +97,10 @@ def test_cli_dump_and_vcd(tmp_path):
     cmd = [sys.executable, "-m", "driver.cli", "render", "sphere", "--size", "12", "--backend",
            "golden", "--no-progress", "--dump-requests", "d.npz", "--dump-hex", "hx",
            "--vcd", "w.vcd", "--vcd-window", "3:7"]
-    r = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    root = str(Path(driver.__file__).resolve().parent.parent)       # this tree's driver
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [root, *filter(None, [os.environ.get("PYTHONPATH")])])}
+    r = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=600, env=env)
     assert r.returncode == 0, r.stderr
     d = ex.load(tmp_path / "d.npz")
     assert len((tmp_path / "hx" / "requests.hex").read_text().splitlines()) == len(d["ray"])
