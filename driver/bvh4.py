@@ -432,7 +432,7 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
     fill : subtrees of at most ``fill`` triangles are split so that their 4-wide nodes can all
         be full (``driver.bvh_build``; fast builder only): fewer box nodes and bytes for a
         little more SAH; 0 (default) = plain SAH splits
-    progress : True/False, or None = a tqdm bar on stderr (TTY only) from PROGRESS_MIN triangles
+    progress : True/False, or None = a bar on stderr (terminal only) from PROGRESS_MIN triangles
     Degenerate (zero-area) triangles are kept (the datapath never hits them).
     Raises ValueError for an empty input, a wrong shape, non-finite coordinates or a bad option."""
     t0 = time.perf_counter()
@@ -447,12 +447,10 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
     if fill and builder != "fast":
         raise ValueError("fill needs the fast builder (the numpy reference has plain SAH splits)")
     tris = as_triangles(triangles_or_trimesh)
-    from tqdm import tqdm
-
     from .bvh import build as bvh_build
+    from .progress import bar as progress_bar
     show = None if progress is None and len(tris) >= PROGRESS_MIN else bool(progress)
-    with tqdm(total=len(tris), desc="BVH build", unit="tri", unit_scale=True, leave=False,
-              disable=None if show is None else not show) as bar:
+    with progress_bar(len(tris), "BVH build", "tri", show, leave=False) as bar:
         if builder == "fast":
             left, right, prim, node_lo, node_hi = bvh_build.build_binary(tris, int(bins), bar,
                                                                          int(fill))

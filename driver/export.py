@@ -260,6 +260,10 @@ class WindowSink:
             self.rsp.append(c.responses[lo:hi])
         self.seen += len(c.ray)
 
+    @property
+    def done(self) -> bool:
+        return self.seen >= self.first + self.count
+
     def window(self) -> tuple[np.ndarray, np.ndarray]:
         if self.first + self.count > self.seen:
             raise ValueError(f"--vcd-window {self.first}:{self.count} ends after the frame's "
@@ -302,8 +306,9 @@ def write_vcd(path, requests: np.ndarray, golden: np.ndarray, backend_options: d
 def export(scene, width: int, height: int, sinks: list, workload: str = "primary",
            options: dict | None = None, tile: int | None = None, fill: int = 0,
            cull_stack: bool = False, progress=None) -> int:
-    """Trace the frame on the golden model and feed every ``Chunk`` to each sink (``add``);
-    ``close`` each at the end (``discard`` on an error). Returns the number of requests."""
+    """Trace the frame on the golden model and feed every ``Chunk`` to each sink (``add``),
+    stopping early once every sink says it is ``done``; ``close`` each at the end (``discard`` on
+    an error). Returns the number of requests streamed."""
     n = 0
     try:
         for c in stream(scene, width, height, workload, options, tile, fill, cull_stack,
@@ -311,6 +316,8 @@ def export(scene, width: int, height: int, sinks: list, workload: str = "primary
             for s in sinks:
                 s.add(c)
             n += len(c.ray)
+            if all(getattr(s, "done", False) for s in sinks):
+                break                       # e.g. only a VCD window, and it is complete
     except BaseException:
         for s in sinks:
             s.discard()

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import csv
 import json
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -221,7 +220,7 @@ def datapath_distances(dp, queries: np.ndarray, cands: np.ndarray, metric: str,
                        stats: RunStats | None = None, progress: bool = False):
     """(Q, M) distances with every sum on backend ``dp`` (an extended build): float32 squared
     Euclidean distances, or float64 cosine distances from float32 datapath dot/norms."""
-    from tqdm import tqdm
+    from .progress import bar as progress_bar
     stats = stats if stats is not None else RunStats()
     nq, dim = queries.shape
     nc = len(cands)
@@ -232,8 +231,7 @@ def datapath_distances(dp, queries: np.ndarray, cands: np.ndarray, metric: str,
     ai = np.repeat(np.arange(nq), nc)
     bi = np.tile(np.arange(nc), nq)
     total = (nq * nc + (nq if op == ANGULAR else 0)) * beats
-    with tqdm(total=total, unit="beat", unit_scale=True, file=sys.stderr, disable=not progress,
-              desc=f"knn {metric}", leave=False) as bar:
+    with progress_bar(total, f"knn {metric}", "beat", progress, leave=False) as bar:
         if op == EUCLIDEAN:
             return run_jobs(dp, op, qp, cp, ai, bi, dim, stats, bar).reshape(nq, nc)
         qself = run_jobs(dp, op, qp, qp, np.arange(nq), np.arange(nq), dim, stats, bar)

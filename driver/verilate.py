@@ -380,9 +380,35 @@ def cached_build(entry: str, artifact: str, build: Callable[[Path], None], what:
                 _kill_inside(work)
                 shutil.rmtree(work, ignore_errors=True)
                 raise
+        elapsed = time.monotonic() - t0
+        print(f"built {what} in {elapsed:.0f} s (cached in {final})", file=sys.stderr,
+              flush=True)
         if estimate_key:
-            _record_time(root, estimate_key, time.monotonic() - t0)
+            _record_time(root, estimate_key, elapsed)
     return out
+
+
+# The steps of a model build, as a first build reports them on stderr (one phase each, with its
+# elapsed time): name -> what it does.
+PLAIN_STEPS = {"verilate": "Verilator: SystemVerilog to C++",
+               "compile": "compile and link the C++ model"}
+PGO_STEPS = {"verilate": PLAIN_STEPS["verilate"],
+             "compile": "compile and link, instrumented for profile-guided optimisation",
+             "training run": "run the training workload to record a profile",
+             "recompile": "compile and link again, optimised with the profile",
+             "check": "check the optimised model against the golden model"}
+PYVERILATOR_STEPS = {"generate": "Verilator and pyverilator: SystemVerilog to C++",
+                     "compile": "compile the C++ model"}
+
+
+def _steps(steps: dict):
+    """``step(name)``: the progress phase of one build step, ``[i/n] name: what``."""
+    from .progress import phase
+    names = list(steps)
+
+    def step(name: str):
+        return phase(f"  [{names.index(name) + 1}/{len(names)}] {name}: {steps[name]}", delay=0)
+    return step
 
 
 def build_library(top: str, sv_sources: Sequence[Path], cpp_sources: Sequence[Path],
@@ -440,9 +466,15 @@ def _build_library_in(work: Path, top: str, sv: list[Path], cpp: list[Path],
     env = _tool_env(vbin)
     cxx_words = shlex.split(cxx)
     with open(log_path, "w") as log:
-        _run([str(vbin), "--cc", *_VERILATOR_OPT, "--top-module", top, "--Mdir", str(obj),
-              *_param_args(params), *vargs, *map(str, sv), *map(str, cpp)],
-             work, log, f"verilating {top}", shown_log, env)
+        if train and not is_gcc(cxx):
+            # the compiler is part of the cache key, so this entry is always one-pass
+            log.write(f"# {cxx} is not GCC: no profile-guided build\n")
+            train = None
+        step = _steps(PGO_STEPS if train else PLAIN_STEPS)
+        with step("verilate"):
+            _run([str(vbin), "--cc", *_VERILATOR_OPT, "--top-module", top, "--Mdir", str(obj),
+                  *_param_args(params), *vargs, *map(str, sv), *map(str, cpp)],
+                 work, log, f"verilating {top}", shown_log, env)
         so = work / f"lib{name}.so"
 
         def compile_and_link(opt: str, ldflags: str, cache: bool) -> None:
@@ -459,28 +491,29 @@ def _build_library_in(work: Path, top: str, sv: list[Path], cpp: list[Path],
                   str(obj / "libverilated.a"), "-pthread", "-Wl,--no-undefined"],
                  work, log, f"linking lib{name}.so", shown_log, env)
 
-        if train and not is_gcc(cxx):
-            # the compiler is part of the cache key, so this entry is always one-pass
-            log.write(f"# {cxx} is not GCC: no profile-guided build\n")
-            train = None
         if not train:
-            compile_and_link(_OPT, "", cache=True)
+            with step("compile"):
+                compile_and_link(_OPT, "", cache=True)
         else:
             # ccache is bypassed: an instrumented object names the directory its profile is
             # written to, and a cached one would name another build's directory.
-            compile_and_link(f"{_OPT} {_PGO_GENERATE}", "-fprofile-generate", cache=False)
+            with step("compile"):
+                compile_and_link(f"{_OPT} {_PGO_GENERATE}", "-fprofile-generate", cache=False)
             train = [sys.executable if w == PYTHON else w for w in train]
-            _run([*train, str(so)], work, log, "profile-guided optimisation training",
-                 shown_log, {**env, **train_env})
+            with step("training run"):
+                _run([*train, str(so)], work, log, "profile-guided optimisation training",
+                     shown_log, {**env, **train_env})
             if not any(obj.glob("*.gcda")):
                 raise BuildError(f"profile-guided optimisation training of {top} wrote no "
                                  f"profile (log: {shown_log})")
             for stale in [*obj.glob("*.o"), *obj.glob("*.a"), so]:
                 stale.unlink()
-            compile_and_link(f"{_OPT} {_PGO_USE}", "", cache=False)
+            with step("recompile"):
+                compile_and_link(f"{_OPT} {_PGO_USE}", "", cache=False)
             # the optimised library runs the same workload (its checks) before it is cached
-            _run([*train, str(so)], work, log, "checking the profile-guided build",
-                 shown_log, {**env, **train_env})
+            with step("check"):
+                _run([*train, str(so)], work, log, "checking the profile-guided build",
+                     shown_log, {**env, **train_env})
     shutil.rmtree(obj, ignore_errors=True)  # keep only the .so and the log
 
 
@@ -537,9 +570,11 @@ def build_pyverilator(top: str, top_file: Path, sv_sources: Sequence[Path],
                 "path": [str(d) for d in include_dirs], "build_dir": str(gen),
                 "defines": list(defines), "cargs": cargs,
                 "args": ["--top-module", top, *verilator_args, *_param_args(params)]}
-        with open(work / "build.log", "w") as log:
+        step = _steps(PYVERILATOR_STEPS)
+        with open(work / "build.log", "w") as log, step("generate"):
             _run([sys.executable, "-c", _PYVERILATOR_GEN, json.dumps(spec)], work, log,
                  f"generating the pyverilator model {top}", shown_log, env)
+        with open(work / "build.log", "a") as log, step("compile"):
             _run([make, "-C", str(gen), "-f", f"V{top}.mk", "-j2", "LDFLAGS=-fPIC -shared",
                   f"PYTHON3={sys.executable}",
                   "CFG_CXXFLAGS_PCH_I=-include",   # empty in the wheel's verilated.mk

@@ -5,8 +5,10 @@ arguments fail before any work with nothing written."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -81,11 +83,20 @@ def test_window_sink_and_parse():
     for lo in (0, 4, 7):
         hi = {0: 4, 4: 7, 7: 10}[lo]
         w.add(ex.Chunk("primary", req[lo:hi], rsp[lo:hi], np.arange(lo, hi), np.arange(lo, hi)))
-    assert w.window()[0]["tag"].tolist() == [3, 4, 5, 6, 7]
+    assert w.window()[0]["tag"].tolist() == [3, 4, 5, 6, 7] and w.done
     late = ex.WindowSink(8, 5)
     late.add(ex.Chunk("primary", req, rsp, np.arange(10), np.arange(10)))
     with pytest.raises(ValueError, match="ends after the frame's 10 requests"):
         late.window()
+
+
+def test_a_vcd_window_alone_stops_the_stream_early():
+    scene = load_scene("sphere")
+    whole = ex.export(scene, 16, 16, [ex.WindowSink(0, 10**9)])
+    win = ex.WindowSink(5, 20)
+    early = ex.export(scene, 16, 16, [win], tile=4)
+    assert 25 <= early < whole
+    assert len(win.window()[0]) == 20
 
 
 def test_cli_dump_and_vcd(tmp_path):
@@ -95,7 +106,10 @@ def test_cli_dump_and_vcd(tmp_path):
     cmd = [sys.executable, "-m", "driver.cli", "render", "sphere", "--size", "12", "--backend",
            "golden", "--no-progress", "--dump-requests", "d.npz", "--dump-hex", "hx",
            "--vcd", "w.vcd", "--vcd-window", "3:7"]
-    r = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    root = str(Path(driver.__file__).resolve().parent.parent)       # this tree's driver
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [root, *filter(None, [os.environ.get("PYTHONPATH")])])}
+    r = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=600, env=env)
     assert r.returncode == 0, r.stderr
     d = ex.load(tmp_path / "d.npz")
     assert len((tmp_path / "hx" / "requests.hex").read_text().splitlines()) == len(d["ray"])

@@ -17,7 +17,6 @@ from __future__ import annotations
 import os
 import multiprocessing
 import resource
-import sys
 import time
 
 import numpy as np
@@ -88,11 +87,11 @@ def _fills(scene, o, d, ref, fills, progress) -> dict:
     """The BVH shape trade-off: for each ``--bvh-fill``, the tree, the ops per ray of the
     docs/datapath.md#traversal traversal and of the distance-culled stack, and whether the hits
     equal ``ref``'s."""
-    from tqdm import tqdm
     from ..bvh4 import build
+    from ..progress import iterate
     from ..tracer import trace
     rows = []
-    for fill in tqdm(fills, desc="BVH fills", disable=not progress, file=sys.stderr):
+    for fill in iterate(fills, "BVH fills", "fill", progress):
         bvh = build(scene.mesh, fill=fill)
         plain = trace(bvh, o, d, backend="golden")
         culled = trace(bvh, o, d, backend="golden", cull_stack=True)
@@ -176,9 +175,9 @@ def bvh_bench(counts=(0, 20, 50), quality: bool = True, size: int = 256,
     """The benchmark as a dict: ``builds`` (one entry per mesh: 0 = the bunny, k = k instanced
     bunnies, i.e. ~2 M for 20 and ~5 M for 50) and ``quality`` (``_quality`` on the bunny's
     size x size primary frame, with the ``fills`` trade-off plotted to ``plot``)."""
-    from tqdm import tqdm
+    from ..progress import iterate
     result = {"machine_cpus": multiprocessing.cpu_count(), "builds": []}
-    for count in tqdm(counts, desc="BVH bench", disable=not progress, file=sys.stderr):
+    for count in iterate(counts, "BVH bench", "mesh", progress):
         t0 = time.perf_counter()
         entry = {"bunnies": count or 1, **_timed_build(count)}
         entry["process_wall_s"] = round(time.perf_counter() - t0, 2)

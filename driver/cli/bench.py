@@ -84,6 +84,8 @@ def run(args) -> int:
     from ..outputs import JSON, PNG, Outputs, write_json
     from ..render import check_memory
 
+    from ..scenes.scene import resolve
+    resolve(args.scene)               # an unknown scene or missing file fails before any work
     check_flag_size("--size", args.size)
     check_positive("--rays-in-flight", args.rays_in_flight)
     check_positive("--pipelines", args.pipelines, 1, MAX_PIPELINES)
