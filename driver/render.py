@@ -39,8 +39,8 @@ BASE_BYTES = 150 * 2**20
 @dataclass
 class RenderResult:
     """image (h, w, 3) uint8; ops (h, w) int64 box + tri ops per pixel; trace: the TraceResult;
-    stats: docs/statistics.md frame statistics (+ ``bvh``, + ``embree`` when checked); embree: the full
-    ``driver.check.compare`` result (with ray index lists) or None."""
+    stats: frame statistics of docs/statistics.md (+ ``bvh``, + ``embree`` when checked);
+    embree: the full ``driver.check.compare`` result (with ray index lists) or None."""
 
     scene: Scene
     width: int
@@ -84,9 +84,9 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
     ray against Embree.
 
     The primary workload with one sample, untiled, is one wavefront of every pixel (the frame of
-    earlier versions, with ``trace`` the TraceResult). Any other ``workload`` (docs/workloads.md:
-    shadow, ao, path with ``spp``, ``bounces``, ``ao_rays``, ``seed``), a ``tile`` size, ``workers`` > 1
-    or a Dask ``scheduler`` renders through ``driver.tiles`` (``trace`` is None; statistics per
+    earlier versions, with ``trace`` the TraceResult). Any other ``workload``
+    (docs/workloads.md: shadow, ao, path with ``spp``, ``bounces``, ``ao_rays``, ``seed``), a
+    ``tile`` size, ``workers`` > 1 or a Dask ``scheduler`` renders through ``driver.tiles`` (``trace`` is None; statistics per
     ray type in ``stats["by_type"]``); so does a frame too big for memory as one wavefront.
     ``fill`` is the BVH build's (``driver.bvh4.build``), ``cull_stack`` the traversal's
     (``driver.tracer.trace``).
