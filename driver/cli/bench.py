@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 from .. import design
-from .common import add_json, add_progress, check_positive, wrote
+from .common import add_json, add_progress, check_positive, provenance, wrote
 
 
 def add_parser(subparsers):
@@ -99,7 +99,8 @@ def run(args) -> int:
     with outs.commit():
         if args.bvh:
             from ..bvh.bench import bvh_bench
-            doc = bvh_bench(progress=not args.no_progress, plot=outs.temp(plot))
+            doc = {"provenance": provenance(None),
+                   **bvh_bench(progress=not args.no_progress, plot=outs.temp(plot))}
             doc["quality"]["fills"]["plot"] = str(plot)
             if js:
                 write_json(doc, outs.temp(js))
