@@ -17,8 +17,9 @@ combination. What each point costs:
 
 Points are independent tasks: with ``workers`` > 1 or a Dask ``scheduler`` they run on the
 cluster code of ``driver.tiles`` (records scattered once). Each finished point is appended to a
-results file (JSON lines keyed by the point, ``results``); a sweep started again with the same
-file skips the points found there, so an interrupted sweep resumes where it stopped.
+results file (JSON lines keyed by the point and the source tree's version and commit,
+``results``); a sweep started again with the same file skips the points found there, so an
+interrupted sweep resumes where it stopped.
 
 The document (``sweep``): ``provenance``, the ``grid`` (the options that vary), the functional
 traces, the energy per op used, and one entry per point: its design point, its frame statistics
@@ -150,23 +151,32 @@ def energy_per_ray(counts: dict, table: dict | None):
 # the results file (resume)
 
 def load_results(path: Path) -> dict:
-    """Finished points of an earlier run: {point key: result}; a torn last line is ignored."""
+    """Finished points of an earlier run of this source tree (same version and commit):
+    {point key: result}; a torn last line (an interrupted write) is ignored."""
     done = {}
     if path is None or not path.is_file():
         return done
+    source = _source()
     for line in path.read_text().splitlines():
         try:
             entry = json.loads(line)
-            done[entry["key"]] = entry["result"]
+            if entry["source"] == source:
+                done[entry["key"]] = entry["result"]
         except (ValueError, KeyError, TypeError):
             continue
     return done
 
 
+def _source() -> list:
+    from .stats import git_commit, rayflex_version
+    return [rayflex_version(), git_commit()]
+
+
 def _append(path: Path, key: str, result: dict) -> None:
     from .outputs import jsonable
     with open(path, "a") as f:
-        f.write(json.dumps({"key": key, "result": jsonable(result)}) + "\n")
+        f.write(json.dumps({"key": key, "source": _source(), "result": jsonable(result)})
+                + "\n")
         f.flush()
         os.fsync(f.fileno())
 
