@@ -387,7 +387,7 @@ def plot(doc: dict, path) -> None:
 def table(doc: dict) -> str:
     """One line per point: the varied options, RT-unit utilization, hit rate, energy."""
     keys = list(doc["grid"])
-    head = " ".join(f"{k:>18}" for k in keys) + f" {'util':>6} {'util+mem':>8} " \
+    head = " ".join(f"{k:>18}" for k in keys) + f" {'rtunit':>6} {'+memory':>8} " \
         f"{'hit rate':>8} {'cyc/ray':>8} {'E/ray':>9}"
     out = [head]
     for e in doc["points"]:
@@ -399,4 +399,7 @@ def table(doc: dict) -> str:
                    f"{m.get('hit_rate', float('nan')):>8.3f} "
                    f"{_timing(e)['cycles_per_ray']:>8.1f} "
                    f"{float('nan') if energy is None else energy:>9.0f}")
+    out.append("(rtunit / +memory: utilization without / with the node memory; cyc/ray: RT-unit "
+               "cycles per ray, with the node memory where there is one; E/ray: energy per ray "
+               "in bit toggles; docs/statistics.md)")
     return "\n".join(out)
