@@ -1,12 +1,14 @@
 """``rayflex bench``: datapath throughput of a real frame, and how fast the simulation runs.
 
-Runs the default scene (bunny, 256 x 256) through the "rtl" backend and reports:
+Runs a design point's frame (``driver.design``; default: the bunny, 256 x 256, primary rays,
+baseline-unified) through the "rtl" backend. Every statistic is in the schema of
+docs/statistics.md; the primary workload with one sample per pixel also measures the simulation:
 
-- ``frame``: the SPEC section 10 statistics of the frame on the RT-unit model
-  (``driver.rtunit``) with the default ray pool (``--rays-in-flight``, 64) and one pipeline
-  (``--pipelines``): cycles, utilization, frame time at 1 GHz; the functional wavefront run's own
-  figures as ``wavefront_*``; ``embree``, the Embree cross-check of every ray; ``wall_s`` with its
-  parts (BVH build, traversal on the RTL, RT-unit replay).
+- ``frame``: the frame's statistics: op counts, ``wavefront`` (the functional run: every ray in
+  flight, one pipeline), ``rtunit`` (the RT-unit replay of the design point: ray pool,
+  pipelines, node fetches free) and ``rtunit_memory`` (the same with its node cache and memory),
+  ``embree`` (the Embree cross-check of every ray), ``wall_s`` with its parts (BVH build,
+  traversal on the RTL, RT-unit replays), and ``by_type`` (the same per ray type).
 - ``rtl_cycles_per_s``: datapath clock cycles per wall second of the "rtl" backend while it
   streams the frame (time inside the harness calls), the best of ``--repeat`` (3) timed passes:
   the wavefront traversal itself, then re-streams of its recorded requests in the same batches
@@ -22,62 +24,55 @@ Runs the default scene (bunny, 256 x 256) through the "rtl" backend and reports:
   second; hits checked equal to the RTL's); ``embree_rays_per_s``: Embree's closest hit
   for the same rays (one cast each, Embree's own BVH build excluded and reported as
   ``embree_build_s``); ``bvh_build_s``.
-- ``rtunit_sweep``: cycles per frame, utilization and frame time at 1 GHz for every (pipelines,
-  rays in flight) pair on a smaller frame of the same view (``--sweep-size``, 64), and one PNG plot
-  (``--plot``): cycles per frame vs rays in flight, log x, one line per pipeline count. The
-  sweep's replays run in parallel threads, one per usable core (at most 4).
-- ``machine``: CPU model (/proc/cpuinfo), cores, Python/numpy versions; ``targets``: the
-  project's goals and whether this run met them.
+- ``rtunit_sweep``: RT-unit cycles per frame, utilization and frame time at 1 GHz for every
+  (pipelines, rays in flight) pair on a smaller frame of the same view (``--sweep-size``, 64),
+  and one PNG plot (``--plot``): cycles per frame vs rays in flight, log x, one line per
+  pipeline count. The sweep's replays run in parallel threads, one per usable core (at most 4).
 
-A short table goes to stdout, progress bars to stderr, the JSON to ``--json PATH``
+Any other workload (``bench_workload``) reports the frame and per ray type the same
+statistics, any-hit against closest-hit ops, and utilization over rays in flight per ray type
+(``sweep``, plotted). Every document carries ``provenance`` (version, commit, design point,
+machine). A short table goes to stdout, progress bars to stderr, the JSON to ``--json PATH``
 (the command line is ``driver.cli.bench``).
 """
 
 from __future__ import annotations
 
-import os
-import platform
 import time
-from pathlib import Path
 
 import numpy as np
 
 from . import rtunit
+from .design import DesignPoint
 from .progress import bar as _bar
-from .stats import with_replay
+from .stats import machine, merge_rtunit, provenance, public, replay_stats
 
-DEFAULT_SCENE = "bunny"
 PYVERILATOR_REQUESTS = 2000
 REPEAT = 3
 SWEEP_SIZE = 64
-TARGETS = {"utilization": 0.98, "rtl_cycles_per_s": 1e6, "speedup": 100.0, "frame_wall_s": 10.0}
 
 
-def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAYS_IN_FLIGHT,
-          pipelines=1, sweep_size=SWEEP_SIZE, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT,
-          sweep_pipelines=rtunit.SWEEP_PIPELINES, plot=None,
-          pyverilator_requests=PYVERILATOR_REQUESTS, repeat=REPEAT, progress=True,
-          memory=rtunit.MemoryModel(), fill=0, cull_stack=False) -> dict:
-    """Run the benchmark; returns the JSON document (see the module docstring). ``memory``: the
-    node memory of the ``memory`` object's replay (None: no such object); ``fill`` (BVH build)
-    and ``cull_stack`` (traversal) apply to every trace of the run."""
+def bench(point: DesignPoint = DesignPoint(), sweep_size=SWEEP_SIZE,
+          sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, sweep_pipelines=rtunit.SWEEP_PIPELINES,
+          plot=None, pyverilator_requests=PYVERILATOR_REQUESTS, repeat=REPEAT,
+          progress=True, scene=None) -> dict:
+    """Run the benchmark of design point ``point`` (its primary frame); returns the JSON
+    document (see the module docstring). ``scene``: a loaded scene instead of
+    ``point.scene``."""
     from .backends import backend
     from .scenes.camera import check_size, primary_rays
     from .scenes.scene import load_scene
 
-    scene = load_scene(scene_name)
-    w, h = scene.size if size is None else (size, size)
+    scene = load_scene(point.scene if scene is None else scene)
+    w, h = scene.size if point.size is None else (point.size, point.size)
     w, h = check_size(w, h)
     origins, dirs = primary_rays(scene.camera, w, h)
     n = len(origins)
-    rtl = backend("rtl")                            # build (or load) first: fail early
+    rtl = backend("rtl", **point.backend_options())  # build (or load) first: fail early
 
-    tree = dict(fill=fill, cull_stack=cull_stack)
-    frame, res, bvh, rep = _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines,
-                                  f"{w}x{h}", progress, **tree)
+    frame, res, bvh = _frame(scene, origins, dirs, rtl, point, f"{w}x{h}", progress)
     sided = scene.double_sided
     rec = res.record
-    mem = _memory_frame(rec, rays_in_flight, pipelines, memory) if memory else None
     rtl_runs = [res.stats["sim_cycles_per_s"]]
     for _ in range(int(repeat) - 1):
         rtl_runs.append(_restream(rtl, rec, res.step_requests))
@@ -89,27 +84,27 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
     t_emb_build, t_emb = _embree_rate(tri, origins, dirs)
     emb_t, emb_prim = embree_closest(tri, origins, dirs, sided)
     frame["embree"] = embree_json(compare(res.t, res.prim, emb_t, emb_prim, tri, origins, dirs))
+    frame["by_type"]["primary"]["embree"] = frame["embree"]
 
-    t_gold, golden_same = _golden(bvh, origins, dirs, res, f"{w}x{h}", progress, cull_stack,
-                                  sided)
+    t_gold, golden_same = _golden(bvh, origins, dirs, res, f"{w}x{h}", progress, point, sided)
 
     # ---- pyverilator on a short stream of the frame's requests --------------------------------
     pyv = None
     k = min(int(pyverilator_requests), rec.ops)
     if k:
-        pyv = _pyverilator_stream(rec, k, progress, repeat)
+        pyv = _pyverilator_stream(rec, k, progress, repeat, point)
     speedup = rtl_cps / pyv["cycles_per_s"] if pyv and pyv["cycles_per_s"] else None
 
     sweep = None
     if sweep_size:
         sweep = _sweep(scene, bvh, rtl, min(int(sweep_size), w, h), sweep_rays, sweep_pipelines,
-                       rep, plot, progress, cull_stack, sided)
+                       plot, progress, point)
 
-    doc = {
+    return {
+        "provenance": provenance(point),
         "scene": scene.name,
         "width": w,
         "height": h,
-        **tree,
         "frame": frame,
         "rtl_cycles_per_s": rtl_cps,
         "rtl_cycles_per_s_runs": rtl_runs,
@@ -122,66 +117,49 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
         "embree_build_s": t_emb_build,
         "bvh_build_s": frame["wall_parts_s"]["bvh_build"],
         "rtunit_sweep": sweep,
-        "memory": mem,
-        "machine": machine(),
     }
-    doc["targets"] = {
-        "utilization_ge_0.98": frame["utilization"] >= TARGETS["utilization"],
-        "rtl_ge_1M_cycles_per_s": rtl_cps >= TARGETS["rtl_cycles_per_s"],
-        "speedup_ge_100": speedup is not None and speedup >= TARGETS["speedup"],
-        "frame_wall_le_10s": frame["wall_s"] <= TARGETS["frame_wall_s"],
-    }
-    return doc
 
 
-def _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines, label, progress, fill=0,
-           cull_stack=False):
-    """The frame on "rtl": BVH build, wavefront traversal (recorded), RT-unit replay. Returns
-    (frame statistics, trace result, BVH, replay result)."""
+def _frame(scene, origins, dirs, rtl, point, label, progress):
+    """The frame on "rtl": BVH build, wavefront traversal (recorded), RT-unit replays. Returns
+    (frame statistics, trace result, BVH)."""
     from .bvh4 import build, warm_up
     from .tracer import trace
 
     t_kernels = warm_up()                           # the builder's JIT, like the model's build
     t0 = time.perf_counter()
-    bvh = build(scene.mesh, fill=fill)
+    bvh = build(scene.mesh, fill=point.bvh_fill)
     t_bvh = time.perf_counter() - t0
     bar = _bar(len(origins), f"frame {label} rtl", "ray", progress)
     t1 = time.perf_counter()
     res = trace(bvh, origins, dirs, backend=rtl, record=True, progress=bar.hook,
-                cull_stack=cull_stack, double_sided=scene.double_sided)
+                cull_stack=point.cull_stack, double_sided=scene.double_sided)
     t_trace = time.perf_counter() - t1
     bar.close()
-    bar = _bar(1, f"RT-unit replay R={rays_in_flight} P={pipelines}", "run", progress)
-    rep = rtunit.replay(res.record, rays_in_flight, pipelines)
+    bar = _bar(1, f"RT-unit replays R={point.rays_in_flight} P={point.pipelines}", "run",
+               progress)
+    t2 = time.perf_counter()
+    frame = public(res.stats)
+    frame["rtunit"], frame["rtunit_memory"] = replay_stats([res.record], point)
+    t_replay = time.perf_counter() - t2
     bar.hook(1, 1)
     bar.close()
-    rs = rep.stats()
-    frame = with_replay(res.stats, rs)
-    frame["replay_wall_s"] = rs["sim_wall_s"]
+    frame["by_type"] = {"primary": dict(frame)}
     frame["wall_s"] = time.perf_counter() - t0
-    frame["wall_parts_s"] = {"bvh_build": t_bvh, "traversal": t_trace, "replay": rep.wall_s}
+    frame["wall_parts_s"] = {"bvh_build": t_bvh, "traversal": t_trace, "replay": t_replay}
     frame["bvh_kernels_s"] = t_kernels              # not in wall_s (see bvh4.warm_up)
     frame["bvh"] = dict(bvh.stats)
-    return frame, res, bvh, rep
+    return frame, res, bvh
 
 
-def _memory_frame(rec, rays_in_flight, pipelines, memory) -> dict:
-    """The frame's replay with the node memory on: the bench JSON's ``memory`` object."""
-    rep = rtunit.replay(rec, rays_in_flight, pipelines, memory=memory)
-    m = rep.memory
-    keep = ("cache_bytes", "ways", "line_bytes", "latency_cycles", "bytes_per_cycle", "hit_rate",
-            "bytes_per_ray", "line_accesses", "line_misses", "bytes_from_memory")
-    return {**{k: m[k] for k in keep}, "cycles": rep.cycles, "utilization": rep.utilization,
-            "rays_in_flight": rays_in_flight, "pipelines": pipelines,
-            "responses_verified": rep.verified}
-
-
-def _golden(bvh, origins, dirs, res, label, progress, cull_stack=False, double_sided=False):
+def _golden(bvh, origins, dirs, res, label, progress, point, double_sided):
     """The whole frame on the numpy model: (wall seconds, hits equal to the RTL's)."""
+    from .backends import backend
     from .tracer import trace
     bar = _bar(len(origins), f"frame {label} golden", "ray", progress)
     t0 = time.perf_counter()
-    gold = trace(bvh, origins, dirs, backend="golden", progress=bar.hook, cull_stack=cull_stack,
+    gold = trace(bvh, origins, dirs, backend=backend("golden", **point.backend_options()),
+                 progress=bar.hook, cull_stack=point.cull_stack,
                  double_sided=double_sided)
     t_gold = time.perf_counter() - t0
     bar.close()
@@ -190,14 +168,14 @@ def _golden(bvh, origins, dirs, res, label, progress, cull_stack=False, double_s
     return t_gold, same
 
 
-def _sweep(scene, bvh, rtl, ss, sweep_rays, sweep_pipelines, rep, plot, progress,
-           cull_stack=False, double_sided=False) -> dict:
-    """The RT-unit sweep on a smaller frame (ss x ss) of the same view, and its plot."""
+def _sweep(scene, bvh, rtl, ss, sweep_rays, sweep_pipelines, plot, progress, point) -> dict:
+    """The RT-unit sweep (node fetches free) on a smaller frame (ss x ss) of the same view, and
+    its plot."""
     from .scenes.camera import primary_rays
     from .tracer import trace
     so, sd = primary_rays(scene.camera, ss, ss)
-    srec = trace(bvh, so, sd, backend=rtl, record=True, cull_stack=cull_stack,
-                 double_sided=double_sided).record
+    srec = trace(bvh, so, sd, backend=rtl, record=True, cull_stack=point.cull_stack,
+                 double_sided=scene.double_sided).record
     pairs = len(sweep_rays) * len(sweep_pipelines)
     bar = _bar(pairs, f"RT-unit sweep {ss}x{ss}", "point", progress)
     t0 = time.perf_counter()
@@ -210,10 +188,10 @@ def _sweep(scene, bvh, rtl, ss, sweep_rays, sweep_pipelines, rep, plot, progress
             "starved_cycles", "responses_verified")
     if plot:
         rtunit.plot_sweep(points, plot, f"{scene.name} {ss}x{ss}: {srec.ops} datapath ops, "
-                                        f"latency {rep.latency} + turnaround "
-                                        f"{rep.turnaround} cycles")
+                                        f"latency {point.latency} + turnaround "
+                                        f"{rtunit.DEFAULT_TURNAROUND} cycles")
     return {"width": ss, "height": ss, "rays": srec.rays, "ops": srec.ops,
-            "latency_cycles": rep.latency, "turnaround_cycles": rep.turnaround,
+            "latency_cycles": point.latency, "turnaround_cycles": rtunit.DEFAULT_TURNAROUND,
             "wall_s": t_sweep, "plot": str(plot) if plot else None,
             "points": [{kk: pt[kk] for kk in keep} for pt in points]}
 
@@ -251,7 +229,7 @@ def _restream(rtl, rec, steps) -> float:
     return (rtl.cycles - c0) / wall if wall > 0 else 0.0
 
 
-def _pyverilator_stream(rec, k: int, progress, repeat: int = 1) -> dict:
+def _pyverilator_stream(rec, k: int, progress, repeat: int, point) -> dict:
     """Stream the record's first k requests through pyverilator and through "rtl" (``run()``
     calls of ``chunk`` requests each, so that the progress bar moves; both backends get the same
     calls and count the same cycles), ``repeat`` times each; every pass checked against the
@@ -260,8 +238,8 @@ def _pyverilator_stream(rec, k: int, progress, repeat: int = 1) -> dict:
     from .layout import pack_responses
     req = rec.requests(np.arange(k))
     expect = rec.responses[:k]
-    pv = backend("pyverilator")
-    be = backend("rtl")
+    pv = backend("pyverilator", **point.backend_options())
+    be = backend("rtl", **point.backend_options())
     chunk = max(1, min(250, k))
 
     def timed(dp, bar=None):
@@ -299,25 +277,6 @@ def _pyverilator_stream(rec, k: int, progress, repeat: int = 1) -> dict:
     }
 
 
-def machine() -> dict:
-    """CPU model (first ``model name`` of /proc/cpuinfo), logical cores (all / usable)."""
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.lower().startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        usable = os.cpu_count()
-    return {"cpu": cpu, "cores": os.cpu_count(), "cores_usable": usable,
-            "python": platform.python_version(), "numpy": np.__version__,
-            "platform": platform.platform()}
-
-
 def table(doc: dict) -> str:
     """The short human-readable summary printed by ``rayflex bench``."""
     f, pv = doc["frame"], doc.get("pyverilator")
@@ -328,13 +287,9 @@ def table(doc: dict) -> str:
                   f"{e.get('prim_mismatch', '?')} prim mismatches"),
         ("datapath ops", f"{f['ops']} ({f['box_ops']} box + {f['tri_ops']} tri; "
                          f"{f['box_ops_per_ray']:.2f} + {f['tri_ops_per_ray']:.2f} per ray)"),
-        (f"RT unit R={f['rays_in_flight']} P={f['pipelines']}",
-         f"{f['cycles']} cycles, utilization {f['utilization']:.4f}, "
-         f"{f['frame_us_at_1ghz']:.1f} us at 1 GHz"),
-        ("wavefront (all rays)", f"{f['wavefront_cycles']} cycles, utilization "
-                                 f"{f['wavefront_utilization']:.4f}"),
+        *timing_rows(f),
         ("frame wall", f"{f['wall_s']:.2f} s (BVH {f['wall_parts_s']['bvh_build']:.2f} + "
-                       f"traversal {f['wall_parts_s']['traversal']:.2f} + replay "
+                       f"traversal {f['wall_parts_s']['traversal']:.2f} + replays "
                        f"{f['wall_parts_s']['replay']:.2f})"),
         ("rtl", f"{doc['rtl_cycles_per_s']:.3g} cycles/s (best of "
                 f"{', '.join(f'{x:.3g}' for x in doc['rtl_cycles_per_s_runs'])})"),
@@ -355,114 +310,94 @@ def table(doc: dict) -> str:
             line = "  ".join(f"R={pt['rays_in_flight']}:{pt['utilization']:.2f}"
                              for pt in pts if pt["pipelines"] == p)
             rows.append((f"sweep P={p} util", line))
-    miss = [k for k, ok in doc["targets"].items() if not ok]
-    rows.append(("targets", "all met" if not miss else "not met: " + ", ".join(miss)))
     width = max(len(r[0]) for r in rows)
     return "\n".join(f"{a:<{width}}  {b}" for a, b in rows)
+
+
+def timing_rows(f: dict) -> list[tuple[str, str]]:
+    """(label, text) rows of a frame's wavefront and RT-unit figures (docs/statistics.md)."""
+    wf = f["wavefront"]
+    rows = [("wavefront", f"{wf['cycles']} cycles, utilization {wf['utilization']:.4f} (every "
+                          "ray in flight, one pipeline)")]
+    for key, what in (("rtunit", "node fetches free"), ("rtunit_memory", "node cache + memory")):
+        r = f.get(key)
+        if r:
+            rows.append((f"RT unit R={r['rays_in_flight']} P={r['pipelines']}",
+                         f"{r['cycles']} cycles, utilization {r['utilization']:.4f}, "
+                         f"{r['frame_us_at_1ghz']:.1f} us at 1 GHz ({what}"
+                         + (f"; hit rate {r['hit_rate']:.3f}, {r['bytes_per_ray']:.0f} B/ray)"
+                            if "hit_rate" in r else ")")))
+    return rows
 
 
 # ----------------------------------------------------------------------------------------------
 # rayflex bench --workload: the datapath mix and the RT-unit timing per ray type
 
-WORKLOAD_SIZE = 64
-
-
-def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, ao_rays=4,
-                   seed=0, rays_in_flight=rtunit.DEFAULT_RAYS_IN_FLIGHT, pipelines=1,
-                   sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, plot=None, progress=True,
-                   memory=rtunit.MemoryModel(), fill=0, cull_stack=False) -> dict:
-    """One workload frame on "rtl" (every batch recorded), checked against Embree; per ray type:
-    the op mix, the RT-unit replay at (R, P) without and with the node memory (``memory``; None:
-    without only), any-hit vs closest-hit ops of the same rays, and a sweep of utilization over
-    rays in flight (one pipeline), plotted per ray type. ``fill``: the BVH build's;
-    ``cull_stack``: the traversal's (``driver.tracer.trace``)."""
+def bench_workload(point: DesignPoint, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, plot=None,
+                   progress=True) -> dict:
+    """One workload frame of design point ``point`` on "rtl" (every batch recorded), checked
+    against Embree; per ray type: the op mix, the RT-unit replays (``rtunit``,
+    ``rtunit_memory``), any-hit vs closest-hit ops of the same rays, and a sweep of utilization
+    over rays in flight (one pipeline, the point's node memory), plotted per ray type."""
     from . import workloads
     from .backends import backend
     from .bvh4 import build
     from .scenes.scene import load_scene
     from .tracer import trace
 
-    scene = load_scene(scene_name)
+    scene = load_scene(point.scene)
+    size = point.size or scene.size[0]
     setup = workloads.setup_for(scene)
-    rtl = backend("rtl")
+    rtl = backend("rtl", **point.backend_options())
+    golden = backend("golden", **point.backend_options())
     t0 = time.perf_counter()
-    bvh = build(scene.triangles, fill=fill)
+    bvh = build(scene.triangles, fill=point.bvh_fill)
     t_bvh = time.perf_counter() - t0
 
     def tracer(bvh_, o, d, **kw):
-        return trace(bvh_, o, d, backend=rtl, record=True, cull_stack=cull_stack, **kw)
+        return trace(bvh_, o, d, backend=rtl, record=True, cull_stack=point.cull_stack, **kw)
 
     t1 = time.perf_counter()
-    res = workloads.run(setup, bvh, size, size, tracer, workload, spp=spp, bounces=bounces,
-                        ao_rays=ao_rays, seed=seed)
+    res = workloads.run(setup, bvh, size, size, tracer, point.workload,
+                        **point.workload_options())
     t_trace = time.perf_counter() - t1
     workloads.embree_check(res, setup)
-    kinds = list(res.stats["by_type"])
+    frame = public(res.stats)
+    kinds = list(frame["by_type"])
     steps = len(kinds) * (1 + len(sweep_rays))
-    bar = _bar(steps, f"{workload}: RT-unit replays", "replay", progress)
-    by_type, sweep, done = {}, {}, 0
+    bar = _bar(steps, f"{point.workload}: RT-unit replays", "replay", progress)
+    sweep, done = {}, 0
+    t2 = time.perf_counter()
     for kind in kinds:
         batches = [b for b in res.batches if b.kind == kind]
-        entry = dict(res.stats["by_type"][kind])
+        entry = frame["by_type"][kind]
         records = [b.result.record for b in batches]
-        entry.update(_replay_all(records, rays_in_flight, pipelines))
-        if memory:
-            entry["memory"] = _replay_all(records, rays_in_flight, pipelines, memory)
+        entry["rtunit"], entry["rtunit_memory"] = replay_stats(records, point)
         if batches[0].any_hit:
-            closest = sum(trace(bvh, b.origins, b.dirs, backend="golden", extent=b.extent,
+            closest = sum(trace(bvh, b.origins, b.dirs, backend=golden, extent=b.extent,
                                 double_sided=setup.double_sided).stats["ops"] for b in batches)
             entry["closest_hit_ops"] = closest
             entry["any_hit_vs_closest_ops"] = entry["ops"] / closest if closest else None
-        by_type[kind] = entry
         done += 1
         bar.hook(done, steps)
         sweep[kind] = []
         for r in sweep_rays:
-            point = _replay_all(records, r, 1)
-            if memory:
-                point["memory"] = _replay_all(records, r, 1, memory)
-            sweep[kind].append(point)
+            plain, mem = replay_stats(records, point.replace(rays_in_flight=r, pipelines=1))
+            sweep[kind].append({"rays_in_flight": r, "rtunit": plain, "rtunit_memory": mem})
             done += 1
             bar.hook(done, steps)
+    t_replay = time.perf_counter() - t2
     bar.close()
     if plot:
-        plot_workload_sweep(sweep, plot, f"{scene.name} {size}x{size} {workload}: utilization "
-                                         "vs rays in flight, one pipeline")
-    total = dict(res.stats)
-    total.pop("by_type")
-    cycles = sum(t["replay_cycles"] for t in by_type.values())     # the per-type replays, added
-    total.update(replay_cycles=cycles, rays_in_flight=rays_in_flight, pipelines=pipelines,
-                 replay_utilization=total["ops"] / (pipelines * cycles) if cycles else 0.0,
-                 responses_verified=all(t["responses_verified"] for t in by_type.values()))
-    return {"scene": scene.name, "workload": workload, "width": size, "height": size,
-            "spp": spp, "bounces": bounces, "ao_rays": ao_rays, "seed": seed, "fill": fill,
-            "cull_stack": cull_stack, "frame": total, "by_type": by_type, "sweep": sweep, "plot": str(plot) if plot else None,
-            "wall_parts_s": {"bvh_build": t_bvh, "traversal": t_trace}}
-
-
-def _replay_all(records, rays_in_flight, pipelines, memory=None) -> dict:
-    """RT-unit replays of several recorded wavefronts run one after another: cycles add up (each
-    wavefront starts with the node cache cold)."""
-    cycles = ops = rays = accesses = hits = fetched = 0
-    verified = True
-    for rec in records:
-        rep = rtunit.replay(rec, rays_in_flight, pipelines, memory=memory)
-        cycles += rep.cycles
-        ops += rep.ops
-        rays += rep.rays
-        verified &= rep.verified
-        if rep.memory:
-            accesses += rep.memory["line_accesses"]
-            hits += rep.memory["line_hits"]
-            fetched += rep.memory["bytes_from_memory"]
-    out = {"replay_cycles": cycles,
-           "replay_utilization": ops / (pipelines * cycles) if cycles else 0.0,
-           "rays_in_flight": rays_in_flight, "pipelines": pipelines,
-           "responses_verified": bool(verified)}
-    if memory:
-        out.update(memory.describe(), hit_rate=hits / accesses if accesses else 0.0,
-                   bytes_per_ray=fetched / rays if rays else 0.0)
-    return out
+        plot_workload_sweep(sweep, plot, f"{scene.name} {size}x{size} {point.workload}: "
+                                         "utilization vs rays in flight, one pipeline")
+    for key in ("rtunit", "rtunit_memory"):
+        frame[key] = merge_rtunit([t[key] for t in frame["by_type"].values()])
+    frame["wall_parts_s"] = {"bvh_build": t_bvh, "traversal": t_trace, "replay": t_replay}
+    frame["bvh"] = dict(bvh.stats)
+    return {"provenance": provenance(point), "scene": scene.name, "workload": point.workload,
+            "width": size, "height": size, "frame": frame, "sweep": sweep,
+            "plot": str(plot) if plot else None}
 
 
 def plot_workload_sweep(sweep: dict, path, title: str) -> None:
@@ -477,12 +412,12 @@ def plot_workload_sweep(sweep: dict, path, title: str) -> None:
     for i, (kind, pts) in enumerate(sweep.items()):
         c = colours[i % len(colours)]
         x = [p["rays_in_flight"] for p in pts]
-        if "memory" in pts[0]:
-            ax.plot(x, [p["memory"]["replay_utilization"] for p in pts], "o-", color=c,
+        if pts[0]["rtunit_memory"]:
+            ax.plot(x, [p["rtunit_memory"]["utilization"] for p in pts], "o-", color=c,
                     label=f"{kind} (node cache + memory)")
-            ax.plot(x, [p["replay_utilization"] for p in pts], ":", color=c, lw=1)
+            ax.plot(x, [p["rtunit"]["utilization"] for p in pts], ":", color=c, lw=1)
         else:
-            ax.plot(x, [p["replay_utilization"] for p in pts], "o-", color=c, label=kind)
+            ax.plot(x, [p["rtunit"]["utilization"] for p in pts], "o-", color=c, label=kind)
     ax.set_xscale("log", base=2)
     ax.set_ylim(0, 1.05)
     ax.set_xlabel("rays in flight (ray pool size R)")
@@ -494,33 +429,35 @@ def plot_workload_sweep(sweep: dict, path, title: str) -> None:
     fig.savefig(str(path), format="png")
 
 
-def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, tile=64,
-                  progress=True, fill=0, **options) -> dict:
-    """The same tiled frame on "rtl" in this process and on a LocalCluster of ``workers``
-    processes: wall times (scheduler start-up and the once-per-worker set-up included), the
-    speed-up, and whether the two frames are identical (image, per-pixel ops, statistics but wall
-    times). ``phases_n_workers``: where the distributed frame's wall time went
-    (``tiles.render_tiles``); ``speedup_tiles`` compares the tiles after the first result with
-    the same share of the one-process frame, i.e. the scaling the machine gives once every fixed
-    cost is paid. ``fill``: the BVH build's; ``options``: the workload's and ``cull_stack``."""
-    from .backends.build import build_harness, rtl_params
+def bench_workers(point: DesignPoint, workers=2, tile=64, progress=True) -> dict:
+    """The same tiled frame of design point ``point`` on "rtl" in this process and on a
+    LocalCluster of ``workers`` processes: wall times (scheduler start-up and the once-per-worker
+    set-up included), the speed-up, and whether the two frames are identical (image, per-pixel
+    ops, statistics but wall times). ``phases_n_workers``: where the distributed frame's wall
+    time went (``tiles.render_tiles``); ``speedup_tiles`` compares the tiles after the first
+    result with the same share of the one-process frame, i.e. the scaling the machine gives once
+    every fixed cost is paid."""
+    from .backends.build import build_harness
     from .bvh4 import build
-    from .datapath import LATENCY
     from .scenes.scene import load_scene
     from .tiles import plan, render_tiles
     from .workloads import setup_for
 
-    scene = load_scene(scene_name)
-    setup, bvh = setup_for(scene), build(scene.mesh, fill=fill)
+    scene = load_scene(point.scene)
+    size = point.size or scene.size[0]
+    setup, bvh = setup_for(scene), build(scene.mesh, fill=point.bvh_fill)
     n_tiles = len(plan(size, size, tile))
     # a first use on this machine builds the Verilated model (minutes): build it before either
     # clock starts, so that both runs pay only what every run pays, loading it from the cache
-    build_harness(rtl_params(False, False, LATENCY))
+    build_harness(point.rtl_params())
+    options = point.workload_options() | {"cull_stack": point.cull_stack}
+    spec = ("rtl", point.backend_options())
     runs, phases = {}, {}
     for n in (1, int(workers)):
-        bar = _bar(n_tiles, f"{workload} {size}x{size} on {n} worker(s)", "tile", progress)
+        bar = _bar(n_tiles, f"{point.workload} {size}x{size} on {n} worker(s)", "tile",
+                   progress)
         t0 = time.perf_counter()
-        runs[n] = (render_tiles(setup, bvh, size, size, workload, options, "rtl", tile, n,
+        runs[n] = (render_tiles(setup, bvh, size, size, point.workload, options, spec, tile, n,
                                 progress=bar.hook, timings=phases if n > 1 else None),
                    time.perf_counter() - t0)
         bar.close()
@@ -529,9 +466,9 @@ def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, ti
     same = (np.array_equal(a.radiance, b.radiance)
             and all(np.array_equal(a.ops[k], b.ops[k]) for k in a.ops)
             and {k: a.stats[k] for k in keep} == {k: b.stats[k] for k in keep})
-    return {"scene": scene.name, "workload": workload, "width": size, "height": size,
-            "tile": tile, "tiles": n_tiles, **options, "fill": fill, "workers": int(workers),
-            "wall_s_1_worker": ta, "wall_s_n_workers": tb,
+    return {"provenance": provenance(point), "scene": scene.name, "workload": point.workload,
+            "width": size, "height": size, "tile": tile, "tiles": n_tiles,
+            "workers": int(workers), "wall_s_1_worker": ta, "wall_s_n_workers": tb,
             "speedup": ta / tb if tb > 0 else None, "identical": bool(same),
             "phases_n_workers": {k: round(v, 3) for k, v in phases.items()},
             "speedup_tiles": (ta * (n_tiles - 1) / n_tiles / phases["tiles_s"]

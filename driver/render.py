@@ -1,8 +1,8 @@
 """Render a scene through the datapath: camera -> BVH4 -> traversal on a backend -> shading.
 
 ``render(scene, width, height, backend)`` returns a ``RenderResult`` with the image, the
-per-pixel datapath operation counts, the trace result and the frame statistics (SPEC section 10
-names, plus ``bvh`` build statistics and, when checked, the ``embree`` object).
+per-pixel datapath operation counts, the trace result and the frame statistics (the schema of
+docs/statistics.md, plus ``bvh`` build statistics and, when checked, the ``embree`` object).
 
 Shading: flat face normals, Lambert with a head light (the light sits at the camera), a little
 ambient, sRGB-ish gamma; misses show a vertical background gradient.
@@ -40,8 +40,8 @@ BASE_BYTES = 150 * 2**20
 @dataclass
 class RenderResult:
     """image (h, w, 3) uint8; ops (h, w) int64 box + tri ops per pixel; trace: the TraceResult;
-    stats: SPEC section 10 dict (+ ``bvh``, + ``embree`` when checked); embree: the full
-    ``driver.check.compare`` result (with ray index lists) or None."""
+    stats: frame statistics of docs/statistics.md (+ ``bvh``, + ``embree`` when checked);
+    embree: the full ``driver.check.compare`` result (with ray index lists) or None."""
 
     scene: Scene
     width: int
@@ -78,30 +78,38 @@ class RenderResult:
 def render(scene, width=None, height=None, backend: str = "rtl", progress: bool = True,
            check_embree: bool = False, workload: str = "primary", spp: int = 1, bounces: int = 1,
            ao_rays: int = 4, seed: int = 0, tile: int | None = None, workers: int = 1,
-           scheduler: str | None = None, fill: int = 0, cull_stack: bool = False) -> RenderResult:
+           scheduler: str | None = None, fill: int = 0, cull_stack: bool = False,
+           point=None, rtunit: bool = False) -> RenderResult:
     """Render ``scene`` (a Scene, or anything ``load_scene`` takes) at width x height (default:
     the scene's size) with every box/triangle test on ``backend``; optionally cross-check every
     ray against Embree.
 
     The primary workload with one sample, untiled, is one wavefront of every pixel (the frame of
-    earlier versions, with ``trace`` the TraceResult). Any other ``workload`` (SPEC 13: shadow,
-    ao, path with ``spp``, ``bounces``, ``ao_rays``, ``seed``), a ``tile`` size, ``workers`` > 1
-    or a Dask ``scheduler`` renders through ``driver.tiles`` (``trace`` is None; statistics per
+    earlier versions, with ``trace`` the TraceResult). Any other ``workload``
+    (docs/workloads.md: shadow, ao, path with ``spp``, ``bounces``, ``ao_rays``, ``seed``), a
+    ``tile`` size, ``workers`` > 1 or a Dask ``scheduler`` renders through ``driver.tiles`` (``trace`` is None; statistics per
     ray type in ``stats["by_type"]``); so does a frame too big for memory as one wavefront.
     ``fill`` is the BVH build's (``driver.bvh4.build``), ``cull_stack`` the traversal's
-    (``driver.tracer.trace``)."""
-    from .workloads import check_arguments
-    check_arguments(spp, bounces, ao_rays, seed)
+    (``driver.tracer.trace``).
+
+    ``point``: a ``driver.design.DesignPoint``; its datapath configuration and latency make the
+    backend (a backend name; a backend object is used as it is), and its workload and BVH
+    options replace the keyword arguments above. ``rtunit``: also replay every wavefront's
+    requests on the point's RT unit (statistics ``rtunit`` and ``rtunit_memory``). The
+    statistics are in the published schema (``driver.stats.public``, docs/statistics.md)."""
+    from .design import DesignPoint
+    if point is None:
+        point = DesignPoint(workload=workload, spp=spp, bounces=bounces, ao_rays=ao_rays,
+                            seed=seed, bvh_fill=fill, cull_stack=cull_stack)
     scene = load_scene(scene)
     w, h = check_size(width if width is not None else scene.size[0],
                       height if height is not None else scene.size[1])
-    tile = plan_tile(w * h, workload, spp, tile, workers, scheduler)
-    check_frame_memory(w * h, spp, tile)
+    tile = plan_tile(w * h, point.workload, point.spp, tile, workers, scheduler)
+    check_frame_memory(w * h, point.spp, tile)
     if tile is None:
-        return _render_whole(scene, w, h, backend, progress, check_embree, fill, cull_stack)
-    return _render_tiles(scene, w, h, backend, progress, check_embree, workload,
-                         dict(spp=spp, bounces=bounces, ao_rays=ao_rays, seed=seed), tile,
-                         workers, scheduler, fill, cull_stack)
+        return _render_whole(scene, w, h, backend, progress, check_embree, point, rtunit)
+    return _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, tile,
+                         workers, scheduler)
 
 
 def plan_tile(pixels: int, workload: str, spp: int, tile: int | None, workers: int,
@@ -118,54 +126,58 @@ def plan_tile(pixels: int, workload: str, spp: int, tile: int | None, workers: i
     return DEFAULT_TILE
 
 
-def _render_tiles(scene, w, h, backend, progress, check_embree, workload, options, tile,
-                  workers, scheduler, fill, cull_stack) -> RenderResult:
+def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, tile,
+                  workers, scheduler) -> RenderResult:
     from .bvh4 import build
+    from .stats import public
     from .tiles import plan, render_tiles
-    from .workloads import WORKLOADS, setup_for, tone_map
-    if workload not in WORKLOADS:
-        raise ValueError(f"unknown workload {workload!r}; available: {', '.join(WORKLOADS)}")
+    from .workloads import setup_for, tone_map
+    workload = point.workload
     name = backend if isinstance(backend, str) else getattr(backend, "name", "backend")
-    spec = backend if isinstance(backend, str) else name
+    spec = (backend, point.backend_options()) if isinstance(backend, str) else backend
     if workers == 1 and not scheduler:
-        spec = resolve(backend)[0]          # fail early, before a long BVH build
+        from .tiles import _backend
+        _backend(spec)                      # fail early, before a long BVH build
     with phase(f"building the BVH4 of {len(scene.mesh.faces):,} triangles", progress):
-        bvh = build(scene.mesh, fill=fill)
+        bvh = build(scene.mesh, fill=point.bvh_fill)
     setup = setup_for(scene)
     tiles = plan(w, h, tile)
     bar = progress_bar(len(tiles), f"{scene.name} {w}x{h} {workload} {name}", "tile", progress)
+    options = point.workload_options() | {"cull_stack": point.cull_stack,
+                                          "rtunit": point if rtunit else None}
     try:
-        res = render_tiles(setup, bvh, w, h, workload, options | {"cull_stack": cull_stack},
-                           spec, tile, workers, scheduler, check_embree, bar.hook)
+        res = render_tiles(setup, bvh, w, h, workload, options, spec, tile, workers, scheduler,
+                           check_embree, bar.hook)
     finally:
         bar.close()
     image = tone_map(res.radiance, w, h, linear=workload in ("primary", "ao"))
     by_type = {k: v.reshape(h, w) for k, v in res.ops.items()}
     total = sum(by_type.values())                   # int32: ops per pixel stay far below 2**31
-    stats = dict(res.stats)
-    stats.update(bvh=dict(bvh.stats), workload=workload, tile=tile, workers=workers, **options,
-                 cull_stack=cull_stack)
+    stats = public(res.stats)
+    stats.update(bvh=dict(bvh.stats), tile=tile, workers=workers)
     return RenderResult(scene, w, h, image, total, None, stats, stats.get("embree"),
                         dict(bvh.stats), by_type)
 
 
-def _render_whole(scene, w, h, backend, progress, check_embree, fill=0,
-                  cull_stack=False) -> RenderResult:
+def _render_whole(scene, w, h, backend, progress, check_embree, point,
+                  rtunit=False) -> RenderResult:
     """The primary frame as one wavefront of every pixel."""
     from .bvh4 import build
+    from .stats import public, replay_stats
     from .tracer import trace
 
     origins, dirs = primary_rays(scene.camera, w, h)
-    be = resolve(backend)[0]                # fail early, before a long BVH build
+    be = resolve(backend, **point.backend_options())[0]    # fail early, before a long BVH build
     with phase(f"building the BVH4 of {len(scene.mesh.faces):,} triangles", progress):
-        bvh = build(scene.mesh, fill=fill)
+        bvh = build(scene.mesh, fill=point.bvh_fill)
     bvh_stats = dict(getattr(bvh, "stats", {}) or {})
 
     name = backend if isinstance(backend, str) else getattr(backend, "name", "backend")
     bar = progress_bar(len(origins), f"{scene.name} {w}x{h} {name}", "ray", progress)
     try:
-        result = trace(bvh, origins, dirs, backend=be, progress=bar.hook, cull_stack=cull_stack,
-                       double_sided=scene.double_sided)
+        result = trace(bvh, origins, dirs, backend=be, progress=bar.hook,
+                       cull_stack=point.cull_stack, double_sided=scene.double_sided,
+                       record=rtunit)
     finally:
         bar.close()
 
@@ -173,13 +185,18 @@ def _render_whole(scene, w, h, backend, progress, check_embree, fill=0,
     image = shade(result, tri, dirs, w, h)
     ops = (np.asarray(result.box_ops, np.int64) + np.asarray(result.tri_ops, np.int64))
     stats = dict(result.stats)
-    stats["bvh"] = bvh_stats
+    if rtunit:
+        with phase(f"RT-unit replay of {result.record.ops:,} requests", progress):
+            stats["rtunit"], stats["rtunit_memory"] = replay_stats([result.record], point)
+    stats = public(stats)
     emb = None
     if check_embree:
         from .check import check, embree_json
         with phase(f"Embree check of {len(origins):,} rays", progress):
             emb = check(tri, origins, dirs, result.t, result.prim, scene.double_sided)
         stats["embree"] = embree_json(emb)
+    stats["by_type"] = {"primary": dict(stats)}
+    stats["bvh"] = bvh_stats
     return RenderResult(scene, w, h, image, ops.reshape(h, w), result, stats, emb, bvh_stats)
 
 

@@ -1,8 +1,14 @@
-"""Frame statistics (SPEC section 10): built once here, merged once here.
+"""Frame statistics: built once here, merged once here, published once here (docs/statistics.md).
 
-``frame_stats`` turns a traversal's per-ray op counts and the backend's cycles into the SPEC 10
-dictionary; ``with_replay`` merges an RT-unit replay's timing into it (the wavefront's own timing
-kept as ``wavefront_*``). ``driver.tracer`` and ``rayflex bench`` both use these two.
+``frame_stats`` turns a traversal's per-ray op counts and the backend's cycles into the flat
+dictionary of a ``TraceResult``; ``with_replay`` merges an RT-unit replay's timing into it (the
+wavefront's own timing kept as ``wavefront_*``; the Python API of ``driver.tracer.trace``).
+
+What the commands write (render, bench, sweep JSON) is the schema of docs/statistics.md, made
+by ``public``: the functional counts flat, the timing of the ideal pipeline (every ray in
+flight, one pipeline, cycles as the backend counts them) under ``wavefront``, and the RT-unit
+replays (``driver.rtunit``) under ``rtunit`` (node fetches free) and ``rtunit_memory`` (with the
+node cache and memory; null without one), each ray type's the same under ``by_type``.
 """
 
 from __future__ import annotations
@@ -11,7 +17,7 @@ import numpy as np
 
 from .layout import BOX_BYTES, TRI_BYTES
 
-STACK_CULLS = "stack_culls"     # beyond SPEC 10: box nodes a distance-culled stack dropped
+STACK_CULLS = "stack_culls"     # box nodes a distance-culled stack dropped
 # the replay's figures that replace the wavefront's (which are kept as wavefront_<name>)
 REPLAYED = ("cycles", "utilization", "sim_wall_s", "sim_cycles_per_s")
 # the replay's own figures that join the frame's statistics
@@ -22,7 +28,7 @@ REPLAY_KEYS = ("frame_us_at_1ghz", "rays_in_flight", "pipelines", "turnaround_cy
 def frame_stats(box_ops: np.ndarray, tri_ops: np.ndarray, hit: np.ndarray, cycles: int,
                 latency: int, sim_wall_s: float, backend: str,
                 culled: np.ndarray | None = None) -> dict:
-    """SPEC 10 statistics of a traversal: per-ray op counts (n,), hit mask (n,), the datapath
+    """Statistics of a traversal: per-ray op counts (n,), hit mask (n,), the datapath
     cycles it took, the pipeline latency, the wall time inside the backend, the backend's name;
     with ``culled`` (per-ray box nodes dropped by a distance-culled stack, ``driver.traversal``)
     also ``stack_culls``, their total (absent when the traversal does not cull)."""
@@ -63,13 +69,13 @@ def with_replay(stats: dict, replay: dict) -> dict:
     return out
 
 
-# summed over the parts of a frame; the rest of SPEC 10 is derived from the sums
+# summed over the parts of a frame; the rest is derived from the sums
 _SUMMED = ("rays", "hits", "box_ops", "tri_ops", "ops", "cycles", "node_bytes_fetched",
            "sim_wall_s")
 
 
 def merge(parts: list[dict]) -> dict:
-    """SPEC 10 statistics of several traversals taken together (ray types, bounces, tiles): counts,
+    """Statistics of several traversals taken together (ray types, bounces, tiles): counts,
     cycles and wall times add up (each traversal is its own wavefront: the datapath runs them one
     after another); the ratios are recomputed from the sums."""
     if not parts:
@@ -87,5 +93,151 @@ def merge(parts: list[dict]) -> dict:
         "frame_us_at_1ghz": cycles / 1000,
         "backend": parts[0]["backend"],
     })
+    for key in (RTUNIT, RTUNIT_MEMORY):
+        if all(key in p for p in parts):
+            s[key] = merge_rtunit([p[key] for p in parts])
     return {k: s[k] for k in parts[0] if k in s} | {k: v for k, v in s.items()
                                                    if k not in parts[0]}
+
+
+# ---------------------------------------------------------------------------------------------
+# the published schema (docs/statistics.md)
+
+WAVEFRONT, RTUNIT, RTUNIT_MEMORY = "wavefront", "rtunit", "rtunit_memory"
+# the wavefront's timing figures (flat in a TraceResult's statistics, an object when published)
+WAVEFRONT_KEYS = ("cycles", "utilization", "frame_us_at_1ghz", "sim_wall_s", "sim_cycles_per_s")
+# RT-unit figures added up over replays run one after another
+_RT_SUMMED = ("rays", "ops", "cycles", "starved_cycles", "sim_wall_s")
+_MEM_SUMMED = ("line_accesses", "line_hits", "line_misses", "bytes_from_memory",
+               "node_wait_cycles")
+
+
+def public(stats: dict) -> dict:
+    """Flat traversal statistics (a ``TraceResult``'s or ``merge``'s, ``by_type`` included) in
+    the published schema: the wavefront's timing moved under ``wavefront``; an RT-unit object
+    already present is kept."""
+    out = {k: v for k, v in stats.items() if k not in WAVEFRONT_KEYS and k != "by_type"
+           and not k.startswith("wavefront_")}
+    src = {k: stats.get("wavefront_" + k, stats.get(k)) for k in WAVEFRONT_KEYS}
+    out[WAVEFRONT] = src
+    if "by_type" in stats:
+        out["by_type"] = {k: public(v) for k, v in stats["by_type"].items()}
+    return out
+
+
+def rtunit_stats(replays: list) -> dict:
+    """The ``rtunit`` (or, replays with a memory model, ``rtunit_memory``) object of replays
+    (``driver.rtunit.ReplayResult``) of wavefronts that run one after another: cycles add up
+    (each wavefront starts with an empty ray pool and a cold node cache)."""
+    if not replays:
+        raise ValueError("no replay")
+    first = replays[0]
+    out = {"rays_in_flight": first.rays_in_flight, "pipelines": first.pipelines,
+           "turnaround_cycles": first.turnaround, "rays": sum(r.rays for r in replays),
+           "ops": sum(r.ops for r in replays), "cycles": sum(r.cycles for r in replays),
+           "starved_cycles": sum(r.starved_cycles for r in replays),
+           "sim_wall_s": sum(r.wall_s for r in replays),
+           "responses_verified": all(r.verified for r in replays)}
+    if first.memory:
+        for k in _MEM_SUMMED:
+            out[k] = sum(r.memory[k] for r in replays)
+    return _rt_derived(out)
+
+
+def _rt_derived(s: dict) -> dict:
+    cyc, n = s["cycles"], s["rays"]
+    s["utilization"] = s["ops"] / (s["pipelines"] * cyc) if cyc else 0.0
+    s["frame_us_at_1ghz"] = cyc / 1000
+    s["cycles_per_ray"] = cyc / n if n else 0.0
+    if "line_accesses" in s:
+        acc = s["line_accesses"]
+        s["hit_rate"] = s["line_hits"] / acc if acc else 0.0
+        s["bytes_per_ray"] = s["bytes_from_memory"] / n if n else 0.0
+    return s
+
+
+def merge_rtunit(parts: list) -> dict | None:
+    """RT-unit objects of parts run one after another (ray types, tiles), taken together."""
+    if not parts or any(p is None for p in parts):
+        return None
+    out = {k: parts[0][k] for k in ("rays_in_flight", "pipelines", "turnaround_cycles")}
+    keys = _RT_SUMMED + (_MEM_SUMMED if "line_accesses" in parts[0] else ())
+    out.update({k: sum(p[k] for p in parts) for k in keys})
+    out["responses_verified"] = all(p["responses_verified"] for p in parts)
+    return _rt_derived(out)
+
+
+def replay_stats(records: list, point) -> tuple[dict, dict | None]:
+    """(``rtunit``, ``rtunit_memory``) of recorded wavefronts (``driver.rtunit.Record``) replayed
+    one after another on the RT unit of design point ``point`` (``driver.design.DesignPoint``),
+    without and with its node memory (None when ``point.cache_kib`` is 0). The records replay on
+    the point's datapath configuration and latency; every response is checked against the
+    recorded one bit for bit."""
+    from dataclasses import replace
+
+    from . import rtunit
+    params = point.rtl_params()
+    recs = [r if r.params == params else replace(r, params=params) for r in records]
+    plain = rtunit_stats([rtunit.replay(r, point.rays_in_flight, point.pipelines) for r in recs])
+    memory = point.memory()
+    mem = None if memory is None else rtunit_stats(
+        [rtunit.replay(r, point.rays_in_flight, point.pipelines, memory=memory) for r in recs])
+    return plain, mem
+
+
+# ---------------------------------------------------------------------------------------------
+# provenance: what produced a JSON document
+
+def provenance(point=None) -> dict:
+    """The ``provenance`` object of every JSON the commands write: the rayflex version, the git
+    commit of the source tree when it is a git checkout (None for an installed wheel), the whole
+    design point (``driver.design.DesignPoint``; None when there is none) and the machine."""
+    return {"rayflex_version": rayflex_version(), "git_commit": git_commit(),
+            "design_point": point.as_dict() if point is not None else None,
+            "machine": machine()}
+
+
+def rayflex_version() -> str | None:
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("rayflex-driver")
+    except PackageNotFoundError:
+        return None
+
+
+def git_commit() -> str | None:
+    """HEAD of the git checkout holding this package (None when it is not in one)."""
+    import subprocess
+    from pathlib import Path
+    root = Path(__file__).resolve().parent.parent
+    if not (root / ".git").exists():
+        return None
+    try:
+        out = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True,
+                             text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    commit = out.stdout.strip()
+    return commit if out.returncode == 0 and len(commit) == 40 else None
+
+
+def machine() -> dict:
+    """CPU model (first ``model name`` of /proc/cpuinfo), logical cores (all / usable)."""
+    import os
+    import platform
+    from pathlib import Path
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.lower().startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    try:
+        usable = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        usable = os.cpu_count()
+    return {"cpu": cpu, "cores": os.cpu_count(), "cores_usable": usable,
+            "python": platform.python_version(), "numpy": np.__version__,
+            "platform": platform.platform()}

@@ -92,18 +92,23 @@ def _backend(spec):
 
 def run_tile(setup, bvh, width: int, height: int, pixels, workload: str, options: dict,
              backend_spec, check_embree: bool = False) -> TileResult:
-    """Trace one tile (a task: pure in its inputs, the backend cached per process)."""
+    """Trace one tile (a task: pure in its inputs, the backend cached per process). ``options``:
+    the workload's (``driver.workloads.run``), ``cull_stack``, and ``rtunit``: a design point
+    whose RT unit replays the tile's wavefronts (``add_replays``), or None."""
     from .tracer import trace
     from .workloads import embree_check, run
 
     be = _backend(backend_spec)
     options = dict(options)
     cull = bool(options.pop("cull_stack", False))
+    point = options.pop("rtunit", None)
 
     def tracer(bvh_, o, d, **kw):
-        return trace(bvh_, o, d, backend=be, cull_stack=cull, **kw)
+        return trace(bvh_, o, d, backend=be, cull_stack=cull, record=point is not None, **kw)
 
     res = run(setup, bvh, width, height, tracer, workload, pixels=pixels, **options)
+    if point is not None:
+        add_replays(res, point)
     embree = {}
     if check_embree:
         embree_check(res, setup)
@@ -111,6 +116,19 @@ def run_tile(setup, bvh, width: int, height: int, pixels, workload: str, options
     return TileResult(np.asarray(pixels, np.int64), res.radiance.astype(np.float32),
                       {k: v.astype(np.int32) for k, v in res.ops.items()},
                       res.stats["by_type"], embree)
+
+
+def add_replays(res: FrameResult, point) -> None:
+    """Replay each ray type's recorded wavefronts of a traced frame on the RT unit of design
+    point ``point``: ``rtunit`` and ``rtunit_memory`` into each ``by_type`` entry and, added
+    up, into the frame's statistics (``driver.stats.replay_stats``)."""
+    from .stats import merge_rtunit, replay_stats
+    by_type = res.stats["by_type"]
+    for kind, entry in by_type.items():
+        records = [b.result.record for b in res.batches if b.kind == kind]
+        entry["rtunit"], entry["rtunit_memory"] = replay_stats(records, point)
+    for key in ("rtunit", "rtunit_memory"):
+        res.stats[key] = merge_rtunit([e[key] for e in by_type.values()])
 
 
 class Assembler:

@@ -1,4 +1,4 @@
-"""Rendering workloads (SPEC 13): which rays a frame shoots, and the image they make.
+"""Rendering workloads (docs/workloads.md): which rays a frame shoots, and the image they make.
 
 An integrator never sees node layouts (pbrt's split): it makes rays, hands each batch to
 ``driver.tracer.trace`` (every box and triangle test on the datapath), and shades the hits. Each
@@ -20,7 +20,7 @@ them:
 
 Every random decision is ``driver.sampling.uniform`` of (seed, pixel, sample, bounce, purpose), so
 any subset of pixels (a tile) traced alone gives exactly its part of the whole frame.
-Ray types and their statistics: SPEC 10 ``by_type`` (``driver.stats.merge``).
+Ray types and their statistics: ``by_type`` (``driver.stats.merge``; docs/statistics.md).
 """
 
 from __future__ import annotations
@@ -127,7 +127,7 @@ class Batch:
     """One wavefront of one ray type: which pixel and sample each ray belongs to, its rays, and
     (after tracing) its hits."""
 
-    kind: str                      # ray type (SPEC 10 by_type name)
+    kind: str                      # ray type (its by_type name, docs/statistics.md)
     pixel: np.ndarray              # (k,) pixel index of each ray
     sample: np.ndarray             # (k,) sample index
     origins: np.ndarray
@@ -355,7 +355,7 @@ def tone_map(radiance: np.ndarray, width: int, height: int, exposure: float | No
 
 
 def embree_check(result: FrameResult, setup: Setup) -> dict:
-    """Check every traced batch against Embree (``driver.check.check_rays``); puts the SPEC 10
+    """Check every traced batch against Embree (``driver.check.check_rays``); puts the
     ``embree`` object into the frame's statistics and into each ray type's; returns the total."""
     from .check import check_rays, merge_checks
     per_kind: dict = {}

@@ -9,14 +9,14 @@ import pytest
 from PIL import Image
 
 from driver.cli import main
+from driver.design import DesignPoint
 
-SPEC10 = ("rays", "hits", "box_ops", "tri_ops", "ops", "cycles", "utilization", "latency_cycles",
-          "box_ops_per_ray", "tri_ops_per_ray", "node_bytes_fetched", "sim_wall_s",
-          "sim_cycles_per_s", "frame_us_at_1ghz", "backend")
-TOP = ("scene", "width", "height", "frame", "rtl_cycles_per_s", "pyverilator",
+COUNTS = ("rays", "hits", "box_ops", "tri_ops", "ops", "latency_cycles", "box_ops_per_ray",
+          "tri_ops_per_ray", "node_bytes_fetched", "backend")
+TIMING = ("wavefront", "rtunit", "rtunit_memory")
+TOP = ("provenance", "scene", "width", "height", "frame", "rtl_cycles_per_s", "pyverilator",
        "rtl_vs_pyverilator_speedup", "golden_rays_per_s", "golden_matches_rtl",
-       "embree_rays_per_s", "embree_build_s", "bvh_build_s", "rtunit_sweep", "machine",
-       "targets")
+       "embree_rays_per_s", "embree_build_s", "bvh_build_s", "rtunit_sweep")
 
 
 @pytest.fixture(scope="module")
@@ -32,19 +32,22 @@ def doc(tmp_path_factory):
 
 
 def test_all_keys(doc):
-    assert set(TOP) <= set(doc)
+    assert set(TOP) <= set(doc) and "targets" not in doc
     f = doc["frame"]
-    assert set(SPEC10) <= set(f)
-    for k in ("rays_in_flight", "pipelines", "turnaround_cycles", "wavefront_cycles",
-              "wavefront_utilization", "embree", "wall_s", "wall_parts_s", "bvh"):
+    assert set(COUNTS) <= set(f) and set(TIMING) <= set(f)
+    for k in ("embree", "wall_s", "wall_parts_s", "bvh", "by_type"):
         assert k in f, k
+    # the default frame and its one ray type carry the same schema
+    prim = f["by_type"]["primary"]
+    assert {k: prim[k] for k in COUNTS + TIMING} == {k: f[k] for k in COUNTS + TIMING}
     assert set(f["embree"]) >= {"rays_compared", "hit_mismatch", "prim_mismatch", "edge_ties",
                                 "max_t_rel_err"}
     assert set(doc["pyverilator"]) >= {"requests", "cycles", "wall_s", "cycles_per_s"}
-    assert set(doc["machine"]) >= {"cpu", "cores"}
-    assert doc["machine"]["cpu"] and doc["machine"]["cores"] >= 1
-    assert set(doc["targets"]) == {"utilization_ge_0.98", "rtl_ge_1M_cycles_per_s",
-                                   "speedup_ge_100", "frame_wall_le_10s"}
+    prov = doc["provenance"]
+    assert set(prov["machine"]) >= {"cpu", "cores"}
+    assert prov["machine"]["cpu"] and prov["machine"]["cores"] >= 1
+    assert prov["rayflex_version"] and prov["design_point"]["size"] == 16
+    assert prov["git_commit"] is None or len(prov["git_commit"]) == 40
     for k in ("rtl_cycles_per_s", "rtl_vs_pyverilator_speedup", "golden_rays_per_s",
               "embree_rays_per_s", "bvh_build_s"):
         assert doc[k] > 0, k
@@ -55,15 +58,18 @@ def test_frame_statistics_consistent(doc):
     assert doc["scene"] == "bunny" and doc["width"] == doc["height"] == 16
     assert f["rays"] == 256 and f["backend"] == "rtl"
     assert f["ops"] == f["box_ops"] + f["tri_ops"]
-    assert f["cycles"] >= f["ops"] + f["latency_cycles"]
-    assert f["utilization"] == pytest.approx(f["ops"] / f["cycles"], rel=1e-12)
-    assert f["frame_us_at_1ghz"] == pytest.approx(f["cycles"] / 1000)
-    assert f["pipelines"] == 1 and f["rays_in_flight"] == 64 and f["responses_verified"]
+    for key in TIMING:
+        t = f[key]
+        assert t["cycles"] >= f["ops"] + f["latency_cycles"]
+        assert t["utilization"] == pytest.approx(f["ops"] / t["cycles"], rel=1e-12)
+        assert t["frame_us_at_1ghz"] == pytest.approx(t["cycles"] / 1000)
+    r = f["rtunit"]
+    assert r["pipelines"] == 1 and r["rays_in_flight"] == 64 and r["responses_verified"]
     assert f["embree"]["hit_mismatch"] == 0 and f["embree"]["rays_compared"] == 256
     assert doc["golden_matches_rtl"] is True
     runs = doc["rtl_cycles_per_s_runs"]
     assert doc["repeat"] == 3 and len(runs) == 3 and min(runs) > 0
-    assert runs[0] == f["wavefront_sim_cycles_per_s"]          # the traversal's own pass
+    assert runs[0] == f["wavefront"]["sim_cycles_per_s"]       # the traversal's own pass
     assert doc["rtl_cycles_per_s"] == max(runs)
     pv = doc["pyverilator"]
     assert pv["requests"] == 300 and pv["cycles"] >= 300 + f["latency_cycles"]
@@ -137,21 +143,21 @@ def test_default_frame_utilization():
 
 
 def test_memory_object(doc):
-    """The default frame replayed with the node cache and memory (issue 14)."""
-    m = doc["memory"]
-    for k in ("cache_bytes", "ways", "line_bytes", "latency_cycles", "bytes_per_cycle", "hit_rate",
-              "bytes_per_ray", "cycles", "utilization"):
+    """The default frame replayed with the node cache and memory."""
+    m = doc["frame"]["rtunit_memory"]
+    for k in ("hit_rate", "bytes_per_ray", "cycles", "utilization", "line_misses"):
         assert k in m, k
     assert m["responses_verified"] and 0 < m["hit_rate"] < 1
-    assert m["cycles"] > doc["frame"]["cycles"]                  # fetches cost time, never less
+    assert m["cycles"] > doc["frame"]["rtunit"]["cycles"]       # fetches cost time, never less
     assert m["bytes_per_ray"] * doc["frame"]["rays"] == 64 * m["line_misses"]
 
 
-def test_no_memory_drops_the_object(tmp_path):
+def test_no_cache_drops_the_memory_object(tmp_path):
     out = tmp_path / "b.json"
     assert main(["bench", "--size", "8", "--json", str(out), "--pyverilator-requests", "0",
-                 "--sweep-size", "0", "--repeat", "1", "--no-memory", "--no-progress"]) == 0
-    assert json.loads(out.read_text())["memory"] is None
+                 "--sweep-size", "0", "--repeat", "1", "--cache-kib", "0", "--no-progress"]) == 0
+    f = json.loads(out.read_text())["frame"]
+    assert f["rtunit_memory"] is None and f["rtunit"]["responses_verified"]
 
 
 def test_culled_stack_and_fill_in_the_bench(tmp_path, doc):
@@ -164,13 +170,15 @@ def test_culled_stack_and_fill_in_the_bench(tmp_path, doc):
                  "--cull-stack", "--bvh-fill", "40", "--no-progress"]) == 0
     d = json.loads(out.read_text())
     f, base = d["frame"], doc["frame"]
-    assert d["cull_stack"] is True and d["fill"] == 40 and f["bvh"]["fill"] == 40
+    pt = d["provenance"]["design_point"]
+    assert pt["cull_stack"] is True and pt["bvh_fill"] == 40 and f["bvh"]["fill"] == 40
     assert f["bvh"]["box_nodes"] < base["bvh"]["box_nodes"]
     assert f["stack_culls"] > 0 and f["box_ops"] < base["box_ops"]
     assert f["hits"] == base["hits"] and d["golden_matches_rtl"] is True
-    assert d["frame"]["embree"]["hit_mismatch"] == 0 and d["memory"]["responses_verified"]
-    assert d["memory"]["bytes_per_ray"] < doc["memory"]["bytes_per_ray"]
-    assert doc["cull_stack"] is False and doc["fill"] == 0
+    assert f["embree"]["hit_mismatch"] == 0 and f["rtunit_memory"]["responses_verified"]
+    assert f["rtunit_memory"]["bytes_per_ray"] < base["rtunit_memory"]["bytes_per_ray"]
+    pt = doc["provenance"]["design_point"]
+    assert pt["cull_stack"] is False and pt["bvh_fill"] == 0
 
 
 def test_workload_bench_per_ray_type(tmp_path, capsys):
@@ -179,14 +187,19 @@ def test_workload_bench_per_ray_type(tmp_path, capsys):
                  "--bounces", "1", "--sweep-rays", "1,16", "--json", str(out),
                  "--no-progress"]) == 0
     d = json.loads(out.read_text())
-    assert d["cull_stack"] is False and d["fill"] == 0
-    assert set(d["by_type"]) == {"primary", "shadow", "bounce1"} == set(d["sweep"])
-    assert d["frame"]["ops"] == sum(t["ops"] for t in d["by_type"].values())
-    sh = d["by_type"]["shadow"]
+    f = d["frame"]
+    assert d["provenance"]["design_point"]["workload"] == "path"
+    assert set(f["by_type"]) == {"primary", "shadow", "bounce1"} == set(d["sweep"])
+    assert f["ops"] == sum(t["ops"] for t in f["by_type"].values())
+    sh = f["by_type"]["shadow"]
     assert 0 < sh["any_hit_vs_closest_ops"] <= 1                 # any hit never issues more
-    for t in d["by_type"].values():
-        assert t["responses_verified"] and t["memory"]["replay_cycles"] >= t["replay_cycles"]
-    assert d["frame"]["embree"]["hit_mismatch"] == 0
+    for t in f["by_type"].values():
+        assert set(COUNTS + TIMING) <= set(t)
+        assert t["rtunit"]["responses_verified"]
+        assert t["rtunit_memory"]["cycles"] >= t["rtunit"]["cycles"]
+    for key in TIMING:                           # the frame's timing: its ray types' added up
+        assert f[key]["cycles"] == sum(t[key]["cycles"] for t in f["by_type"].values())
+    assert f["embree"]["hit_mismatch"] == 0
     assert (tmp_path / "w_rtunit.png").stat().st_size > 1000
     assert "anyhit/closest" in capsys.readouterr().out
 
@@ -209,7 +222,7 @@ def test_workers_bench_builds_the_model_before_timing(monkeypatch):
 
     monkeypatch.setattr(tiles, "render_tiles", render)
     with pytest.raises(Timed):
-        bench.bench_workers("cornell", "primary", 8, 2, 8, progress=False)
+        bench.bench_workers(DesignPoint(scene="cornell", size=8), 2, 8, progress=False)
     assert calls[0][0] == "build" and calls[1] == ("render",)
     assert calls[0][1] == tiles._backend("rtl").params      # the model the tiles will load
 

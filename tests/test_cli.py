@@ -13,9 +13,9 @@ import pytest
 from PIL import Image
 
 from driver.cli import main
-SPEC10 = ("rays", "hits", "box_ops", "tri_ops", "ops", "cycles", "utilization", "latency_cycles",
-          "box_ops_per_ray", "tri_ops_per_ray", "node_bytes_fetched", "sim_wall_s",
-          "sim_cycles_per_s", "frame_us_at_1ghz", "backend")
+COUNTS = ("rays", "hits", "box_ops", "tri_ops", "ops", "latency_cycles", "box_ops_per_ray",
+          "tri_ops_per_ray", "node_bytes_fetched", "backend")
+WAVEFRONT = ("cycles", "utilization", "sim_wall_s", "sim_cycles_per_s", "frame_us_at_1ghz")
 EMBREE_KEYS = ("rays_compared", "hit_mismatch", "prim_mismatch", "edge_ties", "max_t_rel_err")
 
 
@@ -44,7 +44,8 @@ def test_render_all_outputs_and_stats_json(capsys, in_tmp):
     assert size_of(in_tmp / "img.png") == (20, 12)
     size_of(in_tmp / "hm.png")
     doc = json.loads((in_tmp / "s.json").read_text())
-    assert set(SPEC10) <= set(doc)
+    assert set(COUNTS) <= set(doc) and set(WAVEFRONT) == set(doc["wavefront"])
+    assert doc["provenance"]["design_point"]["config"] == "baseline-unified"
     assert doc["rays"] == 240 and doc["backend"] == "golden"
     assert doc["ops"] == doc["box_ops"] + doc["tri_ops"]
     assert set(EMBREE_KEYS) <= set(doc["embree"])
@@ -100,7 +101,7 @@ def test_render_mesh_file_and_toml(in_tmp):
     (["render", "sphere", "--size", "8", "--width", "4"], "either"),
     (["render", "sphere", "--backend", "nope"], "unknown backend"),
     (["render", "sphere", "--out", "no/such/dir/x.png"], "directory"),
-    (["render", "sphere", "--bvh-fill", "-1"], "--bvh-fill must be >= 0"),
+    (["render", "sphere", "--bvh-fill", "-1"], "--bvh-fill must be an integer >= 0"),
 ])
 def test_user_mistakes_exit_2_with_one_line(error_line, args, words):
     assert main(args + ["--backend", "golden"] * ("--backend" not in args)) == 2
@@ -152,8 +153,8 @@ def test_backend_that_cannot_be_built_exits_2(error_line, monkeypatch):
 
 
 def test_argparse_errors_exit_2(capsys):
-    for args in (["render"], ["render", "sphere", "--size", "abc"], ["frobnicate"],
-                 ["render", "sphere", "--bogus"]):
+    for args in (["render", "sphere", "--size", "abc"], ["frobnicate"],
+                 ["render", "sphere", "--bogus"], ["render", "sphere", "--latency", "x"]):
         with pytest.raises(SystemExit) as e:
             main(args)
         assert e.value.code == 2

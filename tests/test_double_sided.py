@@ -10,6 +10,7 @@ import pytest
 import trimesh
 
 import driver
+from driver.design import DesignPoint
 from driver.bench import bench
 from driver.scenes.camera import Camera, primary_rays
 from driver.check import embree_closest
@@ -66,8 +67,8 @@ def test_tiles_and_workers_give_the_whole_frame(bowl, whole, options):
 
 
 def test_bench_frame_traces_both_faces(bowl, whole):
-    doc = bench(bowl, size=SIZE, sweep_size=0, pyverilator_requests=0, repeat=1, progress=False,
-                memory=None)
+    doc = bench(DesignPoint(size=SIZE, cache_kib=0), sweep_size=0, pyverilator_requests=0,
+                repeat=1, progress=False, scene=bowl)
     assert doc["frame"]["hits"] == whole.stats["hits"]
     assert doc["golden_matches_rtl"]
     assert (doc["frame"]["embree"]["hit_mismatch"], doc["frame"]["embree"]["prim_mismatch"]) \

@@ -168,19 +168,11 @@ def test_ratios_and_per_ray():
         {"primary": {"box_ops": 7, "tri_ops": 1, "rays": 3}}
 
 
-def test_workload_argument():
-    assert report.parse_workload("bunny") == ("bunny", report.DEFAULT_WORKLOAD_SIZE)
-    assert report.parse_workload("room:16") == ("room", 16)
-    for bad in (":4", "bunny:x", "bunny:0"):
-        with pytest.raises(ValueError):
-            report.parse_workload(bad)
-
-
 def test_cli_signals_end_to_end(tmp_path, capsys):
     """One configuration at level signals with a workload: JSON, table and plot."""
     out, png = tmp_path / "p.json", tmp_path / "p.png"
-    assert main(["power", "--config", "baseline-unified", "--ops", "20", "--workload",
-                 "sphere:8", "--json", str(out), "--plot", str(png)]) == 0
+    assert main(["power", "--config", "baseline-unified", "--ops", "20", "--scene", "sphere",
+                 "--size", "8", "--json", str(out), "--plot", str(png)]) == 0
     rep = json.loads(out.read_text())
     assert rep["level"] == "signals" and rep["unit"] == "bit toggles"
     cfg = rep["configs"]["baseline-unified"]
@@ -189,27 +181,71 @@ def test_cli_signals_end_to_end(tmp_path, capsys):
     assert rep["paper"]["extended_vs_baseline"] == {"box": 0.18, "triangle": 0.20}
     pr = rep["per_ray"]["primary"]
     assert pr["rays"] == 64 and pr["configs"]["baseline-unified"]["energy_per_ray"] > 0
+    assert rep["provenance"]["design_point"]["config"] == ["baseline-unified"]
     assert png.stat().st_size > 1000
     assert "| baseline-unified |" in capsys.readouterr().out
 
 
-def test_cli_bad_input_is_one_line(capsys):
-    assert main(["power", "--config", "nope"]) == 2
-    assert main(["power", "--ops", "0"]) == 2
-    assert main(["power", "--workload", "bunny:x"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 3 and all(e.startswith("rayflex: error:") for e in err)
+def test_energy_per_ray_of_every_ray_type(tmp_path):
+    """A path workload: energy per ray for the primary, shadow and every bounce ray type, in each
+    configuration measured, from the frame's own op mix."""
+    out = tmp_path / "p.json"
+    assert main(["power", "--config", "baseline-unified,baseline-disjoint", "--ops", "10",
+                 "--scene", "cornell", "--workload", "path", "--bounces", "2", "--size", "8",
+                 "--json", str(out), "--no-progress"]) == 0
+    rep = json.loads(out.read_text())
+    pr = rep["per_ray"]
+    assert set(pr) == {"primary", "shadow", "bounce1", "bounce2"}
+    for kind, row in pr.items():
+        assert set(row["configs"]) == {"baseline-unified", "baseline-disjoint"}
+        for cfg, e in row["configs"].items():
+            box = rep["configs"][cfg]["box"]["energy_per_op"]
+            tri = rep["configs"][cfg]["triangle"]["energy_per_op"]
+            assert e["energy_per_ray"] == pytest.approx(
+                row["box_ops_per_ray"] * box + row["tri_ops_per_ray"] * tri)
 
 
-def test_liberty_level_skipped_without_the_file(tmp_path, capsys):
-    assert main(["power", "--level", "liberty", "--liberty", str(tmp_path / "none.lib")]) == 0
+@pytest.mark.parametrize("argv, words", [
+    (["--config", "nope"], "unknown value"),
+    (["--ops", "0"], "--ops"),
+    (["--workload", "bunny:x"], "--workload"),
+    (["--scene", "no_such_scene"], "unknown scene"),
+    (["--size", "0"], "--size"),
+    (["--rays-in-flight", "8"], "does not model the RT unit"),
+    (["--level", "gates", "--latency", "12"], "--latency"),
+    (["--json", "/nonexistent-dir/p.json"], "directory"),
+    (["--stimulus-seed", "-1"], "--stimulus-seed"),
+])
+def test_cli_bad_input_fails_before_any_measurement(argv, words, capsys, monkeypatch):
+    import driver.power as power
+    monkeypatch.setattr(power, "run_level", lambda *a, **k: pytest.fail("measured"))
+    monkeypatch.setattr(report, "frame_mix", lambda *a, **k: pytest.fail("traced"))
+    assert main(["power", *argv]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "liberty level skipped" in err[0]
+    assert len(err) == 1 and err[0].startswith("rayflex: error:") and words in err[0], err
+
+
+def test_liberty_level_without_the_file_exits_2(tmp_path, capsys):
+    assert main(["power", "--level", "liberty", "--liberty", str(tmp_path / "none.lib")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("rayflex: error: --level liberty")
     bad = tmp_path / "bad.lib"
     bad.write_text("library (x) { cell (A) {")
     assert main(["power", "--level", "liberty", "--liberty", str(bad)]) == 2   # before synthesis
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "end of file" in err[0]
+
+
+def test_power_says_what_it_will_build(monkeypatch, capsys):
+    import driver.power as power
+    monkeypatch.setattr(power, "uncached_models", lambda models: [f"signals {m[1]}"
+                                                                  for m in models[:1]])
+    monkeypatch.setattr(power, "run_level", lambda *a, **k: (_ for _ in ()).throw(
+        KeyboardInterrupt()))
+    monkeypatch.setattr(report, "frame_mix", lambda *a, **k: {})
+    assert main(["power", "--config", "all"]) == 130
+    err = capsys.readouterr().err
+    assert "power: 1 of 4 models to build first" in err
 
 
 # ------------------------------------------------------------------------------------------------

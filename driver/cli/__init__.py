@@ -24,6 +24,7 @@ COMMANDS = {
     "render": "driver.cli.render",
     "knn": "driver.cli.knn",
     "bench": "driver.cli.bench",
+    "sweep": "driver.cli.sweep",
     "power": "driver.power",
 }
 

@@ -4,29 +4,24 @@ from __future__ import annotations
 
 import json
 
-from .common import (add_json, add_progress, add_tree, add_workload, check_flag_size,
-                     check_positive, tree_options, workload_options, wrote)
+from .. import design
+from .common import add_json, add_progress, check_positive, provenance, wrote
 
 
 def add_parser(subparsers):
     from .. import rtunit
-    from ..bench import DEFAULT_SCENE, PYVERILATOR_REQUESTS, REPEAT, SWEEP_SIZE
+    from ..bench import PYVERILATOR_REQUESTS, REPEAT, SWEEP_SIZE
     p = subparsers.add_parser(
         "bench", help="datapath utilization and simulation speed on a real frame",
-        description="Run the default bunny frame through the RTL (C++ harness over Verilator) "
-                    "and report its datapath statistics on the RT-unit model, the simulation "
-                    "speed of the rtl and pyverilator backends, golden and Embree ray rates, the "
-                    "BVH build time, and a sweep of rays in flight x pipelines (PNG plot).")
+        description="Run a design point's frame (default: the bunny, primary rays) through the "
+                    "RTL (C++ harness over Verilator) and report its statistics "
+                    "(docs/statistics.md): the functional wavefront and the RT-unit replays "
+                    "without and with the node memory, per ray type. The primary workload "
+                    "also measures the simulation speed of the rtl and pyverilator backends, "
+                    "golden and Embree ray rates, the BVH build time, and a sweep of rays in "
+                    "flight x pipelines (PNG plot); any other workload, utilization over rays "
+                    "in flight per ray type (PNG plot).")
     add_json(p, "write the results as JSON")
-    p.add_argument("--size", type=int, metavar="N",
-                   help="square frame N x N (default: the scene's size, 256)")
-    p.add_argument("--scene", default=DEFAULT_SCENE, metavar="SCENE",
-                   help=f"scene name or file (default: {DEFAULT_SCENE})")
-    p.add_argument("--rays-in-flight", type=int, default=rtunit.DEFAULT_RAYS_IN_FLIGHT,
-                   metavar="R", help="ray pool of the RT-unit model for the frame "
-                                     f"(default {rtunit.DEFAULT_RAYS_IN_FLIGHT})")
-    p.add_argument("--pipelines", type=int, default=1, metavar="P",
-                   help="datapath pipelines of the RT-unit model for the frame (default 1)")
     p.add_argument("--sweep-size", type=int, default=SWEEP_SIZE, metavar="N",
                    help=f"frame size of the rays-in-flight x pipelines sweep (default "
                         f"{SWEEP_SIZE}, at most --size; 0: no sweep)")
@@ -44,14 +39,9 @@ def add_parser(subparsers):
     p.add_argument("--repeat", type=int, default=REPEAT, metavar="N",
                    help=f"timed passes of the rtl and pyverilator streams; the best counts "
                         f"(default {REPEAT})")
-    add_workload(p, default=None)
-    add_tree(p)
-    p.add_argument("--no-memory", action="store_true",
-                   help="no node cache and memory model (the JSON's memory object; with "
-                        "--workload, the per-type replays and the sweep with memory)")
     p.add_argument("--workers", type=int, default=1, metavar="N",
-                   help="also time the --workload (default path) frame tiled on a local Dask "
-                        "cluster of N processes against one process: the speed-up")
+                   help="instead, time the frame tiled on a local Dask cluster of N processes "
+                        "against one process: the speed-up")
     p.add_argument("--tile", type=int, default=64, metavar="N",
                    help="tile size of the --workers comparison (default 64)")
     p.add_argument("--bvh", action="store_true",
@@ -59,11 +49,9 @@ def add_parser(subparsers):
                         "2 M / 5 M instanced bunnies, tree quality of the SAH vs greedy collapse, "
                         "box nodes vs ops per ray for each --bvh-fill with and without "
                         "--cull-stack (PNG plot)")
+    design.add_options(p)
     add_progress(p)
     return p
-
-
-MAX_PIPELINES = 64
 
 
 def _int_list(text: str, flag: str) -> list[int]:
@@ -79,37 +67,30 @@ def _int_list(text: str, flag: str) -> list[int]:
 def run(args) -> int:
     from pathlib import Path
 
-    from .. import rtunit
     from ..bench import bench, bench_workers, bench_workload, table
     from ..outputs import JSON, PNG, Outputs, write_json
     from ..render import check_memory
 
-    from ..scenes.scene import resolve
-    resolve(args.scene)               # an unknown scene or missing file fails before any work
-    check_flag_size("--size", args.size)
-    check_positive("--rays-in-flight", args.rays_in_flight)
-    check_positive("--pipelines", args.pipelines, 1, MAX_PIPELINES)
+    point = design.from_args(args)
     check_positive("--sweep-size", args.sweep_size, 0)
     check_positive("--pyverilator-requests", args.pyverilator_requests, 0)
     check_positive("--repeat", args.repeat)
     check_positive("--workers", args.workers)
     check_positive("--tile", args.tile)
-    options = workload_options(args)
-    tree = tree_options(args)
-    if args.bvh and (tree["fill"] or tree["cull_stack"]):
-        raise ValueError("--bvh measures the BVH fills and the culled stack itself; drop "
-                         "--bvh-fill/--cull-stack")
-    memory = None if args.no_memory else rtunit.MemoryModel()
+    if args.bvh and design.given(args):
+        raise ValueError(f"--bvh measures its own scenes, BVH fills and culled stacks; drop "
+                         f"{design.given(args)[0]}")
     sweep_rays = _int_list(args.sweep_rays, "--sweep-rays")
     sweep_pipes = _int_list(args.sweep_pipelines, "--sweep-pipelines")
-    if max(sweep_pipes) > MAX_PIPELINES:
-        raise ValueError(f"--sweep-pipelines: at most {MAX_PIPELINES} pipelines")
-    if args.size is not None:
-        check_memory(args.size * args.size)
+    if max(sweep_pipes) > design.MAX_PIPELINES:
+        raise ValueError(f"--sweep-pipelines: at most {design.MAX_PIPELINES} pipelines")
+    if point.size is not None:
+        check_memory(point.size * point.size)
+    default_frame = point.workload == "primary" and point.spp == 1
     outs = Outputs()
     js = outs.add("--json", args.json, JSON) if args.json else None
     plot = None
-    if args.bvh or (args.sweep_size and args.workers == 1):        # --workers draws no plot
+    if args.bvh or (args.workers == 1 and (args.sweep_size or not default_frame)):
         kind = "bvh" if args.bvh else "rtunit"
         plot = outs.add("--plot", args.plot or (
             Path(args.json).with_name(f"{Path(args.json).stem}_{kind}.png") if args.json
@@ -118,7 +99,8 @@ def run(args) -> int:
     with outs.commit():
         if args.bvh:
             from ..bvh.bench import bvh_bench
-            doc = bvh_bench(progress=not args.no_progress, plot=outs.temp(plot))
+            doc = {"provenance": provenance(None),
+                   **bvh_bench(progress=not args.no_progress, plot=outs.temp(plot))}
             doc["quality"]["fills"]["plot"] = str(plot)
             if js:
                 write_json(doc, outs.temp(js))
@@ -126,18 +108,16 @@ def run(args) -> int:
             wrote(outs.paths())
             return 0
         if args.workers > 1:
-            doc = bench_workers(args.scene, args.workload or "path", args.size or 128,
-                                args.workers, args.tile, not args.no_progress, **options, **tree)
+            doc = bench_workers(point, args.workers, args.tile, not args.no_progress)
             if js:
                 write_json(doc, outs.temp(js))
-            print("\n".join(f"{k:<18} {v}" for k, v in doc.items()))
+            print("\n".join(f"{k:<18} {v}" for k, v in doc.items() if k != "provenance"))
             wrote(outs.paths())
             return 0 if doc["identical"] else 1
-        if args.workload:
-            doc = bench_workload(args.scene, args.workload, args.size or 64,
-                                 rays_in_flight=args.rays_in_flight, pipelines=args.pipelines,
-                                 sweep_rays=sweep_rays, plot=outs.temp(plot) if plot else None,
-                                 progress=not args.no_progress, memory=memory, **options, **tree)
+        if not default_frame:
+            doc = bench_workload(point, sweep_rays=sweep_rays,
+                                 plot=outs.temp(plot) if plot else None,
+                                 progress=not args.no_progress)
             if plot:
                 doc["plot"] = str(plot)
             if js:
@@ -145,12 +125,10 @@ def run(args) -> int:
             print(workload_table(doc))
             wrote(outs.paths())
             return 0
-        doc = bench(args.scene, size=args.size, rays_in_flight=args.rays_in_flight,
-                    pipelines=args.pipelines, sweep_size=args.sweep_size,
-                    sweep_rays=sweep_rays, sweep_pipelines=sweep_pipes,
-                    plot=outs.temp(plot) if plot else None,
-                    pyverilator_requests=args.pyverilator_requests,
-                    repeat=args.repeat, progress=not args.no_progress, memory=memory, **tree)
+        doc = bench(point, sweep_size=args.sweep_size, sweep_rays=sweep_rays,
+                    sweep_pipelines=sweep_pipes, plot=outs.temp(plot) if plot else None,
+                    pyverilator_requests=args.pyverilator_requests, repeat=args.repeat,
+                    progress=not args.no_progress)
         if plot and doc.get("rtunit_sweep"):
             doc["rtunit_sweep"]["plot"] = str(plot)     # the target, not the temporary file
         if js:
@@ -161,17 +139,24 @@ def run(args) -> int:
 
 
 def workload_table(doc: dict) -> str:
-    """The per-ray-type mix of a ``bench --workload`` run, one row per ray type."""
-    head = (f"{doc['scene']} {doc['width']}x{doc['height']} {doc['workload']} (spp {doc['spp']}, "
-            f"bounces {doc['bounces']}): {doc['frame']['rays']} rays, {doc['frame']['ops']} ops")
-    rows = [head, f"{'type':>8} {'rays':>8} {'box/ray':>8} {'tri/ray':>8} {'util':>6} "
-                  f"{'util+mem':>8} {'hit rate':>8} {'B/ray':>7} {'anyhit/closest':>14}"]
-    for kind, t in doc["by_type"].items():
-        m = t.get("memory", {})
+    """The per-ray-type mix of a ``bench --workload`` run, one row per ray type: RT-unit
+    utilization without (``rtunit``) and with the node memory (``rtunit_memory``)."""
+    from ..bench import timing_rows
+    pt = doc["provenance"]["design_point"]
+    f = doc["frame"]
+    head = (f"{doc['scene']} {doc['width']}x{doc['height']} {doc['workload']} (spp {pt['spp']}, "
+            f"bounces {pt['bounces']}): {f['rays']} rays, {f['ops']} ops")
+    rows = [head] + [f"{a}: {b}" for a, b in timing_rows(f)]
+    rows.append(f"{'type':>8} {'rays':>8} {'box/ray':>8} {'tri/ray':>8} {'rtunit':>7} "
+                f"{'+memory':>8} {'hit rate':>8} {'B/ray':>7} {'anyhit/closest':>14}")
+    nan = float("nan")
+    for kind, t in f["by_type"].items():
+        m = t.get("rtunit_memory") or {}
         ratio = t.get("any_hit_vs_closest_ops")
         rows.append(f"{kind:>8} {t['rays']:>8} {t['box_ops_per_ray']:>8.2f} "
-                    f"{t['tri_ops_per_ray']:>8.2f} {t['replay_utilization']:>6.3f} "
-                    f"{m.get('replay_utilization', float('nan')):>8.3f} "
-                    f"{m.get('hit_rate', float('nan')):>8.3f} {m.get('bytes_per_ray', 0):>7.0f} "
+                    f"{t['tri_ops_per_ray']:>8.2f} {t['rtunit']['utilization']:>7.3f} "
+                    f"{m.get('utilization', nan):>8.3f} {m.get('hit_rate', nan):>8.3f} "
+                    f"{m.get('bytes_per_ray', nan):>7.0f} "
                     f"{'' if ratio is None else format(ratio, '.3f'):>14}")
+    rows.append("(utilization: datapath ops / (pipelines x RT-unit cycles); docs/statistics.md)")
     return "\n".join(rows)

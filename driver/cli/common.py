@@ -54,46 +54,10 @@ def add_json(p, help_text: str, *aliases: str) -> None:
         p.add_argument(alias, dest="json", metavar="PATH", help=argparse.SUPPRESS)
 
 
-def add_workload(p, default: str | None = "primary") -> None:
-    """The workload flags of SPEC 12/13 (render and bench)."""
-    from ..workloads import WORKLOADS
-    p.add_argument("--workload", default=default, choices=WORKLOADS,
-                   help="rays of the frame: primary (camera rays), shadow (+ one shadow ray per "
-                        "hit), ao (+ --ao-rays ambient-occlusion rays per hit), path (diffuse "
-                        "path tracing with next-event estimation)"
-                        + (f" (default: {default})" if default else ""))
-    p.add_argument("--spp", type=int, default=1, metavar="N", help="samples per pixel (default 1)")
-    p.add_argument("--bounces", type=int, default=1, metavar="N",
-                   help="path: diffuse bounces after the camera ray (default 1; 0: direct light)")
-    p.add_argument("--ao-rays", type=int, default=4, metavar="N",
-                   help="ao: rays per hit (default 4)")
-    p.add_argument("--seed", type=int, default=0, metavar="N",
-                   help="seed of the counter-based random numbers (default 0)")
-
-
-def add_tree(p) -> None:
-    """The BVH shape and traversal flags (render and bench): ``tree_options`` checks them."""
-    p.add_argument("--bvh-fill", type=int, default=0, metavar="N",
-                   help="split subtrees of at most N triangles so that their 4-wide nodes can "
-                        "all be full: fewer box nodes and bytes, slightly more ops per ray "
-                        "(default 0: plain SAH; docs/bvh.md)")
-    p.add_argument("--cull-stack", action="store_true",
-                   help="keep each stack entry's entry distance and drop box nodes beyond the "
-                        "nearest hit without a request: the same hits, fewer box ops (beyond "
-                        "SPEC 9: a float per stack entry in the RT unit)")
-
-
-def tree_options(args) -> dict:
-    """The checked flags of ``add_tree`` as keyword arguments: ``fill``, ``cull_stack``."""
-    check_positive("--bvh-fill", args.bvh_fill, 0)
-    return dict(fill=args.bvh_fill, cull_stack=bool(args.cull_stack))
-
-
-def workload_options(args) -> dict:
-    """The checked workload options of ``add_workload`` (one-line ValueError if bad)."""
-    from ..workloads import check_arguments
-    check_arguments(args.spp, args.bounces, args.ao_rays, args.seed)
-    return dict(spp=args.spp, bounces=args.bounces, ao_rays=args.ao_rays, seed=args.seed)
+def provenance(point=None) -> dict:
+    """The ``provenance`` object of a JSON document (``driver.stats.provenance``)."""
+    from ..stats import provenance as make
+    return make(point)
 
 
 def add_workers(p) -> None:

@@ -9,25 +9,18 @@ from __future__ import annotations
 
 import sys
 
-from .common import (EXIT_CHECK, PROG, add_backend, add_json, add_progress, add_tree, add_view,
-                     add_workers, add_workload, check_backend, check_flag_size, check_positive,
-                     tree_options, view_options, workload_options, wrote)
+from .. import design
+from .common import (EXIT_CHECK, PROG, add_backend, add_json, add_progress, add_view, add_workers,
+                     check_backend, check_flag_size, check_positive, provenance, view_options,
+                     wrote)
 from .export import Export, add_export
 
 
 def add_parser(subparsers):
-    from ..scenes.scene import MESH_TYPES, available
     p = subparsers.add_parser(
         "render", help="render a scene through the datapath",
         description="Render SCENE with every box/triangle test run on the datapath model; write "
                     "the image, an operations-per-pixel heat map and statistics.")
-    p.add_argument("scene", metavar="SCENE",
-                   help=f"a scene name ({', '.join(available())}; a bare name is the scene even "
-                        "if a file of that name exists here: write ./NAME for the file), a .toml "
-                        "scene file or a mesh file "
-                        f"({', '.join('.' + t for t in MESH_TYPES)}); docs/scenes.md")
-    p.add_argument("--size", type=int, metavar="N",
-                   help="square image N x N (default: the scene's size, 256)")
     p.add_argument("--width", type=int, metavar="W", help="image width (1..8192)")
     p.add_argument("--height", type=int, metavar="H", help="image height (1..8192)")
     add_backend(p)
@@ -40,9 +33,12 @@ def add_parser(subparsers):
                         "...; default: SCENE.png)")
     p.add_argument("--heatmap", metavar="PATH",
                    help="ops-per-pixel heat map (default: beside --out, OUT_heatmap.png)")
+    p.add_argument("--rtunit", action="store_true",
+                   help="also replay every wavefront's requests on the RT unit of the design "
+                        "point (--rays-in-flight, --pipelines, node cache and memory): the "
+                        "statistics' rtunit and rtunit_memory (docs/statistics.md)")
     add_view(p)
-    add_workload(p)
-    add_tree(p)
+    design.add_options(p, positional_scene=True, notes={"rtunit": "with --rtunit"})
     add_workers(p)
     add_progress(p)
     add_export(p)
@@ -57,17 +53,19 @@ def run(args) -> int:
     from ..render import check_frame_memory, plan_tile, render
     from ..scenes.scene import load_scene, resolve, scene_name, with_camera
 
-    if args.size is not None and (args.width is not None or args.height is not None):
+    point = design.from_args(args)
+    if point.size is not None and (args.width is not None or args.height is not None):
         raise ValueError("give either --size or --width/--height, not both")
-    for flag in ("size", "width", "height"):
+    for flag in ("width", "height"):
         check_flag_size(f"--{flag}", getattr(args, flag))
+    rt = design.given(args, ("rtunit",))
+    if rt and not args.rtunit:
+        raise ValueError(f"{rt[0]} sets the RT unit, which render models with --rtunit only")
     check_backend(args.backend)
-    options = workload_options(args)
-    tree = tree_options(args)
     check_positive("--workers", args.workers)
     if args.tile is not None:
         check_positive("--tile", args.tile)
-    source = resolve(args.scene)
+    source = resolve(point.scene)
     name = scene_name(source)
     view = view_options(args, source)
     outs = Outputs(inputs=[source.ref] if source.kind != "builtin" else [])
@@ -75,33 +73,35 @@ def run(args) -> int:
     hm = outs.add("--heatmap", args.heatmap or out.with_name(f"{out.stem}_heatmap.png"), IMAGE)
     js = outs.add("--json", args.json, JSON) if args.json else None
     dump = Export(args, outs)
-    if args.size is not None or (args.width is not None and args.height is not None):
-        pixels = args.size ** 2 if args.size is not None else args.width * args.height
-        check_frame_memory(pixels, options["spp"], plan_tile(
-            pixels, args.workload, options["spp"], args.tile, args.workers, args.scheduler))
+    if point.size is not None or (args.width is not None and args.height is not None):
+        pixels = point.size ** 2 if point.size is not None else args.width * args.height
+        check_frame_memory(pixels, point.spp, plan_tile(
+            pixels, point.workload, point.spp, args.tile, args.workers, args.scheduler))
 
     distributed = args.workers > 1 or args.scheduler
     # a backend that cannot be built fails first (tiles on workers build their own)
-    backend = args.backend if distributed else resolve_backend(args.backend)[0]
+    backend = args.backend if distributed else resolve_backend(args.backend,
+                                                               **point.backend_options())[0]
     with phase(f"loading {name}", not args.no_progress):
         scene = with_camera(load_scene(source, args.up_axis), **view)
     w, h = scene.size
-    if args.size is not None:
-        w = h = args.size
+    if point.size is not None:
+        w = h = point.size
     w = args.width if args.width is not None else w
     h = args.height if args.height is not None else h
     w, h = check_size(w, h)
     res = render(scene, w, h, backend=backend, progress=not args.no_progress,
-                 check_embree=args.check_embree, workload=args.workload, tile=args.tile,
-                 workers=args.workers, scheduler=args.scheduler, **options, **tree)
+                 check_embree=args.check_embree, point=point, rtunit=args.rtunit,
+                 tile=args.tile, workers=args.workers, scheduler=args.scheduler)
     with outs.commit():
         res.save(outs.temp(out))
         res.save_heatmap(outs.temp(hm))
         if js:
-            write_json({"scene": scene.name, "width": w, "height": h, **res.stats}, outs.temp(js))
+            write_json({"provenance": provenance(point), "scene": scene.name, "width": w,
+                        "height": h, **res.stats}, outs.temp(js))
         if dump:
-            dump.write(scene, w, h, args.workload, options, res.stats.get("tile"), tree,
-                       not args.no_progress)
+            dump.write(scene, w, h, point.workload, point.workload_options(), res.stats.get("tile"),
+                       point.tree_options(), not args.no_progress)
     print(summary(res))
     wrote(outs.paths())
     emb = res.stats.get("embree")
@@ -115,17 +115,25 @@ def run(args) -> int:
 def summary(res) -> str:
     """A short human-readable report of a RenderResult."""
     s, b = res.stats, res.bvh_stats
+    wf = s["wavefront"]
     rays = s.get("rays", res.width * res.height)
     lines = [
         f"{res.scene.name} {res.width}x{res.height} on {s.get('backend', '?')}: "
         f"{rays} rays, {s.get('hits', 0)} hits ({100 * s.get('hits', 0) / max(rays, 1):.1f} %)",
         f"datapath: {s.get('box_ops', 0)} box ops + {s.get('tri_ops', 0)} tri ops = "
         f"{s.get('ops', 0)} ops ({s.get('box_ops_per_ray', 0):.1f} + "
-        f"{s.get('tri_ops_per_ray', 0):.1f} per ray) in {s.get('cycles', 0)} cycles, "
-        f"utilization {s.get('utilization', 0):.3f}",
-        f"frame: {s.get('frame_us_at_1ghz', 0):.1f} us at 1 GHz; simulated in "
-        f"{s.get('sim_wall_s', 0):.2f} s ({s.get('sim_cycles_per_s', 0):.3g} cycles/s)",
+        f"{s.get('tri_ops_per_ray', 0):.1f} per ray)",
+        f"wavefront (every ray in flight, one pipeline): {wf['cycles']} cycles, utilization "
+        f"{wf['utilization']:.3f}, {wf['frame_us_at_1ghz']:.1f} us at 1 GHz; simulated in "
+        f"{wf['sim_wall_s']:.2f} s ({wf['sim_cycles_per_s']:.3g} cycles/s)",
     ]
+    for key, what in (("rtunit", "node fetches free"), ("rtunit_memory", "node cache + memory")):
+        r = s.get(key)
+        if r:
+            lines.append(f"RT unit R={r['rays_in_flight']} P={r['pipelines']} ({what}): "
+                         f"{r['cycles']} cycles, utilization {r['utilization']:.3f}"
+                         + (f", hit rate {r['hit_rate']:.3f}, {r['bytes_per_ray']:.0f} B/ray"
+                            if "hit_rate" in r else ""))
     if b:
         lines.append(f"BVH4: {len(res.scene.mesh.faces)} triangles, {b.get('box_nodes', '?')} box "
                      f"nodes, depth {b.get('depth', '?')}, SAH {b.get('sah_cost', 0):.1f}, "

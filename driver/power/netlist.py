@@ -87,16 +87,30 @@ class Netlist:
     cached: bool
 
 
-def synthesize(params: dict[str, int], sources=None, progress=None) -> Netlist:
-    """The generic-gate netlist of one configuration, synthesized on a cache miss."""
+def _entry(params: dict[str, int], sources) -> tuple[str, str, Path]:
+    """(synthesis script, cache key, cache directory) of a configuration's netlist."""
     area = _area()
-    sources = sources if sources is not None else area.snapshot()
     script = synth_script(params, [n for n, _ in sources])
     h = hashlib.sha256(f"{RECIPE}\n{area.yosys_version()}\n{script}".encode())
     for n, b in sources:
         h.update(n.encode() + b"\0" + b)
     key = h.hexdigest()[:24]
-    entry = cache_root() / f"gates-{key}"
+    return script, key, cache_root() / f"gates-{key}"
+
+
+def is_cached(params: dict[str, int]) -> bool:
+    """Whether the netlist of ``params`` is in the cache (False without Yosys)."""
+    try:
+        return (_entry(params, _area().snapshot())[2] / "done.json").is_file()
+    except Exception:          # noqa: BLE001  (AreaError: Yosys not installed)
+        return False
+
+
+def synthesize(params: dict[str, int], sources=None, progress=None) -> Netlist:
+    """The generic-gate netlist of one configuration, synthesized on a cache miss."""
+    area = _area()
+    sources = sources if sources is not None else area.snapshot()
+    script, key, entry = _entry(params, sources)
     if (entry / "done.json").is_file():
         info = json.loads((entry / "done.json").read_text())
         return _load(entry, key, info, cached=True)

@@ -22,7 +22,6 @@ PAPER = {
     "power_mW_at_1GHz": [60, 85],
 }
 UNITS = {"signals": "bit toggles", "gates": "fan-out-weighted toggles", "liberty": "pJ"}
-DEFAULT_WORKLOAD_SIZE = 32
 
 
 def _e(cfgs, cfg, op):
@@ -52,25 +51,12 @@ def ratios(cfgs: dict) -> dict:
     return out
 
 
-def parse_workload(text: str) -> tuple[str, int]:
-    """``SCENE[:SIZE]`` -> (scene, size)."""
-    scene, _, size = text.partition(":")
-    if not scene:
-        raise ValueError(f"--workload {text!r}: give a scene name, e.g. bunny or bunny:32")
-    try:
-        n = int(size) if size else DEFAULT_WORKLOAD_SIZE
-    except ValueError:
-        raise ValueError(f"--workload {text!r}: the size after ':' must be an integer") from None
-    if not 1 <= n <= 1024:
-        raise ValueError(f"--workload {text!r}: size must be in 1..1024")
-    return scene, n
-
-
-def frame_mix(scene: str, size: int) -> dict:
-    """A frame's operation mix per ray type: {type: {box_ops, tri_ops, rays}} (the stats'
-    ``by_type`` when present, else all rays are primary)."""
+def frame_mix(point, progress: bool = False) -> dict:
+    """The operation mix per ray type of design point ``point``'s workload frame (golden
+    traversal, its BVH options): {type: {box_ops, tri_ops, rays}}."""
     from ..render import render
-    stats = render(scene, size, size, backend="golden", progress=False).stats
+    stats = render(point.scene, point.size, point.size, backend="golden", progress=progress,
+                   point=point).stats
     return mix_of(stats)
 
 
@@ -105,22 +91,21 @@ def per_ray(mix: dict, cfgs: dict) -> dict:
     return out
 
 
-def build(level: str, res: dict, n: int, seed: int, workloads=(), liberty=None) -> dict:
-    cfgs = res["configs"]
-    rep = {"level": level, "unit": UNITS[level], "ops_per_type": n, "seed": seed,
-           "configs": cfgs, "ratios": ratios(cfgs), "paper": PAPER,
-           "pending": stimulus.pending()}
+def build(level: str, res: dict, n: int, seed: int, mix: dict, point, cfgs,
+          liberty=None) -> dict:
+    """The report: energy per op of every configuration, the paper's ratios, and the energy per
+    ray of every ray type of ``point``'s workload (``mix``, ``frame_mix``)."""
+    from ..stats import provenance
+    cfg_results = res["configs"]
+    prov = provenance(point)
+    prov["design_point"]["config"] = list(cfgs)        # power measures every one listed
+    rep = {"provenance": prov, "level": level, "unit": UNITS[level], "ops_per_type": n,
+           "stimulus_seed": seed, "configs": cfg_results, "ratios": ratios(cfg_results),
+           "paper": PAPER, "pending": stimulus.pending(), "per_ray": per_ray(mix, cfg_results)}
     if "synth_s" in res:
         rep["synthesis"] = res["synth_s"]
     if liberty:
         rep["liberty"] = str(liberty)
-    if workloads:
-        rep["per_ray"] = {}
-        for scene, size in workloads:
-            mix = frame_mix(scene, size)
-            rep["per_ray_workloads"] = rep.get("per_ray_workloads", []) + [f"{scene}:{size}"]
-            for rtype, row in per_ray(mix, cfgs).items():
-                rep["per_ray"][rtype if len(workloads) == 1 else f"{scene}:{size}:{rtype}"] = row
     return rep
 
 
@@ -145,7 +130,7 @@ def markdown(rep: dict) -> str:
     cfgs = rep["configs"]
     ops = list(stimulus.OPS)
     lines = [f"Energy per operation ({rep['unit']}; level {rep['level']}, "
-             f"{rep['ops_per_type']} ops per type, seed {rep['seed']})", "",
+             f"{rep['ops_per_type']} ops per type, stimulus seed {rep['stimulus_seed']})", "",
              *(["(in parentheses: with every flip-flop's clock pin and the leakage of the "
                 "cycle, i.e. the power at 1 GHz in mW)", ""] if rep["level"] == "liberty"
                else []),
@@ -188,7 +173,9 @@ def markdown(rep: dict) -> str:
                 lines.append(f"| {cfg} | {op} | " + " | ".join(
                     f"{st[s] * 100:.1f}" for s in _stage_labels()) + " |")
     if rep.get("per_ray"):
-        lines += ["", f"Energy per ray ({rep['unit']}):", "",
+        dp = rep["provenance"]["design_point"]
+        lines += ["", f"Energy per ray ({rep['unit']}) of {dp['scene']} {dp['workload']} "
+                      f"(size {dp['size'] or 'of the scene'}, spp {dp['spp']}):", "",
                   "| ray type | box ops/ray | tri ops/ray | " + " | ".join(cfgs) + " |",
                   "|---|---:|---:|" + "---:|" * len(cfgs)]
         for rtype, row in rep["per_ray"].items():

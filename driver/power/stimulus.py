@@ -8,7 +8,7 @@ no activity comes from data the operation ignores.
 ``OPS`` is the one table of measured operation types: the name used in the JSON, the opcode and
 the request flags. An entry whose value is a string is not measurable yet (the reason is reported
 instead of a number). ``triangle_no_cull`` draws the same random triangles as ``triangle`` (the
-stream's seed depends on the opcode only) with the NO_CULL flag (SPEC 3, 5) set.
+stream's seed depends on the opcode only) with the NO_CULL flag (docs/datapath.md) set.
 """
 
 from __future__ import annotations

@@ -24,8 +24,8 @@ Design: functional traversal first, timing by replay.
    next ray enters. The request words are assembled in C++ from the packed rays and the BVH4 image,
    by the same code as the "rtl" fast path (``HarnessBackend.run_nodes``; sim/rf_sim.h).
 3. Cycles are real model clock cycles from the first accepted request to the last response taken
-   (inclusive), as SPEC 10 counts them. ``utilization = ops / (pipelines * cycles)`` (the SPEC
-   definition for one pipeline). The replayed responses are compared with the functional run's
+   (inclusive), as every cycle count of docs/statistics.md. ``utilization = ops / (pipelines *
+   cycles)`` (ops per cycle of one pipeline when there is one). The replayed responses are compared with the functional run's
    bit for bit (and every response tag with its ray): same requests, so they must be equal;
    a difference raises ``ReplayMismatch``.
 
@@ -189,7 +189,7 @@ class ReplayResult:
         return self.ops / (self.pipelines * self.cycles) if self.cycles else 0.0
 
     def stats(self) -> dict:
-        """Plain-Python summary (SPEC 10 names where they apply)."""
+        """Plain-Python summary (docs/statistics.md names where they apply)."""
         return {
             "rays_in_flight": self.rays_in_flight,
             "pipelines": self.pipelines,

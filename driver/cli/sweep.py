@@ -1,0 +1,100 @@
+"""``rayflex sweep``: a grid of design points on one workload (``driver.sweep``)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from .. import design
+from .common import add_json, add_progress, check_positive, note, wrote
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser(
+        "sweep", help="a grid of design points on one workload: cycles, utilization, cache, "
+                      "energy per ray",
+        description="Measure every combination of the design-point options given as "
+                    "comma-separated lists (--config all: every configuration) on one "
+                    "workload: per ray type the datapath ops, the RT-unit cycles and "
+                    "utilization without and with the node memory, cache hit rate, bytes and "
+                    "energy per ray (docs/statistics.md). The workload is traced once per "
+                    "BVH/workload option and replayed per RT-unit point; every configuration's "
+                    "responses are checked bit for bit against the trace's. Finished points are "
+                    "kept in a results file, so an interrupted sweep resumes where it stopped.")
+    p.add_argument("--csv", metavar="PATH", help="one row per design point x ray type")
+    add_json(p, "write every point's statistics as JSON")
+    p.add_argument("--plot", metavar="PATH",
+                   help="PNG: utilization vs rays in flight per cache size, energy per ray vs "
+                        "cycles per ray")
+    p.add_argument("--results", metavar="PATH",
+                   help="results file of finished points (JSON lines), read to resume and "
+                        "appended to as points finish (default: beside the first of --json, "
+                        "--csv, --plot as STEM.points.jsonl, else rayflex_sweep.points.jsonl)")
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="measure points on a local Dask cluster of N one-thread processes "
+                        "(default 1: this process)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="measure points on the Dask cluster at ADDRESS (e.g. tcp://host:8786)")
+    design.add_options(p, sweep=True)
+    add_progress(p)
+    return p
+
+
+def results_path(args) -> Path:
+    if args.results:
+        return Path(args.results).expanduser()
+    for given in (args.json, args.csv, args.plot):
+        if given:
+            g = Path(given).expanduser()
+            return g.with_name(f"{g.stem}.points.jsonl")
+    return Path("rayflex_sweep.points.jsonl")
+
+
+def run(args) -> int:
+    from ..outputs import JSON, PNG, TABLE, Outputs, write_json
+    from ..power import announce_builds
+    from ..render import check_memory
+    from ..sweep import plot, sweep, table, write_csv
+
+    points = design.grid_from_args(args)
+    check_positive("--workers", args.workers)
+    for size in {p.size for p in points if p.size}:
+        check_memory(size * size)
+    outs = Outputs()
+    csv_path = outs.add("--csv", args.csv, TABLE) if args.csv else None
+    if csv_path and csv_path.suffix.lower() != ".csv":
+        raise ValueError(f"--csv {args.csv}: use a .csv file name")
+    js = outs.add("--json", args.json, JSON) if args.json else None
+    png = outs.add("--plot", args.plot, PNG) if args.plot else None
+    res = results_path(args)
+    parent = res.parent if str(res.parent) else Path(".")
+    if res.is_dir() or not parent.is_dir() or not os.access(parent, os.W_OK) \
+            or (res.exists() and not os.access(res, os.W_OK)):
+        raise ValueError(f"--results {res}: cannot write there")
+    if res.suffix.lower() != ".jsonl":
+        raise ValueError(f"--results {res}: use a .jsonl file name")
+    if res in outs.paths():
+        raise ValueError(f"--results {res} names another output")
+    progress = not args.no_progress
+    if progress:
+        note(f"sweep: {len(points)} design points "
+             f"({', '.join(design.varied(points)) or 'one point'} varied) on "
+             f"{points[0].scene} {points[0].workload}")
+    models = []
+    for p in points:
+        for kind in ("rtl", "signals"):
+            if (kind, p.rtl_params()) not in models:
+                models.append((kind, p.rtl_params()))
+    announce_builds("sweep", models)
+    doc = sweep(points, args.workers, args.scheduler, res, progress)
+    with outs.commit():
+        if csv_path:
+            write_csv(doc, outs.temp(csv_path))
+        if png:
+            plot(doc, outs.temp(png))
+            doc["plot"] = str(png)
+        if js:
+            write_json(doc, outs.temp(js))
+    print(table(doc))
+    wrote(outs.paths() + [res])
+    return 0 if all(doc["bit_exact"].values()) else 1

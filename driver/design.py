@@ -1,0 +1,375 @@
+"""A design point: the datapath, BVH, RT-unit and workload choices of one measurement.
+
+Every option of a design point is defined once here (``OPTIONS``: flag, type, default, help,
+check, and whether ``rayflex sweep`` takes a list of values for it). ``render``, ``bench``,
+``power`` and ``sweep`` add them with ``add_options`` and read them back with ``from_args``
+(one ``DesignPoint``) or ``grid_from_args`` (``sweep``: every combination of the listed values),
+so that a name, its default and its meaning are the same in every command. A ``DesignPoint`` is
+what the code passes around: ``backend_options()`` for ``driver.backends.backend``,
+``memory()`` for the RT-unit replay, ``as_dict()`` for a JSON's provenance.
+
+The groups (docs/datapath.md for the datapath, docs/workloads.md for the workloads,
+docs/statistics.md for what is measured):
+
+- datapath: ``--config`` (a configuration of driver/area.py's table: EXTENDED x DISJOINT),
+  ``--latency`` (pipeline stages);
+- bvh: ``--bvh-fill``, ``--cull-stack``;
+- rtunit: ``--rays-in-flight``, ``--pipelines``, and the node memory ``--cache-kib`` (0: no node
+  cache and no memory model, node fetches are free), ``--cache-ways``, ``--line-bytes``,
+  ``--mem-latency``, ``--mem-bytes-per-cycle``;
+- workload: ``--scene`` (``render``: also the positional SCENE), ``--workload``, ``--size``,
+  ``--spp``, ``--bounces``, ``--ao-rays``, ``--seed``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+from dataclasses import asdict, dataclass, fields
+from typing import Callable
+
+from .area import CONFIGS
+from .backends.build import MIN_LATENCY
+from .datapath import LATENCY
+from .workloads import WORKLOADS
+
+GROUPS = {
+    "datapath": "datapath (docs/datapath.md)",
+    "bvh": "BVH and traversal (docs/bvh.md)",
+    "rtunit": "RT unit: ray pool, pipelines, node cache and memory",
+    "workload": "workload (docs/workloads.md)",
+}
+MAX_LATENCY = 64
+MAX_PIPELINES = 64
+DEFAULT_SCENE = "bunny"
+
+
+def _resolve_scene(name) -> None:
+    """An unknown scene or a missing file fails here, before any work (one-line SceneError)."""
+    from .scenes.scene import resolve
+    if isinstance(name, str):
+        resolve(name)
+
+
+def _scene_help() -> str:
+    """The scene option's help, listing the scenes and mesh types that exist."""
+    from .scenes.scene import MESH_TYPES, available
+    return (f"a scene name ({', '.join(available())}; a bare name is the scene even if a file "
+            "of that name exists here: write ./NAME for the file), a .toml scene file or a mesh "
+            f"file ({', '.join('.' + t for t in MESH_TYPES)}); docs/scenes.md")
+
+
+def _int_range(lo: int, hi: int | None = None) -> Callable:
+    def check(flag, v):
+        if isinstance(v, bool) or not isinstance(v, int) or v < lo or (hi is not None and v > hi):
+            rng = f"in {lo}..{hi}" if hi is not None else f">= {lo}"
+            raise ValueError(f"{flag} must be an integer {rng}, got {v!r}")
+    return check
+
+
+def _positive_float(flag, v):
+    if not v > 0:
+        raise ValueError(f"{flag} must be > 0, got {v!r}")
+
+
+def _power_of_two(flag, v):
+    if isinstance(v, bool) or not isinstance(v, int) or v < 4 or v & (v - 1):
+        raise ValueError(f"{flag} must be a power of two >= 4, got {v!r}")
+
+
+def _choice(choices) -> Callable:
+    def check(flag, v):
+        if v not in choices:
+            raise ValueError(f"{flag}: unknown value {v!r}; choose from {', '.join(choices)}")
+    return check
+
+
+def _size(flag, v):
+    from .scenes.camera import MAX_SIZE
+    if v is not None:
+        _int_range(1, MAX_SIZE)(flag, v)
+
+
+def _bool(text: str) -> bool:
+    t = str(text).strip().lower()
+    if t in ("1", "yes", "on", "true"):
+        return True
+    if t in ("0", "no", "off", "false"):
+        return False
+    raise ValueError(f"not a yes/no value: {text!r}")
+
+
+@dataclass(frozen=True)
+class Option:
+    """One design-point option: ``name`` (the DesignPoint field and argparse dest), ``flag``,
+    ``type`` (parses one value from text), ``default``, ``help``, ``check(flag, value)``
+    (one-line ValueError), ``group``, and ``listable``: ``rayflex sweep`` takes a comma-separated
+    list of values (and ``all`` when ``choices`` name them)."""
+
+    name: str
+    flag: str
+    type: Callable
+    default: object
+    help: str
+    check: Callable
+    group: str
+    metavar: str = "N"
+    choices: tuple | None = None
+    listable: bool = True
+
+    def describe_default(self) -> str:
+        if self.name == "size":
+            return "the scene's size, 256 for the built-in scenes"
+        if self.type is _bool:
+            return "no"
+        return str(self.default)
+
+
+OPTIONS: tuple[Option, ...] = (
+    Option("config", "--config", str, "baseline-unified",
+           "datapath configuration: " + ", ".join(CONFIGS) + " (EXTENDED x DISJOINT build "
+           "parameters; every one gives the same box/triangle results, bit for bit)",
+           _choice(tuple(CONFIGS)), "datapath", "NAME", tuple(CONFIGS)),
+    Option("latency", "--latency", int, LATENCY,
+           f"pipeline stages of the datapath, {MIN_LATENCY}..{MAX_LATENCY}",
+           _int_range(MIN_LATENCY, MAX_LATENCY), "datapath"),
+    Option("bvh_fill", "--bvh-fill", int, 0,
+           "split subtrees of at most N triangles so that their 4-wide nodes can all be full: "
+           "fewer box nodes and bytes, slightly more ops per ray (0: plain SAH; docs/bvh.md)",
+           _int_range(0), "bvh"),
+    Option("cull_stack", "--cull-stack", _bool, False,
+           "keep each stack entry's entry distance and drop box nodes beyond the nearest hit "
+           "without a request: the same hits, fewer box ops (the RT unit keeps a float per "
+           "stack entry; docs/bvh.md)", lambda flag, v: None, "bvh", "yes|no"),
+    Option("rays_in_flight", "--rays-in-flight", int, 64,
+           "ray pool of the RT unit: rays with a request chain in progress", _int_range(1),
+           "rtunit"),
+    Option("pipelines", "--pipelines", int, 1,
+           f"datapath pipelines of the RT unit, 1..{MAX_PIPELINES}",
+           _int_range(1, MAX_PIPELINES), "rtunit"),
+    Option("cache_kib", "--cache-kib", int, 32,
+           "node cache of the RT unit in KiB, set-associative LRU (0: no node cache and no "
+           "memory model: node fetches are free)", _int_range(0), "rtunit"),
+    Option("cache_ways", "--cache-ways", int, 4, "ways of the node cache", _int_range(1),
+           "rtunit"),
+    Option("line_bytes", "--line-bytes", int, 64, "cache line and memory transfer size in bytes",
+           _power_of_two, "rtunit"),
+    Option("mem_latency", "--mem-latency", int, 200,
+           "cycles from a line's transfer to its arrival in the node cache", _int_range(0),
+           "rtunit"),
+    Option("mem_bytes_per_cycle", "--mem-bytes-per-cycle", float, 32.0,
+           "memory bandwidth: bytes transferred per cycle (transfers are serialised)",
+           _positive_float, "rtunit", "B"),
+    Option("scene", "--scene", str, DEFAULT_SCENE, _scene_help(),
+           lambda flag, v: _resolve_scene(v), "workload", "SCENE", listable=False),
+    Option("workload", "--workload", str, "primary",
+           "rays of the frame: primary (camera rays), shadow (+ one shadow ray per hit), ao "
+           "(+ --ao-rays ambient-occlusion rays per hit), path (diffuse path tracing with "
+           "next-event estimation and --bounces bounces)", _choice(WORKLOADS), "workload",
+           "NAME", WORKLOADS, listable=False),
+    Option("size", "--size", int, None, "square frame N x N", _size, "workload"),
+    Option("spp", "--spp", int, 1, "samples per pixel, 1..4096", _int_range(1, 4096),
+           "workload"),
+    Option("bounces", "--bounces", int, 1,
+           "path: diffuse bounces after the camera ray, 0..64 (0: direct light)",
+           _int_range(0, 64), "workload"),
+    Option("ao_rays", "--ao-rays", int, 4, "ao: rays per hit, 1..1024", _int_range(1, 1024),
+           "workload"),
+    Option("seed", "--seed", int, 0, "seed of the counter-based random numbers",
+           _int_range(0), "workload"),
+)
+BY_NAME = {o.name: o for o in OPTIONS}
+
+
+@dataclass(frozen=True)
+class DesignPoint:
+    """One design point (the fields are ``OPTIONS``' names, with their defaults)."""
+
+    config: str = BY_NAME["config"].default
+    latency: int = BY_NAME["latency"].default
+    bvh_fill: int = BY_NAME["bvh_fill"].default
+    cull_stack: bool = BY_NAME["cull_stack"].default
+    rays_in_flight: int = BY_NAME["rays_in_flight"].default
+    pipelines: int = BY_NAME["pipelines"].default
+    cache_kib: int = BY_NAME["cache_kib"].default
+    cache_ways: int = BY_NAME["cache_ways"].default
+    line_bytes: int = BY_NAME["line_bytes"].default
+    mem_latency: int = BY_NAME["mem_latency"].default
+    mem_bytes_per_cycle: float = BY_NAME["mem_bytes_per_cycle"].default
+    scene: str = BY_NAME["scene"].default
+    workload: str = BY_NAME["workload"].default
+    size: int | None = BY_NAME["size"].default
+    spp: int = BY_NAME["spp"].default
+    bounces: int = BY_NAME["bounces"].default
+    ao_rays: int = BY_NAME["ao_rays"].default
+    seed: int = BY_NAME["seed"].default
+
+    def __post_init__(self):
+        for o in OPTIONS:
+            o.check(o.flag, getattr(self, o.name))
+        if self.cache_kib and (self.cache_kib * 1024) % (self.cache_ways * self.line_bytes):
+            raise ValueError(f"--cache-kib {self.cache_kib} is not a whole number of sets of "
+                             f"--cache-ways {self.cache_ways} x --line-bytes {self.line_bytes}")
+
+    # what the parts of the driver take
+    @property
+    def extended(self) -> bool:
+        return bool(CONFIGS[self.config][0])
+
+    @property
+    def disjoint(self) -> bool:
+        return bool(CONFIGS[self.config][1])
+
+    def backend_options(self) -> dict:
+        """Keyword options of ``driver.backends.backend`` for this datapath."""
+        return {"extended": self.extended, "disjoint": self.disjoint, "latency": self.latency}
+
+    def rtl_params(self) -> dict:
+        """RTL build parameters (EXTENDED, DISJOINT, LATENCY) of this datapath."""
+        from .backends.build import rtl_params
+        return rtl_params(self.extended, self.disjoint, self.latency)
+
+    def memory(self):
+        """The RT unit's ``driver.rtunit.MemoryModel`` (None with ``cache_kib`` 0)."""
+        if not self.cache_kib:
+            return None
+        from .rtunit import MemoryModel
+        return MemoryModel(self.cache_kib * 1024, self.cache_ways, self.line_bytes,
+                           self.mem_latency, float(self.mem_bytes_per_cycle))
+
+    def workload_options(self) -> dict:
+        """``driver.workloads.run`` options."""
+        return {"spp": self.spp, "bounces": self.bounces, "ao_rays": self.ao_rays,
+                "seed": self.seed}
+
+    def tree_options(self) -> dict:
+        """``fill`` (BVH build) and ``cull_stack`` (traversal)."""
+        return {"fill": self.bvh_fill, "cull_stack": self.cull_stack}
+
+    def group(self, name: str) -> dict:
+        return {o.name: getattr(self, o.name) for o in OPTIONS if o.group == name}
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    def key(self) -> str:
+        """A stable text key of the point (``sweep``'s resume file)."""
+        return ",".join(f"{f.name}={getattr(self, f.name)}" for f in fields(self))
+
+    def replace(self, **changes) -> "DesignPoint":
+        from dataclasses import replace
+        return replace(self, **changes)
+
+
+# ---------------------------------------------------------------------------------------------
+# command line
+
+def _help(o: Option, listing: bool, default: str | None = None) -> str:
+    text = f"{o.help} (default: {default or o.describe_default()})"
+    if listing:
+        text += "; a comma-separated list" + (", or all" if o.choices else "")
+    return text
+
+
+def add_options(p, groups=tuple(GROUPS), sweep: bool = False, positional_scene: bool = False,
+                notes: dict | None = None, lists=(), defaults: dict | None = None) -> None:
+    """Add the design-point options of ``groups`` to parser ``p``, one argument group each.
+    Defaults are left as None (``from_args`` fills them in) so that a command can tell a value
+    given from a default. ``sweep``: listable options take comma-separated lists (``lists``:
+    those named take them). ``positional_scene``: SCENE may also be given as the first
+    positional argument. ``notes``: group name -> how this command uses the group (shown in the
+    group's title). ``defaults``: option name -> this command's default, as shown in the help
+    (the command applies it: ``power`` measures every configuration unless told)."""
+    for g in groups:
+        ag = p.add_argument_group(GROUPS[g] + (f" ({notes[g]})" if notes and g in notes else ""))
+        if g == "workload" and positional_scene:
+            ag.add_argument("scene_arg", nargs="?", metavar="SCENE",
+                            help="the scene, as --scene")
+        for o in OPTIONS:
+            if o.group != g:
+                continue
+            listing = (sweep or o.name in lists) and o.listable
+            shown = (defaults or {}).get(o.name)
+            if o.type is _bool and not listing:
+                ag.add_argument(o.flag, dest=o.name, action="store_const", const=True,
+                                default=None, help=_help(o, listing, shown))
+                continue
+            ag.add_argument(o.flag, dest=o.name, default=None,
+                            metavar=("LIST" if listing else o.metavar),
+                            type=str if listing else _parser(o), help=_help(o, listing, shown))
+
+
+def _parser(o: Option) -> Callable:
+    def parse(text):
+        try:
+            return o.type(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a valid value: {text!r}") from None
+    parse.__name__ = o.type.__name__
+    return parse
+
+
+def given(args, groups=tuple(GROUPS)) -> list[str]:
+    """The flags of ``groups`` given on the command line (not left at their defaults)."""
+    return [o.flag for o in OPTIONS if o.group in groups and getattr(args, o.name, None)
+            is not None]
+
+
+def _scene_of(args):
+    pos = getattr(args, "scene_arg", None)
+    if pos is not None and getattr(args, "scene", None) is not None:
+        raise ValueError("give the scene once: SCENE or --scene")
+    return pos if pos is not None else getattr(args, "scene", None)
+
+
+def from_args(args, **overrides) -> DesignPoint:
+    """The checked ``DesignPoint`` of parsed arguments (options not added: their defaults;
+    ``overrides``: values that replace those defaults, e.g. a command's own scene default)."""
+    values = {}
+    for o in OPTIONS:
+        v = _scene_of(args) if o.name == "scene" else getattr(args, o.name, None)
+        if v is not None:
+            values[o.name] = v
+        elif o.name in overrides:
+            values[o.name] = overrides[o.name]
+    return DesignPoint(**values)
+
+
+def parse_list(o: Option, text: str) -> list:
+    """A sweep's comma-separated values of option ``o`` (``all``: every choice), checked."""
+    items = [x.strip() for x in str(text).split(",") if x.strip()]
+    if o.choices and items == ["all"]:
+        items = list(o.choices)
+    if not items:
+        raise ValueError(f"{o.flag}: give at least one value")
+    out = []
+    for x in items:
+        try:
+            v = o.type(x)
+        except ValueError:
+            raise ValueError(f"{o.flag}: not a valid value: {x!r}") from None
+        o.check(o.flag, v)
+        if v not in out:
+            out.append(v)
+    return out
+
+
+def grid_from_args(args) -> list[DesignPoint]:
+    """Every design point of a sweep's lists (in the order of ``OPTIONS``, last varying
+    fastest), each checked."""
+    axes = []
+    for o in OPTIONS:
+        v = _scene_of(args) if o.name == "scene" else getattr(args, o.name, None)
+        if v is None:
+            axes.append([o.default])
+        elif o.listable and isinstance(v, str):
+            axes.append(parse_list(o, v))
+        else:
+            axes.append([v])
+    names = [o.name for o in OPTIONS]
+    return [DesignPoint(**dict(zip(names, combo))) for combo in itertools.product(*axes)]
+
+
+def varied(points: list[DesignPoint]) -> list[str]:
+    """The option names whose value differs between ``points``."""
+    return [o.name for o in OPTIONS if len({getattr(p, o.name) for p in points}) > 1]

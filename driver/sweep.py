@@ -1,0 +1,405 @@
+"""``rayflex sweep``: a grid of design points on one workload.
+
+Every design-point option (``driver.design``) takes a comma-separated list; the grid is every
+combination. What each point costs:
+
+1. The functional trace: the workload's hits and datapath requests do not depend on the RT unit,
+   so the frame is traced once per distinct (BVH options, workload options) on the "rtl" backend
+   of the first configuration listed, every wavefront recorded (``driver.rtunit.Record``).
+2. Per point, each ray type's recorded wavefronts are replayed on the point's RT unit
+   (``driver.stats.replay_stats``): without the node memory (``rtunit``) and with it
+   (``rtunit_memory``), on the RTL of the point's datapath configuration and latency. Every
+   replayed response is compared bit for bit with the functional trace's, so each
+   configuration is checked against the one that traced the frame, on the frame's requests.
+3. Energy per ray: each ray type's box and triangle ops times the configuration's energy per op
+   as ``rayflex power`` measures it (``driver.power``): level ``signals`` always, level
+   ``gates`` when that configuration's gate netlist is in the cache (a synthesis takes minutes).
+
+Points are independent tasks: with ``workers`` > 1 or a Dask ``scheduler`` they run on the
+cluster code of ``driver.tiles`` (records scattered once). Each finished point is appended to a
+results file (JSON lines keyed by the point and the source tree's version and commit,
+``results``); a sweep started again with the same file skips the points found there, so an
+interrupted sweep resumes where it stopped.
+
+The document (``sweep``): ``provenance``, the ``grid`` (the options that vary), the functional
+traces, the energy per op used, and one entry per point: its design point, its frame statistics
+(docs/statistics.md) with ``energy_per_ray`` and ``by_type``, and its wall time. ``rows`` flattens
+it to one row per point x ray type (the CSV); ``plot`` draws utilization vs rays in flight per
+cache size and energy per ray vs RT-unit cycles per ray.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import time
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+from . import design
+from .design import DesignPoint
+from .progress import bar as progress_bar
+from .progress import phase
+from .stats import merge_rtunit, provenance, public, replay_stats
+
+ENERGY_LEVELS = ("signals", "gates")
+# the options that make the functional trace (everything else is replayed)
+FUNCTIONAL = ("scene", "workload", "size", "spp", "bounces", "ao_rays", "seed", "bvh_fill",
+              "cull_stack")
+
+
+def functional_key(point: DesignPoint) -> tuple:
+    return tuple(getattr(point, k) for k in FUNCTIONAL)
+
+
+@dataclass
+class Trace:
+    """The functional trace of one workload: per ray type its statistics (counts and the
+    wavefront, docs/statistics.md) and its recorded wavefronts; the configuration and latency
+    it was traced on, and its wall time."""
+
+    by_type: dict
+    records: dict
+    config: str
+    latency: int
+    width: int
+    wall_s: float
+
+
+def trace_workload(point: DesignPoint, progress: bool = True) -> Trace:
+    """Trace ``point``'s workload on the "rtl" backend of its datapath, every wavefront
+    recorded."""
+    from . import workloads
+    from .backends import backend
+    from .bvh4 import build
+    from .scenes.scene import load_scene
+    from .tracer import trace
+
+    t0 = time.perf_counter()
+    scene = load_scene(point.scene)
+    size = point.size or scene.size[0]
+    rtl = backend("rtl", **point.backend_options())
+    with phase(f"building the BVH4 of {len(scene.triangles):,} triangles", progress):
+        bvh = build(scene.mesh, fill=point.bvh_fill)
+    setup = workloads.setup_for(scene)
+
+    def tracer(bvh_, o, d, **kw):
+        return trace(bvh_, o, d, backend=rtl, record=True, cull_stack=point.cull_stack, **kw)
+
+    with phase(f"tracing {point.workload} {size}x{size} on {point.config}", progress):
+        res = workloads.run(setup, bvh, size, size, tracer, point.workload,
+                            **point.workload_options())
+    by_type = public(res.stats)["by_type"]
+    records = {k: [b.result.record for b in res.batches if b.kind == k] for k in by_type}
+    return Trace(by_type, records, point.config, point.latency, size, time.perf_counter() - t0)
+
+
+def measure_point(point: DesignPoint, records: dict) -> dict:
+    """The RT-unit figures of one design point (a task: pure in its inputs): per ray type and
+    for the frame (ray types one after another), and the point's wall time."""
+    t0 = time.perf_counter()
+    by_type = {}
+    for kind, recs in records.items():
+        plain, mem = replay_stats(recs, point)
+        by_type[kind] = {"rtunit": plain, "rtunit_memory": mem}
+    return {"rtunit": merge_rtunit([t["rtunit"] for t in by_type.values()]),
+            "rtunit_memory": merge_rtunit([t["rtunit_memory"] for t in by_type.values()]),
+            "by_type": by_type, "wall_s": time.perf_counter() - t0}
+
+
+# ---------------------------------------------------------------------------------------------
+# energy per op (driver.power)
+
+def energy_tables(points, progress: bool = True) -> dict:
+    """Energy per box and triangle op of every (configuration, latency) of ``points``:
+    {"CONFIG@LATENCY": {level: {"box": e, "triangle": e, "unit": unit} or None}}; level
+    ``gates`` only for configurations whose gate netlist is cached (at the netlist's
+    latency)."""
+    from . import power
+    from .power.report import UNITS
+    out: dict = {}
+    for cfg, lat in sorted({(p.config, p.latency) for p in points}):
+        entry = out[energy_key(cfg, lat)] = {lvl: None for lvl in ENERGY_LEVELS}
+        with phase(f"energy per op of {cfg} (signals)", progress):
+            r = power.run_level("signals", [cfg], latency=lat, ops=("box", "triangle"))
+        entry["signals"] = _per_op(r["configs"][cfg], UNITS["signals"])
+        if lat == power.DEFAULT_LATENCY and power.netlist_cached(cfg):
+            with phase(f"energy per op of {cfg} (gates)", progress):
+                r = power.run_level("gates", [cfg], ops=("box", "triangle"))
+            entry["gates"] = _per_op(r["configs"][cfg], UNITS["gates"])
+    return out
+
+
+def energy_key(config: str, latency: int) -> str:
+    return f"{config}@{latency}"
+
+
+def _per_op(measured: dict, unit: str) -> dict:
+    return {"box": measured["box"]["energy_per_op"],
+            "triangle": measured["triangle"]["energy_per_op"], "unit": unit}
+
+
+def energy_per_ray(counts: dict, table: dict | None):
+    if not table or not counts["rays"]:
+        return None
+    return (counts["box_ops"] * table["box"] + counts["tri_ops"] * table["triangle"]) \
+        / counts["rays"]
+
+
+# ---------------------------------------------------------------------------------------------
+# the results file (resume)
+
+def load_results(path: Path) -> dict:
+    """Finished points of an earlier run of this source tree (same version and commit):
+    {point key: result}; a torn last line (an interrupted write) is ignored."""
+    done = {}
+    if path is None or not path.is_file():
+        return done
+    source = _source()
+    for line in path.read_text().splitlines():
+        try:
+            entry = json.loads(line)
+            if entry["source"] == source:
+                done[entry["key"]] = entry["result"]
+        except (ValueError, KeyError, TypeError):
+            continue
+    return done
+
+
+def _source() -> list:
+    from .stats import git_commit, rayflex_version
+    return [rayflex_version(), git_commit()]
+
+
+def _append(path: Path, key: str, result: dict) -> None:
+    from .outputs import jsonable
+    with open(path, "a") as f:
+        f.write(json.dumps({"key": key, "source": _source(), "result": jsonable(result)})
+                + "\n")
+        f.flush()
+        os.fsync(f.fileno())
+
+
+# ---------------------------------------------------------------------------------------------
+# the sweep
+
+def sweep(points: list[DesignPoint], workers: int = 1, scheduler: str | None = None,
+          results: Path | None = None, progress: bool = True) -> dict:
+    """Measure every design point (see the module docstring); returns the document."""
+    t0 = time.perf_counter()
+    results = Path(results) if results else None
+    done = load_results(results)
+    todo = [p for p in points if p.key() not in done]
+    if done and progress:
+        print(f"rayflex: sweep: {len(points) - len(todo)} of {len(points)} points already "
+              f"done in {results}, {len(todo)} to measure", flush=True, file=_stderr())
+    traces: dict = {}
+    groups: dict = {}
+    for p in points:
+        groups.setdefault(functional_key(p), []).append(p)
+    for key, pts in groups.items():             # every point's counts come from its trace
+        traces[key] = trace_workload(pts[0], progress)
+    energies = energy_tables(points, progress)
+    bar = progress_bar(len(todo), f"sweep: {len(points)} design points", "point", progress)
+    bar.hook(0, len(todo))
+    for n, (p, result) in enumerate(_run(todo, traces, workers, scheduler), 1):
+        done[p.key()] = result
+        if results:
+            _append(results, p.key(), result)
+        bar.hook(n, len(todo))
+    bar.close()
+    entries = [_entry(p, done[p.key()], traces[functional_key(p)], energies) for p in points]
+    first = traces[functional_key(points[0])]
+    return {
+        "provenance": provenance(None),
+        "scene": points[0].scene,
+        "workload": points[0].workload,
+        "grid": {k: list(dict.fromkeys(getattr(p, k) for p in points))
+                 for k in design.varied(points)},
+        "functional": [{"design_point": {k: v for k, v in zip(FUNCTIONAL, key)},
+                        "config": t.config, "latency_cycles": t.latency, "width": t.width,
+                        "height": t.width, "wall_s": t.wall_s, "by_type": t.by_type}
+                       for key, t in traces.items()],
+        "energy_per_op": energies,
+        "bit_exact": {c: all(e["rtunit"]["responses_verified"] for e in entries
+                             if e["design_point"]["config"] == c)
+                      for c in sorted({p.config for p in points})},
+        "traced_on": first.config,
+        "points": entries,
+        "wall_s": time.perf_counter() - t0,
+    }
+
+
+def _stderr():
+    import sys
+    return sys.stderr
+
+
+def _run(todo, traces, workers, scheduler):
+    """(point, result) of every point to measure, in this process or on Dask."""
+    if not todo:
+        return
+    if workers == 1 and not scheduler:
+        for p in todo:
+            yield p, measure_point(p, traces[functional_key(p)].records)
+        return
+    import uuid
+
+    from .tiles import _client
+    with _client(workers, scheduler) as client:
+        recs = {k: client.scatter(t.records, broadcast=True) for k, t in traces.items()}
+        run_id = uuid.uuid4().hex[:12]
+        futures = {client.submit(measure_point, p, recs[functional_key(p)],
+                                 key=f"rayflex-sweep-{run_id}-{i}", retries=3): p
+                   for i, p in enumerate(todo)}
+        from distributed import as_completed
+        try:
+            for fut in as_completed(futures):
+                yield futures[fut], fut.result()
+        finally:
+            client.cancel(list(futures))
+
+
+def _entry(p: DesignPoint, result: dict, trace: Trace, energies: dict) -> dict:
+    """A point's frame statistics: the functional counts with its RT-unit replays and energy."""
+    from .stats import merge
+    key = energy_key(p.config, p.latency)
+    by_type = {}
+    for kind, counts in trace.by_type.items():
+        e = dict(counts)
+        e["rtunit"] = result["by_type"][kind]["rtunit"]
+        e["rtunit_memory"] = result["by_type"][kind]["rtunit_memory"]
+        e["energy_per_ray"] = {lvl: energy_per_ray(counts, energies[key][lvl])
+                               for lvl in ENERGY_LEVELS}
+        by_type[kind] = e
+    total = _totals(trace.by_type, merge)
+    total["rtunit"], total["rtunit_memory"] = result["rtunit"], result["rtunit_memory"]
+    total["energy_per_ray"] = {lvl: energy_per_ray(total, energies[key][lvl])
+                               for lvl in ENERGY_LEVELS}
+    return {"design_point": p.as_dict(), **total, "by_type": by_type, "wall_s": result["wall_s"]}
+
+
+def _totals(by_type: dict, merge) -> dict:
+    """The frame's counts and wavefront from its ray types' (public schema)."""
+    flat = []
+    for t in by_type.values():
+        f = {k: v for k, v in t.items() if k not in ("wavefront", "embree")}
+        f.update(t["wavefront"])
+        flat.append(f)
+    return public(merge(flat))
+
+
+# ---------------------------------------------------------------------------------------------
+# outputs
+
+ROW_FIELDS = ("ray_type", "rays", "hits", "box_ops", "tri_ops", "ops", "box_ops_per_ray",
+              "tri_ops_per_ray", "rtunit_cycles", "rtunit_utilization", "rtunit_cycles_per_ray",
+              "rtunit_memory_cycles", "rtunit_memory_utilization", "rtunit_memory_cycles_per_ray",
+              "hit_rate", "bytes_per_ray", "energy_per_ray_signals", "energy_per_ray_gates",
+              "responses_verified", "wall_s")
+
+
+def rows(doc: dict) -> list[dict]:
+    """One row per point x ray type: the design point's options, then ``ROW_FIELDS``."""
+    out = []
+    for e in doc["points"]:
+        for kind, t in e["by_type"].items():
+            r, m = t["rtunit"], t["rtunit_memory"] or {}
+            out.append({**e["design_point"], "ray_type": kind,
+                        **{k: t[k] for k in ("rays", "hits", "box_ops", "tri_ops", "ops",
+                                             "box_ops_per_ray", "tri_ops_per_ray")},
+                        "rtunit_cycles": r["cycles"], "rtunit_utilization": r["utilization"],
+                        "rtunit_cycles_per_ray": r["cycles_per_ray"],
+                        "rtunit_memory_cycles": m.get("cycles"),
+                        "rtunit_memory_utilization": m.get("utilization"),
+                        "rtunit_memory_cycles_per_ray": m.get("cycles_per_ray"),
+                        "hit_rate": m.get("hit_rate"), "bytes_per_ray": m.get("bytes_per_ray"),
+                        "energy_per_ray_signals": t["energy_per_ray"]["signals"],
+                        "energy_per_ray_gates": t["energy_per_ray"]["gates"],
+                        "responses_verified": r["responses_verified"]
+                        and (not m or m["responses_verified"]),
+                        "wall_s": e["wall_s"]})
+    return out
+
+
+def write_csv(doc: dict, path) -> None:
+    header = [f.name for f in fields(DesignPoint)] + list(ROW_FIELDS)
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=header)
+        w.writeheader()
+        for r in rows(doc):
+            w.writerow({k: ("" if v is None else v) for k, v in r.items()})
+
+
+def _timing(e: dict) -> dict:
+    """A point's RT-unit figures with its node memory, or without when it has none."""
+    return e["rtunit_memory"] or e["rtunit"]
+
+
+def plot(doc: dict, path) -> None:
+    """Two panels: datapath utilization vs rays in flight, one line per (cache size, other
+    varied options); energy per ray (signals) vs RT-unit cycles per ray, one marker per point,
+    one colour per configuration."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    pts = doc["points"]
+    others = [k for k in doc["grid"] if k not in ("rays_in_flight",)]
+    fig = Figure(figsize=(11.0, 4.6), dpi=110)
+    FigureCanvasAgg(fig)
+    ax1, ax2 = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
+    lines: dict = {}
+    for e in pts:
+        dp = e["design_point"]
+        label = ", ".join(f"{k} {dp[k]}" for k in others) or "this point"
+        lines.setdefault(label, []).append((dp["rays_in_flight"], _timing(e)["utilization"],
+                                            dp["cache_kib"]))
+    for label, xs in lines.items():
+        xs.sort()
+        style = "o-" if xs[0][2] else "s--"
+        ax1.plot([x[0] for x in xs], [x[1] for x in xs], style, label=label)
+    ax1.set_xscale("log", base=2)
+    ax1.set_ylim(0, 1.05)
+    ax1.set_xlabel("rays in flight (ray pool size)")
+    ax1.set_ylabel("datapath utilization, ops / (pipelines x cycles)")
+    ax1.set_title("RT-unit utilization (with the node memory; dashed: cache 0 = free fetches)",
+                  fontsize=8)
+    ax1.grid(True, which="both", alpha=0.3)
+    ax1.legend(fontsize=6)
+    configs = sorted({e["design_point"]["config"] for e in pts})
+    for i, cfg in enumerate(configs):
+        sel = [e for e in pts if e["design_point"]["config"] == cfg
+               and e["energy_per_ray"]["signals"] is not None]
+        ax2.scatter([_timing(e)["cycles_per_ray"] for e in sel],
+                    [e["energy_per_ray"]["signals"] for e in sel], label=cfg, s=24,
+                    color=f"C{i}")
+    ax2.set_xlabel("RT-unit cycles per ray (with the node memory)")
+    ax2.set_ylabel("energy per ray (bit toggles, level signals)")
+    ax2.set_title("energy per ray vs time per ray, one marker per design point", fontsize=8)
+    ax2.grid(True, alpha=0.3)
+    ax2.legend(fontsize=7)
+    fig.suptitle(f"{doc['scene']} {doc['workload']}: {len(pts)} design points", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(str(path), format="png")
+
+
+def table(doc: dict) -> str:
+    """One line per point: the varied options, RT-unit utilization, hit rate, energy."""
+    keys = list(doc["grid"])
+    head = " ".join(f"{k:>18}" for k in keys) + f" {'rtunit':>6} {'+memory':>8} " \
+        f"{'hit rate':>8} {'cyc/ray':>8} {'E/ray':>9}"
+    out = [head]
+    for e in doc["points"]:
+        m = e["rtunit_memory"] or {}
+        cells = " ".join(f"{str(e['design_point'][k]):>18}" for k in keys)
+        energy = e["energy_per_ray"]["signals"]
+        out.append(f"{cells} {e['rtunit']['utilization']:>6.3f} "
+                   f"{m.get('utilization', float('nan')):>8.3f} "
+                   f"{m.get('hit_rate', float('nan')):>8.3f} "
+                   f"{_timing(e)['cycles_per_ray']:>8.1f} "
+                   f"{float('nan') if energy is None else energy:>9.0f}")
+    out.append("(rtunit / +memory: utilization without / with the node memory; cyc/ray: RT-unit "
+               "cycles per ray, with the node memory where there is one; E/ray: energy per ray "
+               "in bit toggles; docs/statistics.md)")
+    return "\n".join(out)

@@ -1,0 +1,123 @@
+"""Design points: one definition of every option, the same in every command, and every option
+reaching the part of the driver it sets."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import pytest
+
+from driver import design, rtunit
+from driver.area import CONFIGS
+from driver.cli import build_parser, main
+from driver.design import OPTIONS, DesignPoint
+
+COMMANDS = ("render", "bench", "power", "sweep")
+
+
+def _subparser(name):
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return sub.choices[name]
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_every_command_takes_every_option_with_one_default(command):
+    """Each command's parser has every design-point flag, with the definition's help and
+    default (the help text is the one of ``OPTIONS``)."""
+    p = _subparser(command)
+    flags = {f: a for a in p._actions for f in a.option_strings}
+    help_text = p.format_help()
+    for o in OPTIONS:
+        assert o.flag in flags, (command, o.flag)
+        assert flags[o.flag].dest == o.name
+        assert flags[o.flag].help.startswith(o.help), (command, o.flag)
+        shown = "all" if (command, o.name) == ("power", "config") else o.describe_default()
+        assert f"default: {shown}" in flags[o.flag].help         # power measures every one
+    assert "docs/datapath.md" in help_text and "docs/workloads.md" in help_text
+
+
+def test_defaults_are_the_rt_unit_and_memory_models_own():
+    p = DesignPoint()
+    assert p.memory() == rtunit.MemoryModel()
+    assert p.rays_in_flight == rtunit.DEFAULT_RAYS_IN_FLIGHT
+    assert DesignPoint(cache_kib=0).memory() is None
+    assert design.BY_NAME["config"].choices == tuple(CONFIGS)
+    for name, (e, d) in CONFIGS.items():
+        q = DesignPoint(config=name, latency=13)
+        assert q.backend_options() == {"extended": bool(e), "disjoint": bool(d), "latency": 13}
+        assert q.rtl_params() == {"EXTENDED": e, "DISJOINT": d, "LATENCY": 13}
+
+
+def test_from_args_and_grid():
+    p = _subparser("sweep")
+    args = p.parse_args(["--config", "all", "--rays-in-flight", "16,64", "--cache-kib", "0,16",
+                         "--scene", "sphere", "--size", "8"])
+    grid = design.grid_from_args(args)
+    assert len(grid) == len(CONFIGS) * 2 * 2
+    assert {g.config for g in grid} == set(CONFIGS)
+    assert {(g.rays_in_flight, g.cache_kib) for g in grid} == {(16, 0), (16, 16), (64, 0),
+                                                             (64, 16)}
+    assert all(g.scene == "sphere" and g.size == 8 for g in grid)
+    assert design.varied(grid) == ["config", "rays_in_flight", "cache_kib"]
+    assert len({g.key() for g in grid}) == len(grid)
+    args = _subparser("render").parse_args(["sphere", "--cull-stack", "--latency", "12"])
+    pt = design.from_args(args)
+    assert pt.scene == "sphere" and pt.cull_stack is True and pt.latency == 12
+    assert design.given(args) == ["--latency", "--cull-stack"]
+
+
+@pytest.mark.parametrize("argv", [
+    ["render", "sphere", "--config", "fast"],
+    ["render", "sphere", "--latency", "5"],
+    ["render", "sphere", "--cache-kib", "1", "--cache-ways", "32", "--rtunit"],
+    ["render", "sphere", "--line-bytes", "48", "--rtunit"],
+    ["render", "sphere", "--pipelines", "4"],                 # the RT unit needs --rtunit
+    ["render", "sphere", "--scene", "room"],                  # the scene twice
+    ["render", "sphere", "--mem-bytes-per-cycle", "0", "--rtunit"],
+    ["bench", "--pipelines", "65"],
+    ["bench", "--workload", "ao", "--spp", "0"],
+    ["bench", "--bvh", "--config", "extended-unified"],
+    ["sweep", "--config", "baseline-unified,nope"],
+    ["sweep", "--rays-in-flight", "16,x"],
+    ["sweep", "--cull-stack", "maybe"],
+    ["power", "--latency", "100"],
+])
+def test_bad_design_options_fail_in_one_line(argv, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(argv + ["--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("rayflex: error: "), err
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("tile", [[], ["--tile", "8"], ["--tile", "8", "--workers", "2"]],
+                         ids=["whole", "tiled", "workers"])
+def test_datapath_reaches_the_backend(tmp_path, tile):
+    """--config and --latency build the backend of every render path: the golden model counts
+    the latency it was given, and the RT-unit replay runs on the configuration's RTL."""
+    out = tmp_path / "s.json"
+    assert main(["render", "sphere", "--size", "12", "--backend", "golden", "--latency", "14",
+                 "--config", "baseline-disjoint", "--no-progress", "--json", str(out),
+                 "--out", str(tmp_path / "i.png"), *tile]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["latency_cycles"] == 14
+    assert all(t["latency_cycles"] == 14 for t in doc["by_type"].values())
+    assert doc["provenance"]["design_point"]["config"] == "baseline-disjoint"
+
+
+def test_render_rtunit_on_the_configuration(monkeypatch):
+    """The whole frame's replay runs on the point's configuration (its RTL build parameters)."""
+    from driver import stats
+    from driver.render import render
+    seen = []
+    real = rtunit.replay
+    monkeypatch.setattr(rtunit, "replay", lambda rec, *a, **k: seen.append(rec.params)
+                        or real(rec, *a, **k))
+    pt = DesignPoint(config="baseline-disjoint", size=8, rays_in_flight=4, cache_kib=16)
+    res = render("sphere", 8, 8, backend="rtl", progress=False, point=pt, rtunit=True)
+    assert seen and all(p == {"EXTENDED": 0, "DISJOINT": 1, "LATENCY": 11} for p in seen)
+    assert res.stats["rtunit"]["rays_in_flight"] == 4 and res.stats["rtunit"]["responses_verified"]
+    assert res.stats["rtunit_memory"]["cycles"] > res.stats["rtunit"]["cycles"]
+    assert stats.WAVEFRONT in res.stats and res.stats["by_type"]["primary"]["rtunit"]

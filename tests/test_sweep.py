@@ -1,0 +1,136 @@
+"""``rayflex sweep``: a grid of design points, rows equal to single-point benches, resume after an
+interruption, the same rows on Dask workers, outputs and errors."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+from PIL import Image
+
+from driver import sweep as sweep_mod
+from driver.bench import bench_workload
+from driver.cli import main
+from driver.design import DesignPoint
+
+GRID = ["--scene", "sphere", "--workload", "ao", "--size", "10",
+        "--config", "baseline-unified,baseline-disjoint", "--rays-in-flight", "4,32",
+        "--cache-kib", "0,16"]
+
+
+@pytest.fixture(scope="module")
+def swept(tmp_path_factory):
+    d = tmp_path_factory.mktemp("sweep")
+    assert main(["sweep", *GRID, "--csv", str(d / "s.csv"), "--json", str(d / "s.json"),
+                 "--plot", str(d / "s.png"), "--no-progress"]) == 0
+    return d, json.loads((d / "s.json").read_text())
+
+
+def test_grid_rows_and_outputs(swept):
+    d, doc = swept
+    assert len(doc["points"]) == 8
+    assert doc["grid"] == {"config": ["baseline-unified", "baseline-disjoint"],
+                           "rays_in_flight": [4, 32], "cache_kib": [0, 16]}
+    assert doc["bit_exact"] == {"baseline-disjoint": True, "baseline-unified": True}
+    assert len(doc["functional"]) == 1                  # traced once for every RT-unit point
+    kinds = set(doc["functional"][0]["by_type"])
+    assert kinds == {"primary", "ao"}
+    with open(d / "s.csv") as f:
+        table = list(csv.DictReader(f))
+    assert len(table) == 8 * len(kinds)
+    assert {(r["config"], r["rays_in_flight"], r["cache_kib"], r["ray_type"]) for r in table} \
+        == {(c, r, k, t) for c in ("baseline-unified", "baseline-disjoint") for r in ("4", "32")
+            for k in ("0", "16") for t in kinds}
+    for e in doc["points"]:
+        dp = e["design_point"]
+        assert e["rtunit"]["responses_verified"]
+        assert e["ops"] == sum(t["ops"] for t in e["by_type"].values())
+        assert e["rtunit"]["cycles"] == sum(t["rtunit"]["cycles"] for t in e["by_type"].values())
+        if dp["cache_kib"]:
+            assert e["rtunit_memory"]["cycles"] > e["rtunit"]["cycles"]
+            assert 0 < e["rtunit_memory"]["hit_rate"] < 1
+        else:
+            assert e["rtunit_memory"] is None
+        for t in e["by_type"].values():
+            assert t["energy_per_ray"]["signals"] > 0
+    # the same ops and cycles on both configurations (their responses were checked bit for bit)
+    by = {(e["design_point"]["config"], e["design_point"]["rays_in_flight"],
+           e["design_point"]["cache_kib"]): e for e in doc["points"]}
+    for r in (4, 32):
+        for k in (0, 16):
+            a, b = by["baseline-unified", r, k], by["baseline-disjoint", r, k]
+            assert a["rtunit"]["cycles"] == b["rtunit"]["cycles"]
+    with Image.open(d / "s.png") as im:
+        assert im.format == "PNG" and im.size[0] > 600
+    assert (d / "s.points.jsonl").is_file()
+
+
+@pytest.mark.parametrize("which", [0, 7])
+def test_rows_equal_single_point_benches(swept, which):
+    """Every sweep point's cycles are those of ``bench`` run on that point alone."""
+    _, doc = swept
+    e = doc["points"][which]
+    point = DesignPoint(**e["design_point"])
+    b = bench_workload(point, sweep_rays=(), progress=False)
+    for kind, t in e["by_type"].items():
+        ref = b["frame"]["by_type"][kind]
+        assert t["ops"] == ref["ops"]
+        assert t["rtunit"]["cycles"] == ref["rtunit"]["cycles"]
+        assert (t["rtunit_memory"] or {}).get("cycles") == (ref["rtunit_memory"] or {}).get(
+            "cycles")
+
+
+def test_interrupted_sweep_resumes(tmp_path, monkeypatch):
+    points = [DesignPoint(scene="sphere", workload="primary", size=8, rays_in_flight=r,
+                          cache_kib=0) for r in (1, 2, 4, 8)]
+    results = tmp_path / "r.points.jsonl"
+    real = sweep_mod.measure_point
+    calls = []
+
+    def interrupted(p, recs):
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        calls.append(p)
+        return real(p, recs)
+
+    monkeypatch.setattr(sweep_mod, "measure_point", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        sweep_mod.sweep(points, results=results, progress=False)
+    assert len(results.read_text().splitlines()) == 2
+    calls.clear()
+    monkeypatch.setattr(sweep_mod, "measure_point", lambda p, recs: calls.append(p)
+                        or real(p, recs))
+    doc = sweep_mod.sweep(points, results=results, progress=False)
+    assert calls == points[2:]                          # only the points not done before
+    fresh = sweep_mod.sweep(points, progress=False)
+    assert [e["rtunit"]["cycles"] for e in doc["points"]] == \
+        [e["rtunit"]["cycles"] for e in fresh["points"]]
+
+
+def test_points_on_dask_workers_equal_one_process(tmp_path):
+    points = [DesignPoint(scene="sphere", workload="shadow", size=8, rays_in_flight=r)
+              for r in (2, 16)]
+    one = sweep_mod.sweep(points, progress=False)
+    two = sweep_mod.sweep(points, workers=2, progress=False)
+    for a, b in zip(one["points"], two["points"]):
+        assert a["design_point"] == b["design_point"]
+        for key in ("rtunit", "rtunit_memory"):
+            assert a[key]["cycles"] == b[key]["cycles"]
+
+
+@pytest.mark.parametrize("argv", [
+    ["--csv", "s.txt"],
+    ["--results", "r.txt"],
+    ["--config", "all,x"],
+    ["--cache-kib", "1", "--cache-ways", "64"],
+    ["--workers", "0"],
+    ["--size", "0"],
+])
+def test_errors_before_any_work(argv, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sweep_mod, "trace_workload", lambda *a: pytest.fail("traced"))
+    assert main(["sweep", "--scene", "sphere", "--no-progress", *argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("rayflex: error: "), err
+    assert not list(tmp_path.iterdir())
