@@ -1,4 +1,4 @@
-"""``rayflex power``: energy per operation and per ray, measured in the open (issue 15).
+"""``rayflex power``: energy per operation and per ray, measured with open tools.
 
 The RayFlex paper's power study (Genus on VCD activity of 100 random tests at 1 GHz) reports
 power per operation type at full throughput for the four configurations. This package measures

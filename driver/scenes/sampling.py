@@ -1,4 +1,4 @@
-"""Counter-based random numbers and the sampling a rendering workload needs (SPEC 13).
+"""Counter-based random numbers and the sampling a rendering workload needs (docs/workloads.md#ray-types).
 
 Every random number is a pure function of (seed, pixel, sample, bounce, purpose, dimension):
 ``uniform`` hashes those integers, so a ray's numbers do not depend on which other rays are traced
