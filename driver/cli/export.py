@@ -64,7 +64,7 @@ class Export:
         return bool(self.npz or self.hex or self.vcd)
 
     def write(self, scene, width: int, height: int, workload: str, options: dict, tile,
-              tree: dict, progress: bool) -> int:
+              tree: dict, progress: bool, backend_options: dict | None = None) -> int:
         """Trace the frame's request stream into the outputs' temporary files; returns the
         number of requests."""
         from ..export import HexSink, NpzSink, WindowSink, export, write_vcd
@@ -88,5 +88,5 @@ class Export:
         finally:
             bar.close()
         if win:
-            write_vcd(t(self.vcd), *win.window())
+            write_vcd(t(self.vcd), *win.window(), backend_options)
         return n

@@ -101,7 +101,7 @@ def run(args) -> int:
                         "height": h, **res.stats}, outs.temp(js))
         if dump:
             dump.write(scene, w, h, point.workload, point.workload_options(), res.stats.get("tile"),
-                       point.tree_options(), not args.no_progress)
+                       point.tree_options(), not args.no_progress, point.backend_options())
     print(summary(res))
     wrote(outs.paths())
     emb = res.stats.get("embree")
