@@ -370,12 +370,15 @@ WORKLOAD_SIZE = 64
 def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, ao_rays=4,
                    seed=0, rays_in_flight=rtunit.DEFAULT_RAYS_IN_FLIGHT, pipelines=1,
                    sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, plot=None, progress=True,
-                   memory=rtunit.MemoryModel(), fill=0, cull_stack=False) -> dict:
+                   memory=rtunit.MemoryModel(), fill=0, cull_stack=False, ray_order="index",
+                   ray_window=None) -> dict:
     """One workload frame on "rtl" (every batch recorded), checked against Embree; per ray type:
     the op mix, the RT-unit replay at (R, P) without and with the node memory (``memory``; None:
     without only), any-hit vs closest-hit ops of the same rays, and a sweep of utilization over
     rays in flight (one pipeline), plotted per ray type. ``fill``: the BVH build's;
-    ``cull_stack``: the traversal's (``driver.tracer.trace``)."""
+    ``cull_stack``: the traversal's (``driver.tracer.trace``). ``ray_order``, ``ray_window``: the
+    ray-order policy of the per-type replays at (R, P) (``driver.rtunit.order``; the sweep keeps
+    index order)."""
     from . import workloads
     from .backends import backend
     from .bvh4 import build
@@ -405,9 +408,10 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
         batches = [b for b in res.batches if b.kind == kind]
         entry = dict(res.stats["by_type"][kind])
         records = [b.result.record for b in batches]
-        entry.update(_replay_all(records, rays_in_flight, pipelines))
+        order = dict(ray_order=ray_order, ray_window=ray_window)
+        entry.update(_replay_all(records, rays_in_flight, pipelines, **order))
         if memory:
-            entry["memory"] = _replay_all(records, rays_in_flight, pipelines, memory)
+            entry["memory"] = _replay_all(records, rays_in_flight, pipelines, memory, **order)
         if batches[0].any_hit:
             closest = sum(trace(bvh, b.origins, b.dirs, backend="golden", extent=b.extent,
                                 double_sided=setup.double_sided).stats["ops"] for b in batches)
@@ -436,17 +440,22 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
                  responses_verified=all(t["responses_verified"] for t in by_type.values()))
     return {"scene": scene.name, "workload": workload, "width": size, "height": size,
             "spp": spp, "bounces": bounces, "ao_rays": ao_rays, "seed": seed, "fill": fill,
-            "cull_stack": cull_stack, "frame": total, "by_type": by_type, "sweep": sweep, "plot": str(plot) if plot else None,
+            "cull_stack": cull_stack, "ray_order": ray_order, "ray_window": ray_window,
+            "frame": total, "by_type": by_type, "sweep": sweep, "plot": str(plot) if plot else None,
             "wall_parts_s": {"bvh_build": t_bvh, "traversal": t_trace}}
 
 
-def _replay_all(records, rays_in_flight, pipelines, memory=None) -> dict:
+def _replay_all(records, rays_in_flight, pipelines, memory=None, ray_order="index",
+                ray_window=None) -> dict:
     """RT-unit replays of several recorded wavefronts run one after another: cycles add up (each
     wavefront starts with the node cache cold)."""
     cycles = ops = rays = accesses = hits = fetched = 0
     verified = True
+    costs = []
     for rec in records:
-        rep = rtunit.replay(rec, rays_in_flight, pipelines, memory=memory)
+        rep = rtunit.replay(rec, rays_in_flight, pipelines, memory=memory, ray_order=ray_order,
+                            ray_window=ray_window)
+        costs += [rep.order] if rep.order else []
         cycles += rep.cycles
         ops += rep.ops
         rays += rep.rays
@@ -459,6 +468,9 @@ def _replay_all(records, rays_in_flight, pipelines, memory=None) -> dict:
            "replay_utilization": ops / (pipelines * cycles) if cycles else 0.0,
            "rays_in_flight": rays_in_flight, "pipelines": pipelines,
            "responses_verified": bool(verified)}
+    if costs:
+        from .rtunit.order import merge_costs
+        out["order"] = merge_costs(costs)
     if memory:
         out.update(memory.describe(), hit_rate=hits / accesses if accesses else 0.0,
                    bytes_per_ray=fetched / rays if rays else 0.0)

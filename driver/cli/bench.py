@@ -6,6 +6,7 @@ import json
 
 from .common import (add_json, add_progress, add_tree, add_workload, check_flag_size,
                      check_positive, tree_options, workload_options, wrote)
+from .rayorder import add_ray_order, ray_order_options
 
 
 def add_parser(subparsers):
@@ -46,6 +47,7 @@ def add_parser(subparsers):
                         f"(default {REPEAT})")
     add_workload(p, default=None)
     add_tree(p)
+    add_ray_order(p)
     p.add_argument("--no-memory", action="store_true",
                    help="no node cache and memory model (the JSON's memory object; with "
                         "--workload, the per-type replays and the sweep with memory)")
@@ -98,6 +100,9 @@ def run(args) -> int:
         raise ValueError("--bvh measures the BVH fills and the culled stack itself; drop "
                          "--bvh-fill/--cull-stack")
     memory = None if args.no_memory else rtunit.MemoryModel()
+    order = ray_order_options(args, args.rays_in_flight)
+    if order["ray_order"] != "index" and (not args.workload or args.workers > 1 or args.bvh):
+        raise ValueError("--ray-order applies to the RT-unit replays of a --workload frame")
     sweep_rays = _int_list(args.sweep_rays, "--sweep-rays")
     sweep_pipes = _int_list(args.sweep_pipelines, "--sweep-pipelines")
     if max(sweep_pipes) > MAX_PIPELINES:
@@ -135,7 +140,8 @@ def run(args) -> int:
             doc = bench_workload(args.scene, args.workload, args.size or 64,
                                  rays_in_flight=args.rays_in_flight, pipelines=args.pipelines,
                                  sweep_rays=sweep_rays, plot=outs.temp(plot) if plot else None,
-                                 progress=not args.no_progress, memory=memory, **options, **tree)
+                                 progress=not args.no_progress, memory=memory, **options, **tree,
+                                 **order)
             if plot:
                 doc["plot"] = str(plot)
             if js:
@@ -161,7 +167,9 @@ def run(args) -> int:
 def workload_table(doc: dict) -> str:
     """The per-ray-type mix of a ``bench --workload`` run, one row per ray type."""
     head = (f"{doc['scene']} {doc['width']}x{doc['height']} {doc['workload']} (spp {doc['spp']}, "
-            f"bounces {doc['bounces']}): {doc['frame']['rays']} rays, {doc['frame']['ops']} ops")
+            f"bounces {doc['bounces']}): {doc['frame']['rays']} rays, {doc['frame']['ops']} ops"
+            + (f", ray order {doc['ray_order']} (window {doc['ray_window']})"
+               if doc.get("ray_order", "index") != "index" else ""))
     rows = [head, f"{'type':>8} {'rays':>8} {'box/ray':>8} {'tri/ray':>8} {'util':>6} "
                   f"{'util+mem':>8} {'hit rate':>8} {'B/ray':>7} {'anyhit/closest':>14}"]
     for kind, t in doc["by_type"].items():

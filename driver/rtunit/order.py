@@ -201,7 +201,7 @@ def cost(name: str, window: int, rays: int, rays_in_flight: int, depth: int,
     counts)."""
     pol, w = policy(name), check_window(window)
     ray_b = ray_state_bytes()
-    out = {"ray_order": name, "ray_window": w, "ray_state_bytes": ray_b}
+    out = {"ray_order": name, "ray_window": w, "rays": rays, "ray_state_bytes": ray_b}
     if pol.key is not None:
         full, rest = divmod(rays, w)
         cmp = full * bitonic_compare_exchanges(w) + (bitonic_compare_exchanges(rest) if rest else 0)
@@ -218,3 +218,235 @@ def cost(name: str, window: int, rays: int, rays_in_flight: int, depth: int,
                        extra_tag_lookups=sched["resumed"],
                        parked_per_ray=sched["parked"] / rays if rays else 0.0)
     return out
+
+
+_SUMMED = ("keys_computed", "compare_exchanges", "parked", "resumed", "extra_tag_lookups", "rays")
+_MAXED = ("max_parked", "max_held", "traversal_state_bytes", "extra_state_bytes")
+
+
+def merge_costs(costs: list[dict]) -> dict:
+    """The cost of several replays run one after another (``cost`` dicts with their ``rays``):
+    counts added, buffer sizes the largest, per-ray figures over all rays."""
+    out = dict(costs[0])
+    for k in _SUMMED:
+        if k in out:
+            out[k] = sum(c[k] for c in costs)
+    for k in _MAXED:
+        if k in out:
+            out[k] = max(c[k] for c in costs)
+    rays = out["rays"]
+    if "compare_exchanges" in out:
+        out["compare_exchanges_per_ray"] = out["compare_exchanges"] / rays if rays else 0.0
+    if "parked" in out:
+        out["parked_per_ray"] = out["parked"] / rays if rays else 0.0
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# The study (docs/rayorder.md)
+
+STUDY_SCENES = ("bunny_floor", "cornell")
+STUDY_TYPES = ("primary", "shadow", "bounce1", "bounce2", "ao")
+
+
+def frame_records(scene_name: str, size: int, spp: int, bounces: int, ao_rays: int,
+                  seed: int = 0) -> dict:
+    """{ray type: [Record, ...]}: the path frame's batches and the ao frame's ao rays, traced on
+    "rtl" with every request recorded."""
+    from .. import workloads
+    from ..backends import backend
+    from ..bvh4 import build
+    from ..scenes.scene import load_scene
+    from ..tracer import trace
+
+    scene = load_scene(scene_name)
+    setup = workloads.setup_for(scene)
+    rtl = backend("rtl")
+    bvh = build(scene.triangles)
+
+    def tracer(bvh_, o, d, **kw):
+        return trace(bvh_, o, d, backend=rtl, record=True, **kw)
+
+    out: dict = {}
+    for workload, kinds in (("path", None), ("ao", ("ao",))):
+        res = workloads.run(setup, bvh, size, size, tracer, workload, spp=spp, bounces=bounces,
+                            ao_rays=ao_rays, seed=seed)
+        for b in res.batches:
+            if kinds is None or b.kind in kinds:
+                out.setdefault(b.kind, []).append(b.result.record)
+    return out
+
+
+def floor_bytes(records, line_bytes: int) -> int:
+    """Bytes every order must fetch with a cold cache: each distinct line the batches touch, once
+    per batch (each replay starts cold)."""
+    from ..layout import NODE_BYTES
+    total = 0
+    for rec in records:
+        off = NodeRef.offset(rec.ptr)
+        size = np.vectorize(NODE_BYTES.get)(NodeRef.type(rec.ptr)) if rec.ops else off
+        first, last = off // line_bytes, (off + size - 1) // line_bytes
+        lines = np.unique(np.concatenate([first, last]))
+        total += len(lines) * line_bytes
+    return total
+
+
+def study(scenes=STUDY_SCENES, size: int = 64, spp: int = 2, bounces: int = 2, ao_rays: int = 4,
+          windows=STUDY_WINDOWS, policies=None, rays_in_flight: int = 64, memory=None,
+          progress: bool = True) -> dict:
+    """Every policy at every window on the path (and ao) frames of ``scenes``: per ray type the
+    node cache's hit rate, bytes from memory per ray, utilization with the node memory, cycles
+    per frame and the policy's cost; index order once (it has no window), and the cold-cache
+    floor of the bytes per ray."""
+    from .. import rtunit
+    from ..bench import _replay_all
+    from ..progress import bar
+
+    memory = memory or rtunit.MemoryModel()
+    policies = list(policies or POLICIES)
+    doc = {"size": size, "spp": spp, "bounces": bounces, "ao_rays": ao_rays,
+           "rays_in_flight": rays_in_flight, "pipelines": 1, "memory": memory.describe(),
+           "windows": list(windows), "policies": policies, "scenes": {}}
+    for scene in scenes:
+        recs = frame_records(scene, size, spp, bounces, ao_rays)
+        kinds = [k for k in STUDY_TYPES if k in recs] + [k for k in recs if k not in STUDY_TYPES]
+        # "pool": index order with all W rays in the pool (R = W), the scheduler's rays without
+        # the scheduler
+        runs = [(k, p, w) for k in kinds for p in policies + ["pool"]
+                for w in ([None] if p == "index" else windows)]
+        pb = bar(len(runs), f"{scene}: ray-order replays", "replay", progress)
+        types = {}
+        for n, (kind, pol, w) in enumerate(runs):
+            t = types.setdefault(kind, {
+                "rays": sum(r.rays for r in recs[kind]), "ops": sum(r.ops for r in recs[kind]),
+                "batches": len(recs[kind]),
+                "floor_bytes_per_ray": floor_bytes(recs[kind], memory.line_bytes)
+                / max(1, sum(r.rays for r in recs[kind])), "policies": {}})
+            if pol == "pool":
+                t.setdefault("pool", {})[str(w)] = _replay_all(recs[kind], w, 1, memory)
+            elif not (POLICIES[pol].schedule and w is not None and w < rays_in_flight):
+                point = _replay_all(recs[kind], rays_in_flight, 1, memory, pol, w)
+                t["policies"].setdefault(pol, {})[str(w or 0)] = point
+            pb.hook(n + 1, len(runs))
+        pb.close()
+        doc["scenes"][scene] = types
+    return doc
+
+
+def plot_study(doc: dict, path) -> None:
+    """PNG: utilization with the node memory vs window, one panel per scene and ray type, one line
+    per policy (index order dashed; grey dotted: index order with all W rays in the pool)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    scenes = list(doc["scenes"])
+    kinds = [k for k in STUDY_TYPES if any(k in doc["scenes"][s] for s in scenes)]
+    fig = Figure(figsize=(3.0 * len(kinds), 2.8 * len(scenes)), dpi=100)
+    FigureCanvasAgg(fig)
+    colours = dict(zip(POLICIES, ["black", "tab:blue", "tab:orange", "tab:green", "tab:red"]))
+    for i, scene in enumerate(scenes):
+        for j, kind in enumerate(kinds):
+            ax = fig.add_subplot(len(scenes), len(kinds), i * len(kinds) + j + 1)
+            t = doc["scenes"][scene].get(kind)
+            if t is None:
+                ax.set_axis_off()
+                continue
+            for pol, pts in t["policies"].items():
+                if pol == "index":
+                    ax.axhline(pts["0"]["replay_utilization"], color=colours.get(pol, "grey"),
+                               ls="--", lw=1, label="index")
+                    continue
+                ws = sorted(int(w) for w in pts)
+                ax.plot(ws, [pts[str(w)]["replay_utilization"] for w in ws], "o-", ms=3,
+                        color=colours.get(pol), label=pol)
+            if "pool" in t:
+                ws = sorted(int(w) for w in t["pool"])
+                ax.plot(ws, [t["pool"][str(w)]["replay_utilization"] for w in ws], ":",
+                        color="grey", label="index, R = W")
+            ax.set_xscale("log", base=2)
+            ax.set_ylim(0, 1.05)
+            ax.grid(True, alpha=0.3)
+            ax.set_title(f"{scene} {kind}", fontsize=9)
+            if i == len(scenes) - 1:
+                ax.set_xlabel("window W (rays)", fontsize=8)
+            if j == 0:
+                ax.set_ylabel("utilization with memory", fontsize=8)
+            ax.tick_params(labelsize=7)
+    fig.axes[0].legend(fontsize=7, loc="lower left")
+    fig.suptitle(f"ray order: {doc['size']}x{doc['size']} path (spp {doc['spp']}, bounces "
+                 f"{doc['bounces']}) and ao, R={doc['rays_in_flight']}, "
+                 f"{doc['memory']['cache_bytes'] // 1024} KiB node cache", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(str(path), format="png")
+
+
+def study_tables(doc: dict) -> str:
+    """Markdown tables of a ``study`` document: per scene and ray type, one row per policy, one
+    column per window; each cell: utilization with memory / hit rate / bytes per ray / cycles."""
+    ws = [str(w) for w in doc["windows"]]
+    out = []
+    for scene, types in doc["scenes"].items():
+        for kind, t in types.items():
+            out += [f"**{scene} {kind}**: {t['rays']} rays, {t['ops']} ops, cold-cache floor "
+                    f"{t['floor_bytes_per_ray']:.0f} B/ray", "",
+                    "| policy | " + " | ".join(f"W = {w}" for w in ws) + " |",
+                    "|---|" + "---|" * len(ws)]
+            rows = dict(t["policies"])
+            rows["index, R = W"] = t.get("pool", {})
+            for pol, pts in rows.items():
+                cells = []
+                for w in ws:
+                    v = pts.get("0" if pol == "index" else w)
+                    cells.append("" if v is None else
+                                 f"{v['replay_utilization']:.3f} / {v['hit_rate']:.3f} / "
+                                 f"{v['bytes_per_ray']:.0f} / {v['replay_cycles']}")
+                out.append(f"| {pol} | " + " | ".join(cells) + " |")
+            out.append("")
+    return "\n".join(out)
+
+
+def main(argv=None) -> int:
+    """``python -m driver.rtunit.order --json PATH --plot PATH``: the study of docs/rayorder.md."""
+    import argparse
+    from ..bench import machine
+    from ..cli.common import one_line
+    from ..outputs import JSON, PNG, Outputs, write_json
+
+    ap = argparse.ArgumentParser(prog="python -m driver.rtunit.order",
+                                 description="Ray-order study: every policy and window per scene "
+                                             "and ray type on the RT-unit model with the node "
+                                             "memory.")
+    ap.add_argument("--json", required=True, metavar="PATH", help="results (JSON)")
+    ap.add_argument("--plot", metavar="PATH", help="utilization vs window (PNG)")
+    ap.add_argument("--scenes", default=",".join(STUDY_SCENES), metavar="LIST",
+                    help=f"scenes, comma-separated (default {','.join(STUDY_SCENES)})")
+    ap.add_argument("--size", type=int, default=64, metavar="N",
+                    help="square frame N x N (default 64; path with spp 2, bounces 2)")
+    ap.add_argument("--windows", default=",".join(map(str, STUDY_WINDOWS)), metavar="LIST",
+                    help=f"windows W (default {','.join(map(str, STUDY_WINDOWS))})")
+    ap.add_argument("--no-progress", action="store_true", help="no progress on stderr")
+    args = ap.parse_args(argv)
+    try:
+        windows = [check_window(int(x)) for x in args.windows.split(",")]
+        outs = Outputs()
+        js = outs.add("--json", args.json, JSON)
+        png = outs.add("--plot", args.plot, PNG) if args.plot else None
+        with outs.commit():
+            doc = study(args.scenes.split(","), args.size, windows=windows,
+                        progress=not args.no_progress)
+            doc["machine"] = machine()
+            doc["command"] = "python -m driver.rtunit.order " + " ".join(
+                argv if argv is not None else __import__("sys").argv[1:])
+            if png:
+                plot_study(doc, outs.temp(png))
+                doc["plot"] = str(png)
+            write_json(doc, outs.temp(js))
+    except (ValueError, OSError) as e:
+        print(f"rayflex: error: {one_line(e)}", file=__import__("sys").stderr)
+        return 2
+    print(study_tables(doc))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
