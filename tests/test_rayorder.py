@@ -52,9 +52,9 @@ def test_sorts_permute_each_window(record, name, window):
 
 @pytest.mark.parametrize("name", list(order.POLICIES))
 def test_every_policy_same_responses(record, name):
-    for r, w, mem in ((16, 16, SMALL), (16, 256, SMALL), (64, 1024, rtunit.MemoryModel()),
-                      (8, 64, None)):
-        rep = rtunit.replay(record, r, 1, memory=mem, ray_order=name, ray_window=w)
+    for r, p, w, mem in ((16, 1, 16, SMALL), (16, 1, 256, SMALL), (32, 4, 64, SMALL),
+                         (64, 1, 1024, rtunit.MemoryModel()), (8, 2, 64, None)):
+        rep = rtunit.replay(record, r, p, memory=mem, ray_order=name, ray_window=w)
         # verify=True: every response equals the functional run's at its record index, so every
         # request was issued once (none lost, none twice: each was taken once, in chain order)
         assert rep.verified and rep.ops == record.ops and sum(rep.per_pipeline) == record.ops

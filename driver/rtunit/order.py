@@ -102,7 +102,7 @@ def scene_box(record) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _cells(p: np.ndarray, lo, hi, bits: int) -> np.ndarray:
-    q = np.clip((p - lo) / np.maximum(hi - lo, 1e-30), 0.0, 1.0)
+    q = np.clip(np.nan_to_num((p - lo) / np.maximum(hi - lo, 1e-30)), 0.0, 1.0)
     return np.minimum((q * (1 << bits)).astype(np.int64), (1 << bits) - 1)
 
 
@@ -148,7 +148,7 @@ def permutation(record, name: str, window: int) -> np.ndarray | None:
     indices, each window of ``window`` consecutive rays sorted by the policy's key (stable);
     None for index order."""
     pol, w = policy(name), check_window(window)
-    if pol.key is None:
+    if pol.key is None or not record.ops:
         return None
     k = keys(record, pol.key)
     n = len(k)
