@@ -24,4 +24,5 @@ def ray_order_options(args, rays_in_flight: int) -> dict:
     if policy(args.ray_order).schedule and args.ray_window < rays_in_flight:
         raise ValueError(f"--ray-order {args.ray_order}: --ray-window ({args.ray_window}) must "
                          f"be at least --rays-in-flight ({rays_in_flight})")
-    return dict(ray_order=args.ray_order, ray_window=args.ray_window)
+    ordered = args.ray_order != "index"          # index order has no window
+    return dict(ray_order=args.ray_order, ray_window=args.ray_window if ordered else None)
