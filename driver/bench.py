@@ -382,7 +382,8 @@ def bench_workload(point: DesignPoint, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, p
         bar.hook(done, steps)
         sweep[kind] = []
         for r in sweep_rays:
-            plain, mem = replay_stats(records, point.replace(rays_in_flight=r, pipelines=1))
+            plain, mem = replay_stats(records, point.replace(
+                rays_in_flight=r, pipelines=1, ray_window=max(point.ray_window, r)))
             sweep[kind].append({"rays_in_flight": r, "rtunit": plain, "rtunit_memory": mem})
             done += 1
             bar.hook(done, steps)

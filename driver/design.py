@@ -31,6 +31,7 @@ from typing import Callable
 from .area import CONFIGS
 from .backends.build import MIN_LATENCY
 from .datapath import LATENCY
+from .rtunit.order import DEFAULT_POLICY, DEFAULT_WINDOW, POLICIES
 from .workloads import WORKLOADS
 
 GROUPS = {
@@ -160,6 +161,13 @@ OPTIONS: tuple[Option, ...] = (
     Option("mem_bytes_per_cycle", "--mem-bytes-per-cycle", float, 32.0,
            "memory bandwidth: bytes transferred per cycle (transfers are serialised)",
            _positive_float, "rtunit", "B"),
+    Option("ray_order", "--ray-order", str, DEFAULT_POLICY,
+           "order in which rays enter the RT unit's ray pool: "
+           + "; ".join(f"{k}: {v.help}" for k, v in POLICIES.items()) + " (docs/rayorder.md)",
+           _choice(tuple(POLICIES)), "rtunit", "POLICY", tuple(POLICIES)),
+    Option("ray_window", "--ray-window", int, DEFAULT_WINDOW,
+           "rays a sorting policy sorts together, or the affinity scheduler holds (at least "
+           "--rays-in-flight); index order has no window", _int_range(1), "rtunit", "W"),
     Option("scene", "--scene", str, DEFAULT_SCENE, _scene_help(),
            lambda flag, v: _resolve_scene(v), "workload", "SCENE", listable=False),
     Option("workload", "--workload", str, "primary",
@@ -196,6 +204,8 @@ class DesignPoint:
     line_bytes: int = BY_NAME["line_bytes"].default
     mem_latency: int = BY_NAME["mem_latency"].default
     mem_bytes_per_cycle: float = BY_NAME["mem_bytes_per_cycle"].default
+    ray_order: str = BY_NAME["ray_order"].default
+    ray_window: int = BY_NAME["ray_window"].default
     scene: str = BY_NAME["scene"].default
     workload: str = BY_NAME["workload"].default
     size: int | None = BY_NAME["size"].default
@@ -207,6 +217,9 @@ class DesignPoint:
     def __post_init__(self):
         for o in OPTIONS:
             o.check(o.flag, getattr(self, o.name))
+        if POLICIES[self.ray_order].schedule and self.ray_window < self.rays_in_flight:
+            raise ValueError(f"--ray-order {self.ray_order}: --ray-window ({self.ray_window}) "
+                             f"must be at least --rays-in-flight ({self.rays_in_flight})")
         if self.cache_kib and (self.cache_kib * 1024) % (self.cache_ways * self.line_bytes):
             raise ValueError(f"--cache-kib {self.cache_kib} is not a whole number of sets of "
                              f"--cache-ways {self.cache_ways} x --line-bytes {self.line_bytes}")
@@ -236,6 +249,11 @@ class DesignPoint:
         from .rtunit import MemoryModel
         return MemoryModel(self.cache_kib * 1024, self.cache_ways, self.line_bytes,
                            self.mem_latency, float(self.mem_bytes_per_cycle))
+
+    def order_options(self) -> dict:
+        """``driver.rtunit.replay``'s ``ray_order`` and ``ray_window`` (index order: no window)."""
+        return {"ray_order": self.ray_order,
+                "ray_window": None if self.ray_order == DEFAULT_POLICY else self.ray_window}
 
     def workload_options(self) -> dict:
         """``driver.workloads.run`` options."""

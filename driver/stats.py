@@ -141,6 +141,10 @@ def rtunit_stats(replays: list) -> dict:
     if first.memory:
         for k in _MEM_SUMMED:
             out[k] = sum(r.memory[k] for r in replays)
+    costs = [r.order for r in replays if getattr(r, "order", None)]
+    if costs:
+        from .rtunit.order import merge_costs
+        out["ray_order_cost"] = merge_costs(costs)
     return _rt_derived(out)
 
 
@@ -178,10 +182,13 @@ def replay_stats(records: list, point) -> tuple[dict, dict | None]:
     from . import rtunit
     params = point.rtl_params()
     recs = [r if r.params == params else replace(r, params=params) for r in records]
-    plain = rtunit_stats([rtunit.replay(r, point.rays_in_flight, point.pipelines) for r in recs])
+    order = point.order_options()
+    plain = rtunit_stats([rtunit.replay(r, point.rays_in_flight, point.pipelines, **order)
+                          for r in recs])
     memory = point.memory()
     mem = None if memory is None else rtunit_stats(
-        [rtunit.replay(r, point.rays_in_flight, point.pipelines, memory=memory) for r in recs])
+        [rtunit.replay(r, point.rays_in_flight, point.pipelines, memory=memory, **order)
+         for r in recs])
     return plain, mem
 
 

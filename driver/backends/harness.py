@@ -69,7 +69,7 @@ def use_library(params: dict[str, int], path) -> ctypes.CDLL:
     lib.rf_replay.restype = i64
     lib.rf_replay.argtypes = [i64, i64, i64, i64, _U32P, i64, _U32P, i64, _U32P, _U32P, _U32P,
                               i64, _I64P, _I64P, _U32P, ctypes.POINTER(ReplayStats), _I64P, i64,
-                              i64, i64, i64, i64, ctypes.c_double]
+                              i64, i64, i64, i64, ctypes.c_double, _I64P, i64, _I64P]
     lib.rf_memory_trace.restype = i64
     lib.rf_memory_trace.argtypes = [i64, i64, i64, i64, ctypes.c_double, i64, _I64P, _I64P,
                                     _I64P, _I64P, _I64P]
@@ -114,24 +114,39 @@ NO_MEMORY = (0, 1, 64, 0, 1.0)       # cache_bytes = 0: every node fetch is free
 BAD_GEOMETRY = -4
 
 
+SCHED_STATS = ("parked", "resumed", "max_parked", "max_held")
+
+
 def replay_chains(params: dict[str, int], pipelines: int, slots: int, turnaround: int,
                   skip_idle: bool, ray_words, image_words, ray, ptr, extent, chain_idx,
-                  chain_off, max_idle: int, memory=NO_MEMORY):
+                  chain_off, max_idle: int, memory=NO_MEMORY, order=None, window: int = 0):
     """Run the RT-unit scheduler (sim/rtunit_scheduler.cpp) over recorded request chains.
     ``memory``: (cache_bytes, ways, line_bytes, latency_cycles, bytes_per_cycle) of the node
-    memory (sim/rf_memory.h; cache_bytes = 0: none). Returns (responses (m, RSP_WORDS) uint32 at
-    the record index, ``ReplayStats`` dict, requests per pipeline (P,) int64)."""
+    memory (sim/rf_memory.h; cache_bytes = 0: none). ``order``: the order in which rays enter
+    (a permutation of the ray indices; None: index order). ``window``: rays held by the
+    node-affinity scheduler (0: none; else >= slots). Returns (responses (m, RSP_WORDS) uint32 at
+    the record index, ``ReplayStats`` dict plus the scheduler's ``SCHED_STATS`` counts, requests
+    per pipeline (P,) int64)."""
     lib = harness_library(params)
     rw, img, r, p, e = node_arrays(ray_words, image_words, ray, ptr, extent)
     ci = np.ascontiguousarray(chain_idx, np.int64)
     co = np.ascontiguousarray(chain_off, np.int64)
+    if order is not None:
+        order = np.ascontiguousarray(order, np.int64)
+        if order.shape != (len(rw),) or not np.array_equal(np.sort(order), np.arange(len(rw))):
+            raise ValueError("the ray order must be a permutation of the ray indices")
+    if window and not int(window) >= slots:
+        raise ValueError(f"the scheduler's window ({window} rays) must hold at least the "
+                         f"{slots} rays in flight")
     rsp = np.zeros((len(r), RSP_WORDS), np.uint32)
     stats = ReplayStats()
     per_pipe = np.zeros(pipelines, np.int64)
+    sched = np.zeros(len(SCHED_STATS), np.int64)
     rc = lib.rf_replay(pipelines, slots, turnaround, int(bool(skip_idle)), _u32p(rw), len(rw),
                        _u32p(img), img.size, _u32p(r), _u32p(p), _u32p(e), len(r), _i64p(ci),
                        _i64p(co), _u32p(rsp), ctypes.byref(stats), _i64p(per_pipe), max_idle,
-                       *memory)
+                       *memory, None if order is None else _i64p(order), int(window),
+                       _i64p(sched))
     if rc == BAD_GEOMETRY:
         raise ValueError(f"node cache geometry {memory[:3]} cannot be modelled: the cache size must "
                          "be a multiple of ways x line size, the line a power of two >= 4 bytes")
@@ -139,7 +154,7 @@ def replay_chains(params: dict[str, int], pipelines: int, slots: int, turnaround
         raise ValueError("a recorded request names a node pointer outside the BVH image")
     if rc < 0:
         raise RuntimeError(f"RT-unit replay failed ({'deadlock' if rc == -1 else rc})")
-    return rsp, stats.as_dict(), per_pipe
+    return rsp, {**stats.as_dict(), **dict(zip(SCHED_STATS, sched.tolist()))}, per_pipe
 
 
 class HarnessBackend(RtlBackendBase):

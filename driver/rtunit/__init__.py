@@ -183,6 +183,7 @@ class ReplayResult:
     latency: int
     responses: np.ndarray
     memory: dict | None = None      # the memory model's parameters and counters, when on
+    order: dict | None = None       # the ray-order policy and its cost (driver.rtunit.order)
 
     @property
     def utilization(self) -> float:
@@ -209,17 +210,23 @@ class ReplayResult:
             "sim_cycles_per_s": self.cycles / self.wall_s if self.wall_s > 0 else 0.0,
             "responses_verified": self.verified,
             **({"memory": self.memory} if self.memory else {}),
+            **({"order": self.order} if self.order else {}),
         }
 
 
 def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelines: int = 1,
            turnaround: int = DEFAULT_TURNAROUND, skip_idle: bool = True,
-           verify: bool = True, memory: MemoryModel | None = None) -> ReplayResult:
+           verify: bool = True, memory: MemoryModel | None = None,
+           ray_order: str = "index", ray_window: int | None = None) -> ReplayResult:
     """Replay a traversal ``Record`` through P Verilated pipelines with R rays in flight (see the
     module docstring). ``verify``: compare every response with the functional run's (raises
     ``ReplayMismatch``); without recorded responses only the tags are checked. ``memory``: a
-    ``MemoryModel`` of node fetches (None: every fetch is free)."""
+    ``MemoryModel`` of node fetches (None: every fetch is free). ``ray_order``: the order
+    policy of ``driver.rtunit.order`` (``POLICIES``; "index": rays enter in index order) with a
+    window of ``ray_window`` rays (default ``order.DEFAULT_WINDOW``; for a scheduling policy at
+    least R); the result's ``order`` holds the policy and its cost."""
     from ..backends.harness import NO_MEMORY, replay_chains
+    from . import order as ray_orders
     r, p, ta = int(rays_in_flight), int(pipelines), int(turnaround)
     if r < 1:
         raise ValueError(f"rays in flight must be >= 1, got {rays_in_flight}")
@@ -227,13 +234,21 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
         raise ValueError(f"pipelines must be in 1..64, got {pipelines}")
     if ta < 0:
         raise ValueError(f"turnaround must be >= 0 cycles, got {turnaround}")
+    pol = ray_orders.policy(ray_order)
+    window = ray_orders.check_window(ray_orders.DEFAULT_WINDOW if ray_window is None
+                                     else ray_window)
+    if pol.schedule and window < r:
+        raise ValueError(f"ray order {ray_order!r}: the window ({window} rays) must hold at "
+                         f"least the {r} rays in flight")
+    perm = ray_orders.permutation(record, ray_order, window)
     chain_idx, chain_off = record.chains()
     latency = int(record.params.get("LATENCY", LATENCY))
     t0 = time.perf_counter()
     rsp, stats, per_pipe = replay_chains(record.params, p, r, ta, skip_idle, record.ray_words,
                                          record.image, record.ray, record.ptr, record.extent,
                                          chain_idx, chain_off, 100 * latency + 1000,
-                                         memory.args() if memory else NO_MEMORY)
+                                         memory.args() if memory else NO_MEMORY, perm,
+                                         window if pol.schedule else 0)
     wall = time.perf_counter() - t0
     m = len(rsp)
     if stats["bad_tags"]:
@@ -253,9 +268,14 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
             "node_wait_cycles")},
             "hit_rate": stats["line_hits"] / acc if acc else 0.0,
             "bytes_per_ray": stats["bytes_from_memory"] / record.rays if record.rays else 0.0}
+    cost = None
+    if ray_order != "index":
+        depth = ray_orders.tree_depth(record) if pol.schedule else 0
+        cost = ray_orders.cost(ray_order, window, record.rays, r, depth,
+                               stats if pol.schedule else None)
     return ReplayResult(r, p, ta, record.rays, m, record.box_ops, stats["cycles"],
                         stats["starved_cycles"], stats["full_cycles"], stats["model_evals"],
-                        per_pipe.tolist(), wall, verified, latency, rsp, mem)
+                        per_pipe.tolist(), wall, verified, latency, rsp, mem, cost)
 
 
 def sweep(record: Record, rays_in_flight=SWEEP_RAYS_IN_FLIGHT, pipelines=SWEEP_PIPELINES,

@@ -76,6 +76,35 @@ struct NodeMemory {
     return at;
   }
 
+  // Whether line `addr` is in the cache with its fill arrived by cycle `now` (no side effects).
+  bool has(int64_t addr, int64_t now) const {
+    const int64_t set = addr % sets;
+    for (int64_t w = 0; w < ways; w++)
+      if (tag[set * ways + w] == addr) return arrive[set * ways + w] <= now;
+    return false;
+  }
+
+  // Whether all of a node's bytes are present at cycle `now` (no side effects: a scheduler's look
+  // at the cache tags).
+  bool present(int64_t byte_offset, int64_t bytes, int64_t now) const {
+    if (!enabled()) return true;
+    for (int64_t a = byte_offset / line_bytes; a <= (byte_offset + bytes - 1) / line_bytes; a++)
+      if (!has(a, now)) return false;
+    return true;
+  }
+
+  // Marks a present node's lines most recently used without counting an access (a ray that
+  // waited for the node takes it once its fill has arrived: the access was counted when the
+  // ray asked for the node).
+  void touch(int64_t byte_offset, int64_t bytes) {
+    if (!enabled()) return;
+    for (int64_t a = byte_offset / line_bytes; a <= (byte_offset + bytes - 1) / line_bytes; a++) {
+      const int64_t set = a % sets;
+      for (int64_t w = 0; w < ways; w++)
+        if (tag[set * ways + w] == a) used[set * ways + w] = ++stamp;
+    }
+  }
+
   // The cycle at which all of a node's bytes [byte_offset, byte_offset + bytes) are present.
   int64_t fetch(int64_t byte_offset, int64_t bytes, int64_t now) {
     if (!enabled()) return now;

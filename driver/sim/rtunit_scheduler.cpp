@@ -18,8 +18,9 @@ extern "C" {
 
 // RT-unit replay (driver/rtunit.py). The m recorded requests (ray[i], ptr[i], ext[i]) form one
 // chain per ray; chain_idx lists the record indices of ray r's chain, in issue order, at
-// chain_idx[chain_off[r] .. chain_off[r + 1]). Rays enter a pool of `slots` ray slots in index
-// order (rays with an empty chain are skipped) and leave it when their chain is done.
+// chain_idx[chain_off[r] .. chain_off[r + 1]). Rays enter a pool of `slots` ray slots in the
+// order `order` (n_rays ray indices, a permutation; null: index order; rays with an empty chain
+// are skipped) and leave it when their chain is done.
 //
 // Every cycle, first each pipeline's response (if out_valid) is taken: its ray becomes ready
 // `turnaround` cycles later (or leaves the pool, and the next ray enters, ready `turnaround`
@@ -32,6 +33,17 @@ extern "C" {
 // (the cycle it would be ready), its node is fetched through the node cache; the ray is ready when
 // its node's lines are present (at once on a hit, later on a miss), while other rays keep the
 // pipelines busy. Returns -4 for a cache geometry it cannot model.
+//
+// Node-affinity scheduling (window > 0; window >= slots): the RT unit holds `window` rays (a ray
+// buffer filled in `order`), of which at most `slots` hold an issue slot. A ray whose next node is
+// not present in the node cache (a look at the tags, NodeMemory::present) does not wait in its
+// slot: its fetch is started and the ray is parked; its slot goes to a waiting ray whose node is
+// in the cache: first the parked rays whose node has arrived (earliest arrival first), then a
+// new ray from the buffer while fewer than `window` rays are held. A resumed ray takes the node
+// its fetch delivered (as a ray waiting in its slot does) without a second cache access; its
+// lines become the most recently used. sched (int64[4]): rays parked, resumed, most rays
+// parked at once, most rays held.
+// window == 0: no parking, every ray waits in its slot (the behaviour above, cycle for cycle).
 //
 // skip_idle: a pipeline that holds no request at the start of a cycle and gets none is not
 // evaluated in that cycle (clock gating: with nothing valid inside, a clock edge changes no state
@@ -46,8 +58,11 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
                   const uint32_t* ext, int64_t m, const int64_t* chain_idx,
                   const int64_t* chain_off, uint32_t* rsp, ReplayStats* stats, int64_t* per_pipe,
                   int64_t max_idle, int64_t cache_bytes, int64_t ways, int64_t line_bytes,
-                  int64_t mem_latency, double bytes_per_cycle) {
+                  int64_t mem_latency, double bytes_per_cycle, const int64_t* order,
+                  int64_t window, int64_t* sched) {
   if (pipelines < 1 || slots < 1 || turnaround < 0 || n_rays < 0 || m < 0) return -3;
+  if (window < 0 || (window > 0 && window < slots)) return -3;
+  const bool affinity = window > 0;
   NodeMemory mem;
   if (!mem.configure(cache_bytes, ways, line_bytes, mem_latency, bytes_per_cycle)) return -4;
   const NodeSource src{rays, image, image_words, ray, ptr, ext};
@@ -65,20 +80,69 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
     bool operator>(const Ready& o) const { return at != o.at ? at > o.at : seq > o.seq; }
   };
   std::priority_queue<Ready, std::vector<Ready>, std::greater<Ready>> ready;
+  std::priority_queue<Ready, std::vector<Ready>, std::greater<Ready>> parked;  // by arrival
   int64_t seq = 0, node_wait = 0;
-  auto wait = [&](int64_t r, int64_t at) {                // ray r's next request, known at `at`
+  int64_t active = 0, held = 0;             // rays holding a slot; rays held (affinity)
+  int64_t n_parked = 0, n_resumed = 0, max_parked = 0, max_held = 0;
+  auto node_of = [&](int64_t r, int64_t* off) {          // ray r's next node: bytes, *off
     const uint32_t p = ptr[chain_idx[chain_off[r] + pos[r]]];
-    const int64_t bytes = ((p & kTypeMask) == kBoxType ? kBoxNodeWords : kTriNodeWords) * 4;
-    const int64_t when = mem.fetch(NodeSource::node_word(p) * 4, bytes, at);
+    *off = NodeSource::node_word(p) * 4;
+    return static_cast<int64_t>((p & kTypeMask) == kBoxType ? kBoxNodeWords : kTriNodeWords) * 4;
+  };
+  auto wait = [&](int64_t r, int64_t at) {                // ray r's next request, known at `at`
+    int64_t off;
+    const int64_t bytes = node_of(r, &off);
+    const bool park = affinity && !mem.present(off, bytes, at);
+    const int64_t when = mem.fetch(off, bytes, at);
     node_wait += when - at;
-    ready.push({r, when, seq++});
+    if (!park) {
+      ready.push({r, when, seq++});
+      return;
+    }
+    parked.push({r, when, seq++});
+    active--;
+    n_parked++;
+    if (static_cast<int64_t>(parked.size()) > max_parked) max_parked = parked.size();
   };
   int64_t next_ray = 0;
-  auto enter = [&](int64_t at) {                           // next ray with a non-empty chain
-    while (next_ray < n_rays && chain_off[next_ray + 1] == chain_off[next_ray]) next_ray++;
-    if (next_ray < n_rays) wait(next_ray++, at);
+  auto next_in_order = [&]() -> int64_t {                  // next ray with a non-empty chain
+    while (next_ray < n_rays) {
+      const int64_t r = order ? order[next_ray] : next_ray;
+      next_ray++;
+      if (chain_off[r + 1] != chain_off[r]) return r;
+    }
+    return -1;
   };
-  for (int64_t s = 0; s < slots && next_ray < n_rays; s++) enter(0);
+  auto enter = [&](int64_t at) {
+    const int64_t r = next_in_order();
+    if (r < 0) return;
+    active++;
+    if (++held > max_held) max_held = held;
+    wait(r, at);
+  };
+  // Affinity: give free slots to parked rays whose node has arrived, then to new rays.
+  auto fill = [&](int64_t k, int64_t new_at) {
+    while (active < slots) {
+      if (!parked.empty() && parked.top().at <= k) {
+        const int64_t r = parked.top().ray;
+        parked.pop();
+        n_resumed++;
+        active++;
+        int64_t off;
+        const int64_t bytes = node_of(r, &off);
+        mem.touch(off, bytes);
+        ready.push({r, k, seq++});
+        continue;
+      }
+      if (held >= window || next_ray >= n_rays) break;
+      enter(new_at);
+    }
+  };
+  if (affinity) {
+    fill(0, 0);
+  } else {
+    for (int64_t s = 0; s < slots && next_ray < n_rays; s++) enter(0);
+  }
 
   int64_t taken = 0, k = 0, first = -1, last = -1, idle = 0, evals = 0, starved = 0;
   int64_t full_cycles = 0, bad_tags = 0, accepts = 0;
@@ -102,9 +166,12 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
       if (++pos[r] < chain_off[r + 1] - chain_off[r]) {
         wait(r, k + turnaround);
       } else {
-        enter(k + turnaround);
+        active--;
+        held--;
+        if (!affinity) enter(k + turnaround);
       }
     }
+    if (affinity) fill(k, k + turnaround);
     int64_t issued = 0;
     for (int64_t p = 0; p < pipelines; p++) {
       Vrayflex& t = sims[p]->top;
@@ -135,6 +202,7 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
       evals++;
     }
     if (!ready.empty() && ready.top().at > k) progress = true;   // waiting on a node fetch
+    if (!parked.empty() && parked.top().at > k) progress = true;
     idle = progress ? 0 : idle + 1;
     if (idle > max_idle + turnaround) return -1;
     k++;
@@ -152,6 +220,12 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
   stats->line_misses = mem.line_misses;
   stats->bytes_from_memory = mem.bytes_from_memory;
   stats->node_wait_cycles = node_wait;
+  if (sched) {
+    sched[0] = n_parked;
+    sched[1] = n_resumed;
+    sched[2] = max_parked;
+    sched[3] = max_held;
+  }
   return 0;
 }
 

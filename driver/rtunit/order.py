@@ -1,0 +1,452 @@
+"""Ray order in the RT unit: which ray enters the ray pool next (``rtunit.replay(ray_order=...)``).
+
+The RT-unit replay issues each ray's recorded request chain; the order in which rays enter the
+pool changes which rays share the node cache at a time, hence the hit rate, the bytes fetched and
+the cycles, never a request or a response (the replay still checks every response bit for bit).
+The policies (``POLICIES``):
+
+- ``index``: rays enter in ray (pixel) order, the RT unit without any ray reordering.
+- ``hash``: windows of W consecutive rays sorted by a grid-spherical coherence key (Garanzha &
+  Loop 2010; Vulkan-Sim's coherence engine): the Morton code of the ray origin's cell on a
+  ``GRID_BITS``-per-axis grid over the scene box, then the direction's spherical bin
+  (``THETA_BITS`` bits of the polar angle, ``PHI_BITS`` of the azimuth). Ties keep ray order.
+- ``twopoint``: the same sort by the Morton codes of the origin's cell and of an estimated end
+  point's cell, origin + direction x min(extent, scene diagonal) (Vulkan-Sim's two-point hash):
+  shadow and AO rays have a finite extent, so their end point is known.
+- ``affinity``: node-affinity scheduling in the C++ scheduler (sim/rtunit_scheduler.cpp): the RT
+  unit holds W rays of which R hold an issue slot; a ray whose next node is not in the node cache
+  gives up its slot while its node is fetched (its fetch starts at once) and the slot goes to a
+  held ray whose next node is present, first the parked rays whose node has arrived, then a new
+  ray (in index order). Ray queues waiting on nodes, as in Aila & Karras's treelet scheduling
+  (HPG 2010), with the treelet one node.
+- ``hash-affinity``: the ``hash`` order feeding the ``affinity`` scheduler.
+
+The cost of each policy (``cost``): what a hardware sorter or scheduler does per ray and the bytes
+of ray state its window needs, derived from the request layout (``driver.layout``).
+
+``python -m driver.rtunit.order --json docs/rayorder.json --plot images/rayorder.png`` runs the
+study of docs/rayorder.md: per scene and ray type, every policy at every window.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..layout import BOX_NODE, NO_CHILD, REQUEST, NodeRef, read_nodes
+
+GRID_BITS = 5          # origin (and end point) cells per axis: 2**GRID_BITS
+THETA_BITS = 2         # polar-angle bins of the direction: 2**THETA_BITS
+PHI_BITS = 3           # azimuth bins of the direction: 2**PHI_BITS
+DEFAULT_WINDOW = 1024
+STUDY_WINDOWS = (64, 256, 1024, 4096)
+# What a waiting ray must keep until it is issued: the ray (its tag, the ray index, names it).
+# The prepared fields of the request (inverse direction, shear, kx/ky/kz) are recomputed at issue.
+RAY_STATE_FIELDS = ("tag", "origin", "dir", "extent", "flags")
+POINTER_BYTES = 4      # a node pointer (driver.layout.NodeRef) on the traversal stack
+
+
+@dataclass(frozen=True)
+class Policy:
+    """One ray-order policy: ``key``: the sort key (None: no sort); ``schedule``: the C++
+    node-affinity scheduler holds the window's rays."""
+
+    name: str
+    key: str | None
+    schedule: bool
+    help: str
+
+
+POLICIES = {p.name: p for p in (
+    Policy("index", None, False, "rays enter in ray (pixel) order"),
+    Policy("hash", "hash", False, "windows sorted by origin cell and direction bin"),
+    Policy("twopoint", "twopoint", False, "windows sorted by origin cell and end-point cell"),
+    Policy("affinity", None, True,
+           "rays missing the node cache yield their slot to rays whose next node is cached"),
+    Policy("hash-affinity", "hash", True, "hash order into the affinity scheduler"),
+)}
+DEFAULT_POLICY = "index"
+
+
+def policy(name: str) -> Policy:
+    if name not in POLICIES:
+        raise ValueError(f"unknown ray order {name!r} (choose from {', '.join(POLICIES)})")
+    return POLICIES[name]
+
+
+def check_window(window) -> int:
+    if isinstance(window, bool) or not isinstance(window, (int, np.integer)) or window < 1:
+        raise ValueError(f"the ray window must be an integer >= 1, got {window!r}")
+    return int(window)
+
+
+# ----------------------------------------------------------------------------------------------
+# Keys
+
+
+def _ray_field(ray_words: np.ndarray, name: str) -> np.ndarray:
+    f = REQUEST.field[name]
+    cols = np.ascontiguousarray(ray_words[:, f.word:f.word + f.count], np.uint32)
+    return cols.view(np.float32).reshape(len(ray_words), *f.shape)
+
+
+def scene_box(record) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi): the union of the root node's child boxes (every chain starts at the root)."""
+    chain_idx, chain_off = record.chains()
+    root = record.ptr[chain_idx[chain_off[np.flatnonzero(np.diff(chain_off))[0]]]]
+    node = read_nodes(record.image, np.array([root], np.uint32), BOX_NODE)[0]
+    box = node["box"][node["child"] != NO_CHILD]
+    return box[:, :3].min(0).astype(np.float64), box[:, 3:].max(0).astype(np.float64)
+
+
+def _cells(p: np.ndarray, lo, hi, bits: int) -> np.ndarray:
+    q = np.clip(np.nan_to_num((p - lo) / np.maximum(hi - lo, 1e-30)), 0.0, 1.0)
+    return np.minimum((q * (1 << bits)).astype(np.int64), (1 << bits) - 1)
+
+
+def morton(cells: np.ndarray, bits: int) -> np.ndarray:
+    """Interleave the bits of (n, k) integer cells (bit b of axis j -> bit b * k + j)."""
+    cells = np.asarray(cells, np.uint64)
+    k = cells.shape[1]
+    out = np.zeros(len(cells), np.uint64)
+    for b in range(bits):
+        for j in range(k):
+            out |= ((cells[:, j] >> np.uint64(b)) & np.uint64(1)) << np.uint64(b * k + j)
+    return out
+
+
+def keys(record, kind: str) -> np.ndarray:
+    """(n,) uint64 coherence keys of the record's rays (``kind``: "hash" or "twopoint")."""
+    o = _ray_field(record.ray_words, "origin").astype(np.float64)
+    d = _ray_field(record.ray_words, "dir").astype(np.float64)
+    lo, hi = scene_box(record)
+    cell = morton(_cells(o, lo, hi, GRID_BITS), GRID_BITS)
+    if kind == "hash":
+        u = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-30)
+        theta = np.arccos(np.clip(u[:, 2], -1.0, 1.0)) / np.pi                  # [0, 1]
+        phi = (np.arctan2(u[:, 1], u[:, 0]) + np.pi) / (2 * np.pi)              # [0, 1]
+        tb = np.minimum((theta * (1 << THETA_BITS)).astype(np.uint64), (1 << THETA_BITS) - 1)
+        pb = np.minimum((phi * (1 << PHI_BITS)).astype(np.uint64), (1 << PHI_BITS) - 1)
+        return (cell << np.uint64(THETA_BITS + PHI_BITS)) | (tb << np.uint64(PHI_BITS)) | pb
+    if kind == "twopoint":
+        ext = _ray_field(record.ray_words, "extent").astype(np.float64)
+        diag = float(np.linalg.norm(hi - lo))
+        t = np.minimum(np.where(np.isfinite(ext), ext, diag), diag)
+        end = morton(_cells(o + d * t[:, None], lo, hi, GRID_BITS), GRID_BITS)
+        return (cell << np.uint64(3 * GRID_BITS)) | end
+    raise ValueError(f"unknown key {kind!r}")
+
+
+def key_bits(kind: str) -> int:
+    return 3 * GRID_BITS + (THETA_BITS + PHI_BITS if kind == "hash" else 3 * GRID_BITS)
+
+
+def permutation(record, name: str, window: int) -> np.ndarray | None:
+    """The order in which the record's rays enter the pool under policy ``name``: (n,) int64 ray
+    indices, each window of ``window`` consecutive rays sorted by the policy's key (stable);
+    None for index order."""
+    pol, w = policy(name), check_window(window)
+    if pol.key is None or not record.ops:
+        return None
+    k = keys(record, pol.key)
+    n = len(k)
+    # a stable sort by (window number, key) sorts every window on its own
+    return np.lexsort((k, np.arange(n) // w)).astype(np.int64)
+
+
+# ----------------------------------------------------------------------------------------------
+# Cost
+
+
+def ray_state_bytes() -> int:
+    """Bytes a waiting ray occupies in a sorter's or scheduler's buffer: ``RAY_STATE_FIELDS`` of
+    the request layout (the prepared fields are recomputed at issue)."""
+    return math.ceil(sum(REQUEST.field[f].total_bits for f in RAY_STATE_FIELDS) / 8)
+
+
+def tree_depth(record) -> int:
+    """Box levels of the record's BVH (the root with only triangle children: 1)."""
+    lo_chain = record.chains()
+    level = np.array([record.ptr[lo_chain[0][0]]], np.uint32) if record.ops else np.zeros(0)
+    depth = 0
+    while len(level):
+        depth += 1
+        child = read_nodes(record.image, level, BOX_NODE)["child"].ravel()
+        level = child[(child != NO_CHILD) & NodeRef.is_box(child)]
+    return depth
+
+
+def stack_entries(depth: int) -> int:
+    """Traversal stack capacity of ``driver.traversal``: a popped box node leaves <= 3 siblings
+    per level and pushes <= 4 children."""
+    return 3 * depth + 2
+
+
+def bitonic_compare_exchanges(w: int) -> int:
+    """Compare-exchange elements of a bitonic sorting network of w inputs (w rounded up to a
+    power of two): w/2 per stage, log2(w) (log2(w) + 1) / 2 stages."""
+    p = max(1, int(2 ** math.ceil(math.log2(max(w, 1)))))
+    lg = int(math.log2(p))
+    return p // 2 * lg * (lg + 1) // 2
+
+
+def cost(name: str, window: int, rays: int, rays_in_flight: int, depth: int,
+         sched: dict | None = None) -> dict:
+    """What policy ``name`` with a window of ``window`` rays costs in hardware, for ``rays`` rays:
+    keys computed, comparisons (a bitonic network per window), buffer entries and their bytes;
+    for the scheduler, the rays it holds beyond the pool with their traversal state (ray, next
+    node pointer, stack) and how often it parked and resumed rays (``sched``: the replay's
+    counts)."""
+    pol, w = policy(name), check_window(window)
+    ray_b = ray_state_bytes()
+    out = {"ray_order": name, "ray_window": w, "rays": rays, "ray_state_bytes": ray_b}
+    if pol.key is not None:
+        full, rest = divmod(rays, w)
+        cmp = full * bitonic_compare_exchanges(w) + (bitonic_compare_exchanges(rest) if rest else 0)
+        out.update(keys_computed=rays, key_bits=key_bits(pol.key), sort_buffer_entries=w,
+                   sort_buffer_bytes=w * (ray_b + (key_bits(pol.key) + 7) // 8),
+                   compare_exchanges=cmp, compare_exchanges_per_ray=cmp / rays if rays else 0.0)
+    if pol.schedule:
+        held = max(w - rays_in_flight, 0)
+        traversal_b = ray_b + POINTER_BYTES * (1 + stack_entries(depth))
+        out.update(held_rays=w, extra_rays_held=held, traversal_state_bytes=traversal_b,
+                   extra_state_bytes=held * traversal_b)
+        if sched:
+            out.update({k: sched[k] for k in ("parked", "resumed", "max_parked", "max_held")},
+                       extra_tag_lookups=sched["resumed"],
+                       parked_per_ray=sched["parked"] / rays if rays else 0.0)
+    return out
+
+
+_SUMMED = ("keys_computed", "compare_exchanges", "parked", "resumed", "extra_tag_lookups", "rays")
+_MAXED = ("max_parked", "max_held", "traversal_state_bytes", "extra_state_bytes")
+
+
+def merge_costs(costs: list[dict]) -> dict:
+    """The cost of several replays run one after another (``cost`` dicts with their ``rays``):
+    counts added, buffer sizes the largest, per-ray figures over all rays."""
+    out = dict(costs[0])
+    for k in _SUMMED:
+        if k in out:
+            out[k] = sum(c[k] for c in costs)
+    for k in _MAXED:
+        if k in out:
+            out[k] = max(c[k] for c in costs)
+    rays = out["rays"]
+    if "compare_exchanges" in out:
+        out["compare_exchanges_per_ray"] = out["compare_exchanges"] / rays if rays else 0.0
+    if "parked" in out:
+        out["parked_per_ray"] = out["parked"] / rays if rays else 0.0
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# The study (docs/rayorder.md)
+
+STUDY_SCENES = ("bunny_floor", "cornell")
+STUDY_TYPES = ("primary", "shadow", "bounce1", "bounce2", "ao")
+
+
+def frame_records(scene_name: str, size: int, spp: int, bounces: int, ao_rays: int,
+                  seed: int = 0) -> dict:
+    """{ray type: [Record, ...]}: the path frame's batches and the ao frame's ao rays, traced on
+    "rtl" with every request recorded."""
+    from .. import workloads
+    from ..backends import backend
+    from ..bvh4 import build
+    from ..scenes.scene import load_scene
+    from ..tracer import trace
+
+    scene = load_scene(scene_name)
+    setup = workloads.setup_for(scene)
+    rtl = backend("rtl")
+    bvh = build(scene.triangles)
+
+    def tracer(bvh_, o, d, **kw):
+        return trace(bvh_, o, d, backend=rtl, record=True, **kw)
+
+    out: dict = {}
+    for workload, kinds in (("path", None), ("ao", ("ao",))):
+        res = workloads.run(setup, bvh, size, size, tracer, workload, spp=spp, bounces=bounces,
+                            ao_rays=ao_rays, seed=seed)
+        for b in res.batches:
+            if kinds is None or b.kind in kinds:
+                out.setdefault(b.kind, []).append(b.result.record)
+    return out
+
+
+def floor_bytes(records, line_bytes: int) -> int:
+    """Bytes every order must fetch with a cold cache: each distinct line the batches touch, once
+    per batch (each replay starts cold)."""
+    from ..layout import NODE_BYTES
+    total = 0
+    for rec in records:
+        off = NodeRef.offset(rec.ptr)
+        size = np.vectorize(NODE_BYTES.get)(NodeRef.type(rec.ptr)) if rec.ops else off
+        first, last = off // line_bytes, (off + size - 1) // line_bytes
+        lines = np.unique(np.concatenate([first, last]))
+        total += len(lines) * line_bytes
+    return total
+
+
+def study(scenes=STUDY_SCENES, size: int = 64, spp: int = 2, bounces: int = 2, ao_rays: int = 4,
+          windows=STUDY_WINDOWS, policies=None, rays_in_flight: int = 64, memory=None,
+          progress: bool = True) -> dict:
+    """Every policy at every window on the path (and ao) frames of ``scenes``: per ray type the
+    node cache's hit rate, bytes from memory per ray, utilization with the node memory, cycles
+    per frame and the policy's cost; index order once (it has no window), and the cold-cache
+    floor of the bytes per ray."""
+    from .. import rtunit
+    from ..bench import _replay_all
+    from ..progress import bar
+
+    memory = memory or rtunit.MemoryModel()
+    policies = list(policies or POLICIES)
+    doc = {"size": size, "spp": spp, "bounces": bounces, "ao_rays": ao_rays,
+           "rays_in_flight": rays_in_flight, "pipelines": 1, "memory": memory.describe(),
+           "windows": list(windows), "policies": policies, "scenes": {}}
+    for scene in scenes:
+        recs = frame_records(scene, size, spp, bounces, ao_rays)
+        kinds = [k for k in STUDY_TYPES if k in recs] + [k for k in recs if k not in STUDY_TYPES]
+        # "pool": index order with all W rays in the pool (R = W), the scheduler's rays without
+        # the scheduler
+        runs = [(k, p, w) for k in kinds for p in policies + ["pool"]
+                for w in ([None] if p == "index" else windows)]
+        pb = bar(len(runs), f"{scene}: ray-order replays", "replay", progress)
+        types = {}
+        for n, (kind, pol, w) in enumerate(runs):
+            t = types.setdefault(kind, {
+                "rays": sum(r.rays for r in recs[kind]), "ops": sum(r.ops for r in recs[kind]),
+                "batches": len(recs[kind]),
+                "floor_bytes_per_ray": floor_bytes(recs[kind], memory.line_bytes)
+                / max(1, sum(r.rays for r in recs[kind])), "policies": {}})
+            if pol == "pool":
+                t.setdefault("pool", {})[str(w)] = _replay_all(recs[kind], w, 1, memory)
+            elif not (POLICIES[pol].schedule and w is not None and w < rays_in_flight):
+                point = _replay_all(recs[kind], rays_in_flight, 1, memory, pol, w)
+                t["policies"].setdefault(pol, {})[str(w or 0)] = point
+            pb.hook(n + 1, len(runs))
+        pb.close()
+        doc["scenes"][scene] = types
+    return doc
+
+
+def plot_study(doc: dict, path) -> None:
+    """PNG: utilization with the node memory vs window, one panel per scene and ray type, one line
+    per policy (index order dashed; grey dotted: index order with all W rays in the pool)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    scenes = list(doc["scenes"])
+    kinds = [k for k in STUDY_TYPES if any(k in doc["scenes"][s] for s in scenes)]
+    fig = Figure(figsize=(3.0 * len(kinds), 2.8 * len(scenes)), dpi=100)
+    FigureCanvasAgg(fig)
+    colours = dict(zip(POLICIES, ["black", "tab:blue", "tab:orange", "tab:green", "tab:red"]))
+    for i, scene in enumerate(scenes):
+        for j, kind in enumerate(kinds):
+            ax = fig.add_subplot(len(scenes), len(kinds), i * len(kinds) + j + 1)
+            t = doc["scenes"][scene].get(kind)
+            if t is None:
+                ax.set_axis_off()
+                continue
+            for pol, pts in t["policies"].items():
+                if pol == "index":
+                    ax.axhline(pts["0"]["replay_utilization"], color=colours.get(pol, "grey"),
+                               ls="--", lw=1, label="index")
+                    continue
+                ws = sorted(int(w) for w in pts)
+                ax.plot(ws, [pts[str(w)]["replay_utilization"] for w in ws], "o-", ms=3,
+                        color=colours.get(pol), label=pol)
+            if "pool" in t:
+                ws = sorted(int(w) for w in t["pool"])
+                ax.plot(ws, [t["pool"][str(w)]["replay_utilization"] for w in ws], ":",
+                        color="grey", label="index, R = W")
+            ax.set_xscale("log", base=2)
+            ax.set_ylim(0, 1.05)
+            ax.grid(True, alpha=0.3)
+            ax.set_title(f"{scene} {kind}", fontsize=9)
+            if i == len(scenes) - 1:
+                ax.set_xlabel("window W (rays)", fontsize=8)
+            if j == 0:
+                ax.set_ylabel("utilization with memory", fontsize=8)
+            ax.tick_params(labelsize=7)
+    fig.axes[0].legend(fontsize=7, loc="lower left")
+    fig.suptitle(f"ray order: {doc['size']}x{doc['size']} path (spp {doc['spp']}, bounces "
+                 f"{doc['bounces']}) and ao, R={doc['rays_in_flight']}, "
+                 f"{doc['memory']['cache_bytes'] // 1024} KiB node cache", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(str(path), format="png")
+
+
+def study_tables(doc: dict) -> str:
+    """Markdown tables of a ``study`` document: per scene and ray type, one row per policy, one
+    column per window; each cell: utilization with memory / hit rate / bytes per ray / cycles."""
+    ws = [str(w) for w in doc["windows"]]
+    out = []
+    for scene, types in doc["scenes"].items():
+        for kind, t in types.items():
+            out += [f"**{scene} {kind}**: {t['rays']} rays, {t['ops']} ops, cold-cache floor "
+                    f"{t['floor_bytes_per_ray']:.0f} B/ray", "",
+                    "| policy | " + " | ".join(f"W = {w}" for w in ws) + " |",
+                    "|---|" + "---|" * len(ws)]
+            rows = dict(t["policies"])
+            rows["index, R = W"] = t.get("pool", {})
+            for pol, pts in rows.items():
+                cells = []
+                for w in ws:
+                    v = pts.get("0" if pol == "index" else w)
+                    cells.append("" if v is None else
+                                 f"{v['replay_utilization']:.3f} / {v['hit_rate']:.3f} / "
+                                 f"{v['bytes_per_ray']:.0f} / {v['replay_cycles']}")
+                out.append(f"| {pol} | " + " | ".join(cells) + " |")
+            out.append("")
+    return "\n".join(out)
+
+
+def main(argv=None) -> int:
+    """``python -m driver.rtunit.order --json PATH --plot PATH``: the study of docs/rayorder.md."""
+    import argparse
+    from ..bench import machine
+    from ..cli.common import one_line
+    from ..outputs import JSON, PNG, Outputs, write_json
+
+    ap = argparse.ArgumentParser(prog="python -m driver.rtunit.order",
+                                 description="Ray-order study: every policy and window per scene "
+                                             "and ray type on the RT-unit model with the node "
+                                             "memory.")
+    ap.add_argument("--json", required=True, metavar="PATH", help="results (JSON)")
+    ap.add_argument("--plot", metavar="PATH", help="utilization vs window (PNG)")
+    ap.add_argument("--scenes", default=",".join(STUDY_SCENES), metavar="LIST",
+                    help=f"scenes, comma-separated (default {','.join(STUDY_SCENES)})")
+    ap.add_argument("--size", type=int, default=64, metavar="N",
+                    help="square frame N x N (default 64; path with spp 2, bounces 2)")
+    ap.add_argument("--windows", default=",".join(map(str, STUDY_WINDOWS)), metavar="LIST",
+                    help=f"windows W (default {','.join(map(str, STUDY_WINDOWS))})")
+    ap.add_argument("--no-progress", action="store_true", help="no progress on stderr")
+    args = ap.parse_args(argv)
+    try:
+        windows = [check_window(int(x)) for x in args.windows.split(",")]
+        outs = Outputs()
+        js = outs.add("--json", args.json, JSON)
+        png = outs.add("--plot", args.plot, PNG) if args.plot else None
+        with outs.commit():
+            doc = study(args.scenes.split(","), args.size, windows=windows,
+                        progress=not args.no_progress)
+            doc["machine"] = machine()
+            doc["command"] = "python -m driver.rtunit.order " + " ".join(
+                argv if argv is not None else __import__("sys").argv[1:])
+            if png:
+                plot_study(doc, outs.temp(png))
+                doc["plot"] = str(png)
+            write_json(doc, outs.temp(js))
+    except (ValueError, OSError) as e:
+        print(f"rayflex: error: {one_line(e)}", file=__import__("sys").stderr)
+        return 2
+    print(study_tables(doc))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
