@@ -15,7 +15,7 @@ docs/statistics.md for what is measured):
   ``--latency`` (pipeline stages);
 - bvh: ``--bvh-fill``, ``--cull-stack``;
 - rtunit: ``--rays-in-flight``, ``--pipelines``, and the node memory ``--cache-kib`` (0: no node
-  cache and no memory model, node fetches are free), ``--cache-ways``, ``--line-bytes``,
+  cache, every node fetch from memory), ``--cache-ways``, ``--line-bytes``,
   ``--mem-latency``, ``--mem-bytes-per-cycle``;
 - workload: ``--scene`` (``render``: also the positional SCENE), ``--workload``, ``--size``,
   ``--spp``, ``--bounces``, ``--ao-rays``, ``--seed``.
@@ -149,8 +149,8 @@ OPTIONS: tuple[Option, ...] = (
            f"datapath pipelines of the RT unit, 1..{MAX_PIPELINES}",
            _int_range(1, MAX_PIPELINES), "rtunit"),
     Option("cache_kib", "--cache-kib", int, 32,
-           "node cache of the RT unit in KiB, set-associative LRU (0: no node cache and no "
-           "memory model: node fetches are free)", _int_range(0), "rtunit"),
+           "node cache of the RT unit in KiB, set-associative LRU (0: no node cache, every "
+           "node fetch reads its lines from memory)", _int_range(0), "rtunit"),
     Option("cache_ways", "--cache-ways", int, 4, "ways of the node cache", _int_range(1),
            "rtunit"),
     Option("line_bytes", "--line-bytes", int, 64, "cache line and memory transfer size in bytes",
@@ -243,9 +243,8 @@ class DesignPoint:
         return rtl_params(self.extended, self.disjoint, self.latency)
 
     def memory(self):
-        """The RT unit's ``driver.rtunit.MemoryModel`` (None with ``cache_kib`` 0)."""
-        if not self.cache_kib:
-            return None
+        """The RT unit's ``driver.rtunit.MemoryModel`` (``cache_kib`` 0: no node cache, every
+        node fetch from memory)."""
         from .rtunit import MemoryModel
         return MemoryModel(self.cache_kib * 1024, self.cache_ways, self.line_bytes,
                            self.mem_latency, float(self.mem_bytes_per_cycle))

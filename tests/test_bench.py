@@ -152,12 +152,20 @@ def test_memory_object(doc):
     assert m["bytes_per_ray"] * doc["frame"]["rays"] == 64 * m["line_misses"]
 
 
-def test_no_cache_drops_the_memory_object(tmp_path):
-    out = tmp_path / "b.json"
-    assert main(["bench", "--size", "8", "--json", str(out), "--pyverilator-requests", "0",
-                 "--sweep-size", "0", "--repeat", "1", "--cache-kib", "0", "--no-progress"]) == 0
-    f = json.loads(out.read_text())["frame"]
-    assert f["rtunit_memory"] is None and f["rtunit"]["responses_verified"]
+def test_no_cache_reads_every_node_from_memory(tmp_path):
+    """--cache-kib 0: no node cache; every line of every node fetch comes from memory, so the
+    bytes from memory are the frame's node bytes rounded up to whole lines, and the replay is
+    slower than with the default 32 KiB cache."""
+    out = {k: tmp_path / f"{k}.json" for k in (0, 32)}
+    for kib, path in out.items():
+        assert main(["bench", "--size", "8", "--json", str(path), "--pyverilator-requests", "0",
+                     "--sweep-size", "0", "--repeat", "1", "--cache-kib", str(kib),
+                     "--no-progress"]) == 0
+    f0, f32 = (json.loads(out[k].read_text())["frame"] for k in (0, 32))
+    m = f0["rtunit_memory"]
+    assert m["responses_verified"] and m["line_hits"] == 0 and m["hit_rate"] == 0
+    assert m["bytes_from_memory"] == 64 * m["line_accesses"] >= f0["node_bytes_fetched"]
+    assert m["cycles"] > f32["rtunit_memory"]["cycles"] > f0["rtunit"]["cycles"]
 
 
 def test_culled_stack_and_fill_in_the_bench(tmp_path, doc):

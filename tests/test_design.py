@@ -42,7 +42,7 @@ def test_defaults_are_the_rt_unit_and_memory_models_own():
     p = DesignPoint()
     assert p.memory() == rtunit.MemoryModel()
     assert p.rays_in_flight == rtunit.DEFAULT_RAYS_IN_FLIGHT
-    assert DesignPoint(cache_kib=0).memory() is None
+    assert DesignPoint(cache_kib=0).memory().cache_bytes == 0
     assert design.BY_NAME["config"].choices == tuple(CONFIGS)
     for name, (e, d) in CONFIGS.items():
         q = DesignPoint(config=name, latency=13)

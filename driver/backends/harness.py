@@ -110,7 +110,7 @@ def build_requests(params: dict[str, int], ray_words, image_words, ray, ptr, ext
     return out
 
 
-NO_MEMORY = (0, 1, 64, 0, 1.0)       # cache_bytes = 0: every node fetch is free
+NO_MEMORY = (-1, 1, 64, 0, 1.0)      # cache_bytes < 0: no memory model, every node fetch is free
 BAD_GEOMETRY = -4
 
 
@@ -122,7 +122,7 @@ def replay_chains(params: dict[str, int], pipelines: int, slots: int, turnaround
                   chain_off, max_idle: int, memory=NO_MEMORY, order=None, window: int = 0):
     """Run the RT-unit scheduler (sim/rtunit_scheduler.cpp) over recorded request chains.
     ``memory``: (cache_bytes, ways, line_bytes, latency_cycles, bytes_per_cycle) of the node
-    memory (sim/rf_memory.h; cache_bytes = 0: none). ``order``: the order in which rays enter
+    memory (sim/rf_memory.h; cache_bytes = 0: no cache, every line from memory; < 0: no memory model). ``order``: the order in which rays enter
     (a permutation of the ray indices; None: index order). ``window``: rays held by the
     node-affinity scheduler (0: none; else >= slots). Returns (responses (m, RSP_WORDS) uint32 at
     the record index, ``ReplayStats`` dict plus the scheduler's ``SCHED_STATS`` counts, requests

@@ -127,7 +127,8 @@ class Record:
 class MemoryModel:
     """The node memory of the replay (sim/rf_memory.h): a set-associative LRU node cache of
     ``cache_bytes`` with ``ways`` ways and ``line_bytes`` lines in front of a memory that answers
-    a line ``latency_cycles`` after its transfer, transfers serialised at ``bytes_per_cycle``.
+    a line ``latency_cycles`` after its transfer, transfers serialised at ``bytes_per_cycle``;
+    ``cache_bytes`` 0: no cache, every node fetch reads its lines from memory.
     A request waits until its node's lines (box node 128 B, triangle node 64 B) are present; the
     cache changes timing only, never a response."""
 
@@ -143,8 +144,8 @@ class MemoryModel:
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
                 raise ValueError(f"memory model: {name} must be a non-negative integer, got {v!r}")
         lb = self.line_bytes
-        if self.cache_bytes <= 0 or self.ways < 1 or lb < 4 or lb & (lb - 1):
-            raise ValueError("memory model: cache_bytes > 0, ways >= 1, line_bytes a power of two")
+        if self.ways < 1 or lb < 4 or lb & (lb - 1):
+            raise ValueError("memory model: ways >= 1, line_bytes a power of two")
         if self.cache_bytes % (self.ways * lb):
             raise ValueError(f"memory model: cache_bytes {self.cache_bytes} is not a multiple of "
                              f"ways x line_bytes ({self.ways * lb})")

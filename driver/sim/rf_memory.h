@@ -11,8 +11,9 @@
 //    channel is free (transfers are serialised: line_bytes / bytes_per_cycle cycles each) and
 //    the line arrives `latency` cycles after its transfer ends; it is installed at once (as the
 //    LRU's most recent entry), replacing the least recently used line of its set.
-// Disabled (cache_bytes == 0): every node is present at once, and the replay is the one without
-// a memory model, cycle for cycle.
+// No cache (cache_bytes == 0): every line a node touches is fetched from memory on every access
+// (nothing is kept, nothing is shared between rays). Disabled (cache_bytes < 0): every node is
+// present at once, and the replay is the one without a memory model, cycle for cycle.
 #pragma once
 
 #include <cstdint>
@@ -29,16 +30,18 @@ struct NodeMemory {
   std::vector<int64_t> arrive;     // cycle at which the entry's fill arrives
   int64_t stamp = 0;
   int64_t line_accesses = 0, line_hits = 0, line_misses = 0, bytes_from_memory = 0;
+  bool on = false;                 // a memory model at all (cache_bytes >= 0)
 
-  bool enabled() const { return sets > 0; }
+  bool enabled() const { return on; }
 
   // Returns false for a geometry that is not a whole number of sets of power-of-two lines.
   bool configure(int64_t cache_bytes, int64_t ways_, int64_t line_bytes_, int64_t latency_,
                  double bytes_per_cycle) {
-    if (cache_bytes == 0) return true;
+    if (cache_bytes < 0) return true;
     if (ways_ < 1 || line_bytes_ < 4 || (line_bytes_ & (line_bytes_ - 1)) || latency_ < 0 ||
         !(bytes_per_cycle > 0) || cache_bytes % (ways_ * line_bytes_))
       return false;
+    on = true;
     line_bytes = line_bytes_;
     ways = ways_;
     sets = cache_bytes / (ways * line_bytes);
@@ -53,6 +56,13 @@ struct NodeMemory {
   // The cycle at which line `line` (a line address: byte offset / line_bytes) is present.
   int64_t line(int64_t addr, int64_t now) {
     line_accesses++;
+    if (sets == 0) {               // no cache: the line comes from memory, and is not kept
+      line_misses++;
+      bytes_from_memory += line_bytes;
+      const double start = channel_free > now ? channel_free : static_cast<double>(now);
+      channel_free = start + cycles_per_line;
+      return static_cast<int64_t>(channel_free + 0.999999999) + latency;
+    }
     const int64_t set = addr % sets;
     int64_t* t = &tag[set * ways];
     int64_t victim = 0;
@@ -78,6 +88,7 @@ struct NodeMemory {
 
   // Whether line `addr` is in the cache with its fill arrived by cycle `now` (no side effects).
   bool has(int64_t addr, int64_t now) const {
+    if (sets == 0) return false;
     const int64_t set = addr % sets;
     for (int64_t w = 0; w < ways; w++)
       if (tag[set * ways + w] == addr) return arrive[set * ways + w] <= now;
@@ -97,7 +108,7 @@ struct NodeMemory {
   // waited for the node takes it once its fill has arrived: the access was counted when the
   // ray asked for the node).
   void touch(int64_t byte_offset, int64_t bytes) {
-    if (!enabled()) return;
+    if (!enabled() || sets == 0) return;
     for (int64_t a = byte_offset / line_bytes; a <= (byte_offset + bytes - 1) / line_bytes; a++) {
       const int64_t set = a % sets;
       for (int64_t w = 0; w < ways; w++)

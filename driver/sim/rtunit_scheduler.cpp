@@ -29,7 +29,7 @@ extern "C" {
 // which they became waiting; a new ray ready at cycle 0 initially). Then all pipelines are
 // clocked. A ray has at most one request in flight.
 //
-// Node memory (rf_memory.h; off when cache_bytes == 0): when a ray's next request becomes known
+// Node memory (rf_memory.h; off when cache_bytes < 0, no cache when 0): when a ray's next request becomes known
 // (the cycle it would be ready), its node is fetched through the node cache; the ray is ready when
 // its node's lines are present (at once on a hit, later on a miss), while other rays keep the
 // pipelines busy. Returns -4 for a cache geometry it cannot model.
