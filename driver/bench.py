@@ -57,10 +57,10 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
           pipelines=1, sweep_size=SWEEP_SIZE, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT,
           sweep_pipelines=rtunit.SWEEP_PIPELINES, plot=None,
           pyverilator_requests=PYVERILATOR_REQUESTS, repeat=REPEAT, progress=True,
-          memory=rtunit.MemoryModel(), fill=0, cull_stack=False) -> dict:
+          memory=rtunit.MemoryModel(), fill=0, cull_stack=False, bvh_format="box32") -> dict:
     """Run the benchmark; returns the JSON document (see the module docstring). ``memory``: the
-    node memory of the ``memory`` object's replay (None: no such object); ``fill`` (BVH build)
-    and ``cull_stack`` (traversal) apply to every trace of the run."""
+    node memory of the ``memory`` object's replay (None: no such object); ``fill`` and
+    ``bvh_format`` (BVH build) and ``cull_stack`` (traversal) apply to every trace of the run."""
     from .backends import backend
     from .scenes.camera import check_size, primary_rays
     from .scenes.scene import load_scene
@@ -72,7 +72,7 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
     n = len(origins)
     rtl = backend("rtl")                            # build (or load) first: fail early
 
-    tree = dict(fill=fill, cull_stack=cull_stack)
+    tree = dict(fill=fill, cull_stack=cull_stack, bvh_format=bvh_format)
     frame, res, bvh, rep = _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines,
                                   f"{w}x{h}", progress, **tree)
     sided = scene.double_sided
@@ -135,7 +135,7 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
 
 
 def _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines, label, progress, fill=0,
-           cull_stack=False):
+           cull_stack=False, bvh_format="box32"):
     """The frame on "rtl": BVH build, wavefront traversal (recorded), RT-unit replay. Returns
     (frame statistics, trace result, BVH, replay result)."""
     from .bvh4 import build, warm_up
@@ -143,7 +143,7 @@ def _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines, label, progress
 
     t_kernels = warm_up()                           # the builder's JIT, like the model's build
     t0 = time.perf_counter()
-    bvh = build(scene.mesh, fill=fill)
+    bvh = build(scene.mesh, fill=fill, format=bvh_format)
     t_bvh = time.perf_counter() - t0
     bar = _bar(len(origins), f"frame {label} rtl", "ray", progress)
     t1 = time.perf_counter()
@@ -370,11 +370,13 @@ WORKLOAD_SIZE = 64
 def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, ao_rays=4,
                    seed=0, rays_in_flight=rtunit.DEFAULT_RAYS_IN_FLIGHT, pipelines=1,
                    sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, plot=None, progress=True,
-                   memory=rtunit.MemoryModel(), fill=0, cull_stack=False) -> dict:
+                   memory=rtunit.MemoryModel(), fill=0, cull_stack=False,
+                   bvh_format="box32") -> dict:
     """One workload frame on "rtl" (every batch recorded), checked against Embree; per ray type:
     the op mix, the RT-unit replay at (R, P) without and with the node memory (``memory``; None:
     without only), any-hit vs closest-hit ops of the same rays, and a sweep of utilization over
-    rays in flight (one pipeline), plotted per ray type. ``fill``: the BVH build's;
+    rays in flight (one pipeline), plotted per ray type. ``fill``, ``bvh_format``: the BVH
+    build's;
     ``cull_stack``: the traversal's (``driver.tracer.trace``)."""
     from . import workloads
     from .backends import backend
@@ -386,7 +388,7 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
     setup = workloads.setup_for(scene)
     rtl = backend("rtl")
     t0 = time.perf_counter()
-    bvh = build(scene.triangles, fill=fill)
+    bvh = build(scene.triangles, fill=fill, format=bvh_format)
     t_bvh = time.perf_counter() - t0
 
     def tracer(bvh_, o, d, **kw):
@@ -436,8 +438,15 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
                  responses_verified=all(t["responses_verified"] for t in by_type.values()))
     return {"scene": scene.name, "workload": workload, "width": size, "height": size,
             "spp": spp, "bounces": bounces, "ao_rays": ao_rays, "seed": seed, "fill": fill,
-            "cull_stack": cull_stack, "frame": total, "by_type": by_type, "sweep": sweep, "plot": str(plot) if plot else None,
+            "bvh_format": bvh_format, "bvh": _bvh_json(bvh), "cull_stack": cull_stack, "frame": total, "by_type": by_type, "sweep": sweep, "plot": str(plot) if plot else None,
             "wall_parts_s": {"bvh_build": t_bvh, "traversal": t_trace}}
+
+
+def _bvh_json(bvh) -> dict:
+    """The image's size figures for the JSON (``driver.bvh4.BVH4.stats``)."""
+    keep = ("format", "bytes", "bytes_per_triangle", "box_nodes", "leaf_nodes", "tri_nodes",
+            "pair_ratio", "sah_cost", "build_s")
+    return {k: bvh.stats[k] for k in keep}
 
 
 def _replay_all(records, rays_in_flight, pipelines, memory=None) -> dict:
@@ -495,14 +504,14 @@ def plot_workload_sweep(sweep: dict, path, title: str) -> None:
 
 
 def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, tile=64,
-                  progress=True, fill=0, **options) -> dict:
+                  progress=True, fill=0, bvh_format="box32", **options) -> dict:
     """The same tiled frame on "rtl" in this process and on a LocalCluster of ``workers``
     processes: wall times (scheduler start-up and the once-per-worker set-up included), the
     speed-up, and whether the two frames are identical (image, per-pixel ops, statistics but wall
     times). ``phases_n_workers``: where the distributed frame's wall time went
     (``tiles.render_tiles``); ``speedup_tiles`` compares the tiles after the first result with
     the same share of the one-process frame, i.e. the scaling the machine gives once every fixed
-    cost is paid. ``fill``: the BVH build's; ``options``: the workload's and ``cull_stack``."""
+    cost is paid. ``fill``, ``bvh_format``: the BVH build's; ``options``: the workload's and ``cull_stack``."""
     from .backends.build import build_harness, rtl_params
     from .bvh4 import build
     from .datapath import LATENCY
@@ -511,7 +520,7 @@ def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, ti
     from .workloads import setup_for
 
     scene = load_scene(scene_name)
-    setup, bvh = setup_for(scene), build(scene.mesh, fill=fill)
+    setup, bvh = setup_for(scene), build(scene.mesh, fill=fill, format=bvh_format)
     n_tiles = len(plan(size, size, tile))
     # a first use on this machine builds the Verilated model (minutes): build it before either
     # clock starts, so that both runs pay only what every run pays, loading it from the cache
@@ -530,7 +539,8 @@ def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, ti
             and all(np.array_equal(a.ops[k], b.ops[k]) for k in a.ops)
             and {k: a.stats[k] for k in keep} == {k: b.stats[k] for k in keep})
     return {"scene": scene.name, "workload": workload, "width": size, "height": size,
-            "tile": tile, "tiles": n_tiles, **options, "fill": fill, "workers": int(workers),
+            "tile": tile, "tiles": n_tiles, **options, "fill": fill, "bvh_format": bvh_format,
+            "workers": int(workers),
             "wall_s_1_worker": ta, "wall_s_n_workers": tb,
             "speedup": ta / tb if tb > 0 else None, "identical": bool(same),
             "phases_n_workers": {k: round(v, 3) for k, v in phases.items()},

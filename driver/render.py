@@ -77,7 +77,8 @@ class RenderResult:
 def render(scene, width=None, height=None, backend: str = "rtl", progress: bool = True,
            check_embree: bool = False, workload: str = "primary", spp: int = 1, bounces: int = 1,
            ao_rays: int = 4, seed: int = 0, tile: int | None = None, workers: int = 1,
-           scheduler: str | None = None, fill: int = 0, cull_stack: bool = False) -> RenderResult:
+           scheduler: str | None = None, fill: int = 0, cull_stack: bool = False,
+           bvh_format: str = "box32") -> RenderResult:
     """Render ``scene`` (a Scene, or anything ``load_scene`` takes) at width x height (default:
     the scene's size) with every box/triangle test on ``backend``; optionally cross-check every
     ray against Embree.
@@ -87,7 +88,8 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
     ao, path with ``spp``, ``bounces``, ``ao_rays``, ``seed``), a ``tile`` size, ``workers`` > 1
     or a Dask ``scheduler`` renders through ``driver.tiles`` (``trace`` is None; statistics per
     ray type in ``stats["by_type"]``); so does a frame too big for memory as one wavefront.
-    ``fill`` is the BVH build's (``driver.bvh4.build``), ``cull_stack`` the traversal's
+    ``fill`` and ``bvh_format`` are the BVH build's (``driver.bvh4.build``'s ``fill`` and
+    ``format``), ``cull_stack`` the traversal's
     (``driver.tracer.trace``)."""
     from .workloads import check_arguments
     check_arguments(spp, bounces, ao_rays, seed)
@@ -97,10 +99,11 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
     tile = plan_tile(w * h, workload, spp, tile, workers, scheduler)
     check_frame_memory(w * h, spp, tile)
     if tile is None:
-        return _render_whole(scene, w, h, backend, progress, check_embree, fill, cull_stack)
+        return _render_whole(scene, w, h, backend, progress, check_embree, fill, cull_stack,
+                             bvh_format)
     return _render_tiles(scene, w, h, backend, progress, check_embree, workload,
                          dict(spp=spp, bounces=bounces, ao_rays=ao_rays, seed=seed), tile,
-                         workers, scheduler, fill, cull_stack)
+                         workers, scheduler, fill, cull_stack, bvh_format)
 
 
 def plan_tile(pixels: int, workload: str, spp: int, tile: int | None, workers: int,
@@ -117,7 +120,7 @@ def plan_tile(pixels: int, workload: str, spp: int, tile: int | None, workers: i
 
 
 def _render_tiles(scene, w, h, backend, progress, check_embree, workload, options, tile,
-                  workers, scheduler, fill, cull_stack) -> RenderResult:
+                  workers, scheduler, fill, cull_stack, bvh_format="box32") -> RenderResult:
     from .bvh4 import build
     from .tiles import plan, render_tiles
     from .workloads import WORKLOADS, setup_for, tone_map
@@ -128,7 +131,7 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, workload, option
     if workers == 1 and not scheduler:
         spec = resolve(backend)[0]          # fail early, before a long BVH build
     with phase(f"building the BVH4 of {len(scene.mesh.faces):,} triangles", progress):
-        bvh = build(scene.mesh, fill=fill)
+        bvh = build(scene.mesh, fill=fill, format=bvh_format)
     setup = setup_for(scene)
     tiles = plan(w, h, tile)
     bar = progress_bar(len(tiles), f"{scene.name} {w}x{h} {workload} {name}", "tile", progress)
@@ -148,7 +151,7 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, workload, option
 
 
 def _render_whole(scene, w, h, backend, progress, check_embree, fill=0,
-                  cull_stack=False) -> RenderResult:
+                  cull_stack=False, bvh_format="box32") -> RenderResult:
     """The primary frame as one wavefront of every pixel."""
     from .bvh4 import build
     from .tracer import trace
@@ -156,7 +159,7 @@ def _render_whole(scene, w, h, backend, progress, check_embree, fill=0,
     origins, dirs = primary_rays(scene.camera, w, h)
     be = resolve(backend)[0]                # fail early, before a long BVH build
     with phase(f"building the BVH4 of {len(scene.mesh.faces):,} triangles", progress):
-        bvh = build(scene.mesh, fill=fill)
+        bvh = build(scene.mesh, fill=fill, format=bvh_format)
     bvh_stats = dict(getattr(bvh, "stats", {}) or {})
 
     name = backend if isinstance(backend, str) else getattr(backend, "name", "backend")

@@ -7,6 +7,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ..layout import IMAGE_FORMATS
+
 PROG = "rayflex"
 EXIT_OK = 0
 EXIT_CHECK = 1              # a result check failed (Embree mismatch, kNN disagreement)
@@ -81,12 +83,17 @@ def add_tree(p) -> None:
                    help="keep each stack entry's entry distance and drop box nodes beyond the "
                         "nearest hit without a request: the same hits, fewer box ops (beyond "
                         "SPEC 9: a float per stack entry in the RT unit)")
+    p.add_argument("--bvh-format", default="box32", choices=IMAGE_FORMATS,
+                   help="node image: box32 (128-byte float32 box nodes, a 64-byte node per "
+                        "triangle) or q8 (64-byte quantized box nodes, 64-byte triangle-pair "
+                        "leaves: docs/compressed.md) (default: box32)")
 
 
 def tree_options(args) -> dict:
-    """The checked flags of ``add_tree`` as keyword arguments: ``fill``, ``cull_stack``."""
+    """The checked flags of ``add_tree`` as keyword arguments: ``fill``, ``cull_stack``,
+    ``bvh_format``."""
     check_positive("--bvh-fill", args.bvh_fill, 0)
-    return dict(fill=args.bvh_fill, cull_stack=bool(args.cull_stack))
+    return dict(fill=args.bvh_fill, cull_stack=bool(args.cull_stack), bvh_format=args.bvh_format)
 
 
 def workload_options(args) -> dict:

@@ -68,8 +68,8 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
   int64_t seq = 0, node_wait = 0;
   auto wait = [&](int64_t r, int64_t at) {                // ray r's next request, known at `at`
     const uint32_t p = ptr[chain_idx[chain_off[r] + pos[r]]];
-    const int64_t bytes = ((p & kTypeMask) == kBoxType ? kBoxNodeWords : kTriNodeWords) * 4;
-    const int64_t when = mem.fetch(NodeSource::node_word(p) * 4, bytes, at);
+    const int64_t bytes = kNodeBytes[p & kTypeMask];      // 0: the node the ray already holds
+    const int64_t when = bytes ? mem.fetch(NodeSource::node_word(p) * 4, bytes, at) : at;
     node_wait += when - at;
     ready.push({r, when, seq++});
   };

@@ -1,0 +1,264 @@
+"""The compressed ``q8`` image (docs/compressed.md): triangle pairing before the build, and the
+writer of 64-byte quantized box nodes and 64-byte triangle-pair leaves (numba kernels for
+``driver.bvh4.build(..., format="q8")``; ``driver.layout`` owns the structs and the decode).
+
+Pairing (``pair_triangles``): vertices are identified by their exact float32 bits (or by the
+mesh's own vertex indices when the input is a mesh), so a shared vertex is stored once in the
+pair node and the second triangle is read back bit for bit. A greedy matching over shared edges
+visits the triangles in input order; each unmatched triangle takes, among the unmatched
+triangles that share one of its edges, the one whose union box has the least surface area.
+Unmatched triangles become one-triangle leaves (``prim1 = NO_CHILD``). Each triangle keeps its
+input vertex order (the watertight test's arithmetic depends on it, not only on the winding).
+
+Quantization (``write_image``): per box node and axis, ``origin`` = the float32 minimum of the
+children's stored (grown, ``driver.bvh4``) lower bounds, ``exp`` = the smallest exponent in
+[-126, 119] with ``(max - origin) / 2**exp <= 255``, ``qlo = floor((lo - origin) / 2**exp)``,
+``qhi = ceil((hi - origin) / 2**exp)``. ``verify_containment`` then decodes every node with
+``driver.layout.decode_q8`` (the datapath's arithmetic) and moves a ``qlo`` down or a ``qhi`` up
+by one wherever the decode put a bound inside the child's stored box, until none does.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..layout import Q8_EXP_MAX, Q8_EXP_MIN, decode_q8
+from .build import WIDTH
+
+_HASH = np.uint64(0x9E3779B97F4A7C15)
+
+
+@njit(cache=True)
+def _vertex_ids(bits, table):
+    """(n, 3) int64 vertex ids of (n, 3, 3) uint32 coordinate bits: the flat index (3 t + k) of
+    the first vertex with the same bits. ``table``: a power-of-two sized array of -1 (open
+    addressing)."""
+    n = bits.shape[0]
+    mask = np.uint64(len(table) - 1)
+    ids = np.empty((n, 3), np.int64)
+    for t in range(n):
+        for k in range(3):
+            x, y, z = bits[t, k, 0], bits[t, k, 1], bits[t, k, 2]
+            h = ((np.uint64(x) * _HASH) ^ (np.uint64(y) << np.uint64(21))
+                 ^ (np.uint64(z) * np.uint64(0xC2B2AE3D27D4EB4F)))
+            h ^= h >> np.uint64(29)
+            slot = h & mask
+            while True:
+                f = table[slot]
+                if f < 0:
+                    table[slot] = 3 * t + k
+                    ids[t, k] = 3 * t + k
+                    break
+                ft, fk = f // 3, f % 3
+                if bits[ft, fk, 0] == x and bits[ft, fk, 1] == y and bits[ft, fk, 2] == z:
+                    ids[t, k] = f
+                    break
+                slot = (slot + np.uint64(1)) & mask
+    return ids
+
+
+@njit(cache=True)
+def _match(ids, lo, hi, nv):
+    """Greedy edge matching: partner (n,) int64 (-1: unmatched). ids (n, 3) vertex ids below
+    ``nv``; lo/hi (n, 3) float32 triangle boxes."""
+    n = ids.shape[0]
+    cnt = np.zeros(nv + 1, np.int64)
+    for t in range(n):
+        for k in range(3):
+            cnt[ids[t, k] + 1] += 1
+    for v in range(nv):
+        cnt[v + 1] += cnt[v]
+    lst = np.empty(3 * n, np.int64)
+    fill = cnt[:-1].copy()
+    for t in range(n):
+        for k in range(3):
+            v = ids[t, k]
+            if k and (v == ids[t, 0] or (k == 2 and v == ids[t, 1])):
+                continue                                   # a repeated vertex lists t once
+            lst[fill[v]] = t
+            fill[v] += 1
+    partner = np.full(n, -1, np.int64)
+    for t in range(n):
+        if partner[t] >= 0:
+            continue
+        best, best_cost = -1, np.inf
+        for e in range(3):
+            a, b = ids[t, e], ids[t, (e + 1) % 3]
+            if a == b:
+                continue
+            for j in range(cnt[a], fill[a]):
+                u = lst[j]
+                if u == t or partner[u] >= 0:
+                    continue
+                if ids[u, 0] != b and ids[u, 1] != b and ids[u, 2] != b:
+                    continue
+                dx = np.float64(max(hi[t, 0], hi[u, 0])) - min(lo[t, 0], lo[u, 0])
+                dy = np.float64(max(hi[t, 1], hi[u, 1])) - min(lo[t, 1], lo[u, 1])
+                dz = np.float64(max(hi[t, 2], hi[u, 2])) - min(lo[t, 2], lo[u, 2])
+                cost = dx * dy + dy * dz + dz * dx
+                if cost < best_cost:
+                    best, best_cost = u, cost
+        if best >= 0:
+            partner[t] = best
+            partner[best] = t
+    return partner
+
+
+@njit(cache=True)
+def _pairs(ids, partner, tris):
+    """Leaf primitives from the matching, in order of their first triangle: first (m,), second
+    (m,) (-1: alone), idx (m,) the second triangle's vertex selectors (bits 1:0, 3:2, 5:4), v3
+    (m, 3) float32 the second triangle's own vertex, box (m, 3, 3) float32 ``(lo, hi, hi)``."""
+    n = len(partner)
+    m = 0
+    for t in range(n):
+        if partner[t] < 0 or t < partner[t]:
+            m += 1
+    first = np.empty(m, np.int64)
+    second = np.full(m, -1, np.int64)
+    idx = np.zeros(m, np.uint32)
+    v3 = np.zeros((m, 3), np.float32)
+    box = np.empty((m, 3, 3), np.float32)
+    i = 0
+    for t in range(n):
+        p = partner[t]
+        if p >= 0 and p < t:
+            continue
+        first[i] = t
+        for c in range(3):
+            lo = min(tris[t, 0, c], tris[t, 1, c], tris[t, 2, c])
+            hi = max(tris[t, 0, c], tris[t, 1, c], tris[t, 2, c])
+            if p >= 0:
+                lo = min(lo, tris[p, 0, c], tris[p, 1, c], tris[p, 2, c])
+                hi = max(hi, tris[p, 0, c], tris[p, 1, c], tris[p, 2, c])
+            box[i, 0, c], box[i, 1, c], box[i, 2, c] = lo, hi, hi
+        if p >= 0:
+            second[i] = p
+            sel = np.uint32(0)
+            for k in range(3):
+                j = 3
+                for q in range(3):
+                    if ids[p, k] == ids[t, q]:
+                        j = q
+                        break
+                if j == 3:
+                    for c in range(3):
+                        v3[i, c] = tris[p, k, c]
+                sel |= np.uint32(j) << np.uint32(2 * k)
+            idx[i] = sel
+        i += 1
+    return first, second, idx, v3, box
+
+
+def vertex_ids(tris: np.ndarray, faces=None) -> np.ndarray:
+    """(n, 3) int64 vertex ids: ``faces`` when given (a mesh's vertex indices), else equal ids
+    for bit-identical float32 vertices."""
+    if faces is not None:
+        return np.ascontiguousarray(faces, np.int64)
+    m = 3 * len(tris)
+    size = 1 << max(4, int(2 * m - 1).bit_length())
+    table = np.full(size, -1, np.int32 if m < 1 << 31 else np.int64)
+    return _vertex_ids(np.ascontiguousarray(tris).view(np.uint32), table)
+
+
+def pair_triangles(tris: np.ndarray, faces=None):
+    """Pair triangles that share an edge (module docstring). Returns (first, second, idx, v3,
+    box): see ``_pairs``; ``box`` is a fake triangle per leaf whose bounding box is the leaf's,
+    the builder's input."""
+    ids = vertex_ids(tris, faces)
+    lo, hi = tris.min(axis=1), tris.max(axis=1)
+    partner = _match(ids, lo, hi, int(ids.max()) + 1)
+    return _pairs(ids, partner, tris)
+
+
+@njit(cache=True)
+def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, tris, origin, exp,
+              child, q, parent, ref, pv, pprim, pidx, box_ptr, leaf_ptr, no_child):
+    """Number the wide tree's nodes and write the q8 box nodes (origin, exp + count, child, q,
+    parent) and the pair leaves (pv, pprim, pidx), as ``driver.bvh.build.fill_image`` does for
+    box32; ``ref`` (k, 4, 6) float32 receives each used slot's stored box (+inf unused).
+    Returns 0, or the index + 1 of a node whose extent needs an exponent above Q8_EXP_MAX."""
+    k = slots.shape[0]
+    nb, nl = 0, 0
+    parent[0] = no_child
+    for r in range(k):
+        used = 0
+        for j in range(WIDTH):
+            x = slots[r, j]
+            if x < 0:
+                child[r, j] = no_child
+                for c in range(6):
+                    ref[r, j, c] = np.inf
+                continue
+            used += 1
+            for c in range(3):
+                ref[r, j, c] = node_lo[x, c]
+                ref[r, j, 3 + c] = node_hi[x, c]
+            if left[x] >= 0:
+                nb += 1
+                child[r, j] = box_ptr[0] + nb * box_ptr[1]
+                parent[nb] = box_ptr[0] + r * box_ptr[1]
+            else:
+                child[r, j] = leaf_ptr[0] + nl * leaf_ptr[1]
+                p = prim[x]
+                t = first[p]
+                pprim[nl, 0] = t
+                for v in range(3):
+                    for c in range(3):
+                        pv[nl, v, c] = tris[t, v, c]
+                if second[p] >= 0:
+                    pprim[nl, 1] = second[p]
+                    pidx[nl] = idx[p]
+                    for c in range(3):
+                        pv[nl, 3, c] = v3[p, c]
+                else:
+                    pprim[nl, 1] = no_child
+                nl += 1
+        for a in range(3):
+            o = np.float32(np.inf)
+            top = np.float32(-np.inf)
+            for j in range(used):
+                o = min(o, ref[r, j, a])
+                top = max(top, ref[r, j, 3 + a])
+            ext = np.float64(top) - np.float64(o)
+            e = Q8_EXP_MIN
+            if ext > 0:                                    # a first guess, then exact steps
+                e = max(Q8_EXP_MIN, int(np.ceil(np.log2(ext / 255.0))) - 1)
+            while e <= Q8_EXP_MAX and ext > 255.0 * math.ldexp(1.0, e):
+                e += 1
+            if e > Q8_EXP_MAX:
+                return r + 1
+            s = math.ldexp(1.0, e)
+            origin[r, a] = o
+            exp[r, a] = np.uint8(e & 0xFF)
+            for j in range(used):
+                lo = np.floor((np.float64(ref[r, j, a]) - np.float64(o)) / s)
+                hi = np.ceil((np.float64(ref[r, j, 3 + a]) - np.float64(o)) / s)
+                q[r, j, a] = np.uint8(min(max(lo, 0.0), 255.0))
+                q[r, j, 3 + a] = np.uint8(min(max(hi, 0.0), 255.0))
+        exp[r, 3] = np.uint8(used)
+    return 0
+
+
+def verify_containment(nodes: np.ndarray, ref: np.ndarray) -> int:
+    """Decode every q8 node with ``decode_q8`` and widen, in place, each quantized bound whose
+    decode lies inside the stored box ``ref`` (k, 4, 6) by one step, until every decoded child
+    box contains its stored box. Returns the number of bounds moved. Raises ValueError if a
+    bound cannot move (a plane at 0 or 255 that still does not contain it)."""
+    moved = 0
+    while True:
+        dec = decode_q8(nodes)
+        low = dec[..., :3] > ref[..., :3]                  # unused slots: inf > inf is False
+        high = dec[..., 3:] < ref[..., 3:]
+        if not (low.any() or high.any()):
+            return moved
+        q = nodes["q"]
+        if (q[..., :3][low] == 0).any() or (q[..., 3:][high] == 255).any():
+            raise ValueError("q8 encoding: a child box cannot be contained by its node's planes")
+        q[..., :3][low] -= 1
+        q[..., 3:][high] += 1
+        moved += int(low.sum() + high.sum())
+
