@@ -490,7 +490,7 @@ def _write_q8_image(levels, left, prim, node_lo, node_hi, pairs, tris):
     """Number nodes, quantize and fill the q8 image (``driver.bvh.q8``): q8 box nodes breadth
     first from offset 0, then the pair leaves in the order they are referenced. Returns (image,
     depth, sah_cost from the decoded boxes, child histogram)."""
-    from .bvh.q8 import _quantize, verify_containment
+    from .bvh.q8 import _quantize, facing, verify_containment
     first, second, idx, v3, _ = pairs
     n_box = sum(len(s) for s in levels)
     n_leaf = len(first)
@@ -506,7 +506,7 @@ def _write_q8_image(levels, left, prim, node_lo, node_hi, pairs, tris):
     leaf0, leaf1 = NodeRef.encode([Q8_BYTES * n_box, Q8_BYTES * n_box + PAIR_BYTES],
                                   PAIR_TYPE).astype(np.int64)
     bad = _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, tris,
-                    qn["origin"], qn["exp"], qn["child"], qn["q"], qn["parent"], ref, pn["v"],
+                    facing(tris, first, second), qn["origin"], qn["exp"], qn["child"], qn["q"], qn["parent"], ref, pn["v"],
                     pn["prim"], pn["idx"], (box0, box1 - box0), (leaf0, leaf1 - leaf0), NO_CHILD)
     if bad:
         raise ValueError("q8 image: the scene's extent needs a plane exponent above "

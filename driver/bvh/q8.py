@@ -164,6 +164,18 @@ def vertex_ids(tris: np.ndarray, faces=None) -> np.ndarray:
     return _vertex_ids(np.ascontiguousarray(tris).view(np.uint32), table)
 
 
+def facing(tris: np.ndarray, first: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """(m, 3) int8: per leaf and axis the sign of its face normal (the sum of its triangles'
+    ``(B - A) x (C - A)``, float64), the side rays leave it on."""
+    def normal(t):
+        t = t.astype(np.float64)
+        return np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    n = normal(tris[first])
+    two = second >= 0
+    n[two] += normal(tris[second[two]])
+    return np.sign(n).astype(np.int8)
+
+
 def pair_triangles(tris: np.ndarray, faces=None):
     """Pair triangles that share an edge (module docstring). Returns (first, second, idx, v3,
     box): see ``_pairs``; ``box`` is a fake triangle per leaf whose bounding box is the leaf's,
@@ -175,11 +187,46 @@ def pair_triangles(tris: np.ndarray, faces=None):
 
 
 @njit(cache=True)
-def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, tris, origin, exp,
-              child, q, parent, ref, pv, pprim, pidx, box_ptr, leaf_ptr, no_child):
+def _origin(r, a, o, top, s, used, slots, left, prim, ref, facing):
+    """The origin of node r on axis a: ``o`` (the children's lowest bound), or, when a leaf
+    child is thinner than one step ``s`` on this axis, a grid that puts that leaf's bound on its
+    front side (the side its face normal points to) on a grid plane, so that the step of slack
+    its decoded box must have lies behind the surface, where rays leaving the surface (shadow
+    and bounce rays start just in front of it) do not pass; the leaf of largest cross-section
+    wins, and only a grid that still spans the node in 255 steps."""
+    best, area = o, 0.0
+    b, c = (a + 1) % 3, (a + 2) % 3
+    for j in range(used):
+        x = slots[r, j]
+        lo, hi = np.float64(ref[r, j, a]), np.float64(ref[r, j, 3 + a])
+        if left[x] >= 0 or hi - lo >= s or facing[prim[x], a] == 0:
+            continue
+        cross = ((np.float64(ref[r, j, 3 + b]) - ref[r, j, b])
+                 * (np.float64(ref[r, j, 3 + c]) - ref[r, j, c]))
+        if cross <= area:
+            continue
+        up = facing[prim[x], a] > 0
+        plane = hi if up else lo
+        exact = plane - np.ceil((plane - np.float64(o)) / s) * s
+        cand = np.float32(exact)
+        # rounded so that the plane's step decodes on the front side of the plane (hi: at or
+        # above it, lo: at or below it)
+        if up and np.float64(cand) < exact:
+            cand = np.nextafter(cand, np.float32(np.inf))
+        elif not up and np.float64(cand) > exact:
+            cand = np.nextafter(cand, np.float32(-np.inf))
+        if cand <= o and np.float64(top) - np.float64(cand) <= 255.0 * s:
+            best, area = cand, cross
+    return best
+
+
+@njit(cache=True)
+def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, tris, facing,
+              origin, exp, child, q, parent, ref, pv, pprim, pidx, box_ptr, leaf_ptr, no_child):
     """Number the wide tree's nodes and write the q8 box nodes (origin, exp + count, child, q,
     parent) and the pair leaves (pv, pprim, pidx), as ``driver.bvh.build.fill_image`` does for
-    box32; ``ref`` (k, 4, 6) float32 receives each used slot's stored box (+inf unused).
+    box32; ``ref`` (k, 4, 6) float32 receives each used slot's stored box (+inf unused);
+    ``facing`` (leaves, 3) int8: the sign of each leaf's face normal per axis (``_origin``).
     Returns 0, or the index + 1 of a node whose extent needs an exponent above Q8_EXP_MAX."""
     k = slots.shape[0]
     nb, nl = 0, 0
@@ -232,6 +279,7 @@ def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, tris,
             if e > Q8_EXP_MAX:
                 return r + 1
             s = math.ldexp(1.0, e)
+            o = _origin(r, a, o, top, s, used, slots, left, prim, ref, facing)
             origin[r, a] = o
             exp[r, a] = np.uint8(e & 0xFF)
             for j in range(used):
