@@ -73,7 +73,8 @@ import numpy as np
 
 # the node image's layout is driver.layout's (SPEC 8); the names are re-exported for users
 from .layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, IMAGE_FORMATS, NO_CHILD,  # noqa: F401
-                     PAIR_BYTES, PAIR_NODE, PAIR_SECOND_TYPE, PAIR_TYPE, Q8_BYTES, Q8_NODE,
+                     GROUP_TYPE, PAIR_BYTES, PAIR_NODE, PAIR_SECOND_TYPE, PAIR_TYPE, Q8_BYTES,
+                     Q8_NODE,
                      Q8_TYPE, QUADBOX, TRI_BYTES, TRI_NODE, TRI_TYPE, TRIANGLE, NodeRef,
                      decode_q8, node_word, pair_triangles, read_nodes)
 
@@ -116,9 +117,10 @@ class BVH4:
             raise ValueError(f"BVH image format must be one of {IMAGE_FORMATS}, got {format!r}")
         self.image = image
         self.format = format
-        self.box_type = Q8_TYPE if format == "q8" else BOX_TYPE
+        q8 = format != "box32"
+        self.box_type = Q8_TYPE if q8 else BOX_TYPE
         self.root = self.box_type       # box node at offset 0
-        self.child_word = node_word(Q8_NODE if format == "q8" else BOX_NODE, "child")
+        self.child_word = node_word(Q8_NODE if q8 else BOX_NODE, "child")
         self.triangles = triangles
         self.stats = stats
         self._words = image.view("<u4")
@@ -153,7 +155,7 @@ class BVH4:
     def node_extras(self, ptrs):
         """(parent pointer (m,) uint32, child count (m,) int64) of box nodes."""
         ptrs = np.asarray(ptrs, np.uint32)
-        if self.format == "q8":
+        if self.format != "box32":
             nodes = read_nodes(self._words, ptrs, Q8_NODE)
             return nodes["parent"].astype(np.uint32), (nodes["exp"][:, 3] & 7).astype(np.int64)
         nodes = read_nodes(self._words, ptrs, BOX_NODE)
@@ -189,7 +191,8 @@ def box_operands(image, ptrs):
 
 def tri_operands(image, ptrs):
     """(tris (m, 3, 3) float32, prim (m,) int64) named by triangle request pointers: a triangle
-    node, a pair leaf (its first triangle) or ``PAIR_SECOND_TYPE`` (its second)."""
+    node, a pair leaf or a group leaf (the first pair's first triangle) or ``PAIR_SECOND_TYPE``
+    (a pair's second)."""
     ptrs = np.asarray(ptrs, np.uint32)
     tris = np.empty((len(ptrs), 3, 3), np.float32)
     prim = np.empty(len(ptrs), np.int64)
@@ -198,13 +201,13 @@ def tri_operands(image, ptrs):
     if len(sel):
         nodes = read_nodes(image, ptrs[sel], TRI_NODE)
         tris[sel], prim[sel] = nodes["tri"], nodes["prim"]
-    for half, t in enumerate((PAIR_TYPE, PAIR_SECOND_TYPE)):
+    for half, t in ((0, PAIR_TYPE), (0, GROUP_TYPE), (1, PAIR_SECOND_TYPE)):
         sel = np.flatnonzero(typ == t)
         if len(sel):
             nodes = read_nodes(image, ptrs[sel], PAIR_NODE)
             tris[sel] = pair_triangles(nodes)[:, half]
             prim[sel] = nodes["prim"][:, half]
-    if not np.isin(typ, (TRI_TYPE, PAIR_TYPE, PAIR_SECOND_TYPE)).all():
+    if not np.isin(typ, (TRI_TYPE, PAIR_TYPE, GROUP_TYPE, PAIR_SECOND_TYPE)).all():
         raise ValueError("a pointer is not a triangle request pointer")
     return tris, prim
 
@@ -486,15 +489,15 @@ def _write_image(levels, left, prim, node_lo, node_hi, node_area, tris):
     return image, len(levels), 1.0 + area / float(root_area), hist
 
 
-def _write_q8_image(levels, left, prim, node_lo, node_hi, pairs, tris):
-    """Number nodes, quantize and fill the q8 image (``driver.bvh.q8``): q8 box nodes breadth
-    first from offset 0, then the pair leaves in the order they are referenced. Returns (image,
-    depth, sah_cost from the decoded boxes, child histogram)."""
+def _write_q8_image(levels, left, prim, node_lo, node_hi, pairs, groups, tris):
+    """Number nodes, quantize and fill the q8/q8g image (``driver.bvh.q8``): q8 box nodes
+    breadth first from offset 0, then the leaves (pair leaves, group leaves of ``groups``) in
+    the order they are referenced. Returns (image, depth, sah_cost from the decoded boxes,
+    child histogram)."""
     from .bvh.q8 import _quantize, facing, verify_containment
     first, second, idx, v3, _ = pairs
     n_box = sum(len(s) for s in levels)
-    n_leaf = len(first)
-    total = Q8_BYTES * n_box + PAIR_BYTES * n_leaf
+    total = Q8_BYTES * n_box + PAIR_BYTES * len(first)       # every pair in one 64-byte slot
     if total >= 1 << 35:
         raise ValueError(f"BVH image of {total} bytes exceeds the 32 GiB a uint32 pointer reaches")
     slots = np.concatenate(levels)
@@ -503,21 +506,19 @@ def _write_q8_image(levels, left, prim, node_lo, node_hi, pairs, tris):
     pn = image[Q8_BYTES * n_box:].view(PAIR_NODE)
     ref = np.empty((n_box, 4, 6), np.float32)
     box0, box1 = NodeRef.encode([0, Q8_BYTES], Q8_TYPE).astype(np.int64)
-    leaf0, leaf1 = NodeRef.encode([Q8_BYTES * n_box, Q8_BYTES * n_box + PAIR_BYTES],
-                                  PAIR_TYPE).astype(np.int64)
-    bad = _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, tris,
-                    facing(tris, first, second), qn["origin"], qn["exp"], qn["child"], qn["q"], qn["parent"], ref, pn["v"],
-                    pn["prim"], pn["idx"], (box0, box1 - box0), (leaf0, leaf1 - leaf0), NO_CHILD)
+    bad = _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, groups, tris,
+                    facing(tris, first, second, groups), qn["origin"], qn["exp"], qn["child"],
+                    qn["q"], qn["parent"], ref, pn["v"], pn["prim"], pn["idx"],
+                    (box0, box1 - box0), Q8_BYTES * n_box, (PAIR_TYPE, GROUP_TYPE), NO_CHILD)
     if bad:
         raise ValueError("q8 image: the scene's extent needs a plane exponent above "
                          f"{2 ** 119 * 255:.3g} per step (box node {bad - 1}); use box32")
-    verify_containment(qn, ref)
-    dec = decode_q8(qn).astype(np.float64)
+    dec = verify_containment(qn, ref)[1]
     count = (qn["exp"][:, 3] & 7).astype(np.int64)
     used = np.arange(4)[None, :] < count[:, None]
-    u = dec[used]
+    u = dec[used].astype(np.float64)
     area = _half_area(u[:, :3], u[:, 3:]).sum()
-    r = dec[0, :count[0]]
+    r = dec[0, :count[0]].astype(np.float64)
     root_area = _half_area(r[:, :3].min(axis=0), r[:, 3:].max(axis=0))
     hist = np.bincount(count, minlength=5)[1:]
     return image, len(levels), 1.0 + area / float(root_area), hist
@@ -563,7 +564,7 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
     from tqdm import tqdm
 
     pairs, prims = None, tris
-    if format == "q8":
+    if format != "box32":
         from .bvh.q8 import pair_triangles as pair_up
         faces = getattr(triangles_or_trimesh, "faces", None)
         pairs = pair_up(tris, None if faces is None else np.asarray(faces))
@@ -584,6 +585,10 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
         if collapse == "greedy":                            # from the exact boxes
             greedy_area = _half_area(node_lo.astype(np.float64), node_hi)
         node_area = bvh_build.grow_boxes(node_lo, node_hi, pad)      # in place: stored boxes
+        groups = np.zeros((0, 2), np.int64)
+        if format == "q8g":
+            from .bvh.q8 import group_leaves
+            groups = group_leaves(left, right, prim, len(prims))
         if collapse == "sah":
             levels = bvh_build.collapse_sah(left, right, node_area)
         else:
@@ -594,11 +599,12 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
                                                    node_area, tris)
         else:
             image, depth, sah, hist = _write_q8_image(levels, left, prim, node_lo, node_hi,
-                                                      pairs, tris)
+                                                      pairs, groups, tris)
     n_box = sum(len(s) for s in levels)
     paired = 0 if pairs is None else 2 * int((pairs[1] >= 0).sum())
     stats = {"format": format, "box_nodes": n_box, "tri_nodes": len(tris),
-             "leaf_nodes": len(prims), "depth": depth, "sah_cost": sah, "fill": int(fill),
+             "leaf_nodes": len(prims) - len(groups), "group_leaves": len(groups),
+             "depth": depth, "sah_cost": sah, "fill": int(fill),
              "build_s": time.perf_counter() - t0, "bytes": int(image.nbytes),
              "bytes_per_triangle": image.nbytes / len(tris), "pair_ratio": paired / len(tris),
              "avg_children": float((hist * np.arange(1, 5)).sum() / n_box),

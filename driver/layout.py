@@ -324,11 +324,21 @@ assert Q8_BYTES == 64 and PAIR_BYTES == 64
 # request names its operand by one pointer (the harness, the replay and the Python issuer read
 # the second triangle's vertices v[i0], v[i1], v[i2] from the same 64-byte node).
 PAIR_SECOND_TYPE = 3
-NODE_BYTES.update({Q8_TYPE: Q8_BYTES, PAIR_TYPE: PAIR_BYTES, PAIR_SECOND_TYPE: 0})
+# The group leaf (the "q8g" image): two pair leaves back to back, 128 bytes, up to 4 triangles,
+# one child slot of its parent. Its pointer names the first pair (a request fetches and reads
+# that half, as a pair leaf's pointer); the second half is the pair leaf at offset + 64, which
+# the traversal pushes as an ordinary PAIR_TYPE pointer (so it is fetched when it is reached).
+GROUP_TYPE = 2
+GROUP_BYTES = 2 * PAIR_BYTES
+NODE_BYTES.update({Q8_TYPE: Q8_BYTES, PAIR_TYPE: PAIR_BYTES, PAIR_SECOND_TYPE: 0,
+                   GROUP_TYPE: PAIR_BYTES})
 #   node bytes an RT unit fetches for a request of each pointer type: the second triangle of a
 #   pair is in the node the ray fetched for the first (0 more bytes)
-NODE_OPCODE.update({Q8_TYPE: QUADBOX, PAIR_TYPE: TRIANGLE, PAIR_SECOND_TYPE: TRIANGLE})
-IMAGE_FORMATS = ("box32", "q8")     # the node images ``driver.bvh4.build`` writes (docs/compressed.md)
+NODE_OPCODE.update({Q8_TYPE: QUADBOX, PAIR_TYPE: TRIANGLE, PAIR_SECOND_TYPE: TRIANGLE,
+                    GROUP_TYPE: TRIANGLE})
+# the node images ``driver.bvh4.build`` writes (docs/compressed.md): box32; q8 (q8 box nodes,
+# pair leaves); q8g (q8 box nodes, pair leaves and group leaves of two pairs)
+IMAGE_FORMATS = ("box32", "q8", "q8g")
 assert Q8_NODE.fields["q"][1] == 32 and Q8_NODE.fields["exp"][1] == 12
 
 
@@ -404,6 +414,7 @@ def c_header() -> str:
     const("kQ8Type", Q8_TYPE, "uint32_t")
     const("kPairType", PAIR_TYPE, "uint32_t")
     const("kPairSecondType", PAIR_SECOND_TYPE, "uint32_t")
+    const("kGroupType", GROUP_TYPE, "uint32_t")
     const("kQ8CountLsb", Q8_COUNT_LSB)
     const("kNoChild", NO_CHILD, "uint32_t")
     node_bytes = ", ".join(str(NODE_BYTES.get(t, 0)) for t in range(_TYPE_MASK + 1))

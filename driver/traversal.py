@@ -9,7 +9,9 @@ pops one node and turns it into one datapath request:
 - a q8 box node (``bvh.format == "q8"``) -> the same QUADBOX on its decoded child boxes;
 - a triangle-pair leaf -> two TRIANGLE requests of the ray, the first triangle (``prim0``) in
   this step; the second is pushed as a ``PAIR_SECOND_TYPE`` pointer to the same node and so is
-  the ray's next request (an any-hit ray finished by the first never issues it);
+  the ray's next request (an any-hit ray finished by the first never issues it); a group leaf
+  (q8g) is its first pair, and the pair leaf at offset + 64 is pushed below that pair's second
+  triangle, so the ray's next requests are the rest of the leaf in order;
 - triangle node -> TRIANGLE; on ``tri_hit`` the host computes
   ``t = float32(t_num) / float32(t_den)`` and keeps it if ``t < nearest`` (strictly: on an exact
   tie the triangle found first stays). An any-hit ray (occlusion) is finished by that first
@@ -40,15 +42,15 @@ from typing import Callable
 
 import numpy as np
 
-from .layout import (BOX_NODE, NO_CHILD, NODE_BYTES, PAIR_NODE, PAIR_SECOND_TYPE, PAIR_TYPE,
-                     TRI_NODE, TRI_TYPE, NodeRef, node_word)
+from .layout import (BOX_NODE, GROUP_TYPE, NO_CHILD, NODE_BYTES, PAIR_BYTES, PAIR_NODE,
+                     PAIR_SECOND_TYPE, PAIR_TYPE, TRI_NODE, TRI_TYPE, NodeRef, node_word)
 
 _LANES = np.arange(BOX_NODE["child"].shape[0])
 # per pointer type: the word of the primitive id a triangle request reports, the node bytes a
 # request fetches (driver.layout.NODE_BYTES)
 _PRIM_WORD = np.zeros(8, np.int64)
 _PRIM_WORD[TRI_TYPE] = node_word(TRI_NODE, "prim")
-_PRIM_WORD[PAIR_TYPE] = node_word(PAIR_NODE, "prim")
+_PRIM_WORD[PAIR_TYPE] = _PRIM_WORD[GROUP_TYPE] = node_word(PAIR_NODE, "prim")
 _PRIM_WORD[PAIR_SECOND_TYPE] = node_word(PAIR_NODE, "prim") + 1
 _BYTES = np.zeros(8, np.int64)
 for _t, _b in NODE_BYTES.items():
@@ -169,11 +171,17 @@ def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
         prim[ray_t[better]] = image[base[tb] + _PRIM_WORD[typ[tb]]].astype(np.int64)
         if any_hit:
             sp[ray_t[better]] = 0
-        # a pair leaf's second triangle is the ray's next request (unless the ray is done)
-        pair = ti[typ[ti] == PAIR_TYPE]
-        pair = pair[image[base[pair] + _PRIM_WORD[PAIR_SECOND_TYPE]] != NO_CHILD]
+        # the rest of a leaf is the ray's next requests (unless the ray is done): a group's
+        # second pair, then (on top) the pair's second triangle
+        leaf = ti[(typ[ti] == PAIR_TYPE) | (typ[ti] == GROUP_TYPE)]
         if any_hit:
-            pair = pair[~better[np.searchsorted(ti, pair)]]
+            leaf = leaf[~better[np.searchsorted(ti, leaf)]]
+        group = leaf[typ[leaf] == GROUP_TYPE]
+        ray_g = active[group]
+        stack[ray_g, sp[ray_g]] = NodeRef.encode(NodeRef.offset(ptr[group]) + PAIR_BYTES,
+                                                 PAIR_TYPE)
+        sp[ray_g] += 1
+        pair = leaf[image[base[leaf] + _PRIM_WORD[PAIR_SECOND_TYPE]] != NO_CHILD]
         ray_p = active[pair]
         stack[ray_p, sp[ray_p]] = NodeRef.retype(ptr[pair], PAIR_SECOND_TYPE)
         sp[ray_p] += 1

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from driver.bvh4 import PAD_REL, build, request_operands
-from driver.layout import (NO_CHILD, NODE_BYTES, PAIR_NODE, PAIR_SECOND_TYPE, PAIR_TYPE,
+from driver.layout import (GROUP_TYPE, NO_CHILD, NODE_BYTES, PAIR_NODE, PAIR_SECOND_TYPE, PAIR_TYPE,
                            Q8_BYTES, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE, REQUEST_DTYPE,
                            NodeRef, decode_q8, pack_requests, pair_triangles, q8_count,
                            ray_words)
@@ -31,9 +31,11 @@ def check_image(bvh, tris) -> None:
     tris = np.asarray(tris, np.float32)
     nb = bvh.stats["box_nodes"]
     nodes = bvh.image[:Q8_BYTES * nb].view(Q8_NODE)
-    leaves = bvh.image[Q8_BYTES * nb:].view(PAIR_NODE)
-    assert bvh.format == "q8" and bvh.root == Q8_TYPE
+    leaves = bvh.image[Q8_BYTES * nb:].view(PAIR_NODE)        # 64-byte pair slots
+    assert bvh.format in ("q8", "q8g") and bvh.root == Q8_TYPE
     assert bvh.stats["bytes"] == bvh.image.nbytes == 64 * (nb + len(leaves))
+    assert bvh.stats["leaf_nodes"] + 2 * bvh.stats["group_leaves"] == len(leaves) + \
+        bvh.stats["group_leaves"]
 
     prim = leaves["prim"].astype(np.int64)
     two = prim[:, 1] != NO_CHILD
@@ -60,16 +62,19 @@ def check_image(bvh, tris) -> None:
     ptr = nodes["child"]
     typ, off = NodeRef.type(ptr), NodeRef.offset(ptr)
     used = np.arange(4)[None, :] < count[:, None]
-    assert (ptr[~used] == NO_CHILD).all() and np.isin(typ[used], (Q8_TYPE, PAIR_TYPE)).all()
+    leaf_types = (PAIR_TYPE, GROUP_TYPE) if bvh.format == "q8g" else (PAIR_TYPE,)
+    assert (ptr[~used] == NO_CHILD).all() and np.isin(typ[used], (Q8_TYPE,) + leaf_types).all()
+    assert (typ == GROUP_TYPE).sum() == bvh.stats["group_leaves"]
     for i in range(nb - 1, -1, -1):
         for j in range(count[i]):
             if typ[i, j] == Q8_TYPE:
                 k = off[i, j] // Q8_BYTES
                 assert k > i
                 lo, hi = node_lo[k], node_hi[k]
-            else:
+            else:                                          # a group: two slots
                 k = (off[i, j] - Q8_BYTES * nb) // 64
-                lo, hi = leaf_lo[k], leaf_hi[k]
+                h = k + (typ[i, j] == GROUP_TYPE) + 1
+                lo, hi = leaf_lo[k:h].min(axis=0), leaf_hi[k:h].max(axis=0)
             child_lo[i, j], child_hi[i, j] = lo, hi
             node_lo[i] = np.minimum(node_lo[i], lo)
             node_hi[i] = np.maximum(node_hi[i], hi)
@@ -109,8 +114,8 @@ MESHES = {
 @pytest.mark.parametrize("name", sorted(MESHES))
 def test_containment_and_leaves_on_every_node(name):
     tris = MESHES[name]()
-    for fill in (0, 8):
-        bvh = build(tris, format="q8", fill=fill)
+    for fmt, fill in (("q8", 0), ("q8", 8), ("q8g", 0), ("q8g", 8)):
+        bvh = build(tris, format=fmt, fill=fill)
         check_image(bvh, tris)
     assert bvh.stats["bytes_per_triangle"] == bvh.image.nbytes / len(tris)
 
@@ -176,13 +181,16 @@ def scene_pair(request):
     o1, d1 = primary_rays(scene.camera, 20, 20)
     o2, d2 = _rays(scene, 400, 7)
     o, d = np.concatenate([o1, o2]), np.concatenate([d1, d2])
-    return scene, build(scene.mesh), build(scene.mesh, format="q8"), o, d
+    return (scene, build(scene.mesh), {f: build(scene.mesh, format=f) for f in ("q8", "q8g")},
+            o, d)
 
 
+@pytest.mark.parametrize("fmt", ["q8", "q8g"])
 @pytest.mark.parametrize("any_hit", [False, True])
 @pytest.mark.parametrize("double_sided", [False, True])
-def test_q8_hits_equal_box32(scene_pair, any_hit, double_sided):
-    scene, b32, q8, o, d = scene_pair
+def test_q8_hits_equal_box32(scene_pair, fmt, any_hit, double_sided):
+    scene, b32, q8s, o, d = scene_pair
+    q8 = q8s[fmt]
     extent = np.float32(0.5 * np.ptp(scene.triangles.reshape(-1, 3), axis=0).max())
     kw = dict(backend="golden", any_hit=any_hit, double_sided=double_sided,
               extent=extent if any_hit else np.inf)
@@ -220,12 +228,17 @@ def test_pair_leaves_keep_winding():
 
 
 def test_traversal_requests_per_pair_leaf():
-    """A pair leaf is two TRIANGLE requests of the ray, prim0 first; an any-hit ray finished by
-    prim0 issues no second; node bytes count each fetched node once."""
+    """A pair leaf is two TRIANGLE requests of the ray, prim0 first; a group leaf its two pairs
+    in order; an any-hit ray finished by a triangle issues no more of the leaf; node bytes count
+    each fetched 64-byte node once."""
+    tris = _grid(4)
+    for fmt in ("q8", "q8g"):
+        _leaf_requests(build(tris, format=fmt))
+
+
+def _leaf_requests(q8):
     from support.recording import RecordingBackend
     from driver import backend
-    tris = _grid(4)
-    q8 = build(tris, format="q8")
     o = np.array([[0.3, 0.3, 1.0], [0.71, 0.42, 1.0]])
     d = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, -1.0]])
     for any_hit in (False, True):
@@ -239,11 +252,19 @@ def test_traversal_requests_per_pair_leaf():
             p = rec.ptr[rec.ray == r]
             firsts = np.flatnonzero(t == PAIR_TYPE)
             seconds = np.flatnonzero(t == PAIR_SECOND_TYPE)
+            groups = np.flatnonzero(t == GROUP_TYPE)
             # every second triangle right after its own first one
             assert np.array_equal(NodeRef.offset(p[seconds]), NodeRef.offset(p[seconds - 1]))
-            assert (t[seconds - 1] == PAIR_TYPE).all()
+            assert np.isin(t[seconds - 1], (PAIR_TYPE, GROUP_TYPE)).all()
+            # a group's second pair follows its first pair (and that pair's second triangle)
+            for g in groups:
+                k = g + 1 + (g + 1 < len(t) and t[g + 1] == PAIR_SECOND_TYPE)
+                if not any_hit:
+                    assert t[k] == PAIR_TYPE and NodeRef.offset(p[k]) == NodeRef.offset(p[g]) + 64
             if any_hit:
-                assert len(seconds) <= len(firsts)
+                assert len(seconds) <= len(firsts) + len(groups)
+            else:
+                assert len(firsts) + len(groups) > 0
         nbytes = sum(NODE_BYTES[int(x)] for x in typ)
         assert res.stats["node_bytes_fetched"] == nbytes
         assert res.stats["ops"] == len(rec.ptr)
@@ -278,7 +299,8 @@ def random_q8_image(n: int, seed: int):
     image = np.concatenate([nodes.view(np.uint8), leaves.view(np.uint8)])
     ptr = np.concatenate([NodeRef.encode(64 * np.arange(n), Q8_TYPE),
                           NodeRef.encode(64 * (n + np.arange(n)), PAIR_TYPE),
-                          NodeRef.encode(64 * (n + np.arange(n)), PAIR_SECOND_TYPE)])
+                          NodeRef.encode(64 * (n + np.arange(n)), PAIR_SECOND_TYPE),
+                          NodeRef.encode(64 * (n + np.arange(n - 1)), GROUP_TYPE)])
     return image, ptr
 
 
@@ -305,13 +327,14 @@ def test_harness_decode_equals_python_on_random_nodes():
     assert REQUEST_DTYPE["box"].shape == (4, 6)
 
 
-def test_rtl_frame_and_memory_model_charge_64_bytes_per_q8_node():
+@pytest.mark.parametrize("fmt", ["q8", "q8g"])
+def test_rtl_frame_and_memory_model_charge_64_bytes_per_q8_node(fmt):
     from driver import rtunit
     from driver.scenes.camera import primary_rays
     from driver.scenes.scene import load_scene
     scene = load_scene("bunny")
     o, d = primary_rays(scene.camera, 16, 16)
-    q8 = build(scene.mesh, format="q8")
+    q8 = build(scene.mesh, format=fmt)
     gold = trace(q8, o, d, backend="golden")
     res = trace(q8, o, d, backend="rtl", record=True)
     assert_same_hits(gold, res)

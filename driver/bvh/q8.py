@@ -4,9 +4,10 @@ writer of 64-byte quantized box nodes and 64-byte triangle-pair leaves (numba ke
 
 Pairing (``pair_triangles``): vertices are identified by their exact float32 bits (or by the
 mesh's own vertex indices when the input is a mesh), so a shared vertex is stored once in the
-pair node and the second triangle is read back bit for bit. A greedy matching over shared edges
-visits the triangles in input order; each unmatched triangle takes, among the unmatched
-triangles that share one of its edges, the one whose union box has the least surface area.
+pair node and the second triangle is read back bit for bit. The matching over shared edges is
+Karp and Sipser's heuristic: a triangle with a single unmatched edge neighbour is matched to it
+at once; otherwise the lowest-index unmatched triangle takes, among its unmatched edge
+neighbours, the one whose union box with it has the least surface area.
 Unmatched triangles become one-triangle leaves (``prim1 = NO_CHILD``). Each triangle keeps its
 input vertex order (the watertight test's arithmetic depends on it, not only on the winding).
 
@@ -60,10 +61,13 @@ def _vertex_ids(bits, table):
     return ids
 
 
+_ADJ = 6      # edge neighbours kept per triangle (a manifold triangle has at most 3)
+
+
 @njit(cache=True)
-def _match(ids, lo, hi, nv):
-    """Greedy edge matching: partner (n,) int64 (-1: unmatched). ids (n, 3) vertex ids below
-    ``nv``; lo/hi (n, 3) float32 triangle boxes."""
+def _neighbours(ids, nv):
+    """(n, _ADJ) int64 triangles sharing an edge with each triangle (-1 padded), and their
+    count (n,). ids (n, 3) vertex ids below ``nv``."""
     n = ids.shape[0]
     cnt = np.zeros(nv + 1, np.int64)
     for t in range(n):
@@ -80,30 +84,87 @@ def _match(ids, lo, hi, nv):
                 continue                                   # a repeated vertex lists t once
             lst[fill[v]] = t
             fill[v] += 1
-    partner = np.full(n, -1, np.int64)
+    adj = np.full((n, _ADJ), -1, np.int64)
+    deg = np.zeros(n, np.int64)
     for t in range(n):
-        if partner[t] >= 0:
-            continue
-        best, best_cost = -1, np.inf
         for e in range(3):
             a, b = ids[t, e], ids[t, (e + 1) % 3]
             if a == b:
                 continue
             for j in range(cnt[a], fill[a]):
                 u = lst[j]
-                if u == t or partner[u] >= 0:
+                if u == t or (ids[u, 0] != b and ids[u, 1] != b and ids[u, 2] != b):
                     continue
-                if ids[u, 0] != b and ids[u, 1] != b and ids[u, 2] != b:
-                    continue
-                dx = np.float64(max(hi[t, 0], hi[u, 0])) - min(lo[t, 0], lo[u, 0])
-                dy = np.float64(max(hi[t, 1], hi[u, 1])) - min(lo[t, 1], lo[u, 1])
-                dz = np.float64(max(hi[t, 2], hi[u, 2])) - min(lo[t, 2], lo[u, 2])
-                cost = dx * dy + dy * dz + dz * dx
-                if cost < best_cost:
-                    best, best_cost = u, cost
-        if best >= 0:
-            partner[t] = best
-            partner[best] = t
+                seen = False
+                for i in range(deg[t]):
+                    seen |= adj[t, i] == u
+                if not seen and deg[t] < _ADJ:
+                    adj[t, deg[t]] = u
+                    deg[t] += 1
+    return adj, deg
+
+
+@njit(cache=True, inline="always")
+def _union_area(t, u, tris):
+    """Half surface area of the union box of triangles t and u."""
+    d = np.empty(3)
+    for c in range(3):
+        lo = min(tris[t, 0, c], tris[t, 1, c], tris[t, 2, c], tris[u, 0, c], tris[u, 1, c],
+                 tris[u, 2, c])
+        hi = max(tris[t, 0, c], tris[t, 1, c], tris[t, 2, c], tris[u, 0, c], tris[u, 1, c],
+                 tris[u, 2, c])
+        d[c] = np.float64(hi) - np.float64(lo)
+    return d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+
+
+@njit(cache=True)
+def _match(ids, tris, nv):
+    """Edge matching, Karp-Sipser style: partner (n,) int64 (-1: unmatched). A triangle left
+    with one unmatched neighbour is matched to it first (no choice can do better for it);
+    otherwise the lowest-index unmatched triangle takes the unmatched neighbour whose union box
+    with it has the least surface area (``tris`` (n, 3, 3) float32)."""
+    n = ids.shape[0]
+    adj, deg = _neighbours(ids, nv)
+    free = deg.copy()                                       # unmatched neighbours
+    partner = np.full(n, -1, np.int64)
+    stack = np.empty(2 * n, np.int64)         # pushed once at the start, once on free == 1
+    sp = 0
+    for t in range(n):
+        if free[t] == 1:
+            stack[sp] = t
+            sp += 1
+    nxt = 0
+    while True:
+        t, u = -1, -1
+        while sp > 0 and t < 0:
+            sp -= 1
+            c = stack[sp]
+            if partner[c] < 0 and free[c] == 1:
+                for i in range(deg[c]):
+                    if partner[adj[c, i]] < 0:
+                        t, u = c, adj[c, i]
+        if t < 0:
+            while nxt < n and (partner[nxt] >= 0 or free[nxt] == 0):
+                nxt += 1
+            if nxt == n:
+                break
+            t = nxt
+            best = np.inf
+            for i in range(deg[t]):
+                w = adj[t, i]
+                if partner[w] < 0:
+                    a = _union_area(t, w, tris)
+                    if a < best:
+                        best, u = a, w
+        partner[t], partner[u] = u, t
+        for x in (t, u):
+            for i in range(deg[x]):
+                w = adj[x, i]
+                if partner[w] < 0:
+                    free[w] -= 1
+                    if free[w] == 1:
+                        stack[sp] = w
+                        sp += 1
     return partner
 
 
@@ -164,16 +225,43 @@ def vertex_ids(tris: np.ndarray, faces=None) -> np.ndarray:
     return _vertex_ids(np.ascontiguousarray(tris).view(np.uint32), table)
 
 
-def facing(tris: np.ndarray, first: np.ndarray, second: np.ndarray) -> np.ndarray:
-    """(m, 3) int8: per leaf and axis the sign of its face normal (the sum of its triangles'
-    ``(B - A) x (C - A)``, float64), the side rays leave it on."""
-    def normal(t):
-        t = t.astype(np.float64)
-        return np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-    n = normal(tris[first])
-    two = second >= 0
-    n[two] += normal(tris[second[two]])
+@njit(cache=True)
+def _normals(tris, first, second):
+    """(m, 3) float64: per pair leaf the sum of its triangles' ``(B - A) x (C - A)``."""
+    n = np.zeros((len(first), 3))
+    for i in range(len(first)):
+        for t in (first[i], second[i]):
+            if t < 0:
+                continue
+            ax, ay, az = np.float64(tris[t, 0, 0]), np.float64(tris[t, 0, 1]), tris[t, 0, 2]
+            ux, uy, uz = tris[t, 1, 0] - ax, tris[t, 1, 1] - ay, tris[t, 1, 2] - np.float64(az)
+            vx, vy, vz = tris[t, 2, 0] - ax, tris[t, 2, 1] - ay, tris[t, 2, 2] - np.float64(az)
+            n[i, 0] += uy * vz - uz * vy
+            n[i, 1] += uz * vx - ux * vz
+            n[i, 2] += ux * vy - uy * vx
+    return n
+
+
+def facing(tris: np.ndarray, first: np.ndarray, second: np.ndarray,
+           groups: np.ndarray) -> np.ndarray:
+    """(m + g, 3) int8: per pair leaf, then per group leaf, and axis the sign of its face normal
+    (the sum of its triangles' ``(B - A) x (C - A)``, float64), the side rays leave it on."""
+    n = _normals(tris, first, second)
+    n = np.concatenate([n, n[groups[:, 0]] + n[groups[:, 1]]])
     return np.sign(n).astype(np.int8)
+
+
+def group_leaves(left, right, prim, n_pairs: int) -> np.ndarray:
+    """Turn, in place, every binary node whose two children are leaves into one leaf (a group
+    leaf of two pairs, ``prim`` = ``n_pairs`` + its index); returns the groups (g, 2) int64: the
+    two pairs' indices, in the children's order. The node keeps its (grown) box, the union of
+    the two."""
+    inner = np.flatnonzero(left >= 0)
+    both = inner[(left[left[inner]] < 0) & (left[right[inner]] < 0)]
+    groups = np.stack([prim[left[both]], prim[right[both]]], axis=1)
+    prim[both] = n_pairs + np.arange(len(both))
+    left[both] = right[both] = -1
+    return groups
 
 
 def pair_triangles(tris: np.ndarray, faces=None):
@@ -181,8 +269,7 @@ def pair_triangles(tris: np.ndarray, faces=None):
     box): see ``_pairs``; ``box`` is a fake triangle per leaf whose bounding box is the leaf's,
     the builder's input."""
     ids = vertex_ids(tris, faces)
-    lo, hi = tris.min(axis=1), tris.max(axis=1)
-    partner = _match(ids, lo, hi, int(ids.max()) + 1)
+    partner = _match(ids, tris, int(ids.max()) + 1)
     return _pairs(ids, partner, tris)
 
 
@@ -221,15 +308,38 @@ def _origin(r, a, o, top, s, used, slots, left, prim, ref, facing):
 
 
 @njit(cache=True)
-def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, tris, facing,
-              origin, exp, child, q, parent, ref, pv, pprim, pidx, box_ptr, leaf_ptr, no_child):
+def _write_pair(p, slot, first, second, idx, v3, tris, pv, pprim, pidx, no_child):
+    """Pair leaf ``p`` (``_pairs``'s arrays) into 64-byte leaf slot ``slot``."""
+    t = first[p]
+    pprim[slot, 0] = t
+    for v in range(3):
+        for c in range(3):
+            pv[slot, v, c] = tris[t, v, c]
+    if second[p] >= 0:
+        pprim[slot, 1] = second[p]
+        pidx[slot] = idx[p]
+        for c in range(3):
+            pv[slot, 3, c] = v3[p, c]
+    else:
+        pprim[slot, 1] = no_child
+
+
+@njit(cache=True)
+def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, groups, tris, facing,
+              origin, exp, child, q, parent, ref, pv, pprim, pidx, box_ptr, leaf_base, types,
+              no_child):
     """Number the wide tree's nodes and write the q8 box nodes (origin, exp + count, child, q,
-    parent) and the pair leaves (pv, pprim, pidx), as ``driver.bvh.build.fill_image`` does for
-    box32; ``ref`` (k, 4, 6) float32 receives each used slot's stored box (+inf unused);
-    ``facing`` (leaves, 3) int8: the sign of each leaf's face normal per axis (``_origin``).
-    Returns 0, or the index + 1 of a node whose extent needs an exponent above Q8_EXP_MAX."""
+    parent) and the leaves (pv, pprim, pidx: 64-byte pair slots in the order they are
+    referenced), as ``driver.bvh.build.fill_image`` does for box32. A leaf's ``prim`` below
+    ``len(first)`` is a pair leaf, else group ``prim - len(first)`` of ``groups`` (g, 2): two
+    pairs in consecutive slots. ``leaf_base``: byte offset of the first slot; ``types``: (pair,
+    group) pointer type codes. ``ref`` (k, 4, 6) float32 receives each used slot's stored box
+    (+inf unused); ``facing`` (leaves, 3) int8: the sign of each leaf's face normal per axis
+    (``_origin``). Returns 0, or the index + 1 of a node whose extent needs an exponent above
+    Q8_EXP_MAX."""
     k = slots.shape[0]
     nb, nl = 0, 0
+    n_pairs = len(first)
     parent[0] = no_child
     for r in range(k):
         used = 0
@@ -249,21 +359,17 @@ def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, tris,
                 child[r, j] = box_ptr[0] + nb * box_ptr[1]
                 parent[nb] = box_ptr[0] + r * box_ptr[1]
             else:
-                child[r, j] = leaf_ptr[0] + nl * leaf_ptr[1]
                 p = prim[x]
-                t = first[p]
-                pprim[nl, 0] = t
-                for v in range(3):
-                    for c in range(3):
-                        pv[nl, v, c] = tris[t, v, c]
-                if second[p] >= 0:
-                    pprim[nl, 1] = second[p]
-                    pidx[nl] = idx[p]
-                    for c in range(3):
-                        pv[nl, 3, c] = v3[p, c]
+                kind = types[0] if p < n_pairs else types[1]
+                child[r, j] = ((leaf_base + 64 * nl) >> 3) | kind
+                if p < n_pairs:
+                    _write_pair(p, nl, first, second, idx, v3, tris, pv, pprim, pidx, no_child)
+                    nl += 1
                 else:
-                    pprim[nl, 1] = no_child
-                nl += 1
+                    for h in range(2):
+                        _write_pair(groups[p - n_pairs, h], nl, first, second, idx, v3, tris, pv,
+                                    pprim, pidx, no_child)
+                        nl += 1
         for a in range(3):
             o = np.float32(np.inf)
             top = np.float32(-np.inf)
@@ -291,18 +397,19 @@ def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, tris,
     return 0
 
 
-def verify_containment(nodes: np.ndarray, ref: np.ndarray) -> int:
+def verify_containment(nodes: np.ndarray, ref: np.ndarray):
     """Decode every q8 node with ``decode_q8`` and widen, in place, each quantized bound whose
     decode lies inside the stored box ``ref`` (k, 4, 6) by one step, until every decoded child
-    box contains its stored box. Returns the number of bounds moved. Raises ValueError if a
-    bound cannot move (a plane at 0 or 255 that still does not contain it)."""
+    box contains its stored box. Returns (the number of bounds moved, the final decoded boxes).
+    Raises ValueError if a bound cannot move (a plane at 0 or 255 that still does not contain
+    it)."""
     moved = 0
     while True:
         dec = decode_q8(nodes)
         low = dec[..., :3] > ref[..., :3]                  # unused slots: inf > inf is False
         high = dec[..., 3:] < ref[..., 3:]
         if not (low.any() or high.any()):
-            return moved
+            return moved, dec
         q = nodes["q"]
         if (q[..., :3][low] == 0).any() or (q[..., 3:][high] == 255).any():
             raise ValueError("q8 encoding: a child box cannot be contained by its node's planes")

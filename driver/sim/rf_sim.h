@@ -101,8 +101,9 @@ struct NodeSource {
     }
   }
 
-  // The triangle a pair leaf's pointer names: (v0, v1, v2) for kPairType, (v[i0], v[i1], v[i2])
-  // for kPairSecondType (driver.layout.pair_triangles).
+  // The triangle a pair leaf's pointer names: (v0, v1, v2) for kPairType and kGroupType (a
+  // group leaf's first pair), (v[i0], v[i1], v[i2]) for kPairSecondType
+  // (driver.layout.pair_triangles).
   static void pair_triangle(const uint32_t* node, bool second, uint32_t* tri) {
     const uint32_t sel = node[kPairNodeIdxWord];
     for (uint32_t k = 0; k < 3; k++) {
@@ -133,7 +134,7 @@ struct NodeSource {
       q8_boxes(image + word, dst + kReqBoxWord);
     } else if (type == kTriType) {
       std::memcpy(dst + kReqTriWord, image + word + kTriNodeTriWord, kReqTriCount * 4);
-    } else if (type == kPairType || type == kPairSecondType) {
+    } else if (type == kPairType || type == kGroupType || type == kPairSecondType) {
       pair_triangle(image + word, type == kPairSecondType, dst + kReqTriWord);
     } else {
       return false;
