@@ -89,7 +89,8 @@ class BVH4:
     ----------
     image : (bytes,) uint8, the memory image (layout in the module docstring; ``format="q8"``:
         docs/compressed.md)
-    format : "box32" (the layout above) or "q8" (64-byte quantized box nodes, pair leaves)
+    format : "box32" (the layout above), "q8" (64-byte quantized box nodes, pair leaves) or
+        "q8g" (q8 with group leaves of two pairs)
     root : int, pointer of the root box node (offset 0, so 5 for box32 and 4 for q8)
     triangles : (n, 3, 3) float32, the input triangles; primitive id i is ``triangles[i]``
     stats : dict with ``box_nodes``, ``tri_nodes``, ``depth`` (box-node levels on the longest
@@ -542,9 +543,11 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
         little more SAH; 0 (default) = plain SAH splits
     progress : True/False, or None = a tqdm bar on stderr (TTY only) from PROGRESS_MIN triangles
     format : "box32" (default: 128-byte float32 box nodes, one 64-byte node per triangle, the
-        module docstring's layout) or "q8" (docs/compressed.md: triangles sharing an edge are
+        module docstring's layout), "q8" (docs/compressed.md: triangles sharing an edge are
         paired first and each pair is one leaf primitive of the build; 64-byte quantized box
-        nodes whose decoded child boxes contain the box32 stored boxes; 64-byte pair leaves)
+        nodes whose decoded child boxes contain the box32 stored boxes; 64-byte pair leaves) or
+        "q8g" (q8 where every binary node with two leaf children becomes one 128-byte group
+        leaf of two pairs)
     Degenerate (zero-area) triangles are kept (the datapath never hits them).
     Raises ValueError for an empty input, a wrong shape, non-finite coordinates or a bad option."""
     t0 = time.perf_counter()

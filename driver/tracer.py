@@ -85,7 +85,8 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
         off by default; ``driver.traversal``): the same hits with fewer box requests; the
         statistics gain ``stack_culls``, the box nodes so dropped
     bvh_format : the node image built for a scene, mesh or triangles: "box32" (None, the
-        default) or "q8" (``driver.bvh4.build``); a BVH4 given must be in this format
+        default), "q8" or "q8g" (``driver.bvh4.build``'s ``format``); a BVH4 given must be in
+        this format
     progress : optional callable(done_rays, total_rays), called once per step
     rays_in_flight, pipelines, turnaround : RT-unit model (``driver.rtunit``). With
         ``rays_in_flight=None`` (default) the statistics are the wavefront's: every ray in

@@ -6,7 +6,7 @@ pops one node and turns it into one datapath request:
 - box node -> QUADBOX with the node's four child boxes and extent = the ray's nearest t so far;
   the response lists the children nearest first (``box_index``/``box_hit``), and the hit ones are
   pushed in reverse so that the nearest is popped next;
-- a q8 box node (``bvh.format == "q8"``) -> the same QUADBOX on its decoded child boxes;
+- a q8 box node (q8 and q8g images) -> the same QUADBOX on its decoded child boxes;
 - a triangle-pair leaf -> two TRIANGLE requests of the ray, the first triangle (``prim0``) in
   this step; the second is pushed as a ``PAIR_SECOND_TYPE`` pointer to the same node and so is
   the ray's next request (an any-hit ray finished by the first never issues it); a group leaf

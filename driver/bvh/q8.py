@@ -1,6 +1,7 @@
-"""The compressed ``q8`` image (docs/compressed.md): triangle pairing before the build, and the
-writer of 64-byte quantized box nodes and 64-byte triangle-pair leaves (numba kernels for
-``driver.bvh4.build(..., format="q8")``; ``driver.layout`` owns the structs and the decode).
+"""The compressed ``q8`` and ``q8g`` images (docs/compressed.md): triangle pairing before the
+build, group leaves, and the writer of 64-byte quantized box nodes and 64-byte triangle-pair
+leaves (numba kernels for ``driver.bvh4.build(..., format="q8"|"q8g")``; ``driver.layout`` owns
+the structs and the decode).
 
 Pairing (``pair_triangles``): vertices are identified by their exact float32 bits (or by the
 mesh's own vertex indices when the input is a mesh), so a shared vertex is stored once in the
@@ -11,10 +12,12 @@ neighbours, the one whose union box with it has the least surface area.
 Unmatched triangles become one-triangle leaves (``prim1 = NO_CHILD``). Each triangle keeps its
 input vertex order (the watertight test's arithmetic depends on it, not only on the winding).
 
-Quantization (``write_image``): per box node and axis, ``origin`` = the float32 minimum of the
+Quantization (``_quantize``): per box node and axis, ``origin`` = the float32 minimum of the
 children's stored (grown, ``driver.bvh4``) lower bounds, ``exp`` = the smallest exponent in
 [-126, 119] with ``(max - origin) / 2**exp <= 255``, ``qlo = floor((lo - origin) / 2**exp)``,
-``qhi = ceil((hi - origin) / 2**exp)``. ``verify_containment`` then decodes every node with
+``qhi = ceil((hi - origin) / 2**exp)``; where a flat leaf child is thinner than one step, the
+origin moves down onto the grid of that leaf's front face instead (``_origin``), so that its
+step of slack lies behind the surface. ``verify_containment`` then decodes every node with
 ``driver.layout.decode_q8`` (the datapath's arithmetic) and moves a ``qlo`` down or a ``qhi`` up
 by one wherever the decode put a bound inside the child's stored box, until none does.
 """
@@ -66,8 +69,9 @@ _ADJ = 6      # edge neighbours kept per triangle (a manifold triangle has at mo
 
 @njit(cache=True)
 def _neighbours(ids, nv):
-    """(n, _ADJ) int64 triangles sharing an edge with each triangle (-1 padded), and their
-    count (n,). ids (n, 3) vertex ids below ``nv``."""
+    """(n, _ADJ) int32 triangles sharing an edge with each triangle (-1 padded; an image holds
+    fewer than 2**31 triangles), and their count (n,) int8. ids (n, 3) vertex ids below
+    ``nv``."""
     n = ids.shape[0]
     cnt = np.zeros(nv + 1, np.int64)
     for t in range(n):
@@ -84,8 +88,8 @@ def _neighbours(ids, nv):
                 continue                                   # a repeated vertex lists t once
             lst[fill[v]] = t
             fill[v] += 1
-    adj = np.full((n, _ADJ), -1, np.int64)
-    deg = np.zeros(n, np.int64)
+    adj = np.full((n, _ADJ), -1, np.int32)       # n < 2**31: images hold < 2**29 nodes
+    deg = np.zeros(n, np.int8)
     for t in range(n):
         for e in range(3):
             a, b = ids[t, e], ids[t, (e + 1) % 3]
@@ -125,7 +129,7 @@ def _match(ids, tris, nv):
     with it has the least surface area (``tris`` (n, 3, 3) float32)."""
     n = ids.shape[0]
     adj, deg = _neighbours(ids, nv)
-    free = deg.copy()                                       # unmatched neighbours
+    free = deg.astype(np.int64)                             # unmatched neighbours
     partner = np.full(n, -1, np.int64)
     stack = np.empty(2 * n, np.int64)         # pushed once at the start, once on free == 1
     sp = 0
@@ -214,15 +218,34 @@ def _pairs(ids, partner, tris):
     return first, second, idx, v3, box
 
 
+@njit(cache=True)
+def _compact(ids):
+    """Renumber vertex ids 0, 1, ... in order of first use, in place (a dense id range keeps
+    the vertex tables of ``_neighbours`` small); returns the number of vertices."""
+    new = np.full(3 * ids.shape[0], -1, np.int64)
+    nv = 0
+    for t in range(ids.shape[0]):
+        for k in range(3):
+            f = ids[t, k]
+            if new[f] < 0:
+                new[f] = nv
+                nv += 1
+            ids[t, k] = new[f]
+    return nv
+
+
 def vertex_ids(tris: np.ndarray, faces=None) -> np.ndarray:
     """(n, 3) int64 vertex ids: ``faces`` when given (a mesh's vertex indices), else equal ids
-    for bit-identical float32 vertices."""
+    (numbered in order of first use) for bit-identical float32 vertices."""
     if faces is not None:
         return np.ascontiguousarray(faces, np.int64)
     m = 3 * len(tris)
     size = 1 << max(4, int(2 * m - 1).bit_length())
     table = np.full(size, -1, np.int32 if m < 1 << 31 else np.int64)
-    return _vertex_ids(np.ascontiguousarray(tris).view(np.uint32), table)
+    ids = _vertex_ids(np.ascontiguousarray(tris).view(np.uint32), table)
+    del table
+    _compact(ids)
+    return ids
 
 
 @njit(cache=True)

@@ -1,7 +1,7 @@
-"""box32 vs q8 on one workload frame: the table and the plot of docs/compressed.md, from two
-``rayflex bench --workload ... --bvh-format box32|q8 --json`` documents of the same frame.
+"""box32 vs q8 (and q8g) on one workload frame: the table and the plot of docs/compressed.md,
+from ``rayflex bench --workload ... --bvh-format FORMAT --json`` documents of the same frame.
 
-    python -m driver.bvh.study BOX32.json Q8.json [--plot PNG]
+    python -m driver.bvh.study BOX32.json Q8.json [Q8G.json] [--plot PNG]
 
 prints the per-ray-type comparison as a Markdown table and draws utilization with the node
 memory vs rays in flight, one colour per ray type, solid q8 and dashed box32.
@@ -13,55 +13,54 @@ import argparse
 import json
 import sys
 
-FORMATS = ("box32", "q8")
+FORMATS = ("box32", "q8", "q8g")
 
 
 def rows(docs: dict) -> list[dict]:
-    """Per ray type: both formats' bytes per triangle, ops, node bytes and bytes from memory
-    per ray, cache hit rate and utilization with the node memory, and the q8 / box32 ratios."""
+    """Per ray type and format: bytes per triangle, ops, node bytes and bytes from memory per
+    ray, cache hit rate, utilization and cycles per ray with the node memory, and the ratios to
+    box32."""
     out = []
-    a, b = docs["box32"], docs["q8"]
-    for kind in a["by_type"]:
-        row = {"type": kind, "rays": a["by_type"][kind]["rays"]}
+    base = docs["box32"]
+    for kind in base["by_type"]:
+        ref = base["by_type"][kind]
         for fmt, doc in docs.items():
             t = doc["by_type"][kind]
             n = t["rays"]
-            row[fmt] = {"bytes_per_triangle": doc["bvh"]["bytes_per_triangle"],
-                        "box_ops_per_ray": t["box_ops"] / n, "tri_ops_per_ray": t["tri_ops"] / n,
-                        "ops_per_ray": t["ops"] / n, "node_bytes_per_ray": t["node_bytes_fetched"] / n,
-                        "memory_bytes_per_ray": t["memory"]["bytes_per_ray"],
-                        "hit_rate": t["memory"]["hit_rate"],
-                        "utilization_memory": t["memory"]["replay_utilization"],
-                        "utilization_free": t["replay_utilization"]}
-        row["ops_ratio"] = row["q8"]["ops_per_ray"] / row["box32"]["ops_per_ray"]
-        row["memory_bytes_ratio"] = (row["q8"]["memory_bytes_per_ray"]
-                                     / row["box32"]["memory_bytes_per_ray"])
-        out.append(row)
-    if a["by_type"].keys() != b["by_type"].keys():
-        raise ValueError("the two documents hold different ray types")
+            m = t["memory"]
+            row = {"type": kind, "format": fmt, "rays": n,
+                   "bytes_per_triangle": doc["bvh"]["bytes_per_triangle"],
+                   "box_ops_per_ray": t["box_ops"] / n, "tri_ops_per_ray": t["tri_ops"] / n,
+                   "ops_per_ray": t["ops"] / n, "node_bytes_per_ray": t["node_bytes_fetched"] / n,
+                   "memory_bytes_per_ray": m["bytes_per_ray"], "hit_rate": m["hit_rate"],
+                   "utilization_memory": m["replay_utilization"],
+                   "cycles_per_ray_memory": m["replay_cycles"] / n,
+                   "utilization_free": t["replay_utilization"],
+                   "ops_ratio": t["ops"] / ref["ops"],
+                   "memory_bytes_ratio": m["bytes_per_ray"] / ref["memory"]["bytes_per_ray"],
+                   "cycles_ratio": m["replay_cycles"] / ref["memory"]["replay_cycles"]}
+            out.append(row)
     return out
 
 
 def markdown(table: list[dict]) -> str:
-    head = ("| ray type | rays | ops/ray box32 → q8 | box+tri ops ratio | node B/ray box32 → q8 "
-            "| B from memory/ray box32 → q8 | ratio | cache hit rate | utilization with memory |")
-    lines = [head, "|" + "---|" * 9]
+    lines = ["| ray type | image | B/triangle | ops/ray (box + tri) | ops vs box32 | node B/ray "
+             "| B from memory/ray | vs box32 | cache hit rate | utilization with memory "
+             "| cycles/ray with memory | vs box32 |", "|" + "---|" * 12]
     for r in table:
-        a, b = r["box32"], r["q8"]
         lines.append(
-            f"| {r['type']} | {r['rays']:,} | {a['ops_per_ray']:.2f} "
-            f"({a['box_ops_per_ray']:.2f} + {a['tri_ops_per_ray']:.2f}) → {b['ops_per_ray']:.2f} "
-            f"({b['box_ops_per_ray']:.2f} + {b['tri_ops_per_ray']:.2f}) | {r['ops_ratio']:.3f} "
-            f"| {a['node_bytes_per_ray']:.0f} → {b['node_bytes_per_ray']:.0f} "
-            f"| {a['memory_bytes_per_ray']:.0f} → {b['memory_bytes_per_ray']:.0f} "
-            f"| {r['memory_bytes_ratio']:.3f} | {a['hit_rate']:.3f} → {b['hit_rate']:.3f} "
-            f"| {a['utilization_memory']:.3f} → {b['utilization_memory']:.3f} |")
+            f"| {r['type']} | {r['format']} | {r['bytes_per_triangle']:.1f} "
+            f"| {r['ops_per_ray']:.2f} ({r['box_ops_per_ray']:.2f} + {r['tri_ops_per_ray']:.2f}) "
+            f"| {r['ops_ratio']:.3f} | {r['node_bytes_per_ray']:.0f} "
+            f"| {r['memory_bytes_per_ray']:.0f} | {r['memory_bytes_ratio']:.3f} "
+            f"| {r['hit_rate']:.3f} | {r['utilization_memory']:.3f} "
+            f"| {r['cycles_per_ray_memory']:.1f} | {r['cycles_ratio']:.3f} |")
     return "\n".join(lines)
 
 
 def plot(docs: dict, path, title: str) -> None:
-    """PNG: utilization with the node memory vs rays in flight (log x), per ray type, both
-    formats (solid q8, dashed box32)."""
+    """PNG: utilization with the node memory vs rays in flight (log x), per ray type, box32
+    (dashed) and q8 (solid)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -88,7 +87,8 @@ def plot(docs: dict, path, title: str) -> None:
 
 
 def load(paths) -> dict:
-    """{"box32": doc, "q8": doc} from two bench JSON files of the same frame (ValueError)."""
+    """{format: doc} from bench JSON files of the same frame, one per format, box32 and q8
+    among them (ValueError)."""
     docs = {}
     for p in paths:
         try:
@@ -101,18 +101,21 @@ def load(paths) -> dict:
                 iter(doc["by_type"].values()), {}):
             raise ValueError(f"{p}: not a rayflex bench --workload JSON with the node memory")
         docs[fmt] = doc
-    if set(docs) != set(FORMATS):
-        raise ValueError("give one box32 and one q8 document")
+    if len(docs) != len(paths) or not {"box32", "q8"} <= set(docs):
+        raise ValueError("give one document per format, box32 and q8 among them")
     keys = ("scene", "workload", "width", "height", "spp", "bounces", "seed")
-    if any(docs["box32"][k] != docs["q8"][k] for k in keys):
-        raise ValueError("the two documents are not the same frame")
-    return docs
+    if any(doc[k] != docs["box32"][k] for doc in docs.values() for k in keys):
+        raise ValueError("the documents are not the same frame")
+    if any(doc["by_type"].keys() != docs["box32"]["by_type"].keys() for doc in docs.values()):
+        raise ValueError("the documents hold different ray types")
+    return {f: docs[f] for f in FORMATS if f in docs}
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m driver.bvh.study", description=__doc__.split(
         "\n\n")[0])
-    p.add_argument("json", nargs=2, help="the box32 and the q8 bench JSON")
+    p.add_argument("json", nargs="+", help="one bench JSON per image format (box32, q8 and "
+                                           "optionally q8g)")
     p.add_argument("--plot", metavar="PNG", help="draw the utilization sweep here")
     args = p.parse_args(argv)
     try:

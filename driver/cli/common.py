@@ -85,8 +85,9 @@ def add_tree(p) -> None:
                         "SPEC 9: a float per stack entry in the RT unit)")
     p.add_argument("--bvh-format", default="box32", choices=IMAGE_FORMATS,
                    help="node image: box32 (128-byte float32 box nodes, a 64-byte node per "
-                        "triangle) or q8 (64-byte quantized box nodes, 64-byte triangle-pair "
-                        "leaves: docs/compressed.md) (default: box32)")
+                        "triangle), q8 (64-byte quantized box nodes, 64-byte triangle-pair "
+                        "leaves) or q8g (q8 with 128-byte leaves of two pairs) "
+                        "(docs/compressed.md; default: box32)")
 
 
 def tree_options(args) -> dict:
