@@ -438,7 +438,8 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
                  responses_verified=all(t["responses_verified"] for t in by_type.values()))
     return {"scene": scene.name, "workload": workload, "width": size, "height": size,
             "spp": spp, "bounces": bounces, "ao_rays": ao_rays, "seed": seed, "fill": fill,
-            "bvh_format": bvh_format, "bvh": _bvh_json(bvh), "cull_stack": cull_stack, "frame": total, "by_type": by_type, "sweep": sweep, "plot": str(plot) if plot else None,
+            "bvh_format": bvh_format, "bvh": _bvh_json(bvh),
+            "cull_stack": cull_stack, "frame": total, "by_type": by_type, "sweep": sweep, "plot": str(plot) if plot else None,
             "wall_parts_s": {"bvh_build": t_bvh, "traversal": t_trace}}
 
 

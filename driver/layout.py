@@ -7,7 +7,8 @@ This table is the single source of truth on the host side for
   bits [31:0]; the numpy dtypes ``REQUEST_DTYPE``/``RESPONSE_DTYPE`` (SPEC 12) and the pack and
   unpack functions are derived from it;
 - the **BVH4 node image** (SPEC 8): node pointers (``NodeRef``), the box and triangle node
-  structs as numpy dtypes (``BOX_NODE``, ``TRI_NODE``);
+  structs as numpy dtypes (``BOX_NODE``, ``TRI_NODE``), and those of the compressed images
+  (``Q8_NODE``, ``PAIR_NODE``, the type codes and ``NODE_BYTES``: docs/compressed.md);
 - the **C header** of the harness (``c_header()``), generated from these tables at build time into
   the build cache (never committed), so ``sim/rayflex_harness.cpp`` names no word index itself.
 
