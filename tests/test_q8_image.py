@@ -369,3 +369,31 @@ def test_quantization_slack_lies_behind_flat_leaves():
     b = trace(q8, o, d, backend="golden", any_hit=True)
     assert np.array_equal(a.hit, b.hit)
     assert b.stats["tri_ops"] <= a.stats["tri_ops"]
+
+
+def test_study_table_and_plot(tmp_path, capsys):
+    """driver.bvh.study on the committed bench documents: ratios against box32, one row per ray
+    type and image, the plot written; bad input is a one-line error."""
+    import json
+    from pathlib import Path
+    from driver.bvh import study
+    images = Path(__file__).resolve().parent.parent / "images"
+    paths = [str(images / f"compressed_path64_{f}.json") for f in ("box32", "q8", "q8g")]
+    docs = study.load(paths)
+    rows = study.rows(docs)
+    kinds = list(docs["box32"]["by_type"])
+    assert len(rows) == 3 * len(kinds)
+    for r in rows:
+        t = docs[r["format"]]["by_type"][r["type"]]
+        assert r["ops_per_ray"] == pytest.approx((t["box_ops"] + t["tri_ops"]) / t["rays"])
+        if r["format"] == "box32":
+            assert r["ops_ratio"] == r["memory_bytes_ratio"] == r["cycles_ratio"] == 1.0
+    png = tmp_path / "sweep.png"
+    assert study.main(paths[:2] + ["--plot", str(png)]) == 0
+    out = capsys.readouterr().out
+    assert len(out.splitlines()) == 2 + 2 * len(kinds) and png.stat().st_size > 1000
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"bvh_format": "q8"}))
+    assert study.main([paths[0], str(bad)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("rayflex: error: ") and "\n" not in err
