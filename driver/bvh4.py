@@ -166,11 +166,13 @@ class BVH4:
 # ----------------------------------------------------------------------------------------------
 # request operands: what a node pointer becomes on the datapath (the Python side of sim/rf_sim.h)
 
-def q8_quadbox(nodes: np.ndarray) -> np.ndarray:
-    """The QUADBOX operand (m, 4, 6) float32 of q8 box nodes: the one place that turns a q8 node
-    into a request's ``box`` (decoded on the host; sim/rf_sim.h's ``NodeSource`` does the same in
-    C++ with the same arithmetic)."""
-    return decode_q8(nodes)
+def q8_request(req: np.ndarray, nodes: np.ndarray) -> None:
+    """Fill the operand of QUADBOX request rows ``req`` (``REQUEST_DTYPE``, opcode already set)
+    for the q8 box nodes ``nodes``, one per row: the one place on the host that turns a q8 node
+    into a request (``NodeSource::q8_request`` in sim/rf_sim.h is the harness's). The host
+    decodes the node (``decode_q8``) and the request carries the four boxes; a datapath that
+    decodes q8 nodes itself would get the node as stored here instead."""
+    req["box"] = decode_q8(nodes)
 
 
 def box_operands(image, ptrs):
@@ -184,7 +186,7 @@ def box_operands(image, ptrs):
         if len(sel):
             nodes = read_nodes(image, ptrs[sel], node)
             children[sel] = nodes["child"]
-            boxes[sel] = nodes["box"] if t == BOX_TYPE else q8_quadbox(nodes)
+            boxes[sel] = nodes["box"] if t == BOX_TYPE else decode_q8(nodes)
     if not ((typ == BOX_TYPE) | (typ == Q8_TYPE)).all():
         raise ValueError("a pointer is not a box-node pointer")
     return children, boxes
@@ -217,9 +219,16 @@ def request_operands(req: np.ndarray, image, ptrs) -> None:
     """Fill ``opcode``, ``box`` and ``tri`` of ``REQUEST_DTYPE`` rows ``req`` for the node
     pointers ``ptrs`` (one per row), as the harness does (sim/rf_sim.h ``NodeSource``)."""
     ptrs = np.asarray(ptrs, np.uint32)
+    typ = NodeRef.type(ptrs)
     box = NodeRef.is_box(ptrs)
     req["opcode"] = np.where(box, QUADBOX, TRIANGLE)
-    req["box"][box] = box_operands(image, ptrs[box])[1]
+    sel = np.flatnonzero(typ == BOX_TYPE)
+    req["box"][sel] = read_nodes(image, ptrs[sel], BOX_NODE)["box"]
+    sel = np.flatnonzero(typ == Q8_TYPE)
+    if len(sel):
+        rows = req[sel]
+        q8_request(rows, read_nodes(image, ptrs[sel], Q8_NODE))
+        req[sel] = rows
     req["tri"][~box] = tri_operands(image, ptrs[~box])[0]
 
 

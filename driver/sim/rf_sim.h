@@ -79,11 +79,13 @@ struct NodeSource {
     std::memset(dst + kRayWords, 0, (kReqWords - kRayWords) * 4);
   }
 
-  // The QUADBOX operand of a q8 box node (docs/compressed.md), the one place the harness turns
-  // a q8 node into a request's boxes: child i, axis a: origin[a] + float(q) * 2^exp[a] (the
-  // product is exact, the sum one float add, round to nearest even, as driver.layout.decode_q8);
-  // unused slots (i >= count) the unused box, six +inf.
-  static void q8_boxes(const uint32_t* node, uint32_t* box) {
+  // The operand of a QUADBOX request for a q8 box node (docs/compressed.md): the one place the
+  // harness turns a q8 node into a request (driver.bvh4.q8_request is the host's). The request
+  // carries the decoded boxes: child i, axis a: origin[a] + float(q) * 2^exp[a] (the product is
+  // exact, the sum one float add, round to nearest even, as driver.layout.decode_q8); unused
+  // slots (i >= count) the unused box, six +inf.
+  static void q8_request(const uint32_t* node, uint32_t* req) {
+    uint32_t* box = req + kReqBoxWord;
     const uint32_t ew = node[kQ8NodeExpWord];
     const uint32_t count = (ew >> kQ8CountLsb) & 7u;
     const uint8_t* q = reinterpret_cast<const uint8_t*>(node + kQ8NodeQWord);
@@ -131,7 +133,7 @@ struct NodeSource {
     if (type == kBoxType) {
       std::memcpy(dst + kReqBoxWord, image + word + kBoxNodeBoxWord, kReqBoxCount * 4);
     } else if (type == kQ8Type) {
-      q8_boxes(image + word, dst + kReqBoxWord);
+      q8_request(image + word, dst);
     } else if (type == kTriType) {
       std::memcpy(dst + kReqTriWord, image + word + kTriNodeTriWord, kReqTriCount * 4);
     } else if (type == kPairType || type == kGroupType || type == kPairSecondType) {
