@@ -128,7 +128,7 @@ def _frame(scene, origins, dirs, rtl, point, label, progress):
 
     t_kernels = warm_up()                           # the builder's JIT, like the model's build
     t0 = time.perf_counter()
-    bvh = build(scene.mesh, fill=point.bvh_fill)
+    bvh = build(scene.mesh, fill=point.bvh_fill, format=point.bvh_format)
     t_bvh = time.perf_counter() - t0
     bar = _bar(len(origins), f"frame {label} rtl", "ray", progress)
     t1 = time.perf_counter()
@@ -351,7 +351,7 @@ def bench_workload(point: DesignPoint, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, p
     rtl = backend("rtl", **point.backend_options())
     golden = backend("golden", **point.backend_options())
     t0 = time.perf_counter()
-    bvh = build(scene.triangles, fill=point.bvh_fill)
+    bvh = build(scene.triangles, fill=point.bvh_fill, format=point.bvh_format)
     t_bvh = time.perf_counter() - t0
 
     def tracer(bvh_, o, d, **kw):
@@ -446,7 +446,7 @@ def bench_workers(point: DesignPoint, workers=2, tile=64, progress=True) -> dict
 
     scene = load_scene(point.scene)
     size = point.size or scene.size[0]
-    setup, bvh = setup_for(scene), build(scene.mesh, fill=point.bvh_fill)
+    setup, bvh = setup_for(scene), build(scene.mesh, fill=point.bvh_fill, format=point.bvh_format)
     n_tiles = len(plan(size, size, tile))
     # a first use on this machine builds the Verilated model (minutes): build it before either
     # clock starts, so that both runs pay only what every run pays, loading it from the cache

@@ -72,10 +72,13 @@ import time
 
 import numpy as np
 
-# the node image's layout is driver.layout's (docs/datapath.md#bvh4-image); the names are
-# re-exported for users
-from .layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, NO_CHILD, TRI_BYTES, TRI_NODE,  # noqa: F401
-                     TRI_TYPE, NodeRef, read_nodes)
+# the node image's layout is driver.layout's (docs/datapath.md#bvh4-image, docs/compressed.md);
+# the names are re-exported for users
+from .layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, IMAGE_FORMATS, NO_CHILD,  # noqa: F401
+                     GROUP_TYPE, PAIR_BYTES, PAIR_NODE, PAIR_SECOND_TYPE, PAIR_TYPE, Q8_BYTES,
+                     Q8_NODE,
+                     Q8_TYPE, QUADBOX, TRI_BYTES, TRI_NODE, TRI_TYPE, TRIANGLE, NodeRef,
+                     decode_q8, node_word, pair_triangles, read_nodes)
 
 PAD_REL = 2.0 ** -16
 from .bvh.params import SWEEP_MAX  # noqa: E402  (nodes of <= 8 primitives: exact SAH sweep)
@@ -86,15 +89,19 @@ class BVH4:
 
     Attributes
     ----------
-    image : (bytes,) uint8, the docs/datapath.md#bvh4-image memory image (layout in the module
-        docstring)
-    root : int, pointer of the root box node (offset 0, so 5)
+    image : (bytes,) uint8, the memory image (layout in the module docstring; ``format="q8"``:
+        docs/compressed.md)
+    format : "box32" (the layout above), "q8" (64-byte quantized box nodes, pair leaves) or
+        "q8g" (q8 with group leaves of two pairs)
+    root : int, pointer of the root box node (offset 0, so 5 for box32 and 4 for q8)
     triangles : (n, 3, 3) float32, the input triangles; primitive id i is ``triangles[i]``
     stats : dict with ``box_nodes``, ``tri_nodes``, ``depth`` (box-node levels on the longest
         root-to-leaf path; a root with only triangle children has depth 1), ``sah_cost``,
         ``build_s`` (wall seconds), ``bytes`` (= 128 * box_nodes + 64 * tri_nodes),
         ``avg_children`` (used child slots per box node), ``child_histogram`` (list: number of
-        box nodes with 1, 2, 3, 4 used slots).
+        box nodes with 1, 2, 3, 4 used slots), ``format``, ``bytes_per_triangle``,
+        ``leaf_nodes`` (triangle nodes or pair leaves), ``pair_ratio`` (fraction of the
+        triangles that share a pair leaf; 0 for box32).
 
     ``sah_cost`` is the expected number of datapath ops of a random ray that hits the root box,
     with C_trav = C_int = 1, computed from the stored (grown) float32 boxes in float64:
@@ -107,45 +114,124 @@ class BVH4:
     A(root) is the area of the union of the root's child boxes.
     """
 
-    def __init__(self, image: np.ndarray, triangles: np.ndarray, stats: dict):
+    def __init__(self, image: np.ndarray, triangles: np.ndarray, stats: dict,
+                 format: str = "box32"):
+        if format not in IMAGE_FORMATS:
+            raise ValueError(f"BVH image format must be one of {IMAGE_FORMATS}, got {format!r}")
         self.image = image
-        self.root = BOX_TYPE            # box node at offset 0
+        self.format = format
+        q8 = format != "box32"
+        self.box_type = Q8_TYPE if q8 else BOX_TYPE
+        self.root = self.box_type       # box node at offset 0
+        self.child_word = node_word(Q8_NODE if q8 else BOX_NODE, "child")
         self.triangles = triangles
         self.stats = stats
         self._words = image.view("<u4")
 
     def __repr__(self) -> str:
         s = self.stats
-        return (f"BVH4({len(self.triangles)} triangles, {s['box_nodes']} box nodes, depth "
-                f"{s['depth']}, SAH {s['sah_cost']:.2f}, {s['bytes']} bytes)")
+        return (f"BVH4({self.format}, {len(self.triangles)} triangles, {s['box_nodes']} box "
+                f"nodes, depth {s['depth']}, SAH {s['sah_cost']:.2f}, {s['bytes']} bytes)")
 
     node_type = staticmethod(NodeRef.type)        # type bits of node pointers
     node_offset = staticmethod(NodeRef.offset)    # byte offsets (int64) of node pointers
 
     def box_nodes(self, ptrs):
-        """Decode box nodes. ptrs : (m,) uint32 box-node pointers.
+        """Decode box nodes (box32 or q8, the image's). ptrs : (m,) uint32 box-node pointers.
 
-        Returns (children (m, 4) uint32, boxes (m, 4, 6) float32), read from ``image``."""
+        Returns (children (m, 4) uint32, boxes (m, 4, 6) float32), read from ``image``; q8
+        boxes are decoded (``driver.layout.decode_q8``)."""
         ptrs = np.asarray(ptrs, np.uint32)
-        if (self.node_type(ptrs) != BOX_TYPE).any():
-            raise ValueError("box_nodes: a pointer is not a box-node pointer")
-        nodes = read_nodes(self._words, ptrs, BOX_NODE)
-        return nodes["child"].astype(np.uint32), nodes["box"].astype(np.float32)
+        if (self.node_type(ptrs) != self.box_type).any():
+            raise ValueError("box_nodes: a pointer is not a box-node pointer of this image")
+        return box_operands(self._words, ptrs)
 
     def tri_nodes(self, ptrs):
-        """Decode triangle nodes. ptrs : (m,) uint32 triangle-node pointers.
+        """Decode the triangles that triangle requests name. ptrs : (m,) uint32 pointers of
+        triangle nodes, pair leaves (their first triangle) or ``PAIR_SECOND_TYPE`` (a pair's
+        second triangle).
 
         Returns (tris (m, 3, 3) float32, prim (m,) int64), read from ``image``."""
         ptrs = np.asarray(ptrs, np.uint32)
-        if (self.node_type(ptrs) != TRI_TYPE).any():
-            raise ValueError("tri_nodes: a pointer is not a triangle-node pointer")
-        nodes = read_nodes(self._words, ptrs, TRI_NODE)
-        return nodes["tri"].astype(np.float32), nodes["prim"].astype(np.int64)
+        return tri_operands(self._words, ptrs)
 
     def node_extras(self, ptrs):
         """(parent pointer (m,) uint32, child count (m,) int64) of box nodes."""
+        ptrs = np.asarray(ptrs, np.uint32)
+        if self.format != "box32":
+            nodes = read_nodes(self._words, ptrs, Q8_NODE)
+            return nodes["parent"].astype(np.uint32), (nodes["exp"][:, 3] & 7).astype(np.int64)
         nodes = read_nodes(self._words, ptrs, BOX_NODE)
         return nodes["parent"].astype(np.uint32), nodes["count"].astype(np.int64)
+
+
+# ----------------------------------------------------------------------------------------------
+# request operands: what a node pointer becomes on the datapath (the Python side of sim/rf_sim.h)
+
+def q8_request(req: np.ndarray, nodes: np.ndarray) -> None:
+    """Fill the operand of QUADBOX request rows ``req`` (``REQUEST_DTYPE``, opcode already set)
+    for the q8 box nodes ``nodes``, one per row: the one place on the host that turns a q8 node
+    into a request (``NodeSource::q8_request`` in sim/rf_sim.h is the harness's). The host
+    decodes the node (``decode_q8``) and the request carries the four boxes; a datapath that
+    decodes q8 nodes itself would get the node as stored here instead."""
+    req["box"] = decode_q8(nodes)
+
+
+def box_operands(image, ptrs):
+    """(children (m, 4) uint32, boxes (m, 4, 6) float32) of box nodes of either type."""
+    ptrs = np.asarray(ptrs, np.uint32)
+    children = np.empty((len(ptrs), 4), np.uint32)
+    boxes = np.empty((len(ptrs), 4, 6), np.float32)
+    typ = NodeRef.type(ptrs)
+    for t, node in ((BOX_TYPE, BOX_NODE), (Q8_TYPE, Q8_NODE)):
+        sel = np.flatnonzero(typ == t)
+        if len(sel):
+            nodes = read_nodes(image, ptrs[sel], node)
+            children[sel] = nodes["child"]
+            boxes[sel] = nodes["box"] if t == BOX_TYPE else decode_q8(nodes)
+    if not ((typ == BOX_TYPE) | (typ == Q8_TYPE)).all():
+        raise ValueError("a pointer is not a box-node pointer")
+    return children, boxes
+
+
+def tri_operands(image, ptrs):
+    """(tris (m, 3, 3) float32, prim (m,) int64) named by triangle request pointers: a triangle
+    node, a pair leaf or a group leaf (the first pair's first triangle) or ``PAIR_SECOND_TYPE``
+    (a pair's second)."""
+    ptrs = np.asarray(ptrs, np.uint32)
+    tris = np.empty((len(ptrs), 3, 3), np.float32)
+    prim = np.empty(len(ptrs), np.int64)
+    typ = NodeRef.type(ptrs)
+    sel = np.flatnonzero(typ == TRI_TYPE)
+    if len(sel):
+        nodes = read_nodes(image, ptrs[sel], TRI_NODE)
+        tris[sel], prim[sel] = nodes["tri"], nodes["prim"]
+    for half, t in ((0, PAIR_TYPE), (0, GROUP_TYPE), (1, PAIR_SECOND_TYPE)):
+        sel = np.flatnonzero(typ == t)
+        if len(sel):
+            nodes = read_nodes(image, ptrs[sel], PAIR_NODE)
+            tris[sel] = pair_triangles(nodes)[:, half]
+            prim[sel] = nodes["prim"][:, half]
+    if not np.isin(typ, (TRI_TYPE, PAIR_TYPE, GROUP_TYPE, PAIR_SECOND_TYPE)).all():
+        raise ValueError("a pointer is not a triangle request pointer")
+    return tris, prim
+
+
+def request_operands(req: np.ndarray, image, ptrs) -> None:
+    """Fill ``opcode``, ``box`` and ``tri`` of ``REQUEST_DTYPE`` rows ``req`` for the node
+    pointers ``ptrs`` (one per row), as the harness does (sim/rf_sim.h ``NodeSource``)."""
+    ptrs = np.asarray(ptrs, np.uint32)
+    typ = NodeRef.type(ptrs)
+    box = NodeRef.is_box(ptrs)
+    req["opcode"] = np.where(box, QUADBOX, TRIANGLE)
+    sel = np.flatnonzero(typ == BOX_TYPE)
+    req["box"][sel] = read_nodes(image, ptrs[sel], BOX_NODE)["box"]
+    sel = np.flatnonzero(typ == Q8_TYPE)
+    if len(sel):
+        rows = req[sel]
+        q8_request(rows, read_nodes(image, ptrs[sel], Q8_NODE))
+        req[sel] = rows
+    req["tri"][~box] = tri_operands(image, ptrs[~box])[0]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -415,15 +501,50 @@ def _write_image(levels, left, prim, node_lo, node_hi, node_area, tris):
     return image, len(levels), 1.0 + area / float(root_area), hist
 
 
+def _write_q8_image(levels, left, prim, node_lo, node_hi, pairs, groups, tris):
+    """Number nodes, quantize and fill the q8/q8g image (``driver.bvh.q8``): q8 box nodes
+    breadth first from offset 0, then the leaves (pair leaves, group leaves of ``groups``) in
+    the order they are referenced. Returns (image, depth, sah_cost from the decoded boxes,
+    child histogram)."""
+    from .bvh.q8 import _quantize, facing, verify_containment
+    first, second, idx, v3, _ = pairs
+    n_box = sum(len(s) for s in levels)
+    total = Q8_BYTES * n_box + PAIR_BYTES * len(first)       # every pair in one 64-byte slot
+    if total >= 1 << 35:
+        raise ValueError(f"BVH image of {total} bytes exceeds the 32 GiB a uint32 pointer reaches")
+    slots = np.concatenate(levels)
+    image = np.zeros(total, np.uint8)
+    qn = image[:Q8_BYTES * n_box].view(Q8_NODE)
+    pn = image[Q8_BYTES * n_box:].view(PAIR_NODE)
+    ref = np.empty((n_box, 4, 6), np.float32)
+    box0, box1 = NodeRef.encode([0, Q8_BYTES], Q8_TYPE).astype(np.int64)
+    bad = _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, groups, tris,
+                    facing(tris, first, second, groups), qn["origin"], qn["exp"], qn["child"],
+                    qn["q"], qn["parent"], ref, pn["v"], pn["prim"], pn["idx"],
+                    (box0, box1 - box0), Q8_BYTES * n_box, (PAIR_TYPE, GROUP_TYPE), NO_CHILD)
+    if bad:
+        raise ValueError("q8 image: the scene's extent needs a plane exponent above "
+                         f"{2 ** 119 * 255:.3g} per step (box node {bad - 1}); use box32")
+    dec = verify_containment(qn, ref)[1]
+    count = (qn["exp"][:, 3] & 7).astype(np.int64)
+    used = np.arange(4)[None, :] < count[:, None]
+    u = dec[used].astype(np.float64)
+    area = _half_area(u[:, :3], u[:, 3:]).sum()
+    r = dec[0, :count[0]].astype(np.float64)
+    root_area = _half_area(r[:, :3].min(axis=0), r[:, 3:].max(axis=0))
+    hist = np.bincount(count, minlength=5)[1:]
+    return image, len(levels), 1.0 + area / float(root_area), hist
+
+
 BUILDERS = ("fast", "numpy")
 COLLAPSES = ("sah", "greedy")
 PROGRESS_MIN = 1_000_000        # progress=None shows a bar from this many triangles (~0.5 s)
 
 
 def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collapse: str = "sah",
-          fill: int = 0, progress=None) -> BVH4:
-    """Build a BVH4 (binned SAH, one triangle per leaf) and its docs/datapath.md#bvh4-image memory
-    image.
+          fill: int = 0, progress=None, format: str = "box32") -> BVH4:
+    """Build a BVH4 (binned SAH, one triangle per leaf) and its memory image
+    (docs/datapath.md#bvh4-image, docs/compressed.md).
 
     triangles_or_trimesh : (n, 3, 3) array-like (converted to float32) or a trimesh.Trimesh
     bins : SAH bins per axis (>= 2; default 16)
@@ -433,6 +554,12 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
         be full (``driver.bvh_build``; fast builder only): fewer box nodes and bytes for a
         little more SAH; 0 (default) = plain SAH splits
     progress : True/False, or None = a bar on stderr (terminal only) from PROGRESS_MIN triangles
+    format : "box32" (default: 128-byte float32 box nodes, one 64-byte node per triangle, the
+        module docstring's layout), "q8" (docs/compressed.md: triangles sharing an edge are
+        paired first and each pair is one leaf primitive of the build; 64-byte quantized box
+        nodes whose decoded child boxes contain the box32 stored boxes; 64-byte pair leaves) or
+        "q8g" (q8 where every binary node with two leaf children becomes one 128-byte group
+        leaf of two pairs)
     Degenerate (zero-area) triangles are kept (the datapath never hits them).
     Raises ValueError for an empty input, a wrong shape, non-finite coordinates or a bad option."""
     t0 = time.perf_counter()
@@ -444,38 +571,58 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
         raise ValueError(f"collapse must be one of {COLLAPSES}, got {collapse!r}")
     if isinstance(fill, bool) or not isinstance(fill, (int, np.integer)) or fill < 0:
         raise ValueError(f"fill must be an integer >= 0, got {fill!r}")
+    if format not in IMAGE_FORMATS:
+        raise ValueError(f"format must be one of {IMAGE_FORMATS}, got {format!r}")
     if fill and builder != "fast":
         raise ValueError("fill needs the fast builder (the numpy reference has plain SAH splits)")
     tris = as_triangles(triangles_or_trimesh)
+    pairs, prims = None, tris
+    if format != "box32":
+        from .bvh.q8 import pair_triangles as pair_up
+        faces = getattr(triangles_or_trimesh, "faces", None)
+        pairs = pair_up(tris, None if faces is None else np.asarray(faces))
+        prims = pairs[4]                # one box-shaped triangle per leaf: the builder's input
+
     from .bvh import build as bvh_build
     from .progress import bar as progress_bar
     show = None if progress is None and len(tris) >= PROGRESS_MIN else bool(progress)
     with progress_bar(len(tris), "BVH build", "tri", show, leave=False) as bar:
         if builder == "fast":
-            left, right, prim, node_lo, node_hi = bvh_build.build_binary(tris, int(bins), bar,
+            left, right, prim, node_lo, node_hi = bvh_build.build_binary(prims, int(bins), bar,
                                                                          int(fill))
         else:
-            left, right, prim, node_lo, node_hi = _build_binary(*_prim_boxes(tris), int(bins))
-            bar.update(len(tris))
+            left, right, prim, node_lo, node_hi = _build_binary(*_prim_boxes(prims), int(bins))
+            bar.update(len(prims))
         bar.set_postfix_str("collapse")
         pad = PAD_REL * float(max(-tris.min(), tris.max()))
         if collapse == "greedy":                            # from the exact boxes
             greedy_area = _half_area(node_lo.astype(np.float64), node_hi)
         node_area = bvh_build.grow_boxes(node_lo, node_hi, pad)      # in place: stored boxes
+        groups = np.zeros((0, 2), np.int64)
+        if format == "q8g":
+            from .bvh.q8 import group_leaves
+            groups = group_leaves(left, right, prim, len(prims))
         if collapse == "sah":
             levels = bvh_build.collapse_sah(left, right, node_area)
         else:
             levels = _collapse(left, right, greedy_area)
         bar.set_postfix_str("image")
-        image, depth, sah, hist = _write_image(levels, left, prim, node_lo, node_hi, node_area,
-                                               tris)
+        if pairs is None:
+            image, depth, sah, hist = _write_image(levels, left, prim, node_lo, node_hi,
+                                                   node_area, tris)
+        else:
+            image, depth, sah, hist = _write_q8_image(levels, left, prim, node_lo, node_hi,
+                                                      pairs, groups, tris)
     n_box = sum(len(s) for s in levels)
-    stats = {"box_nodes": n_box, "tri_nodes": len(tris), "depth": depth, "sah_cost": sah,
-             "fill": int(fill),
+    paired = 0 if pairs is None else 2 * int((pairs[1] >= 0).sum())
+    stats = {"format": format, "box_nodes": n_box, "tri_nodes": len(tris),
+             "leaf_nodes": len(prims) - len(groups), "group_leaves": len(groups),
+             "depth": depth, "sah_cost": sah, "fill": int(fill),
              "build_s": time.perf_counter() - t0, "bytes": int(image.nbytes),
+             "bytes_per_triangle": image.nbytes / len(tris), "pair_ratio": paired / len(tris),
              "avg_children": float((hist * np.arange(1, 5)).sum() / n_box),
              "child_histogram": hist.tolist()}
-    return BVH4(image, tris, stats)
+    return BVH4(image, tris, stats, format)
 
 
 def warm_up() -> float:

@@ -31,6 +31,7 @@ from typing import Callable
 from .area import CONFIGS
 from .backends.build import MIN_LATENCY
 from .datapath import LATENCY
+from .layout import IMAGE_FORMATS
 from .rtunit.order import DEFAULT_POLICY, DEFAULT_WINDOW, POLICIES
 from .workloads import WORKLOADS
 
@@ -142,6 +143,11 @@ OPTIONS: tuple[Option, ...] = (
            "keep each stack entry's entry distance and drop box nodes beyond the nearest hit "
            "without a request: the same hits, fewer box ops (the RT unit keeps a float per "
            "stack entry; docs/bvh.md)", lambda flag, v: None, "bvh", "yes|no"),
+    Option("bvh_format", "--bvh-format", str, "box32",
+           "node image: box32 (128-byte float32 box nodes, a 64-byte node per triangle), q8 "
+           "(64-byte quantized box nodes, 64-byte triangle-pair leaves) or q8g (q8 with 128-byte "
+           "leaves of two pairs) (docs/compressed.md)", _choice(IMAGE_FORMATS), "bvh", "FORMAT",
+           IMAGE_FORMATS),
     Option("rays_in_flight", "--rays-in-flight", int, 64,
            "ray pool of the RT unit: rays with a request chain in progress", _int_range(1),
            "rtunit"),
@@ -197,6 +203,7 @@ class DesignPoint:
     latency: int = BY_NAME["latency"].default
     bvh_fill: int = BY_NAME["bvh_fill"].default
     cull_stack: bool = BY_NAME["cull_stack"].default
+    bvh_format: str = BY_NAME["bvh_format"].default
     rays_in_flight: int = BY_NAME["rays_in_flight"].default
     pipelines: int = BY_NAME["pipelines"].default
     cache_kib: int = BY_NAME["cache_kib"].default
@@ -260,8 +267,9 @@ class DesignPoint:
                 "seed": self.seed}
 
     def tree_options(self) -> dict:
-        """``fill`` (BVH build) and ``cull_stack`` (traversal)."""
-        return {"fill": self.bvh_fill, "cull_stack": self.cull_stack}
+        """``fill`` and ``bvh_format`` (BVH build) and ``cull_stack`` (traversal)."""
+        return {"fill": self.bvh_fill, "cull_stack": self.cull_stack,
+                "bvh_format": self.bvh_format}
 
     def group(self, name: str) -> dict:
         return {o.name: getattr(self, o.name) for o in OPTIONS if o.group == name}

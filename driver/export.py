@@ -81,7 +81,7 @@ def stream(scene, width: int, height: int, workload: str = "primary", options: d
     from .workloads import run, setup_for
 
     be = resolve(backend)[0]
-    bvh = build(scene.mesh, fill=fill)
+    bvh = build(scene.mesh, fill=fill, format=bvh_format)
     setup = setup_for(scene)
     tiles = plan(width, height, tile or DEFAULT_TILE)
 
@@ -305,7 +305,7 @@ def write_vcd(path, requests: np.ndarray, golden: np.ndarray, backend_options: d
 
 def export(scene, width: int, height: int, sinks: list, workload: str = "primary",
            options: dict | None = None, tile: int | None = None, fill: int = 0,
-           cull_stack: bool = False, progress=None) -> int:
+           cull_stack: bool = False, progress=None, bvh_format: str = "box32") -> int:
     """Trace the frame on the golden model and feed every ``Chunk`` to each sink (``add``),
     stopping early once every sink says it is ``done``; ``close`` each at the end (``discard`` on
     an error). Returns the number of requests streamed."""

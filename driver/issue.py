@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from .backends.base import NodeBackend
-from .datapath import QUADBOX, TRIANGLE
+from .bvh4 import request_operands
 from .layout import RESPONSE, RSP_WORDS, pack_responses, ray_words
 from .traversal import StepResponses
 
@@ -75,11 +75,8 @@ class RequestIssue:
     def __call__(self, active, ptr, ext, bi, ti) -> StepResponses:
         req = self.rays[active]
         req["extent"] = ext
-        req["opcode"] = TRIANGLE
-        req["opcode"][bi] = QUADBOX
         req["tag"] = active
-        req["box"][bi] = self.bvh.box_nodes(ptr[bi])[1]
-        req["tri"][ti] = self.bvh.tri_nodes(ptr[ti])[0]
+        request_operands(req, self.bvh.image, ptr)
         t0 = time.perf_counter()
         rsp = self.backend.run(req)
         self.wall_s += time.perf_counter() - t0

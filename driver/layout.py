@@ -8,7 +8,8 @@ This table is the single source of truth on the host side for
   bits [31:0]; the numpy dtypes ``REQUEST_DTYPE``/``RESPONSE_DTYPE``
   (docs/datapath.md#requests-and-responses) and the pack and unpack functions are derived from it;
 - the **BVH4 node image** (docs/datapath.md#bvh4-image): node pointers (``NodeRef``), the box and
-  triangle node structs as numpy dtypes (``BOX_NODE``, ``TRI_NODE``);
+  triangle node structs as numpy dtypes (``BOX_NODE``, ``TRI_NODE``), and those of the compressed
+  images (``Q8_NODE``, ``PAIR_NODE``, the type codes and ``NODE_BYTES``: docs/compressed.md);
 - the **C header** of the harness (``c_header()``), generated from these tables at build time into
   the build cache (never committed), so ``sim/rayflex_harness.cpp`` names no word index itself.
 
@@ -278,17 +279,25 @@ class NodeRef:
         return p.astype(np.int64) << _PTR_SHIFT
 
     @staticmethod
+    def retype(ptrs, node_type) -> np.ndarray:
+        """The same offsets with another type code (e.g. ``PAIR_SECOND_TYPE``)."""
+        keep = np.uint32(~_TYPE_MASK & 0xFFFFFFFF)
+        return (np.asarray(ptrs, np.uint32) & keep) | np.uint32(node_type)
+
+    @staticmethod
     def word(ptrs) -> np.ndarray:
         """Offsets in uint32 words (int64)."""
         return NodeRef.offset(ptrs) >> 2
 
     @staticmethod
     def is_box(ptrs) -> np.ndarray:
-        return NodeRef.type(ptrs) == BOX_TYPE
+        """Box nodes of either image format (box32 ``BOX_TYPE``, q8 ``Q8_TYPE``)."""
+        t = NodeRef.type(ptrs)
+        return (t == BOX_TYPE) | (t == Q8_TYPE)
 
 
 # ----------------------------------------------------------------------------------------------
-# The compressed image ("q8", docs/bvh.md): 64-byte quantized box nodes and triangle-pair leaves
+# The compressed image ("q8", docs/compressed.md): 64-byte quantized box nodes and triangle-pair leaves
 
 Q8_TYPE = 4                     # q8 box node (64 B)
 PAIR_TYPE = 1                   # triangle pair leaf (64 B)
@@ -312,6 +321,28 @@ PAIR_NODE = np.dtype([
 Q8_BYTES = Q8_NODE.itemsize
 PAIR_BYTES = PAIR_NODE.itemsize
 assert Q8_BYTES == 64 and PAIR_BYTES == 64
+
+# A request pointer, never stored in an image: the second triangle of the pair leaf at this
+# offset. A pair leaf is two TRIANGLE requests of the same ray, prim0 first; the traversal
+# issues the first with the leaf's own pointer and pushes this one for the second, so every
+# request names its operand by one pointer (the harness, the replay and the Python issuer read
+# the second triangle's vertices v[i0], v[i1], v[i2] from the same 64-byte node).
+PAIR_SECOND_TYPE = 3
+# The group leaf (the "q8g" image): two pair leaves back to back, 128 bytes, up to 4 triangles,
+# one child slot of its parent. Its pointer names the first pair (a request fetches and reads
+# that half, as a pair leaf's pointer); the second half is the pair leaf at offset + 64, which
+# the traversal pushes as an ordinary PAIR_TYPE pointer (so it is fetched when it is reached).
+GROUP_TYPE = 2
+GROUP_BYTES = 2 * PAIR_BYTES
+NODE_BYTES.update({Q8_TYPE: Q8_BYTES, PAIR_TYPE: PAIR_BYTES, PAIR_SECOND_TYPE: 0,
+                   GROUP_TYPE: PAIR_BYTES})
+#   node bytes an RT unit fetches for a request of each pointer type: the second triangle of a
+#   pair is in the node the ray fetched for the first (0 more bytes)
+NODE_OPCODE.update({Q8_TYPE: QUADBOX, PAIR_TYPE: TRIANGLE, PAIR_SECOND_TYPE: TRIANGLE,
+                    GROUP_TYPE: TRIANGLE})
+# the node images ``driver.bvh4.build`` writes (docs/compressed.md): box32; q8 (q8 box nodes,
+# pair leaves); q8g (q8 box nodes, pair leaves and group leaves of two pairs)
+IMAGE_FORMATS = ("box32", "q8", "q8g")
 assert Q8_NODE.fields["q"][1] == 32 and Q8_NODE.fields["exp"][1] == 12
 
 
@@ -384,9 +415,19 @@ def c_header() -> str:
         const(f"kOp{name.capitalize()}", code, "uint32_t")
     const("kBoxType", BOX_TYPE, "uint32_t")
     const("kTriType", TRI_TYPE, "uint32_t")
+    const("kQ8Type", Q8_TYPE, "uint32_t")
+    const("kPairType", PAIR_TYPE, "uint32_t")
+    const("kPairSecondType", PAIR_SECOND_TYPE, "uint32_t")
+    const("kGroupType", GROUP_TYPE, "uint32_t")
+    const("kQ8CountLsb", Q8_COUNT_LSB)
+    const("kNoChild", NO_CHILD, "uint32_t")
+    node_bytes = ", ".join(str(NODE_BYTES.get(t, 0)) for t in range(_TYPE_MASK + 1))
+    lines.append(f"constexpr int64_t kNodeBytes[{_TYPE_MASK + 1}] = {{{node_bytes}}};"
+                 "  // by pointer type (0: not a node)")
     const("kTypeMask", _TYPE_MASK, "uint32_t")
     const("kPtrShift", _PTR_SHIFT)
-    for prefix, node in (("kBoxNode", BOX_NODE), ("kTriNode", TRI_NODE)):
+    for prefix, node in (("kBoxNode", BOX_NODE), ("kTriNode", TRI_NODE), ("kQ8Node", Q8_NODE),
+                         ("kPairNode", PAIR_NODE)):
         const(f"{prefix}Words", node.itemsize // 4)
         for fname in node.names:
             sub = node.fields[fname][0]

@@ -139,7 +139,7 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
         from .tiles import _backend
         _backend(spec)                      # fail early, before a long BVH build
     with phase(f"building the BVH4 of {len(scene.mesh.faces):,} triangles", progress):
-        bvh = build(scene.mesh, fill=point.bvh_fill)
+        bvh = build(scene.mesh, fill=point.bvh_fill, format=point.bvh_format)
     setup = setup_for(scene)
     tiles = plan(w, h, tile)
     bar = progress_bar(len(tiles), f"{scene.name} {w}x{h} {workload} {name}", "tile", progress)
@@ -169,7 +169,7 @@ def _render_whole(scene, w, h, backend, progress, check_embree, point,
     origins, dirs = primary_rays(scene.camera, w, h)
     be = resolve(backend, **point.backend_options())[0]    # fail early, before a long BVH build
     with phase(f"building the BVH4 of {len(scene.mesh.faces):,} triangles", progress):
-        bvh = build(scene.mesh, fill=point.bvh_fill)
+        bvh = build(scene.mesh, fill=point.bvh_fill, format=point.bvh_format)
     bvh_stats = dict(getattr(bvh, "stats", {}) or {})
 
     name = backend if isinstance(backend, str) else getattr(backend, "name", "backend")

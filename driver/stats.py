@@ -27,11 +27,13 @@ REPLAY_KEYS = ("frame_us_at_1ghz", "rays_in_flight", "pipelines", "turnaround_cy
 
 def frame_stats(box_ops: np.ndarray, tri_ops: np.ndarray, hit: np.ndarray, cycles: int,
                 latency: int, sim_wall_s: float, backend: str,
-                culled: np.ndarray | None = None) -> dict:
+                culled: np.ndarray | None = None, node_bytes: np.ndarray | None = None) -> dict:
     """Statistics of a traversal: per-ray op counts (n,), hit mask (n,), the datapath
     cycles it took, the pipeline latency, the wall time inside the backend, the backend's name;
     with ``culled`` (per-ray box nodes dropped by a distance-culled stack, ``driver.traversal``)
-    also ``stack_culls``, their total (absent when the traversal does not cull)."""
+    also ``stack_culls``, their total (absent when the traversal does not cull); ``node_bytes``
+    (n,) per-ray node bytes fetched (default: a box32 image's, 128 B per box op and 64 B per
+    triangle op)."""
     n = len(box_ops)
     nb, nt = int(np.sum(box_ops)), int(np.sum(tri_ops))
     ops = nb + nt
@@ -46,7 +48,8 @@ def frame_stats(box_ops: np.ndarray, tri_ops: np.ndarray, hit: np.ndarray, cycle
         "latency_cycles": int(latency),
         "box_ops_per_ray": nb / n if n else 0.0,
         "tri_ops_per_ray": nt / n if n else 0.0,
-        "node_bytes_fetched": BOX_BYTES * nb + TRI_BYTES * nt,
+        "node_bytes_fetched": (BOX_BYTES * nb + TRI_BYTES * nt if node_bytes is None
+                               else int(np.sum(node_bytes))),
         "sim_wall_s": sim_wall_s,
         "sim_cycles_per_s": cycles / sim_wall_s if sim_wall_s > 0 else 0.0,
         "frame_us_at_1ghz": cycles / 1000,

@@ -46,7 +46,7 @@ from .stats import merge_rtunit, provenance, public, replay_stats
 ENERGY_LEVELS = ("signals", "gates")
 # the options that make the functional trace (everything else is replayed)
 FUNCTIONAL = ("scene", "workload", "size", "spp", "bounces", "ao_rays", "seed", "bvh_fill",
-              "cull_stack")
+              "bvh_format", "cull_stack")
 
 
 def functional_key(point: DesignPoint) -> tuple:
@@ -81,7 +81,7 @@ def trace_workload(point: DesignPoint, progress: bool = True) -> Trace:
     size = point.size or scene.size[0]
     rtl = backend("rtl", **point.backend_options())
     with phase(f"building the BVH4 of {len(scene.triangles):,} triangles", progress):
-        bvh = build(scene.mesh, fill=point.bvh_fill)
+        bvh = build(scene.mesh, fill=point.bvh_fill, format=point.bvh_format)
     setup = workloads.setup_for(scene)
 
     def tracer(bvh_, o, d, **kw):

@@ -47,24 +47,27 @@ class TraceResult:
     record: object = None
 
 
-def as_bvh(scene) -> BVH4:
+def as_bvh(scene, bvh_format: str | None = None) -> BVH4:
     """A BVH4 from a BVH4, a scene name/path (``driver.scene.load``), a trimesh mesh, an
-    (n, 3, 3) triangle array, or an object with a ``bvh`` or ``mesh`` attribute."""
-    if isinstance(scene, BVH4):
-        return scene
+    (n, 3, 3) triangle array, or an object with a ``bvh`` or ``mesh`` attribute; built in
+    ``bvh_format`` (``driver.bvh4.build``'s ``format``; None: box32). A given BVH4 must be in
+    ``bvh_format`` when that is not None (ValueError)."""
+    if isinstance(scene, BVH4) or isinstance(getattr(scene, "bvh", None), BVH4):
+        bvh = scene if isinstance(scene, BVH4) else scene.bvh
+        if bvh_format is not None and bvh.format != bvh_format:
+            raise ValueError(f"the BVH given is {bvh.format}, not bvh_format={bvh_format!r}")
+        return bvh
     if isinstance(scene, (str, bytes)) or hasattr(scene, "__fspath__"):
         from .scenes.scene import load                            # the application layer; lazy
         scene = load(scene)
-    if isinstance(getattr(scene, "bvh", None), BVH4):
-        return scene.bvh
     if hasattr(scene, "mesh") and not hasattr(scene, "faces"):
         scene = scene.mesh
-    return build(scene)
+    return build(scene, format=bvh_format or "box32")
 
 
 def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np.inf,
           progress=None, rays_in_flight=None, pipelines=1, turnaround=None, record=False,
-          any_hit=False, double_sided=None, cull_stack=False) -> TraceResult:
+          any_hit=False, double_sided=None, cull_stack=False, bvh_format=None) -> TraceResult:
     """Trace rays with every box and triangle test run on ``backend``.
 
     scene_or_mesh_or_bvh : BVH4, trimesh mesh, (n, 3, 3) triangles, or a scene name/path
@@ -81,6 +84,9 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
         a popped box node that lies beyond the nearest hit without a request (beyond
         docs/datapath.md#traversal, off by default; ``driver.traversal``): the same hits with fewer
         box requests; the statistics gain ``stack_culls``, the box nodes so dropped
+    bvh_format : the node image built for a scene, mesh or triangles: "box32" (None, the
+        default), "q8" or "q8g" (``driver.bvh4.build``'s ``format``); a BVH4 given must be in
+        this format
     progress : optional callable(done_rays, total_rays), called once per step
     rays_in_flight, pipelines, turnaround : RT-unit model (``driver.rtunit``). With
         ``rays_in_flight=None`` (default) the statistics are the wavefront's: every ray in
@@ -100,7 +106,7 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
         scene_or_mesh_or_bvh = load_scene(scene_or_mesh_or_bvh)
     if double_sided is None:
         double_sided = bool(getattr(scene_or_mesh_or_bvh, "double_sided", False))
-    bvh = as_bvh(scene_or_mesh_or_bvh)
+    bvh = as_bvh(scene_or_mesh_or_bvh, bvh_format)
     be, be_name = resolve(backend)
     rays = prepare_rays(origins, directions, extent,
                         **({"flags": FLAG_NO_CULL} if double_sided else {}))
@@ -113,7 +119,7 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
     t = np.where(hit, trav.nearest, np.float32(np.inf)).astype(np.float32)
     stats = frame_stats(trav.box_ops, trav.tri_ops, hit, int(be.cycles) - cycles0,
                         int(getattr(be, "latency", 0)), issue.wall_s, be_name,
-                        trav.culled if cull_stack else None)
+                        trav.culled if cull_stack else None, trav.node_bytes)
     rec = issue.record(_replay_params(be)) if hasattr(issue, "record") else None
     if timed:
         from . import rtunit

@@ -6,6 +6,12 @@ pops one node and turns it into one datapath request:
 - box node -> QUADBOX with the node's four child boxes and extent = the ray's nearest t so far;
   the response lists the children nearest first (``box_index``/``box_hit``), and the hit ones are
   pushed in reverse so that the nearest is popped next;
+- a q8 box node (q8 and q8g images) -> the same QUADBOX on its decoded child boxes;
+- a triangle-pair leaf -> two TRIANGLE requests of the ray, the first triangle (``prim0``) in
+  this step; the second is pushed as a ``PAIR_SECOND_TYPE`` pointer to the same node and so is
+  the ray's next request (an any-hit ray finished by the first never issues it); a group leaf
+  (q8g) is its first pair, and the pair leaf at offset + 64 is pushed below that pair's second
+  triangle, so the ray's next requests are the rest of the leaf in order;
 - triangle node -> TRIANGLE; on ``tri_hit`` the host computes
   ``t = float32(t_num) / float32(t_den)`` and keeps it if ``t < nearest`` (strictly: on an exact
   tie the triangle found first stays). An any-hit ray (occlusion) is finished by that first
@@ -36,11 +42,19 @@ from typing import Callable
 
 import numpy as np
 
-from .layout import BOX_NODE, NO_CHILD, TRI_NODE, NodeRef, node_word
+from .layout import (BOX_NODE, GROUP_TYPE, NO_CHILD, NODE_BYTES, PAIR_BYTES, PAIR_NODE,
+                     PAIR_SECOND_TYPE, PAIR_TYPE, TRI_NODE, TRI_TYPE, NodeRef, node_word)
 
-_CHILD_WORD = node_word(BOX_NODE, "child")
-_PRIM_WORD = node_word(TRI_NODE, "prim")
 _LANES = np.arange(BOX_NODE["child"].shape[0])
+# per pointer type: the word of the primitive id a triangle request reports, the node bytes a
+# request fetches (driver.layout.NODE_BYTES)
+_PRIM_WORD = np.zeros(8, np.int64)
+_PRIM_WORD[TRI_TYPE] = node_word(TRI_NODE, "prim")
+_PRIM_WORD[PAIR_TYPE] = _PRIM_WORD[GROUP_TYPE] = node_word(PAIR_NODE, "prim")
+_PRIM_WORD[PAIR_SECOND_TYPE] = node_word(PAIR_NODE, "prim") + 1
+_BYTES = np.zeros(8, np.int64)
+for _t, _b in NODE_BYTES.items():
+    _BYTES[_t] = _b
 
 
 @dataclass
@@ -75,6 +89,7 @@ class Traversal:
     nearest : (n,) float32, t of the hit (the ray's extent where it found none)
     prim : (n,) int64, primitive id of the hit (-1: none)
     box_ops, tri_ops : (n,) int64, QUADBOX / TRIANGLE requests issued for each ray
+    node_bytes : (n,) int64, node bytes each ray's requests fetched (``layout.NODE_BYTES``)
     culled : (n,) int64, box nodes dropped from each ray's stack by ``cull`` (no request)
     step_requests, step_box_requests : (steps,) int64, requests (all / QUADBOX) per step
     """
@@ -86,6 +101,7 @@ class Traversal:
     step_requests: np.ndarray
     step_box_requests: np.ndarray
     culled: np.ndarray
+    node_bytes: np.ndarray
 
 
 def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
@@ -101,6 +117,7 @@ def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
     prim = np.full(n, -1, np.int64)
     box_ops = np.zeros(n, np.int64)
     tri_ops = np.zeros(n, np.int64)
+    node_bytes = np.zeros(n, np.int64)
     # a popped box node leaves <= 3 siblings per level on the stack and pushes <= 4 children
     stack = np.empty((n, 3 * bvh.stats["depth"] + 2), np.uint32)
     stack[:, 0] = bvh.root
@@ -119,9 +136,11 @@ def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
                     progress(n, n)
                 break
         ptr = stack[active, sp[active]]
+        typ = NodeRef.type(ptr)
         is_box = NodeRef.is_box(ptr)
         bi, ti = np.flatnonzero(is_box), np.flatnonzero(~is_box)
         base = NodeRef.word(ptr)
+        node_bytes[active] += _BYTES[typ]
         rsp = issue(active, ptr, nearest[active], bi, ti)
         steps.append(len(active))
         steps_box.append(len(bi))
@@ -129,7 +148,7 @@ def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
         # box nodes: push the hit children, farthest first, so that the nearest is popped next
         ray_b = active[bi]
         box_ops[ray_b] += 1
-        children = image[base[bi, None] + _CHILD_WORD + _LANES]
+        children = image[base[bi, None] + bvh.child_word + _LANES]
         hit = rsp.box_hit[:, ::-1]
         child = np.take_along_axis(children, rsp.box_index.astype(np.intp), 1)[:, ::-1]
         if (child[hit] == NO_CHILD).any():
@@ -148,15 +167,30 @@ def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
             t = rsp.t_num / rsp.t_den
         better = rsp.tri_hit & (t < nearest[ray_t])
         nearest[ray_t[better]] = t[better]
-        prim[ray_t[better]] = image[base[ti[better]] + _PRIM_WORD].astype(np.int64)
+        tb = ti[better]
+        prim[ray_t[better]] = image[base[tb] + _PRIM_WORD[typ[tb]]].astype(np.int64)
         if any_hit:
             sp[ray_t[better]] = 0
+        # the rest of a leaf is the ray's next requests (unless the ray is done): a group's
+        # second pair, then (on top) the pair's second triangle
+        leaf = ti[(typ[ti] == PAIR_TYPE) | (typ[ti] == GROUP_TYPE)]
+        if any_hit:
+            leaf = leaf[~better[np.searchsorted(ti, leaf)]]
+        group = leaf[typ[leaf] == GROUP_TYPE]
+        ray_g = active[group]
+        stack[ray_g, sp[ray_g]] = NodeRef.encode(NodeRef.offset(ptr[group]) + PAIR_BYTES,
+                                                 PAIR_TYPE)
+        sp[ray_g] += 1
+        pair = leaf[image[base[leaf] + _PRIM_WORD[PAIR_SECOND_TYPE]] != NO_CHILD]
+        ray_p = active[pair]
+        stack[ray_p, sp[ray_p]] = NodeRef.retype(ptr[pair], PAIR_SECOND_TYPE)
+        sp[ray_p] += 1
 
         active = active[sp[active] > 0]
         if progress is not None:
             progress(n - len(active), n)
     return Traversal(nearest, prim, box_ops, tri_ops, np.array(steps, np.int64),
-                     np.array(steps_box, np.int64), culled)
+                     np.array(steps_box, np.int64), culled, node_bytes)
 
 
 def _cull(active, stack, dist, sp, nearest, culled) -> np.ndarray:

@@ -439,12 +439,16 @@ def test_instanced_bunnies():
 
 
 def test_bvh_bench_dict(tmp_path):
-    from driver.bvh.bench import BUNNY_TRIANGLES, bvh_bench
+    from driver.bvh.bench import BUNNY_TRIANGLES, FORMATS, bvh_bench
     r = bvh_bench(counts=(0,), size=32, progress=False, fills=(0, 1 << 30),
                   plot=tmp_path / "fills.png")
-    (b,) = r["builds"]
-    assert b["triangles"] == BUNNY_TRIANGLES and b["build_s"] > 0
-    assert b["peak_rss_mb"] >= b["rss_before_mb"] > 0
+    assert [b["format"] for b in r["builds"]] == list(FORMATS)
+    for b in r["builds"]:
+        assert b["triangles"] == BUNNY_TRIANGLES and b["build_s"] > 0
+        assert b["peak_rss_mb"] >= b["rss_before_mb"] > 0
+        assert ("vs_box32_build_s" in b) == (b["format"] != "box32")
+    size = {b["format"]: b["bytes_per_triangle"] for b in r["builds"]}
+    assert size["q8g"] < size["q8"] < 0.5 * size["box32"]
     q = r["quality"]
     assert q["sah"]["sah_cost"] <= q["greedy"]["sah_cost"]
     assert q["sah"]["box_nodes"] < q["greedy"]["box_nodes"]

@@ -139,7 +139,7 @@ def test_node_ref_and_node_dtypes():
 
 def test_c_header_has_every_constant_the_harness_uses():
     header = layout.c_header()
-    names = set(re.findall(r"constexpr \w+ (k\w+) =", header))
+    names = set(re.findall(r"constexpr \w+ (k\w+)(?:\[\d*\])? =", header))
     src = "".join(p.read_text() for p in (RTL_DIR.parent / "sim").glob("r*.cpp"))
     src += (RTL_DIR.parent / "sim" / "rf_sim.h").read_text()
     used = set(re.findall(r"\bk[A-Z]\w+", src)) - {"kPrefetchAhead", "kOpcodeMask"}

@@ -22,6 +22,7 @@ import time
 import numpy as np
 
 BUNNY_TRIANGLES = 99_785
+FORMATS = ("box32", "q8", "q8g")    # image formats whose builds are timed
 FILLS = (0, 8, 16, 32, 40, 64, 256, 1 << 30)     # --bvh-fill values of the shape trade-off
 # a reference point on the bunny frame: box nodes, and 0.95 x the 6.29 ops per ray of plain SAH
 TARGETS = {"box_nodes": 36_000, "ops_per_ray": 0.95 * 6.29}
@@ -34,18 +35,21 @@ def instanced_bunnies(count: int, seed: int = 0) -> np.ndarray:
     return grid(load("bunny").triangles, count, seed)
 
 
-def _build_child(count, conn):
-    """In a fresh process: build ``count`` bunnies (0 = the bunny itself) and send the numbers."""
+def _build_child(count, fmt, conn):
+    """In a fresh process: build ``count`` bunnies (0 = the bunny itself) in image format
+    ``fmt`` and send the numbers."""
     from ..bvh4 import build
     from ..scenes.scene import load
     tris = instanced_bunnies(count) if count else load("bunny")
-    build(load("bunny"), progress=False)        # load the compiled kernels before timing
+    build(load("bunny"), progress=False, format=fmt)    # load the compiled kernels before timing
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     cpu0 = time.process_time()
-    bvh = build(tris, progress=None)
+    bvh = build(tris, progress=None, format=fmt)
     cpu = time.process_time() - cpu0
     s = bvh.stats
-    conn.send({"triangles": s["tri_nodes"], "build_s": round(s["build_s"], 3),
+    conn.send({"format": fmt, "triangles": s["tri_nodes"], "build_s": round(s["build_s"], 3),
+               "bytes": s["bytes"], "bytes_per_triangle": round(s["bytes_per_triangle"], 2),
+               "pair_ratio": round(s["pair_ratio"], 4),
                "build_cpu_s": round(cpu, 3), "load_average": round(os.getloadavg()[0], 2),
                "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
                "rss_before_mb": round(rss0 / 1024, 1), "box_nodes": s["box_nodes"],
@@ -53,10 +57,10 @@ def _build_child(count, conn):
     conn.close()
 
 
-def _timed_build(count: int) -> dict:
+def _timed_build(count: int, fmt: str = "box32") -> dict:
     ctx = multiprocessing.get_context("spawn")
     recv, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_build_child, args=(count, send))
+    proc = ctx.Process(target=_build_child, args=(count, fmt, send))
     proc.start()
     send.close()
     try:
@@ -171,16 +175,22 @@ def _quality(size: int = 256, fills=FILLS, plot=None, progress: bool = False) ->
 
 
 def bvh_bench(counts=(0, 20, 50), quality: bool = True, size: int = 256,
-              progress: bool = True, fills=FILLS, plot=None) -> dict:
-    """The benchmark as a dict: ``builds`` (one entry per mesh: 0 = the bunny, k = k instanced
-    bunnies, i.e. ~2 M for 20 and ~5 M for 50) and ``quality`` (``_quality`` on the bunny's
+              progress: bool = True, fills=FILLS, plot=None, formats=FORMATS) -> dict:
+    """The benchmark as a dict: ``builds`` (one entry per mesh and image format in ``formats``:
+    0 = the bunny, k = k instanced bunnies, i.e. ~2 M for 20 and ~5 M for 50; each format's
+    build time also as a ratio to box32's, ``vs_box32_build_s``) and ``quality`` (``_quality`` on the bunny's
     size x size primary frame, with the ``fills`` trade-off plotted to ``plot``)."""
     from ..progress import iterate
     result = {"machine_cpus": multiprocessing.cpu_count(), "builds": []}
-    for count in iterate(counts, "BVH bench", "mesh", progress):
+    runs = [(count, fmt) for count in counts for fmt in formats]
+    for count, fmt in iterate(runs, "BVH bench", "build", progress):
         t0 = time.perf_counter()
-        entry = {"bunnies": count or 1, **_timed_build(count)}
+        entry = {"bunnies": count or 1, **_timed_build(count, fmt)}
         entry["process_wall_s"] = round(time.perf_counter() - t0, 2)
+        base = [b for b in result["builds"] if b["bunnies"] == entry["bunnies"]
+                and b["format"] == "box32"]
+        if fmt != "box32" and base:
+            entry["vs_box32_build_s"] = round(entry["build_s"] / base[0]["build_s"], 3)
         result["builds"].append(entry)
     if quality:
         result["quality"] = _quality(size, fills, plot, progress)

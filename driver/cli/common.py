@@ -7,6 +7,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ..layout import IMAGE_FORMATS
+
 PROG = "rayflex"
 EXIT_OK = 0
 EXIT_CHECK = 1              # a result check failed (Embree mismatch, kNN disagreement)

@@ -84,7 +84,7 @@ class Export:
         bar = progress_bar(tiles, f"{scene.name} request stream (golden)", "tile", progress)
         try:
             n = export(scene, width, height, sinks, workload, options, tile, tree["fill"],
-                       tree["cull_stack"], bar.hook)
+                       tree["cull_stack"], bar.hook, tree.get("bvh_format", "box32"))
         finally:
             bar.close()
         if win:

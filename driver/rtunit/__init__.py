@@ -49,9 +49,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..datapath import LATENCY, QUADBOX, TRIANGLE
-from ..layout import (BOX_NODE, RAY_WORDS, REQ_WORDS, TRI_NODE, NodeRef, read_nodes,
-                     unpack_requests)
+from ..datapath import LATENCY
+from ..layout import RAY_WORDS, REQ_WORDS, NodeRef, unpack_requests
 
 DEFAULT_RAYS_IN_FLIGHT = 64        # the default ray pool (see the module docstring)
 DEFAULT_TURNAROUND = 1
@@ -115,11 +114,8 @@ class Record:
         req = unpack_requests(words)
         req["tag"] = self.ray[index]
         req["extent"] = self.extent[index]
-        ptr = self.ptr[index]
-        box = NodeRef.is_box(ptr)
-        req["opcode"] = np.where(box, QUADBOX, TRIANGLE)
-        req["box"][box] = read_nodes(self.image, ptr[box], BOX_NODE)["box"]
-        req["tri"][~box] = read_nodes(self.image, ptr[~box], TRI_NODE)["tri"]
+        from ..bvh4 import request_operands
+        request_operands(req, self.image, self.ptr[index])
         return req
 
 
@@ -129,8 +125,9 @@ class MemoryModel:
     ``cache_bytes`` with ``ways`` ways and ``line_bytes`` lines in front of a memory that answers
     a line ``latency_cycles`` after its transfer, transfers serialised at ``bytes_per_cycle``;
     ``cache_bytes`` 0: no cache, every node fetch reads its lines from memory.
-    A request waits until its node's lines (box node 128 B, triangle node 64 B) are present; the
-    cache changes timing only, never a response."""
+    A request waits until its node's lines are present (``driver.layout.NODE_BYTES``: box32
+    box node 128 B; q8 box node, triangle node and pair leaf 64 B; a pair's second triangle
+    none more); the cache changes timing only, never a response."""
 
     cache_bytes: int = 32 * 1024
     ways: int = 4

@@ -1,8 +1,9 @@
 // Node memory of the RT-unit model: a set-associative LRU node cache in front of a memory with a
 // fixed latency and a bandwidth limit (driver/rtunit.py, MemoryModel).
 //
-// A request needs its node's bytes (a box node spans kBoxNodeWords * 4 bytes, a triangle node
-// kTriNodeWords * 4) before it can issue. `fetch` looks up every cache line the node touches at
+// A request needs its node's bytes (kNodeBytes by pointer type: a box32 box node 128 bytes, a q8
+// box node, a triangle node and a pair leaf 64; a pair's second triangle none more: the ray holds
+// that node) before it can issue. `fetch` looks up every cache line the node touches at
 // cycle `now` and returns the cycle at which the last of them is present:
 //  - a line in the cache whose fill has arrived: a hit, present now;
 //  - a line in the cache whose fill is still under way (another ray missed on it): a hit on the

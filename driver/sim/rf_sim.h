@@ -5,6 +5,7 @@
 // driver/layout.py generates at build time from its tables (SPEC sections 3 and 8).
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 
@@ -78,7 +79,43 @@ struct NodeSource {
     std::memset(dst + kRayWords, 0, (kReqWords - kRayWords) * 4);
   }
 
-  // Returns false for a pointer that is neither a box nor a triangle node inside the image.
+  // The operand of a QUADBOX request for a q8 box node (docs/compressed.md): the one place the
+  // harness turns a q8 node into a request (driver.bvh4.q8_request is the host's). The request
+  // carries the decoded boxes: child i, axis a: origin[a] + float(q) * 2^exp[a] (the product is
+  // exact, the sum one float add, round to nearest even, as driver.layout.decode_q8); unused
+  // slots (i >= count) the unused box, six +inf.
+  static void q8_request(const uint32_t* node, uint32_t* req) {
+    uint32_t* box = req + kReqBoxWord;
+    const uint32_t ew = node[kQ8NodeExpWord];
+    const uint32_t count = (ew >> kQ8CountLsb) & 7u;
+    const uint8_t* q = reinterpret_cast<const uint8_t*>(node + kQ8NodeQWord);
+    float origin[3], scale[3];
+    std::memcpy(origin, node + kQ8NodeOriginWord, sizeof origin);
+    for (int a = 0; a < 3; a++) scale[a] = std::ldexp(1.0f, static_cast<int8_t>(ew >> (8 * a)));
+    const float inf = INFINITY;
+    for (uint32_t c = 0; c < 4; c++) {
+      for (int j = 0; j < 6; j++) {
+        // exact product, so a fused multiply-add would round the same
+        const float prod = static_cast<float>(q[6 * c + j]) * scale[j % 3];
+        const float v = c < count ? origin[j % 3] + prod : inf;
+        std::memcpy(box + 6 * c + j, &v, 4);
+      }
+    }
+  }
+
+  // The triangle a pair leaf's pointer names: (v0, v1, v2) for kPairType and kGroupType (a
+  // group leaf's first pair), (v[i0], v[i1], v[i2]) for kPairSecondType
+  // (driver.layout.pair_triangles).
+  static void pair_triangle(const uint32_t* node, bool second, uint32_t* tri) {
+    const uint32_t sel = node[kPairNodeIdxWord];
+    for (uint32_t k = 0; k < 3; k++) {
+      const uint32_t v = second ? (sel >> (2 * k)) & 3u : k;
+      std::memcpy(tri + 3 * k, node + kPairNodeVWord + 3 * v, 12);
+    }
+  }
+
+  // Returns false for a pointer that is neither a box node nor a triangle request's node inside
+  // the image.
   bool fill(int64_t i, uint32_t* dst) const {
     const uint32_t r = ray[i], p = ptr[i], type = p & kTypeMask;
     const int64_t word = node_word(p);
@@ -86,16 +123,21 @@ struct NodeSource {
     std::memcpy(dst, rays + static_cast<int64_t>(r) * kRayWords, kRayWords * 4);
     dst[kReqTagWord] = r;                              // tag = ray index
     dst[kReqExtentWord] = ext[i];                      // extent = the ray's nearest t so far
+    const bool box = type == kBoxType || type == kQ8Type;
+    const int64_t words = type == kPairSecondType ? kPairNodeWords : kNodeBytes[type] / 4;
+    if (words == 0 || word + words > image_words) return false;
+    const uint32_t op = box ? kOpQuadbox : kOpTriangle;
+    ctrl = (ctrl & ~(kOpcodeMask << kReqOpcodeLsb)) | (op << kReqOpcodeLsb);
+    std::memset(dst + (box ? kReqTriWord : kReqBoxWord), 0,
+                (box ? kReqTriCount : kReqBoxCount) * 4);
     if (type == kBoxType) {
-      if (word + kBoxNodeBoxWord + kBoxNodeBoxCount > image_words) return false;
-      ctrl = (ctrl & ~(kOpcodeMask << kReqOpcodeLsb)) | (kOpQuadbox << kReqOpcodeLsb);
       std::memcpy(dst + kReqBoxWord, image + word + kBoxNodeBoxWord, kReqBoxCount * 4);
-      std::memset(dst + kReqTriWord, 0, kReqTriCount * 4);
+    } else if (type == kQ8Type) {
+      q8_request(image + word, dst);
     } else if (type == kTriType) {
-      if (word + kTriNodeTriWord + kTriNodeTriCount > image_words) return false;
-      ctrl = (ctrl & ~(kOpcodeMask << kReqOpcodeLsb)) | (kOpTriangle << kReqOpcodeLsb);
       std::memcpy(dst + kReqTriWord, image + word + kTriNodeTriWord, kReqTriCount * 4);
-      std::memset(dst + kReqBoxWord, 0, kReqBoxCount * 4);
+    } else if (type == kPairType || type == kGroupType || type == kPairSecondType) {
+      pair_triangle(image + word, type == kPairSecondType, dst + kReqTriWord);
     } else {
       return false;
     }

@@ -87,13 +87,13 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
   auto node_of = [&](int64_t r, int64_t* off) {          // ray r's next node: bytes, *off
     const uint32_t p = ptr[chain_idx[chain_off[r] + pos[r]]];
     *off = NodeSource::node_word(p) * 4;
-    return static_cast<int64_t>((p & kTypeMask) == kBoxType ? kBoxNodeWords : kTriNodeWords) * 4;
+    return static_cast<int64_t>(kNodeBytes[p & kTypeMask]);  // 0: the node the ray already holds
   };
   auto wait = [&](int64_t r, int64_t at) {                // ray r's next request, known at `at`
     int64_t off;
     const int64_t bytes = node_of(r, &off);
-    const bool park = affinity && !mem.present(off, bytes, at);
-    const int64_t when = mem.fetch(off, bytes, at);
+    const bool park = affinity && bytes && !mem.present(off, bytes, at);
+    const int64_t when = bytes ? mem.fetch(off, bytes, at) : at;
     node_wait += when - at;
     if (!park) {
       ready.push({r, when, seq++});
@@ -130,7 +130,7 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
         active++;
         int64_t off;
         const int64_t bytes = node_of(r, &off);
-        mem.touch(off, bytes);
+        if (bytes) mem.touch(off, bytes);
         ready.push({r, k, seq++});
         continue;
       }

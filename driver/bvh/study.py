@@ -1,0 +1,143 @@
+"""box32 vs q8 (and q8g) on one workload frame: the table and the plot of docs/compressed.md,
+from ``rayflex bench --workload ... --bvh-format FORMAT --json`` documents of the same frame.
+
+    python -m driver.bvh.study BOX32.json Q8.json [Q8G.json] [--plot PNG]
+
+prints the per-ray-type comparison as a Markdown table and draws utilization with the node
+memory vs rays in flight, one colour per ray type, solid q8 and dashed box32.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+FORMATS = ("box32", "q8", "q8g")
+
+
+def rows(docs: dict) -> list[dict]:
+    """Per ray type and format: bytes per triangle, ops, node bytes and bytes from memory per
+    ray, cache hit rate, utilization and cycles per ray with the node memory, and the ratios to
+    box32."""
+    out = []
+    base = docs["box32"]["frame"]
+    for kind in base["by_type"]:
+        ref = base["by_type"][kind]
+        for fmt, doc in docs.items():
+            t = doc["frame"]["by_type"][kind]
+            n = t["rays"]
+            m = t["rtunit_memory"]
+            row = {"type": kind, "format": fmt, "rays": n,
+                   "bytes_per_triangle": doc["frame"]["bvh"]["bytes_per_triangle"],
+                   "box_ops_per_ray": t["box_ops"] / n, "tri_ops_per_ray": t["tri_ops"] / n,
+                   "ops_per_ray": t["ops"] / n, "node_bytes_per_ray": t["node_bytes_fetched"] / n,
+                   "memory_bytes_per_ray": m["bytes_per_ray"], "hit_rate": m["hit_rate"],
+                   "utilization_memory": m["utilization"],
+                   "cycles_per_ray_memory": m["cycles"] / n,
+                   "utilization_free": t["rtunit"]["utilization"],
+                   "ops_ratio": t["ops"] / ref["ops"],
+                   "memory_bytes_ratio": m["bytes_per_ray"] / ref["rtunit_memory"]["bytes_per_ray"],
+                   "cycles_ratio": m["cycles"] / ref["rtunit_memory"]["cycles"]}
+            out.append(row)
+    return out
+
+
+def markdown(table: list[dict]) -> str:
+    lines = ["| ray type | image | B/triangle | ops/ray (box + tri) | ops vs box32 | node B/ray "
+             "| B from memory/ray | vs box32 | cache hit rate | utilization with memory "
+             "| cycles/ray with memory | vs box32 |", "|" + "---|" * 12]
+    for r in table:
+        lines.append(
+            f"| {r['type']} | {r['format']} | {r['bytes_per_triangle']:.1f} "
+            f"| {r['ops_per_ray']:.2f} ({r['box_ops_per_ray']:.2f} + {r['tri_ops_per_ray']:.2f}) "
+            f"| {r['ops_ratio']:.3f} | {r['node_bytes_per_ray']:.0f} "
+            f"| {r['memory_bytes_per_ray']:.0f} | {r['memory_bytes_ratio']:.3f} "
+            f"| {r['hit_rate']:.3f} | {r['utilization_memory']:.3f} "
+            f"| {r['cycles_per_ray_memory']:.1f} | {r['cycles_ratio']:.3f} |")
+    return "\n".join(lines)
+
+
+def plot(docs: dict, path, title: str) -> None:
+    """PNG: utilization with the node memory vs rays in flight (log x), per ray type, box32
+    (dashed) and q8 (solid)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7.0, 4.6), dpi=110)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown"]
+    for i, kind in enumerate(docs["q8"]["sweep"]):
+        c = colours[i % len(colours)]
+        for fmt, style in (("q8", "o-"), ("box32", "s--")):
+            pts = docs[fmt]["sweep"][kind]
+            ax.plot([p["rays_in_flight"] for p in pts],
+                    [p["rtunit_memory"]["utilization"] for p in pts], style, color=c,
+                    ms=4, lw=1.5 if fmt == "q8" else 1, label=f"{kind} {fmt}")
+    ax.set_xscale("log", base=2)
+    ax.set_ylim(0, 1.05)
+    ax.set_xlabel("rays in flight (ray pool size R)")
+    ax.set_ylabel("datapath utilization with node cache + memory")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, ncol=2, loc="lower right")
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(str(path), format="png")
+
+
+def load(paths) -> dict:
+    """{format: doc} from bench JSON files of the same frame, one per format, box32 and q8
+    among them (ValueError)."""
+    docs = {}
+    for p in paths:
+        try:
+            with open(p) as f:
+                doc = json.load(f)
+        except (OSError, ValueError) as e:
+            raise ValueError(f"{p}: not a readable bench JSON ({e})") from None
+        point = (doc.get("provenance") or {}).get("design_point") or {}
+        fmt = point.get("bvh_format")
+        types = (doc.get("frame") or {}).get("by_type") or {}
+        if fmt not in FORMATS or not types or not next(iter(types.values())).get("rtunit_memory"):
+            raise ValueError(f"{p}: not a rayflex bench --workload JSON with the node memory")
+        doc = {**doc, **{k: point[k] for k in ("spp", "bounces", "seed")}}
+        docs[fmt] = doc
+    if len(docs) != len(paths) or not {"box32", "q8"} <= set(docs):
+        raise ValueError("give one document per format, box32 and q8 among them")
+    keys = ("scene", "workload", "width", "height", "spp", "bounces", "seed")
+    if any(doc[k] != docs["box32"][k] for doc in docs.values() for k in keys):
+        raise ValueError("the documents are not the same frame")
+    if any(doc["frame"]["by_type"].keys() != docs["box32"]["frame"]["by_type"].keys()
+           for doc in docs.values()):
+        raise ValueError("the documents hold different ray types")
+    return {f: docs[f] for f in FORMATS if f in docs}
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m driver.bvh.study", description=__doc__.split(
+        "\n\n")[0])
+    p.add_argument("json", nargs="+", help="one bench JSON per image format (box32, q8 and "
+                                           "optionally q8g)")
+    p.add_argument("--plot", metavar="PNG", help="draw the utilization sweep here")
+    args = p.parse_args(argv)
+    try:
+        docs = load(args.json)
+        table = rows(docs)
+        if args.plot:
+            from ..outputs import Outputs, PNG
+            outs = Outputs()
+            png = outs.add("--plot", args.plot, PNG)
+            d = docs["q8"]
+            with outs.commit():
+                plot(docs, outs.temp(png), f"{d['scene']} {d['width']}x{d['height']} "
+                     f"{d['workload']}, {d['spp']} spp: box32 vs q8 node images")
+    except (ValueError, OSError) as e:
+        print(f"rayflex: error: {e}", file=sys.stderr)
+        return 2
+    print(markdown(table))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

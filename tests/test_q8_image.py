@@ -1,0 +1,399 @@
+"""The compressed q8 image (docs/compressed.md): the encoder's containment obligation on every
+node of every image built here, triangle pairs that keep each triangle bit for bit (winding and
+vertex order), hits equal to box32's on the built-in scenes, the node bytes the statistics and
+the RT-unit memory model charge, and the harness's C++ decode equal to ``decode_q8``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from driver.bvh4 import PAD_REL, build, request_operands
+from driver.layout import (GROUP_TYPE, NO_CHILD, NODE_BYTES, PAIR_NODE, PAIR_SECOND_TYPE, PAIR_TYPE,
+                           Q8_BYTES, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE, REQUEST_DTYPE,
+                           NodeRef, decode_q8, pack_requests, pair_triangles, q8_count,
+                           ray_words)
+from driver.tracer import trace
+from support import meshes
+
+
+def _grown(lo, hi, pad):
+    """The box32 stored box of exact float32 bounds (driver.bvh4's growth rule)."""
+    glo = np.nextafter(np.float32(lo.astype(np.float64) - pad), np.float32(-np.inf))
+    ghi = np.nextafter(np.float32(hi.astype(np.float64) + pad), np.float32(np.inf))
+    return glo.astype(np.float32), ghi.astype(np.float32)
+
+
+def check_image(bvh, tris) -> None:
+    """Every triangle in exactly one leaf, bit for bit in its input vertex order; every used
+    child slot's decoded box contains the box32 stored box of that child, recomputed here from
+    the triangles below it; unused slots decode to +inf; exponents and counts in range."""
+    tris = np.asarray(tris, np.float32)
+    nb = bvh.stats["box_nodes"]
+    nodes = bvh.image[:Q8_BYTES * nb].view(Q8_NODE)
+    leaves = bvh.image[Q8_BYTES * nb:].view(PAIR_NODE)        # 64-byte pair slots
+    assert bvh.format in ("q8", "q8g") and bvh.root == Q8_TYPE
+    assert bvh.stats["bytes"] == bvh.image.nbytes == 64 * (nb + len(leaves))
+    assert bvh.stats["leaf_nodes"] + 2 * bvh.stats["group_leaves"] == len(leaves) + \
+        bvh.stats["group_leaves"]
+
+    prim = leaves["prim"].astype(np.int64)
+    two = prim[:, 1] != NO_CHILD
+    ids = np.concatenate([prim[:, 0], prim[two, 1]])
+    assert np.array_equal(np.sort(ids), np.arange(len(tris)))
+    lt = pair_triangles(leaves)
+    assert np.array_equal(lt[:, 0].view(np.uint32), tris[prim[:, 0]].view(np.uint32))
+    assert np.array_equal(lt[two, 1].view(np.uint32), tris[prim[two, 1]].view(np.uint32))
+    assert np.isclose(bvh.stats["pair_ratio"], 2 * two.sum() / len(tris))
+
+    exp = nodes["exp"][:, :3].view(np.int8)
+    assert ((exp >= Q8_EXP_MIN) & (exp <= Q8_EXP_MAX)).all()
+    count = q8_count(nodes)
+    assert ((count >= 1) & (count <= 4)).all()
+    assert not (nodes["exp"][:, 3] & ~np.uint8(7)).any()
+
+    # exact bounds of every leaf and, bottom up (children follow their parent), of every node
+    leaf_tris = np.where(two[:, None, None, None], lt, lt[:, :1])
+    leaf_lo, leaf_hi = leaf_tris.min(axis=(1, 2)), leaf_tris.max(axis=(1, 2))
+    node_lo = np.full((nb, 3), np.inf, np.float32)
+    node_hi = np.full((nb, 3), -np.inf, np.float32)
+    child_lo = np.zeros((nb, 4, 3), np.float32)
+    child_hi = np.zeros((nb, 4, 3), np.float32)
+    ptr = nodes["child"]
+    typ, off = NodeRef.type(ptr), NodeRef.offset(ptr)
+    used = np.arange(4)[None, :] < count[:, None]
+    leaf_types = (PAIR_TYPE, GROUP_TYPE) if bvh.format == "q8g" else (PAIR_TYPE,)
+    assert (ptr[~used] == NO_CHILD).all() and np.isin(typ[used], (Q8_TYPE,) + leaf_types).all()
+    assert (typ == GROUP_TYPE).sum() == bvh.stats["group_leaves"]
+    for i in range(nb - 1, -1, -1):
+        for j in range(count[i]):
+            if typ[i, j] == Q8_TYPE:
+                k = off[i, j] // Q8_BYTES
+                assert k > i
+                lo, hi = node_lo[k], node_hi[k]
+            else:                                          # a group: two slots
+                k = (off[i, j] - Q8_BYTES * nb) // 64
+                h = k + (typ[i, j] == GROUP_TYPE) + 1
+                lo, hi = leaf_lo[k:h].min(axis=0), leaf_hi[k:h].max(axis=0)
+            child_lo[i, j], child_hi[i, j] = lo, hi
+            node_lo[i] = np.minimum(node_lo[i], lo)
+            node_hi[i] = np.maximum(node_hi[i], hi)
+    pad = PAD_REL * float(max(-tris.min(), tris.max()))
+    ref_lo, ref_hi = _grown(child_lo, child_hi, pad)
+    dec = decode_q8(nodes)
+    assert (dec[..., :3][used] <= ref_lo[used]).all()
+    assert (dec[..., 3:][used] >= ref_hi[used]).all()
+    assert (dec[~used] == np.inf).all()
+
+
+def _grid(k: int, scale: float = 1.0, offset=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """A bumpy k x k grid surface: triangles sharing edges, consistently wound."""
+    s = np.linspace(0.0, 1.0, k + 1)
+    x, y = np.meshgrid(s, s, indexing="ij")
+    z = 0.1 * np.sin(7 * x) * np.cos(5 * y)
+    p = np.stack([x, y, z], axis=-1) * scale + np.asarray(offset)
+    a, b, c, d = p[:-1, :-1], p[1:, :-1], p[1:, 1:], p[:-1, 1:]
+    return np.concatenate([np.stack([a, b, c], 2).reshape(-1, 3, 3),
+                           np.stack([a, c, d], 2).reshape(-1, 3, 3)]).astype(np.float32)
+
+
+MESHES = {
+    "soup": lambda: meshes.soup(300, seed=2),
+    "grid": lambda: _grid(12),
+    "room": lambda: meshes.box_room(3),
+    "degenerate": meshes.degenerate,
+    "sphere": lambda: meshes.icosphere(2),
+    "huge": lambda: _grid(6, 3e30, (1e30, -2e30, 5e29)),
+    "tiny": lambda: _grid(6, 3e-30, (1e-30, 0.0, -2e-30)),
+    "mixed": lambda: np.concatenate([_grid(5, 1e-3), _grid(5, 1e4, (-1e4, 0, 0))]),
+    "subnormal": lambda: _grid(3, 1e-39),
+    "one": lambda: meshes.soup(1, seed=4),
+}
+
+
+@pytest.mark.parametrize("name", sorted(MESHES))
+def test_containment_and_leaves_on_every_node(name):
+    tris = MESHES[name]()
+    for fmt, fill in (("q8", 0), ("q8", 8), ("q8g", 0), ("q8g", 8)):
+        bvh = build(tris, format=fmt, fill=fill)
+        check_image(bvh, tris)
+    assert bvh.stats["bytes_per_triangle"] == bvh.image.nbytes / len(tris)
+
+
+def test_pairs_share_edges_and_cover_a_mesh():
+    tris = _grid(12)
+    bvh = build(tris, format="q8")
+    check_image(bvh, tris)
+    assert bvh.stats["pair_ratio"] >= 0.9                  # a grid pairs almost completely
+    leaves = bvh.image[Q8_BYTES * bvh.stats["box_nodes"]:].view(PAIR_NODE)
+    two = leaves["prim"][:, 1] != NO_CHILD
+    sel = leaves["idx"][two]
+    shared = sum(((sel >> (2 * k)) & 3) != 3 for k in range(3))
+    assert (shared == 2).all()                               # exactly one edge in common
+    soup = build(meshes.soup(200, seed=1), format="q8")     # nothing shares an edge
+    assert soup.stats["pair_ratio"] == 0.0
+
+
+def test_mesh_and_triangle_inputs_give_the_same_image():
+    m = meshes.bunny()
+    a = build(m, format="q8")
+    b = build(np.asarray(m.triangles, np.float32), format="q8")
+    assert np.array_equal(a.image, b.image)
+    check_image(a, np.asarray(m.vertices, np.float32)[m.faces])
+    assert a.stats["pair_ratio"] > 0.9 and a.stats["bytes_per_triangle"] < 50
+    assert a.stats["box_nodes"] * 64 + a.stats["leaf_nodes"] * 64 == a.stats["bytes"]
+
+
+def test_bad_format():
+    with pytest.raises(ValueError, match="format"):
+        build(meshes.soup(4), format="q16")
+    with pytest.raises(ValueError, match="box32"):
+        trace(build(meshes.soup(4)), [[0, 0, 0]], [[0, 0, 1]], bvh_format="q8")
+
+
+# ----------------------------------------------------------------------------------------------
+# hits: q8 == box32 on the same rays
+
+
+def _rays(scene, n, seed):
+    rng = np.random.default_rng(seed)
+    v = scene.triangles.reshape(-1, 3)
+    lo, hi = v.min(0), v.max(0)
+    o = rng.uniform(lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo), (n, 3))
+    d = rng.normal(size=(n, 3))
+    return o, d
+
+
+def assert_same_hits(a, b):
+    """t bit for bit; prim too except between triangles hit at exactly the same t."""
+    assert np.array_equal(a.hit, b.hit)
+    assert np.array_equal(a.t.view(np.uint32), b.t.view(np.uint32))
+    diff = a.prim != b.prim
+    assert (a.hit[diff]).all()                              # only ties of two hits at one t
+    return int(diff.sum())
+
+
+@pytest.fixture(scope="module", params=["bunny", "cornell", "bunny_floor"])
+def scene_pair(request):
+    from driver.scenes.camera import primary_rays
+    from driver.scenes.scene import load_scene
+    scene = load_scene(request.param)
+    o1, d1 = primary_rays(scene.camera, 20, 20)
+    o2, d2 = _rays(scene, 400, 7)
+    o, d = np.concatenate([o1, o2]), np.concatenate([d1, d2])
+    return (scene, build(scene.mesh), {f: build(scene.mesh, format=f) for f in ("q8", "q8g")},
+            o, d)
+
+
+@pytest.mark.parametrize("fmt", ["q8", "q8g"])
+@pytest.mark.parametrize("any_hit", [False, True])
+@pytest.mark.parametrize("double_sided", [False, True])
+def test_q8_hits_equal_box32(scene_pair, fmt, any_hit, double_sided):
+    scene, b32, q8s, o, d = scene_pair
+    q8 = q8s[fmt]
+    extent = np.float32(0.5 * np.ptp(scene.triangles.reshape(-1, 3), axis=0).max())
+    kw = dict(backend="golden", any_hit=any_hit, double_sided=double_sided,
+              extent=extent if any_hit else np.inf)
+    a, b = trace(b32, o, d, **kw), trace(q8, o, d, **kw)
+    assert a.hit.sum() > 40
+    if any_hit:
+        assert np.array_equal(a.hit, b.hit)                 # occluded exactly when box32 is
+        assert np.array_equal(a.t <= extent, b.t <= extent)
+    else:
+        assert_same_hits(a, b)
+    ratio = b.stats["ops"] / a.stats["ops"]
+    assert 0.8 < ratio < 1.3
+    # node bytes: 64 per q8 node and per pair leaf fetched, none for a pair's second triangle
+    assert b.stats["node_bytes_fetched"] < 0.7 * a.stats["node_bytes_fetched"]
+
+
+def test_pair_leaves_keep_winding():
+    """Culled (single-sided) hits on a closed mesh seen from outside and inside: box32 and q8
+    agree ray by ray, so no paired triangle turned its face."""
+    tris = meshes.icosphere(3)
+    rng = np.random.default_rng(11)
+    o = rng.normal(size=(600, 3))
+    o *= (rng.uniform(0.2, 3.0, 600) / np.linalg.norm(o, axis=1))[:, None]  # inside and out
+    d = rng.normal(size=(600, 3))
+    a = trace(build(tris), o, d, backend="golden")
+    q8 = build(tris, format="q8")
+    assert q8.stats["pair_ratio"] > 0.9
+    b = trace(q8, o, d, backend="golden")
+    inside = np.linalg.norm(o, axis=1) < 0.95
+    assert not a.hit[inside].any()                          # the inside sees only back faces
+    assert a.hit.sum() > 30
+    assert_same_hits(a, b)
+    both = trace(q8, o, d, backend="golden", double_sided=True)
+    assert both.hit[inside].all()
+
+
+def test_traversal_requests_per_pair_leaf():
+    """A pair leaf is two TRIANGLE requests of the ray, prim0 first; a group leaf its two pairs
+    in order; an any-hit ray finished by a triangle issues no more of the leaf; node bytes count
+    each fetched 64-byte node once."""
+    tris = _grid(4)
+    for fmt in ("q8", "q8g"):
+        _leaf_requests(build(tris, format=fmt))
+
+
+def _leaf_requests(q8):
+    from support.recording import RecordingBackend
+    from driver import backend
+    o = np.array([[0.3, 0.3, 1.0], [0.71, 0.42, 1.0]])
+    d = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, -1.0]])
+    for any_hit in (False, True):
+        res = trace(q8, o, d, backend=RecordingBackend(backend("golden")), record=True,
+                    any_hit=any_hit)
+        rec = res.record
+        typ = NodeRef.type(rec.ptr)
+        assert res.hit.all()
+        for r in range(2):
+            t = typ[rec.ray == r]
+            p = rec.ptr[rec.ray == r]
+            firsts = np.flatnonzero(t == PAIR_TYPE)
+            seconds = np.flatnonzero(t == PAIR_SECOND_TYPE)
+            groups = np.flatnonzero(t == GROUP_TYPE)
+            # every second triangle right after its own first one
+            assert np.array_equal(NodeRef.offset(p[seconds]), NodeRef.offset(p[seconds - 1]))
+            assert np.isin(t[seconds - 1], (PAIR_TYPE, GROUP_TYPE)).all()
+            # a group's second pair follows its first pair (and that pair's second triangle)
+            for g in groups:
+                k = g + 1 + (g + 1 < len(t) and t[g + 1] == PAIR_SECOND_TYPE)
+                if not any_hit:
+                    assert t[k] == PAIR_TYPE and NodeRef.offset(p[k]) == NodeRef.offset(p[g]) + 64
+            if any_hit:
+                assert len(seconds) <= len(firsts) + len(groups)
+            else:
+                assert len(firsts) + len(groups) > 0
+        nbytes = sum(NODE_BYTES[int(x)] for x in typ)
+        assert res.stats["node_bytes_fetched"] == nbytes
+        assert res.stats["ops"] == len(rec.ptr)
+
+
+# ----------------------------------------------------------------------------------------------
+# the harness (C++): decode and memory model
+
+
+def random_q8_image(n: int, seed: int):
+    """n random q8 nodes (exponents over the whole range, zero and full planes, every count,
+    subnormal and signed-zero origins) followed by n random pair leaves."""
+    rng = np.random.default_rng(seed)
+    nodes = np.zeros(n, Q8_NODE)
+    origin = rng.normal(size=(n, 3)) * 10.0 ** rng.uniform(-40, 30, (n, 3))
+    origin[::7, 0] = 0.0
+    origin[1::7, 1] = -0.0
+    origin[2::7, 2] = 1e-42                                  # subnormal
+    nodes["origin"] = origin.astype(np.float32)
+    e = rng.integers(Q8_EXP_MIN, Q8_EXP_MAX + 1, (n, 3))
+    e[:4] = [[Q8_EXP_MIN] * 3, [Q8_EXP_MAX] * 3, [0, -1, 1], [Q8_EXP_MIN, 0, Q8_EXP_MAX]]
+    nodes["exp"][:, :3] = e.astype(np.int8).view(np.uint8)
+    nodes["exp"][:, 3] = np.arange(n) % 4 + 1
+    q = rng.integers(0, 256, (n, 4, 6))
+    q[::5] = 0
+    q[1::5] = 255
+    nodes["q"] = q
+    leaves = np.zeros(n, PAIR_NODE)
+    leaves["v"] = rng.normal(size=(n, 4, 3))
+    leaves["prim"] = rng.integers(0, 1000, (n, 2))
+    leaves["idx"] = rng.integers(0, 64, n)
+    image = np.concatenate([nodes.view(np.uint8), leaves.view(np.uint8)])
+    ptr = np.concatenate([NodeRef.encode(64 * np.arange(n), Q8_TYPE),
+                          NodeRef.encode(64 * (n + np.arange(n)), PAIR_TYPE),
+                          NodeRef.encode(64 * (n + np.arange(n)), PAIR_SECOND_TYPE),
+                          NodeRef.encode(64 * (n + np.arange(n - 1)), GROUP_TYPE)])
+    return image, ptr
+
+
+def test_harness_decode_equals_python_on_random_nodes():
+    from driver import LATENCY, prepare_rays
+    from driver.backends.build import rtl_params
+    from driver.backends.harness import build_requests
+    image, ptr = random_q8_image(300, 3)
+    rng = np.random.default_rng(1)
+    rays = prepare_rays(rng.normal(size=(len(ptr), 3)), rng.normal(size=(len(ptr), 3)))
+    idx = np.arange(len(ptr), dtype=np.uint32)
+    ext = np.full(len(ptr), np.inf, np.float32)
+    words = build_requests(rtl_params(False, False, LATENCY), ray_words(rays), image.view("<u4"),
+                           idx, ptr, ext)
+    req = rays.copy()
+    req["tag"] = idx
+    req["extent"] = ext
+    request_operands(req, image, ptr)
+    assert np.array_equal(words, pack_requests(req))
+    # and the decode is decode_q8's, unused slots +inf included
+    got = np.ascontiguousarray(words[:300, 15:39]).view(np.float32).reshape(300, 4, 6)
+    assert np.array_equal(got.view(np.uint32),
+                          decode_q8(image[:300 * 64].view(Q8_NODE)).view(np.uint32))
+    assert REQUEST_DTYPE["box"].shape == (4, 6)
+
+
+@pytest.mark.parametrize("fmt", ["q8", "q8g"])
+def test_rtl_frame_and_memory_model_charge_64_bytes_per_q8_node(fmt):
+    from driver import rtunit
+    from driver.scenes.camera import primary_rays
+    from driver.scenes.scene import load_scene
+    scene = load_scene("bunny")
+    o, d = primary_rays(scene.camera, 16, 16)
+    q8 = build(scene.mesh, format=fmt)
+    gold = trace(q8, o, d, backend="golden")
+    res = trace(q8, o, d, backend="rtl", record=True)
+    assert_same_hits(gold, res)
+    assert np.array_equal(gold.prim, res.prim)
+    rec = res.record
+    typ = NodeRef.type(rec.ptr)
+    fetching = typ != PAIR_SECOND_TYPE
+    assert res.stats["node_bytes_fetched"] == 64 * int(fetching.sum())
+    rep = rtunit.replay(rec, 16, memory=rtunit.MemoryModel())
+    m = rep.memory
+    # every fetched node is one 64-byte line; a pair's second triangle fetches nothing
+    assert m["line_accesses"] == int(fetching.sum())
+    assert m["bytes_from_memory"] == 64 * m["line_misses"] > 0
+    assert rep.verified
+
+
+def test_quantization_slack_lies_behind_flat_leaves():
+    """A floor (two big flat triangles facing +z) beside a tall object in one node: the floor's
+    decoded box is one step thick, and that step lies below the floor, so rays leaving the floor
+    upwards from just above it (as shadow and bounce rays do) test no floor triangle."""
+    floor = np.array([[[-10, -10, 0], [10, -10, 0], [10, 10, 0]],
+                      [[-10, -10, 0], [10, 10, 0], [-10, 10, 0]]], np.float32)
+    tower = _grid(4, 1.0, (0.0, 0.0, 0.0)).copy()
+    tower[..., 2] = tower[..., 0] * 30.0 + 1.0             # a steep slope up to z = 31
+    tris = np.concatenate([tower, floor])
+    q8 = build(tris, format="q8")
+    check_image(q8, tris)
+    rng = np.random.default_rng(2)
+    o = np.column_stack([rng.uniform(-9, -2, 200), rng.uniform(-9, 9, 200), np.full(200, 0.01)])
+    d = np.column_stack([rng.normal(size=(200, 2)), rng.uniform(0.2, 1.0, 200)])
+    a = trace(build(tris), o, d, backend="golden", any_hit=True)
+    b = trace(q8, o, d, backend="golden", any_hit=True)
+    assert np.array_equal(a.hit, b.hit)
+    assert b.stats["tri_ops"] <= a.stats["tri_ops"]
+
+
+def test_study_table_and_plot(tmp_path, capsys):
+    """driver.bvh.study on the committed bench documents: ratios against box32, one row per ray
+    type and image, the plot written; bad input is a one-line error."""
+    import json
+    from pathlib import Path
+    from driver.bvh import study
+    images = Path(__file__).resolve().parent.parent / "images"
+    paths = [str(images / f"compressed_path64_{f}.json") for f in ("box32", "q8", "q8g")]
+    docs = study.load(paths)
+    rows = study.rows(docs)
+    kinds = list(docs["box32"]["frame"]["by_type"])
+    assert len(rows) == 3 * len(kinds)
+    for r in rows:
+        t = docs[r["format"]]["frame"]["by_type"][r["type"]]
+        assert r["ops_per_ray"] == pytest.approx((t["box_ops"] + t["tri_ops"]) / t["rays"])
+        if r["format"] == "box32":
+            assert r["ops_ratio"] == r["memory_bytes_ratio"] == r["cycles_ratio"] == 1.0
+    png = tmp_path / "sweep.png"
+    assert study.main(paths[:2] + ["--plot", str(png)]) == 0
+    out = capsys.readouterr().out
+    assert len(out.splitlines()) == 2 + 2 * len(kinds) and png.stat().st_size > 1000
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"bvh_format": "q8"}))
+    assert study.main([paths[0], str(bad)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("rayflex: error: ") and "\n" not in err
