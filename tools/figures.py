@@ -33,6 +33,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+from driver.layout import IMAGE_FORMATS  # noqa: E402  (the checkout's, not an installed one)
+
 MANIFEST = ROOT / "docs" / "figures.json"
 RAYFLEX = [sys.executable, "-m", "driver.cli"]
 TMP = "{tmp}"                       # an output nobody shows (e.g. a heat map), in a temp directory
@@ -84,11 +87,23 @@ def _bench_workload(scene, workload):
 def _power(level, minutes, workloads=True):
     return Figure(f"power_{level}",
                   (*RAYFLEX, "power", "--level", level,
-                   *(("--workload", "bunny:32") if workloads else ()),
+                   *(("--scene", "bunny", "--size", "32") if workloads else ()),
                    "--json", f"docs/power_{level}.json", "--plot", f"images/power_{level}.png",
                    "--no-progress"),
                   (f"docs/power_{level}.json", f"images/power_{level}.png"), minutes,
                   f"energy per operation (and per ray) of the four configurations, {level} level")
+
+
+FORMATS = IMAGE_FORMATS                   # node images (docs/compressed.md)
+
+
+def _compressed(fmt):
+    out = f"images/compressed_path64_{fmt}.json"
+    return Figure(f"compressed_path64_{fmt}",
+                  (*RAYFLEX, "bench", "--scene", "bunny_floor", "--workload", "path", "--size",
+                   "64", "--spp", "2", "--bounces", "2", "--bvh-format", fmt, "--json", out,
+                   "--plot", f"{TMP}/compressed_path64_{fmt}_sweep.png", "--no-progress"),
+                  (out,), 4.0, f"the bunny on a floor, path traced, on the {fmt} node image")
 
 
 FIGURES = [
@@ -113,6 +128,31 @@ FIGURES = [
             "docs/bvh_bench_bvh.png", "--no-progress"),
            ("docs/bvh_bench.json", "docs/bvh_bench_bvh.png"), 10.0,
            "BVH build times (1, 20 and 50 bunnies) and the --bvh-fill x --cull-stack trade-off"),
+    *(_compressed(fmt) for fmt in FORMATS),
+    Figure("compressed_path64_sweep",
+           (sys.executable, "-m", "driver.bvh.study",
+            *(f"images/compressed_path64_{fmt}.json" for fmt in FORMATS),
+            "--plot", "images/compressed_path64_sweep.png"),
+           ("images/compressed_path64_sweep.png",), 0.1,
+           "box32 vs q8 vs q8g: utilization with the node memory over rays in flight"),
+    Figure("rayorder",
+           (sys.executable, "-m", "driver.rtunit.order", "--json", "docs/rayorder.json",
+            "--plot", "images/rayorder.png"),
+           ("docs/rayorder.json", "images/rayorder.png"), 20.0,
+           "ray-order policies of the RT unit per scene and ray type, with their state cost"),
+    Figure("sweep_bunny_floor_ao32",
+           (*RAYFLEX, "sweep", "--scene", "bunny_floor", "--workload", "ao", "--size", "32",
+            "--config", "baseline-unified,baseline-disjoint", "--rays-in-flight", "16,64",
+            "--cache-kib", "0,16", "--json", "images/sweep_bunny_floor_ao32.json",
+            "--plot", "images/sweep_bunny_floor_ao32.png",
+            "--results", f"{TMP}/sweep.points.jsonl", "--no-progress"),
+           ("images/sweep_bunny_floor_ao32.json", "images/sweep_bunny_floor_ao32.png"), 3.0,
+           "a design-point sweep: 2 configurations x 2 ray pools x with/without a node cache"),
+    Figure("power_bunny_floor_path32",
+           (*RAYFLEX, "power", "--scene", "bunny_floor", "--workload", "path", "--size", "32",
+            "--json", "images/power_bunny_floor_path32.json", "--no-progress"),
+           ("images/power_bunny_floor_path32.json",), 4.0,
+           "energy per op and per ray of each ray type (signals level), bunny on a floor, path"),
     _power("signals", 1.0, workloads=False),
     _power("gates", 12.0),
     _power("liberty", 12.0),
@@ -133,7 +173,7 @@ README_NUMBERS = {
     "bunny_ops": ("images/bunny_stats.json", "ops", "{:,}"),
     "bunny_box_per_ray": ("images/bunny_stats.json", "box_ops_per_ray", "{:.2f}"),
     "bunny_tri_per_ray": ("images/bunny_stats.json", "tri_ops_per_ray", "{:.2f}"),
-    "bunny_wavefront_cycles": ("images/bunny_stats.json", "cycles", "{:,}"),
+    "bunny_wavefront_cycles": ("images/bunny_stats.json", "wavefront.cycles", "{:,}"),
     "bunny_embree_mismatch": ("images/bunny_stats.json", "embree.prim_mismatch", "{:d}"),
     "bunny_edge_ties": ("images/bunny_stats.json", "embree.edge_ties", "{:d}"),
     "bench_replay_cycles": ("images/bench_bunny256.json", "frame.cycles", "{:,}"),
