@@ -464,8 +464,8 @@ def test_bvh_bench_dict(tmp_path):
         assert row["culled_ops_per_ray"] < row["ops_per_ray"]
         assert row["culled_box_ops_per_ray"] + row["stack_culls_per_ray"] == pytest.approx(
             row["box_ops_per_ray"], abs=2e-4)
-    assert f["targets"]["box_nodes"] == 36_000 and f["targets"]["ops_per_ray"] == 5.9755
-    assert f["targets"]["met_by"] == [
+    assert f["reference"]["box_nodes"] == 36_000 and f["reference"]["ops_per_ray"] == 5.9755
+    assert f["reference"]["within"] == [
         {"fill": r["fill"], "cull_stack": cull} for r in f["rows"]
         for cull, key in ((False, "ops_per_ray"), (True, "culled_ops_per_ray"))
         if r["box_nodes"] <= 36_000 and r[key] <= 5.9755]

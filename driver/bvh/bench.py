@@ -9,7 +9,8 @@ the greedy collapse with the SAH collapse on the bunny, by SAH cost and by the o
 bunny's 256 x 256 primary frame traced on the golden model, and checks that both trees find the
 same closest hits; then the shape trade-off: box nodes and ops per ray for each ``--bvh-fill``
 in ``FILLS``, with the docs/datapath.md#traversal traversal and with the distance-culled stack
-(``cull_stack``), against the size and ops targets in ``TARGETS``, optionally plotted.
+(``cull_stack``), against the reference point ``REFERENCE`` (box nodes, ops per ray), optionally
+plotted.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ BUNNY_TRIANGLES = 99_785
 FORMATS = ("box32", "q8", "q8g")    # image formats whose builds are timed
 FILLS = (0, 8, 16, 32, 40, 64, 256, 1 << 30)     # --bvh-fill values of the shape trade-off
 # a reference point on the bunny frame: box nodes, and 0.95 x the 6.29 ops per ray of plain SAH
-TARGETS = {"box_nodes": 36_000, "ops_per_ray": 0.95 * 6.29}
+REFERENCE = {"box_nodes": 36_000, "ops_per_ray": 0.95 * 6.29}
 
 
 def instanced_bunnies(count: int, seed: int = 0) -> np.ndarray:
@@ -105,17 +106,17 @@ def _fills(scene, o, d, ref, fills, progress) -> dict:
         row["stack_culls_per_ray"] = round(culled.stats["stack_culls"] / len(o), 4)
         row["same_hits"] = _same(plain, ref) and _same(culled, ref)
         rows.append(row)
-    met = [{"fill": r["fill"], "cull_stack": cull}
+    within = [{"fill": r["fill"], "cull_stack": cull}
            for r in rows for cull, key in ((False, "ops_per_ray"), (True, "culled_ops_per_ray"))
-           if r["box_nodes"] <= TARGETS["box_nodes"] and r[key] <= TARGETS["ops_per_ray"]
+           if r["box_nodes"] <= REFERENCE["box_nodes"] and r[key] <= REFERENCE["ops_per_ray"]
            and r["same_hits"]]
-    return {"rows": rows, "targets": {**{k: round(v, 4) for k, v in TARGETS.items()},
-                                      "met_by": met}}
+    return {"rows": rows, "reference": {**{k: round(v, 4) for k, v in REFERENCE.items()},
+                                        "within": within}}
 
 
 def plot_fills(fills: dict, path, title: str) -> None:
     """PNG: primary-ray ops per ray vs box nodes, one point per ``--bvh-fill``, for the
-    docs/datapath.md#traversal traversal and the distance-culled stack, with the targets."""
+    docs/datapath.md#traversal traversal and the distance-culled stack, with the reference point."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -130,7 +131,7 @@ def plot_fills(fills: dict, path, title: str) -> None:
         for r in rows:
             ax.annotate("inf" if r["fill"] >= 1 << 30 else str(r["fill"]), (r["box_nodes"], r[key]),
                         textcoords="offset points", xytext=(4, 4), fontsize=7)
-    t = fills["targets"]
+    t = fills["reference"]
     ax.axvline(t["box_nodes"], color="grey", ls=":", lw=1)
     ax.axhline(t["ops_per_ray"], color="grey", ls=":", lw=1)
     ax.set_xlabel("box nodes (labels: --bvh-fill)")
