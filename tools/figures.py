@@ -193,6 +193,29 @@ README_NUMBERS = {
                                  "frame.by_type.bounce1.rtunit_memory.bytes_per_ray", "{:.0f}"),
     "cornell_path_shadow_util_mem": ("images/bench_cornell_path64.json",
                                      "frame.by_type.shadow.rtunit_memory.utilization", "{:.2f}"),
+    "sweep_nocache_util": ("images/sweep_bunny_floor_ao32.json",
+                           "points.2.by_type.ao.rtunit_memory.utilization", "{:.2f}"),
+    "sweep_nocache_bytes": ("images/sweep_bunny_floor_ao32.json",
+                            "points.2.by_type.ao.rtunit_memory.bytes_per_ray", "{:.0f}"),
+    "sweep_cache_util": ("images/sweep_bunny_floor_ao32.json",
+                         "points.3.by_type.ao.rtunit_memory.utilization", "{:.2f}"),
+    "sweep_cache_bytes": ("images/sweep_bunny_floor_ao32.json",
+                          "points.3.by_type.ao.rtunit_memory.bytes_per_ray", "{:.0f}"),
+    "sweep_energy_ao_unified": ("images/sweep_bunny_floor_ao32.json",
+                                "points.3.by_type.ao.energy_per_ray.signals", "{:,.0f}"),
+    "sweep_energy_ao_disjoint": ("images/sweep_bunny_floor_ao32.json",
+                                 "points.7.by_type.ao.energy_per_ray.signals", "{:,.0f}"),
+    **{f"power_ray_{t}": ("images/power_bunny_floor_path32.json",
+                          f"per_ray.{t}.configs.baseline-unified.energy_per_ray", "{:,.0f}")
+       for t in ("primary", "shadow", "bounce1")},
+    **{f"order_{t}_{policy}": ("docs/rayorder.json",
+                               f"scenes.bunny_floor.{t}.policies.{policy}.{window}"
+                               ".replay_utilization", "{:.2f}")
+       for t in ("ao", "primary") for policy, window in (("index", 0), ("affinity", 256))},
+    "order_state_bytes": ("docs/rayorder.json", "scenes.bunny_floor.ao.policies.affinity.256"
+                          ".order.extra_state_bytes", "{:,}"),
+    "order_extra_rays": ("docs/rayorder.json", "scenes.bunny_floor.ao.policies.affinity.256"
+                         ".order.extra_rays_held", "{:d}"),
     "power_gates_ext_box": ("docs/power_gates.json",
                             "ratios.extended_vs_baseline.unified.box", "{:+.1%}"),
     "power_gates_ext_tri": ("docs/power_gates.json",
