@@ -121,7 +121,7 @@ def plan_tile(pixels: int, workload: str, spp: int, tile: int | None, workers: i
 
 def _render_tiles(scene, w, h, backend, progress, check_embree, workload, options, tile,
                   workers, scheduler, fill, cull_stack, bvh_format="box32") -> RenderResult:
-    from .bvh4 import build
+    from .bvh.instances import build_label, build_scene
     from .tiles import plan, render_tiles
     from .workloads import WORKLOADS, setup_for, tone_map
     if workload not in WORKLOADS:
@@ -130,8 +130,8 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, workload, option
     spec = backend if isinstance(backend, str) else name
     if workers == 1 and not scheduler:
         spec = resolve(backend)[0]          # fail early, before a long BVH build
-    with phase(f"building the BVH4 of {len(scene.mesh.faces):,} triangles", progress):
-        bvh = build(scene.mesh, fill=fill, format=bvh_format)
+    with phase(f"building {build_label(scene)}", progress):
+        bvh = build_scene(scene, fill=fill, format=bvh_format)
     setup = setup_for(scene)
     tiles = plan(w, h, tile)
     bar = progress_bar(len(tiles), f"{scene.name} {w}x{h} {workload} {name}", "tile", progress)
@@ -146,6 +146,7 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, workload, option
     stats = dict(res.stats)
     stats.update(bvh=dict(bvh.stats), workload=workload, tile=tile, workers=workers, **options,
                  cull_stack=cull_stack)
+    stats.update(scene.counts())
     return RenderResult(scene, w, h, image, total, None, stats, stats.get("embree"),
                         dict(bvh.stats), by_type)
 
@@ -153,13 +154,13 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, workload, option
 def _render_whole(scene, w, h, backend, progress, check_embree, fill=0,
                   cull_stack=False, bvh_format="box32") -> RenderResult:
     """The primary frame as one wavefront of every pixel."""
-    from .bvh4 import build
+    from .bvh.instances import build_label, build_scene
     from .tracer import trace
 
     origins, dirs = primary_rays(scene.camera, w, h)
     be = resolve(backend)[0]                # fail early, before a long BVH build
-    with phase(f"building the BVH4 of {len(scene.mesh.faces):,} triangles", progress):
-        bvh = build(scene.mesh, fill=fill, format=bvh_format)
+    with phase(f"building {build_label(scene)}", progress):
+        bvh = build_scene(scene, fill=fill, format=bvh_format)
     bvh_stats = dict(getattr(bvh, "stats", {}) or {})
 
     name = backend if isinstance(backend, str) else getattr(backend, "name", "backend")
@@ -175,6 +176,7 @@ def _render_whole(scene, w, h, backend, progress, check_embree, fill=0,
     ops = (np.asarray(result.box_ops, np.int64) + np.asarray(result.tri_ops, np.int64))
     stats = dict(result.stats)
     stats["bvh"] = bvh_stats
+    stats.update(scene.counts())
     emb = None
     if check_embree:
         from .check import check, embree_json

@@ -51,6 +51,12 @@ A light inside closed geometry is allowed: its shadow rays all hit the enclosure
 nothing (the image shows that). A glTF/GLB file is double-sided when any of its materials says
 ``doubleSided`` (the flag is per ray, not per triangle: one double-sided part makes the scene so).
 Materials of mesh files are a uniform grey (``driver.workloads.DEFAULT_ALBEDO``).
+
+Instances (docs/instances.md): a glTF/GLB scene graph in which a mesh is used by more than one node
+keeps its meshes and node transforms (nested nodes composed) as ``Scene.instances`` instead of
+copying the mesh per node, and the rendering built-in ``bunny_grid`` is 21 instances of one
+bunny; such scenes trace through a two-level BVH (``driver.bvh.instances``). Their ``mesh`` is
+the flattened world-space triangles (instance after instance), which ``prim`` indexes.
 """
 
 from __future__ import annotations
@@ -90,11 +96,22 @@ class Scene:
     lights: list = field(default_factory=list)
     double_sided: bool = False
     ao_radius: float | None = None
+    instances: object = None        # driver.instances.Instances, or None: one mesh
 
     @property
     def triangles(self) -> np.ndarray:
         """(n, 3, 3) float32 vertex positions of every face; row i is primitive id i."""
         return triangles(self.mesh)
+
+    def counts(self) -> dict:
+        """``instances``, ``instanced_triangles`` (triangles of the flattened scene) and
+        ``blas_triangles`` (triangles stored once per mesh); a one-mesh scene is one instance."""
+        if self.instances is None:
+            n = len(self.mesh.faces)
+            return {"instances": 1, "instanced_triangles": n, "blas_triangles": n}
+        i = self.instances
+        return {"instances": len(i), "instanced_triangles": i.triangles_total,
+                "blas_triangles": i.blas_triangles}
 
 
 def triangles(mesh: trimesh.Trimesh) -> np.ndarray:
@@ -138,7 +155,8 @@ def _rendering_builtin(name: str) -> Scene:
     b = BUILT[name](lambda: triangles(builtin("bunny")))
     mesh = _mesh(b.triangles.reshape(-1, 3), np.arange(3 * len(b.triangles)).reshape(-1, 3), name)
     return Scene(mesh, Camera(**b.camera).validate(), (DEFAULT_SIZE, DEFAULT_SIZE), name,
-                 Materials(b.albedo, b.emission), list(b.lights), b.double_sided)
+                 Materials(b.albedo, b.emission), list(b.lights), b.double_sided,
+                 instances=b.instances)
 
 
 def resolve(name_or_path) -> Source:
@@ -282,17 +300,51 @@ def _mesh(vertices, faces, what) -> trimesh.Trimesh:
 
 def _from_mesh_file(path: Path) -> Scene:
     mesh = _read_mesh_file(path)
+    inst = _gltf_instances(path)
+    if inst is not None:
+        flat = inst.flatten().reshape(-1, 3)
+        mesh = _mesh(flat, np.arange(len(flat)).reshape(-1, 3), str(path))
     return Scene(mesh, _frame(mesh, _FILE_UP, str(path)), (DEFAULT_SIZE, DEFAULT_SIZE), path.stem,
-                 double_sided=_gltf_double_sided(path))
+                 double_sided=_gltf_double_sided(path), instances=inst)
+
+
+def _gltf_instances(path: Path):
+    """The instances of a glTF/GLB scene graph in which some mesh is used by more than one node
+    (``driver.instances.Instances``: its meshes, one instance per node with that node's world
+    transform, nested nodes composed), or None (no reuse, or not a glTF file)."""
+    loaded = _load_gltf(path)
+    if not isinstance(loaded, trimesh.Scene):
+        return None
+    nodes = [(node, loaded.graph[node]) for node in loaded.graph.nodes_geometry]
+    nodes = [(node, m, g) for node, (m, g) in nodes
+             if isinstance(loaded.geometry.get(g), trimesh.Trimesh)]
+    used = [g for _, _, g in nodes]
+    if len(set(used)) == len(used):
+        return None
+    from ..instances import Instances
+    names = sorted(set(used), key=used.index)
+    meshes = [triangles(_validated(loaded.geometry[g], f"{path}: mesh {g!r}")) for g in names]
+    try:
+        return Instances(meshes, [names.index(g) for g in used],
+                         np.stack([np.asarray(m, np.float64)[:3] for _, m, _ in nodes]))
+    except ValueError as e:
+        raise SceneError(f"{path}: {e}") from None
+
+
+def _load_gltf(path: Path):
+    """The trimesh object (a Scene or a mesh) of a glTF/GLB file, or None (another file type)."""
+    if path.suffix.lower() not in (".gltf", ".glb"):
+        return None
+    try:
+        return trimesh.load(str(path), process=False)
+    except Exception:  # noqa: BLE001  (already read once by _read_mesh_file)
+        return None
 
 
 def _gltf_double_sided(path: Path) -> bool:
     """Whether a glTF/GLB file's materials ask for double-sided triangles."""
-    if path.suffix.lower() not in (".gltf", ".glb"):
-        return False
-    try:
-        loaded = trimesh.load(str(path), process=False)
-    except Exception:  # noqa: BLE001  (already read once by _read_mesh_file)
+    loaded = _load_gltf(path)
+    if loaded is None:
         return False
     geoms = loaded.geometry.values() if isinstance(loaded, trimesh.Scene) else [loaded]
     return any(bool(getattr(getattr(getattr(g, "visual", None), "material", None),
