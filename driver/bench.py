@@ -138,12 +138,13 @@ def _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines, label, progress
            cull_stack=False, bvh_format="box32"):
     """The frame on "rtl": BVH build, wavefront traversal (recorded), RT-unit replay. Returns
     (frame statistics, trace result, BVH, replay result)."""
-    from .bvh4 import build, warm_up
+    from .bvh.instances import build_scene
+    from .bvh4 import warm_up
     from .tracer import trace
 
     t_kernels = warm_up()                           # the builder's JIT, like the model's build
     t0 = time.perf_counter()
-    bvh = build(scene.mesh, fill=fill, format=bvh_format)
+    bvh = build_scene(scene, fill=fill, format=bvh_format)
     t_bvh = time.perf_counter() - t0
     bar = _bar(len(origins), f"frame {label} rtl", "ray", progress)
     t1 = time.perf_counter()
@@ -162,6 +163,7 @@ def _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines, label, progress
     frame["wall_parts_s"] = {"bvh_build": t_bvh, "traversal": t_trace, "replay": rep.wall_s}
     frame["bvh_kernels_s"] = t_kernels              # not in wall_s (see bvh4.warm_up)
     frame["bvh"] = dict(bvh.stats)
+    frame.update(scene.counts())
     return frame, res, bvh, rep
 
 
@@ -380,7 +382,7 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
     ``cull_stack``: the traversal's (``driver.tracer.trace``)."""
     from . import workloads
     from .backends import backend
-    from .bvh4 import build
+    from .bvh.instances import build_scene
     from .scenes.scene import load_scene
     from .tracer import trace
 
@@ -388,7 +390,7 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
     setup = workloads.setup_for(scene)
     rtl = backend("rtl")
     t0 = time.perf_counter()
-    bvh = build(scene.triangles, fill=fill, format=bvh_format)
+    bvh = build_scene(scene, fill=fill, format=bvh_format)
     t_bvh = time.perf_counter() - t0
 
     def tracer(bvh_, o, d, **kw):
@@ -438,15 +440,16 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
                  responses_verified=all(t["responses_verified"] for t in by_type.values()))
     return {"scene": scene.name, "workload": workload, "width": size, "height": size,
             "spp": spp, "bounces": bounces, "ao_rays": ao_rays, "seed": seed, "fill": fill,
-            "bvh_format": bvh_format, "bvh": _bvh_json(bvh), "cull_stack": cull_stack, "frame": total, "by_type": by_type, "sweep": sweep, "plot": str(plot) if plot else None,
+            "bvh_format": bvh_format, "bvh": _bvh_json(bvh), **scene.counts(),
+            "cull_stack": cull_stack, "frame": total, "by_type": by_type, "sweep": sweep, "plot": str(plot) if plot else None,
             "wall_parts_s": {"bvh_build": t_bvh, "traversal": t_trace}}
 
 
 def _bvh_json(bvh) -> dict:
     """The image's size figures for the JSON (``driver.bvh4.BVH4.stats``)."""
     keep = ("format", "bytes", "bytes_per_triangle", "box_nodes", "leaf_nodes", "tri_nodes",
-            "pair_ratio", "sah_cost", "build_s")
-    return {k: bvh.stats[k] for k in keep}
+            "pair_ratio", "sah_cost", "build_s", "tlas_bytes", "instance_bytes", "blas_bytes")
+    return {k: bvh.stats[k] for k in keep if k in bvh.stats}
 
 
 def _replay_all(records, rays_in_flight, pipelines, memory=None) -> dict:
@@ -513,14 +516,14 @@ def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, ti
     the same share of the one-process frame, i.e. the scaling the machine gives once every fixed
     cost is paid. ``fill``, ``bvh_format``: the BVH build's; ``options``: the workload's and ``cull_stack``."""
     from .backends.build import build_harness, rtl_params
-    from .bvh4 import build
+    from .bvh.instances import build_scene
     from .datapath import LATENCY
     from .scenes.scene import load_scene
     from .tiles import plan, render_tiles
     from .workloads import setup_for
 
     scene = load_scene(scene_name)
-    setup, bvh = setup_for(scene), build(scene.mesh, fill=fill, format=bvh_format)
+    setup, bvh = setup_for(scene), build_scene(scene, fill=fill, format=bvh_format)
     n_tiles = len(plan(size, size, tile))
     # a first use on this machine builds the Verilated model (minutes): build it before either
     # clock starts, so that both runs pay only what every run pays, loading it from the cache

@@ -96,8 +96,10 @@ class Instances:
 
     @property
     def blas_triangles(self) -> int:
-        """Triangles stored once per distinct mesh used by an instance."""
-        return int(sum(len(self.meshes[j]) for j in np.unique(self.mesh)))
+        """Triangles stored in the BLASes: once per mesh used by an instance, and once more for
+        a mesh that also has mirrored instances (``driver.bvh.instances``)."""
+        keys = np.unique(self.mesh * 2 + self.mirrored)
+        return int(sum(len(self.meshes[k // 2]) for k in keys))
 
     @property
     def mirrored(self) -> np.ndarray:
@@ -193,3 +195,110 @@ class InstanceStepper:
     def hit(self, rays) -> None:
         """Rays ``rays`` accepted a triangle in their current instance."""
         self.hit_instance[rays] = self.current[rays]
+
+
+class InstancedTriangles:
+    """The flattened world-space triangles of ``Instances`` without flattening them: rows are
+    computed when indexed (``tris[prim]`` -> (k, 3, 3) float32), so a scene of 10^8 instanced
+    triangles costs only its meshes. ``len``, ``bounds()`` and ``np.asarray`` (which does
+    flatten: small scenes only) as for an (n, 3, 3) array."""
+
+    def __init__(self, instances: Instances):
+        self.instances = instances
+
+    def __len__(self) -> int:
+        return self.instances.triangles_total
+
+    @property
+    def shape(self) -> tuple:
+        return (len(self), 3, 3)
+
+    def __getitem__(self, prim) -> np.ndarray:
+        return self.instances.world_triangles(prim)
+
+    def __array__(self, dtype=None, copy=None):
+        flat = self.instances.flatten()
+        return flat if dtype is None else flat.astype(dtype)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) float64 (3,): the world box of every instance's mesh vertices."""
+        inst = self.instances
+        lo = np.array([m.reshape(-1, 3).min(0) for m in inst.meshes], np.float64)
+        hi = np.array([m.reshape(-1, 3).max(0) for m in inst.meshes], np.float64)
+        from .bvh.instances import world_boxes
+        wb = world_boxes(inst, np.concatenate([lo, hi], 1)[inst.mesh]).astype(np.float64)
+        return wb[:, 0].min(0), wb[:, 1].max(0)
+
+
+class PerInstance:
+    """A per-triangle attribute that is constant over each instance (e.g. an albedo): ``values``
+    (k, ...) per instance, indexed by flattened primitive ids like an (n, ...) array."""
+
+    def __init__(self, instances: Instances, values):
+        self.instances, self.values = instances, np.asarray(values)
+
+    def __len__(self) -> int:
+        return self.instances.triangles_total
+
+    def __getitem__(self, prim) -> np.ndarray:
+        return self.values[self.instances.locate(prim)[0]]
+
+
+EMBREE_SAMPLE_TRIANGLES = 2_000_000   # world triangles an Embree check of a large instanced
+EMBREE_SAMPLE_RAYS = 4096             # scene may flatten, and the rays it may take
+
+
+def embree_sample(instances: Instances, origins, dirs, extent, our_t, our_prim,
+                  budget: int = EMBREE_SAMPLE_TRIANGLES, max_rays: int = EMBREE_SAMPLE_RAYS):
+    """A sample of rays that an Embree check of a scene too large to flatten can take exactly:
+    (rows, triangles, prim): the rows of the rays taken (a fixed pseudo-random order, as many
+    as fit), the world-space triangles of every instance whose world box one of them crosses
+    before its hit (or its extent, for a miss), and our primitive ids of those rays renumbered
+    into those triangles. An Embree hit nearer than ours lies in such an instance, so on these
+    rays the check is the full scene's."""
+    o = np.asarray(origins, np.float64).reshape(-1, 3)
+    d = np.asarray(dirs, np.float64).reshape(-1, 3)
+    n = len(o)
+    t = np.asarray(our_t, np.float64)
+    end = np.where(np.isfinite(t), t * (1 + 1e-4),
+                   np.broadcast_to(np.asarray(extent, np.float64), (n,)))
+    from .bvh.instances import world_boxes
+    lo_m = np.array([m.reshape(-1, 3).min(0) for m in instances.meshes], np.float64)
+    hi_m = np.array([m.reshape(-1, 3).max(0) for m in instances.meshes], np.float64)
+    wb = world_boxes(instances, np.concatenate([lo_m, hi_m], 1)[instances.mesh]).astype(np.float64)
+    size = np.array([len(m) for m in instances.meshes], np.int64)[instances.mesh]
+    order = np.random.default_rng(0).permutation(n)
+    taken, used = [], np.zeros(len(instances), bool)
+    total = 0
+    for start in range(0, n, 64):
+        rows = order[start:start + 64]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / d[rows]
+            t0 = (wb[None, :, 0] - o[rows, None]) * inv[:, None]
+            t1 = (wb[None, :, 1] - o[rows, None]) * inv[:, None]
+        near = np.nan_to_num(np.minimum(t0, t1), nan=-np.inf).max(2)
+        far = np.nan_to_num(np.maximum(t0, t1), nan=np.inf).min(2)
+        cross = (near <= far) & (far >= 0) & (near <= end[rows, None])
+        for r, c in zip(rows, cross):
+            new = c & ~used
+            if total + int(size[new].sum()) > budget or len(taken) >= max_rays:
+                break
+            used |= new
+            total += int(size[new].sum())
+            taken.append(r)
+        else:
+            continue
+        break
+    rows = np.sort(np.array(taken, np.int64))
+    keep = np.flatnonzero(used)
+    base = np.concatenate(([0], np.cumsum(size[keep])[:-1])).astype(np.int64)
+    tris = (np.concatenate([instances.world_triangles(instances.prim_base[i] + np.arange(size[i]))
+                            for i in keep]) if len(keep) else np.zeros((0, 3, 3), np.float32))
+    prim = np.asarray(our_prim, np.int64)[rows]
+    hit = prim >= 0
+    inst, local = instances.locate(prim[hit])
+    slot = np.searchsorted(keep, inst)
+    if len(slot) and not np.array_equal(keep[np.minimum(slot, len(keep) - 1)], inst):
+        raise AssertionError("a hit instance is not among the instances its ray crosses")
+    prim[hit] = base[slot] + local
+    return rows, tris, prim

@@ -180,8 +180,14 @@ def _render_whole(scene, w, h, backend, progress, check_embree, fill=0,
     emb = None
     if check_embree:
         from .check import check, embree_json
-        with phase(f"Embree check of {len(origins):,} rays", progress):
-            emb = check(tri, origins, dirs, result.t, result.prim, scene.double_sided)
+        rows, ctri, cprim = slice(None), tri, result.prim
+        if hasattr(tri, "instances"):       # too large to flatten: a sample (driver.instances)
+            from .instances import embree_sample
+            rows, ctri, cprim = embree_sample(tri.instances, origins, dirs, np.inf, result.t,
+                                              result.prim)
+        with phase(f"Embree check of {len(cprim):,} rays", progress):
+            emb = check(ctri, origins[rows], dirs[rows], result.t[rows], cprim,
+                        scene.double_sided)
         stats["embree"] = embree_json(emb)
     return RenderResult(scene, w, h, image, ops.reshape(h, w), result, stats, emb, bvh_stats)
 

@@ -117,7 +117,8 @@ def summary(res) -> str:
         f"{s.get('sim_wall_s', 0):.2f} s ({s.get('sim_cycles_per_s', 0):.3g} cycles/s)",
     ]
     if b:
-        lines.append(f"BVH4: {len(res.scene.mesh.faces)} triangles, {b.get('box_nodes', '?')} box "
+        lines.append(f"BVH4: {res.scene.counts()['instanced_triangles']} triangles, "
+                     f"{b.get('box_nodes', '?')} box "
                      f"nodes, depth {b.get('depth', '?')}, SAH {b.get('sah_cost', 0):.1f}, "
                      f"{b.get('bytes', 0) / 2**20:.2f} MiB, built in {b.get('build_s', 0):.2f} s")
     for kind, t in s.get("by_type", {}).items():

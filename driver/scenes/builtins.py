@@ -49,7 +49,8 @@ _LIGHT = ((343.0, _LIGHT_Y, 227.0), (0.0, 0.0, 105.0), (-130.0, 0.0, 0.0))  # co
 
 @dataclass
 class Built:
-    """A built-in scene: triangles (m, 3, 3) float32, per-triangle albedo and emission (m, 3),
+    """A built-in scene: triangles (m, 3, 3) float32 (None: an instanced scene too large to
+    flatten, ``instances`` only), per-triangle albedo and emission (m, 3),
     lights (``driver.workloads`` lights), camera (position, look_at, up, fov_deg), double-sided."""
 
     triangles: np.ndarray
@@ -176,4 +177,9 @@ def _framing(tris: np.ndarray) -> dict:
             "fov_deg": cam.fov_deg}
 
 
-BUILT = {"cornell": cornell, "bunny_floor": bunny_floor, "bunny_grid": bunny_grid}
+def _city(bunny) -> Built:
+    from .city import city
+    return city(bunny)
+
+
+BUILT = {"cornell": cornell, "bunny_floor": bunny_floor, "bunny_grid": bunny_grid, "city": _city}

@@ -15,7 +15,9 @@ A name or path is resolved in this order (``resolve``):
    ``soup`` (seeded random triangles). Built-ins without a TOML get a camera framed from the mesh
    bounds. Rendering built-ins with materials and lights (``driver.builtins``): ``cornell`` (the
    Cornell box, double-sided), ``bunny_floor`` (the bunny on a floor under a quad light) and
-   ``bunny_grid`` (21 rotated, scaled bunnies on a floor: 2.1 million triangles).
+   ``bunny_grid`` (21 rotated, scaled bunnies on a floor: 2.1 million triangles, instanced) and
+   ``city`` (12,101 instances of a bunny, a tree, a building and a floor: 1.5e8 instanced
+   triangles, never flattened; ``driver.scenes.city``).
 
 ``scene_name(name_or_path)`` gives the scene's name without reading its mesh (the command line
 names its default outputs before any work).
@@ -75,7 +77,7 @@ from ..errors import CameraError, SceneError
 
 SCENES_DIR = Path(__file__).resolve().parent / "data"
 BUILTINS = ("bunny", "room", "soup", "sphere")
-RENDER_BUILTINS = ("cornell", "bunny_floor", "bunny_grid")   # with materials and lights
+RENDER_BUILTINS = ("cornell", "bunny_floor", "bunny_grid", "city")   # with materials and lights
 DEFAULT_SIZE = 256
 _UP = {"bunny": (0.0, 0.0, 1.0), "sphere": (0.0, 0.0, 1.0), "room": (0.0, 0.0, 1.0),
        "soup": (0.0, 0.0, 1.0)}
@@ -84,7 +86,8 @@ _FILE_UP = (0.0, 1.0, 0.0)      # auto-framing of mesh files: +y up (OBJ / glTF 
 
 @dataclass
 class Scene:
-    """mesh : trimesh.Trimesh (process=False); camera : Camera; size : default (width, height);
+    """mesh : trimesh.Trimesh (process=False; None for a scene of instances too large to
+    flatten: ``city``); camera : Camera; size : default (width, height);
     materials : ``driver.workloads.Materials`` or None (uniform grey); lights : workload lights
     (empty: a default light); double_sided : trace with NO_CULL; ao_radius : None = default."""
 
@@ -100,7 +103,12 @@ class Scene:
 
     @property
     def triangles(self) -> np.ndarray:
-        """(n, 3, 3) float32 vertex positions of every face; row i is primitive id i."""
+        """(n, 3, 3) float32 vertex positions of every face; row i is primitive id i. A scene
+        of instances too large to flatten (``mesh`` None) gives an
+        ``driver.instances.InstancedTriangles``, computed row by row when indexed."""
+        if self.mesh is None:
+            from ..instances import InstancedTriangles
+            return InstancedTriangles(self.instances)
         return triangles(self.mesh)
 
     def counts(self) -> dict:
@@ -153,7 +161,8 @@ def _rendering_builtin(name: str) -> Scene:
     from .builtins import BUILT
     from ..workloads import Materials
     b = BUILT[name](lambda: triangles(builtin("bunny")))
-    mesh = _mesh(b.triangles.reshape(-1, 3), np.arange(3 * len(b.triangles)).reshape(-1, 3), name)
+    mesh = None if b.triangles is None else _mesh(
+        b.triangles.reshape(-1, 3), np.arange(3 * len(b.triangles)).reshape(-1, 3), name)
     return Scene(mesh, Camera(**b.camera).validate(), (DEFAULT_SIZE, DEFAULT_SIZE), name,
                  Materials(b.albedo, b.emission), list(b.lights), b.double_sided,
                  instances=b.instances)
