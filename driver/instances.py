@@ -251,8 +251,9 @@ EMBREE_SAMPLE_RAYS = 4096             # scene may flatten, and the rays it may t
 def embree_sample(instances: Instances, origins, dirs, extent, our_t, our_prim,
                   budget: int = EMBREE_SAMPLE_TRIANGLES, max_rays: int = EMBREE_SAMPLE_RAYS):
     """A sample of rays that an Embree check of a scene too large to flatten can take exactly:
-    (rows, triangles, prim): the rows of the rays taken (a fixed pseudo-random order, as many
-    as fit), the world-space triangles of every instance whose world box one of them crosses
+    (rows, triangles, prim): the rows of the rays taken (in a fixed pseudo-random order, each
+    ray whose instances still fit in ``budget`` triangles, up to ``max_rays``; the instances of
+    a ray taken are never dropped), the world-space triangles of every instance whose world box one of them crosses
     before its hit (or its extent, for a miss), and our primitive ids of those rays renumbered
     into those triangles. An Embree hit nearer than ours lies in such an instance, so on these
     rays the check is the full scene's."""
@@ -281,14 +282,14 @@ def embree_sample(instances: Instances, origins, dirs, extent, our_t, our_prim,
         cross = (near <= far) & (far >= 0) & (near <= end[rows, None])
         for r, c in zip(rows, cross):
             new = c & ~used
-            if total + int(size[new].sum()) > budget or len(taken) >= max_rays:
-                break
+            if total + int(size[new].sum()) > budget:
+                continue                        # this ray would flatten too much: not taken
             used |= new
             total += int(size[new].sum())
             taken.append(r)
-        else:
-            continue
-        break
+        if len(taken) >= max_rays:
+            taken = taken[:max_rays]
+            break
     rows = np.sort(np.array(taken, np.int64))
     keep = np.flatnonzero(used)
     base = np.concatenate(([0], np.cumsum(size[keep])[:-1])).astype(np.int64)

@@ -284,3 +284,77 @@ def test_instanced_record_replays_with_instance_fetches():
     assert cached.verified and cached.cycles > plain.cycles
     g = trace(bvh, o, d)
     assert np.array_equal(g.prim, res.prim) and np.array_equal(g.t, res.t)
+
+
+# ---- large instanced scenes ---------------------------------------------------------------------
+
+def _small_city(side=5):
+    from driver.scenes.builtins import BUILT  # noqa: F401  (the registry knows the city)
+    from driver.scenes.camera import Camera
+    from driver.scenes.city import city
+    from driver.scenes.scene import Scene
+    from driver.workloads import Materials
+    b = city(lambda: trimesh.creation.icosphere(2).triangles, side)
+    return Scene(None, Camera(**b.camera).validate(), (24, 24), "city",
+                 Materials(b.albedo, b.emission), list(b.lights), False, instances=b.instances)
+
+
+def test_city_layout_is_counter_based():
+    from driver.scenes.city import PITCH, city_instances, counter_uniform
+    bunny = trimesh.creation.icosphere(1).triangles
+    a, alb = city_instances(bunny, 6)
+    b, _ = city_instances(bunny, 6)
+    assert np.array_equal(a.object_to_world, b.object_to_world)
+    assert len(a) == 37 and a.mesh[-1] == 3 and len(alb) == 37
+    assert (a.mesh[:-1][np.arange(36) % 8 == 0] == 0).all()
+    assert a.mirrored[:-1][a.mesh[:-1] == 0].any() and not a.mirrored[a.mesh != 0].any()
+    # every number of instance i is a function of (seed, i, k) only
+    i = np.array([3, 17, 1 << 40])
+    assert np.array_equal(counter_uniform(0, i, 2), [counter_uniform(0, [x], 2)[0] for x in i])
+    u = counter_uniform(1, np.arange(100_000), 0)
+    assert 0 <= u.min() and u.max() < 1 and abs(u.mean() - 0.5) < 0.01
+    centres = a.object_to_world[:-1, :2, 3]
+    assert (centres > 0).all() and (centres < 6 * PITCH).all()
+
+
+def test_city_defaults_reach_game_scale():
+    from driver.scenes.city import SIDE, city_instances
+    bunny_tris = 99_785
+    inst, _ = city_instances(np.zeros((bunny_tris, 3, 3)) + np.arange(3)[:, None], SIDE)
+    assert len(inst) >= 10_000 and inst.triangles_total >= 10 ** 8
+
+
+def test_small_city_renders_every_workload_and_checks_against_embree():
+    from driver.instances import InstancedTriangles
+    from driver.render import render
+    scene = _small_city()
+    assert isinstance(scene.triangles, InstancedTriangles)
+    assert scene.counts()["instances"] == 26
+    for workload in ("primary", "shadow", "ao", "path"):
+        res = render(scene, 24, 24, backend="golden", workload=workload, progress=False,
+                     check_embree=True, tile=None if workload == "primary" else 16)
+        s = res.stats
+        assert s["instances"] == 26 and s["instanced_triangles"] == len(scene.triangles)
+        assert s["hits"] > 0 and s["instance_ops"] > 0
+        e = s["embree"]
+        assert e["rays_compared"] > 0 and e["hit_mismatch"] == 0 and e["prim_mismatch"] == 0
+        if workload != "primary":
+            assert all("instance_ops" in t for t in s["by_type"].values())
+
+
+def test_embree_sample_is_the_full_check_on_its_rays():
+    from driver.check import check
+    from driver.instances import embree_sample
+    inst = random_instances(4)
+    bvh = build_two_level(inst)
+    o, d = random_rays(600, 8)
+    res = trace(bvh, o, d)
+    rows, tri, prim = embree_sample(inst, o, d, np.inf, res.t, res.prim, budget=400)
+    assert 0 < len(rows) < 600 and len(tri) <= 400
+    got = check(tri, o[rows], d[rows], res.t[rows], prim)
+    full = check(inst.flatten(), o[rows], d[rows], res.t[rows], res.prim[rows])
+    assert got["hit_mismatch"] == full["hit_mismatch"] == 0
+    assert got["prim_mismatch"] == full["prim_mismatch"] == 0
+    assert np.array_equal(got["embree_t"], full["embree_t"])
+    hit = prim >= 0
+    assert np.array_equal(tri[prim[hit]], inst.flatten()[res.prim[rows][hit]])

@@ -180,7 +180,8 @@ def build_scene(scene, fill: int = 0, format: str = "box32"):
     mesh."""
     if getattr(scene, "instances", None) is not None:
         return build_two_level(scene.instances, format=format, fill=fill)
-    return build(scene.mesh, fill=fill, format=format)
+    from .. import bvh4                     # looked up at call time (tests may wrap it)
+    return bvh4.build(scene.mesh, fill=fill, format=format)
 
 
 def build_label(scene) -> str:
