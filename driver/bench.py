@@ -57,15 +57,18 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
           pipelines=1, sweep_size=SWEEP_SIZE, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT,
           sweep_pipelines=rtunit.SWEEP_PIPELINES, plot=None,
           pyverilator_requests=PYVERILATOR_REQUESTS, repeat=REPEAT, progress=True,
-          memory=rtunit.MemoryModel(), fill=0, cull_stack=False, bvh_format="box32") -> dict:
+          memory=rtunit.MemoryModel(), fill=0, cull_stack=False, bvh_format="box32",
+          flatten=False) -> dict:
     """Run the benchmark; returns the JSON document (see the module docstring). ``memory``: the
     node memory of the ``memory`` object's replay (None: no such object); ``fill`` and
-    ``bvh_format`` (BVH build) and ``cull_stack`` (traversal) apply to every trace of the run."""
+    ``bvh_format`` (BVH build) and ``cull_stack`` (traversal) apply to every trace of the run;
+    ``flatten``: an instanced scene as one mesh (``Scene.flattened``)."""
     from .backends import backend
     from .scenes.camera import check_size, primary_rays
     from .scenes.scene import load_scene
 
     scene = load_scene(scene_name)
+    scene = scene.flattened() if flatten else scene
     w, h = scene.size if size is None else (size, size)
     w, h = check_size(w, h)
     origins, dirs = primary_rays(scene.camera, w, h)
@@ -373,7 +376,7 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
                    seed=0, rays_in_flight=rtunit.DEFAULT_RAYS_IN_FLIGHT, pipelines=1,
                    sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, plot=None, progress=True,
                    memory=rtunit.MemoryModel(), fill=0, cull_stack=False,
-                   bvh_format="box32") -> dict:
+                   bvh_format="box32", flatten=False) -> dict:
     """One workload frame on "rtl" (every batch recorded), checked against Embree; per ray type:
     the op mix, the RT-unit replay at (R, P) without and with the node memory (``memory``; None:
     without only), any-hit vs closest-hit ops of the same rays, and a sweep of utilization over
@@ -387,6 +390,7 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
     from .tracer import trace
 
     scene = load_scene(scene_name)
+    scene = scene.flattened() if flatten else scene
     setup = workloads.setup_for(scene)
     rtl = backend("rtl")
     t0 = time.perf_counter()
@@ -507,7 +511,7 @@ def plot_workload_sweep(sweep: dict, path, title: str) -> None:
 
 
 def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, tile=64,
-                  progress=True, fill=0, bvh_format="box32", **options) -> dict:
+                  progress=True, fill=0, bvh_format="box32", flatten=False, **options) -> dict:
     """The same tiled frame on "rtl" in this process and on a LocalCluster of ``workers``
     processes: wall times (scheduler start-up and the once-per-worker set-up included), the
     speed-up, and whether the two frames are identical (image, per-pixel ops, statistics but wall
@@ -523,6 +527,7 @@ def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, ti
     from .workloads import setup_for
 
     scene = load_scene(scene_name)
+    scene = scene.flattened() if flatten else scene
     setup, bvh = setup_for(scene), build_scene(scene, fill=fill, format=bvh_format)
     n_tiles = len(plan(size, size, tile))
     # a first use on this machine builds the Verilated model (minutes): build it before either

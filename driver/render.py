@@ -78,7 +78,7 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
            check_embree: bool = False, workload: str = "primary", spp: int = 1, bounces: int = 1,
            ao_rays: int = 4, seed: int = 0, tile: int | None = None, workers: int = 1,
            scheduler: str | None = None, fill: int = 0, cull_stack: bool = False,
-           bvh_format: str = "box32") -> RenderResult:
+           bvh_format: str = "box32", flatten: bool = False) -> RenderResult:
     """Render ``scene`` (a Scene, or anything ``load_scene`` takes) at width x height (default:
     the scene's size) with every box/triangle test on ``backend``; optionally cross-check every
     ray against Embree.
@@ -90,10 +90,12 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
     ray type in ``stats["by_type"]``); so does a frame too big for memory as one wavefront.
     ``fill`` and ``bvh_format`` are the BVH build's (``driver.bvh4.build``'s ``fill`` and
     ``format``), ``cull_stack`` the traversal's
-    (``driver.tracer.trace``)."""
+    (``driver.tracer.trace``); ``flatten``: an instanced scene traced as one mesh
+    (``Scene.flattened``)."""
     from .workloads import check_arguments
     check_arguments(spp, bounces, ao_rays, seed)
     scene = load_scene(scene)
+    scene = scene.flattened() if flatten else scene
     w, h = check_size(width if width is not None else scene.size[0],
                       height if height is not None else scene.size[1])
     tile = plan_tile(w * h, workload, spp, tile, workers, scheduler)

@@ -358,3 +358,40 @@ def test_embree_sample_is_the_full_check_on_its_rays():
     assert np.array_equal(got["embree_t"], full["embree_t"])
     hit = prim >= 0
     assert np.array_equal(tri[prim[hit]], inst.flatten()[res.prim[rows][hit]])
+
+
+def _reuse_glb(path):
+    s = trimesh.Scene()
+    s.add_geometry(trimesh.creation.icosphere(1), geom_name="ico", node_name="n0")
+    for i in (1, 2):
+        s.graph.update(frame_to=f"n{i}", frame_from=s.graph.base_frame, geometry="ico",
+                       matrix=trimesh.transformations.translation_matrix([3.0 * i, 0, 0]))
+    s.export(str(path))
+    return path
+
+
+def test_render_cli_instanced_and_flattened(in_tmp):
+    import json
+
+    from driver.cli import main
+    glb = _reuse_glb(in_tmp / "reuse.glb")
+    base = ["render", str(glb), "--size", "12", "--backend", "golden", "--no-progress",
+            "--check-embree"]
+    assert main(base + ["--json", "i.json", "--out", "i.png"]) == 0
+    assert main(base + ["--json", "f.json", "--out", "f.png", "--flatten"]) == 0
+    i, f = (json.loads((in_tmp / n).read_text()) for n in ("i.json", "f.json"))
+    assert (i["instances"], i["instanced_triangles"], i["blas_triangles"]) == (3, 240, 80)
+    assert (f["instances"], f["instanced_triangles"], f["blas_triangles"]) == (1, 240, 240)
+    assert i["hits"] == f["hits"] > 0 and i["instance_ops"] > 0 and "instance_ops" not in f
+    assert i["embree"]["hit_mismatch"] == f["embree"]["hit_mismatch"] == 0
+    assert i["bvh"]["bytes"] < f["bvh"]["bytes"] * 0.8
+
+
+def test_flatten_refuses_a_scene_too_large(error_line):
+    from driver.cli import main
+    from driver.scenes.scene import load_scene
+    with pytest.raises(ValueError, match="too large to flatten"):
+        _small_city().flattened()
+    assert load_scene("bunny_floor").flattened().instances is None
+    assert main(["render", "city", "--flatten", "--backend", "golden", "--size", "8"]) == 2
+    assert "too large to flatten" in error_line()

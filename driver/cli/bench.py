@@ -94,9 +94,10 @@ def run(args) -> int:
     check_positive("--tile", args.tile)
     options = workload_options(args)
     tree = tree_options(args)
-    if args.bvh and (tree["fill"] or tree["cull_stack"] or tree["bvh_format"] != "box32"):
+    if args.bvh and (tree["fill"] or tree["cull_stack"] or tree["bvh_format"] != "box32"
+                     or tree["flatten"]):
         raise ValueError("--bvh measures the BVH fills, the culled stack and both image formats "
-                         "itself; drop --bvh-fill/--cull-stack/--bvh-format")
+                         "itself; drop --bvh-fill/--cull-stack/--bvh-format/--flatten")
     memory = None if args.no_memory else rtunit.MemoryModel()
     sweep_rays = _int_list(args.sweep_rays, "--sweep-rays")
     sweep_pipes = _int_list(args.sweep_pipelines, "--sweep-pipelines")

@@ -87,13 +87,18 @@ def add_tree(p) -> None:
                    help="node image: box32 (128-byte float32 box nodes, a 64-byte node per "
                         "triangle) or q8 (64-byte quantized box nodes, 64-byte triangle-pair "
                         "leaves: docs/compressed.md) (default: box32)")
+    p.add_argument("--flatten", action="store_true",
+                   help="trace an instanced scene (glTF mesh reuse, bunny_grid) as one mesh: its "
+                        "flattened world-space triangles in one BVH instead of a two-level BVH "
+                        "of instances (docs/instances.md)")
 
 
 def tree_options(args) -> dict:
     """The checked flags of ``add_tree`` as keyword arguments: ``fill``, ``cull_stack``,
-    ``bvh_format``."""
+    ``bvh_format``, ``flatten``."""
     check_positive("--bvh-fill", args.bvh_fill, 0)
-    return dict(fill=args.bvh_fill, cull_stack=bool(args.cull_stack), bvh_format=args.bvh_format)
+    return dict(fill=args.bvh_fill, cull_stack=bool(args.cull_stack), bvh_format=args.bvh_format,
+                flatten=bool(args.flatten))
 
 
 def workload_options(args) -> dict:

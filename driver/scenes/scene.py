@@ -63,6 +63,7 @@ the flattened world-space triangles (instance after instance), which ``prim`` in
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.resources
 import sys
 from dataclasses import dataclass, field
@@ -110,6 +111,14 @@ class Scene:
             from ..instances import InstancedTriangles
             return InstancedTriangles(self.instances)
         return triangles(self.mesh)
+
+    def flattened(self) -> "Scene":
+        """This scene traced as one mesh: its flattened triangles in one BVH (the same
+        primitive ids); SceneError for a scene too large to flatten (``mesh`` None)."""
+        if self.mesh is None:
+            raise SceneError(f"scene {self.name!r} is too large to flatten "
+                             f"({self.instances.triangles_total:,} instanced triangles)")
+        return dataclasses.replace(self, instances=None)
 
     def counts(self) -> dict:
         """``instances``, ``instanced_triangles`` (triangles of the flattened scene) and
