@@ -6,7 +6,7 @@ a ray enters an instance (docs/instances.md).
   triangles (instance after instance, each mesh's triangles in order) are what ``prim`` indexes.
 - ``transform_ray``: the ray into object space, every product and sum rounded to float32 in the
   order of the instance transform (docs/instances.md); the one function a datapath ``TRANSFORM``
-  operation replaces (``TRANSFORMS``: only "driver" today).
+  operation replaces (``TRANSFORMS``: "driver" only so far).
 - ``InstanceStepper``: the traversal's hook (``driver.traversal.traverse(instances=...)``): a ray
   whose next node is an instance node fetches it (128 bytes), transforms its world ray, prepares
   it again (``driver.datapath.prepare_rays``: the transformed ray is a new row of the issuer's
@@ -24,7 +24,6 @@ import numpy as np
 
 from .layout import INSTANCE_BYTES, INSTANCE_NODE, INSTANCE_TYPE, NodeRef, read_nodes
 
-TRANSFORMS = ("driver",)        # where the instance transform runs (a datapath op may join)
 
 
 def transform_ray(m, o, d):
@@ -46,6 +45,12 @@ def transform_ray(m, o, d):
         o2 = (rows(o) + m[:, :, 3]).astype(np.float32)
         d2 = rows(d).astype(np.float32)
     return o2, d2
+
+
+# Where the instance transform runs: "driver" = ``transform_ray`` on the host (RDNA2/3's
+# traversal shader). A datapath operation computing the same bits (RDNA4's way) joins this table
+# as "datapath" with a function of the same signature that issues it on the backend.
+TRANSFORMS = {"driver": transform_ray}
 
 
 def affine(m) -> np.ndarray:
@@ -142,7 +147,10 @@ class InstanceStepper:
     0..n-1 are the world rays; ``driver.issue``).
     """
 
-    def __init__(self, bvh, rays: np.ndarray, add_rays):
+    def __init__(self, bvh, rays: np.ndarray, add_rays, transform: str = "driver"):
+        if transform not in TRANSFORMS:
+            raise ValueError(f"transform must be one of {tuple(TRANSFORMS)}, got {transform!r}")
+        self.transform = TRANSFORMS[transform]
         self.image = bvh.image.view("<u4")
         self.world = rays
         self.add_rays = add_rays
@@ -175,8 +183,8 @@ class InstanceStepper:
             node = read_nodes(self.image, top[enter], INSTANCE_NODE)
             self.instance_ops[r] += 1
             self.node_bytes[r] += INSTANCE_BYTES
-            o2, d2 = transform_ray(node["world_to_object"], self.world["origin"][r],
-                                   self.world["dir"][r])
+            o2, d2 = self.transform(node["world_to_object"], self.world["origin"][r],
+                                    self.world["dir"][r])
             ok = (np.isfinite(o2).all(1) & np.isfinite(d2).all(1) & (d2 != 0).any(1))
             go, skip = r[ok], r[~ok]
             if len(go):

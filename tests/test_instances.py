@@ -149,6 +149,9 @@ def test_instances_reject_bad_input():
         Instances([tri], [1], np.eye(3, 4)[None])
     with pytest.raises(ValueError, match="finite"):
         Instances([tri], [0], np.full((1, 3, 4), np.inf))
+    inst = Instances([tri], [0], np.eye(3, 4)[None])
+    with pytest.raises(ValueError, match="transform must be one of"):
+        trace(build_two_level(inst), [[0, 0, -3]], [[0, 0, 1]], transform="datapath")
 
 
 # ---- hits ---------------------------------------------------------------------------------------
