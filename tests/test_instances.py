@@ -398,3 +398,15 @@ def test_flatten_refuses_a_scene_too_large(error_line):
     assert load_scene("bunny_floor").flattened().instances is None
     assert main(["render", "city", "--flatten", "--backend", "golden", "--size", "8"]) == 2
     assert "too large to flatten" in error_line()
+
+
+def test_instances_study_hits_on_a_small_scene(tmp_path):
+    from driver.bvh.instances_study import hits
+    doc = hits(str(_reuse_glb(tmp_path / "reuse.glb")), size=24)
+    img = doc["images"]["box32"]
+    assert img["instanced_bytes"] < img["flattened_bytes"] and img["ratio"] < 1
+    p = doc["rays"]["primary"]
+    assert p["rays"] == 576 and p["hits"] > 0
+    assert p["hit_mismatch"] == 0 and p["prim_mismatch"] == p["edge_ties"]
+    assert p["max_t_rel_diff"] <= T_REL and p["instance_ops_per_ray"] > 0
+    assert doc["rays"]["shadow"]["hit_mismatch"] == 0
