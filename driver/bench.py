@@ -69,6 +69,9 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
 
     scene = load_scene(scene_name)
     scene = scene.flattened() if flatten else scene
+    if scene.mesh is None:
+        raise ValueError(f"the frame benchmark measures Embree on every triangle; scene "
+                         f"{scene.name!r} is too large to flatten (bench it with --workload)")
     w, h = scene.size if size is None else (size, size)
     w, h = check_size(w, h)
     origins, dirs = primary_rays(scene.camera, w, h)

@@ -261,12 +261,13 @@ def test_bunny_grid_instances_small():
         instanced_bunnies(bunny, 0)
 
 
-def test_instanced_record_replays_with_instance_fetches():
-    """The RT-unit replay of an instanced traversal: one chain per world ray, responses verified
-    bit for bit, the instance nodes fetched through the node memory."""
+@pytest.mark.parametrize("fmt", ["box32", "q8"])
+def test_instanced_record_replays_with_instance_fetches(fmt):
+    """The rtl fast path and the RT-unit replay of an instanced traversal: one chain per world
+    ray, responses verified bit for bit, the instance nodes fetched through the node memory."""
     from driver import rtunit
     inst = random_instances(2, k=8)
-    bvh = build_two_level(inst)
+    bvh = build_two_level(inst, format=fmt)
     o, d = random_rays(300, 6)
     res = trace(bvh, o, d, backend="rtl", record=True)
     rec = res.record
@@ -410,3 +411,9 @@ def test_instances_study_hits_on_a_small_scene(tmp_path):
     assert p["hit_mismatch"] == 0 and p["prim_mismatch"] == p["edge_ties"]
     assert p["max_t_rel_diff"] <= T_REL and p["instance_ops_per_ray"] > 0
     assert doc["rays"]["shadow"]["hit_mismatch"] == 0
+
+
+def test_bench_frame_refuses_the_city(error_line):
+    from driver.cli import main
+    assert main(["bench", "--scene", "city", "--no-progress"]) == 2
+    assert "too large to flatten" in error_line()
