@@ -58,7 +58,7 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
           sweep_pipelines=rtunit.SWEEP_PIPELINES, plot=None,
           pyverilator_requests=PYVERILATOR_REQUESTS, repeat=REPEAT, progress=True,
           memory=rtunit.MemoryModel(), fill=0, cull_stack=False, bvh_format="box32",
-          flatten=False) -> dict:
+          flatten=False, transform="driver") -> dict:
     """Run the benchmark; returns the JSON document (see the module docstring). ``memory``: the
     node memory of the ``memory`` object's replay (None: no such object); ``fill`` and
     ``bvh_format`` (BVH build) and ``cull_stack`` (traversal) apply to every trace of the run;
@@ -78,7 +78,7 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
     n = len(origins)
     rtl = backend("rtl")                            # build (or load) first: fail early
 
-    tree = dict(fill=fill, cull_stack=cull_stack, bvh_format=bvh_format)
+    tree = dict(fill=fill, cull_stack=cull_stack, bvh_format=bvh_format, transform=transform)
     frame, res, bvh, rep = _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines,
                                   f"{w}x{h}", progress, **tree)
     sided = scene.double_sided
@@ -141,7 +141,7 @@ def bench(scene_name=DEFAULT_SCENE, size=None, rays_in_flight=rtunit.DEFAULT_RAY
 
 
 def _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines, label, progress, fill=0,
-           cull_stack=False, bvh_format="box32"):
+           cull_stack=False, bvh_format="box32", transform="driver"):
     """The frame on "rtl": BVH build, wavefront traversal (recorded), RT-unit replay. Returns
     (frame statistics, trace result, BVH, replay result)."""
     from .bvh.instances import build_scene
@@ -150,7 +150,7 @@ def _frame(scene, origins, dirs, rtl, rays_in_flight, pipelines, label, progress
 
     t_kernels = warm_up()                           # the builder's JIT, like the model's build
     t0 = time.perf_counter()
-    bvh = build_scene(scene, fill=fill, format=bvh_format)
+    bvh = build_scene(scene, fill=fill, format=bvh_format, transform=transform)
     t_bvh = time.perf_counter() - t0
     bar = _bar(len(origins), f"frame {label} rtl", "ray", progress)
     t1 = time.perf_counter()
@@ -379,7 +379,7 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
                    seed=0, rays_in_flight=rtunit.DEFAULT_RAYS_IN_FLIGHT, pipelines=1,
                    sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, plot=None, progress=True,
                    memory=rtunit.MemoryModel(), fill=0, cull_stack=False,
-                   bvh_format="box32", flatten=False) -> dict:
+                   bvh_format="box32", flatten=False, transform="driver") -> dict:
     """One workload frame on "rtl" (every batch recorded), checked against Embree; per ray type:
     the op mix, the RT-unit replay at (R, P) without and with the node memory (``memory``; None:
     without only), any-hit vs closest-hit ops of the same rays, and a sweep of utilization over
@@ -397,7 +397,7 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
     setup = workloads.setup_for(scene)
     rtl = backend("rtl")
     t0 = time.perf_counter()
-    bvh = build_scene(scene, fill=fill, format=bvh_format)
+    bvh = build_scene(scene, fill=fill, format=bvh_format, transform=transform)
     t_bvh = time.perf_counter() - t0
 
     def tracer(bvh_, o, d, **kw):
@@ -447,7 +447,8 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
                  responses_verified=all(t["responses_verified"] for t in by_type.values()))
     return {"scene": scene.name, "workload": workload, "width": size, "height": size,
             "spp": spp, "bounces": bounces, "ao_rays": ao_rays, "seed": seed, "fill": fill,
-            "bvh_format": bvh_format, "bvh": _bvh_json(bvh), **scene.counts(),
+            "bvh_format": bvh_format, "transform": transform, "bvh": _bvh_json(bvh),
+            **scene.counts(),
             "cull_stack": cull_stack, "frame": total, "by_type": by_type, "sweep": sweep, "plot": str(plot) if plot else None,
             "wall_parts_s": {"bvh_build": t_bvh, "traversal": t_trace}}
 
@@ -514,7 +515,8 @@ def plot_workload_sweep(sweep: dict, path, title: str) -> None:
 
 
 def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, tile=64,
-                  progress=True, fill=0, bvh_format="box32", flatten=False, **options) -> dict:
+                  progress=True, fill=0, bvh_format="box32", flatten=False, transform="driver",
+                  **options) -> dict:
     """The same tiled frame on "rtl" in this process and on a LocalCluster of ``workers``
     processes: wall times (scheduler start-up and the once-per-worker set-up included), the
     speed-up, and whether the two frames are identical (image, per-pixel ops, statistics but wall
@@ -531,7 +533,7 @@ def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, ti
 
     scene = load_scene(scene_name)
     scene = scene.flattened() if flatten else scene
-    setup, bvh = setup_for(scene), build_scene(scene, fill=fill, format=bvh_format)
+    setup, bvh = setup_for(scene), build_scene(scene, fill=fill, format=bvh_format, transform=transform)
     n_tiles = len(plan(size, size, tile))
     # a first use on this machine builds the Verilated model (minutes): build it before either
     # clock starts, so that both runs pay only what every run pays, loading it from the cache
@@ -551,6 +553,7 @@ def bench_workers(scene_name, workload="path", size=WORKLOAD_SIZE, workers=2, ti
             and {k: a.stats[k] for k in keep} == {k: b.stats[k] for k in keep})
     return {"scene": scene.name, "workload": workload, "width": size, "height": size,
             "tile": tile, "tiles": n_tiles, **options, "fill": fill, "bvh_format": bvh_format,
+            "transform": transform,
             "workers": int(workers),
             "wall_s_1_worker": ta, "wall_s_n_workers": tb,
             "speedup": ta / tb if tb > 0 else None, "identical": bool(same),

@@ -78,7 +78,8 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
            check_embree: bool = False, workload: str = "primary", spp: int = 1, bounces: int = 1,
            ao_rays: int = 4, seed: int = 0, tile: int | None = None, workers: int = 1,
            scheduler: str | None = None, fill: int = 0, cull_stack: bool = False,
-           bvh_format: str = "box32", flatten: bool = False) -> RenderResult:
+           bvh_format: str = "box32", flatten: bool = False,
+           transform: str = "driver") -> RenderResult:
     """Render ``scene`` (a Scene, or anything ``load_scene`` takes) at width x height (default:
     the scene's size) with every box/triangle test on ``backend``; optionally cross-check every
     ray against Embree.
@@ -91,7 +92,8 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
     ``fill`` and ``bvh_format`` are the BVH build's (``driver.bvh4.build``'s ``fill`` and
     ``format``), ``cull_stack`` the traversal's
     (``driver.tracer.trace``); ``flatten``: an instanced scene traced as one mesh
-    (``Scene.flattened``)."""
+    (``Scene.flattened``); ``transform``: where its instance transform runs
+    (``driver.instances.TRANSFORMS``)."""
     from .workloads import check_arguments
     check_arguments(spp, bounces, ao_rays, seed)
     scene = load_scene(scene)
@@ -102,10 +104,10 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
     check_frame_memory(w * h, spp, tile)
     if tile is None:
         return _render_whole(scene, w, h, backend, progress, check_embree, fill, cull_stack,
-                             bvh_format)
+                             bvh_format, transform)
     return _render_tiles(scene, w, h, backend, progress, check_embree, workload,
                          dict(spp=spp, bounces=bounces, ao_rays=ao_rays, seed=seed), tile,
-                         workers, scheduler, fill, cull_stack, bvh_format)
+                         workers, scheduler, fill, cull_stack, bvh_format, transform)
 
 
 def plan_tile(pixels: int, workload: str, spp: int, tile: int | None, workers: int,
@@ -122,7 +124,8 @@ def plan_tile(pixels: int, workload: str, spp: int, tile: int | None, workers: i
 
 
 def _render_tiles(scene, w, h, backend, progress, check_embree, workload, options, tile,
-                  workers, scheduler, fill, cull_stack, bvh_format="box32") -> RenderResult:
+                  workers, scheduler, fill, cull_stack, bvh_format="box32",
+                  transform="driver") -> RenderResult:
     from .bvh.instances import build_label, build_scene
     from .tiles import plan, render_tiles
     from .workloads import WORKLOADS, setup_for, tone_map
@@ -133,7 +136,7 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, workload, option
     if workers == 1 and not scheduler:
         spec = resolve(backend)[0]          # fail early, before a long BVH build
     with phase(f"building {build_label(scene)}", progress):
-        bvh = build_scene(scene, fill=fill, format=bvh_format)
+        bvh = build_scene(scene, fill=fill, format=bvh_format, transform=transform)
     setup = setup_for(scene)
     tiles = plan(w, h, tile)
     bar = progress_bar(len(tiles), f"{scene.name} {w}x{h} {workload} {name}", "tile", progress)
@@ -148,13 +151,13 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, workload, option
     stats = dict(res.stats)
     stats.update(bvh=dict(bvh.stats), workload=workload, tile=tile, workers=workers, **options,
                  cull_stack=cull_stack)
-    stats.update(scene.counts())
+    stats.update(scene.counts(), **_transform(scene, transform))
     return RenderResult(scene, w, h, image, total, None, stats, stats.get("embree"),
                         dict(bvh.stats), by_type)
 
 
 def _render_whole(scene, w, h, backend, progress, check_embree, fill=0,
-                  cull_stack=False, bvh_format="box32") -> RenderResult:
+                  cull_stack=False, bvh_format="box32", transform="driver") -> RenderResult:
     """The primary frame as one wavefront of every pixel."""
     from .bvh.instances import build_label, build_scene
     from .tracer import trace
@@ -162,7 +165,7 @@ def _render_whole(scene, w, h, backend, progress, check_embree, fill=0,
     origins, dirs = primary_rays(scene.camera, w, h)
     be = resolve(backend)[0]                # fail early, before a long BVH build
     with phase(f"building {build_label(scene)}", progress):
-        bvh = build_scene(scene, fill=fill, format=bvh_format)
+        bvh = build_scene(scene, fill=fill, format=bvh_format, transform=transform)
     bvh_stats = dict(getattr(bvh, "stats", {}) or {})
 
     name = backend if isinstance(backend, str) else getattr(backend, "name", "backend")
@@ -178,7 +181,7 @@ def _render_whole(scene, w, h, backend, progress, check_embree, fill=0,
     ops = (np.asarray(result.box_ops, np.int64) + np.asarray(result.tri_ops, np.int64))
     stats = dict(result.stats)
     stats["bvh"] = bvh_stats
-    stats.update(scene.counts())
+    stats.update(scene.counts(), **_transform(scene, transform))
     emb = None
     if check_embree:
         from .check import check, embree_json
@@ -192,6 +195,11 @@ def _render_whole(scene, w, h, backend, progress, check_embree, fill=0,
                         scene.double_sided)
         stats["embree"] = embree_json(emb)
     return RenderResult(scene, w, h, image, ops.reshape(h, w), result, stats, emb, bvh_stats)
+
+
+def _transform(scene, transform: str) -> dict:
+    """The frame JSON's ``transform`` (where the instance transform ran), for instanced scenes."""
+    return {} if scene.instances is None else {"transform": transform}
 
 
 def available_memory() -> int | None:

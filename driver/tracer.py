@@ -78,7 +78,7 @@ def as_bvh(scene, bvh_format: str | None = None) -> BVH4:
 def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np.inf,
           progress=None, rays_in_flight=None, pipelines=1, turnaround=None, record=False,
           any_hit=False, double_sided=None, cull_stack=False, bvh_format=None,
-          transform="driver") -> TraceResult:
+          transform=None) -> TraceResult:
     """Trace rays with every box and triangle test run on ``backend``.
 
     scene_or_mesh_or_bvh : BVH4, trimesh mesh, (n, 3, 3) triangles, or a scene name/path
@@ -98,7 +98,8 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
     bvh_format : the node image built for a scene, mesh or triangles: "box32" (None, the
         default) or "q8" (``driver.bvh4.build``); a BVH4 given must be in this format
     transform : where a two-level image's instance transform runs
-        (``driver.instances.TRANSFORMS``: "driver", on the host)
+        (``driver.instances.TRANSFORMS``: "driver", on the host); None: the image's own
+        (``TwoLevelBVH.transform``, set by ``driver.bvh.instances.build_scene``)
     progress : optional callable(done_rays, total_rays), called once per step
     rays_in_flight, pipelines, turnaround : RT-unit model (``driver.rtunit``). With
         ``rays_in_flight=None`` (default) the statistics are the wavefront's: every ray in
@@ -112,7 +113,7 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
     record : keep the ``driver.rtunit.Record`` of every request (for ``rtunit.replay``/sweeps)
         in ``TraceResult.record`` (always kept when ``rays_in_flight`` is given).
     """
-    if transform not in TRANSFORMS:
+    if transform is not None and transform not in TRANSFORMS:
         raise ValueError(f"transform must be one of {tuple(TRANSFORMS)}, got {transform!r}")
     if isinstance(scene_or_mesh_or_bvh, (str, bytes)) or hasattr(scene_or_mesh_or_bvh,
                                                                  "__fspath__"):
@@ -127,7 +128,8 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
     timed = rays_in_flight is not None
     issue = issuer(be, rays, bvh, be_name, record=bool(record) or timed)
     cycles0 = int(be.cycles)
-    inst = (InstanceStepper(bvh, rays, issue.add_rays, transform)
+    inst = (InstanceStepper(bvh, rays, issue.add_rays,
+                            transform or getattr(bvh, "transform", "driver"))
             if getattr(bvh, "instances", None) is not None else None)
     trav = traverse(bvh, rays["extent"], issue, any_hit=any_hit, progress=progress,
                     cull=cull_stack, instances=inst)

@@ -381,7 +381,7 @@ def test_render_cli_instanced_and_flattened(in_tmp):
     glb = _reuse_glb(in_tmp / "reuse.glb")
     base = ["render", str(glb), "--size", "12", "--backend", "golden", "--no-progress",
             "--check-embree"]
-    assert main(base + ["--json", "i.json", "--out", "i.png"]) == 0
+    assert main(base + ["--json", "i.json", "--out", "i.png", "--transform", "driver"]) == 0
     assert main(base + ["--json", "f.json", "--out", "f.png", "--flatten"]) == 0
     i, f = (json.loads((in_tmp / n).read_text()) for n in ("i.json", "f.json"))
     assert (i["instances"], i["instanced_triangles"], i["blas_triangles"]) == (3, 240, 80)
@@ -389,6 +389,7 @@ def test_render_cli_instanced_and_flattened(in_tmp):
     assert i["hits"] == f["hits"] > 0 and i["instance_ops"] > 0 and "instance_ops" not in f
     assert i["embree"]["hit_mismatch"] == f["embree"]["hit_mismatch"] == 0
     assert i["bvh"]["bytes"] < f["bvh"]["bytes"] * 0.8
+    assert i["transform"] == "driver" and "transform" not in f
 
 
 def test_flatten_refuses_a_scene_too_large(error_line):

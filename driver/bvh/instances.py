@@ -31,7 +31,7 @@ import time
 import numpy as np
 
 from ..bvh4 import BVH4, build
-from ..instances import Instances
+from ..instances import TRANSFORMS, Instances
 from ..layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, INSTANCE_BYTES, INSTANCE_NODE,
                       INSTANCE_TYPE, NO_CHILD, Q8_BYTES, Q8_NODE, TRI_NODE, TRI_TYPE, NodeRef,
                       read_nodes)
@@ -52,6 +52,7 @@ class TwoLevelBVH(BVH4):
         self.instances = instances
         self.blas_root = np.asarray(blas_root, np.uint32)
         self.blas = blas
+        self.transform = "driver"       # where traversals run the instance transform (default)
 
     @property
     def triangles(self):
@@ -174,12 +175,17 @@ def build_two_level(instances: Instances, format: str = "box32", progress=None,
     return TwoLevelBVH(image, instances, stats, format, roots, blas_info)
 
 
-def build_scene(scene, fill: int = 0, format: str = "box32"):
+def build_scene(scene, fill: int = 0, format: str = "box32", transform: str = "driver"):
     """The BVH of a ``driver.scenes.scene.Scene``: the two-level image of its ``instances``
-    (``fill`` applies to the BLASes) or, for a one-mesh scene, ``driver.bvh4.build`` of its
-    mesh."""
+    (``fill`` applies to the BLASes; ``transform``: where its traversals run the instance
+    transform, ``driver.instances.TRANSFORMS``) or, for a one-mesh scene, ``driver.bvh4.build``
+    of its mesh."""
+    if transform not in TRANSFORMS:
+        raise ValueError(f"transform must be one of {tuple(TRANSFORMS)}, got {transform!r}")
     if getattr(scene, "instances", None) is not None:
-        return build_two_level(scene.instances, format=format, fill=fill)
+        bvh = build_two_level(scene.instances, format=format, fill=fill)
+        bvh.transform = transform
+        return bvh
     from .. import bvh4                     # looked up at call time (tests may wrap it)
     return bvh4.build(scene.mesh, fill=fill, format=format)
 

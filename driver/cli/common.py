@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ..instances import TRANSFORMS
 from ..layout import IMAGE_FORMATS
 
 PROG = "rayflex"
@@ -87,6 +88,9 @@ def add_tree(p) -> None:
                    help="node image: box32 (128-byte float32 box nodes, a 64-byte node per "
                         "triangle) or q8 (64-byte quantized box nodes, 64-byte triangle-pair "
                         "leaves: docs/compressed.md) (default: box32)")
+    p.add_argument("--transform", default="driver", choices=tuple(TRANSFORMS),
+                   help="where an instanced scene's ray transform runs: driver (on the host, "
+                        "as a traversal shader does; docs/instances.md) (default: driver)")
     p.add_argument("--flatten", action="store_true",
                    help="trace an instanced scene (glTF mesh reuse, bunny_grid) as one mesh: its "
                         "flattened world-space triangles in one BVH instead of a two-level BVH "
@@ -95,10 +99,10 @@ def add_tree(p) -> None:
 
 def tree_options(args) -> dict:
     """The checked flags of ``add_tree`` as keyword arguments: ``fill``, ``cull_stack``,
-    ``bvh_format``, ``flatten``."""
+    ``bvh_format``, ``flatten``, ``transform``."""
     check_positive("--bvh-fill", args.bvh_fill, 0)
     return dict(fill=args.bvh_fill, cull_stack=bool(args.cull_stack), bvh_format=args.bvh_format,
-                flatten=bool(args.flatten))
+                flatten=bool(args.flatten), transform=args.transform)
 
 
 def workload_options(args) -> dict:
