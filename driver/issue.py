@@ -8,7 +8,9 @@
   prepared rays and the decoded nodes, by the same rules (tests check the words are identical).
 - ``Recorder``: wraps either and keeps every request and response as a ``driver.rtunit.Record``.
 
-Both check that the responses come back in order with the ray index in their ``tag``.
+Both check that the responses come back in order with the ray index in their ``tag``. The ray
+table grows when a traversal enters instances (``add_rays``: each transformed ray is a new row,
+``driver.instances``); a request then names its ray by that row.
 """
 
 from __future__ import annotations
