@@ -259,23 +259,31 @@ EMBREE_SAMPLE_RAYS = 4096             # scene may flatten, and the rays it may t
 def embree_sample(instances: Instances, origins, dirs, extent, our_t, our_prim,
                   budget: int = EMBREE_SAMPLE_TRIANGLES, max_rays: int = EMBREE_SAMPLE_RAYS):
     """A sample of rays that an Embree check of a scene too large to flatten can take exactly:
-    (rows, triangles, prim): the rows of the rays taken (in a fixed pseudo-random order, each
-    ray whose instances still fit in ``budget`` triangles, up to ``max_rays``; the instances of
-    a ray taken are never dropped), the world-space triangles of every instance whose world box one of them crosses
-    before its hit (or its extent, for a miss), and our primitive ids of those rays renumbered
-    into those triangles. An Embree hit nearer than ours lies in such an instance, so on these
-    rays the check is the full scene's."""
+    (rows, triangles, prim). ``rows``: the rays taken, in a fixed pseudo-random order, each ray
+    whose instances still fit in ``budget`` flattened triangles, up to ``max_rays``; a ray's
+    instances are every instance whose world box (grown by 1e-5 of the scene's size, for the
+    float32 traversal's rounding) it crosses before its hit (or its extent, for a miss), and
+    the instance it hit. ``triangles``: those instances' world-space triangles; ``prim``: our
+    primitive ids of the rays taken, renumbered into them. An Embree hit nearer than ours lies
+    in such an instance, so on these rays the check is the full scene's."""
     o = np.asarray(origins, np.float64).reshape(-1, 3)
     d = np.asarray(dirs, np.float64).reshape(-1, 3)
     n = len(o)
     t = np.asarray(our_t, np.float64)
     end = np.where(np.isfinite(t), t * (1 + 1e-4),
                    np.broadcast_to(np.asarray(extent, np.float64), (n,)))
+    own = np.full(n, -1, np.int64)                      # the instance each ray hit (-1: none)
+    ours = np.asarray(our_prim, np.int64) >= 0
+    own[ours] = instances.locate(np.asarray(our_prim, np.int64)[ours])[0]
     from .bvh.instances import world_boxes
     lo_m = np.array([m.reshape(-1, 3).min(0) for m in instances.meshes], np.float64)
     hi_m = np.array([m.reshape(-1, 3).max(0) for m in instances.meshes], np.float64)
     wb = world_boxes(instances, np.concatenate([lo_m, hi_m], 1)[instances.mesh]).astype(np.float64)
+    pad = 1e-5 * max(float(np.abs(wb).max()), float(np.abs(o).max(initial=0.0)))
+    wb[:, 0] -= pad                                     # the float32 traversal's rounding
+    wb[:, 1] += pad
     size = np.array([len(m) for m in instances.meshes], np.int64)[instances.mesh]
+    dn = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
     order = np.random.default_rng(0).permutation(n)
     taken, used = [], np.zeros(len(instances), bool)
     total = 0
@@ -287,8 +295,11 @@ def embree_sample(instances: Instances, origins, dirs, extent, our_t, our_prim,
             t1 = (wb[None, :, 1] - o[rows, None]) * inv[:, None]
         near = np.nan_to_num(np.minimum(t0, t1), nan=-np.inf).max(2)
         far = np.nan_to_num(np.maximum(t0, t1), nan=np.inf).min(2)
-        cross = (near <= far) & (far >= 0) & (near <= end[rows, None])
+        cross = (near <= far) & (far >= 0) & (near <= end[rows, None] + pad / dn[rows, None])
         for r, c in zip(rows, cross):
+            c = c.copy()
+            if own[r] >= 0:
+                c[own[r]] = True                        # its own hit, however it rounded
             new = c & ~used
             if total + int(size[new].sum()) > budget:
                 continue                        # this ray would flatten too much: not taken
@@ -306,8 +317,5 @@ def embree_sample(instances: Instances, origins, dirs, extent, our_t, our_prim,
     prim = np.asarray(our_prim, np.int64)[rows]
     hit = prim >= 0
     inst, local = instances.locate(prim[hit])
-    slot = np.searchsorted(keep, inst)
-    if len(slot) and not np.array_equal(keep[np.minimum(slot, len(keep) - 1)], inst):
-        raise AssertionError("a hit instance is not among the instances its ray crosses")
-    prim[hit] = base[slot] + local
+    prim[hit] = base[np.searchsorted(keep, inst)] + local
     return rows, tris, prim
