@@ -214,7 +214,7 @@ def test_inputs_and_names(monkeypatch):
     mesh = trimesh.Trimesh(tris.reshape(-1, 3), np.arange(3 * len(tris)).reshape(-1, 3),
                            process=False)
     fake = types.ModuleType("driver.scenes.scene")
-    fake.load = lambda name: mesh if name == "ball" else None
+    fake.load = fake.load_scene = lambda name: mesh if name == "ball" else None
     monkeypatch.setitem(sys.modules, "driver.scenes.scene", fake)
     for scene in (tris, mesh, "ball"):
         res = trace(scene, o, d, backend="golden")
