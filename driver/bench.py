@@ -448,8 +448,8 @@ def bench_workload(scene_name, workload, size=WORKLOAD_SIZE, spp=1, bounces=2, a
     return {"scene": scene.name, "workload": workload, "width": size, "height": size,
             "spp": spp, "bounces": bounces, "ao_rays": ao_rays, "seed": seed, "fill": fill,
             "bvh_format": bvh_format, "transform": transform, "bvh": _bvh_json(bvh),
-            **scene.counts(),
-            "cull_stack": cull_stack, "frame": total, "by_type": by_type, "sweep": sweep, "plot": str(plot) if plot else None,
+            **scene.counts(), "cull_stack": cull_stack, "frame": total, "by_type": by_type,
+            "sweep": sweep, "plot": str(plot) if plot else None,
             "wall_parts_s": {"bvh_build": t_bvh, "traversal": t_trace}}
 
 

@@ -69,8 +69,9 @@ def use_library(params: dict[str, int], path) -> ctypes.CDLL:
     lib.rf_build_requests.argtypes = [_U32P, _U32P, i64, _U32P, _U32P, _U32P, _U32P, i64]
     lib.rf_replay.restype = i64
     lib.rf_replay.argtypes = [i64, i64, i64, i64, _U32P, i64, _U32P, i64, _U32P, _U32P, _U32P,
-                              i64, _I64P, _I64P, i64, _U32P, _U32P, _U32P, ctypes.POINTER(ReplayStats), _I64P, i64,
-                              i64, i64, i64, i64, ctypes.c_double]
+                              i64, _I64P, _I64P, i64, _U32P, _U32P, _U32P,
+                              ctypes.POINTER(ReplayStats), _I64P, i64, i64, i64, i64, i64,
+                              ctypes.c_double]
     lib.rf_memory_trace.restype = i64
     lib.rf_memory_trace.argtypes = [i64, i64, i64, i64, ctypes.c_double, i64, _I64P, _I64P,
                                     _I64P, _I64P, _I64P]
@@ -139,8 +140,8 @@ def replay_chains(params: dict[str, int], pipelines: int, slots: int, turnaround
     per_pipe = np.zeros(pipelines, np.int64)
     rc = lib.rf_replay(pipelines, slots, turnaround, int(bool(skip_idle)), _u32p(rw), len(rw),
                        _u32p(img), img.size, _u32p(r), _u32p(p), _u32p(e), len(r), _i64p(ci),
-                       _i64p(co), len(co) - 1, _u32p(ch), _u32p(bf), _u32p(rsp), ctypes.byref(stats), _i64p(per_pipe), max_idle,
-                       *memory)
+                       _i64p(co), len(co) - 1, _u32p(ch), _u32p(bf), _u32p(rsp),
+                       ctypes.byref(stats), _i64p(per_pipe), max_idle, *memory)
     if rc == BAD_GEOMETRY:
         raise ValueError(f"node cache geometry {memory[:3]} cannot be modelled: the cache size must "
                          "be a multiple of ways x line size, the line a power of two >= 4 bytes")

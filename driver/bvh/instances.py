@@ -5,7 +5,7 @@
 Image layout (one contiguous little-endian buffer, every node 64-byte aligned)::
 
     [0, 128 * tlas_box_nodes)          TLAS box nodes (box32), breadth-first, root at offset 0
-    [.., + 128 * instances)            instance nodes, in instance order (driver.layout.INSTANCE_NODE)
+    [.., + 128 * instances)            instance nodes (driver.layout.INSTANCE_NODE), in order
     [.., ...)                          the BLASes, one after another, each as ``driver.bvh4.build``
                                        writes it (box32 or q8), its pointers moved by its offset
 

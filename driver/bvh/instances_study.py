@@ -36,7 +36,8 @@ def hits(scene_name: str = "bunny_grid", size: int = 256, backend: str = "golden
     images = {}
     for fmt in ("box32", "q8"):
         inst, flat = build_two_level(scene.instances, format=fmt), build(scene.mesh, format=fmt)
-        images[fmt] = {"instanced_bytes": inst.stats["bytes"], "flattened_bytes": flat.stats["bytes"],
+        images[fmt] = {"instanced_bytes": inst.stats["bytes"],
+                       "flattened_bytes": flat.stats["bytes"],
                        "ratio": inst.stats["bytes"] / flat.stats["bytes"],
                        "instanced_build_s": inst.stats["build_s"],
                        "flattened_build_s": flat.stats["build_s"]}
