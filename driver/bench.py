@@ -63,7 +63,10 @@ def bench(point: DesignPoint = DesignPoint(), sweep_size=SWEEP_SIZE,
     from .scenes.camera import check_size, primary_rays
     from .scenes.scene import load_scene
 
-    scene = load_scene(point.scene if scene is None else scene)
+    scene = point.scene_of(load_scene(point.scene if scene is None else scene))
+    if scene.mesh is None:
+        raise ValueError(f"the frame benchmark measures Embree on every triangle; scene "
+                         f"{scene.name!r} is too large to flatten (bench it with --workload)")
     w, h = scene.size if point.size is None else (point.size, point.size)
     w, h = check_size(w, h)
     origins, dirs = primary_rays(scene.camera, w, h)
@@ -123,12 +126,12 @@ def bench(point: DesignPoint = DesignPoint(), sweep_size=SWEEP_SIZE,
 def _frame(scene, origins, dirs, rtl, point, label, progress):
     """The frame on "rtl": BVH build, wavefront traversal (recorded), RT-unit replays. Returns
     (frame statistics, trace result, BVH)."""
-    from .bvh4 import build, warm_up
+    from .bvh4 import warm_up
     from .tracer import trace
 
     t_kernels = warm_up()                           # the builder's JIT, like the model's build
     t0 = time.perf_counter()
-    bvh = build(scene.mesh, fill=point.bvh_fill, format=point.bvh_format)
+    bvh = point.build(scene)
     t_bvh = time.perf_counter() - t0
     bar = _bar(len(origins), f"frame {label} rtl", "ray", progress)
     t1 = time.perf_counter()
@@ -149,6 +152,7 @@ def _frame(scene, origins, dirs, rtl, point, label, progress):
     frame["wall_parts_s"] = {"bvh_build": t_bvh, "traversal": t_trace, "replay": t_replay}
     frame["bvh_kernels_s"] = t_kernels              # not in wall_s (see bvh4.warm_up)
     frame["bvh"] = dict(bvh.stats)
+    frame.update(scene.counts())
     return frame, res, bvh
 
 
@@ -341,17 +345,16 @@ def bench_workload(point: DesignPoint, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, p
     over rays in flight (one pipeline, the point's node memory), plotted per ray type."""
     from . import workloads
     from .backends import backend
-    from .bvh4 import build
     from .scenes.scene import load_scene
     from .tracer import trace
 
-    scene = load_scene(point.scene)
+    scene = point.scene_of(load_scene(point.scene))
     size = point.size or scene.size[0]
     setup = workloads.setup_for(scene)
     rtl = backend("rtl", **point.backend_options())
     golden = backend("golden", **point.backend_options())
     t0 = time.perf_counter()
-    bvh = build(scene.triangles, fill=point.bvh_fill, format=point.bvh_format)
+    bvh = point.build(scene)
     t_bvh = time.perf_counter() - t0
 
     def tracer(bvh_, o, d, **kw):
@@ -396,6 +399,7 @@ def bench_workload(point: DesignPoint, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, p
         frame[key] = merge_rtunit([t[key] for t in frame["by_type"].values()])
     frame["wall_parts_s"] = {"bvh_build": t_bvh, "traversal": t_trace, "replay": t_replay}
     frame["bvh"] = dict(bvh.stats)
+    frame.update(scene.counts())
     return {"provenance": provenance(point), "scene": scene.name, "workload": point.workload,
             "width": size, "height": size, "frame": frame, "sweep": sweep,
             "plot": str(plot) if plot else None}
@@ -439,14 +443,13 @@ def bench_workers(point: DesignPoint, workers=2, tile=64, progress=True) -> dict
     result with the same share of the one-process frame, i.e. the scaling the machine gives once
     every fixed cost is paid."""
     from .backends.build import build_harness
-    from .bvh4 import build
     from .scenes.scene import load_scene
     from .tiles import plan, render_tiles
     from .workloads import setup_for
 
-    scene = load_scene(point.scene)
+    scene = point.scene_of(load_scene(point.scene))
     size = point.size or scene.size[0]
-    setup, bvh = setup_for(scene), build(scene.mesh, fill=point.bvh_fill, format=point.bvh_format)
+    setup, bvh = setup_for(scene), point.build(scene)
     n_tiles = len(plan(size, size, tile))
     # a first use on this machine builds the Verilated model (minutes): build it before either
     # clock starts, so that both runs pay only what every run pays, loading it from the cache

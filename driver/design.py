@@ -31,6 +31,7 @@ from typing import Callable
 from .area import CONFIGS
 from .backends.build import MIN_LATENCY
 from .datapath import LATENCY
+from .instances import TRANSFORMS
 from .layout import IMAGE_FORMATS
 from .rtunit.order import DEFAULT_POLICY, DEFAULT_WINDOW, POLICIES
 from .workloads import WORKLOADS
@@ -135,10 +136,19 @@ OPTIONS: tuple[Option, ...] = (
     Option("latency", "--latency", int, LATENCY,
            f"pipeline stages of the datapath, {MIN_LATENCY}..{MAX_LATENCY}",
            _int_range(MIN_LATENCY, MAX_LATENCY), "datapath"),
+    Option("transform", "--transform", str, "driver",
+           "where an instanced scene's ray transform runs: "
+           + ", ".join(TRANSFORMS) + " (driver: on the host, as a traversal shader does; "
+           "docs/instances.md)", _choice(tuple(TRANSFORMS)), "datapath", "WHERE",
+           tuple(TRANSFORMS)),
     Option("bvh_fill", "--bvh-fill", int, 0,
            "split subtrees of at most N triangles so that their 4-wide nodes can all be full: "
            "fewer box nodes and bytes, slightly more ops per ray (0: plain SAH; docs/bvh.md)",
            _int_range(0), "bvh"),
+    Option("flatten", "--flatten", _bool, False,
+           "trace an instanced scene (glTF mesh reuse, bunny_grid) as one mesh: its flattened "
+           "world-space triangles in one BVH instead of a two-level BVH of instances "
+           "(docs/instances.md)", lambda flag, v: None, "bvh"),
     Option("cull_stack", "--cull-stack", _bool, False,
            "keep each stack entry's entry distance and drop box nodes beyond the nearest hit "
            "without a request: the same hits, fewer box ops (the RT unit keeps a float per "
@@ -201,7 +211,9 @@ class DesignPoint:
 
     config: str = BY_NAME["config"].default
     latency: int = BY_NAME["latency"].default
+    transform: str = BY_NAME["transform"].default
     bvh_fill: int = BY_NAME["bvh_fill"].default
+    flatten: bool = BY_NAME["flatten"].default
     cull_stack: bool = BY_NAME["cull_stack"].default
     bvh_format: str = BY_NAME["bvh_format"].default
     rays_in_flight: int = BY_NAME["rays_in_flight"].default
@@ -270,6 +282,17 @@ class DesignPoint:
         """``fill`` and ``bvh_format`` (BVH build) and ``cull_stack`` (traversal)."""
         return {"fill": self.bvh_fill, "cull_stack": self.cull_stack,
                 "bvh_format": self.bvh_format}
+
+    def scene_of(self, scene):
+        """The scene as this point traces it: flattened with ``flatten``."""
+        return scene.flattened() if self.flatten else scene
+
+    def build(self, scene):
+        """The BVH of ``scene`` for this point (``driver.bvh.instances.build_scene``: a two-level
+        image for an instanced scene)."""
+        from .bvh.instances import build_scene
+        return build_scene(scene, fill=self.bvh_fill, format=self.bvh_format,
+                           transform=self.transform)
 
     def group(self, name: str) -> dict:
         return {o.name: getattr(self, o.name) for o in OPTIONS if o.group == name}

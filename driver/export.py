@@ -75,13 +75,13 @@ def stream(scene, width: int, height: int, workload: str = "primary", options: d
     ``driver.tiles.DEFAULT_TILE``); ``options``: spp, bounces, ao_rays, seed;
     ``progress(done_tiles, total_tiles)``."""
     from .backends import resolve
-    from .bvh4 import build
+    from .bvh.instances import build_scene
     from .tiles import DEFAULT_TILE, plan
     from .tracer import trace
     from .workloads import run, setup_for
 
     be = resolve(backend)[0]
-    bvh = build(scene.mesh, fill=fill, format=bvh_format)
+    bvh = build_scene(scene, fill=fill, format=bvh_format)
     setup = setup_for(scene)
     tiles = plan(width, height, tile or DEFAULT_TILE)
 

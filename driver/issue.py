@@ -8,7 +8,9 @@
   prepared rays and the decoded nodes, by the same rules (tests check the words are identical).
 - ``Recorder``: wraps either and keeps every request and response as a ``driver.rtunit.Record``.
 
-Both check that the responses come back in order with the ray index in their ``tag``.
+Both check that the responses come back in order with the ray index in their ``tag``. The ray
+table grows when a traversal enters instances (``add_rays``: each transformed ray is a new row,
+``driver.instances``); a request then names its ray by that row.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import numpy as np
 
 from .backends.base import NodeBackend
 from .bvh4 import request_operands
-from .layout import RESPONSE, RSP_WORDS, pack_responses, ray_words
+from .layout import NO_CHILD, RESPONSE, RSP_WORDS, pack_responses, ray_words
 from .traversal import StepResponses
 
 
@@ -44,14 +46,46 @@ def _check_order(got_tags: np.ndarray, active: np.ndarray, name: str) -> None:
                            "tags")
 
 
+class _Rows:
+    """A table of rows that grows by appending (capacity doubling); ``rows`` is the used part.
+    The issuers keep their rays in one: a traversal through instances appends each transformed
+    ray (``driver.instances``) and names it by its row."""
+
+    def __init__(self, rows: np.ndarray):
+        self._buf, self.n = rows, len(rows)
+
+    @property
+    def rows(self) -> np.ndarray:
+        return self._buf[:self.n]
+
+    def append(self, new: np.ndarray) -> np.ndarray:
+        if self.n + len(new) > len(self._buf):
+            grown = np.empty((max(2 * len(self._buf), self.n + len(new)),) + self._buf.shape[1:],
+                             self._buf.dtype)
+            grown[:self.n] = self.rows
+            self._buf = grown
+        self._buf[self.n:self.n + len(new)] = new
+        self.n += len(new)
+        return np.arange(self.n - len(new), self.n, dtype=np.int64)
+
+
 class NodeIssue:
     """Issue a step through ``backend.run_nodes`` (the harness assembles the requests)."""
 
     def __init__(self, backend, rays: np.ndarray, bvh, name: str):
         self.backend, self.name = backend, name
-        self.ray_words = ray_words(rays)
+        self._table = _Rows(ray_words(rays))
         self.image = bvh.image.view("<u4")
         self.wall_s = 0.0         # time inside the backend (the simulation's share)
+
+    @property
+    def ray_words(self) -> np.ndarray:
+        return self._table.rows
+
+    def add_rays(self, rays: np.ndarray, owner=None, via=None) -> np.ndarray:
+        """Append prepared rays to the ray table; returns their rows (``owner``, ``via``: see
+        ``Recorder.add_rays``)."""
+        return self._table.append(ray_words(rays))
 
     def __call__(self, active, ptr, ext, bi, ti) -> StepResponses:
         t0 = time.perf_counter()
@@ -68,9 +102,23 @@ class RequestIssue:
     """Issue a step as a ``REQUEST_DTYPE`` array through ``backend.run``."""
 
     def __init__(self, backend, rays: np.ndarray, bvh, name: str, words: bool = False):
-        self.backend, self.rays, self.bvh, self.name = backend, rays, bvh, name
+        self.backend, self.bvh, self.name = backend, bvh, name
+        self._table = _Rows(rays)
         self.words = words        # also return the response words (for recording)
         self.wall_s = 0.0
+
+    @property
+    def rays(self) -> np.ndarray:
+        return self._table.rows
+
+    @property
+    def ray_words(self) -> np.ndarray:
+        return ray_words(self.rays)
+
+    def add_rays(self, rays: np.ndarray, owner=None, via=None) -> np.ndarray:
+        """Append prepared rays to the ray table; returns their rows (``owner``, ``via``: see
+        ``Recorder.add_rays``)."""
+        return self._table.append(rays)
 
     def __call__(self, active, ptr, ext, bi, ti) -> StepResponses:
         req = self.rays[active]
@@ -97,15 +145,26 @@ class Recorder:
         self.inner = inner
         if isinstance(inner, RequestIssue):
             inner.words = True
-        self.ray_words = getattr(inner, "ray_words", None)
-        if self.ray_words is None:
-            self.ray_words = ray_words(rays)
         self.image = bvh.image.view("<u4")
         self.parts: list[tuple] = []
+        self.world_rays = len(rays)
+        self._owner = _Rows(np.arange(len(rays), dtype=np.uint32))   # row -> ray
+        self._via = _Rows(np.full(len(rays), NO_CHILD, np.uint32))   # row -> instance node
 
     @property
     def wall_s(self) -> float:
         return self.inner.wall_s
+
+    @property
+    def ray_words(self) -> np.ndarray:
+        return self.inner.ray_words
+
+    def add_rays(self, rays: np.ndarray, owner=None, via=None) -> np.ndarray:
+        """Append prepared rays (``NodeIssue.add_rays``); ``owner``: the ray each row belongs to,
+        ``via``: the instance node it entered (the record's ``chain`` and ``before``)."""
+        self._owner.append(np.asarray(owner, np.uint32))
+        self._via.append(np.asarray(via, np.uint32))
+        return self.inner.add_rays(rays)
 
     def __call__(self, active, ptr, ext, bi, ti) -> StepResponses:
         rsp = self.inner(active, ptr, ext, bi, ti)
@@ -120,8 +179,16 @@ class Recorder:
             return (np.concatenate([p[k] for p in self.parts]) if self.parts
                     else np.zeros(shape, dtype))
 
-        return Record(self.ray_words, self.image, cat(0, np.uint32), cat(1, np.uint32),
-                      cat(2, np.float32), cat(3, np.uint32, (0, RSP_WORDS)), params)
+        ray = cat(0, np.uint32)
+        chain = before = None
+        if self._owner.n > self.world_rays:          # rays entered instances (other rows)
+            chain = self._owner.rows[ray]
+            before = np.full(len(ray), NO_CHILD, np.uint32)
+            rows, first = np.unique(ray, return_index=True)     # a row's first request: the
+            before[first] = self._via.rows[rows]                 # BLAS root, after its node
+        return Record(self.ray_words, self.image, ray, cat(1, np.uint32),
+                      cat(2, np.float32), cat(3, np.uint32, (0, RSP_WORDS)), params, chain,
+                      before, self.world_rays if chain is not None else None)
 
 
 def issuer(backend, rays: np.ndarray, bvh, name: str, record: bool = False):

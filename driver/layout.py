@@ -346,6 +346,23 @@ IMAGE_FORMATS = ("box32", "q8", "q8g")
 assert Q8_NODE.fields["q"][1] == 32 and Q8_NODE.fields["exp"][1] == 12
 
 
+# The two-level image (docs/instances.md): a top-level BVH (TLAS) whose leaves are instance nodes,
+# each pointing at the bottom-level BVH (BLAS) of a mesh in the same image.
+INSTANCE_TYPE = 6               # instance node (128 B)
+INSTANCE_NODE = np.dtype([
+    ("world_to_object", "<f4", (3, 4)),     # 3x4 row-major: word 4r + c is m[r][c]
+    ("object_to_world", "<f4", (3, 4)),
+    ("blas", "<u4"),            # pointer to the BLAS root box node
+    ("instance", "<u4"),        # instance index (the scene's instance order)
+    ("rsvd", "<u4", (6,)),
+])
+INSTANCE_BYTES = INSTANCE_NODE.itemsize
+assert INSTANCE_BYTES == 128 and INSTANCE_NODE.fields["blas"][1] == 96
+NODE_BYTES[INSTANCE_TYPE] = INSTANCE_BYTES
+#   an instance node is fetched by the traversal when a ray enters the instance; with the
+#   transform in the driver it becomes no datapath request (NODE_OPCODE has no entry for it)
+
+
 def q8_count(nodes: np.ndarray) -> np.ndarray:
     """Used child slots (1..4) of ``Q8_NODE`` rows (byte 3 of the exponent word, bits 2:0)."""
     return (nodes["exp"][..., 3] & 7).astype(np.int64)

@@ -101,7 +101,7 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
     if point is None:
         point = DesignPoint(workload=workload, spp=spp, bounces=bounces, ao_rays=ao_rays,
                             seed=seed, bvh_fill=fill, cull_stack=cull_stack)
-    scene = load_scene(scene)
+    scene = point.scene_of(load_scene(scene))
     w, h = check_size(width if width is not None else scene.size[0],
                       height if height is not None else scene.size[1])
     tile = plan_tile(w * h, point.workload, point.spp, tile, workers, scheduler)
@@ -128,7 +128,6 @@ def plan_tile(pixels: int, workload: str, spp: int, tile: int | None, workers: i
 
 def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, tile,
                   workers, scheduler) -> RenderResult:
-    from .bvh4 import build
     from .stats import public
     from .tiles import plan, render_tiles
     from .workloads import setup_for, tone_map
@@ -139,7 +138,7 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
         from .tiles import _backend
         _backend(spec)                      # fail early, before a long BVH build
     with phase(f"building the BVH4 of {len(scene.mesh.faces):,} triangles", progress):
-        bvh = build(scene.mesh, fill=point.bvh_fill, format=point.bvh_format)
+        bvh = point.build(scene)
     setup = setup_for(scene)
     tiles = plan(w, h, tile)
     bar = progress_bar(len(tiles), f"{scene.name} {w}x{h} {workload} {name}", "tile", progress)
@@ -154,7 +153,7 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
     by_type = {k: v.reshape(h, w) for k, v in res.ops.items()}
     total = sum(by_type.values())                   # int32: ops per pixel stay far below 2**31
     stats = public(res.stats)
-    stats.update(bvh=dict(bvh.stats), tile=tile, workers=workers)
+    stats.update(bvh=dict(bvh.stats), tile=tile, workers=workers, **scene.counts())
     return RenderResult(scene, w, h, image, total, None, stats, stats.get("embree"),
                         dict(bvh.stats), by_type)
 
@@ -162,14 +161,13 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
 def _render_whole(scene, w, h, backend, progress, check_embree, point,
                   rtunit=False) -> RenderResult:
     """The primary frame as one wavefront of every pixel."""
-    from .bvh4 import build
     from .stats import public, replay_stats
     from .tracer import trace
 
     origins, dirs = primary_rays(scene.camera, w, h)
     be = resolve(backend, **point.backend_options())[0]    # fail early, before a long BVH build
     with phase(f"building the BVH4 of {len(scene.mesh.faces):,} triangles", progress):
-        bvh = build(scene.mesh, fill=point.bvh_fill, format=point.bvh_format)
+        bvh = point.build(scene)
     bvh_stats = dict(getattr(bvh, "stats", {}) or {})
 
     name = backend if isinstance(backend, str) else getattr(backend, "name", "backend")
@@ -193,10 +191,17 @@ def _render_whole(scene, w, h, backend, progress, check_embree, point,
     if check_embree:
         from .check import check, embree_json
         with phase(f"Embree check of {len(origins):,} rays", progress):
-            emb = check(tri, origins, dirs, result.t, result.prim, scene.double_sided)
+            rows, ctri, cprim = slice(None), tri, result.prim
+            if hasattr(tri, "instances"):   # too large to flatten: a sample (driver.instances)
+                from .instances import embree_sample
+                rows, ctri, cprim = embree_sample(tri.instances, origins, dirs, np.inf,
+                                                  result.t, result.prim)
+            emb = check(ctri, origins[rows], dirs[rows], result.t[rows], cprim,
+                        scene.double_sided)
         stats["embree"] = embree_json(emb)
     stats["by_type"] = {"primary": dict(stats)}
     stats["bvh"] = bvh_stats
+    stats.update(scene.counts())
     return RenderResult(scene, w, h, image, ops.reshape(h, w), result, stats, emb, bvh_stats)
 
 

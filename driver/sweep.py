@@ -46,7 +46,7 @@ from .stats import merge_rtunit, provenance, public, replay_stats
 ENERGY_LEVELS = ("signals", "gates")
 # the options that make the functional trace (everything else is replayed)
 FUNCTIONAL = ("scene", "workload", "size", "spp", "bounces", "ao_rays", "seed", "bvh_fill",
-              "bvh_format", "cull_stack")
+              "bvh_format", "flatten", "transform", "cull_stack")
 
 
 def functional_key(point: DesignPoint) -> tuple:
@@ -72,16 +72,15 @@ def trace_workload(point: DesignPoint, progress: bool = True) -> Trace:
     recorded."""
     from . import workloads
     from .backends import backend
-    from .bvh4 import build
     from .scenes.scene import load_scene
     from .tracer import trace
 
     t0 = time.perf_counter()
-    scene = load_scene(point.scene)
+    scene = point.scene_of(load_scene(point.scene))
     size = point.size or scene.size[0]
     rtl = backend("rtl", **point.backend_options())
     with phase(f"building the BVH4 of {len(scene.triangles):,} triangles", progress):
-        bvh = build(scene.mesh, fill=point.bvh_fill, format=point.bvh_format)
+        bvh = point.build(scene)
     setup = workloads.setup_for(scene)
 
     def tracer(bvh_, o, d, **kw):

@@ -16,6 +16,7 @@ from .backends import resolve
 from .bvh4 import BVH4, build
 from .datapath import prepare_rays
 from .layout import FLAG_NO_CULL
+from .instances import TRANSFORMS, InstanceStepper
 from .issue import issuer
 from .stats import frame_stats, with_replay
 from .traversal import traverse
@@ -31,6 +32,9 @@ class TraceResult:
     box_ops, tri_ops : (n,) int64, QUADBOX / TRIANGLE requests issued for each ray
     step_requests, step_box_requests : (steps,) int64, requests (all / QUADBOX) in each
         traversal step (one backend call each), in order, for timing replays
+    instance : (n,) int64, the instance of the hit triangle in a two-level image (-1 on a
+        miss, and for every ray of a one-level image); ``prim`` is then the triangle's index in
+        the flattened triangle list (``driver.instances.Instances.flatten``)
     stats : dict, docs/datapath.md#statistics names, plain Python ints/floats/str (plus the RT-unit
         keys of ``trace(rays_in_flight=...)``)
     record : ``driver.rtunit.Record`` of every request, when asked for (else None)
@@ -45,6 +49,7 @@ class TraceResult:
     step_box_requests: np.ndarray
     stats: dict = field(default_factory=dict)
     record: object = None
+    instance: np.ndarray | None = None
 
 
 def as_bvh(scene, bvh_format: str | None = None) -> BVH4:
@@ -58,8 +63,13 @@ def as_bvh(scene, bvh_format: str | None = None) -> BVH4:
             raise ValueError(f"the BVH given is {bvh.format}, not bvh_format={bvh_format!r}")
         return bvh
     if isinstance(scene, (str, bytes)) or hasattr(scene, "__fspath__"):
-        from .scenes.scene import load                            # the application layer; lazy
-        scene = load(scene)
+        from .scenes.scene import load_scene                      # the application layer; lazy
+        scene = load_scene(scene)
+    from .instances import Instances
+    if isinstance(scene, Instances) or getattr(scene, "instances", None) is not None:
+        from .bvh.instances import build_two_level
+        return build_two_level(scene if isinstance(scene, Instances) else scene.instances,
+                               format=bvh_format or "box32")
     if hasattr(scene, "mesh") and not hasattr(scene, "faces"):
         scene = scene.mesh
     return build(scene, format=bvh_format or "box32")
@@ -67,7 +77,8 @@ def as_bvh(scene, bvh_format: str | None = None) -> BVH4:
 
 def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np.inf,
           progress=None, rays_in_flight=None, pipelines=1, turnaround=None, record=False,
-          any_hit=False, double_sided=None, cull_stack=False, bvh_format=None) -> TraceResult:
+          any_hit=False, double_sided=None, cull_stack=False, bvh_format=None,
+          transform=None) -> TraceResult:
     """Trace rays with every box and triangle test run on ``backend``.
 
     scene_or_mesh_or_bvh : BVH4, trimesh mesh, (n, 3, 3) triangles, or a scene name/path
@@ -87,6 +98,9 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
     bvh_format : the node image built for a scene, mesh or triangles: "box32" (None, the
         default), "q8" or "q8g" (``driver.bvh4.build``'s ``format``); a BVH4 given must be in
         this format
+    transform : where a two-level image's instance transform runs
+        (``driver.instances.TRANSFORMS``: "driver", on the host); None: the image's own
+        (``TwoLevelBVH.transform``, set by ``driver.bvh.instances.build_scene``)
     progress : optional callable(done_rays, total_rays), called once per step
     rays_in_flight, pipelines, turnaround : RT-unit model (``driver.rtunit``). With
         ``rays_in_flight=None`` (default) the statistics are the wavefront's: every ray in
@@ -100,6 +114,8 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
     record : keep the ``driver.rtunit.Record`` of every request (for ``rtunit.replay``/sweeps)
         in ``TraceResult.record`` (always kept when ``rays_in_flight`` is given).
     """
+    if transform is not None and transform not in TRANSFORMS:
+        raise ValueError(f"transform must be one of {tuple(TRANSFORMS)}, got {transform!r}")
     if isinstance(scene_or_mesh_or_bvh, (str, bytes)) or hasattr(scene_or_mesh_or_bvh,
                                                                  "__fspath__"):
         from .scenes.scene import load_scene                      # the application layer; lazy
@@ -113,20 +129,29 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
     timed = rays_in_flight is not None
     issue = issuer(be, rays, bvh, be_name, record=bool(record) or timed)
     cycles0 = int(be.cycles)
+    inst = (InstanceStepper(bvh, rays, issue.add_rays,
+                            transform or getattr(bvh, "transform", "driver"))
+            if getattr(bvh, "instances", None) is not None else None)
     trav = traverse(bvh, rays["extent"], issue, any_hit=any_hit, progress=progress,
-                    cull=cull_stack)
+                    cull=cull_stack, instances=inst)
     hit = trav.prim >= 0
+    instance = np.full(len(hit), -1, np.int64)
+    if inst is not None:
+        instance = inst.hit_instance
+        trav.prim[hit] += bvh.instances.prim_base[instance[hit]]
+        trav.node_bytes += inst.node_bytes
     t = np.where(hit, trav.nearest, np.float32(np.inf)).astype(np.float32)
     stats = frame_stats(trav.box_ops, trav.tri_ops, hit, int(be.cycles) - cycles0,
                         int(getattr(be, "latency", 0)), issue.wall_s, be_name,
-                        trav.culled if cull_stack else None, trav.node_bytes)
+                        trav.culled if cull_stack else None, trav.node_bytes,
+                        None if inst is None else inst.instance_ops)
     rec = issue.record(_replay_params(be)) if hasattr(issue, "record") else None
     if timed:
         from . import rtunit
         ta = rtunit.DEFAULT_TURNAROUND if turnaround is None else turnaround
         stats = with_replay(stats, rtunit.replay(rec, rays_in_flight, pipelines, ta).stats())
     return TraceResult(t, trav.prim, hit, trav.box_ops, trav.tri_ops, trav.step_requests,
-                       trav.step_box_requests, stats, rec)
+                       trav.step_box_requests, stats, rec, instance)
 
 
 def _replay_params(be) -> dict:

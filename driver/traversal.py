@@ -42,8 +42,9 @@ from typing import Callable
 
 import numpy as np
 
-from .layout import (BOX_NODE, GROUP_TYPE, NO_CHILD, NODE_BYTES, PAIR_BYTES, PAIR_NODE,
-                     PAIR_SECOND_TYPE, PAIR_TYPE, TRI_NODE, TRI_TYPE, NodeRef, node_word)
+from .layout import (BOX_NODE, BOX_TYPE, GROUP_TYPE, NO_CHILD, NODE_BYTES, PAIR_BYTES, PAIR_NODE,
+                     PAIR_SECOND_TYPE, PAIR_TYPE, Q8_NODE, Q8_TYPE, TRI_NODE, TRI_TYPE, NodeRef,
+                     node_word)
 
 _LANES = np.arange(BOX_NODE["child"].shape[0])
 # per pointer type: the word of the primitive id a triangle request reports, the node bytes a
@@ -52,6 +53,9 @@ _PRIM_WORD = np.zeros(8, np.int64)
 _PRIM_WORD[TRI_TYPE] = node_word(TRI_NODE, "prim")
 _PRIM_WORD[PAIR_TYPE] = _PRIM_WORD[GROUP_TYPE] = node_word(PAIR_NODE, "prim")
 _PRIM_WORD[PAIR_SECOND_TYPE] = node_word(PAIR_NODE, "prim") + 1
+_CHILD_WORD = np.zeros(8, np.int64)           # per box-node type (a two-level image has both)
+_CHILD_WORD[BOX_TYPE] = node_word(BOX_NODE, "child")
+_CHILD_WORD[Q8_TYPE] = node_word(Q8_NODE, "child")
 _BYTES = np.zeros(8, np.int64)
 for _t, _b in NODE_BYTES.items():
     _BYTES[_t] = _b
@@ -106,12 +110,14 @@ class Traversal:
 
 def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
              progress: Callable[[int, int], None] | None = None,
-             cull: bool = False) -> Traversal:
+             cull: bool = False, instances=None) -> Traversal:
     """Traverse ``bvh`` (a ``driver.bvh4.BVH4``) for n rays whose extents are ``extent`` (n,)
     float32; ``issue`` runs each step's requests on a datapath (see ``Issue``). ``any_hit``: a ray
     ends at its first accepted triangle (occlusion). ``cull``: drop box nodes whose entry
     distance is not below the nearest hit (module docstring). ``progress(done_rays,
-    total_rays)`` is called once per step."""
+    total_rays)`` is called once per step. ``instances``: a ``driver.instances.InstanceStepper``
+    (two-level images): it enters the instance nodes on top of the stacks before each step, and
+    the requests name each ray by its row in the issuer's ray table (``instances.row``)."""
     n = len(extent)
     nearest = np.array(extent, np.float32, copy=True)
     prim = np.full(n, -1, np.int64)
@@ -135,20 +141,27 @@ def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
                 if progress is not None:
                     progress(n, n)
                 break
+        if instances is not None:
+            active = instances.step(active, stack, sp, nearest)
+            if not len(active):
+                if progress is not None:
+                    progress(n, n)
+                break
         ptr = stack[active, sp[active]]
         typ = NodeRef.type(ptr)
         is_box = NodeRef.is_box(ptr)
         bi, ti = np.flatnonzero(is_box), np.flatnonzero(~is_box)
         base = NodeRef.word(ptr)
         node_bytes[active] += _BYTES[typ]
-        rsp = issue(active, ptr, nearest[active], bi, ti)
+        rows = active if instances is None else instances.row[active]
+        rsp = issue(rows, ptr, nearest[active], bi, ti)
         steps.append(len(active))
         steps_box.append(len(bi))
 
         # box nodes: push the hit children, farthest first, so that the nearest is popped next
         ray_b = active[bi]
         box_ops[ray_b] += 1
-        children = image[base[bi, None] + bvh.child_word + _LANES]
+        children = image[base[bi, None] + _CHILD_WORD[typ[bi], None] + _LANES]
         hit = rsp.box_hit[:, ::-1]
         child = np.take_along_axis(children, rsp.box_index.astype(np.intp), 1)[:, ::-1]
         if (child[hit] == NO_CHILD).any():
@@ -169,6 +182,8 @@ def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
         nearest[ray_t[better]] = t[better]
         tb = ti[better]
         prim[ray_t[better]] = image[base[tb] + _PRIM_WORD[typ[tb]]].astype(np.int64)
+        if instances is not None:
+            instances.hit(ray_t[better])
         if any_hit:
             sp[ray_t[better]] = 0
         # the rest of a leaf is the ray's next requests (unless the ray is done): a group's

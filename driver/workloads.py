@@ -92,7 +92,9 @@ class Materials:
 @dataclass
 class Setup:
     """What a workload needs of a scene: triangles (m, 3, 3), camera, materials, lights,
-    whether triangles are double-sided, the AO radius, the background radiance."""
+    whether triangles are double-sided, the AO radius, the background radiance. ``triangles``
+    and the materials' arrays may be computed on indexing (``driver.instances``:
+    ``InstancedTriangles``, ``PerInstance``): workloads only index them by primitive id."""
 
     triangles: np.ndarray
     camera: object
@@ -103,7 +105,10 @@ class Setup:
     background: tuple = (0.0, 0.0, 0.0)
 
     def __post_init__(self):
-        lo, hi = self.triangles.reshape(-1, 3).min(0), self.triangles.reshape(-1, 3).max(0)
+        if hasattr(self.triangles, "bounds"):       # driver.instances.InstancedTriangles
+            lo, hi = self.triangles.bounds()
+        else:
+            lo, hi = self.triangles.reshape(-1, 3).min(0), self.triangles.reshape(-1, 3).max(0)
         diag = float(np.linalg.norm(hi.astype(np.float64) - lo))
         if self.ao_radius is None:
             self.ao_radius = AO_RADIUS_REL * diag
@@ -280,7 +285,7 @@ def headlight(prim, triangles, dirs, pixels, width: int, height: int) -> np.ndar
     rgb = BG_TOP * (1 - rows) + BG_BOTTOM * rows
     hit = prim >= 0
     if hit.any():
-        tri = np.asarray(triangles, np.float64)[prim[hit]]
+        tri = np.asarray(triangles[prim[hit]], np.float64)
         nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         length = np.linalg.norm(nrm, axis=1)
         d = np.asarray(dirs, np.float64).reshape(-1, 3)[hit]
@@ -361,8 +366,14 @@ def embree_check(result: FrameResult, setup: Setup) -> dict:
     per_kind: dict = {}
     for b in result.batches:
         r = b.result
+        tri, rows, prim = setup.triangles, slice(None), r.prim
+        if hasattr(tri, "instances"):       # too large to flatten: a sample (driver.instances)
+            from .instances import embree_sample
+            rows, tri, prim = embree_sample(tri.instances, b.origins, b.dirs, b.extent, r.t,
+                                            r.prim)
+        ext = np.broadcast_to(np.asarray(b.extent, np.float64), (len(r.t),))
         per_kind.setdefault(b.kind, []).append(check_rays(
-            setup.triangles, b.origins, b.dirs, b.extent, r.t, r.prim, b.any_hit,
+            tri, b.origins[rows], b.dirs[rows], ext[rows], r.t[rows], prim, b.any_hit,
             setup.double_sided))
     for kind, parts in per_kind.items():
         result.stats["by_type"][kind]["embree"] = merge_checks(parts)

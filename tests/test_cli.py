@@ -108,7 +108,7 @@ def test_user_mistakes_exit_2_with_one_line(error_line, args, words):
     assert words in error_line()
 
 
-@pytest.mark.parametrize("flags", [["--cull-stack"], ["--bvh-fill", "8"]])
+@pytest.mark.parametrize("flags", [["--cull-stack"], ["--bvh-fill", "8"], ["--flatten"]])
 def test_bench_bvh_refuses_tree_flags(error_line, flags):
     assert main(["bench", "--bvh", "--no-progress", *flags]) == 2
     assert "--bvh measures" in error_line()

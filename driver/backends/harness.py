@@ -14,7 +14,8 @@ import ctypes
 
 import numpy as np
 
-from ..layout import REPLAY_STATS, REQ_WORDS, RAY_WORDS, RSP_WORDS, pack_requests, unpack_responses
+from ..layout import (NO_CHILD, RAY_WORDS, REPLAY_STATS, REQ_WORDS, RSP_WORDS, pack_requests,
+                      unpack_responses)
 from .build import build_harness
 from .rtlbase import PATTERN_LEN, RtlBackendBase
 
@@ -68,8 +69,9 @@ def use_library(params: dict[str, int], path) -> ctypes.CDLL:
     lib.rf_build_requests.argtypes = [_U32P, _U32P, i64, _U32P, _U32P, _U32P, _U32P, i64]
     lib.rf_replay.restype = i64
     lib.rf_replay.argtypes = [i64, i64, i64, i64, _U32P, i64, _U32P, i64, _U32P, _U32P, _U32P,
-                              i64, _I64P, _I64P, _U32P, ctypes.POINTER(ReplayStats), _I64P, i64,
-                              i64, i64, i64, i64, ctypes.c_double, _I64P, i64, _I64P]
+                              i64, _I64P, _I64P, i64, _U32P, _U32P, _U32P,
+                              ctypes.POINTER(ReplayStats), _I64P, i64, i64, i64, i64, i64,
+                              ctypes.c_double, _I64P, i64, _I64P]
     lib.rf_memory_trace.restype = i64
     lib.rf_memory_trace.argtypes = [i64, i64, i64, i64, ctypes.c_double, i64, _I64P, _I64P,
                                     _I64P, _I64P, _I64P]
@@ -119,22 +121,33 @@ SCHED_STATS = ("parked", "resumed", "max_parked", "max_held")
 
 def replay_chains(params: dict[str, int], pipelines: int, slots: int, turnaround: int,
                   skip_idle: bool, ray_words, image_words, ray, ptr, extent, chain_idx,
-                  chain_off, max_idle: int, memory=NO_MEMORY, order=None, window: int = 0):
+                  chain_off, max_idle: int, memory=NO_MEMORY, order=None, window: int = 0,
+                  chain=None, before=None):
     """Run the RT-unit scheduler (sim/rtunit_scheduler.cpp) over recorded request chains.
     ``memory``: (cache_bytes, ways, line_bytes, latency_cycles, bytes_per_cycle) of the node
-    memory (sim/rf_memory.h; cache_bytes = 0: no cache, every line from memory; < 0: no memory model). ``order``: the order in which rays enter
-    (a permutation of the ray indices; None: index order). ``window``: rays held by the
-    node-affinity scheduler (0: none; else >= slots). Returns (responses (m, RSP_WORDS) uint32 at
-    the record index, ``ReplayStats`` dict plus the scheduler's ``SCHED_STATS`` counts, requests
-    per pipeline (P,) int64)."""
+    memory (sim/rf_memory.h; cache_bytes = 0: no cache, every line from memory; < 0: no memory
+    model). ``order``: the order in which chains (world rays) enter (a permutation of the chain
+    indices; None: index order). ``window``: rays held by the node-affinity scheduler (0: none;
+    else >= slots). ``chain``: the chain (world ray) of each request (default: its ray), when a
+    ray's requests use several rows of the ray table (instances); ``before``: per request a node
+    fetched before its own (an instance node; ``NO_CHILD``: none, the default). Returns
+    (responses (m, RSP_WORDS) uint32 at the record index, ``ReplayStats`` dict plus the
+    scheduler's ``SCHED_STATS`` counts, requests per pipeline (P,) int64)."""
     lib = harness_library(params)
     rw, img, r, p, e = node_arrays(ray_words, image_words, ray, ptr, extent)
     ci = np.ascontiguousarray(chain_idx, np.int64)
     co = np.ascontiguousarray(chain_off, np.int64)
+    ch = r if chain is None else np.ascontiguousarray(chain, np.uint32).reshape(-1)
+    bf = (np.full(len(r), NO_CHILD, np.uint32) if before is None
+          else np.ascontiguousarray(before, np.uint32).reshape(-1))
+    if len(ch) != len(r) or len(bf) != len(r) or (len(r) and int(ch.max()) >= len(co) - 1):
+        raise ValueError("chain and before need one entry per request, chains within chain_off")
     if order is not None:
         order = np.ascontiguousarray(order, np.int64)
-        if order.shape != (len(rw),) or not np.array_equal(np.sort(order), np.arange(len(rw))):
-            raise ValueError("the ray order must be a permutation of the ray indices")
+        n_chains = len(co) - 1
+        if order.shape != (n_chains,) or not np.array_equal(np.sort(order), np.arange(n_chains)):
+            raise ValueError("the ray order must be a permutation of the chain (world ray) "
+                             "indices")
     if window and not int(window) >= slots:
         raise ValueError(f"the scheduler's window ({window} rays) must hold at least the "
                          f"{slots} rays in flight")
@@ -144,9 +157,9 @@ def replay_chains(params: dict[str, int], pipelines: int, slots: int, turnaround
     sched = np.zeros(len(SCHED_STATS), np.int64)
     rc = lib.rf_replay(pipelines, slots, turnaround, int(bool(skip_idle)), _u32p(rw), len(rw),
                        _u32p(img), img.size, _u32p(r), _u32p(p), _u32p(e), len(r), _i64p(ci),
-                       _i64p(co), _u32p(rsp), ctypes.byref(stats), _i64p(per_pipe), max_idle,
-                       *memory, None if order is None else _i64p(order), int(window),
-                       _i64p(sched))
+                       _i64p(co), len(co) - 1, _u32p(ch), _u32p(bf), _u32p(rsp),
+                       ctypes.byref(stats), _i64p(per_pipe), max_idle, *memory,
+                       None if order is None else _i64p(order), int(window), _i64p(sched))
     if rc == BAD_GEOMETRY:
         raise ValueError(f"node cache geometry {memory[:3]} cannot be modelled: the cache size must "
                          "be a multiple of ways x line size, the line a power of two >= 4 bytes")

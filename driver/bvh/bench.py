@@ -30,10 +30,11 @@ REFERENCE = {"box_nodes": 36_000, "ops_per_ray": 0.95 * 6.29}
 
 
 def instanced_bunnies(count: int, seed: int = 0) -> np.ndarray:
-    """``count`` copies of the Stanford bunny (``driver.builtins.instanced_bunnies``)."""
+    """``count`` copies of the Stanford bunny (``driver.builtins.instanced_bunnies``), flattened:
+    (count * bunny triangles, 3, 3) float32 world-space triangles."""
     from ..scenes.builtins import instanced_bunnies as grid
     from ..scenes.scene import load
-    return grid(load("bunny").triangles, count, seed)
+    return grid(load("bunny").triangles, count, seed).flatten()
 
 
 def _build_child(count, fmt, conn):

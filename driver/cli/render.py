@@ -135,7 +135,8 @@ def summary(res) -> str:
                          + (f", hit rate {r['hit_rate']:.3f}, {r['bytes_per_ray']:.0f} B/ray"
                             if "hit_rate" in r else ""))
     if b:
-        lines.append(f"BVH4: {len(res.scene.mesh.faces)} triangles, {b.get('box_nodes', '?')} box "
+        lines.append(f"BVH4: {res.scene.counts()['instanced_triangles']} triangles, "
+                     f"{b.get('box_nodes', '?')} box "
                      f"nodes, depth {b.get('depth', '?')}, SAH {b.get('sah_cost', 0):.1f}, "
                      f"{b.get('bytes', 0) / 2**20:.2f} MiB, built in {b.get('build_s', 0):.2f} s")
     for kind, t in s.get("by_type", {}).items():

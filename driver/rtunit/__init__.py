@@ -73,6 +73,12 @@ class Record:
     extent : (m,) float32, the ray's nearest t when request i was issued
     responses : (m, RSP_WORDS) uint32 response words of the functional run, or None
     params : RTL build parameters for the replay (EXTENDED, DISJOINT, LATENCY)
+    chain : (m,) uint32, the ray (request chain) of request i when requests name rows of a
+        ray table that has more rows than rays (a two-level image: a ray that enters an
+        instance continues on its object-space row; ``driver.instances``); None: ``ray``
+    before : (m,) uint32, a node fetched before request i's own node (the instance node a ray
+        reads on entering an instance; ``NO_CHILD``: none), or None
+    world_rays : the number of rays (chains) when ``chain`` is given
     """
 
     ray_words: np.ndarray
@@ -82,10 +88,13 @@ class Record:
     extent: np.ndarray
     responses: np.ndarray | None
     params: dict
+    chain: np.ndarray | None = None
+    before: np.ndarray | None = None
+    world_rays: int | None = None
 
     @property
     def rays(self) -> int:
-        return len(self.ray_words)
+        return len(self.ray_words) if self.world_rays is None else int(self.world_rays)
 
     @property
     def ops(self) -> int:
@@ -98,8 +107,9 @@ class Record:
     def chains(self):
         """(chain_idx (m,) int64, chain_off (n + 1,) int64): ray r's requests, in issue order,
         are record indices chain_idx[chain_off[r]:chain_off[r + 1]]."""
-        order = np.argsort(self.ray, kind="stable").astype(np.int64)
-        count = np.bincount(self.ray.astype(np.int64), minlength=self.rays)
+        key = self.ray if self.chain is None else self.chain
+        order = np.argsort(key, kind="stable").astype(np.int64)
+        count = np.bincount(key.astype(np.int64), minlength=self.rays)
         off = np.zeros(self.rays + 1, np.int64)
         np.cumsum(count, out=off[1:])
         return order, off
@@ -246,7 +256,8 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
                                          record.image, record.ray, record.ptr, record.extent,
                                          chain_idx, chain_off, 100 * latency + 1000,
                                          memory.args() if memory else NO_MEMORY, perm,
-                                         window if pol.schedule else 0)
+                                         window if pol.schedule else 0, record.chain,
+                                         record.before)
     wall = time.perf_counter() - t0
     m = len(rsp)
     if stats["bad_tags"]:

@@ -118,9 +118,12 @@ def morton(cells: np.ndarray, bits: int) -> np.ndarray:
 
 
 def keys(record, kind: str) -> np.ndarray:
-    """(n,) uint64 coherence keys of the record's rays (``kind``: "hash" or "twopoint")."""
-    o = _ray_field(record.ray_words, "origin").astype(np.float64)
-    d = _ray_field(record.ray_words, "dir").astype(np.float64)
+    """(n,) uint64 coherence keys of the record's rays (``kind``: "hash" or "twopoint"): its
+    world rays, the first ``record.rays`` rows of the ray table (an instanced scene's
+    object-space rays follow them)."""
+    words = record.ray_words[:record.rays]
+    o = _ray_field(words, "origin").astype(np.float64)
+    d = _ray_field(words, "dir").astype(np.float64)
     lo, hi = scene_box(record)
     cell = morton(_cells(o, lo, hi, GRID_BITS), GRID_BITS)
     if kind == "hash":
@@ -131,7 +134,7 @@ def keys(record, kind: str) -> np.ndarray:
         pb = np.minimum((phi * (1 << PHI_BITS)).astype(np.uint64), (1 << PHI_BITS) - 1)
         return (cell << np.uint64(THETA_BITS + PHI_BITS)) | (tb << np.uint64(PHI_BITS)) | pb
     if kind == "twopoint":
-        ext = _ray_field(record.ray_words, "extent").astype(np.float64)
+        ext = _ray_field(words, "extent").astype(np.float64)
         diag = float(np.linalg.norm(hi - lo))
         t = np.minimum(np.where(np.isfinite(ext), ext, diag), diag)
         end = morton(_cells(o + d * t[:, None], lo, hi, GRID_BITS), GRID_BITS)

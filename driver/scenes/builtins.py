@@ -1,5 +1,6 @@
 """Built-in rendering scenes with materials and lights: the Cornell box, the bunny on a floor,
-and a large instanced scene (a grid of rotated, scaled bunnies on a plane, flattened into one mesh).
+and a large instanced scene (a grid of rotated, scaled bunnies on a plane: 21 instances of one
+bunny and one of the floor, traced through a two-level BVH; docs/instances.md).
 
 The Cornell box is the published geometry of the Cornell Program of Computer Graphics ("Cornell
 Box Data": floor, ceiling, back wall, red left wall, green right wall, a short and a tall block,
@@ -48,7 +49,8 @@ _LIGHT = ((343.0, _LIGHT_Y, 227.0), (0.0, 0.0, 105.0), (-130.0, 0.0, 0.0))  # co
 
 @dataclass
 class Built:
-    """A built-in scene: triangles (m, 3, 3) float32, per-triangle albedo and emission (m, 3),
+    """A built-in scene: triangles (m, 3, 3) float32 (None: an instanced scene too large to
+    flatten, ``instances`` only), per-triangle albedo and emission (m, 3),
     lights (``driver.workloads`` lights), camera (position, look_at, up, fov_deg), double-sided."""
 
     triangles: np.ndarray
@@ -57,6 +59,7 @@ class Built:
     lights: list
     camera: dict
     double_sided: bool
+    instances: object = None        # driver.instances.Instances whose flattening is triangles
 
 
 def _quads(quads) -> np.ndarray:
@@ -116,39 +119,55 @@ def bunny_floor(bunny) -> Built:
     return Built(tris, albedo, np.zeros((len(tris), 3)), [light], _framing(bunny), False)
 
 
-def instanced_bunnies(bunny: np.ndarray, count: int, seed: int = 0) -> np.ndarray:
-    """(count * len(bunny), 3, 3) float32 triangles: ``count`` copies of the ``bunny`` triangles
-    (z up) on a square grid in the plane z = 0, each turned about z by a random angle and scaled
-    by a random factor in [0.6, 1.4], deterministic in ``seed``. Neighbouring copies may touch but
-    do not interpenetrate much (grid pitch = 1.5 x the largest bunny's footprint)."""
+def bunny_placements(bunny: np.ndarray, count: int, seed: int = 0) -> np.ndarray:
+    """(count, 3, 4) float64 transforms placing ``count`` copies of the ``bunny`` triangles (z up)
+    on a square grid in the plane z = 0, feet at z = 0, each turned about z by a random angle and
+    scaled by a random factor in [0.6, 1.4], deterministic in ``seed``. Neighbouring copies may
+    touch but do not interpenetrate much (grid pitch = 1.5 x the largest bunny's footprint)."""
     if int(count) < 1:
         raise ValueError(f"count must be >= 1, got {count}")
     count = int(count)
-    tris = np.asarray(bunny, np.float64)
-    lo, hi = tris.reshape(-1, 3).min(0), tris.reshape(-1, 3).max(0)
-    tris = tris - [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]]      # feet at the origin
+    pts = np.asarray(bunny, np.float64).reshape(-1, 3)
+    lo, hi = pts.min(0), pts.max(0)
+    feet = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
     pitch = 1.5 * 1.4 * float(np.hypot(hi[0] - lo[0], hi[1] - lo[1]))
     rng = np.random.default_rng(seed)
     angle = rng.uniform(0, 2 * np.pi, count)
     scale = rng.uniform(0.6, 1.4, count)
     side = int(np.ceil(np.sqrt(count)))
-    out = np.empty((count, len(tris), 3, 3), np.float32)
-    for i in range(count):
-        c, s = np.cos(angle[i]), np.sin(angle[i])
-        rot = scale[i] * np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
-        shift = np.array([(i % side) * pitch, (i // side) * pitch, 0.0])
-        out[i] = tris @ rot.T + shift
-    return out.reshape(-1, 3, 3)
+    c, s = np.cos(angle), np.sin(angle)
+    rot = np.zeros((count, 3, 3))
+    rot[:, 0, 0], rot[:, 0, 1], rot[:, 1, 0], rot[:, 1, 1] = c, -s, s, c
+    rot[:, 2, 2] = 1.0
+    rot *= scale[:, None, None]
+    i = np.arange(count)
+    shift = np.stack([(i % side) * pitch, (i // side) * pitch, np.zeros(count)], axis=1)
+    return np.concatenate([rot, (shift - rot @ feet)[:, :, None]], axis=2)
+
+
+def instanced_bunnies(bunny: np.ndarray, count: int, seed: int = 0):
+    """``driver.instances.Instances``: ``count`` instances of the ``bunny`` triangles placed by
+    ``bunny_placements``."""
+    from ..instances import Instances
+    return Instances([np.asarray(bunny, np.float32)], np.zeros(int(count), np.int64),
+                     bunny_placements(bunny, count, seed))
 
 
 def bunny_grid(bunny, count: int = 21) -> Built:
-    """``instanced_bunnies`` of ``bunny()`` on one floor with one quad light; single-sided."""
-    bunnies = instanced_bunnies(bunny(), count)
+    """``instanced_bunnies`` of ``bunny()`` on one floor (an instance of its own, identity
+    transform) with one quad light; single-sided."""
+    from ..instances import Instances
+    grid = instanced_bunnies(bunny(), count)
+    bunnies = grid.flatten()
     floor, light = floor_under(bunnies, margin=0.6)
-    tris = np.concatenate([bunnies.astype(np.float64), floor]).astype(np.float32)
+    identity = np.eye(3, 4)[None]
+    inst = Instances(grid.meshes + [floor.astype(np.float32)], np.append(grid.mesh, 1),
+                     np.concatenate([grid.object_to_world, identity]))
+    tris = inst.flatten()
     albedo = np.full((len(tris), 3), (0.80, 0.76, 0.70))
     albedo[-2:] = (0.55, 0.60, 0.65)
-    return Built(tris, albedo, np.zeros((len(tris), 3)), [light], _framing(bunnies), False)
+    return Built(tris, albedo, np.zeros((len(tris), 3)), [light], _framing(bunnies), False,
+                 inst)
 
 
 def _framing(tris: np.ndarray) -> dict:
@@ -158,4 +177,9 @@ def _framing(tris: np.ndarray) -> dict:
             "fov_deg": cam.fov_deg}
 
 
-BUILT = {"cornell": cornell, "bunny_floor": bunny_floor, "bunny_grid": bunny_grid}
+def _city(bunny) -> Built:
+    from .city import city
+    return city(bunny)
+
+
+BUILT = {"cornell": cornell, "bunny_floor": bunny_floor, "bunny_grid": bunny_grid, "city": _city}

@@ -7,6 +7,8 @@ its name (the command line names its outputs before any work), ``with_camera`` r
 its camera. How names resolve, the built-in scenes, the mesh file types (``MESH_TYPES``), glTF
 materials and the TOML scene format are documented in docs/scenes.md (tests check that it names
 every built-in, mesh type and TOML key accepted here).
+A scene may hold instances (``Scene.instances``: glTF mesh reuse, ``bunny_grid``, ``city``),
+traced through a two-level BVH (docs/instances.md).
 
 Meshes are loaded with ``process=False``: no vertex merging, no face removal, so primitive ids are
 face indices in the file. Degenerate (zero-area) triangles are kept. Invalid input raises
@@ -15,6 +17,7 @@ face indices in the file. Degenerate (zero-area) triangles are kept. Invalid inp
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.resources
 import sys
 from dataclasses import dataclass, field, replace
@@ -29,7 +32,7 @@ from ..errors import CameraError, SceneError
 
 SCENES_DIR = Path(__file__).resolve().parent / "data"
 BUILTINS = ("bunny", "room", "soup", "sphere")
-RENDER_BUILTINS = ("cornell", "bunny_floor", "bunny_grid")   # with materials and lights
+RENDER_BUILTINS = ("cornell", "bunny_floor", "bunny_grid", "city")   # with materials and lights
 DEFAULT_SIZE = 256
 _UP = {"bunny": (0.0, 0.0, 1.0), "sphere": (0.0, 0.0, 1.0), "room": (0.0, 0.0, 1.0),
        "soup": (0.0, 0.0, 1.0)}
@@ -43,7 +46,8 @@ MESH_TYPES = tuple(sorted(set(trimesh.exchange.load.mesh_formats()) - _NOT_MESH_
 
 @dataclass
 class Scene:
-    """mesh : trimesh.Trimesh (process=False); camera : Camera; size : default (width, height);
+    """mesh : trimesh.Trimesh (process=False; None for a scene of instances too large to
+    flatten: ``city``); camera : Camera; size : default (width, height);
     materials : ``driver.workloads.Materials`` or None (uniform grey); lights : workload lights
     (empty: a default light); double_sided : trace with NO_CULL; ao_radius : None = default."""
 
@@ -55,11 +59,35 @@ class Scene:
     lights: list = field(default_factory=list)
     double_sided: bool = False
     ao_radius: float | None = None
+    instances: object = None        # driver.instances.Instances, or None: one mesh
 
     @property
     def triangles(self) -> np.ndarray:
-        """(n, 3, 3) float32 vertex positions of every face; row i is primitive id i."""
+        """(n, 3, 3) float32 vertex positions of every face; row i is primitive id i. A scene
+        of instances too large to flatten (``mesh`` None) gives an
+        ``driver.instances.InstancedTriangles``, computed row by row when indexed."""
+        if self.mesh is None:
+            from ..instances import InstancedTriangles
+            return InstancedTriangles(self.instances)
         return triangles(self.mesh)
+
+    def flattened(self) -> "Scene":
+        """This scene traced as one mesh: its flattened triangles in one BVH (the same
+        primitive ids); SceneError for a scene too large to flatten (``mesh`` None)."""
+        if self.mesh is None:
+            raise SceneError(f"scene {self.name!r} is too large to flatten "
+                             f"({self.instances.triangles_total:,} instanced triangles)")
+        return dataclasses.replace(self, instances=None)
+
+    def counts(self) -> dict:
+        """``instances``, ``instanced_triangles`` (triangles of the flattened scene) and
+        ``blas_triangles`` (triangles stored once per mesh); a one-mesh scene is one instance."""
+        if self.instances is None:
+            n = len(self.mesh.faces)
+            return {"instances": 1, "instanced_triangles": n, "blas_triangles": n}
+        i = self.instances
+        return {"instances": len(i), "instanced_triangles": i.triangles_total,
+                "blas_triangles": i.blas_triangles}
 
 
 def triangles(mesh: trimesh.Trimesh) -> np.ndarray:
@@ -103,9 +131,11 @@ def _rendering_builtin(name: str) -> Scene:
     from .builtins import BUILT
     from ..workloads import Materials
     b = BUILT[name](lambda: triangles(builtin("bunny")))
-    mesh = _mesh(b.triangles.reshape(-1, 3), np.arange(3 * len(b.triangles)).reshape(-1, 3), name)
+    mesh = None if b.triangles is None else _mesh(
+        b.triangles.reshape(-1, 3), np.arange(3 * len(b.triangles)).reshape(-1, 3), name)
     return Scene(mesh, Camera(**b.camera).validate(), (DEFAULT_SIZE, DEFAULT_SIZE), name,
-                 Materials(b.albedo, b.emission), list(b.lights), b.double_sided)
+                 Materials(b.albedo, b.emission), list(b.lights), b.double_sided,
+                 instances=b.instances)
 
 
 def check_up_axis(up_axis: str | None, kind: str) -> None:
@@ -270,9 +300,47 @@ def _mesh(vertices, faces, what) -> trimesh.Trimesh:
 
 def _from_mesh_file(path: Path, up=_FILE_UP) -> Scene:
     mesh = _read_mesh_file(path)
+    inst = _gltf_instances(path)
+    if inst is not None:
+        flat = inst.flatten().reshape(-1, 3)
+        mesh = _mesh(flat, np.arange(len(flat)).reshape(-1, 3), str(path))
     double, materials = _gltf_materials(path, len(mesh.faces))
     return Scene(mesh, _frame(mesh, up, str(path)), (DEFAULT_SIZE, DEFAULT_SIZE), path.stem,
-                 materials, double_sided=double)
+                 None if inst is not None else materials,
+                 double_sided=double, instances=inst)
+
+
+def _gltf_instances(path: Path):
+    """The instances of a glTF/GLB scene graph in which some mesh is used by more than one node
+    (``driver.instances.Instances``: its meshes, one instance per node with that node's world
+    transform, nested nodes composed), or None (no reuse, or not a glTF file)."""
+    loaded = _load_gltf(path)
+    if not isinstance(loaded, trimesh.Scene):
+        return None
+    nodes = [(node, loaded.graph[node]) for node in loaded.graph.nodes_geometry]
+    nodes = [(node, m, g) for node, (m, g) in nodes
+             if isinstance(loaded.geometry.get(g), trimesh.Trimesh)]
+    used = [g for _, _, g in nodes]
+    if len(set(used)) == len(used):
+        return None
+    from ..instances import Instances
+    names = sorted(set(used), key=used.index)
+    meshes = [triangles(_validated(loaded.geometry[g], f"{path}: mesh {g!r}")) for g in names]
+    try:
+        return Instances(meshes, [names.index(g) for g in used],
+                         np.stack([np.asarray(m, np.float64)[:3] for _, m, _ in nodes]))
+    except ValueError as e:
+        raise SceneError(f"{path}: {e}") from None
+
+
+def _load_gltf(path: Path):
+    """The trimesh object (a Scene or a mesh) of a glTF/GLB file, or None (another file type)."""
+    if path.suffix.lower() not in (".gltf", ".glb"):
+        return None
+    try:
+        return trimesh.load(str(path), process=False)
+    except Exception:  # noqa: BLE001  (already read once by _read_mesh_file)
+        return None
 
 
 def _gltf_materials(path: Path, faces: int):
@@ -304,6 +372,7 @@ def _unit_rgb(colour) -> np.ndarray:
     """RGB in [0, 1] of a colour trimesh keeps as uint8 RGBA (or as floats in [0, 1])."""
     c = np.asarray(colour)
     return c[:3] / 255.0 if c.dtype.kind in "ui" else c[:3].astype(np.float64)
+
 
 
 def _read_mesh_file(path: Path) -> trimesh.Trimesh:

@@ -18,9 +18,13 @@ extern "C" {
 
 // RT-unit replay (driver/rtunit.py). The m recorded requests (ray[i], ptr[i], ext[i]) form one
 // chain per ray; chain_idx lists the record indices of ray r's chain, in issue order, at
-// chain_idx[chain_off[r] .. chain_off[r + 1]). Rays enter a pool of `slots` ray slots in the
-// order `order` (n_rays ray indices, a permutation; null: index order; rays with an empty chain
-// are skipped) and leave it when their chain is done.
+// chain_idx[chain_off[r] .. chain_off[r + 1]). Chains (world rays) enter a pool of `slots` ray
+// slots in the order `order` (n_chains chain indices, a permutation; null: index order; chains
+// that are empty are skipped) and leave it when their chain is done.
+// chain[i] is the chain (world ray) of request i: a ray that enters an instance continues its
+// chain with requests on another ray-table row (its object-space ray), so ray[i] names the row
+// (and the tag), chain[i] the ray slot. before[i] (kNoChild: none) is a node fetched before
+// request i's own node: the instance node a ray reads on entering the instance.
 //
 // Every cycle, first each pipeline's response (if out_valid) is taken: its ray becomes ready
 // `turnaround` cycles later (or leaves the pool, and the next ray enters, ready `turnaround`
@@ -56,11 +60,13 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
                   const uint32_t* rays, int64_t n_rays, const uint32_t* image,
                   int64_t image_words, const uint32_t* ray, const uint32_t* ptr,
                   const uint32_t* ext, int64_t m, const int64_t* chain_idx,
-                  const int64_t* chain_off, uint32_t* rsp, ReplayStats* stats, int64_t* per_pipe,
+                  const int64_t* chain_off, int64_t n_chains, const uint32_t* chain,
+                  const uint32_t* before, uint32_t* rsp, ReplayStats* stats, int64_t* per_pipe,
                   int64_t max_idle, int64_t cache_bytes, int64_t ways, int64_t line_bytes,
                   int64_t mem_latency, double bytes_per_cycle, const int64_t* order,
                   int64_t window, int64_t* sched) {
-  if (pipelines < 1 || slots < 1 || turnaround < 0 || n_rays < 0 || m < 0) return -3;
+  if (pipelines < 1 || slots < 1 || turnaround < 0 || n_rays < 0 || n_chains < 0 || m < 0)
+    return -3;
   if (window < 0 || (window > 0 && window < slots)) return -3;
   const bool affinity = window > 0;
   NodeMemory mem;
@@ -72,7 +78,7 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
     src.begin(sims.back()->top.req_i.data());
   }
   std::vector<std::deque<int64_t>> inflight(pipelines);   // record indices, in request order
-  std::vector<int64_t> pos(n_rays, 0);                     // next chain position of each ray
+  std::vector<int64_t> pos(n_chains, 0);                   // next chain position of each ray
   // Rays waiting to issue, earliest ready first, ties in the order they started waiting (without
   // a node memory, ready times grow with that order and this is a FIFO).
   struct Ready {
@@ -90,10 +96,13 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
     return static_cast<int64_t>(kNodeBytes[p & kTypeMask]);  // 0: the node the ray already holds
   };
   auto wait = [&](int64_t r, int64_t at) {                // ray r's next request, known at `at`
+    const uint32_t b = before[chain_idx[chain_off[r] + pos[r]]];
+    const int64_t after =
+        b == kNoChild ? at : mem.fetch(NodeSource::node_word(b) * 4, kNodeBytes[b & kTypeMask], at);
     int64_t off;
     const int64_t bytes = node_of(r, &off);
-    const bool park = affinity && bytes && !mem.present(off, bytes, at);
-    const int64_t when = bytes ? mem.fetch(off, bytes, at) : at;
+    const bool park = affinity && bytes && !mem.present(off, bytes, after);
+    const int64_t when = bytes ? mem.fetch(off, bytes, after) : after;
     node_wait += when - at;
     if (!park) {
       ready.push({r, when, seq++});
@@ -106,7 +115,7 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
   };
   int64_t next_ray = 0;
   auto next_in_order = [&]() -> int64_t {                  // next ray with a non-empty chain
-    while (next_ray < n_rays) {
+    while (next_ray < n_chains) {
       const int64_t r = order ? order[next_ray] : next_ray;
       next_ray++;
       if (chain_off[r + 1] != chain_off[r]) return r;
@@ -134,14 +143,14 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
         ready.push({r, k, seq++});
         continue;
       }
-      if (held >= window || next_ray >= n_rays) break;
+      if (held >= window || next_ray >= n_chains) break;
       enter(new_at);
     }
   };
   if (affinity) {
     fill(0, 0);
   } else {
-    for (int64_t s = 0; s < slots && next_ray < n_rays; s++) enter(0);
+    for (int64_t s = 0; s < slots && next_ray < n_chains; s++) enter(0);
   }
 
   int64_t taken = 0, k = 0, first = -1, last = -1, idle = 0, evals = 0, starved = 0;
@@ -162,7 +171,7 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
       taken++;
       last = k;
       progress = true;
-      const int64_t r = ray[i];
+      const int64_t r = chain[i];
       if (++pos[r] < chain_off[r + 1] - chain_off[r]) {
         wait(r, k + turnaround);
       } else {

@@ -1,0 +1,199 @@
+"""The two-level BVH image: one bottom-level BVH (BLAS) per distinct mesh, a top-level BVH
+(TLAS) over the instances whose leaves are 128-byte instance nodes, all in one image
+(docs/instances.md).
+
+Image layout (one contiguous little-endian buffer, every node 64-byte aligned)::
+
+    [0, 128 * tlas_box_nodes)          TLAS box nodes (box32), breadth-first, root at offset 0
+    [.., + 128 * instances)            instance nodes (driver.layout.INSTANCE_NODE), in order
+    [.., ...)                          the BLASes, one after another, each as ``driver.bvh4.build``
+                                       writes it (box32 or q8), its pointers moved by its offset
+
+The TLAS is built by the same builder as any BVH4, from one degenerate "triangle" per instance
+whose box is the instance's world box: the BLAS root's stored box (the union of its child boxes)
+with its 8 corners through ``object_to_world`` in float64, rounded outward to float32 (the builder
+then grows it by its usual margin), so every TLAS box contains the transformed BLAS boxes. Its
+triangle leaves become instance pointers.
+
+Mirrored instances (negative determinant): the datapath judges a triangle's facing in the space
+it is tested in, the instance's object space, where a mirroring transform swaps the faces. The
+driver keeps the world-space winding, as a DXR application does by setting
+``TRIANGLE_FRONT_COUNTERCLOCKWISE`` on a mirrored instance: a mesh that has mirrored instances
+also gets a BLAS of its triangles with the last two vertices swapped (A, C, B), and its mirrored
+instances point there. So instanced hits equal those of the flattened world-space triangles, both
+faces included (the BLAS's primitive ids stay those of the mesh).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..bvh4 import BVH4, build
+from ..instances import TRANSFORMS, Instances
+from ..layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, INSTANCE_BYTES, INSTANCE_NODE,
+                      INSTANCE_TYPE, NO_CHILD, Q8_BYTES, Q8_NODE, TRI_NODE, TRI_TYPE, NodeRef,
+                      read_nodes)
+
+
+class TwoLevelBVH(BVH4):
+    """A two-level image (``build_two_level``). Beyond ``BVH4``: ``instances`` (the
+    ``driver.instances.Instances`` it was built from), ``blas_root`` (k,) uint32 (each
+    instance's BLAS pointer), ``blas`` (the per-BLAS ``BVH4`` statistics, one dict per BLAS:
+    ``mesh``, ``mirrored``, ``offset``, ``bytes``, ``stats``). ``triangles`` are the flattened
+    world-space triangles (computed on first use; ``prim`` indexes them)."""
+
+    def __init__(self, image, instances: Instances, stats: dict, format: str, blas_root,
+                 blas: list):
+        super().__init__(image, None, stats, format)
+        self.root = int(NodeRef.encode(0, BOX_TYPE))
+        self.box_type = None                    # box32 TLAS and box32 or q8 BLASes
+        self.instances = instances
+        self.blas_root = np.asarray(blas_root, np.uint32)
+        self.blas = blas
+        self.transform = "driver"       # where traversals run the instance transform (default)
+
+    @property
+    def triangles(self):
+        if self._flat is None:
+            self._flat = self.instances.flatten()
+        return self._flat
+
+    @triangles.setter
+    def triangles(self, value):
+        self._flat = value
+
+    def __repr__(self) -> str:
+        s = self.stats
+        return (f"TwoLevelBVH({self.format} BLAS, {s['instances']} instances of "
+                f"{len(self.blas)} BLAS, {s['instanced_triangles']} instanced triangles, "
+                f"{s['bytes']} bytes)")
+
+    def box_nodes(self, ptrs):
+        from ..bvh4 import box_operands
+        return box_operands(self._words, np.asarray(ptrs, np.uint32))
+
+
+def _relocate(image: np.ndarray, box_nodes: int, fmt: str, base: int) -> None:
+    """Move the pointers of a BLAS image (in place) to its place ``base`` bytes into the image."""
+    node = Q8_NODE if fmt == "q8" else BOX_NODE
+    size = Q8_BYTES if fmt == "q8" else BOX_BYTES
+    rows = image[:size * box_nodes].view(node)
+    shift = np.uint32(base >> 3)
+    for field in ("child", "parent"):
+        v = rows[field]
+        v[v != NO_CHILD] += shift
+
+
+def _root_box(bvh: BVH4) -> np.ndarray:
+    """(6,) float64: the union of the BLAS root's stored child boxes."""
+    children, boxes = bvh.box_nodes(np.array([bvh.root], np.uint32))
+    used = boxes[0][children[0] != NO_CHILD].astype(np.float64)
+    return np.concatenate([used[:, :3].min(0), used[:, 3:].max(0)])
+
+
+def world_boxes(instances: Instances, local_boxes: np.ndarray) -> np.ndarray:
+    """(k, 2, 3) float32 world boxes of instances whose object-space boxes are ``local_boxes``
+    (k, 6): the 8 corners through ``object_to_world`` in float64, rounded outward."""
+    lo, hi = local_boxes[:, :3], local_boxes[:, 3:]
+    sel = (np.arange(8)[:, None] >> np.arange(3)) & 1                   # (8, 3) corner choice
+    corners = np.where(sel[None], hi[:, None, :], lo[:, None, :])       # (k, 8, 3)
+    m = instances.object_to_world.astype(np.float64)
+    w = np.einsum("krc,kvc->kvr", m[:, :, :3], corners) + m[:, None, :, 3]
+    wlo = np.nextafter(w.min(1).astype(np.float32), np.float32(-np.inf))
+    whi = np.nextafter(w.max(1).astype(np.float32), np.float32(np.inf))
+    return np.stack([wlo, whi], axis=1)
+
+
+def build_two_level(instances: Instances, format: str = "box32", progress=None,
+                    **build_kw) -> TwoLevelBVH:
+    """The two-level image of ``instances`` (module docstring): BLASes in ``format`` ("box32"
+    or "q8"), a box32 TLAS; ``build_kw`` go to every ``driver.bvh4.build``."""
+    t0 = time.perf_counter()
+    mirrored = instances.mirrored
+    keys = sorted({(int(j), bool(mi)) for j, mi in zip(instances.mesh, mirrored)})
+    blases = {}
+    for j, mi in keys:
+        tris = instances.meshes[j]
+        if mi:
+            tris = np.ascontiguousarray(tris[:, [0, 2, 1]])
+        blases[(j, mi)] = build(tris, format=format, progress=progress, **build_kw)
+    key_of = [(int(j), bool(mi)) for j, mi in zip(instances.mesh, mirrored)]
+    root_box = {key: _root_box(b) for key, b in blases.items()}
+    local = np.stack([root_box[key] for key in key_of])
+    wb = world_boxes(instances, local)
+    k = len(instances)
+    tlas = build(np.stack([wb[:, 0], wb[:, 1], wb[:, 0]], axis=1), format="box32",
+                 progress=False, **{key: v for key, v in build_kw.items() if key != "fill"})
+    nb_t = tlas.stats["box_nodes"]
+    inst_off = BOX_BYTES * nb_t
+    offset = inst_off + INSTANCE_BYTES * k
+    layout, blas_info = {}, []
+    for key in keys:
+        layout[key] = offset
+        offset += blases[key].image.nbytes
+    if offset >= 1 << 35:
+        raise ValueError(f"two-level image of {offset} bytes exceeds the 32 GiB a uint32 "
+                         "pointer reaches")
+    image = np.zeros(offset, np.uint8)
+    tnodes = image[:inst_off].view(BOX_NODE)
+    tnodes[:] = tlas.image[:inst_off].view(BOX_NODE)
+    child = tnodes["child"]
+    leaf = (child != NO_CHILD) & (NodeRef.type(child) == TRI_TYPE)
+    which = read_nodes(tlas.image, child[leaf], TRI_NODE)["prim"].astype(np.int64)
+    child[leaf] = NodeRef.encode(inst_off + INSTANCE_BYTES * which, INSTANCE_TYPE)
+    for key in keys:
+        b, off = blases[key], layout[key]
+        part = image[off:off + b.image.nbytes]
+        part[:] = b.image
+        _relocate(part, b.stats["box_nodes"], format, off)
+        blas_info.append({"mesh": key[0], "mirrored": key[1], "offset": off,
+                          "bytes": int(b.image.nbytes), "stats": b.stats})
+    roots = np.array([NodeRef.encode(layout[key], NodeRef.type(blases[key].root))
+                      for key in key_of], np.uint32)
+    inodes = image[inst_off:inst_off + INSTANCE_BYTES * k].view(INSTANCE_NODE)
+    inodes["world_to_object"] = instances.world_to_object()
+    inodes["object_to_world"] = instances.object_to_world
+    inodes["blas"] = roots
+    inodes["instance"] = np.arange(k, dtype=np.uint32)
+    blas_bytes = sum(b["bytes"] for b in blas_info)
+    depth = tlas.stats["depth"] + max(b.stats["depth"] for b in blases.values())
+    stats = {"format": format, "instances": k,
+             "instanced_triangles": instances.triangles_total,
+             "blas_triangles": instances.blas_triangles, "blas": len(keys),
+             "tlas_box_nodes": nb_t, "tlas_bytes": inst_off, "instance_bytes": INSTANCE_BYTES * k,
+             "blas_bytes": blas_bytes,
+             "box_nodes": nb_t + sum(b.stats["box_nodes"] for b in blases.values()),
+             "tri_nodes": sum(b.stats["tri_nodes"] for b in blases.values()),
+             "leaf_nodes": sum(b.stats["leaf_nodes"] for b in blases.values()),
+             "depth": depth, "sah_cost": tlas.stats["sah_cost"], "fill": 0,
+             "build_s": time.perf_counter() - t0, "bytes": int(image.nbytes),
+             "bytes_per_triangle": image.nbytes / instances.triangles_total,
+             "pair_ratio": 0.0, "avg_children": tlas.stats["avg_children"],
+             "child_histogram": tlas.stats["child_histogram"]}
+    return TwoLevelBVH(image, instances, stats, format, roots, blas_info)
+
+
+def build_scene(scene, fill: int = 0, format: str = "box32", transform: str = "driver"):
+    """The BVH of a ``driver.scenes.scene.Scene``: the two-level image of its ``instances``
+    (``fill`` applies to the BLASes; ``transform``: where its traversals run the instance
+    transform, ``driver.instances.TRANSFORMS``) or, for a one-mesh scene, ``driver.bvh4.build``
+    of its mesh."""
+    if transform not in TRANSFORMS:
+        raise ValueError(f"transform must be one of {tuple(TRANSFORMS)}, got {transform!r}")
+    if getattr(scene, "instances", None) is not None:
+        bvh = build_two_level(scene.instances, format=format, fill=fill)
+        bvh.transform = transform
+        return bvh
+    from .. import bvh4                     # looked up at call time (tests may wrap it)
+    return bvh4.build(scene.mesh, fill=fill, format=format)
+
+
+def build_label(scene) -> str:
+    """What ``build_scene`` builds, for progress messages."""
+    c = scene.counts()
+    if getattr(scene, "instances", None) is None:
+        return f"the BVH4 of {c['instanced_triangles']:,} triangles"
+    return (f"the two-level BVH4 of {c['instances']:,} instances ({c['blas_triangles']:,} "
+            f"triangles in {len(scene.instances.meshes)} meshes)")

@@ -1,0 +1,164 @@
+"""Instanced vs flattened: the figures of docs/instances.md.
+
+    python -m driver.bvh.instances_study hits [--scene bunny_grid] [--size 256] [--json OUT]
+    python -m driver.bvh.instances_study table DOC.json [DOC.json ...]
+
+``hits`` builds a scene's image both ways (two-level and flattened, box32 and q8), reports their
+bytes, and traces the same rays through both on the golden model: the scene's primary rays
+(closest hit) and, from every primary hit, an occlusion ray to the centre of its first light
+(any-hit): hit and primitive mismatches, and the rays whose ``t`` differs (by the transform's
+rounding) with the largest relative difference. ``table`` prints, per document and ray type
+(``rayflex bench --workload ... --json`` documents, with or without ``--flatten``), the ops per
+ray (box, triangle, instance), node bytes and bytes from memory per ray, the node cache's hit
+rate and the utilization with the node memory, as a Markdown table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+import numpy as np
+
+
+def hits(scene_name: str = "bunny_grid", size: int = 256, backend: str = "golden") -> dict:
+    """The image sizes and the hit comparison of the module docstring, as a JSON-ready dict."""
+    from ..bvh4 import build
+    from ..scenes.camera import primary_rays
+    from ..scenes.scene import load_scene
+    from ..tracer import trace
+    from .instances import build_two_level
+
+    scene = load_scene(scene_name)
+    if scene.instances is None:
+        raise ValueError(f"scene {scene_name!r} has no instances")
+    images = {}
+    for fmt in ("box32", "q8"):
+        inst, flat = build_two_level(scene.instances, format=fmt), build(scene.mesh, format=fmt)
+        images[fmt] = {"instanced_bytes": inst.stats["bytes"],
+                       "flattened_bytes": flat.stats["bytes"],
+                       "ratio": inst.stats["bytes"] / flat.stats["bytes"],
+                       "instanced_build_s": inst.stats["build_s"],
+                       "flattened_build_s": flat.stats["build_s"]}
+        if fmt == "box32":
+            bvh_i, bvh_f = inst, flat
+    o, d = primary_rays(scene.camera, size, size)
+    out = {"scene": scene.name, **scene.counts(), "size": size, "backend": backend,
+           "images": images, "rays": {}}
+    a, b = trace(bvh_i, o, d, backend=backend), trace(bvh_f, o, d, backend=backend)
+    out["rays"]["primary"] = _compare(a, b, scene.triangles)
+    rows = np.flatnonzero(a.hit & b.hit)
+    p = o[rows].astype(np.float64) + b.t[rows, None].astype(np.float64) * d[rows]
+    from ..workloads import setup_for
+    light = setup_for(scene).lights[0]                  # the scene's first (or default) light
+    centre = (np.asarray(light.corner) + 0.5 * np.asarray(light.u) + 0.5 * np.asarray(light.v)
+              if hasattr(light, "corner") else np.asarray(light.position))
+    tri = scene.triangles[b.prim[rows]].astype(np.float64)
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    n *= -np.sign(np.einsum("ij,ij->i", n, d[rows]))[:, None]         # towards the camera
+    so = (p + 1e-4 * float(np.abs(tri).max()) * n).astype(np.float32)
+    sd = (centre - so).astype(np.float32)
+    a2 = trace(bvh_i, so, sd, backend=backend, extent=1.0, any_hit=True)
+    b2 = trace(bvh_f, so, sd, backend=backend, extent=1.0, any_hit=True)
+    out["rays"]["shadow"] = _compare(a2, b2, None)
+    for kind, (x, y) in (("primary", (a, b)), ("shadow", (a2, b2))):
+        out["rays"][kind].update(
+            {f"{k}_per_ray_{lab}": r.stats[f"{k}_per_ray"] for lab, r in (("instanced", x),
+                                                                         ("flattened", y))
+             for k in ("box_ops", "tri_ops")},
+            instance_ops_per_ray=x.stats["instance_ops_per_ray"],
+            node_bytes_per_ray_instanced=x.stats["node_bytes_fetched"] / max(len(x.t), 1),
+            node_bytes_per_ray_flattened=y.stats["node_bytes_fetched"] / max(len(y.t), 1))
+    return out
+
+
+def _compare(a, b, triangles) -> dict:
+    """Instanced ``a`` vs flattened ``b`` on the same rays. Closest hits (``triangles``: the
+    flattened triangles): the triangles hit, and the ``t`` of the same triangle; a different
+    triangle that shares a vertex with the other at a ``t`` within 1e-5 is an edge tie (the
+    two roundings put the hit point on either side of a shared edge). Any-hit rays (None): only
+    whether they are occluded compares (the first triangle accepted depends on the tree)."""
+    both = a.hit & b.hit
+    out = {"rays": int(len(a.t)), "hits": int(a.hit.sum()),
+           "hit_mismatch": int((a.hit != b.hit).sum())}
+    if triangles is None:
+        return out
+    same = both & (a.prim == b.prim)
+    rel = np.abs(a.t[same].astype(np.float64) - b.t[same]) / np.abs(b.t[same])
+    other = np.flatnonzero(both & (a.prim != b.prim))
+    ta, tb = triangles[a.prim[other]], triangles[b.prim[other]]
+    shared = (ta[:, :, None, :] == tb[:, None, :, :]).all(-1).any((1, 2))
+    close = np.abs(a.t[other].astype(np.float64) - b.t[other]) <= 1e-5 * np.abs(b.t[other])
+    out.update({"prim_mismatch": int(len(other)), "edge_ties": int((shared & close).sum()),
+                "t_differs": int((a.t[same] != b.t[same]).sum()),
+                "max_t_rel_diff": float(rel.max()) if len(rel) else 0.0})
+    return out
+
+
+def rows(doc: dict) -> list[dict]:
+    """Per ray type of a ``bench --workload`` document: the study's columns."""
+    out = []
+    for kind, t in doc["by_type"].items():
+        n = t["rays"]
+        mem = t.get("memory") or {}
+        out.append({"type": kind, "rays": n, "box": t["box_ops"] / n, "tri": t["tri_ops"] / n,
+                    "instance": t.get("instance_ops", 0) / n,
+                    "node_bytes": t["node_bytes_fetched"] / n,
+                    "memory_bytes": mem.get("bytes_per_ray"), "hit_rate": mem.get("hit_rate"),
+                    "utilization": mem.get("replay_utilization")})
+    return out
+
+
+def markdown(docs: list[dict]) -> str:
+    lines = ["| scene | image | image bytes | ray type | rays | box ops/ray | tri ops/ray "
+             "| instance ops/ray | node B/ray | B from memory/ray | cache hit rate "
+             "| utilization with memory |", "|" + "---|" * 12]
+    for doc in docs:
+        image = "instanced" if doc.get("instances", 1) > 1 and "tlas_bytes" in doc["bvh"] \
+            else "flattened"
+        for r in rows(doc):
+            def f(v, fmt):
+                return "—" if v is None else format(v, fmt)
+            lines.append(f"| {doc['scene']} | {image} {doc['bvh']['format']} "
+                         f"| {doc['bvh']['bytes']:,} | {r['type']} | {r['rays']:,} "
+                         f"| {r['box']:.2f} | {r['tri']:.2f} | {r['instance']:.2f} "
+                         f"| {r['node_bytes']:.0f} | {f(r['memory_bytes'], '.0f')} "
+                         f"| {f(r['hit_rate'], '.3f')} | {f(r['utilization'], '.3f')} |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m driver.bvh.instances_study",
+                                description=__doc__.split("\n\n")[0])
+    sub = p.add_subparsers(dest="cmd", required=True)
+    h = sub.add_parser("hits", help="image bytes and hits, instanced vs flattened")
+    h.add_argument("--scene", default="bunny_grid")
+    h.add_argument("--size", type=int, default=256)
+    h.add_argument("--json", metavar="OUT")
+    t = sub.add_parser("table", help="Markdown table of bench --workload documents")
+    t.add_argument("docs", nargs="+", metavar="DOC.json")
+    args = p.parse_args(argv)
+    try:
+        if args.cmd == "hits":
+            doc = hits(args.scene, args.size)
+            text = json.dumps(doc, indent=1)
+            if args.json:
+                from ..outputs import write_json
+                write_json(doc, args.json)
+            print(text)
+        else:
+            docs = []
+            for path in args.docs:
+                with open(path) as f:
+                    docs.append(json.load(f))
+            print(markdown(docs))
+    except (OSError, ValueError, KeyError) as e:
+        print(f"instances_study: error: {e}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,444 @@
+"""Instances: the ray transform, the two-level image, instanced vs flattened hits, scenes."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from driver.bvh.instances import build_two_level, world_boxes
+from driver.instances import Instances, affine, transform_ray
+from driver.layout import (BOX_NODE, BOX_TYPE, INSTANCE_BYTES, INSTANCE_NODE, INSTANCE_TYPE,
+                           NO_CHILD, NODE_BYTES, NodeRef, read_nodes)
+from driver.tracer import trace
+
+T_REL = 1e-5        # the transform's rounding: largest relative t difference allowed
+
+
+def _rotation(rng):
+    q = rng.normal(size=4)
+    q /= np.linalg.norm(q)
+    return trimesh.transformations.quaternion_matrix(q)[:3, :3]
+
+
+def random_instances(seed=0, k=14, mirror=True):
+    """Instances of three meshes with random rotations, non-uniform scales, translations, a
+    third of them mirrored."""
+    rng = np.random.default_rng(seed)
+    meshes = [trimesh.creation.icosphere(2).triangles, trimesh.creation.box().triangles,
+              trimesh.creation.cone(0.6, 1.5, sections=9).triangles]
+    mats = []
+    for i in range(k):
+        m = _rotation(rng) @ np.diag(rng.uniform(0.4, 2.0, 3))
+        if mirror and i % 3 == 0:
+            m = m @ np.diag([1.0, -1.0, 1.0])
+        mats.append(np.hstack([m, rng.uniform(-6, 6, (3, 1))]))
+    return Instances(meshes, rng.integers(0, 3, k), np.array(mats))
+
+
+def random_rays(n, seed=1, spread=12.0):
+    rng = np.random.default_rng(seed)
+    o = rng.uniform(-spread, spread, (n, 3)).astype(np.float32)
+    target = rng.uniform(-6, 6, (n, 3))
+    return o, (target - o).astype(np.float32)
+
+
+def assert_same_hits(a, b, any_hit=False):
+    """Instanced ``a`` vs flattened ``b``: the same rays hit; closest hits name the same triangle
+    and their t differ by the transform's rounding only."""
+    assert np.array_equal(a.hit, b.hit)
+    both = a.hit & b.hit
+    if not any_hit:
+        assert np.array_equal(a.prim, b.prim)
+    rel = np.abs(a.t[both].astype(np.float64) - b.t[both]) / np.abs(b.t[both])
+    assert rel.max(initial=0) <= T_REL
+
+
+# ---- the transform ------------------------------------------------------------------------------
+
+def _scalar_transform(m, o, d):
+    f = np.float32
+    o2 = [((f(m[r][0]) * f(o[0]) + f(m[r][1]) * f(o[1])) + f(m[r][2]) * f(o[2])) + f(m[r][3])
+          for r in range(3)]
+    d2 = [(f(m[r][0]) * f(d[0]) + f(m[r][1]) * f(d[1])) + f(m[r][2]) * f(d[2]) for r in range(3)]
+    return np.array(o2, np.float32), np.array(d2, np.float32)
+
+
+def _same_bits(a, b):
+    a, b = np.asarray(a, np.float32), np.asarray(b, np.float32)
+    nan = np.isnan(a) & np.isnan(b)
+    return bool(((a.view(np.uint32) == b.view(np.uint32)) | nan).all())
+
+
+def test_transform_ray_equals_scalar_float32_reference():
+    rng = np.random.default_rng(5)
+    n = 400
+    m = rng.normal(size=(n, 3, 4)).astype(np.float32)
+    m[::7] *= np.float32(1e30)                       # huge: products overflow to inf
+    m[1::7] *= np.float32(1e-30)                     # tiny: subnormal products
+    m[2::7, 0] = 0.0                                 # singular rows
+    m[3::7, :, 1] = -0.0
+    m[4::7, 0, 0] = np.nan
+    m[5::7] = m[5::7] * np.float32(-1)               # negative determinant
+    o = rng.normal(size=(n, 3)).astype(np.float32) * np.float32(100)
+    d = rng.normal(size=(n, 3)).astype(np.float32)
+    d[6::7] = 0.0
+    with np.errstate(all="ignore"):
+        o2, d2 = transform_ray(m, o, d)
+        for i in range(n):
+            ro, rd = _scalar_transform(m[i], o[i], d[i])
+            assert _same_bits(o2[i], ro) and _same_bits(d2[i], rd), i
+    # one matrix for every ray broadcasts
+    o3, d3 = transform_ray(m[0], o, d)
+    assert _same_bits(o3, transform_ray(np.broadcast_to(m[0], m.shape), o, d)[0])
+
+
+# ---- the image ----------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("fmt", ["box32", "q8"])
+def test_two_level_image_invariants(fmt):
+    inst = random_instances(3)
+    bvh = build_two_level(inst, format=fmt)
+    words = bvh.image.view("<u4")
+    nb = bvh.stats["tlas_box_nodes"]
+    tlas = read_nodes(words, NodeRef.encode(128 * np.arange(nb), BOX_TYPE), BOX_NODE)
+    child = tlas["child"]
+    leaf = (child != NO_CHILD) & (NodeRef.type(child) == INSTANCE_TYPE)
+    assert leaf.sum() == len(inst), "every instance is one TLAS leaf"
+    nodes = read_nodes(words, child[leaf], INSTANCE_NODE)
+    k = nodes["instance"].astype(np.int64)
+    assert sorted(k) == list(range(len(inst)))
+    # BLAS pointers: a box node of the image's BLAS region, one BLAS per (mesh, mirrored)
+    offsets = {b["offset"] for b in bvh.blas}
+    assert set(NodeRef.offset(nodes["blas"]).tolist()) <= offsets
+    assert NodeRef.is_box(nodes["blas"]).all()
+    assert np.array_equal(nodes["blas"], bvh.blas_root[k])
+    blas_of = {b["offset"]: b for b in bvh.blas}
+    for i, p in enumerate(bvh.blas_root):
+        b = blas_of[int(NodeRef.offset(p))]
+        assert b["mesh"] == inst.mesh[i] and b["mirrored"] == inst.mirrored[i]
+        assert len(b["stats"]) and b["stats"]["format"] == fmt
+    # the two matrices are inverses within float32 rounding
+    assert np.array_equal(nodes["object_to_world"], inst.object_to_world[k])
+    prod = affine(nodes["world_to_object"]) @ affine(nodes["object_to_world"])
+    assert np.abs(prod - np.eye(4)).max() < 1e-5
+    # TLAS leaf boxes contain the instance's BLAS root boxes carried to world space
+    boxes = tlas["box"][leaf].astype(np.float64)
+    for j, (kk, p) in enumerate(zip(k, nodes["blas"])):
+        children, cb = bvh.box_nodes(np.array([p], np.uint32))
+        used = cb[0][children[0] != NO_CHILD].astype(np.float64)
+        local = np.concatenate([used[:, :3].min(0), used[:, 3:].max(0)])[None]
+        sub = Instances(inst.meshes, inst.mesh[[kk]], inst.object_to_world[[kk]])
+        wb = world_boxes(sub, local)[0].astype(np.float64)
+        assert (boxes[j, :3] <= wb[0]).all() and (boxes[j, 3:] >= wb[1]).all()
+    # parent boxes contain their children in the TLAS
+    inner = (child != NO_CHILD) & (NodeRef.type(child) == BOX_TYPE)
+    for r, s in zip(*np.nonzero(inner)):
+        kid = tlas[NodeRef.offset(child[r, s]) // 128]
+        used = kid["box"][:kid["count"]]
+        assert (tlas["box"][r, s, :3] <= used[:, :3]).all()
+        assert (tlas["box"][r, s, 3:] >= used[:, 3:]).all()
+    assert bvh.stats["bytes"] == bvh.image.nbytes
+    assert bvh.stats["instance_bytes"] == INSTANCE_BYTES * len(inst)
+    assert bvh.stats["instanced_triangles"] == len(bvh.triangles) == inst.triangles_total
+
+
+def test_instances_reject_bad_input():
+    tri = trimesh.creation.box().triangles
+    with pytest.raises(ValueError, match="singular"):
+        Instances([tri], [0], np.zeros((1, 3, 4)))
+    with pytest.raises(ValueError, match="does not exist"):
+        Instances([tri], [1], np.eye(3, 4)[None])
+    with pytest.raises(ValueError, match="finite"):
+        Instances([tri], [0], np.full((1, 3, 4), np.inf))
+    inst = Instances([tri], [0], np.eye(3, 4)[None])
+    with pytest.raises(ValueError, match="transform must be one of"):
+        trace(build_two_level(inst), [[0, 0, -3]], [[0, 0, 1]], transform="datapath")
+
+
+# ---- hits ---------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_instanced_hits_equal_flattened(seed):
+    inst = random_instances(seed)
+    assert inst.mirrored.any()
+    bvh = build_two_level(inst)
+    flat = inst.flatten()
+    o, d = random_rays(3000, seed + 10)
+    a, b = trace(bvh, o, d), trace(flat, o, d)
+    assert a.hit.sum() > 300
+    assert_same_hits(a, b)
+    assert np.array_equal(a.instance[a.hit], inst.locate(a.prim[a.hit])[0])
+    assert (a.instance[~a.hit] == -1).all() and (b.instance == -1).all()
+    s = a.stats
+    assert s["instance_ops"] >= a.hit.sum()
+    assert s["instance_ops_per_ray"] == s["instance_ops"] / 3000
+    assert "instance_ops" not in b.stats
+    # both faces: double-sided hits agree too (mirrored instances included)
+    a2, b2 = trace(bvh, o, d, double_sided=True), trace(flat, o, d, double_sided=True)
+    assert_same_hits(a2, b2)
+    assert a2.hit.sum() > a.hit.sum()
+
+
+def test_mirrored_instance_keeps_world_winding():
+    """A mirrored copy of a single triangle faces the way its world-space vertices say."""
+    tri = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]], np.float32)
+    mirror = np.array([[[1.0, 0, 0, 0], [0, 1, 0, 0], [0, 0, -1, 0]]])       # z -> -z
+    inst = Instances([tri], [0], mirror)
+    assert inst.mirrored.all()
+    bvh = build_two_level(inst)
+    o = np.array([[0.2, 0.2, 5.0], [0.2, 0.2, -5.0]], np.float32)
+    d = np.array([[0, 0, -1.0], [0, 0, 1.0]], np.float32)
+    a, b = trace(bvh, o, d), trace(inst.flatten(), o, d)
+    assert np.array_equal(a.hit, b.hit) and a.hit.sum() == 1
+
+
+def test_any_hit_across_instances():
+    """Occlusion rays through a row of instances: occluded exactly when the flattened scene says
+    so, the extent carried into every instance."""
+    box = trimesh.creation.box().triangles
+    mats = np.array([np.hstack([np.eye(3) * 0.5, [[3.0 * i], [0], [0]]]) for i in range(6)])
+    inst = Instances([box], np.zeros(6, np.int64), mats)
+    bvh = build_two_level(inst)
+    n = 500
+    rng = np.random.default_rng(2)
+    o = np.column_stack([np.full(n, -3.0), rng.uniform(-0.6, 0.6, n), rng.uniform(-0.6, 0.6, n)])
+    d = np.tile([[1.0, 0.0, 0.0]], (n, 1))
+    ext = rng.uniform(0.5, 20.0, n).astype(np.float32)
+    a = trace(bvh, o, d, extent=ext, any_hit=True)
+    b = trace(inst.flatten(), o, d, extent=ext, any_hit=True)
+    assert_same_hits(a, b, any_hit=True)
+    assert 0 < a.hit.sum() < n
+    assert (a.t[a.hit] < ext[a.hit]).all()
+    c = trace(bvh, o, d, extent=ext)
+    # an any-hit ray stops at its first accepted triangle: never more instances than closest hit
+    assert a.stats["instance_ops"] <= c.stats["instance_ops"]
+    assert np.array_equal(c.hit, a.hit)
+
+
+def test_nested_gltf_scene_graph_stays_instanced(tmp_path):
+    from driver.scenes.scene import load_scene
+    s = trimesh.Scene()
+    ico = trimesh.creation.icosphere(1)
+    s.add_geometry(ico, geom_name="ico", node_name="n0")
+    for i in (1, 2):
+        s.graph.update(frame_to=f"n{i}", frame_from=s.graph.base_frame, geometry="ico",
+                       matrix=trimesh.transformations.translation_matrix([3.0 * i, 0, 0]))
+    turn = trimesh.transformations.rotation_matrix(0.7, [0, 1, 1]) @ np.diag([0.5, 1.5, 0.8, 1])
+    s.graph.update(frame_to="child", frame_from="n1", geometry="ico", matrix=turn)
+    s.add_geometry(trimesh.creation.box(), geom_name="box", node_name="box",
+                   transform=trimesh.transformations.translation_matrix([0, 3.0, 0]))
+    path = tmp_path / "reuse.glb"
+    s.export(str(path))
+    scene = load_scene(path)
+    inst = scene.instances
+    assert inst is not None and len(inst) == 5 and len(inst.meshes) == 2
+    assert scene.counts() == {"instances": 5, "instanced_triangles": 4 * 80 + 12,
+                              "blas_triangles": 92}
+    flat = trimesh.load(str(path), force="mesh", process=False)
+    key = lambda t: np.sort(np.round(t.reshape(len(t), -1), 4), axis=0)       # noqa: E731
+    assert np.allclose(key(scene.triangles), key(np.asarray(flat.triangles)), atol=1e-4)
+    o, d = random_rays(800, 4, spread=8.0)
+    a = trace(scene, o, d)
+    b = trace(scene.triangles, o, d)
+    assert a.hit.sum() > 50
+    assert_same_hits(a, b)
+    # without reuse a glTF stays one mesh
+    one = trimesh.Scene()
+    one.add_geometry(ico, geom_name="a")
+    one.add_geometry(trimesh.creation.box(), geom_name="b")
+    one.export(str(tmp_path / "plain.glb"))
+    assert load_scene(tmp_path / "plain.glb").instances is None
+
+
+def test_bunny_grid_instances_small():
+    from driver.scenes.builtins import instanced_bunnies
+    bunny = trimesh.creation.icosphere(3).triangles
+    grid = instanced_bunnies(bunny, 4, seed=1)
+    assert len(grid) == 4 and len(grid.meshes) == 1
+    flat = grid.flatten()
+    n = len(bunny)
+    assert flat[:n, :, 0].max() < flat[n:2 * n, :, 0].min(), "copies side by side"
+    assert abs(flat[..., 2].min()) < 1e-3
+    with pytest.raises(ValueError):
+        instanced_bunnies(bunny, 0)
+
+
+@pytest.mark.parametrize("fmt", ["box32", "q8"])
+def test_instanced_record_replays_with_instance_fetches(fmt):
+    """The rtl fast path and the RT-unit replay of an instanced traversal: one chain per world
+    ray, responses verified bit for bit, the instance nodes fetched through the node memory."""
+    from driver import rtunit
+    inst = random_instances(2, k=8)
+    bvh = build_two_level(inst, format=fmt)
+    o, d = random_rays(300, 6)
+    res = trace(bvh, o, d, backend="rtl", record=True)
+    rec = res.record
+    assert rec.rays == 300 and len(rec.ray_words) > 300 and rec.chain is not None
+    entered = rec.before != NO_CHILD
+    assert entered.sum() == res.stats["instance_ops"]
+    assert (NodeRef.type(rec.before[entered]) == INSTANCE_TYPE).all()
+    plain = rtunit.replay(rec, 16, 1)
+    assert plain.verified and plain.stats()["rays"] == 300
+    # a cache that holds the whole image misses each line the chains touch exactly once: the
+    # lines of every request's node and of every instance node entered
+    cached = rtunit.replay(rec, 16, 1, memory=rtunit.MemoryModel(cache_bytes=1 << 22))
+    nodes = np.concatenate([rec.ptr, rec.before[entered]])
+    size = np.array([NODE_BYTES.get(t, 0) for t in range(8)])[NodeRef.type(nodes)]
+    off = NodeRef.offset(nodes)[size > 0]
+    lines = np.unique(np.concatenate([off // 64, (off + size[size > 0] - 1) // 64]))
+    assert cached.memory["line_misses"] == len(lines)
+    assert cached.verified and cached.cycles > plain.cycles
+    g = trace(bvh, o, d)
+    assert np.array_equal(g.prim, res.prim) and np.array_equal(g.t, res.t)
+
+
+# ---- large instanced scenes ---------------------------------------------------------------------
+
+def _small_city(side=5):
+    from driver.scenes.builtins import BUILT  # noqa: F401  (the registry knows the city)
+    from driver.scenes.camera import Camera
+    from driver.scenes.city import city
+    from driver.scenes.scene import Scene
+    from driver.workloads import Materials
+    b = city(lambda: trimesh.creation.icosphere(2).triangles, side)
+    return Scene(None, Camera(**b.camera).validate(), (24, 24), "city",
+                 Materials(b.albedo, b.emission), list(b.lights), False, instances=b.instances)
+
+
+def test_city_layout_is_counter_based():
+    from driver.scenes.city import PITCH, city_instances, counter_uniform
+    bunny = trimesh.creation.icosphere(1).triangles
+    a, alb = city_instances(bunny, 6)
+    b, _ = city_instances(bunny, 6)
+    assert np.array_equal(a.object_to_world, b.object_to_world)
+    assert len(a) == 37 and a.mesh[-1] == 3 and len(alb) == 37
+    assert (a.mesh[:-1][np.arange(36) % 8 == 0] == 0).all()
+    assert a.mirrored[:-1][a.mesh[:-1] == 0].any() and not a.mirrored[a.mesh != 0].any()
+    # every number of instance i is a function of (seed, i, k) only
+    i = np.array([3, 17, 1 << 40])
+    assert np.array_equal(counter_uniform(0, i, 2), [counter_uniform(0, [x], 2)[0] for x in i])
+    u = counter_uniform(1, np.arange(100_000), 0)
+    assert 0 <= u.min() and u.max() < 1 and abs(u.mean() - 0.5) < 0.01
+    centres = a.object_to_world[:-1, :2, 3]
+    assert (centres > 0).all() and (centres < 6 * PITCH).all()
+
+
+def test_city_defaults_reach_game_scale():
+    from driver.scenes.city import SIDE, city_instances
+    bunny_tris = 99_785
+    inst, _ = city_instances(np.zeros((bunny_tris, 3, 3)) + np.arange(3)[:, None], SIDE)
+    assert len(inst) >= 10_000 and inst.triangles_total >= 10 ** 8
+
+
+def test_small_city_renders_every_workload_and_checks_against_embree():
+    from driver.instances import InstancedTriangles
+    from driver.render import render
+    scene = _small_city()
+    assert isinstance(scene.triangles, InstancedTriangles)
+    assert scene.counts()["instances"] == 26
+    for workload in ("primary", "shadow", "ao", "path"):
+        res = render(scene, 24, 24, backend="golden", workload=workload, progress=False,
+                     check_embree=True, tile=None if workload == "primary" else 16)
+        s = res.stats
+        assert s["instances"] == 26 and s["instanced_triangles"] == len(scene.triangles)
+        assert s["hits"] > 0 and s["instance_ops"] > 0
+        e = s["embree"]
+        assert e["rays_compared"] > 0 and e["hit_mismatch"] == 0 and e["prim_mismatch"] == 0
+        if workload != "primary":
+            assert all("instance_ops" in t for t in s["by_type"].values())
+
+
+def test_embree_sample_is_the_full_check_on_its_rays():
+    from driver.check import check
+    from driver.instances import embree_sample
+    inst = random_instances(4)
+    bvh = build_two_level(inst)
+    o, d = random_rays(600, 8)
+    res = trace(bvh, o, d)
+    rows, tri, prim = embree_sample(inst, o, d, np.inf, res.t, res.prim, budget=400)
+    assert 0 < len(rows) < 600 and len(tri) <= 400
+    got = check(tri, o[rows], d[rows], res.t[rows], prim)
+    full = check(inst.flatten(), o[rows], d[rows], res.t[rows], res.prim[rows])
+    assert got["hit_mismatch"] == full["hit_mismatch"] == 0
+    assert got["prim_mismatch"] == full["prim_mismatch"] == 0
+    assert np.array_equal(got["embree_t"], full["embree_t"])
+    hit = prim >= 0
+    assert np.array_equal(tri[prim[hit]], inst.flatten()[res.prim[rows][hit]])
+
+
+def _reuse_glb(path):
+    s = trimesh.Scene()
+    s.add_geometry(trimesh.creation.icosphere(1), geom_name="ico", node_name="n0")
+    for i in (1, 2):
+        s.graph.update(frame_to=f"n{i}", frame_from=s.graph.base_frame, geometry="ico",
+                       matrix=trimesh.transformations.translation_matrix([3.0 * i, 0, 0]))
+    s.export(str(path))
+    return path
+
+
+def test_render_cli_instanced_and_flattened(in_tmp):
+    import json
+
+    from driver.cli import main
+    glb = _reuse_glb(in_tmp / "reuse.glb")
+    base = ["render", str(glb), "--size", "12", "--backend", "golden", "--no-progress",
+            "--check-embree"]
+    assert main(base + ["--json", "i.json", "--out", "i.png", "--transform", "driver"]) == 0
+    assert main(base + ["--json", "f.json", "--out", "f.png", "--flatten"]) == 0
+    i, f = (json.loads((in_tmp / n).read_text()) for n in ("i.json", "f.json"))
+    assert (i["instances"], i["instanced_triangles"], i["blas_triangles"]) == (3, 240, 80)
+    assert (f["instances"], f["instanced_triangles"], f["blas_triangles"]) == (1, 240, 240)
+    assert i["hits"] == f["hits"] > 0 and i["instance_ops"] > 0 and "instance_ops" not in f
+    assert i["embree"]["hit_mismatch"] == f["embree"]["hit_mismatch"] == 0
+    assert i["bvh"]["bytes"] < f["bvh"]["bytes"] * 0.8
+    assert i["transform"] == "driver" and "transform" not in f
+
+
+def test_flatten_refuses_a_scene_too_large(error_line):
+    from driver.cli import main
+    from driver.scenes.scene import load_scene
+    with pytest.raises(ValueError, match="too large to flatten"):
+        _small_city().flattened()
+    assert load_scene("bunny_floor").flattened().instances is None
+    assert main(["render", "city", "--flatten", "--backend", "golden", "--size", "8"]) == 2
+    assert "too large to flatten" in error_line()
+
+
+def test_instances_study_hits_on_a_small_scene(tmp_path):
+    from driver.bvh.instances_study import hits
+    doc = hits(str(_reuse_glb(tmp_path / "reuse.glb")), size=24)
+    img = doc["images"]["box32"]
+    assert img["instanced_bytes"] < img["flattened_bytes"] and img["ratio"] < 1
+    p = doc["rays"]["primary"]
+    assert p["rays"] == 576 and p["hits"] > 0
+    assert p["hit_mismatch"] == 0 and p["prim_mismatch"] == p["edge_ties"]
+    assert p["max_t_rel_diff"] <= T_REL and p["instance_ops_per_ray"] > 0
+    assert doc["rays"]["shadow"]["hit_mismatch"] == 0
+
+
+def test_bench_frame_refuses_the_city(error_line):
+    from driver.cli import main
+    assert main(["bench", "--scene", "city", "--no-progress"]) == 2
+    assert "too large to flatten" in error_line()
+
+
+@pytest.mark.slow
+def test_bunny_grid_is_21_instances_of_one_bunny():
+    from driver.scenes.scene import load_scene
+    scene = load_scene("bunny_grid")
+    inst = scene.instances
+    assert len(inst) == 22 and len(inst.meshes) == 2 and (inst.mesh[:21] == 0).all()
+    assert scene.counts() == {"instances": 22, "instanced_triangles": len(scene.mesh.faces),
+                              "blas_triangles": len(inst.meshes[0]) + 2}
+    assert np.array_equal(scene.triangles[-2:], inst.meshes[1])     # the floor, identity
+
+
+@pytest.mark.slow
+def test_bunny_grid_instanced_image_and_hits_against_flattened():
+    """The instanced bunny grid: at most 1/15 of the flattened image's bytes, the same hits
+    (t within the transform's rounding; another triangle only across a shared edge)."""
+    from driver.bvh.instances_study import hits
+    doc = hits("bunny_grid", size=96)
+    assert doc["images"]["box32"]["ratio"] <= 1 / 15 and doc["images"]["q8"]["ratio"] <= 1 / 15
+    p = doc["rays"]["primary"]
+    assert p["hits"] > 500 and p["hit_mismatch"] == 0 and p["prim_mismatch"] == p["edge_ties"]
+    assert p["max_t_rel_diff"] <= T_REL and doc["rays"]["shadow"]["hit_mismatch"] == 0
