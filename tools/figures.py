@@ -216,6 +216,13 @@ README_NUMBERS = {
                           ".order.extra_state_bytes", "{:,}"),
     "order_extra_rays": ("docs/rayorder.json", "scenes.bunny_floor.ao.policies.affinity.256"
                          ".order.extra_rays_held", "{:d}"),
+    **{f"compressed_{fmt}_bytes_per_triangle": (f"images/compressed_path64_{fmt}.json",
+                                                "frame.bvh.bytes_per_triangle", "{:.1f}")
+       for fmt in ("box32", "q8")},
+    **{f"compressed_{fmt}_{t}_{key}": (f"images/compressed_path64_{fmt}.json",
+                                       f"frame.by_type.{t}.rtunit_memory.{key}", fmt_)
+       for fmt in ("box32", "q8") for t in ("primary", "bounce1")
+       for key, fmt_ in (("bytes_per_ray", "{:.0f}"), ("utilization", "{:.2f}"))},
     "power_gates_ext_box": ("docs/power_gates.json",
                             "ratios.extended_vs_baseline.unified.box", "{:+.1%}"),
     "power_gates_ext_tri": ("docs/power_gates.json",
