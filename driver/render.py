@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .backends import resolve
+from .bvh.instances import build_label
 from .scenes.camera import check_size, primary_rays
 from .tiles import DEFAULT_TILE
 from .errors import RayflexError
@@ -137,7 +138,7 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
     if workers == 1 and not scheduler:
         from .tiles import _backend
         _backend(spec)                      # fail early, before a long BVH build
-    with phase(f"building the BVH4 of {len(scene.mesh.faces):,} triangles", progress):
+    with phase(f"building {build_label(scene)}", progress):
         bvh = point.build(scene)
     setup = setup_for(scene)
     tiles = plan(w, h, tile)
@@ -166,7 +167,7 @@ def _render_whole(scene, w, h, backend, progress, check_embree, point,
 
     origins, dirs = primary_rays(scene.camera, w, h)
     be = resolve(backend, **point.backend_options())[0]    # fail early, before a long BVH build
-    with phase(f"building the BVH4 of {len(scene.mesh.faces):,} triangles", progress):
+    with phase(f"building {build_label(scene)}", progress):
         bvh = point.build(scene)
     bvh_stats = dict(getattr(bvh, "stats", {}) or {})
 

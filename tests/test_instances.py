@@ -390,7 +390,8 @@ def test_render_cli_instanced_and_flattened(in_tmp):
     assert i["hits"] == f["hits"] > 0 and i["instance_ops"] > 0 and "instance_ops" not in f
     assert i["embree"]["hit_mismatch"] == f["embree"]["hit_mismatch"] == 0
     assert i["bvh"]["bytes"] < f["bvh"]["bytes"] * 0.8
-    assert i["transform"] == "driver" and "transform" not in f
+    ip, fp = i["provenance"]["design_point"], f["provenance"]["design_point"]
+    assert ip["transform"] == "driver" and not ip["flatten"] and fp["flatten"]
 
 
 def test_flatten_refuses_a_scene_too_large(error_line):
