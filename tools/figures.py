@@ -7,8 +7,9 @@
     python tools/figures.py                       # rebuild all (tens of minutes on 2 cores)
     python tools/figures.py --numbers             # the numbers the README quotes, from the JSON
 
-Each figure is one command of the tool (``rayflex render|bench|power`` or ``python -m
-driver.area``) run from the checkout on its own code (``PYTHONPATH`` = the checkout). After a
+Each figure is one command of the tool (``rayflex render|bench|sweep|power`` or ``python -m``
+``driver.area``, ``driver.bvh.study``, ``driver.rtunit.order``) run from the checkout on its own
+code (``PYTHONPATH`` = the checkout). After a
 figure is rebuilt, ``docs/figures.json`` records its command, the commit it ran on and the
 machine (CPU model, cores), which is what the docs cite for a measurement.
 
