@@ -327,11 +327,12 @@ def markdown(rep: dict) -> str:
 
 
 def elaborate(extended: int = 0, disjoint: int = 0, timeout: float | None = 300,
-              sources=None) -> dict:
+              sources=None, compressed: int = 0) -> dict:
     """Elaborate one configuration without synthesis (seconds, not minutes): the word-level cell
     counts by type after ``read_slang`` (e.g. how many ``$mul`` / ``$add`` operators)."""
     sources = sources if sources is not None else snapshot()
-    params = {"EXTENDED": int(extended), "DISJOINT": int(disjoint)}
+    params = {"EXTENDED": int(extended), "DISJOINT": int(disjoint),
+              **({"COMPRESSED": 1} if compressed else {})}
     g = " ".join(f"-G {k}={v}" for k, v in params.items())
     script = (f"read_slang -j 1 --top {TOP} {g} {' '.join(n for n, _ in sources)}\n"
               f"hierarchy -top {TOP}\ntee -q -o stat.json stat -json\n")

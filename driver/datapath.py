@@ -15,7 +15,7 @@ import numpy as np
 
 from .layout import (ANGULAR, EUCLIDEAN, FLAG_DECODE_Q8, FLAG_NAMES,  # noqa: F401
                      FLAG_NO_CULL, FLAGS_DEFINED, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, QUADBOX,
-                     REQUEST_DTYPE, RESPONSE_DTYPE, TRIANGLE, carries_qnode, node_word)
+                     RAY_FLAGS, REQUEST_DTYPE, RESPONSE_DTYPE, TRIANGLE, carries_qnode, node_word)
 
 LATENCY = 11
 DECODE_STAGES = 1         # pipeline stages the q8 decode adds in a COMPRESSED build
@@ -73,8 +73,8 @@ def check_requests(req: np.ndarray, extended: bool, compressed: bool = False) ->
                             f"[{Q8_EXP_MIN}, {Q8_EXP_MAX}]")
 
 
-def _flag_names() -> str:
-    return ", ".join(FLAG_NAMES[m] for m in sorted(FLAG_NAMES))
+def _flag_names(mask: int = FLAGS_DEFINED) -> str:
+    return ", ".join(FLAG_NAMES[m] for m in sorted(FLAG_NAMES) if m & mask)
 
 
 def prepare_rays(origins, directions, extent=np.inf, flags=0) -> np.ndarray:
@@ -82,8 +82,8 @@ def prepare_rays(origins, directions, extent=np.inf, flags=0) -> np.ndarray:
 
     origins, directions : (n, 3) array-like, converted to float32
     extent : scalar or (n,) ray extent (tmax)
-    flags : scalar or (n,) request flags (``FLAG_NO_CULL`` or 0; ``FLAG_DECODE_Q8`` is a request's,
-        set by whoever puts a q8 node into it)
+    flags : scalar or (n,) ray flags (``FLAG_NO_CULL`` or 0; ``FLAG_DECODE_Q8`` is not a ray's but
+        a request's: whoever puts a q8 node into a QUADBOX sets it)
     Returns an (n,) ``REQUEST_DTYPE`` array, every non-ray field zero.
     Raises ValueError for non-finite origins/directions, an all-zero direction, or flags that are
     not integers made of defined flag bits.
@@ -100,9 +100,9 @@ def prepare_rays(origins, directions, extent=np.inf, flags=0) -> np.ndarray:
     fl = np.asarray(flags)
     if fl.ndim > 1 or (fl.ndim == 1 and len(fl) != n):
         raise ValueError(f"flags must be a scalar or one per ray ({n}), not shape {fl.shape}")
-    if fl.dtype.kind not in "biu" or (fl.astype(np.int64) & ~FLAGS_DEFINED).any():
-        raise ValueError(f"flags must be integers made of defined bits ({FLAGS_DEFINED:#x}: "
-                         f"{_flag_names()}), not {fl.ravel()[:4].tolist()}")
+    if fl.dtype.kind not in "biu" or (fl.astype(np.int64) & ~RAY_FLAGS).any():
+        raise ValueError(f"flags must be integers made of ray flag bits ({RAY_FLAGS:#x}: "
+                         f"{_flag_names(RAY_FLAGS)}), not {fl.ravel()[:4].tolist()}")
     req = np.zeros(n, REQUEST_DTYPE)
     req["flags"] = np.broadcast_to(fl, (n,))
     req["origin"] = o

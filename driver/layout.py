@@ -48,6 +48,7 @@ ANG_LANES = 8       # rf_pkg::ANG_LANES: lanes of one ANGULAR beat
 FLAG_NO_CULL = 1    # TRIANGLE accepts both faces (SPEC 5)
 FLAG_DECODE_Q8 = 2  # QUADBOX: the boxes are the q8 node in ``qnode``, decoded by the datapath
 FLAGS_DEFINED = FLAG_NO_CULL | FLAG_DECODE_Q8
+RAY_FLAGS = FLAG_NO_CULL      # the flags of a ray (prepare_rays); FLAG_DECODE_Q8 is a request's
 FLAG_NAMES = {FLAG_NO_CULL: "FLAG_NO_CULL", FLAG_DECODE_Q8: "FLAG_DECODE_Q8"}
 
 

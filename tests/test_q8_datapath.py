@@ -341,3 +341,18 @@ def test_random_q8_stream_pyverilator_every_build(extended, disjoint):
     req = q8_stream(32, 1500, 500, 500)
     run_isolated("pyverilator", dict(extended=extended, disjoint=disjoint, compressed=True,
                                      gaps=0.3, stalls=0.3, seed=32), [req])
+
+
+def test_area_configurations_with_the_decode():
+    """The -q8 configurations are the four with COMPRESSED = 1 (derived names), and the parameter
+    reaches the design: elaboration (seconds) shows the decode's adders."""
+    from driver import area
+    assert area.ALL_CONFIGS == [*area.CONFIGS, *(n + "-q8" for n in area.CONFIGS)]
+    assert area.config_params("extended-disjoint-q8") == {"EXTENDED": 1, "DISJOINT": 1,
+                                                          "COMPRESSED": 1}
+    assert area.config_params("baseline-unified") == {"EXTENDED": 0, "DISJOINT": 0}
+    with pytest.raises(area.AreaError, match="unknown configuration"):
+        area.config_params("baseline-q8")
+    plain, q8 = area.elaborate(0, 0), area.elaborate(0, 0, compressed=1)
+    assert q8.get("$add", 0) > plain.get("$add", 0)
+    assert sum(q8.values()) > sum(plain.values())
