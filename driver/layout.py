@@ -40,8 +40,8 @@ OPCODES = {"TRIANGLE": 0, "QUADBOX": 1, "EUCLIDEAN": 2, "ANGULAR": 3}
 TRIANGLE, QUADBOX, EUCLIDEAN, ANGULAR = (OPCODES[k] for k in
                                          ("TRIANGLE", "QUADBOX", "EUCLIDEAN", "ANGULAR"))
 EUC_LANES = 16      # rf_pkg::EUC_LANES: lanes of one EUCLIDEAN beat
-QNODE_WORDS = 16    # a q8 box node (Q8_NODE below) in uint32 words: the request field ``qnode``
 ANG_LANES = 8       # rf_pkg::ANG_LANES: lanes of one ANGULAR beat
+QNODE_WORDS = 16    # rf_pkg::QNODE_WORDS: a q8 box node (Q8_NODE) in words, request field qnode
 
 # Request flags (SPEC 3): bit masks of the ``flags`` field (rf_pkg::FLAG_*_BIT are their bit
 # indices). The other bits are reserved and must be 0.
@@ -354,7 +354,7 @@ PAIR_NODE = np.dtype([
 ])
 Q8_BYTES = Q8_NODE.itemsize
 PAIR_BYTES = PAIR_NODE.itemsize
-assert Q8_BYTES == 64 and PAIR_BYTES == 64
+assert Q8_BYTES == 64 == 4 * QNODE_WORDS and PAIR_BYTES == 64
 assert Q8_NODE.fields["q"][1] == 32 and Q8_NODE.fields["exp"][1] == 12
 
 
