@@ -118,7 +118,8 @@ def build_harness(params: dict[str, int]) -> Path:
         include = layout_header_dir()
         return verilate.build_library(
             TOP, rtl_sources(), [SIM_DIR / f for f in HARNESS_SOURCES], params=params, name=name,
-            verilator_args=["-CFLAGS", f"-I{include}"], train=train,
+            verilator_args=["-CFLAGS", f"-I{include}", "-CFLAGS",
+                            f"-DRF_COMPRESSED={int(params.get('COMPRESSED', 0))}"], train=train,
             train_env=train_env)
     except verilate.BuildError as e:
         raise BackendError(f"cannot build the RTL backend: {e}") from None
