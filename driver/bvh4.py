@@ -74,7 +74,8 @@ import numpy as np
 
 # the node image's layout is driver.layout's (docs/datapath.md#bvh4-image, docs/compressed.md);
 # the names are re-exported for users
-from .layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, IMAGE_FORMATS, NO_CHILD,  # noqa: F401
+from .layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, FLAG_DECODE_Q8, IMAGE_FORMATS,  # noqa: F401
+                     NO_CHILD, QNODE_WORDS,
                      GROUP_TYPE, PAIR_BYTES, PAIR_NODE, PAIR_SECOND_TYPE, PAIR_TYPE, Q8_BYTES,
                      Q8_NODE,
                      Q8_TYPE, QUADBOX, TRI_BYTES, TRI_NODE, TRI_TYPE, TRIANGLE, NodeRef,
@@ -168,13 +169,18 @@ class BVH4:
 # ----------------------------------------------------------------------------------------------
 # request operands: what a node pointer becomes on the datapath (the Python side of sim/rf_sim.h)
 
-def q8_request(req: np.ndarray, nodes: np.ndarray) -> None:
+def q8_request(req: np.ndarray, nodes: np.ndarray, compressed: bool = False) -> None:
     """Fill the operand of QUADBOX request rows ``req`` (``REQUEST_DTYPE``, opcode already set)
     for the q8 box nodes ``nodes``, one per row: the one place on the host that turns a q8 node
-    into a request (``NodeSource::q8_request`` in sim/rf_sim.h is the harness's). The host
-    decodes the node (``decode_q8``) and the request carries the four boxes; a datapath that
-    decodes q8 nodes itself would get the node as stored here instead."""
-    req["box"] = decode_q8(nodes)
+    into a request (``NodeSource::q8_request`` in sim/rf_sim.h is the harness's). For a
+    datapath with the decode (``compressed``) the request carries the node as stored in
+    ``qnode`` with the flag ``DECODE_Q8``; otherwise the host decodes it (``decode_q8``) and the
+    request carries the four boxes."""
+    if compressed:
+        req["qnode"] = np.ascontiguousarray(nodes).view(np.uint32).reshape(-1, QNODE_WORDS)
+        req["flags"] |= FLAG_DECODE_Q8
+    else:
+        req["box"] = decode_q8(nodes)
 
 
 def box_operands(image, ptrs):
@@ -217,9 +223,10 @@ def tri_operands(image, ptrs):
     return tris, prim
 
 
-def request_operands(req: np.ndarray, image, ptrs) -> None:
+def request_operands(req: np.ndarray, image, ptrs, compressed: bool = False) -> None:
     """Fill ``opcode``, ``box`` and ``tri`` of ``REQUEST_DTYPE`` rows ``req`` for the node
-    pointers ``ptrs`` (one per row), as the harness does (sim/rf_sim.h ``NodeSource``)."""
+    pointers ``ptrs`` (one per row), as the harness does (sim/rf_sim.h ``NodeSource``);
+    ``compressed``: q8 nodes go to a datapath with the decode (``q8_request``)."""
     ptrs = np.asarray(ptrs, np.uint32)
     typ = NodeRef.type(ptrs)
     box = NodeRef.is_box(ptrs)
@@ -229,7 +236,7 @@ def request_operands(req: np.ndarray, image, ptrs) -> None:
     sel = np.flatnonzero(typ == Q8_TYPE)
     if len(sel):
         rows = req[sel]
-        q8_request(rows, read_nodes(image, ptrs[sel], Q8_NODE))
+        q8_request(rows, read_nodes(image, ptrs[sel], Q8_NODE), compressed)
         req[sel] = rows
     req["tri"][~box] = tri_operands(image, ptrs[~box])[0]
 

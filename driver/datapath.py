@@ -14,21 +14,33 @@ from __future__ import annotations
 
 import numpy as np
 
-from .layout import (ANGULAR, EUCLIDEAN, FLAG_NO_CULL, FLAGS_DEFINED, QUADBOX,  # noqa: F401
-                     REQUEST_DTYPE, RESPONSE_DTYPE, TRIANGLE)
+from .layout import (ANGULAR, EUCLIDEAN, FLAG_DECODE_Q8, FLAG_NAMES,  # noqa: F401
+                     FLAG_NO_CULL, FLAGS_DEFINED, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, QUADBOX,
+                     RAY_FLAGS, REQUEST_DTYPE, RESPONSE_DTYPE, TRIANGLE, carries_qnode, node_word)
 
 LATENCY = 11
+DECODE_STAGES = 1         # pipeline stages the q8 decode adds in a COMPRESSED build
 CANONICAL_NAN = np.uint32(0x7FC00000)
 
 
 class DatapathError(ValueError):
-    """A request stream the datapath cannot take (bad opcode, extended op on a baseline build)."""
+    """A request stream the datapath cannot take (bad opcode, extended op on a baseline build, a
+    q8 node on a build without the decode)."""
 
 
-def check_requests(req: np.ndarray, extended: bool) -> None:
+def default_latency(compressed: bool = False) -> int:
+    """The pipeline depth of a build when none is asked for: 11 (the paper's), plus the decode
+    stage in a COMPRESSED build."""
+    return LATENCY + (DECODE_STAGES if compressed else 0)
+
+
+def check_requests(req: np.ndarray, extended: bool, compressed: bool = False) -> None:
     """Reject what no backend simulates (the same check for every backend): an extended opcode on a
-    baseline build, a TRIANGLE whose kx/ky/kz is not 0, 1 or 2, and a reserved flag bit set (any
-    opcode: the flags are part of the ray). Raises DatapathError."""
+    baseline build, a TRIANGLE whose kx/ky/kz is not 0, 1 or 2, a reserved flag bit set (any
+    opcode: the flags are part of the ray), ``FLAG_DECODE_Q8`` on a build without the decode
+    (``compressed``), and a QUADBOX to decode whose node has an exponent outside
+    [Q8_EXP_MIN, Q8_EXP_MAX] (not a q8 node: its decode could overflow or round). Raises
+    DatapathError."""
     if not len(req):
         return
     ops = req["opcode"]
@@ -44,7 +56,26 @@ def check_requests(req: np.ndarray, extended: bool) -> None:
     if reserved.any():
         i = int(np.flatnonzero(reserved)[0])
         raise DatapathError(f"request {i}: flags {int(req['flags'][i]):#04x} set reserved bits "
-                            f"(only {FLAGS_DEFINED:#04x} is defined: FLAG_NO_CULL)")
+                            f"(only {FLAGS_DEFINED:#04x} is defined: {_flag_names()})")
+    decode = (req["flags"] & np.uint8(FLAG_DECODE_Q8)) != 0
+    if not decode.any():
+        return
+    if not compressed:
+        i = int(np.flatnonzero(decode)[0])
+        raise DatapathError(f"request {i}: FLAG_DECODE_Q8 needs the q8 decode: "
+                            "backend(..., compressed=True)")
+    rows = np.flatnonzero(carries_qnode(req))
+    word = np.ascontiguousarray(req["qnode"][rows, node_word(Q8_NODE, "exp")])
+    exp = word.view(np.int8).reshape(-1, 4)[:, :3]                 # exp_x, exp_y, exp_z
+    bad = ((exp < Q8_EXP_MIN) | (exp > Q8_EXP_MAX)).any(axis=1)
+    if bad.any():
+        i = int(rows[np.flatnonzero(bad)[0]])
+        raise DatapathError(f"request {i}: q8 node exponents {exp[bad][0].tolist()} outside "
+                            f"[{Q8_EXP_MIN}, {Q8_EXP_MAX}]")
+
+
+def _flag_names(mask: int = FLAGS_DEFINED) -> str:
+    return ", ".join(FLAG_NAMES[m] for m in sorted(FLAG_NAMES) if m & mask)
 
 
 def prepare_rays(origins, directions, extent=np.inf, flags=0) -> np.ndarray:
@@ -53,7 +84,8 @@ def prepare_rays(origins, directions, extent=np.inf, flags=0) -> np.ndarray:
 
     origins, directions : (n, 3) array-like, converted to float32
     extent : scalar or (n,) ray extent (tmax)
-    flags : scalar or (n,) request flags (``FLAG_NO_CULL`` or 0)
+    flags : scalar or (n,) ray flags (``FLAG_NO_CULL`` or 0; ``FLAG_DECODE_Q8`` is not a ray's but
+        a request's: whoever puts a q8 node into a QUADBOX sets it)
     Returns an (n,) ``REQUEST_DTYPE`` array, every non-ray field zero.
     Raises ValueError for non-finite origins/directions, an all-zero direction, or flags that are
     not integers made of defined flag bits.
@@ -70,9 +102,9 @@ def prepare_rays(origins, directions, extent=np.inf, flags=0) -> np.ndarray:
     fl = np.asarray(flags)
     if fl.ndim > 1 or (fl.ndim == 1 and len(fl) != n):
         raise ValueError(f"flags must be a scalar or one per ray ({n}), not shape {fl.shape}")
-    if fl.dtype.kind not in "biu" or (fl.astype(np.int64) & ~FLAGS_DEFINED).any():
-        raise ValueError(f"flags must be integers made of defined bits ({FLAGS_DEFINED:#x}: "
-                         f"FLAG_NO_CULL), not {fl.ravel()[:4].tolist()}")
+    if fl.dtype.kind not in "biu" or (fl.astype(np.int64) & ~RAY_FLAGS).any():
+        raise ValueError(f"flags must be integers made of ray flag bits ({RAY_FLAGS:#x}: "
+                         f"{_flag_names(RAY_FLAGS)}), not {fl.ravel()[:4].tolist()}")
     req = np.zeros(n, REQUEST_DTYPE)
     req["flags"] = np.broadcast_to(fl, (n,))
     req["origin"] = o

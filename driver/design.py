@@ -28,9 +28,9 @@ import itertools
 from dataclasses import asdict, dataclass, fields
 from typing import Callable
 
-from .area import CONFIGS
+from .area import ALL_CONFIGS, CONFIGS, Q8_SUFFIX
 from .backends.build import MIN_LATENCY
-from .datapath import LATENCY
+from .datapath import LATENCY, default_latency
 from .instances import TRANSFORMS
 from .layout import IMAGE_FORMATS
 from .rtunit.order import DEFAULT_POLICY, DEFAULT_WINDOW, POLICIES
@@ -68,6 +68,11 @@ def _int_range(lo: int, hi: int | None = None) -> Callable:
             rng = f"in {lo}..{hi}" if hi is not None else f">= {lo}"
             raise ValueError(f"{flag} must be an integer {rng}, got {v!r}")
     return check
+
+
+def _latency(flag, v):
+    if v is not None:
+        _int_range(MIN_LATENCY, MAX_LATENCY)(flag, v)
 
 
 def _positive_float(flag, v):
@@ -121,6 +126,9 @@ class Option:
     listable: bool = True
 
     def describe_default(self) -> str:
+        if self.name == "latency":
+            return (f"the configuration's least: {LATENCY}, {default_latency(True)} with the "
+                    "q8 decode")
         if self.name == "size":
             return "the scene's size, 256 for the built-in scenes"
         if self.type is _bool:
@@ -130,12 +138,13 @@ class Option:
 
 OPTIONS: tuple[Option, ...] = (
     Option("config", "--config", str, "baseline-unified",
-           "datapath configuration: " + ", ".join(CONFIGS) + " (EXTENDED x DISJOINT build "
-           "parameters; every one gives the same box/triangle results, bit for bit)",
-           _choice(tuple(CONFIGS)), "datapath", "NAME", tuple(CONFIGS)),
-    Option("latency", "--latency", int, LATENCY,
-           f"pipeline stages of the datapath, {MIN_LATENCY}..{MAX_LATENCY}",
-           _int_range(MIN_LATENCY, MAX_LATENCY), "datapath"),
+           "datapath configuration: " + ", ".join(ALL_CONFIGS) + " (EXTENDED x DISJOINT build "
+           f"parameters; {Q8_SUFFIX}: with the q8 node decode in the datapath, build parameter "
+           "COMPRESSED, docs/compressed.md; every one gives the same box/triangle results, bit "
+           "for bit)", _choice(tuple(ALL_CONFIGS)), "datapath", "NAME", tuple(ALL_CONFIGS)),
+    Option("latency", "--latency", int, None,
+           f"pipeline stages of the datapath, up to {MAX_LATENCY}, at least the "
+           "configuration's own", _latency, "datapath"),
     Option("transform", "--transform", str, "driver",
            "where an instanced scene's ray transform runs: "
            + ", ".join(TRANSFORMS) + " (driver: on the host, as a traversal shader does; "
@@ -236,6 +245,12 @@ class DesignPoint:
     def __post_init__(self):
         for o in OPTIONS:
             o.check(o.flag, getattr(self, o.name))
+        least = default_latency(self.compressed)
+        if self.latency is None:
+            object.__setattr__(self, "latency", least)      # the configuration's own
+        elif self.latency < least:
+            raise ValueError(f"--latency must be at least {least} for --config {self.config}, "
+                             f"got {self.latency}")
         if POLICIES[self.ray_order].schedule and self.ray_window < self.rays_in_flight:
             raise ValueError(f"--ray-order {self.ray_order}: --ray-window ({self.ray_window}) "
                              f"must be at least --rays-in-flight ({self.rays_in_flight})")
@@ -246,20 +261,26 @@ class DesignPoint:
     # what the parts of the driver take
     @property
     def extended(self) -> bool:
-        return bool(CONFIGS[self.config][0])
+        return bool(CONFIGS[self.config.removesuffix(Q8_SUFFIX)][0])
 
     @property
     def disjoint(self) -> bool:
-        return bool(CONFIGS[self.config][1])
+        return bool(CONFIGS[self.config.removesuffix(Q8_SUFFIX)][1])
+
+    @property
+    def compressed(self) -> bool:
+        """The q8 node decode is in the datapath (build parameter COMPRESSED)."""
+        return self.config.endswith(Q8_SUFFIX)
 
     def backend_options(self) -> dict:
         """Keyword options of ``driver.backends.backend`` for this datapath."""
-        return {"extended": self.extended, "disjoint": self.disjoint, "latency": self.latency}
+        return {"extended": self.extended, "disjoint": self.disjoint, "latency": self.latency,
+                "compressed": self.compressed}
 
     def rtl_params(self) -> dict:
-        """RTL build parameters (EXTENDED, DISJOINT, LATENCY) of this datapath."""
+        """RTL build parameters (EXTENDED, DISJOINT, LATENCY, COMPRESSED) of this datapath."""
         from .backends.build import rtl_params
-        return rtl_params(self.extended, self.disjoint, self.latency)
+        return rtl_params(self.extended, self.disjoint, self.latency, self.compressed)
 
     def memory(self):
         """The RT unit's ``driver.rtunit.MemoryModel`` (``cache_kib`` 0: no node cache, every

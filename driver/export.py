@@ -69,7 +69,7 @@ class Chunk:
 
 def stream(scene, width: int, height: int, workload: str = "primary", options: dict | None = None,
            tile: int | None = None, fill: int = 0, cull_stack: bool = False,
-           backend="golden", progress=None):
+           backend="golden", progress=None, bvh_format: str = "box32"):
     """Yield the frame's requests as ``Chunk``s in issue order (see the module docstring), traced
     on ``backend`` (default the golden model). ``tile``: the tile size (default
     ``driver.tiles.DEFAULT_TILE``); ``options``: spp, bounces, ao_rays, seed;
@@ -312,7 +312,7 @@ def export(scene, width: int, height: int, sinks: list, workload: str = "primary
     n = 0
     try:
         for c in stream(scene, width, height, workload, options, tile, fill, cull_stack,
-                        progress=progress):
+                        progress=progress, bvh_format=bvh_format):
             for s in sinks:
                 s.add(c)
             n += len(c.ray)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from .datapath import CANONICAL_NAN
-from .layout import ANG_LANES, EUC_LANES
+from .layout import ANG_LANES, EUC_LANES, Q8_NODE, carries_qnode, decode_q8
 
 F32 = np.float32
 _INF = F32(np.inf)
@@ -48,6 +48,19 @@ def quadbox(origin, inv, dirs, boxes, extent):
     hit = tmin < tmax
     tmin = np.where(hit, tmin + F32(0), _INF)      # -0 + +0 = +0: a hit's tmin is never -0
     return hit, tmin.astype(F32)
+
+
+def request_boxes(req):
+    """The (n, 4, 6) boxes the QUADBOX requests ``req`` test: their ``box``, except on the rows
+    that carry a q8 node (``driver.layout.carries_qnode``), where they are its decode
+    (``driver.layout.decode_q8``)."""
+    boxes, qnode = req["box"], req["qnode"]
+    rows = np.flatnonzero(carries_qnode(req))
+    if not len(rows):
+        return boxes
+    out = np.array(boxes, F32)
+    out[rows] = decode_q8(np.ascontiguousarray(qnode[rows], np.uint32).view(Q8_NODE))
+    return out
 
 
 def sort4(hit, tmin):

@@ -124,7 +124,8 @@ class RequestIssue:
         req = self.rays[active]
         req["extent"] = ext
         req["tag"] = active
-        request_operands(req, self.bvh.image, ptr)
+        request_operands(req, self.bvh.image, ptr, bool(getattr(self.backend, "compressed",
+                                                                False)))
         t0 = time.perf_counter()
         rsp = self.backend.run(req)
         self.wall_s += time.perf_counter() - t0

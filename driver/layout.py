@@ -13,6 +13,16 @@ This table is the single source of truth on the host side for
 - the **C header** of the harness (``c_header()``), generated from these tables at build time into
   the build cache (never committed), so ``sim/rayflex_harness.cpp`` names no word index itself.
 
+**Overlays.** A field may share the wires of another field (``Field.overlays``), the wire's
+rule (``overlay_rows``) saying which requests carry which: the request field ``qnode`` (the 16
+words of a q8 box node, ``Q8_NODE``, as stored in the image) travels on the first 16 of the 24
+``box`` words of a QUADBOX with ``FLAG_DECODE_Q8`` (``carries_qnode``), which a ``COMPRESSED``
+build decodes (docs/q8_datapath.md); every other request carries ``box`` there. In the numpy
+dtype the two are separate fields (their own bytes, so arrays concatenate and copy like any
+other); ``pack`` writes ``qnode`` over the box words of the requests the rule selects, ``unpack``
+fills both views from the words, and in the RTL the node is an ``rf_pkg::q8_node_t`` cast of
+those box words.
+
 The SystemVerilog structs remain the hardware's definition; ``tests/test_layout.py`` elaborates
 ``rtl/rf_pkg.sv`` with Verilator and checks every field's bit position and width, and the two
 structs' ``$bits``, against this table. Adding a request field is one row here plus the RTL struct
@@ -33,11 +43,15 @@ TRIANGLE, QUADBOX, EUCLIDEAN, ANGULAR = (OPCODES[k] for k in
                                          ("TRIANGLE", "QUADBOX", "EUCLIDEAN", "ANGULAR"))
 EUC_LANES = 16      # rf_pkg::EUC_LANES: lanes of one EUCLIDEAN beat
 ANG_LANES = 8       # rf_pkg::ANG_LANES: lanes of one ANGULAR beat
+QNODE_WORDS = 16    # rf_pkg::QNODE_WORDS: a q8 box node (Q8_NODE) in words, request field qnode
 
 # Request flags (docs/datapath.md#requests-and-responses): bit masks of the ``flags`` field
 # (rf_pkg::FLAG_*_BIT are their bit indices). The other bits are reserved and must be 0.
 FLAG_NO_CULL = 1    # TRIANGLE accepts both faces (docs/datapath.md#triangle)
-FLAGS_DEFINED = FLAG_NO_CULL
+FLAG_DECODE_Q8 = 2  # QUADBOX: the boxes are the q8 node in ``qnode``, decoded by the datapath
+FLAGS_DEFINED = FLAG_NO_CULL | FLAG_DECODE_Q8
+RAY_FLAGS = FLAG_NO_CULL      # the flags of a ray (prepare_rays); FLAG_DECODE_Q8 is a request's
+FLAG_NAMES = {FLAG_NO_CULL: "FLAG_NO_CULL", FLAG_DECODE_Q8: "FLAG_DECODE_Q8"}
 
 
 @dataclass(frozen=True)
@@ -50,6 +64,8 @@ class Field:
     bits : width of one element; shape : numpy element shape (elements are consecutive, each
         ``bits`` wide: 32-bit elements take one word each, narrower ones share a word)
     kind : "f32" (IEEE binary32 bits) or a numpy unsigned integer type name
+    overlays : the name of the field whose wires this one shares (an alternative view of the
+        same bits, lying inside that field), or None
     """
 
     name: str
@@ -59,6 +75,7 @@ class Field:
     shape: tuple = ()
     kind: str = "f32"
     sv: str | None = None
+    overlays: str | None = None
 
     @property
     def count(self) -> int:
@@ -86,22 +103,33 @@ def _f32(name, word, shape=(), sv=None):
     return Field(name, word, 0, 32, tuple(shape), "f32", sv)
 
 
-def _uint(name, word, lsb, bits, shape=(), kind="u1", sv=None):
-    return Field(name, word, lsb, bits, tuple(shape), kind, sv)
+def _uint(name, word, lsb, bits, shape=(), kind="u1", sv=None, overlays=None):
+    return Field(name, word, lsb, bits, tuple(shape), kind, sv, overlays)
 
 
 class Wire:
     """A wire struct: its fields (in numpy dtype order), its width in words, its dtype, and
     vectorised pack/unpack between the dtype and (n, words) uint32 arrays."""
 
-    def __init__(self, name: str, sv_type: str, fields: list[Field], words: int):
+    def __init__(self, name: str, sv_type: str, fields: list[Field], words: int,
+                 overlay_rows=None):
         self.name, self.sv_type, self.fields, self.words = name, sv_type, fields, words
         self.field = {f.name: f for f in fields}
         self.dtype = np.dtype([(f.name, f.dtype, f.shape) if f.shape else (f.name, f.dtype)
                                for f in fields])
+        # overlays: which rows put them on the wire instead of the field they overlay
+        self.overlay_rows = overlay_rows
         used = np.zeros(32 * words, bool)
         for f in fields:
             span = slice(f.first_bit, f.first_bit + f.total_bits)
+            if f.overlays is not None:
+                base = self.field[f.overlays]
+                if not (base.first_bit <= f.first_bit and f.first_bit + f.total_bits <=
+                        base.first_bit + base.total_bits and overlay_rows is not None
+                        and f.bits == 32 and f.lsb == 0):
+                    raise AssertionError(f"{name}.{f.name} must be whole words inside "
+                                         f"{base.name}, with a rule for its rows")
+                continue
             if f.first_bit + f.total_bits > 32 * words or used[span].any():
                 raise AssertionError(f"{name}.{f.name} overlaps another field or the end")
             used[span] = True
@@ -114,22 +142,30 @@ class Wire:
         nw = self.words if words is None else int(words)
         n = len(rows)
         out = np.zeros((n, nw), np.uint32)
-        for f in self.fields:
+        for f in sorted(self.fields, key=lambda f: f.overlays is not None):   # overlays last
             if f.word + f.words > nw:
                 continue
             v = np.ascontiguousarray(rows[f.name]).reshape(n, f.count)
+            sel = slice(None)
+            if f.overlays is not None:
+                sel = np.flatnonzero(self.overlay_rows(rows))
+                v = v[sel]
             if f.kind == "f32":
-                out[:, f.word:f.word + f.count] = v.view(np.uint32)
+                out[sel, f.word:f.word + f.count] = v.view(np.uint32)
                 continue
             mask = np.uint32((1 << f.bits) - 1)
             for j in range(f.count):
                 bit = f.lsb + j * f.bits
+                if f.overlays is not None:      # whole words: replace the overlaid field's bits
+                    out[sel, f.word + bit // 32] = v[:, j].astype(np.uint32)
+                    continue
                 out[:, f.word + bit // 32] |= (v[:, j].astype(np.uint32) & mask) << np.uint32(
                     bit % 32)
         return out
 
     def unpack(self, words: np.ndarray) -> np.ndarray:
-        """(n, words) uint32 -> (n,) rows of ``dtype`` (inverse of ``pack``)."""
+        """(n, words) uint32 -> (n,) rows of ``dtype`` (inverse of ``pack``; an overlay field is
+        read on every row, as the other view of its words)."""
         w = np.ascontiguousarray(words, np.uint32)
         if w.ndim != 2 or w.shape[1] != self.words:
             raise ValueError(f"{self.name} words must be (n, {self.words}) uint32")
@@ -150,6 +186,13 @@ class Wire:
 # ----------------------------------------------------------------------------------------------
 # Wire words (rf_pkg::req_t, rf_pkg::rsp_t)
 
+
+def carries_qnode(rows: np.ndarray) -> np.ndarray:
+    """(n,) bool: the requests whose box words carry the q8 node ``qnode`` instead of ``box``
+    (QUADBOX with ``FLAG_DECODE_Q8``)."""
+    return (rows["opcode"] == QUADBOX) & ((rows["flags"] & FLAG_DECODE_Q8) != 0)
+
+
 REQUEST = Wire("request", "req_t", [
     _uint("opcode", 1, 0, 2),
     _f32("origin", 2, (3,)),
@@ -163,13 +206,16 @@ REQUEST = Wire("request", "req_t", [
     _uint("flags", 1, 8, 8),
     _f32("shear", 12, (3,)),
     _f32("box", 15, (4, 6)),            # per box: xmin, ymin, zmin, xmax, ymax, zmax
+    # the q8 box node as stored (Q8_NODE, 16 words), on the first 16 words of ``box`` in the
+    # requests ``carries_qnode`` selects
+    _uint("qnode", 15, 0, 32, (QNODE_WORDS,), kind="u4", overlays="box"),
     _f32("tri", 39, (3, 3), sv="triangle"),   # A, B, C
     _f32("vec_a", 48, (EUC_LANES,)),
     _f32("vec_b", 64, (EUC_LANES,)),
     _uint("vec_mask", 1, 16, 16, kind="u2"),
     _uint("reset_accumulator", 80, 0, 1),   # an extended-op field, not part of a ray
     _uint("tag", 0, 0, 32, kind="u4"),  # opaque, carried through unchanged
-], words=81)
+], words=81, overlay_rows=carries_qnode)
 
 RESPONSE = Wire("response", "rsp_t", [
     _uint("opcode", 1, 0, 2),
@@ -320,7 +366,7 @@ PAIR_NODE = np.dtype([
 ])
 Q8_BYTES = Q8_NODE.itemsize
 PAIR_BYTES = PAIR_NODE.itemsize
-assert Q8_BYTES == 64 and PAIR_BYTES == 64
+assert Q8_BYTES == 64 == 4 * QNODE_WORDS and PAIR_BYTES == 64
 
 # A request pointer, never stored in an image: the second triangle of the pair leaf at this
 # offset. A pair leaf is two TRIANGLE requests of the same ray, prim0 first; the traversal
@@ -430,6 +476,8 @@ def c_header() -> str:
             const(f"{prefix}{cname}Count", f.count)
     for name, code in OPCODES.items():
         const(f"kOp{name.capitalize()}", code, "uint32_t")
+    for mask, name in FLAG_NAMES.items():        # FLAG_DECODE_Q8 -> kFlagDecodeQ8 (a bit mask)
+        const("kFlag" + "".join(p.capitalize() for p in name.split("_")[1:]), mask, "uint32_t")
     const("kBoxType", BOX_TYPE, "uint32_t")
     const("kTriType", TRI_TYPE, "uint32_t")
     const("kQ8Type", Q8_TYPE, "uint32_t")

@@ -162,5 +162,7 @@ def _replay_params(be) -> dict:
         return dict(params)
     from .backends.build import MIN_LATENCY, rtl_params
     lat = getattr(be, "latency", MIN_LATENCY)
+    compressed = bool(getattr(be, "compressed", False))
     return rtl_params(getattr(be, "extended", False), getattr(be, "disjoint", False),
-                      lat if isinstance(lat, int) and lat >= MIN_LATENCY else MIN_LATENCY)
+                      lat if isinstance(lat, int) and lat >= MIN_LATENCY + compressed else None,
+                      compressed)

@@ -13,6 +13,7 @@ from driver import layout, verilate
 from driver.backends.build import RTL_DIR
 
 PKG = RTL_DIR / "rf_pkg.sv"
+Q8_MEMBERS = ("origin", "exp", "count", "child", "q", "parent")   # rf_pkg::q8_node_t
 
 
 def _check_module() -> str:
@@ -24,15 +25,29 @@ def _check_module() -> str:
         lines += [f"  function automatic int lowest_{t}(input {t} v);",
                   f"    for (int i = 0; i < $bits({t}); i++) if (v[i]) return i;",
                   "    return -1;", "  endfunction"]
+    lines += ["  function automatic int lowest_q8(input q8_node_t v);",
+              "    for (int i = 0; i < $bits(q8_node_t); i++) if (v[i]) return i;",
+              "    return -1;", "  endfunction"]
     lines += ["  req_t r;", "  rsp_t s;", "  initial begin",
               '    $display("bits req_t %0d", $bits(req_t));',
               '    $display("bits rsp_t %0d", $bits(rsp_t));']
     for wire, var in ((layout.REQUEST, "r"), (layout.RESPONSE, "s")):
         for f in wire.fields:
             member = f.sv or f.name
-            lines += [f"    {var} = '0;", f"    {var}.{member} = '1;",
+            if f.overlays is not None:        # a view of the overlaid member's low bits
+                base = wire.field[f.overlays]
+                member = base.sv or base.name
+                set_ones = (f"    {var}.{member} = {base.total_bits}'({{{f.total_bits}{{1'b1}}}}) "
+                            f"<< {f.first_bit - base.first_bit};")
+            else:
+                set_ones = f"    {var}.{member} = '1;"
+            lines += [f"    {var} = '0;", set_ones,
                       f'    $display("field {wire.sv_type}.{f.name} %0d %0d", '
                       f"lowest_{wire.sv_type}({var}), $countones({var}));"]
+    lines.insert(lines.index("  initial begin"), "  q8_node_t n;")
+    for member in Q8_MEMBERS:
+        lines += ["    n = '0;", f"    n.{member} = '1;",
+                  f'    $display("q8 {member} %0d %0d", lowest_q8(n), $countones(n));']
     for name in layout.OPCODES:
         lines.append(f'    $display("opcode {name} %0d", OP_{name});')
     lines += ['    $display("lanes EUC %0d", EUC_LANES);', '    $display("lanes ANG %0d", ANG_LANES);',
@@ -58,7 +73,7 @@ def rtl_layout(tmp_path_factory):
     for line in run.stdout.splitlines():
         kind, key, *vals = line.split() + ["", ""]
         vals = [v for v in vals if v]
-        if kind not in ("bits", "field", "opcode", "lanes"):
+        if kind not in ("bits", "field", "opcode", "lanes", "q8"):
             continue                                  # Verilator's own $finish message
         out[(kind, key)] = tuple(int(v) for v in vals) if len(vals) > 1 else int(vals[0])
     return out
@@ -75,6 +90,21 @@ def test_every_field_sits_where_the_table_says(rtl_layout, wire):
         assert rtl_layout[("field", f"{wire.sv_type}.{f.name}")] == (f.first_bit, f.total_bits), f
 
 
+def test_q8_node_struct_matches_the_table(rtl_layout):
+    """rf_pkg::q8_node_t (the node a COMPRESSED build decodes from the box words) against
+    layout.Q8_NODE: bit position and width of every member."""
+    want = {}
+    for name in ("origin", "child", "q", "parent"):
+        sub, off = layout.Q8_NODE.fields[name][:2]
+        want[name] = (8 * off, 8 * sub.itemsize)
+    exp_off = 8 * layout.Q8_NODE.fields["exp"][1]
+    want["exp"] = (exp_off, 24)                                   # exp_x, exp_y, exp_z
+    want["count"] = (exp_off + layout.Q8_COUNT_LSB, 3)
+    for name in Q8_MEMBERS:
+        assert rtl_layout[("q8", name)] == want[name], name
+    assert layout.REQUEST.field["qnode"].total_bits == 8 * layout.Q8_NODE.itemsize
+
+
 def test_opcodes_and_lanes_match_the_package(rtl_layout):
     for name, code in layout.OPCODES.items():
         assert rtl_layout[("opcode", name)] == code
@@ -89,7 +119,8 @@ def test_the_fields_cover_the_struct_but_its_reserved_bits():
     for wire in (layout.REQUEST, layout.RESPONSE):
         body = structs[wire.sv_type]
         rsvd = sum(int(m.group(1)) + 1 for m in re.finditer(r"logic\s*\[(\d+):0\]\s*rsvd", body))
-        assert sum(f.total_bits for f in wire.fields) + rsvd == 32 * wire.words
+        own = [f for f in wire.fields if f.overlays is None]
+        assert sum(f.total_bits for f in own) + rsvd == 32 * wire.words
 
 
 @pytest.mark.parametrize("wire", [layout.REQUEST, layout.RESPONSE], ids=lambda w: w.sv_type)
@@ -99,9 +130,29 @@ def test_pack_unpack_round_trip(wire):
     for f in wire.fields:                     # sub-word fields hold only their width
         if f.kind != "f32":
             rows[f.name] &= (1 << f.bits) - 1
+    if "opcode" in wire.field and wire.overlay_rows is not None:
+        rows["opcode"][::3] = layout.QUADBOX      # some rows that carry an overlay
     words = wire.pack(rows)
     assert words.shape == (500, wire.words)
-    assert wire.unpack(words).tobytes() == rows.tobytes()
+    back = wire.unpack(words)
+    sel = wire.overlay_rows(rows) if wire.overlay_rows else np.zeros(len(rows), bool)
+    overlaid = {f.overlays for f in wire.fields}
+    for f in wire.fields:
+        if f.overlays is None:
+            # a field an overlay shares: exact where the overlay is not on the wire
+            rows_f = ~sel if f.name in overlaid else slice(None)
+            assert back[f.name][rows_f].tobytes() == rows[f.name][rows_f].tobytes(), f.name
+            continue
+        # an overlay: on the rows its rule selects, it is what went onto the wire; on the others,
+        # it reads the overlaid field's bits
+        assert 0 < sel.sum() < len(rows)
+        assert np.array_equal(back[f.name][sel], rows[f.name][sel])
+        span = words[:, f.word:f.word + f.count]
+        assert np.array_equal(back[f.name].reshape(len(rows), -1), span)
+        base = wire.field[f.overlays]
+        tail = slice(f.word + f.count - base.word, None)     # the overlaid field's other words
+        assert np.array_equal(back[base.name].reshape(len(rows), -1).view(np.uint32)[:, tail],
+                              rows[base.name].reshape(len(rows), -1).view(np.uint32)[:, tail])
     assert np.array_equal(wire.pack(wire.unpack(words)), words)
 
 

@@ -82,7 +82,7 @@ def test_prepare_rays_flags_scalar_or_per_ray():
 def test_reserved_flag_bits_are_rejected(name, opcode):
     req = tri_request(FRONT, (0, 0, -1))
     req["opcode"] = opcode
-    for bits in (2, 0x80, 0xFF):
+    for bits in (4, 0x80, 0xFF):           # bit 1 is FLAG_DECODE_Q8 (tests/test_q8_datapath.py)
         req["flags"] = bits
         with pytest.raises(DatapathError, match="reserved"):
             driver.backend(name).run(req)

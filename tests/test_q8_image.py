@@ -325,6 +325,15 @@ def test_harness_decode_equals_python_on_random_nodes():
     assert np.array_equal(got.view(np.uint32),
                           decode_q8(image[:300 * 64].view(Q8_NODE)).view(np.uint32))
     assert REQUEST_DTYPE["box"].shape == (4, 6)
+    # a harness built with the decode sends the nodes as stored, flagged, as the host does
+    words = build_requests(rtl_params(False, False, None, True), ray_words(rays),
+                           image.view("<u4"), idx, ptr, ext)
+    req = rays.copy()
+    req["tag"] = idx
+    req["extent"] = ext
+    request_operands(req, image, ptr, compressed=True)
+    assert np.array_equal(words, pack_requests(req))
+    assert (req["flags"][:300] & 2).all() and not (req["flags"][300:] & 2).any()
 
 
 @pytest.mark.parametrize("fmt", ["q8", "q8g"])
@@ -397,3 +406,31 @@ def test_study_table_and_plot(tmp_path, capsys):
     assert study.main([paths[0], str(bad)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("rayflex: error: ") and "\n" not in err
+
+
+@pytest.mark.parametrize("backend_name", ["golden", "rtl"])
+def test_a_datapath_with_the_decode_gets_the_nodes_as_stored(backend_name):
+    """On a backend built with the q8 decode (``compressed=True``, ``--config ...-q8``) the
+    traversal sends q8 nodes as stored (``qnode``, flag DECODE_Q8) and the datapath decodes them:
+    the same hits, bit for bit, as the host's decode on a datapath without it; the replay on the
+    RT unit of such a configuration checks every response against the trace's."""
+    from driver import backend, rtunit
+    from driver.layout import FLAG_DECODE_Q8, Q8_TYPE, NodeRef
+    from driver.scenes.camera import primary_rays
+    from driver.scenes.scene import load_scene
+    scene = load_scene("bunny_floor")
+    o, d = primary_rays(scene.camera, 24, 24)
+    bvh = build(scene.mesh, format="q8")
+    host = trace(bvh, o, d, backend="golden")
+    be = backend(backend_name, compressed=True)
+    res = trace(bvh, o, d, backend=be, record=True)
+    assert np.array_equal(res.t.view(np.uint32), host.t.view(np.uint32))
+    assert np.array_equal(res.prim, host.prim) and res.hit.sum() > 0
+    rec = res.record
+    assert rec.params["COMPRESSED"] == 1
+    req = rec.requests()
+    q8 = NodeRef.type(rec.ptr) == Q8_TYPE
+    assert q8.any() and ((req["flags"][q8] & FLAG_DECODE_Q8) != 0).all()
+    assert ((req["flags"][~q8] & FLAG_DECODE_Q8) == 0).all()
+    if backend_name == "rtl":
+        assert rtunit.replay(rec, 64, 1).verified

@@ -13,13 +13,24 @@ from driver.backends import build as rtl
 from driver.verilate import BuildError
 
 
-@pytest.mark.parametrize("extended,disjoint,latency", [
-    (False, False, 11), (False, True, 11), (True, False, 11), (True, True, 11),
-    (False, False, 14), (True, True, 14)],
+@pytest.mark.parametrize("extended,disjoint,latency,compressed", [
+    (False, False, 11, False), (False, True, 11, False), (True, False, 11, False),
+    (True, True, 11, False), (False, False, 14, False), (True, True, 14, False),
+    (False, False, 12, True), (False, True, 12, True), (True, False, 12, True),
+    (True, True, 14, True)],
     ids=["baseline-unified", "baseline-disjoint", "extended-unified", "extended-disjoint",
-         "baseline-latency14", "extended-disjoint-latency14"])
-def test_lint_clean(extended, disjoint, latency):
-    assert rtl.lint(extended, disjoint, latency) == ""
+         "baseline-latency14", "extended-disjoint-latency14", "baseline-unified-q8",
+         "baseline-disjoint-q8", "extended-unified-q8", "extended-disjoint-q8-latency14"])
+def test_lint_clean(extended, disjoint, latency, compressed):
+    assert rtl.lint(extended, disjoint, latency, compressed) == ""
+
+
+def test_rtl_rejects_latency_below_12_with_the_decode():
+    with pytest.raises(BackendError, match="at least 12"):
+        rtl.lint(latency=11, compressed=True)
+    params = {"EXTENDED": 0, "DISJOINT": 0, "COMPRESSED": 1, "LATENCY": 11}
+    with pytest.raises(BuildError, match="(?i)latency"):
+        verilate.lint(rtl.TOP, [rtl.RTL_DIR / rtl.LINT_WAIVERS, *rtl.rtl_sources()], params)
 
 
 def test_rtl_rejects_latency_below_11():
@@ -44,10 +55,12 @@ def test_every_waiver_is_needed(line, tmp_path):
     del lines[line]
     vlt = tmp_path / rtl.LINT_WAIVERS
     vlt.write_text("\n".join(lines) + "\n")
-    for extended, disjoint in ((False, False), (True, True), (False, True), (True, False)):
+    for extended, disjoint, compressed in ((False, False, False), (True, True, False),
+                                           (False, True, False), (True, False, False),
+                                           (False, False, True)):
         try:
             verilate.lint(rtl.TOP, [vlt, *rtl.rtl_sources()],
-                          rtl.rtl_params(extended, disjoint, rtl.MIN_LATENCY))
+                          rtl.rtl_params(extended, disjoint, None, compressed))
         except BuildError:
             return
     pytest.fail(f"lint passes without waiver line {line + 1} of rtl/{rtl.LINT_WAIVERS}")

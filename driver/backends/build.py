@@ -18,7 +18,7 @@ import os
 from pathlib import Path
 
 from .. import layout, verilate
-from ..datapath import LATENCY
+from ..datapath import LATENCY, default_latency
 from .base import BackendError
 
 PACKAGE = Path(__file__).resolve().parent.parent       # the driver package
@@ -32,7 +32,7 @@ HARNESS_SOURCES = ("rayflex_harness.cpp", "rtunit_scheduler.cpp")
 # included by the harness sources from their own directory: their text is hashed into the name of
 # the generated header's directory, which is part of the build's cache key
 HARNESS_HEADERS = ("rf_sim.h", "rf_memory.h")
-MIN_LATENCY = 11                      # input register, 9 compute stages, output register
+MIN_LATENCY = LATENCY                 # input register, 9 compute stages, output register
 
 
 def source_names(list_file: Path = SOURCE_LIST) -> list[str]:
@@ -55,19 +55,24 @@ def rtl_sources() -> list[Path]:
     return paths
 
 
-def rtl_params(extended: bool, disjoint: bool, latency: int) -> dict[str, int]:
-    """The top-level parameters of a configuration (``-G`` overrides)."""
-    if int(latency) < MIN_LATENCY:
-        raise BackendError(f"latency {latency}: the RTL needs at least {MIN_LATENCY} stages (input "
-                           "register, 9 compute stages, output register)")
+def rtl_params(extended: bool, disjoint: bool, latency: int | None = None,
+               compressed: bool = False) -> dict[str, int]:
+    """The top-level parameters of a configuration (``-G`` overrides); ``latency`` None: the
+    configuration's least (``driver.datapath.default_latency``)."""
+    least = default_latency(compressed)
+    latency = least if latency is None else latency
+    if int(latency) < least:
+        raise BackendError(f"latency {latency}: the RTL needs at least {least} stages (input "
+                           "register, 9 compute stages, output register"
+                           f"{', the q8 decode stage' if compressed else ''})")
     return {"EXTENDED": int(bool(extended)), "DISJOINT": int(bool(disjoint)),
-            "LATENCY": int(latency)}
+            "COMPRESSED": int(bool(compressed)), "LATENCY": int(latency)}
 
 
-def lint(extended=False, disjoint=False, latency=LATENCY) -> str:
+def lint(extended=False, disjoint=False, latency=None, compressed=False) -> str:
     """``verilator --lint-only -Wall`` of the whole datapath with the waivers in rtl/lint.vlt."""
     return verilate.lint(TOP, [RTL_DIR / LINT_WAIVERS, *rtl_sources()],
-                         rtl_params(extended, disjoint, latency))
+                         rtl_params(extended, disjoint, latency, compressed))
 
 
 def pgo_enabled() -> bool:
@@ -113,7 +118,8 @@ def build_harness(params: dict[str, int]) -> Path:
         include = layout_header_dir()
         return verilate.build_library(
             TOP, rtl_sources(), [SIM_DIR / f for f in HARNESS_SOURCES], params=params, name=name,
-            verilator_args=["-CFLAGS", f"-I{include}"], train=train,
+            verilator_args=["-CFLAGS", f"-I{include}", "-CFLAGS",
+                            f"-DRF_COMPRESSED={int(params.get('COMPRESSED', 0))}"], train=train,
             train_env=train_env)
     except verilate.BuildError as e:
         raise BackendError(f"cannot build the RTL backend: {e}") from None

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..datapath import (ANGULAR, EUCLIDEAN, FLAG_NO_CULL, LATENCY, QUADBOX, RESPONSE_DTYPE,
-                        TRIANGLE, check_requests)
-from ..golden import (F32, accumulate, angular_beat, canonical, euclid_beat, quadbox, sort4,
-                      triangle)
+from ..datapath import (ANGULAR, EUCLIDEAN, FLAG_NO_CULL, QUADBOX, RESPONSE_DTYPE, TRIANGLE,
+                        check_requests, default_latency)
+from ..golden import (F32, accumulate, angular_beat, canonical, euclid_beat, quadbox,
+                      request_boxes, sort4, triangle)
 
 
 def _fields(req, rows, names):
@@ -19,14 +19,17 @@ def _fields(req, rows, names):
 
 class GoldenBackend:
     """Numpy model of the whole datapath. ``cycles`` counts an ideal pipeline: a run of n requests
-    takes n + latency cycles (first request accepted to last response taken)."""
+    takes n + latency cycles (first request accepted to last response taken). ``compressed``: the
+    build decodes q8 nodes (QUADBOX with ``FLAG_DECODE_Q8``); its default latency is one more."""
 
     name = "golden"
 
-    def __init__(self, extended: bool = False, disjoint: bool = False, latency: int = LATENCY):
+    def __init__(self, extended: bool = False, disjoint: bool = False, latency: int | None = None,
+                 compressed: bool = False):
         self.extended = bool(extended)
         self.disjoint = bool(disjoint)     # same results by contract; kept for a uniform interface
-        self.latency = int(latency)
+        self.compressed = bool(compressed)
+        self.latency = default_latency(self.compressed) if latency is None else int(latency)
         self.cycles = 0
         self.requests = 0
         self.euclid_acc = F32(0)
@@ -34,7 +37,7 @@ class GoldenBackend:
         self.angular_norm = F32(0)
 
     def run(self, req: np.ndarray) -> np.ndarray:
-        check_requests(req, self.extended)
+        check_requests(req, self.extended, self.compressed)
         ops = req["opcode"]
         rsp = np.zeros(len(req), RESPONSE_DTYPE)
         rsp["opcode"] = ops
@@ -53,8 +56,9 @@ class GoldenBackend:
     def _boxes(self, req, rsp, i):
         if not len(i):
             return
-        r = _fields(req, i, ("origin", "inv", "dir", "box", "extent"))
-        hit, tmin = quadbox(r["origin"], r["inv"], r["dir"], r["box"], r["extent"])
+        r = _fields(req, i, ("origin", "inv", "dir", "box", "qnode", "opcode", "flags", "extent"))
+        boxes = request_boxes(r)
+        hit, tmin = quadbox(r["origin"], r["inv"], r["dir"], boxes, r["extent"])
         order, hit, tmin = sort4(hit, tmin)
         rsp["box_index"][i] = order
         rsp["box_hit"][i] = hit

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..datapath import LATENCY, check_requests
+from ..datapath import check_requests
 from .build import rtl_params
 
 PATTERN_LEN = 4099        # length of the repeating gap/stall patterns (prime: no beat with stages)
@@ -20,26 +20,28 @@ def pattern(probability: float, seed: int, length: int = PATTERN_LEN) -> np.ndar
 
 
 class RtlBackendBase:
-    """Options of both RTL backends: ``extended``, ``disjoint``, ``latency`` (build parameters),
+    """Options of both RTL backends: ``extended``, ``disjoint``, ``compressed`` (the q8 decode
+    stage), ``latency`` (build parameters; None: the least, 11 or 12 with ``compressed``),
     ``gaps``/``stalls`` (probability of an input bubble / output back-pressure per cycle, as
     repeating patterns from ``seed``). Given the same requests and patterns both return identical
     responses and cycle counts."""
 
     name = "rtl"
 
-    def __init__(self, extended=False, disjoint=False, latency=LATENCY, gaps=0.0, stalls=0.0,
-                 seed=0):
+    def __init__(self, extended=False, disjoint=False, latency=None, gaps=0.0, stalls=0.0,
+                 seed=0, compressed=False):
+        self.params = rtl_params(extended, disjoint, latency, compressed)
         self.extended = bool(extended)
         self.disjoint = bool(disjoint)
-        self.latency = int(latency)
-        self.params = rtl_params(extended, disjoint, latency)
+        self.compressed = bool(compressed)
+        self.latency = self.params["LATENCY"]
         self.gap = pattern(gaps, seed)
         self.stall = pattern(stalls, seed + 1)
         self.cycles = 0
         self.requests = 0
 
     def _check(self, req: np.ndarray) -> None:
-        check_requests(req, self.extended)
+        check_requests(req, self.extended, self.compressed)
 
     def _max_idle(self) -> int:
         return 64 * PATTERN_LEN + 100 * self.latency

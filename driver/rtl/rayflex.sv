@@ -4,6 +4,10 @@
 //   req_i -> [R_in] -> S1 origin_sub -> [R1] -> S2 scale_mul -> [R2] -> ... -> S9 -> [R9]
 //         -> (LATENCY - 11 pass-through registers) -> output format -> [R_out] -> rsp_o
 //
+// With COMPRESSED, the q8 decode stage S0 and its register (a req_t) come first:
+//   req_i -> [R_in] -> S0 q8_decode -> [R_dec] -> S1 origin_sub -> ...
+// one more cycle of latency (LATENCY >= 12), the same throughput.
+//
 // The request is registered as it arrives (the paper's input stage), so no logic sits between the
 // ports and a register: every output is a register output and nothing combinational depends on
 // the inputs, which also keeps the Verilated model's per-cycle work in the clocked region.
@@ -11,11 +15,13 @@
 // One request per cycle; the response leaves LATENCY cycles after its input handshake when
 // out_ready_i stays high; responses come back in request order.
 // Parameters: EXTENDED adds EUCLIDEAN/ANGULAR, DISJOINT gives each operation private functional
-// units, LATENCY >= 11 (the paper's design has 11).
+// units, COMPRESSED adds the q8 decode stage (QUADBOX with FLAG_DECODE_Q8), LATENCY >= 11 +
+// COMPRESSED (the paper's design has 11).
 module rayflex import rf_pkg::*; #(
-  parameter bit          EXTENDED = 1'b0,
-  parameter bit          DISJOINT = 1'b0,
-  parameter int unsigned LATENCY  = 11
+  parameter bit          EXTENDED   = 1'b0,
+  parameter bit          DISJOINT   = 1'b0,
+  parameter bit          COMPRESSED = 1'b0,
+  parameter int unsigned LATENCY    = 11 + 32'(COMPRESSED)
 ) (
   input  logic clk_i,
   input  logic rst_ni,
@@ -28,10 +34,11 @@ module rayflex import rf_pkg::*; #(
 );
 
   localparam int unsigned NUM_STAGES = 9;                    // compute stages S1..S9
-  localparam int unsigned NUM_REGS   = LATENCY - 2;          // stage_t registers R1..
+  localparam int unsigned NUM_DECODE = COMPRESSED ? 1 : 0;   // the decode register R_dec
+  localparam int unsigned NUM_REGS   = LATENCY - 2 - NUM_DECODE;   // stage_t registers R1..
 
-  if (LATENCY < 11) begin : g_bad_latency
-    $error("rayflex: LATENCY must be >= 11 (input register, 9 compute stages, output register)");
+  if (LATENCY < 11 + NUM_DECODE) begin : g_bad_latency
+    $error("rayflex: LATENCY must be >= 11 (+1 with COMPRESSED: the decode stage)");
   end
 
   // ---- input register ----
@@ -42,13 +49,30 @@ module rayflex import rf_pkg::*; #(
     .valid_i(in_valid_i), .ready_o(in_ready_o), .data_i(req_i),
     .valid_o(req_valid_q), .ready_i(req_ready), .data_o(req_q));
 
+  // ---- q8 decode stage (COMPRESSED) ----
+  // req_s1 is the request stage 1 sees: the input register's, or the decode register's.
+  req_t req_s1;
+  logic req_s1_valid, req_s1_ready;
+  if (COMPRESSED) begin : g_decode
+    req_t dec_d;
+    rf_s00_q8_decode u_s0 (.req_i(req_q), .req_o(dec_d));
+    rf_skid #(.T(req_t)) u_dec_reg (
+      .clk_i, .rst_ni,
+      .valid_i(req_valid_q), .ready_o(req_ready), .data_i(dec_d),
+      .valid_o(req_s1_valid), .ready_i(req_s1_ready), .data_o(req_s1));
+  end else begin : g_no_decode
+    assign req_s1       = req_q;
+    assign req_s1_valid = req_valid_q;
+    assign req_ready    = req_s1_ready;
+  end
+
   // d_*[k] is the input of stage_t register k (R(k+1)); q_*[k] its output.
   stage_t [NUM_REGS-1:0] d_st, q_st;
   logic   [NUM_REGS-1:0] d_valid, d_ready, q_valid, q_ready;
 
   // ---- compute stages ----
   rf_s01_origin_sub #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s1 (
-    .req_i(req_q), .st_o(d_st[0]));
+    .req_i(req_s1), .st_o(d_st[0]));
   rf_s02_scale_mul #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s2 (
     .st_i(q_st[0]), .st_o(d_st[1]));
   rf_s03_nearfar_xy #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s3 (
@@ -71,8 +95,8 @@ module rayflex import rf_pkg::*; #(
   end
 
   // ---- stage_t registers and their handshakes ----
-  assign d_valid[0] = req_valid_q;
-  assign req_ready  = d_ready[0];
+  assign d_valid[0]   = req_s1_valid;
+  assign req_s1_ready = d_ready[0];
   for (genvar k = 0; k < NUM_REGS; k++) begin : g_reg
     if (k > 0) begin : g_link
       assign d_valid[k]   = q_valid[k-1];

@@ -26,7 +26,8 @@ package rf_pkg;
   } opcode_e;
 
   // Request flags (SPEC 3): bit indices into req_t.flags; the other bits are reserved (0).
-  localparam int unsigned FLAG_NO_CULL_BIT = 0;  // TRIANGLE accepts both faces (SPEC 5)
+  localparam int unsigned FLAG_NO_CULL_BIT   = 0;  // TRIANGLE accepts both faces (SPEC 5)
+  localparam int unsigned FLAG_DECODE_Q8_BIT = 1;  // QUADBOX: decode the q8 node req_qnode(req)
 
   localparam int unsigned EUC_LANES = 16;
   localparam int unsigned ANG_LANES = 8;
@@ -62,6 +63,22 @@ package rf_pkg;
     opcode_e          opcode;             // word 1 [1:0]
     logic  [31:0]     tag;                // word 0, carried through unchanged
   } req_t;
+
+  // The q8 box node as stored in the compressed BVH image (driver/layout.py Q8_NODE; 16 words,
+  // word 0 at the low end). A QUADBOX with flags[FLAG_DECODE_Q8_BIT] carries it on the first 16
+  // box words (driver/layout.py: request field qnode overlays box), i.e. the node is
+  // q8_node_t'(box words 0..15); a COMPRESSED build decodes it (rf_s00_q8_decode).
+  localparam int unsigned QNODE_WORDS = 16;
+  typedef struct packed {
+    logic  [31:0]          rsvd_15;       // word 15
+    logic  [31:0]          parent;        // word 14
+    logic  [3:0][5:0][7:0] q;             // words 8..13: child i's qlo xyz, qhi xyz (uint8)
+    logic  [3:0][31:0]     child;         // words 4..7: node pointers
+    logic  [4:0]           rsvd_3;        // word 3 [31:27]
+    logic  [2:0]           count;         // word 3 [26:24]: used children (used slots first)
+    logic  [2:0][7:0]      exp;           // word 3 [23:0]: exp_x, exp_y, exp_z (int8)
+    fp32_t [2:0]           origin;        // words 0..2
+  } q8_node_t;
 
   typedef struct packed {
     fp32_t            angular_norm;       // word 10

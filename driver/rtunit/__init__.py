@@ -125,7 +125,7 @@ class Record:
         req["tag"] = self.ray[index]
         req["extent"] = self.extent[index]
         from ..bvh4 import request_operands
-        request_operands(req, self.image, self.ptr[index])
+        request_operands(req, self.image, self.ptr[index], bool(self.params.get("COMPRESSED")))
         return req
 
 

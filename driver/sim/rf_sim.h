@@ -80,11 +80,18 @@ struct NodeSource {
   }
 
   // The operand of a QUADBOX request for a q8 box node (docs/compressed.md): the one place the
-  // harness turns a q8 node into a request (driver.bvh4.q8_request is the host's). The request
-  // carries the decoded boxes: child i, axis a: origin[a] + float(q) * 2^exp[a] (the product is
-  // exact, the sum one float add, round to nearest even, as driver.layout.decode_q8); unused
-  // slots (i >= count) the unused box, six +inf.
+  // harness turns a q8 node into a request (driver.bvh4.q8_request is the host's). A model built
+  // with the decode (RF_COMPRESSED, the build parameter COMPRESSED) gets the node as stored in
+  // `qnode` with the request flag DECODE_Q8 and decodes it itself; any other gets the decoded
+  // boxes: child i, axis a: origin[a] + float(q) * 2^exp[a] (the product is exact, the sum one
+  // float add, round to nearest even, as driver.layout.decode_q8); unused slots (i >= count) the
+  // unused box, six +inf.
   static void q8_request(const uint32_t* node, uint32_t* req) {
+#if defined(RF_COMPRESSED) && RF_COMPRESSED
+    std::memcpy(req + kReqQnodeWord, node, kReqQnodeCount * 4);
+    req[kReqFlagsWord] |= kFlagDecodeQ8 << kReqFlagsLsb;
+    return;
+#endif
     uint32_t* box = req + kReqBoxWord;
     const uint32_t ew = node[kQ8NodeExpWord];
     const uint32_t count = (ew >> kQ8CountLsb) & 7u;

@@ -12,7 +12,9 @@ Public surface:
 
 - ``prepare_ray(origin, direction, extent)`` -> dict of docs/datapath.md#ray-preparation ray fields
   for one ray
-- ``quadbox(row)``, ``triangle(row)`` -> per-request results (docs/datapath.md#quadbox, #triangle)
+- ``quadbox(row)``, ``triangle(row)`` -> per-request results (docs/datapath.md#quadbox, #triangle);
+  a QUADBOX with ``FLAG_DECODE_Q8`` first decodes its q8 node (``q8_boxes``, read from the node's
+  bytes with ``struct`` at the word positions of docs/q8_datapath.md, in Python floats)
 - ``euclid_beat(row)``, ``angular_beat(row)`` -> one beat's tree sums
   (docs/datapath.md#euclidean-and-angular)
 - ``ScalarState`` -> the two stateful accumulators (Euclidean; angular dot and norm) and cycle count
@@ -29,11 +31,13 @@ the golden model):
 
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 
 from driver.datapath import (ANGULAR, EUCLIDEAN, LATENCY, QUADBOX, RESPONSE_DTYPE, TRIANGLE,
                              DatapathError)
-from driver.layout import FLAG_NO_CULL
+from driver.layout import FLAG_DECODE_Q8, FLAG_NO_CULL
 
 F32 = np.float32
 ZERO = F32(0.0)          # +0
@@ -169,6 +173,26 @@ def sort4(entries):
     return v
 
 
+# q8 node: words 0-2 origin (float32), word 3 bytes 0-2 exp_x/y/z (int8) and byte 3 bits 2:0 count,
+# words 4-7 children, bytes 32 + 6i + j the planes of child i, words 14-15 parent and 0
+_Q8 = struct.Struct("<3f3bB4I24B2I")
+
+
+def q8_boxes(node_bytes: bytes) -> list:
+    """The four child boxes of a q8 node (64 bytes): used child i, bound j, axis j % 3:
+    origin + q * 2**exp (the product exact in a Python float and in float32), one float32 add;
+    unused slots six +inf."""
+    v = _Q8.unpack(node_bytes)
+    origin, exp, count, q = v[0:3], v[3:6], v[6] & 7, v[11:35]
+    boxes = []
+    for i in range(4):
+        if i >= count:
+            boxes.append([INF] * 6)
+            continue
+        boxes.append([add(origin[j % 3], f(q[6 * i + j] * 2.0 ** exp[j % 3])) for j in range(6)])
+    return boxes
+
+
 def quadbox(row):
     """docs/datapath.md#quadbox for one request row: returns (index[4], hit[4], tmin[4]) in sorted
     order."""
@@ -176,9 +200,12 @@ def quadbox(row):
     d = [f(v) for v in row["dir"]]
     inv = [f(v) for v in row["inv"]]
     extent = f(row["extent"])
+    boxes = [[f(v) for v in row["box"][i]] for i in range(4)]
+    if int(row["flags"]) & FLAG_DECODE_Q8:
+        boxes = q8_boxes(np.asarray(row["qnode"], "<u4").tobytes())
     entries = []
     for i in range(4):
-        box = [f(v) for v in row["box"][i]]
+        box = boxes[i]
         hit, tmin = slab_box(o, d, inv, box, extent)
         entries.append((tmin, i, hit))
     s = sort4(entries)
@@ -263,8 +290,9 @@ class ScalarState:
     """The datapath's state: accumulators (change only on accepted EUCLIDEAN/ANGULAR beats) and an
     ideal-pipeline cycle count (n + latency per non-empty run)."""
 
-    def __init__(self, extended: bool = True, latency: int = LATENCY):
+    def __init__(self, extended: bool = True, latency: int = LATENCY, compressed: bool = True):
         self.extended = extended
+        self.compressed = compressed
         self.latency = latency
         self.euclid_acc = ZERO
         self.angular_dot = ZERO
@@ -299,9 +327,11 @@ def scalar_run(requests: np.ndarray, state: ScalarState | None = None) -> np.nda
     if state is None:
         state = ScalarState()
     limit = 4 if state.extended else 2
-    for op in requests["opcode"]:
+    for op, flags in zip(requests["opcode"], requests["flags"]):
         if int(op) >= limit:
             raise DatapathError(f"opcode {int(op)} not supported by this build")
+        if int(flags) & FLAG_DECODE_Q8 and not state.compressed:
+            raise DatapathError("FLAG_DECODE_Q8 needs a build with the q8 decode")
     rsp = np.zeros(len(requests), RESPONSE_DTYPE)
     with np.errstate(all="ignore"):
         for n, row in enumerate(requests):

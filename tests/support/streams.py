@@ -15,6 +15,16 @@ EUCLIDEAN / ANGULAR (docs/datapath.md#euclidean-and-angular):
 - ``vector_requests(rng, op, lengths)``: jobs of the given beat counts with random masks, reset on
   each job's last beat.
 
+q8 nodes (QUADBOX with ``FLAG_DECODE_Q8``, docs/q8_datapath.md):
+
+- ``random_q8_nodes(rng, origins)``: ``Q8_NODE`` rows near the given ray origins: exponents over
+  the whole range [-126, 119] and at a scene's scale, zero and full planes, every count 1-4,
+  subnormal, +-0, NaN, inf and raw-bit node origins, garbage in the fields the decode ignores.
+- ``q8_requests(rng, n)``: rays as ``quadbox_requests`` (NaN origins of rays included) against
+  random q8 nodes; the box words after the node carry garbage.
+- ``q8_stream(seed, n_q8, n_box, n_tri)``: q8 requests interleaved with ``mixed_stream``'s
+  QUADBOX/TRIANGLE requests, some TRIANGLEs carrying the flag (ignored).
+
 Mixing:
 
 - ``interleave(rng, parts)``: request arrays merged at random, each keeping its own order.
@@ -29,6 +39,8 @@ import numpy as np
 
 import driver
 from driver import QUADBOX, REQUEST_DTYPE, TRIANGLE
+from driver.layout import (FLAG_DECODE_Q8, Q8_COUNT_LSB, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE,
+                           decode_q8, q8_count)
 
 F32 = np.float32
 INF = np.inf
@@ -264,6 +276,115 @@ def mixed_stream(seed, n_box, n_tri):
     rng = np.random.default_rng(seed)
     req = np.concatenate([quadbox_requests(rng, n_box), triangle_requests(rng, n_tri)])
     return req[rng.permutation(len(req))]
+
+
+# ----------------------------------------------------------------------------------------------
+# q8 nodes
+
+def random_q8_nodes(rng, origins, targets=None):
+    """One ``Q8_NODE`` per row of ``origins`` (n, 3): mostly a node whose boxes lie around the
+    point, at a scale from a few ulps to the whole exponent range (see the module docstring);
+    about a quarter of the child boxes surround the point or the row of ``targets`` (e.g. a point
+    on a ray)."""
+    n = len(origins)
+    targets = origins if targets is None else targets
+    node = np.zeros(n, Q8_NODE)
+    # exponents: a scene's scale (the node spans 2^-6 .. 2^4 around the ray), anywhere in the
+    # range, or its ends
+    exp = rng.integers(-14, -3, (n, 3))
+    kind = rng.integers(0, 6, n)
+    exp[kind == 1] = rng.integers(Q8_EXP_MIN, Q8_EXP_MAX + 1, ((kind == 1).sum(), 3))
+    ends = rng.choice([Q8_EXP_MIN, Q8_EXP_MIN + 1, Q8_EXP_MAX - 1, Q8_EXP_MAX], (n, 3))
+    exp[kind == 2] = ends[kind == 2]
+    # origin: the node's corner a little below the ray origin (boxes around the ray), or special
+    o = origins.astype(np.float64) - rng.uniform(0, 2, (n, 3)) * np.exp2(exp + 7.0)
+    with np.errstate(over="ignore"):
+        org = o.astype(F32)
+    ok = rng.integers(0, 14, n)
+    m = ok == 1                                                 # subnormal or signed zero
+    org[m] = rng.choice(np.concatenate([SUBNORMALS, -SUBNORMALS, [0.0, -0.0]]).astype(F32),
+                        (m.sum(), 3))
+    m = ok == 2                                                 # NaN or inf on one axis
+    org[m, rng.integers(0, 3)] = rng.choice(np.array([np.nan, INF, -INF], F32), m.sum())
+    m = ok == 3
+    org[m] = random_bits(rng, (m.sum(), 3))
+    m = ok == 4                                                 # huge: the sum may overflow
+    org[m] = rng.choice(np.array([3.4e38, -3.4e38, 1e38], F32), (m.sum(), 3))
+    node["origin"] = org
+    node["exp"][:, :3] = exp.astype(np.int8).view(np.uint8)
+    count = rng.integers(1, 5, n)
+    node["exp"][:, 3] = count
+    # planes: lo <= hi mostly; zero and full planes; some inverted; raw bytes
+    lo = rng.integers(0, 256, (n, 4, 3))
+    hi = np.maximum(lo, rng.integers(0, 256, (n, 4, 3)))
+    q = np.concatenate([lo, hi], axis=2)
+    pk = rng.integers(0, 10, (n, 4))
+    q[pk == 1] = 0
+    q[pk == 2] = 255
+    q[pk == 3] = np.where(rng.random(((pk == 3).sum(), 6)) < 0.5, 0, 255)
+    q[pk == 4] = q[pk == 4][:, [3, 4, 5, 0, 1, 2]]                 # inverted
+    q[pk == 5] = rng.integers(0, 256, ((pk == 5).sum(), 6))
+    # around the origin (pk 6) or the target (pk 7-9), where the node's scale allows it
+    with np.errstate(all="ignore"):
+        scale = np.exp2(exp.astype(np.float64))
+        for k, point in ((6, origins), (7, targets), (8, targets), (9, targets)):
+            at = (point.astype(np.float64) - org.astype(np.float64)) / scale
+            at = np.clip(np.nan_to_num(at, nan=128.0), 0, 255).astype(np.int64)[:, None, :]
+            near = np.concatenate([np.maximum(at - rng.integers(0, 30, (n, 4, 3)), 0),
+                                   np.minimum(at + rng.integers(1, 30, (n, 4, 3)), 255)], axis=2)
+            q[pk == k] = near[pk == k]
+    node["q"] = q
+    # fields the decode ignores: pointers, the unused slots' planes, a few reserved bits
+    node["child"] = rng.integers(0, 2**32, (n, 4), dtype=np.uint64).astype(np.uint32)
+    node["parent"] = rng.integers(0, 2**32, n, dtype=np.uint64).astype(np.uint32)
+    m = rng.random(n) < 0.05
+    node["exp"][m, 3] |= np.uint8(0xF8 & (rng.integers(0, 256) | 0x08))
+    node["rsvd"][rng.random(n) < 0.05] = 0xFFFFFFFF
+    assert ((node["exp"][:, 3] & 7) == count).all() and Q8_COUNT_LSB == 24
+    return node
+
+
+def q8_requests(rng, n):
+    """``n`` QUADBOX requests with ``FLAG_DECODE_Q8`` (see the module docstring)."""
+    req = quadbox_requests(rng, n)
+    req["box"] = random_bits(rng, (n, 4, 6))                   # words after the node: garbage
+    with np.errstate(all="ignore"):
+        o = np.where(np.isfinite(req["origin"]), req["origin"], F32(0)).astype(np.float64)
+        d = req["dir"].astype(np.float64)
+        ahead = o + rng.uniform(0, 5, (n, 1)) * d / np.abs(d).max(axis=1, keepdims=True)
+    nodes = random_q8_nodes(rng, o, ahead)
+    # half the rays are aimed at the centre of a used child box from outside it (a hit whose tmin
+    # depends on the decoded planes)
+    with np.errstate(all="ignore"):
+        boxes = decode_q8(nodes).astype(np.float64)
+        pick = boxes[np.arange(n), rng.integers(0, 4, n) % q8_count(nodes)]   # (n, 6)
+        centre = (pick[:, :3] + pick[:, 3:]) / 2
+        size = np.abs(pick[:, 3:] - pick[:, :3]).max(axis=1, keepdims=True)
+        d = random_dirs(rng, n).astype(np.float64)
+        o = centre - rng.uniform(0.6, 3, (n, 1)) * size * d / np.linalg.norm(d, axis=1,
+                                                                             keepdims=True)
+        aim = (rng.random(n) < 0.5) & np.isfinite(o).all(axis=1) & (size[:, 0] > 0)
+        aim &= np.isfinite(o.astype(F32)).all(axis=1)
+    if aim.any():
+        rays = driver.prepare_rays(o[aim].astype(F32), d[aim].astype(F32))
+        for f in ("origin", "dir", "inv", "kx", "ky", "kz", "shear", "extent"):
+            req[f][aim] = rays[f]
+    m = rng.random(n) < 0.03                                   # NaN / inf ray origins
+    req["origin"][m, rng.integers(0, 3, m.sum())] = rng.choice(np.array([np.nan, INF, -INF], F32),
+                                                                m.sum())
+    req["qnode"] = nodes.view(np.uint32).reshape(n, 16)
+    req["flags"] |= FLAG_DECODE_Q8
+    return req
+
+
+def q8_stream(seed, n_q8, n_box, n_tri):
+    """q8 requests interleaved at random with QUADBOX/TRIANGLE requests."""
+    rng = np.random.default_rng(seed)
+    other = mixed_stream(seed + 7, n_box, n_tri)
+    tri = np.flatnonzero(other["opcode"] == TRIANGLE)
+    other["flags"][tri[rng.random(len(tri)) < 0.3]] |= FLAG_DECODE_Q8     # ignored by TRIANGLE
+    stream, _ = interleave(rng, (q8_requests(rng, n_q8), other))
+    return stream
 
 
 # ----------------------------------------------------------------------------------------------

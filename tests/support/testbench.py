@@ -35,7 +35,7 @@ import numpy as np
 import pytest
 
 import driver
-from driver import LATENCY, RESPONSE_DTYPE
+from driver import RESPONSE_DTYPE
 from driver.backends.rtlbase import PATTERN_LEN
 
 from .scoreboard import assert_bit_equal
@@ -63,15 +63,16 @@ class Testbench:
     __test__ = False                # a helper, not a test class for pytest to collect
 
     def __init__(self, name: str = "rtl", *, extended: bool = False, disjoint: bool = False,
-                 latency: int = LATENCY, gaps: float = 0.0, stalls: float = 0.0, seed: int = 0,
-                 stamp: bool = True, **options):
+                 latency: int | None = None, compressed: bool = False, gaps: float = 0.0,
+                 stalls: float = 0.0, seed: int = 0, stamp: bool = True, **options):
         if name != "golden":        # the golden model has no handshakes to pressure
             options.update(gaps=gaps, stalls=stalls, seed=seed)
         self.dut = driver.backend(name, extended=extended, disjoint=disjoint, latency=latency,
-                                  **options)
-        self.ref = driver.backend("golden", extended=extended, disjoint=disjoint, latency=latency)
+                                  compressed=compressed, **options)
+        self.ref = driver.backend("golden", extended=extended, disjoint=disjoint,
+                                  latency=self.dut.latency, compressed=compressed)
         self.name = name
-        self.latency = latency
+        self.latency = self.dut.latency
         self.stamp = stamp
         self.sent = 0               # requests driven so far (sequence numbers for the tags)
         self.runs = []              # cycles of each run
