@@ -9,7 +9,7 @@ import json
 import pytest
 
 from driver import design, rtunit
-from driver.area import CONFIGS
+from driver.area import ALL_CONFIGS, CONFIGS, Q8_SUFFIX
 from driver.cli import build_parser, main
 from driver.design import OPTIONS, DesignPoint
 
@@ -43,11 +43,19 @@ def test_defaults_are_the_rt_unit_and_memory_models_own():
     assert p.memory() == rtunit.MemoryModel()
     assert p.rays_in_flight == rtunit.DEFAULT_RAYS_IN_FLIGHT
     assert DesignPoint(cache_kib=0).memory().cache_bytes == 0
-    assert design.BY_NAME["config"].choices == tuple(CONFIGS)
+    assert design.BY_NAME["config"].choices == tuple(ALL_CONFIGS)
     for name, (e, d) in CONFIGS.items():
-        q = DesignPoint(config=name, latency=13)
-        assert q.backend_options() == {"extended": bool(e), "disjoint": bool(d), "latency": 13}
-        assert q.rtl_params() == {"EXTENDED": e, "DISJOINT": d, "LATENCY": 13}
+        for c in (0, 1):
+            q = DesignPoint(config=name + Q8_SUFFIX * c, latency=13)
+            assert q.backend_options() == {"extended": bool(e), "disjoint": bool(d),
+                                           "latency": 13, "compressed": bool(c)}
+            assert q.rtl_params() == {"EXTENDED": e, "DISJOINT": d, "COMPRESSED": c,
+                                      "LATENCY": 13}
+        # the latency defaults to the configuration's least: the q8 decode adds a stage
+        assert DesignPoint(config=name).latency == 11
+        assert DesignPoint(config=name + Q8_SUFFIX).latency == 12
+        with pytest.raises(ValueError, match="at least 12"):
+            DesignPoint(config=name + Q8_SUFFIX, latency=11)
 
 
 def test_from_args_and_grid():
@@ -55,12 +63,13 @@ def test_from_args_and_grid():
     args = p.parse_args(["--config", "all", "--rays-in-flight", "16,64", "--cache-kib", "0,16",
                          "--scene", "sphere", "--size", "8"])
     grid = design.grid_from_args(args)
-    assert len(grid) == len(CONFIGS) * 2 * 2
-    assert {g.config for g in grid} == set(CONFIGS)
+    assert len(grid) == len(ALL_CONFIGS) * 2 * 2
+    assert {g.config for g in grid} == set(ALL_CONFIGS)
     assert {(g.rays_in_flight, g.cache_kib) for g in grid} == {(16, 0), (16, 16), (64, 0),
                                                              (64, 16)}
     assert all(g.scene == "sphere" and g.size == 8 for g in grid)
-    assert design.varied(grid) == ["config", "rays_in_flight", "cache_kib"]
+    # the -q8 configurations have their own least latency (12), so it varies with them
+    assert design.varied(grid) == ["config", "latency", "rays_in_flight", "cache_kib"]
     assert len({g.key() for g in grid}) == len(grid)
     args = _subparser("render").parse_args(["sphere", "--cull-stack", "--latency", "12"])
     pt = design.from_args(args)
@@ -117,7 +126,8 @@ def test_render_rtunit_on_the_configuration(monkeypatch):
                         or real(rec, *a, **k))
     pt = DesignPoint(config="baseline-disjoint", size=8, rays_in_flight=4, cache_kib=16)
     res = render("sphere", 8, 8, backend="rtl", progress=False, point=pt, rtunit=True)
-    assert seen and all(p == {"EXTENDED": 0, "DISJOINT": 1, "LATENCY": 11} for p in seen)
+    assert seen and all(p == {"EXTENDED": 0, "DISJOINT": 1, "COMPRESSED": 0, "LATENCY": 11}
+                        for p in seen)
     assert res.stats["rtunit"]["rays_in_flight"] == 4 and res.stats["rtunit"]["responses_verified"]
     assert res.stats["rtunit_memory"]["cycles"] > res.stats["rtunit"]["cycles"]
     assert stats.WAVEFRONT in res.stats and res.stats["by_type"]["primary"]["rtunit"]
