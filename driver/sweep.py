@@ -364,7 +364,8 @@ def plot(doc: dict, path) -> None:
     ax1.set_ylim(0, 1.05)
     ax1.set_xlabel("rays in flight (ray pool size)")
     ax1.set_ylabel("datapath utilization, ops / (pipelines x cycles)")
-    ax1.set_title("RT-unit utilization (with the node memory; dashed: cache 0 = free fetches)",
+    ax1.set_title("RT-unit utilization with the node memory (dashed: cache 0, every node fetch "
+                  "from memory)",
                   fontsize=8)
     ax1.grid(True, which="both", alpha=0.3)
     ax1.legend(fontsize=6)
