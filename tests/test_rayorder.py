@@ -165,3 +165,25 @@ def test_bench_cli_ray_order(in_tmp, error_line):
     assert "--ray-window (16) must be at least --rays-in-flight (64)" in error_line()
     assert cli_main(["bench", "--ray-order", "sorted"]) == 2
     assert "--ray-order" in error_line()
+
+
+def test_the_study_runs_on_the_published_replay_schema(tmp_path):
+    """python -m driver.rtunit.order (docs/rayorder.md) on a tiny frame: every policy's point is
+    an ``rtunit_memory`` object (docs/statistics.md), sorting policies carry their cost, index
+    order is one point, the plot is written."""
+    from driver.rtunit import order
+    doc = order.study(scenes=("cornell",), size=8, windows=(64,), progress=False)
+    types = doc["scenes"]["cornell"]
+    assert "primary" in types
+    for kind, t in types.items():
+        pols = t["policies"]
+        assert set(pols["index"]) == {"0"}
+        for name, pts in pols.items():
+            for p in pts.values():
+                assert p["responses_verified"] and 0 < p["utilization"] <= 1
+                assert ("ray_order_cost" in p) == (name != "index")
+        assert t["floor_bytes_per_ray"] <= pols["index"]["0"]["bytes_per_ray"] + 1e-9
+    png = tmp_path / "o.png"
+    order.plot_study(doc, png)
+    assert png.read_bytes()[:4] == b"\x89PNG"
+    assert "primary" in order.study_tables(doc)

@@ -211,12 +211,12 @@ README_NUMBERS = {
        for t in ("primary", "shadow", "bounce1")},
     **{f"order_{t}_{policy}": ("docs/rayorder.json",
                                f"scenes.bunny_floor.{t}.policies.{policy}.{window}"
-                               ".replay_utilization", "{:.2f}")
+                               ".utilization", "{:.2f}")
        for t in ("ao", "primary") for policy, window in (("index", 0), ("affinity", 256))},
     "order_state_bytes": ("docs/rayorder.json", "scenes.bunny_floor.ao.policies.affinity.256"
-                          ".order.extra_state_bytes", "{:,}"),
+                          ".ray_order_cost.extra_state_bytes", "{:,}"),
     "order_extra_rays": ("docs/rayorder.json", "scenes.bunny_floor.ao.policies.affinity.256"
-                         ".order.extra_rays_held", "{:d}"),
+                         ".ray_order_cost.extra_rays_held", "{:d}"),
     **{f"compressed_{fmt}_bytes_per_triangle": (f"images/compressed_path64_{fmt}.json",
                                                 "frame.bvh.bytes_per_triangle", "{:.1f}")
        for fmt in ("box32", "q8")},

@@ -302,8 +302,14 @@ def study(scenes=STUDY_SCENES, size: int = 64, spp: int = 2, bounces: int = 2, a
     per frame and the policy's cost; index order once (it has no window), and the cold-cache
     floor of the bytes per ray."""
     from .. import rtunit
-    from ..bench import _replay_all
     from ..progress import bar
+    from ..stats import rtunit_stats
+
+    def replay_all(records, r, order="index", window=None):
+        """The RT-unit replays (with ``memory``) of a ray type's batches, one after another:
+        the published ``rtunit_memory`` object (docs/statistics.md)."""
+        return rtunit_stats([rtunit.replay(rec, r, 1, memory=memory, ray_order=order,
+                                           ray_window=window) for rec in records])
 
     memory = memory or rtunit.MemoryModel()
     policies = list(policies or POLICIES)
@@ -326,9 +332,9 @@ def study(scenes=STUDY_SCENES, size: int = 64, spp: int = 2, bounces: int = 2, a
                 "floor_bytes_per_ray": floor_bytes(recs[kind], memory.line_bytes)
                 / max(1, sum(r.rays for r in recs[kind])), "policies": {}})
             if pol == "pool":
-                t.setdefault("pool", {})[str(w)] = _replay_all(recs[kind], w, 1, memory)
+                t.setdefault("pool", {})[str(w)] = replay_all(recs[kind], w)
             elif not (POLICIES[pol].schedule and w is not None and w < rays_in_flight):
-                point = _replay_all(recs[kind], rays_in_flight, 1, memory, pol, w)
+                point = replay_all(recs[kind], rays_in_flight, pol, w)
                 t["policies"].setdefault(pol, {})[str(w or 0)] = point
             pb.hook(n + 1, len(runs))
         pb.close()
@@ -356,15 +362,15 @@ def plot_study(doc: dict, path) -> None:
                 continue
             for pol, pts in t["policies"].items():
                 if pol == "index":
-                    ax.axhline(pts["0"]["replay_utilization"], color=colours.get(pol, "grey"),
+                    ax.axhline(pts["0"]["utilization"], color=colours.get(pol, "grey"),
                                ls="--", lw=1, label="index")
                     continue
                 ws = sorted(int(w) for w in pts)
-                ax.plot(ws, [pts[str(w)]["replay_utilization"] for w in ws], "o-", ms=3,
+                ax.plot(ws, [pts[str(w)]["utilization"] for w in ws], "o-", ms=3,
                         color=colours.get(pol), label=pol)
             if "pool" in t:
                 ws = sorted(int(w) for w in t["pool"])
-                ax.plot(ws, [t["pool"][str(w)]["replay_utilization"] for w in ws], ":",
+                ax.plot(ws, [t["pool"][str(w)]["utilization"] for w in ws], ":",
                         color="grey", label="index, R = W")
             ax.set_xscale("log", base=2)
             ax.set_ylim(0, 1.05)
@@ -401,8 +407,8 @@ def study_tables(doc: dict) -> str:
                 for w in ws:
                     v = pts.get("0" if pol == "index" else w)
                     cells.append("" if v is None else
-                                 f"{v['replay_utilization']:.3f} / {v['hit_rate']:.3f} / "
-                                 f"{v['bytes_per_ray']:.0f} / {v['replay_cycles']}")
+                                 f"{v['utilization']:.3f} / {v['hit_rate']:.3f} / "
+                                 f"{v['bytes_per_ray']:.0f} / {v['cycles']}")
                 out.append(f"| {pol} | " + " | ".join(cells) + " |")
             out.append("")
     return "\n".join(out)
