@@ -38,9 +38,9 @@ def check_requests(req: np.ndarray, extended: bool, compressed: bool = False,
                    transform: bool = False) -> None:
     """Reject what no backend simulates (the same check for every backend): an opcode that is not
     one (``driver.layout.OPCODES``), an extended opcode on a baseline build, a TRANSFORM on a
-    build without it (``transform``), a TRIANGLE whose kx/ky/kz is not 0, 1 or 2, a reserved flag bit set (any
-    opcode: the flags are part of the ray), ``FLAG_DECODE_Q8`` on a build without the decode
-    (``compressed``), and a QUADBOX to decode whose node has an exponent outside
+    build without it (``transform``), a TRIANGLE whose kx/ky/kz is not 0, 1 or 2, a reserved flag
+    bit set (any opcode: the flags are part of the ray), ``FLAG_DECODE_Q8`` on a build without
+    the decode (``compressed``), and a QUADBOX to decode whose node has an exponent outside
     [Q8_EXP_MIN, Q8_EXP_MAX] (not a q8 node: its decode could overflow or round). Raises
     DatapathError."""
     if not len(req):

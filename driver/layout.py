@@ -12,14 +12,16 @@ This table is the single source of truth on the host side for
   the build cache (never committed), so ``sim/rayflex_harness.cpp`` names no word index itself.
 
 **Overlays.** A field may share the wires of another field (``Field.overlays``), the wire's
-rule (``overlay_rows``) saying which requests carry which: the request field ``qnode`` (the 16
-words of a q8 box node, ``Q8_NODE``, as stored in the image) travels on the first 16 of the 24
-``box`` words of a QUADBOX with ``FLAG_DECODE_Q8`` (``carries_qnode``), which a ``COMPRESSED``
-build decodes (docs/q8_datapath.md); every other request carries ``box`` there. In the numpy
-dtype the two are separate fields (their own bytes, so arrays concatenate and copy like any
-other); ``pack`` writes ``qnode`` over the box words of the requests the rule selects, ``unpack``
-fills both views from the words, and in the RTL the node is an ``rf_pkg::q8_node_t`` cast of
-those box words.
+rule for it (``overlay_rows[name]``) saying which requests carry it: the request field ``qnode``
+(the 16 words of a q8 box node, ``Q8_NODE``, as stored in the image) travels on the first 16 of
+the 24 ``box`` words of a QUADBOX with ``FLAG_DECODE_Q8`` (``carries_qnode``), which a
+``COMPRESSED`` build decodes (docs/q8_datapath.md); the request field ``matrix`` (a TRANSFORM's
+3x4 matrix) travels on the first 12 ``box`` words of a TRANSFORM (``carries_matrix``,
+docs/transform.md); every other request carries ``box`` there. In the numpy dtype they are
+separate fields (their own bytes, so arrays concatenate and copy like any other); ``pack`` writes
+an overlay over the box words of the requests its rule selects, ``unpack`` fills every view from
+the words, and in the RTL the node is an ``rf_pkg::q8_node_t`` cast of those box words (the
+matrix an ``rf_pkg::matrix_t`` cast, ``req_matrix``).
 
 The SystemVerilog structs remain the hardware's definition; ``tests/test_layout.py`` elaborates
 ``rtl/rf_pkg.sv`` with Verilator and checks every field's bit position and width, and the two

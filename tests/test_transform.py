@@ -180,7 +180,7 @@ def test_directed_matrices(name):
     o = np.array([[1, 2, 3], [-0.0, 0.0, -0.0], [0.1, -7, 1e-40]], F32)
     d = np.array([[0, 0, 1], [1, -1, 0.5], [-0.0, 3, 1e30]], F32)
     req = transform_requests(m, o, d)
-    rsp = Testbench("rtl", transform=True).run(req)
+    rsp = Testbench("rtl", transform=True, stamp=False).run(req)
     o2, d2 = transform_results(rsp)
     ref = scalar_run(req, ScalarState(transform=True))
     assert_bit_equal(req, rsp, ref, "rtl", "scalar")
@@ -264,3 +264,21 @@ def test_pyverilator_every_build(extended, disjoint, compressed):
     req = _stream(46, compressed, extended, 1000, 300, 300)
     run_isolated("pyverilator", dict(extended=extended, disjoint=disjoint, compressed=compressed,
                                      transform=True, gaps=0.3, stalls=0.3, seed=46), [req])
+
+
+def test_area_configurations_with_transform():
+    """The -xf configurations are every configuration with TRANSFORM = 1 (derived names), and the
+    parameter reaches the design: elaboration shows the unified build's two extra adders and no
+    extra multiplier, the disjoint build's 18 private multipliers."""
+    from driver import area
+    assert area.XF_CONFIGS == [n + "-xf" for n in area.ALL_CONFIGS]
+    assert area.config_params("extended-disjoint-q8-xf") == {"EXTENDED": 1, "DISJOINT": 1,
+                                                             "COMPRESSED": 1, "TRANSFORM": 1}
+    assert area.config_params("baseline-unified-xf") == {"EXTENDED": 0, "DISJOINT": 0,
+                                                         "TRANSFORM": 1}
+    with pytest.raises(area.AreaError, match="unknown configuration"):
+        area.config_params("baseline-xf")
+    plain, xf = area.elaborate(0, 0), area.elaborate(0, 0, transform=1)
+    assert xf["$mul"] == plain["$mul"] and xf["$add"] > plain["$add"]
+    plain, xf = area.elaborate(0, 1), area.elaborate(0, 1, transform=1)
+    assert xf["$mul"] == plain["$mul"] + 18
