@@ -163,3 +163,10 @@ def transform_results(rsp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         i = int(np.flatnonzero(rsp["opcode"] != TRANSFORM)[0])
         raise DatapathError(f"response {i} is not a TRANSFORM's (opcode {int(rsp['opcode'][i])})")
     return rsp["xf_origin"].copy(), rsp["xf_dir"].copy()
+
+
+def run_transform(backend, m, o, d) -> tuple[np.ndarray, np.ndarray]:
+    """(o', d') of rays (o, d) by matrices m computed by ``backend`` (a model of a build with
+    TRANSFORM, e.g. ``driver.backend("rtl", transform=True)``): the same signature and bits as
+    the host's transform, except that a NaN comes back as the canonical quiet NaN."""
+    return transform_results(backend.run(transform_requests(m, o, d)))

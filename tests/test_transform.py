@@ -21,7 +21,7 @@ import pytest
 import driver
 from driver import QUADBOX, TRIANGLE, DatapathError
 from driver import golden
-from driver.datapath import transform_requests, transform_results
+from driver.datapath import run_transform, transform_requests, transform_results
 from driver.layout import (MATRIX_SHAPE, OPCODES, REQUEST, REQUEST_DTYPE, TRANSFORM,
                            carries_matrix, pack_requests, unpack_requests)
 from support.scalar_ref import ScalarState, scalar_run
@@ -107,6 +107,8 @@ def test_request_and_result_helpers():
     want = golden.transform(m, o, -o)
     assert bits(o2).tobytes() == bits(golden.canonical(want[0])).tobytes()
     assert bits(d2).tobytes() == bits(golden.canonical(want[1])).tobytes()
+    o3, d3 = run_transform(driver.backend("golden", transform=True), m, o, -o)
+    assert bits(o3).tobytes() == bits(o2).tobytes() and bits(d3).tobytes() == bits(d2).tobytes()
     rsp["opcode"][2] = TRIANGLE
     with pytest.raises(DatapathError, match="response 2"):
         transform_results(rsp)
