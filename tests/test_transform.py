@@ -284,3 +284,10 @@ def test_area_configurations_with_transform():
     assert xf["$mul"] == plain["$mul"] and xf["$add"] > plain["$add"]
     plain, xf = area.elaborate(0, 1), area.elaborate(0, 1, transform=1)
     assert xf["$mul"] == plain["$mul"] + 18
+
+
+@pytest.mark.parametrize("extended,disjoint,compressed", CONFIGS, ids=CONFIG_IDS)
+def test_lint_clean_with_transform(extended, disjoint, compressed):
+    """``verilator --lint-only -Wall`` (with rtl/lint.vlt) of every configuration with TRANSFORM."""
+    from driver.backends.build import lint
+    assert lint(extended, disjoint, None, compressed, transform=True) == ""

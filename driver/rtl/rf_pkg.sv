@@ -68,13 +68,14 @@ package rf_pkg;
   } req_t;
 
   // A TRANSFORM's 3x4 matrix, row-major (m[r][c] is box word 4r + c): a TRANSFORM request carries
-  // it on the first 12 box words (driver/layout.py: request field matrix overlays box).
+  // it on the first 12 box words (driver/layout.py: request field matrix overlays box), i.e. the
+  // matrix is req_matrix(req.box).
   localparam int unsigned MATRIX_WORDS = 12;
   typedef fp32_t [2:0][3:0] matrix_t;
-  /* verilator lint_off UNUSEDSIGNAL */   // the other request words and box words 12..23
-  function automatic matrix_t req_matrix(input req_t r);
-    logic [$bits(r.box)-1:0] words;
-    words = r.box;
+  /* verilator lint_off UNUSEDSIGNAL */   // box words 12..23
+  function automatic matrix_t req_matrix(input fp32_t [3:0][5:0] box);
+    logic [$bits(box)-1:0] words;
+    words = box;
     return matrix_t'(words[MATRIX_WORDS*32-1:0]);
   endfunction
   /* verilator lint_on UNUSEDSIGNAL */

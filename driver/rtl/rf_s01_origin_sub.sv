@@ -95,7 +95,7 @@ module rf_s01_origin_sub import rf_pkg::*; #(
       end
       OP_TRANSFORM: begin
         if (TRANSFORM) begin
-          st_o.pl.xfm_in.m      = req_matrix(req_i);
+          st_o.pl.xfm_in.m      = req_matrix(req_i.box);
           st_o.pl.xfm_in.origin = req_i.origin;
           st_o.pl.xfm_in.dir    = req_i.dir;
         end
