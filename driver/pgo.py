@@ -58,7 +58,8 @@ def train(params: dict[str, int]) -> dict:
     """Run the training workload on this process's harness library for ``params`` (see
     ``driver.backends.harness.use_library``); returns request counts. Raises TrainingMismatch on a wrong result."""
     opts = dict(extended=bool(params["EXTENDED"]), disjoint=bool(params["DISJOINT"]),
-                latency=int(params["LATENCY"]), compressed=bool(params.get("COMPRESSED", 0)))
+                latency=int(params["LATENCY"]), compressed=bool(params.get("COMPRESSED", 0)),
+                transform=bool(params.get("TRANSFORM", 0)))
     counts = {"traversal": 0, "run": 0, "knn": 0}
     for i, (name, size) in enumerate(SCENES):
         mesh, cam = _scene(name)

@@ -130,29 +130,32 @@ def test_pack_unpack_round_trip(wire):
     for f in wire.fields:                     # sub-word fields hold only their width
         if f.kind != "f32":
             rows[f.name] &= (1 << f.bits) - 1
-    if "opcode" in wire.field and wire.overlay_rows is not None:
+    if "opcode" in wire.field and wire.overlay_rows:
         rows["opcode"][::3] = layout.QUADBOX      # some rows that carry an overlay
+        rows["opcode"][1::3] = layout.TRANSFORM
     words = wire.pack(rows)
     assert words.shape == (500, wire.words)
     back = wire.unpack(words)
-    sel = wire.overlay_rows(rows) if wire.overlay_rows else np.zeros(len(rows), bool)
-    overlaid = {f.overlays for f in wire.fields}
+    none = np.zeros(len(rows), bool)
+    sel = {name: rule(rows) for name, rule in wire.overlay_rows.items()}
     for f in wire.fields:
         if f.overlays is None:
-            # a field an overlay shares: exact where the overlay is not on the wire
-            rows_f = ~sel if f.name in overlaid else slice(None)
+            # a field an overlay shares: exact where no overlay of it is on the wire
+            mine = [sel[o.name] for o in wire.fields if o.overlays == f.name]
+            rows_f = ~np.logical_or.reduce([none, *mine])
             assert back[f.name][rows_f].tobytes() == rows[f.name][rows_f].tobytes(), f.name
             continue
         # an overlay: on the rows its rule selects, it is what went onto the wire; on the others,
         # it reads the overlaid field's bits
-        assert 0 < sel.sum() < len(rows)
-        assert np.array_equal(back[f.name][sel], rows[f.name][sel])
+        s = sel[f.name]
+        assert 0 < s.sum() < len(rows)
+        assert back[f.name][s].tobytes() == rows[f.name][s].tobytes(), f.name
         span = words[:, f.word:f.word + f.count]
-        assert np.array_equal(back[f.name].reshape(len(rows), -1), span)
+        assert np.array_equal(back[f.name].reshape(len(rows), -1).view(np.uint32), span)
         base = wire.field[f.overlays]
         tail = slice(f.word + f.count - base.word, None)     # the overlaid field's other words
-        assert np.array_equal(back[base.name].reshape(len(rows), -1).view(np.uint32)[:, tail],
-                              rows[base.name].reshape(len(rows), -1).view(np.uint32)[:, tail])
+        assert np.array_equal(back[base.name][s].reshape(s.sum(), -1).view(np.uint32)[:, tail],
+                              rows[base.name][s].reshape(s.sum(), -1).view(np.uint32)[:, tail])
     assert np.array_equal(wire.pack(wire.unpack(words)), words)
 
 

@@ -56,7 +56,7 @@ def rtl_sources() -> list[Path]:
 
 
 def rtl_params(extended: bool, disjoint: bool, latency: int | None = None,
-               compressed: bool = False) -> dict[str, int]:
+               compressed: bool = False, transform: bool = False) -> dict[str, int]:
     """The top-level parameters of a configuration (``-G`` overrides); ``latency`` None: the
     configuration's least (``driver.datapath.default_latency``)."""
     least = default_latency(compressed)
@@ -66,13 +66,14 @@ def rtl_params(extended: bool, disjoint: bool, latency: int | None = None,
                            "register, 9 compute stages, output register"
                            f"{', the q8 decode stage' if compressed else ''})")
     return {"EXTENDED": int(bool(extended)), "DISJOINT": int(bool(disjoint)),
-            "COMPRESSED": int(bool(compressed)), "LATENCY": int(latency)}
+            "COMPRESSED": int(bool(compressed)), "TRANSFORM": int(bool(transform)),
+            "LATENCY": int(latency)}
 
 
-def lint(extended=False, disjoint=False, latency=None, compressed=False) -> str:
+def lint(extended=False, disjoint=False, latency=None, compressed=False, transform=False) -> str:
     """``verilator --lint-only -Wall`` of the whole datapath with the waivers in rtl/lint.vlt."""
     return verilate.lint(TOP, [RTL_DIR / LINT_WAIVERS, *rtl_sources()],
-                         rtl_params(extended, disjoint, latency, compressed))
+                         rtl_params(extended, disjoint, latency, compressed, transform))
 
 
 def pgo_enabled() -> bool:

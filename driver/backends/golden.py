@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..datapath import (ANGULAR, EUCLIDEAN, FLAG_NO_CULL, QUADBOX, RESPONSE_DTYPE, TRIANGLE,
-                        check_requests, default_latency)
+from ..datapath import (ANGULAR, EUCLIDEAN, FLAG_NO_CULL, QUADBOX, RESPONSE_DTYPE, TRANSFORM,
+                        TRIANGLE, check_requests, default_latency)
 from ..golden import (F32, accumulate, angular_beat, canonical, euclid_beat, quadbox,
-                      request_boxes, sort4, triangle)
+                      request_boxes, sort4, transform, triangle)
 
 
 def _fields(req, rows, names):
@@ -20,15 +20,17 @@ def _fields(req, rows, names):
 class GoldenBackend:
     """Numpy model of the whole datapath. ``cycles`` counts an ideal pipeline: a run of n requests
     takes n + latency cycles (first request accepted to last response taken). ``compressed``: the
-    build decodes q8 nodes (QUADBOX with ``FLAG_DECODE_Q8``); its default latency is one more."""
+    build decodes q8 nodes (QUADBOX with ``FLAG_DECODE_Q8``); its default latency is one more.
+    ``transform``: the build has the TRANSFORM operation (docs/transform.md)."""
 
     name = "golden"
 
     def __init__(self, extended: bool = False, disjoint: bool = False, latency: int | None = None,
-                 compressed: bool = False):
+                 compressed: bool = False, transform: bool = False):
         self.extended = bool(extended)
         self.disjoint = bool(disjoint)     # same results by contract; kept for a uniform interface
         self.compressed = bool(compressed)
+        self.transform = bool(transform)
         self.latency = default_latency(self.compressed) if latency is None else int(latency)
         self.cycles = 0
         self.requests = 0
@@ -37,7 +39,7 @@ class GoldenBackend:
         self.angular_norm = F32(0)
 
     def run(self, req: np.ndarray) -> np.ndarray:
-        check_requests(req, self.extended, self.compressed)
+        check_requests(req, self.extended, self.compressed, self.transform)
         ops = req["opcode"]
         rsp = np.zeros(len(req), RESPONSE_DTYPE)
         rsp["opcode"] = ops
@@ -48,6 +50,8 @@ class GoldenBackend:
             if self.extended:
                 self._euclid(req, rsp, np.flatnonzero(ops == EUCLIDEAN))
                 self._angular(req, rsp, np.flatnonzero(ops == ANGULAR))
+            if self.transform:
+                self._transforms(req, rsp, np.flatnonzero(ops == TRANSFORM))
         if len(req):
             self.cycles += len(req) + self.latency
             self.requests += len(req)
@@ -74,6 +78,14 @@ class GoldenBackend:
         rsp["tri_hit"][i] = hit
         rsp["t_num"][i] = canonical(num)
         rsp["t_den"][i] = canonical(den)
+
+    def _transforms(self, req, rsp, i):
+        if not len(i):
+            return
+        r = _fields(req, i, ("matrix", "origin", "dir"))
+        o2, d2 = transform(r["matrix"], r["origin"], r["dir"])
+        rsp["xf_origin"][i] = canonical(o2)
+        rsp["xf_dir"][i] = canonical(d2)
 
     def _euclid(self, req, rsp, i):
         if not len(i):

@@ -15,12 +15,14 @@
 // One request per cycle; the response leaves LATENCY cycles after its input handshake when
 // out_ready_i stays high; responses come back in request order.
 // Parameters: EXTENDED adds EUCLIDEAN/ANGULAR, DISJOINT gives each operation private functional
-// units, COMPRESSED adds the q8 decode stage (QUADBOX with FLAG_DECODE_Q8), LATENCY >= 11 +
-// COMPRESSED (the paper's design has 11).
+// units, COMPRESSED adds the q8 decode stage (QUADBOX with FLAG_DECODE_Q8), TRANSFORM adds the
+// ray transform by a 3x4 matrix (docs/transform.md: on S2's multipliers and the adders of S3 and
+// S5..S8, two adders more in S8), LATENCY >= 11 + COMPRESSED (the paper's design has 11).
 module rayflex import rf_pkg::*; #(
   parameter bit          EXTENDED   = 1'b0,
   parameter bit          DISJOINT   = 1'b0,
   parameter bit          COMPRESSED = 1'b0,
+  parameter bit          TRANSFORM  = 1'b0,
   parameter int unsigned LATENCY    = 11 + 32'(COMPRESSED)
 ) (
   input  logic clk_i,
@@ -71,21 +73,21 @@ module rayflex import rf_pkg::*; #(
   logic   [NUM_REGS-1:0] d_valid, d_ready, q_valid, q_ready;
 
   // ---- compute stages ----
-  rf_s01_origin_sub #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s1 (
+  rf_s01_origin_sub #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM)) u_s1 (
     .req_i(req_s1), .st_o(d_st[0]));
-  rf_s02_scale_mul #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s2 (
+  rf_s02_scale_mul #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM)) u_s2 (
     .st_i(q_st[0]), .st_o(d_st[1]));
-  rf_s03_nearfar_xy #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s3 (
+  rf_s03_nearfar_xy #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM)) u_s3 (
     .st_i(q_st[1]), .st_o(d_st[2]));
   rf_s04_nearfar_z #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s4 (
     .st_i(q_st[2]), .st_o(d_st[3]));
-  rf_s05_clamp_uvw #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s5 (
+  rf_s05_clamp_uvw #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM)) u_s5 (
     .st_i(q_st[3]), .st_o(d_st[4]));
-  rf_s06_slab_hit #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s6 (
+  rf_s06_slab_hit #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM)) u_s6 (
     .st_i(q_st[4]), .st_o(d_st[5]));
-  rf_s07_sort_acc #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s7 (
+  rf_s07_sort_acc #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM)) u_s7 (
     .clk_i, .rst_ni, .fire_i(d_valid[6] & d_ready[6]), .st_i(q_st[5]), .st_o(d_st[6]));
-  rf_s08_sort_tnum #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s8 (
+  rf_s08_sort_tnum #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM)) u_s8 (
     .st_i(q_st[6]), .st_o(d_st[7]));
   rf_s09_sort_trihit u_s9 (.st_i(q_st[7]), .st_o(d_st[8]));
 
@@ -110,7 +112,7 @@ module rayflex import rf_pkg::*; #(
 
   // ---- output stage ----
   rsp_t rsp_d;
-  rf_output #(.EXTENDED(EXTENDED)) u_out (.st_i(q_st[NUM_REGS-1]), .rsp_o(rsp_d));
+  rf_output #(.EXTENDED(EXTENDED), .TRANSFORM(TRANSFORM)) u_out (.st_i(q_st[NUM_REGS-1]), .rsp_o(rsp_d));
   rf_skid #(.T(rsp_t)) u_out_reg (
     .clk_i, .rst_ni,
     .valid_i(q_valid[NUM_REGS-1]), .ready_o(q_ready[NUM_REGS-1]), .data_i(rsp_d),

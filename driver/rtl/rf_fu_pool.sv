@@ -1,7 +1,7 @@
 // A stage's pool of floating-point adders or multipliers, shared or private per operation.
 //
-// Each operation presents its own operand list (tri_*, box_*, euc_*, ang_*: N_TRI, N_BOX, N_EUC,
-// N_ANG operand pairs; an operation that uses no unit has a one-entry list tied to zero) and reads
+// Each operation presents its own operand list (tri_*, box_*, euc_*, ang_*, xfm_*: N_TRI, N_BOX,
+// N_EUC, N_ANG, N_XFM operand pairs; an operation that uses no unit has a one-entry list tied to zero) and reads
 // its results from the list of the same name. op_i is the opcode of the beat in the stage.
 //   DISJOINT = 0 (unified, the paper's baseline): max(N_*) units shared by all operations. Unit k
 //     takes operand pair k of the beat's operation through an input mux.
@@ -16,10 +16,12 @@ module rf_fu_pool import rf_pkg::*; #(
   parameter int unsigned N_BOX    = 0,
   parameter int unsigned N_EUC    = 0,
   parameter int unsigned N_ANG    = 0,
+  parameter int unsigned N_XFM    = 0,
   localparam int unsigned W_TRI   = (N_TRI > 0) ? N_TRI : 1,
   localparam int unsigned W_BOX   = (N_BOX > 0) ? N_BOX : 1,
   localparam int unsigned W_EUC   = (N_EUC > 0) ? N_EUC : 1,
-  localparam int unsigned W_ANG   = (N_ANG > 0) ? N_ANG : 1
+  localparam int unsigned W_ANG   = (N_ANG > 0) ? N_ANG : 1,
+  localparam int unsigned W_XFM   = (N_XFM > 0) ? N_XFM : 1
 ) (
   input  opcode_e            op_i,
   input  fp32_t [W_TRI-1:0]  tri_a_i,
@@ -33,10 +35,13 @@ module rf_fu_pool import rf_pkg::*; #(
   output fp32_t [W_EUC-1:0]  euc_y_o,
   input  fp32_t [W_ANG-1:0]  ang_a_i,
   input  fp32_t [W_ANG-1:0]  ang_b_i,
-  output fp32_t [W_ANG-1:0]  ang_y_o
+  output fp32_t [W_ANG-1:0]  ang_y_o,
+  input  fp32_t [W_XFM-1:0]  xfm_a_i,
+  input  fp32_t [W_XFM-1:0]  xfm_b_i,
+  output fp32_t [W_XFM-1:0]  xfm_y_o
 );
 
-  localparam int unsigned P = max4(N_TRI, N_BOX, N_EUC, N_ANG);
+  localparam int unsigned P = max5(N_TRI, N_BOX, N_EUC, N_ANG, N_XFM);
 
   if (!DISJOINT) begin : g_unified
     fp32_t [(P > 0 ? P : 1)-1:0] y;
@@ -44,6 +49,7 @@ module rf_fu_pool import rf_pkg::*; #(
       // Clamped indices keep the selects in range; the branches of unused operations are dead.
       localparam int unsigned KT = (k < N_TRI) ? k : 0, KB = (k < N_BOX) ? k : 0;
       localparam int unsigned KE = (k < N_EUC) ? k : 0, KA = (k < N_ANG) ? k : 0;
+      localparam int unsigned KX = (k < N_XFM) ? k : 0;
       fp32_t a, b;
       always_comb begin
         a = FP_POS_ZERO;
@@ -53,6 +59,7 @@ module rf_fu_pool import rf_pkg::*; #(
           OP_QUADBOX:   if (k < N_BOX) begin a = box_a_i[KB]; b = box_b_i[KB]; end
           OP_EUCLIDEAN: if (k < N_EUC) begin a = euc_a_i[KE]; b = euc_b_i[KE]; end
           OP_ANGULAR:   if (k < N_ANG) begin a = ang_a_i[KA]; b = ang_b_i[KA]; end
+          OP_TRANSFORM: if (k < N_XFM) begin a = xfm_a_i[KX]; b = xfm_b_i[KX]; end
           default: ;
         endcase
       end
@@ -65,6 +72,7 @@ module rf_fu_pool import rf_pkg::*; #(
     assign box_y_o = (N_BOX > 0) ? y[W_BOX-1:0] : '0;
     assign euc_y_o = (N_EUC > 0) ? y[W_EUC-1:0] : '0;
     assign ang_y_o = (N_ANG > 0) ? y[W_ANG-1:0] : '0;
+    assign xfm_y_o = (N_XFM > 0) ? y[W_XFM-1:0] : '0;
   end else begin : g_disjoint
     // Private units: operation o's units see its operands only while op_i == o, zeros otherwise.
     for (genvar k = 0; k < W_TRI; k++) begin : g_tri
@@ -105,6 +113,16 @@ module rf_fu_pool import rf_pkg::*; #(
                                        .b_i(en ? ang_b_i[k] : FP_POS_ZERO), .y_o(ang_y_o[k]));
       end else begin : g_none
         assign ang_y_o[k] = FP_POS_ZERO;
+      end
+    end
+    for (genvar k = 0; k < W_XFM; k++) begin : g_xfm
+      if (k < N_XFM) begin : g_unit
+        logic en;
+        assign en = (op_i == OP_TRANSFORM);
+        rf_fu #(.IS_MUL(IS_MUL)) u_fu (.a_i(en ? xfm_a_i[k] : FP_POS_ZERO),
+                                       .b_i(en ? xfm_b_i[k] : FP_POS_ZERO), .y_o(xfm_y_o[k]));
+      end else begin : g_none
+        assign xfm_y_o[k] = FP_POS_ZERO;
       end
     end
   end

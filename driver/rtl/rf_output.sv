@@ -1,7 +1,8 @@
 // Output stage: the stage struct to the response format. Fields the beat's operation does not
 // produce are driven to zero.
 module rf_output import rf_pkg::*; #(
-  parameter bit EXTENDED = 1'b0
+  parameter bit EXTENDED = 1'b0,
+  parameter bit TRANSFORM = 1'b0
 ) (
   input  stage_t st_i,
   output rsp_t   rsp_o
@@ -32,6 +33,14 @@ module rf_output import rf_pkg::*; #(
           rsp_o.angular_dot  = st_i.pl.ang.dot_acc;
           rsp_o.angular_norm = st_i.pl.ang.norm_acc;
           rsp_o.angular_last = st_i.last;
+        end
+      end
+      OP_TRANSFORM: begin
+        if (TRANSFORM) begin
+          for (int r = 0; r < 3; r++) begin
+            rsp_o.xf_origin[r] = st_i.pl.xfm.po[r][0];
+            rsp_o.xf_dir[r]    = st_i.pl.xfm.pd[r][0];
+          end
         end
       end
       default: ;

@@ -4,8 +4,8 @@
 // Structure"): the input stage turns a req_t into a stage_t, every inner stage reads a stage_t and
 // writes a stage_t (copying it and overwriting the fields it produces), the output stage turns a
 // stage_t into a rsp_t. The operations share the payload bits (one view per operation and group of
-// stages, see below): a stage register holds 3 + 32 + PAYLOAD_W = 963 bits, where the eight views
-// side by side would need 4,440.
+// stages, see below): a stage register holds 4 + 32 + PAYLOAD_W = 964 bits, where the ten views
+// side by side would need 5,688.
 //
 // Numbers are IEEE-754 binary32 throughout (fp32_t); every add/multiply rounds to nearest-even.
 package rf_pkg;
@@ -18,11 +18,12 @@ package rf_pkg;
   // ---------------------------------------------------------------------------------------------
   // Opcodes (SPEC section 3).
   // ---------------------------------------------------------------------------------------------
-  typedef enum logic [1:0] {
-    OP_TRIANGLE  = 2'd0,
-    OP_QUADBOX   = 2'd1,
-    OP_EUCLIDEAN = 2'd2,
-    OP_ANGULAR   = 2'd3
+  typedef enum logic [2:0] {
+    OP_TRIANGLE  = 3'd0,
+    OP_QUADBOX   = 3'd1,
+    OP_EUCLIDEAN = 3'd2,
+    OP_ANGULAR   = 3'd3,
+    OP_TRANSFORM = 3'd4     // build parameter TRANSFORM (docs/transform.md)
   } opcode_e;
 
   // Request flags (SPEC 3): bit indices into req_t.flags; the other bits are reserved (0).
@@ -44,25 +45,40 @@ package rf_pkg;
   // Packed arrays put element 0 at the low end: box[i][j] is word 15 + 6*i + j.
   // ---------------------------------------------------------------------------------------------
   typedef struct packed {
-    logic  [30:0]     rsvd_80;            // word 80 [31:1]
+    logic  [15:0]     vec_mask;           // word 80 [31:16] (extended)
+    logic  [14:0]     rsvd_80;            // word 80 [15:1]
     logic             reset_accumulator;  // word 80 [0]     (extended)
     fp32_t [15:0]     vec_b;              // words 64..79  (extended)
     fp32_t [15:0]     vec_a;              // words 48..63  (extended)
     fp32_t [2:0][2:0] triangle;           // words 39..47  [vertex A,B,C][axis]
     fp32_t [3:0][5:0] box;                // words 15..38  box[i] = xmin ymin zmin xmax ymax zmax
+                                          //   (TRANSFORM: the matrix, req_matrix)
     fp32_t [2:0]      shear;              // words 12..14  Sx Sy Sz
     fp32_t            extent;             // word  11
     fp32_t [2:0]      inv;                // words  8..10  1/dir
     fp32_t [2:0]      dir;                // words  5..7
     fp32_t [2:0]      origin;             // words  2..4
-    logic  [15:0]     vec_mask;           // word 1 [31:16] (extended)
-    logic  [7:0]      flags;              // word 1 [15:8]  FLAG_* bits, part of the ray
-    logic  [1:0]      kz;                 // word 1 [7:6]
-    logic  [1:0]      ky;                 // word 1 [5:4]
-    logic  [1:0]      kx;                 // word 1 [3:2]
-    opcode_e          opcode;             // word 1 [1:0]
+    logic  [14:0]     rsvd_1;             // word 1 [31:17]
+    logic  [7:0]      flags;              // word 1 [16:9]  FLAG_* bits, part of the ray
+    logic  [1:0]      kz;                 // word 1 [8:7]
+    logic  [1:0]      ky;                 // word 1 [6:5]
+    logic  [1:0]      kx;                 // word 1 [4:3]
+    opcode_e          opcode;             // word 1 [2:0]
     logic  [31:0]     tag;                // word 0, carried through unchanged
   } req_t;
+
+  // A TRANSFORM's 3x4 matrix, row-major (m[r][c] is box word 4r + c): a TRANSFORM request carries
+  // it on the first 12 box words (driver/layout.py: request field matrix overlays box), i.e. the
+  // matrix is req_matrix(req.box).
+  localparam int unsigned MATRIX_WORDS = 12;
+  typedef fp32_t [2:0][3:0] matrix_t;
+  /* verilator lint_off UNUSEDSIGNAL */   // box words 12..23
+  function automatic matrix_t req_matrix(input fp32_t [3:0][5:0] box);
+    logic [$bits(box)-1:0] words;
+    words = box;
+    return matrix_t'(words[MATRIX_WORDS*32-1:0]);
+  endfunction
+  /* verilator lint_on UNUSEDSIGNAL */
 
   // The q8 box node as stored in the compressed BVH image (driver/layout.py Q8_NODE; 16 words,
   // word 0 at the low end). A QUADBOX with flags[FLAG_DECODE_Q8_BIT] carries it on the first 16
@@ -81,19 +97,21 @@ package rf_pkg;
   } q8_node_t;
 
   typedef struct packed {
+    fp32_t [2:0]      xf_dir;             // words 14..16  TRANSFORM: d'
+    fp32_t [2:0]      xf_origin;          // words 11..13  TRANSFORM: o'
     fp32_t            angular_norm;       // word 10
     fp32_t            angular_dot;        // word 9
     fp32_t            euclid_acc;         // word 8
     fp32_t            t_den;              // word 7
     fp32_t            t_num;              // word 6
     fp32_t [3:0]      box_tmin;           // words 2..5, sorted
-    logic  [14:0]     rsvd;               // word 1 [31:17]
-    logic             angular_last;       // word 1 [16]
-    logic             euclid_last;        // word 1 [15]
-    logic             tri_hit;            // word 1 [14]
-    logic  [3:0]      box_hit;            // word 1 [13:10], sorted
-    logic  [3:0][1:0] box_index;          // word 1 [9:2], sorted
-    opcode_e          opcode;             // word 1 [1:0]
+    logic  [13:0]     rsvd;               // word 1 [31:18]
+    logic             angular_last;       // word 1 [17]
+    logic             euclid_last;        // word 1 [16]
+    logic             tri_hit;            // word 1 [15]
+    logic  [3:0]      box_hit;            // word 1 [14:11], sorted
+    logic  [3:0][1:0] box_index;          // word 1 [10:3], sorted
+    opcode_e          opcode;             // word 1 [2:0]
     logic  [31:0]     tag;                // word 0
   } rsp_t;
 
@@ -190,6 +208,27 @@ package rf_pkg;
     fp32_t [ANG_LANES-1:0] norm;     // S1: candidate lanes b; S2: b*b, masked +0; S3..S5: tree
   } ang_t;
 
+  // TRANSFORM, R1
+  typedef struct packed {
+    logic [PAYLOAD_W-18*32-1:0] rsvd;
+    fp32_t [2:0]      dir;           // S1: d
+    fp32_t [2:0]      origin;        // S1: o
+    matrix_t          m;             // S1: m[r][c]
+  } xfm_in_t;
+
+  // TRANSFORM, R2..R9: the sums are written over their first operand, in the order of
+  // docs/transform.md: o'[r] = ((m[r][0]*o[0] + m[r][1]*o[1]) + m[r][2]*o[2]) + m[r][3],
+  // d'[r] = (m[r][0]*d[0] + m[r][1]*d[1]) + m[r][2]*d[2]
+  typedef struct packed {
+    logic [PAYLOAD_W-21*32-1:0] rsvd;
+    fp32_t [2:0]      t;             // S2: m[r][3]
+    fp32_t [2:0][2:0] pd;            // S2: m[r][c]*d[c]; S3: pd[r][0] += pd[r][1];
+                                     // S5: pd[r][0] += pd[r][2] = d'[r]
+    fp32_t [2:0][2:0] po;            // S2: m[r][c]*o[c]; S3: po[r][0] += po[r][1];
+                                     // S6 (r 0), S7 (r 1, 2): po[r][0] += po[r][2];
+                                     // S8: po[r][0] += t[r] = o'[r]
+  } xfm_t;
+
   typedef union packed {
     box_slab_t  box_slab;
     box_range_t box_range;
@@ -199,6 +238,8 @@ package rf_pkg;
     tri_edge_t  tri_edge;
     euc_t       euc;
     ang_t       ang;
+    xfm_in_t    xfm_in;
+    xfm_t       xfm;
   } payload_u;
 
   typedef struct packed {
@@ -208,14 +249,15 @@ package rf_pkg;
     payload_u         pl;            // the view that the operation and stage select
   } stage_t;
 
-  // Maximum of four pool demands (one per operation).
-  function automatic int unsigned max4(int unsigned a, int unsigned b, int unsigned c,
-                                       int unsigned d);
+  // Maximum of five pool demands (one per operation).
+  function automatic int unsigned max5(int unsigned a, int unsigned b, int unsigned c,
+                                       int unsigned d, int unsigned e);
     int unsigned m;
     m = a;
     if (b > m) m = b;
     if (c > m) m = c;
     if (d > m) m = d;
+    if (e > m) m = e;
     return m;
   endfunction
 

@@ -1,12 +1,14 @@
 // Stage 1, origin_sub (the input stage): convert the request into the stage struct and subtract
 // the origin (QUADBOX, TRIANGLE) or b (EUCLIDEAN).
+//   TRANSFORM       matrix, origin, dir pass through (xfm_in)
 //   QUADBOX   24 x  bound - origin            (box_slab.slab)
 //   TRIANGLE   9 x  P - origin                (tri_vert.p)
 //   EUCLIDEAN 16 x  a - b                     (euc.e)
 //   ANGULAR         lanes a, b pass through   (ang.dot, ang.norm)
 module rf_s01_origin_sub import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
-  parameter bit DISJOINT = 1'b0
+  parameter bit DISJOINT = 1'b0,
+  parameter bit TRANSFORM = 1'b0
 ) (
   input  req_t   req_i,
   output stage_t st_o
@@ -17,7 +19,7 @@ module rf_s01_origin_sub import rf_pkg::*; #(
   fp32_t [NT-1:0] tri_a, tri_b, tri_y;
   fp32_t [NB-1:0] box_a, box_b, box_y;
   fp32_t [(NE > 0 ? NE : 1)-1:0] euc_a, euc_b, euc_y;
-  fp32_t unused_ang_y;
+  fp32_t unused_ang_y, unused_xfm_y;
 
   always_comb begin
     for (int i = 0; i < 4; i++) begin
@@ -47,7 +49,8 @@ module rf_s01_origin_sub import rf_pkg::*; #(
            .tri_a_i(tri_a), .tri_b_i(tri_b), .tri_y_o(tri_y),
            .box_a_i(box_a), .box_b_i(box_b), .box_y_o(box_y),
            .euc_a_i(euc_a), .euc_b_i(euc_b), .euc_y_o(euc_y),
-           .ang_a_i(FP_POS_ZERO), .ang_b_i(FP_POS_ZERO), .ang_y_o(unused_ang_y));
+           .ang_a_i(FP_POS_ZERO), .ang_b_i(FP_POS_ZERO), .ang_y_o(unused_ang_y),
+           .xfm_a_i(FP_POS_ZERO), .xfm_b_i(FP_POS_ZERO), .xfm_y_o(unused_xfm_y));
 
   // ---- stage struct ----
   always_comb begin
@@ -88,6 +91,13 @@ module rf_s01_origin_sub import rf_pkg::*; #(
             st_o.pl.ang.dot[l]  = req_i.vec_a[l];
             st_o.pl.ang.norm[l] = req_i.vec_b[l];
           end
+        end
+      end
+      OP_TRANSFORM: begin
+        if (TRANSFORM) begin
+          st_o.pl.xfm_in.m      = req_matrix(req_i.box);
+          st_o.pl.xfm_in.origin = req_i.origin;
+          st_o.pl.xfm_in.dir    = req_i.dir;
         end
       end
       default: ;

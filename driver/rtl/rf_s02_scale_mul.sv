@@ -3,15 +3,18 @@
 //   TRIANGLE   9 x  Sx*P'[kz], Sy*P'[kz], Sz*P'[kz] per vertex (and selects P'[kx], P'[ky])
 //   EUCLIDEAN 16 x  (a - b)^2               masked lanes +0
 //   ANGULAR   16 x  a*b and b*b over 8 lanes, masked lanes +0
+//   TRANSFORM 18 x  m[r][c]*o[c], m[r][c]*d[c]   (r, c < 3; m[r][3] passes as t[r])
 module rf_s02_scale_mul import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
-  parameter bit DISJOINT = 1'b0
+  parameter bit DISJOINT = 1'b0,
+  parameter bit TRANSFORM = 1'b0
 ) (
   input  stage_t st_i,
   output stage_t st_o
 );
   localparam int unsigned NT = 9, NB = 24;
   localparam int unsigned NE = EXTENDED ? EUC_LANES : 0, NA = EXTENDED ? 2 * ANG_LANES : 0;
+  localparam int unsigned NX = TRANSFORM ? 18 : 0;
 
   // Component k (0, 1, 2 = x, y, z) of a 3-vector.
   function automatic fp32_t pick(fp32_t [2:0] v, logic [1:0] k);
@@ -22,6 +25,8 @@ module rf_s02_scale_mul import rf_pkg::*; #(
   tri_vert_t  v_tri;
   euc_t       v_euc;
   ang_t       v_ang;
+  xfm_in_t    v_xfm;
+  assign v_xfm = st_i.pl.xfm_in;
   assign v_box = st_i.pl.box_slab;
   assign v_tri = st_i.pl.tri_vert;
   assign v_euc = st_i.pl.euc;
@@ -32,6 +37,7 @@ module rf_s02_scale_mul import rf_pkg::*; #(
   fp32_t [NB-1:0] box_a, box_b, box_y;
   fp32_t [(NE > 0 ? NE : 1)-1:0] euc_a, euc_b, euc_y;
   fp32_t [(NA > 0 ? NA : 1)-1:0] ang_a, ang_b, ang_y;
+  fp32_t [(NX > 0 ? NX : 1)-1:0] xfm_a, xfm_b, xfm_y;
 
   always_comb begin
     for (int i = 0; i < 4; i++) begin
@@ -50,6 +56,18 @@ module rf_s02_scale_mul import rf_pkg::*; #(
     euc_b = '0;
     ang_a = '0;
     ang_b = '0;
+    xfm_a = '0;
+    xfm_b = '0;
+    if (TRANSFORM) begin
+      for (int r = 0; r < 3; r++) begin
+        for (int c = 0; c < 3; c++) begin
+          xfm_a[3*r+c]     = v_xfm.m[r][c];
+          xfm_b[3*r+c]     = v_xfm.origin[c];
+          xfm_a[9 + 3*r+c] = v_xfm.m[r][c];
+          xfm_b[9 + 3*r+c] = v_xfm.dir[c];
+        end
+      end
+    end
     if (EXTENDED) begin
       for (int l = 0; l < int'(EUC_LANES); l++) begin
         euc_a[l] = v_euc.e[l];
@@ -64,12 +82,14 @@ module rf_s02_scale_mul import rf_pkg::*; #(
     end
   end
 
-  rf_fu_pool #(.IS_MUL(1'b1), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(NB), .N_EUC(NE), .N_ANG(NA))
+  rf_fu_pool #(.IS_MUL(1'b1), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(NB), .N_EUC(NE), .N_ANG(NA),
+               .N_XFM(NX))
     u_mul (.op_i(st_i.op),
            .tri_a_i(tri_a), .tri_b_i(tri_b), .tri_y_o(tri_y),
            .box_a_i(box_a), .box_b_i(box_b), .box_y_o(box_y),
            .euc_a_i(euc_a), .euc_b_i(euc_b), .euc_y_o(euc_y),
-           .ang_a_i(ang_a), .ang_b_i(ang_b), .ang_y_o(ang_y));
+           .ang_a_i(ang_a), .ang_b_i(ang_b), .ang_y_o(ang_y),
+           .xfm_a_i(xfm_a), .xfm_b_i(xfm_b), .xfm_y_o(xfm_y));
 
   // ---- stage struct ----
   always_comb begin
@@ -102,6 +122,17 @@ module rf_s02_scale_mul import rf_pkg::*; #(
           for (int l = 0; l < int'(ANG_LANES); l++) begin
             st_o.pl.ang.dot[l]  = v_ang.mask[l] ? ang_y[l]             : FP_POS_ZERO;
             st_o.pl.ang.norm[l] = v_ang.mask[l] ? ang_y[ANG_LANES + l] : FP_POS_ZERO;
+          end
+        end
+      end
+      OP_TRANSFORM: begin
+        if (TRANSFORM) begin
+          for (int r = 0; r < 3; r++) begin
+            for (int c = 0; c < 3; c++) begin
+              st_o.pl.xfm.po[r][c] = xfm_y[3*r+c];
+              st_o.pl.xfm.pd[r][c] = xfm_y[9 + 3*r+c];
+            end
+            st_o.pl.xfm.t[r] = v_xfm.m[r][3];
           end
         end
       end

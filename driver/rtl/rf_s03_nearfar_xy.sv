@@ -3,14 +3,17 @@
 //   TRIANGLE   6 x  X = P'[kx] - Sx*P'[kz],  Y = P'[ky] - Sy*P'[kz]
 //   EUCLIDEAN  8 x  tree level 1: e[i] + e[i+8]
 //   ANGULAR    8 x  tree level 1: dot[i] + dot[i+4], norm[i] + norm[i+4]
+//   TRANSFORM  6 x  m[r][0]*o[0] + m[r][1]*o[1], m[r][0]*d[0] + m[r][1]*d[1]
 module rf_s03_nearfar_xy import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
-  parameter bit DISJOINT = 1'b0
+  parameter bit DISJOINT = 1'b0,
+  parameter bit TRANSFORM = 1'b0
 ) (
   input  stage_t st_i,
   output stage_t st_o
 );
   localparam int unsigned NT = 6, NE = EXTENDED ? 8 : 0, NA = EXTENDED ? 8 : 0;
+  localparam int unsigned NX = TRANSFORM ? 6 : 0;
 
   function automatic logic is_nan(logic [30:0] magnitude);
     return magnitude > 31'h7F80_0000;
@@ -20,6 +23,8 @@ module rf_s03_nearfar_xy import rf_pkg::*; #(
   tri_shear_t v_tri;
   euc_t       v_euc;
   ang_t       v_ang;
+  xfm_t       v_xfm;
+  assign v_xfm = st_i.pl.xfm;
   assign v_box = st_i.pl.box_slab;
   assign v_tri = st_i.pl.tri_shear;
   assign v_euc = st_i.pl.euc;
@@ -48,6 +53,7 @@ module rf_s03_nearfar_xy import rf_pkg::*; #(
   fp32_t [NT-1:0] tri_a, tri_b, tri_y;
   fp32_t [(NE > 0 ? NE : 1)-1:0] euc_a, euc_b, euc_y;
   fp32_t [(NA > 0 ? NA : 1)-1:0] ang_a, ang_b, ang_y;
+  fp32_t [(NX > 0 ? NX : 1)-1:0] xfm_a, xfm_b, xfm_y;
   fp32_t unused_box_y;
   always_comb begin
     for (int v = 0; v < 3; v++) begin
@@ -60,6 +66,16 @@ module rf_s03_nearfar_xy import rf_pkg::*; #(
     euc_b = '0;
     ang_a = '0;
     ang_b = '0;
+    xfm_a = '0;
+    xfm_b = '0;
+    if (TRANSFORM) begin
+      for (int r = 0; r < 3; r++) begin
+        xfm_a[r]     = v_xfm.po[r][0];
+        xfm_b[r]     = v_xfm.po[r][1];
+        xfm_a[3 + r] = v_xfm.pd[r][0];
+        xfm_b[3 + r] = v_xfm.pd[r][1];
+      end
+    end
     if (EXTENDED) begin
       for (int i = 0; i < 8; i++) begin
         euc_a[i] = v_euc.e[i];
@@ -74,12 +90,14 @@ module rf_s03_nearfar_xy import rf_pkg::*; #(
     end
   end
 
-  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(0), .N_EUC(NE), .N_ANG(NA))
+  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(0), .N_EUC(NE), .N_ANG(NA),
+               .N_XFM(NX))
     u_add (.op_i(st_i.op),
            .tri_a_i(tri_a), .tri_b_i(tri_b), .tri_y_o(tri_y),
            .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_y),
            .euc_a_i(euc_a), .euc_b_i(euc_b), .euc_y_o(euc_y),
-           .ang_a_i(ang_a), .ang_b_i(ang_b), .ang_y_o(ang_y));
+           .ang_a_i(ang_a), .ang_b_i(ang_b), .ang_y_o(ang_y),
+           .xfm_a_i(xfm_a), .xfm_b_i(xfm_b), .xfm_y_o(xfm_y));
 
   // ---- stage struct ----
   always_comb begin
@@ -113,6 +131,14 @@ module rf_s03_nearfar_xy import rf_pkg::*; #(
           for (int i = 0; i < 4; i++) begin
             st_o.pl.ang.dot[i]  = ang_y[i];
             st_o.pl.ang.norm[i] = ang_y[4 + i];
+          end
+        end
+      end
+      OP_TRANSFORM: begin
+        if (TRANSFORM) begin
+          for (int r = 0; r < 3; r++) begin
+            st_o.pl.xfm.po[r][0] = xfm_y[r];
+            st_o.pl.xfm.pd[r][0] = xfm_y[3 + r];
           end
         end
       end

@@ -34,7 +34,7 @@ module rf_s04_nearfar_z import rf_pkg::*; #(
 
   // ---- multiplier pool: the 2-D xprod products (vertex index 0, 1, 2 = A, B, C) ----
   fp32_t [MT-1:0] tri_ma, tri_mb, tri_my;
-  fp32_t          unused_box_my, unused_euc_my, unused_ang_my;
+  fp32_t          unused_box_my, unused_euc_my, unused_ang_my, unused_xfm_my;
   always_comb begin
     tri_ma[0] = v_tri.x[2];  tri_mb[0] = v_tri.y[1];   // Cx*By
     tri_ma[1] = v_tri.y[2];  tri_mb[1] = v_tri.x[1];   // Cy*Bx
@@ -48,7 +48,8 @@ module rf_s04_nearfar_z import rf_pkg::*; #(
            .tri_a_i(tri_ma), .tri_b_i(tri_mb), .tri_y_o(tri_my),
            .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_my),
            .euc_a_i(FP_POS_ZERO), .euc_b_i(FP_POS_ZERO), .euc_y_o(unused_euc_my),
-           .ang_a_i(FP_POS_ZERO), .ang_b_i(FP_POS_ZERO), .ang_y_o(unused_ang_my));
+           .ang_a_i(FP_POS_ZERO), .ang_b_i(FP_POS_ZERO), .ang_y_o(unused_ang_my),
+           .xfm_a_i(FP_POS_ZERO), .xfm_b_i(FP_POS_ZERO), .xfm_y_o(unused_xfm_my));
 
   // ---- adder pool: reduction trees (extended only) ----
   fp32_t [(AE > 0 ? AE : 1)-1:0] euc_ay;
@@ -56,7 +57,7 @@ module rf_s04_nearfar_z import rf_pkg::*; #(
   if (EXTENDED) begin : g_tree
     fp32_t [AE-1:0] euc_aa, euc_ab;
     fp32_t [AA-1:0] ang_aa, ang_ab;
-    fp32_t          unused_tri_ay, unused_box_ay;
+    fp32_t          unused_tri_ay, unused_box_ay, unused_xfm_ay;
     always_comb begin
       for (int i = 0; i < 4; i++) begin
         euc_aa[i] = v_euc.e[i];
@@ -74,7 +75,8 @@ module rf_s04_nearfar_z import rf_pkg::*; #(
              .tri_a_i(FP_POS_ZERO), .tri_b_i(FP_POS_ZERO), .tri_y_o(unused_tri_ay),
              .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_ay),
              .euc_a_i(euc_aa), .euc_b_i(euc_ab), .euc_y_o(euc_ay),
-             .ang_a_i(ang_aa), .ang_b_i(ang_ab), .ang_y_o(ang_ay));
+             .ang_a_i(ang_aa), .ang_b_i(ang_ab), .ang_y_o(ang_ay),
+             .xfm_a_i(FP_POS_ZERO), .xfm_b_i(FP_POS_ZERO), .xfm_y_o(unused_xfm_ay));
   end else begin : g_no_tree
     assign euc_ay = '0;
     assign ang_ay = '0;

@@ -3,19 +3,24 @@
 //   TRIANGLE   3 x  U = Cx*By - Cy*Bx,  V = Ax*Cy - Ay*Cx,  W = Bx*Ay - By*Ax
 //   EUCLIDEAN  2 x  tree level 3: e[i] + e[i+2]
 //   ANGULAR    2 x  tree level 3 (last): dot[0] + dot[1], norm[0] + norm[1]
+//   TRANSFORM  3 x  d'[r] = (m[r][0]*d[0] + m[r][1]*d[1]) + m[r][2]*d[2]
 module rf_s05_clamp_uvw import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
-  parameter bit DISJOINT = 1'b0
+  parameter bit DISJOINT = 1'b0,
+  parameter bit TRANSFORM = 1'b0
 ) (
   input  stage_t st_i,
   output stage_t st_o
 );
   localparam int unsigned NT = 3, NE = EXTENDED ? 2 : 0, NA = EXTENDED ? 2 : 0;
+  localparam int unsigned NX = TRANSFORM ? 3 : 0;
 
   box_range_t v_box;
   tri_edge_t  v_tri;
   euc_t       v_euc;
   ang_t       v_ang;
+  xfm_t       v_xfm;
+  assign v_xfm = st_i.pl.xfm;
   assign v_box = st_i.pl.box_range;
   assign v_tri = st_i.pl.tri_edge;
   assign v_euc = st_i.pl.euc;
@@ -35,6 +40,7 @@ module rf_s05_clamp_uvw import rf_pkg::*; #(
   fp32_t [NT-1:0] tri_a, tri_b, tri_y;
   fp32_t [(NE > 0 ? NE : 1)-1:0] euc_a, euc_b, euc_y;
   fp32_t [(NA > 0 ? NA : 1)-1:0] ang_a, ang_b, ang_y;
+  fp32_t [(NX > 0 ? NX : 1)-1:0] xfm_a, xfm_b, xfm_y;
   fp32_t unused_box_y;
   always_comb begin
     for (int k = 0; k < 3; k++) begin
@@ -45,6 +51,14 @@ module rf_s05_clamp_uvw import rf_pkg::*; #(
     euc_b = '0;
     ang_a = '0;
     ang_b = '0;
+    xfm_a = '0;
+    xfm_b = '0;
+    if (TRANSFORM) begin
+      for (int r = 0; r < 3; r++) begin
+        xfm_a[r] = v_xfm.pd[r][0];
+        xfm_b[r] = v_xfm.pd[r][2];
+      end
+    end
     if (EXTENDED) begin
       for (int i = 0; i < 2; i++) begin
         euc_a[i] = v_euc.e[i];
@@ -57,12 +71,14 @@ module rf_s05_clamp_uvw import rf_pkg::*; #(
     end
   end
 
-  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(0), .N_EUC(NE), .N_ANG(NA))
+  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(0), .N_EUC(NE), .N_ANG(NA),
+               .N_XFM(NX))
     u_add (.op_i(st_i.op),
            .tri_a_i(tri_a), .tri_b_i(tri_b), .tri_y_o(tri_y),
            .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_y),
            .euc_a_i(euc_a), .euc_b_i(euc_b), .euc_y_o(euc_y),
-           .ang_a_i(ang_a), .ang_b_i(ang_b), .ang_y_o(ang_y));
+           .ang_a_i(ang_a), .ang_b_i(ang_b), .ang_y_o(ang_y),
+           .xfm_a_i(xfm_a), .xfm_b_i(xfm_b), .xfm_y_o(xfm_y));
 
   // ---- stage struct ----
   always_comb begin
@@ -87,6 +103,11 @@ module rf_s05_clamp_uvw import rf_pkg::*; #(
         if (EXTENDED) begin
           st_o.pl.ang.dot[0]  = ang_y[0];
           st_o.pl.ang.norm[0] = ang_y[1];
+        end
+      end
+      OP_TRANSFORM: begin
+        if (TRANSFORM) begin
+          for (int r = 0; r < 3; r++) st_o.pl.xfm.pd[r][0] = xfm_y[r];
         end
       end
       default: ;

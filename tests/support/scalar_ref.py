@@ -17,6 +17,7 @@ Public surface:
   bytes with ``struct`` at the word positions of docs/q8_datapath.md, in Python floats)
 - ``euclid_beat(row)``, ``angular_beat(row)`` -> one beat's tree sums
   (docs/datapath.md#euclidean-and-angular)
+- ``transform(row)`` -> a TRANSFORM's (o', d') (docs/transform.md), element by element
 - ``ScalarState`` -> the two stateful accumulators (Euclidean; angular dot and norm) and cycle count
 - ``scalar_run(requests, state)`` -> ``RESPONSE_DTYPE`` array (same length and order)
 
@@ -35,8 +36,8 @@ import struct
 
 import numpy as np
 
-from driver.datapath import (ANGULAR, EUCLIDEAN, LATENCY, QUADBOX, RESPONSE_DTYPE, TRIANGLE,
-                             DatapathError)
+from driver.datapath import (ANGULAR, EUCLIDEAN, LATENCY, QUADBOX, RESPONSE_DTYPE, TRANSFORM,
+                             TRIANGLE, DatapathError)
 from driver.layout import FLAG_DECODE_Q8, FLAG_NO_CULL
 
 F32 = np.float32
@@ -286,13 +287,32 @@ def angular_beat(row):
     return tree(dots), tree(norms)
 
 
+def transform(row):
+    """TRANSFORM: (o', d') as two lists of three float32, one rounding per product and sum, in
+    the order o'[r] = ((m[r][0]*o[0] + m[r][1]*o[1]) + m[r][2]*o[2]) + m[r][3] and
+    d'[r] = (m[r][0]*d[0] + m[r][1]*d[1]) + m[r][2]*d[2]."""
+    m = [[F32(row["matrix"][r][c]) for c in range(4)] for r in range(3)]
+    o = [F32(x) for x in row["origin"]]
+    d = [F32(x) for x in row["dir"]]
+    o2, d2 = [], []
+    for r in range(3):
+        acc = add(mul(m[r][0], o[0]), mul(m[r][1], o[1]))
+        acc = add(acc, mul(m[r][2], o[2]))
+        o2.append(add(acc, m[r][3]))
+        acc = add(mul(m[r][0], d[0]), mul(m[r][1], d[1]))
+        d2.append(add(acc, mul(m[r][2], d[2])))
+    return o2, d2
+
+
 class ScalarState:
     """The datapath's state: accumulators (change only on accepted EUCLIDEAN/ANGULAR beats) and an
     ideal-pipeline cycle count (n + latency per non-empty run)."""
 
-    def __init__(self, extended: bool = True, latency: int = LATENCY, compressed: bool = True):
+    def __init__(self, extended: bool = True, latency: int = LATENCY, compressed: bool = True,
+                 transform: bool = True):
         self.extended = extended
         self.compressed = compressed
+        self.transform = transform
         self.latency = latency
         self.euclid_acc = ZERO
         self.angular_dot = ZERO
@@ -326,9 +346,10 @@ def scalar_run(requests: np.ndarray, state: ScalarState | None = None) -> np.nda
     Raises DatapathError (before touching any state) for opcodes the build does not have."""
     if state is None:
         state = ScalarState()
-    limit = 4 if state.extended else 2
+    ops = {TRIANGLE, QUADBOX} | ({EUCLIDEAN, ANGULAR} if state.extended else set()) | (
+        {TRANSFORM} if state.transform else set())
     for op, flags in zip(requests["opcode"], requests["flags"]):
-        if int(op) >= limit:
+        if int(op) not in ops:
             raise DatapathError(f"opcode {int(op)} not supported by this build")
         if int(flags) & FLAG_DECODE_Q8 and not state.compressed:
             raise DatapathError("FLAG_DECODE_Q8 needs a build with the q8 decode")
@@ -359,6 +380,11 @@ def scalar_run(requests: np.ndarray, state: ScalarState | None = None) -> np.nda
                 out["angular_dot"] = out_f32(dot)
                 out["angular_norm"] = out_f32(norm)
                 out["angular_last"] = last
+            elif op == TRANSFORM:
+                o2, d2 = transform(row)
+                for r in range(3):
+                    out["xf_origin"][r] = out_f32(o2[r])
+                    out["xf_dir"][r] = out_f32(d2[r])
     if len(requests):
         state.cycles += len(requests) + state.latency
     return rsp

@@ -39,8 +39,9 @@ import numpy as np
 
 import driver
 from driver import QUADBOX, REQUEST_DTYPE, TRIANGLE
-from driver.layout import (FLAG_DECODE_Q8, Q8_COUNT_LSB, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE,
-                           decode_q8, q8_count)
+from driver.datapath import transform_requests
+from driver.layout import (FLAG_DECODE_Q8, FLAG_NO_CULL, Q8_COUNT_LSB, Q8_EXP_MAX, Q8_EXP_MIN,
+                           Q8_NODE, decode_q8, q8_count)
 
 F32 = np.float32
 INF = np.inf
@@ -451,3 +452,64 @@ def extended_stream(seed, n_jobs=40, max_beats=12, n_box=300, n_tri=200):
         m = rng.random(len(jobs)) < 0.1
         jobs["box"][m] = random_bits(rng, (m.sum(), 4, 6))
     return interleave(rng, (e_jobs, a_jobs, other))
+
+
+# ----------------------------------------------------------------------------------------------
+# TRANSFORM
+
+def random_matrices(rng, n):
+    """(n, 3, 4) float32 matrices: rotations with translations, random entries at random scales
+    (huge and tiny: products overflow to inf and underflow to subnormals or zero), mirrors
+    (negative determinant), zero and rank-deficient matrices, and entries that are +-0,
+    subnormal, +-inf, NaN or random bit patterns."""
+    kind = rng.integers(0, 6, n)
+    m = (rng.normal(size=(n, 3, 4)) * 10.0 ** rng.uniform(-3, 3, (n, 1, 1))).astype(F32)
+    q, _ = np.linalg.qr(rng.normal(size=(n, 3, 3)))              # rotations or reflections
+    m[kind == 0, :, :3] = q[kind == 0]
+    huge = kind == 1
+    m[huge] *= rng.choice(np.array([1e-30, 1e-20, 1e20, 1e30], F32), (huge.sum(), 1, 1))
+    m[kind == 2, 0] *= F32(-1)                                   # mirror: det < 0
+    m[kind == 3] = 0
+    m[kind == 4, 2] = m[kind == 4, 0]                            # rank 2
+    special = rng.random((n, 3, 4)) < 0.04
+    m[special] = rng.choice(np.concatenate([SPECIALS, SUBNORMALS]), special.sum())
+    bits = rng.random((n, 3, 4)) < 0.01
+    m[bits] = random_bits(rng, bits.sum())
+    return m
+
+
+SPECIALS = np.array([0.0, -0.0, np.inf, -np.inf, np.nan, 1.0, -1.0, 3e38, -3e38], F32)
+
+
+def random_ray_vectors(rng, n):
+    """(n, 3) float32 origins or directions at random scales with special components (+-0,
+    subnormal, +-inf, NaN, random bit patterns)."""
+    v = (rng.normal(size=(n, 3)) * 10.0 ** rng.uniform(-20, 20, (n, 1))).astype(F32)
+    special = rng.random((n, 3)) < 0.04
+    v[special] = rng.choice(np.concatenate([SPECIALS, SUBNORMALS]), special.sum())
+    bits = rng.random((n, 3)) < 0.01
+    v[bits] = random_bits(rng, bits.sum())
+    return v
+
+
+def transform_requests_random(rng, n):
+    """TRANSFORM requests of random matrices and rays, garbage in every field they ignore (the
+    box words after the matrix, the triangle, the vectors, the ray's other fields)."""
+    donor = mixed_stream(int(rng.integers(1 << 30)), n, 0)
+    req = transform_requests(random_matrices(rng, n), random_ray_vectors(rng, n),
+                             random_ray_vectors(rng, n))
+    for f in ("inv", "extent", "kx", "ky", "kz", "shear", "tri"):
+        req[f] = donor[f]
+    req["flags"] = (rng.random(n) < 0.5) * FLAG_NO_CULL
+    req["vec_a"], req["vec_b"] = random_vectors(rng, n)
+    req["vec_mask"] = rng.integers(0, 2**16, n)
+    req["reset_accumulator"] = rng.random(n) < 0.5
+    return req
+
+
+def transform_stream(seed, n_xf, n_box, n_tri):
+    """TRANSFORM requests interleaved at random with QUADBOX/TRIANGLE requests."""
+    rng = np.random.default_rng(seed)
+    stream, _ = interleave(rng, (transform_requests_random(rng, n_xf),
+                                 mixed_stream(seed + 11, n_box, n_tri)))
+    return stream
