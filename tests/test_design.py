@@ -50,7 +50,7 @@ def test_defaults_are_the_rt_unit_and_memory_models_own():
             assert q.backend_options() == {"extended": bool(e), "disjoint": bool(d),
                                            "latency": 13, "compressed": bool(c)}
             assert q.rtl_params() == {"EXTENDED": e, "DISJOINT": d, "COMPRESSED": c,
-                                      "LATENCY": 13}
+                                      "TRANSFORM": 0, "LATENCY": 13}
         # the latency defaults to the configuration's least: the q8 decode adds a stage
         assert DesignPoint(config=name).latency == 11
         assert DesignPoint(config=name + Q8_SUFFIX).latency == 12
@@ -126,8 +126,8 @@ def test_render_rtunit_on_the_configuration(monkeypatch):
                         or real(rec, *a, **k))
     pt = DesignPoint(config="baseline-disjoint", size=8, rays_in_flight=4, cache_kib=16)
     res = render("sphere", 8, 8, backend="rtl", progress=False, point=pt, rtunit=True)
-    assert seen and all(p == {"EXTENDED": 0, "DISJOINT": 1, "COMPRESSED": 0, "LATENCY": 11}
-                        for p in seen)
+    assert seen and all(p == {"EXTENDED": 0, "DISJOINT": 1, "COMPRESSED": 0, "TRANSFORM": 0,
+                              "LATENCY": 11} for p in seen)
     assert res.stats["rtunit"]["rays_in_flight"] == 4 and res.stats["rtunit"]["responses_verified"]
     assert res.stats["rtunit_memory"]["cycles"] > res.stats["rtunit"]["cycles"]
     assert stats.WAVEFRONT in res.stats and res.stats["by_type"]["primary"]["rtunit"]
