@@ -24,7 +24,7 @@ T_REL = 1e-5          # relative t agreement of an edge tie
 POINT_REL = 1e-5      # hit point to triangle distance, relative to the scene's coordinate scale
 MAX_RECAST = 64       # bounded back-face re-casting per ray
 NEAR_REL = 1e-3       # t errors of hits nearer than this fraction of the scene's size: see check_rays
-SPEC_KEYS = ("rays_compared", "hit_mismatch", "prim_mismatch", "edge_ties", "max_t_rel_err")
+EMBREE_KEYS = ("rays_compared", "hit_mismatch", "prim_mismatch", "edge_ties", "max_t_rel_err")
 
 
 def embree_closest_front(triangles, origins, dirs):
@@ -131,7 +131,7 @@ def compare(our_t, our_prim, emb_t, emb_prim, triangles, origins, dirs) -> dict:
 def embree_json(result: dict) -> dict:
     """The docs/datapath.md#statistics ``embree`` object (plus ``agree``) from a ``compare``
     result."""
-    return {k: result[k] for k in SPEC_KEYS + ("agree",)}
+    return {k: result[k] for k in EMBREE_KEYS + ("agree",)}
 
 
 def check(triangles, origins, dirs, our_t, our_prim, double_sided: bool = False) -> dict:

@@ -8,7 +8,7 @@ import pytest
 
 import driver
 from driver.scenes.camera import primary_rays
-from driver.check import (SPEC_KEYS, compare, embree_closest_front, embree_json,
+from driver.check import (EMBREE_KEYS, compare, embree_closest_front, embree_json,
                           point_triangle_distance)
 from driver.datapath import TRIANGLE, prepare_rays
 from driver.scenes.scene import load_scene
@@ -134,7 +134,7 @@ def test_compare_classifies_each_kind():
     assert c["hit_mismatch"] == 1 and c["hit_mismatch_rays"].tolist() == [3]
     assert c["max_t_rel_err"] == pytest.approx(0.8)
     j = embree_json(c)
-    assert set(SPEC_KEYS) <= set(j) and all(np.isscalar(v) for v in j.values())
+    assert set(EMBREE_KEYS) <= set(j) and all(np.isscalar(v) for v in j.values())
 
 
 def test_compare_same_t_but_not_on_the_other_triangle_is_a_mismatch():

@@ -16,7 +16,7 @@ package rf_pkg;
   localparam fp32_t FP_POS_INF   = 32'h7F80_0000;
 
   // ---------------------------------------------------------------------------------------------
-  // Opcodes (SPEC section 3).
+  // Opcodes (docs/datapath.md#requests-and-responses).
   // ---------------------------------------------------------------------------------------------
   typedef enum logic [2:0] {
     OP_TRIANGLE  = 3'd0,
@@ -26,8 +26,8 @@ package rf_pkg;
     OP_TRANSFORM = 3'd4     // build parameter TRANSFORM (docs/transform.md)
   } opcode_e;
 
-  // Request flags (SPEC 3): bit indices into req_t.flags; the other bits are reserved (0).
-  localparam int unsigned FLAG_NO_CULL_BIT   = 0;  // TRIANGLE accepts both faces (SPEC 5)
+  // Request flags (docs/datapath.md#flags): bit indices into req_t.flags; the other bits are reserved (0).
+  localparam int unsigned FLAG_NO_CULL_BIT   = 0;  // TRIANGLE accepts both faces (docs/datapath.md#triangle)
   localparam int unsigned FLAG_DECODE_Q8_BIT = 1;  // QUADBOX: decode the q8 node req_qnode(req)
 
   localparam int unsigned EUC_LANES = 16;

@@ -1,6 +1,6 @@
 // Stage 9, sort_trihit: sorting network layer 2; the triangle hit test.
 //   QUADBOX   sorting network layer 2 (last)
-//   TRIANGLE  hit test of SPEC 5, both faces when the ray's NO_CULL flag is set (NaN misses)
+//   TRIANGLE  hit test of docs/datapath.md#triangle, both faces when the ray's NO_CULL flag is set (NaN misses)
 module rf_s09_sort_trihit import rf_pkg::*; (
   input  stage_t st_i,
   output stage_t st_o
@@ -30,7 +30,7 @@ module rf_s09_sort_trihit import rf_pkg::*; (
   rf_fp_cmp u_den (.a_i(FP_POS_ZERO), .b_i(v_tri.den), .lt_o(den_pos), .le_o(unused_den_le),
                    .eq_o(den_zero), .unord_o(unused_den_unord));
 
-  // SPEC 5. Front face: U, V, W >= 0; with NO_CULL also the back face: U, V, W <= 0. Then
+  // docs/datapath.md#triangle. Front face: U, V, W >= 0; with NO_CULL also the back face: U, V, W <= 0. Then
   // t_den != 0 and t_num on the side of t_den: t_num >= 0 if t_den > 0, else t_num <= 0.
   // Without NO_CULL this is the paper's rule (U, V, W >= 0, t_num >= 0, t_den != 0): with U, V,
   // W >= 0 (so none is NaN) the sum t_den is >= 0 and not NaN, so t_den != 0 means t_den > 0.

@@ -6,7 +6,7 @@
 //
 // rf_run streams ready-made request words. rf_run_nodes streams traversal requests that it
 // assembles itself, as an RT unit would, from a ray table (the first kRayWords wire words of each
-// prepared ray) and the BVH4 memory image (SPEC section 8): QUADBOX for a box-node pointer (the
+// prepared ray) and the BVH4 memory image (docs/datapath.md#bvh4-image): QUADBOX for a box-node pointer (the
 // four child boxes), TRIANGLE for a triangle-node pointer (A, B, C). Both drive in_valid/out_ready
 // from two repeating 0/1 patterns (input gaps and output stalls), so a Python cycle-by-cycle
 // driver given the same patterns sees the same cycles. Cycles are counted from the cycle in which

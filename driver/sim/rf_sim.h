@@ -2,7 +2,7 @@
 // streaming calls (rayflex_harness.cpp) and the RT-unit scheduler (rtunit_scheduler.cpp).
 //
 // Every word index, bit position, opcode and node-layout constant comes from rf_layout.h, which
-// driver/layout.py generates at build time from its tables (SPEC sections 3 and 8).
+// driver/layout.py generates at build time from its tables (docs/datapath.md: requests and responses, BVH4 image).
 #pragma once
 
 #include <cmath>
