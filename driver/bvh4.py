@@ -76,10 +76,10 @@ import numpy as np
 # the names are re-exported for users
 from .layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, FLAG_DECODE_Q8, IMAGE_FORMATS,  # noqa: F401
                      NO_CHILD, QNODE_WORDS,
-                     GROUP_TYPE, PAIR_BYTES, PAIR_NODE, PAIR_SECOND_TYPE, PAIR_TYPE, Q8_BYTES,
-                     Q8_NODE,
-                     Q8_TYPE, QUADBOX, TRI_BYTES, TRI_NODE, TRI_TYPE, TRIANGLE, NodeRef,
-                     decode_q8, node_word, pair_triangles, read_nodes)
+                     GROUP_BYTES, GROUP_NODE, GROUP_TYPE, LEAF_NEXT_TYPE, LEAF_OFFSET_LIMIT,
+                     PAIR_BYTES, PAIR_NODE, PAIR_TYPE, Q8_BYTES, Q8_NODE, Q8_TYPE, QUADBOX,
+                     TRI_BYTES, TRI_NODE, TRI_TYPE, TRIANGLE, NodeRef, decode_q8,
+                     leaf_triangles, node_word, pair_triangles, read_nodes)
 
 PAD_REL = 2.0 ** -16
 from .bvh.params import SWEEP_MAX  # noqa: E402  (nodes of <= 8 primitives: exact SAH sweep)
@@ -93,7 +93,7 @@ class BVH4:
     image : (bytes,) uint8, the memory image (layout in the module docstring; ``format="q8"``:
         docs/compressed.md)
     format : "box32" (the layout above), "q8" (64-byte quantized box nodes, pair leaves) or
-        "q8g" (q8 with group leaves of two pairs)
+        "q8g" (q8 with 128-byte group leaves of 3 to 6 triangles sharing vertices)
     root : int, pointer of the root box node (offset 0, so 5 for box32 and 4 for q8)
     triangles : (n, 3, 3) float32, the input triangles; primitive id i is ``triangles[i]``
     stats : dict with ``box_nodes``, ``tri_nodes``, ``depth`` (box-node levels on the longest
@@ -149,8 +149,8 @@ class BVH4:
 
     def tri_nodes(self, ptrs):
         """Decode the triangles that triangle requests name. ptrs : (m,) uint32 pointers of
-        triangle nodes, pair leaves (their first triangle) or ``PAIR_SECOND_TYPE`` (a pair's
-        second triangle).
+        triangle nodes, pair or group leaves (their first triangle) or ``LEAF_NEXT_TYPE`` (a
+        leaf's later triangle).
 
         Returns (tris (m, 3, 3) float32, prim (m,) int64), read from ``image``."""
         ptrs = np.asarray(ptrs, np.uint32)
@@ -202,24 +202,21 @@ def box_operands(image, ptrs):
 
 def tri_operands(image, ptrs):
     """(tris (m, 3, 3) float32, prim (m,) int64) named by triangle request pointers: a triangle
-    node, a pair leaf or a group leaf (the first pair's first triangle) or ``PAIR_SECOND_TYPE``
-    (a pair's second)."""
+    node, a pair or group leaf (its first triangle) or ``LEAF_NEXT_TYPE`` (a leaf's later
+    triangle, ``driver.layout.leaf_triangles``)."""
     ptrs = np.asarray(ptrs, np.uint32)
     tris = np.empty((len(ptrs), 3, 3), np.float32)
     prim = np.empty(len(ptrs), np.int64)
     typ = NodeRef.type(ptrs)
+    if not np.isin(typ, (TRI_TYPE, PAIR_TYPE, GROUP_TYPE, LEAF_NEXT_TYPE)).all():
+        raise ValueError("a pointer is not a triangle request pointer")
     sel = np.flatnonzero(typ == TRI_TYPE)
     if len(sel):
         nodes = read_nodes(image, ptrs[sel], TRI_NODE)
         tris[sel], prim[sel] = nodes["tri"], nodes["prim"]
-    for half, t in ((0, PAIR_TYPE), (0, GROUP_TYPE), (1, PAIR_SECOND_TYPE)):
-        sel = np.flatnonzero(typ == t)
-        if len(sel):
-            nodes = read_nodes(image, ptrs[sel], PAIR_NODE)
-            tris[sel] = pair_triangles(nodes)[:, half]
-            prim[sel] = nodes["prim"][:, half]
-    if not np.isin(typ, (TRI_TYPE, PAIR_TYPE, GROUP_TYPE, PAIR_SECOND_TYPE)).all():
-        raise ValueError("a pointer is not a triangle request pointer")
+    sel = np.flatnonzero(typ != TRI_TYPE)
+    if len(sel):
+        tris[sel], prim[sel] = leaf_triangles(image, ptrs[sel])
     return tris, prim
 
 
@@ -510,24 +507,27 @@ def _write_image(levels, left, prim, node_lo, node_hi, node_area, tris):
 
 def _write_q8_image(levels, left, prim, node_lo, node_hi, pairs, groups, tris):
     """Number nodes, quantize and fill the q8/q8g image (``driver.bvh.q8``): q8 box nodes
-    breadth first from offset 0, then the leaves (pair leaves, group leaves of ``groups``) in
-    the order they are referenced. Returns (image, depth, sah_cost from the decoded boxes,
-    child histogram)."""
+    breadth first from offset 0, then the leaves (pair leaves, group leaves of ``groups``, the
+    four arrays of ``driver.bvh.q8.group_leaves``) in the order they are referenced. Returns
+    (image, depth, sah_cost from the decoded boxes, child histogram)."""
     from .bvh.q8 import _quantize, facing, verify_containment
-    first, second, idx, v3, _ = pairs
+    first, second, idx, v3 = pairs[:4]
+    members, gtri, gvert, gidx = groups
     n_box = sum(len(s) for s in levels)
-    total = Q8_BYTES * n_box + PAIR_BYTES * len(first)       # every pair in one 64-byte slot
-    if total >= 1 << 35:
-        raise ValueError(f"BVH image of {total} bytes exceeds the 32 GiB a uint32 pointer reaches")
+    n_slots = len(first) - int((members >= 0).sum()) + 2 * len(members)   # 64-byte leaf slots
+    total = Q8_BYTES * n_box + PAIR_BYTES * n_slots
+    if total > LEAF_OFFSET_LIMIT:
+        raise ValueError(f"BVH image of {total} bytes: the leaves of a q8 image must lie in its "
+                         f"first {LEAF_OFFSET_LIMIT >> 30} GiB")
     slots = np.concatenate(levels)
     image = np.zeros(total, np.uint8)
     qn = image[:Q8_BYTES * n_box].view(Q8_NODE)
-    pn = image[Q8_BYTES * n_box:].view(PAIR_NODE)
+    lw = image[Q8_BYTES * n_box:].view("<u4").reshape(n_slots, PAIR_BYTES // 4)
     ref = np.empty((n_box, 4, 6), np.float32)
     box0, box1 = NodeRef.encode([0, Q8_BYTES], Q8_TYPE).astype(np.int64)
-    bad = _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, groups, tris,
-                    facing(tris, first, second, groups), qn["origin"], qn["exp"], qn["child"],
-                    qn["q"], qn["parent"], ref, pn["v"], pn["prim"], pn["idx"],
+    bad = _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, gtri, gvert,
+                    gidx, tris, facing(tris, first, second, members), qn["origin"], qn["exp"],
+                    qn["child"], qn["q"], qn["parent"], ref, lw, lw.view("<f4"),
                     (box0, box1 - box0), Q8_BYTES * n_box, (PAIR_TYPE, GROUP_TYPE), NO_CHILD)
     if bad:
         raise ValueError("q8 image: the scene's extent needs a plane exponent above "
@@ -565,8 +565,9 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
         module docstring's layout), "q8" (docs/compressed.md: triangles sharing an edge are
         paired first and each pair is one leaf primitive of the build; 64-byte quantized box
         nodes whose decoded child boxes contain the box32 stored boxes; 64-byte pair leaves) or
-        "q8g" (q8 where every binary node with two leaf children becomes one 128-byte group
-        leaf of two pairs)
+        "q8g" (q8 where the subtrees of 3 to 6 triangles that the SAH trade-off of
+        ``driver.bvh.q8.group_leaves`` picks become 128-byte group leaves sharing up to 8
+        vertices)
     Degenerate (zero-area) triangles are kept (the datapath never hits them).
     Raises ValueError for an empty input, a wrong shape, non-finite coordinates or a bad option."""
     t0 = time.perf_counter()
@@ -605,10 +606,10 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
         if collapse == "greedy":                            # from the exact boxes
             greedy_area = _half_area(node_lo.astype(np.float64), node_hi)
         node_area = bvh_build.grow_boxes(node_lo, node_hi, pad)      # in place: stored boxes
-        groups = np.zeros((0, 2), np.int64)
-        if format == "q8g":
+        groups = None
+        if format != "box32":
             from .bvh.q8 import group_leaves
-            groups = group_leaves(left, right, prim, len(prims))
+            groups = group_leaves(left, right, prim, node_area, pairs, format == "q8g")
         if collapse == "sah":
             levels = bvh_build.collapse_sah(left, right, node_area)
         else:
@@ -622,8 +623,11 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
                                                       pairs, groups, tris)
     n_box = sum(len(s) for s in levels)
     paired = 0 if pairs is None else 2 * int((pairs[1] >= 0).sum())
+    n_groups = 0 if groups is None else len(groups[0])
+    leaves = len(prims) if groups is None else len(prims) - int((groups[0] >= 0).sum()) + n_groups
     stats = {"format": format, "box_nodes": n_box, "tri_nodes": len(tris),
-             "leaf_nodes": len(prims) - len(groups), "group_leaves": len(groups),
+             "leaf_nodes": leaves, "group_leaves": n_groups,
+             "grouped_triangles": 0 if groups is None else int((groups[1] >= 0).sum()),
              "depth": depth, "sah_cost": sah, "fill": int(fill),
              "build_s": time.perf_counter() - t0, "bytes": int(image.nbytes),
              "bytes_per_triangle": image.nbytes / len(tris), "pair_ratio": paired / len(tris),

@@ -9,7 +9,8 @@ This table is the single source of truth on the host side for
   (docs/datapath.md#requests-and-responses) and the pack and unpack functions are derived from it;
 - the **BVH4 node image** (docs/datapath.md#bvh4-image): node pointers (``NodeRef``), the box and
   triangle node structs as numpy dtypes (``BOX_NODE``, ``TRI_NODE``), and those of the compressed
-  images (``Q8_NODE``, ``PAIR_NODE``, the type codes and ``NODE_BYTES``: docs/compressed.md);
+  images (``Q8_NODE``, ``PAIR_NODE``, ``GROUP_NODE``, the type codes and ``NODE_BYTES``:
+  docs/compressed.md);
 - the **C header** of the harness (``c_header()``), generated from these tables at build time into
   the build cache (never committed), so ``sim/rayflex_harness.cpp`` names no word index itself.
 
@@ -344,7 +345,7 @@ class NodeRef:
 
     @staticmethod
     def retype(ptrs, node_type) -> np.ndarray:
-        """The same offsets with another type code (e.g. ``PAIR_SECOND_TYPE``)."""
+        """The same offsets with another type code (e.g. ``LEAF_NEXT_TYPE``)."""
         keep = np.uint32(~_TYPE_MASK & 0xFFFFFFFF)
         return (np.asarray(ptrs, np.uint32) & keep) | np.uint32(node_type)
 
@@ -386,26 +387,48 @@ Q8_BYTES = Q8_NODE.itemsize
 PAIR_BYTES = PAIR_NODE.itemsize
 assert Q8_BYTES == 64 == 4 * QNODE_WORDS and PAIR_BYTES == 64
 
-# A request pointer, never stored in an image: the second triangle of the pair leaf at this
-# offset. A pair leaf is two TRIANGLE requests of the same ray, prim0 first; the traversal
-# issues the first with the leaf's own pointer and pushes this one for the second, so every
-# request names its operand by one pointer (the harness, the replay and the Python issuer read
-# the second triangle's vertices v[i0], v[i1], v[i2] from the same 64-byte node).
-PAIR_SECOND_TYPE = 3
-# The group leaf (the "q8g" image): two pair leaves back to back, 128 bytes, up to 4 triangles,
-# one child slot of its parent. Its pointer names the first pair (a request fetches and reads
-# that half, as a pair leaf's pointer); the second half is the pair leaf at offset + 64, which
-# the traversal pushes as an ordinary PAIR_TYPE pointer (so it is fetched when it is reached).
+# The group leaf (type 2, the "q8g" image), 128 bytes: 3 to 6 triangles sharing up to 8 vertices,
+# one child slot of its parent. Its first 64 bytes are a complete pair leaf (PAIR_NODE: vertices
+# v0..v3, prim[0..1], triangle 1's 2-bit selectors in idx bits 5:0); the second 64 bytes hold
+# vertices v4..v7 and prim[2..5]. Triangle k >= 2 is (v[a], v[b], v[c]) with 3-bit selectors at
+# bits 6 + 9 (k - 2) + 3 j of the 64-bit ``idx`` (j = 0, 1, 2: each triangle in its input vertex
+# order), and bits 50:48 of ``idx`` hold the triangle count (a pair leaf's are 0: its word 15 is
+# 0). Unused prims are NO_CHILD.
 GROUP_TYPE = 2
-GROUP_BYTES = 2 * PAIR_BYTES
-NODE_BYTES.update({Q8_TYPE: Q8_BYTES, PAIR_TYPE: PAIR_BYTES, PAIR_SECOND_TYPE: 0,
-                   GROUP_TYPE: PAIR_BYTES})
-#   node bytes an RT unit fetches for a request of each pointer type: the second triangle of a
-#   pair is in the node the ray fetched for the first (0 more bytes)
-NODE_OPCODE.update({Q8_TYPE: QUADBOX, PAIR_TYPE: TRIANGLE, PAIR_SECOND_TYPE: TRIANGLE,
+GROUP_NODE = np.dtype([
+    ("v", "<f4", (4, 3)),       # v0..v3; triangle 0 = (v0, v1, v2)
+    ("prim", "<u4", (2,)),      # primitive ids of triangles 0 and 1
+    ("idx", "<u8"),             # selectors (above) and, bits 50:48, the triangle count (3..6)
+    ("v2", "<f4", (4, 3)),      # v4..v7
+    ("prim2", "<u4", (4,)),     # primitive ids of triangles 2..5 (NO_CHILD unused)
+])
+GROUP_BYTES = GROUP_NODE.itemsize
+GROUP_MAX_TRIS, GROUP_MAX_VERTS = 6, 8
+GROUP_SEL_LSB, GROUP_SEL_BITS = 6, 9        # triangle k >= 2: bits 6 + 9 (k - 2) .. + 8
+GROUP_COUNT_LSB = 48                       # bits 50:48 of idx: the triangle count
+assert GROUP_BYTES == 128 and GROUP_NODE.fields["idx"][1] == PAIR_NODE.fields["idx"][1] == 56
+assert GROUP_SEL_LSB + GROUP_SEL_BITS * (GROUP_MAX_TRIS - 2) <= GROUP_COUNT_LSB
+
+# A request pointer, never stored in an image: a later triangle of the leaf the ray already
+# holds (the pair or group leaf at this pointer's offset). A leaf is one TRIANGLE request per
+# triangle of the same ray, in order: the traversal issues triangle 0 with the leaf's own
+# pointer and pushes this one for the next, so every request names its operand by one pointer
+# (the harness, the replay and the Python issuer read the triangle from the leaf).
+# Bits 31:29 hold the triangle's index - 1 (0 for a pair's second triangle), bits 28:3 the
+# leaf's byte offset >> 6 << 3 as in any pointer: so a q8 or q8g image's leaves lie in its first
+# 4 GiB (LEAF_OFFSET_LIMIT, checked by the build).
+LEAF_NEXT_TYPE = 3
+LEAF_INDEX_LSB = 29
+LEAF_OFFSET_LIMIT = 1 << (LEAF_INDEX_LSB + 3)
+NODE_BYTES.update({Q8_TYPE: Q8_BYTES, PAIR_TYPE: PAIR_BYTES, LEAF_NEXT_TYPE: 0,
+                   GROUP_TYPE: GROUP_BYTES})
+#   node bytes an RT unit fetches for a request of each pointer type: a leaf's later triangles
+#   are in the node the ray fetched for its first (0 more bytes); a group leaf is fetched whole
+#   (two 64-byte lines)
+NODE_OPCODE.update({Q8_TYPE: QUADBOX, PAIR_TYPE: TRIANGLE, LEAF_NEXT_TYPE: TRIANGLE,
                     GROUP_TYPE: TRIANGLE})
 # the node images ``driver.bvh4.build`` writes (docs/compressed.md): box32; q8 (q8 box nodes,
-# pair leaves); q8g (q8 box nodes, pair leaves and group leaves of two pairs)
+# pair leaves); q8g (q8 box nodes, pair leaves and group leaves of 3 to 6 triangles)
 IMAGE_FORMATS = ("box32", "q8", "q8g")
 assert Q8_NODE.fields["q"][1] == 32 and Q8_NODE.fields["exp"][1] == 12
 
@@ -464,6 +487,72 @@ def pair_triangles(nodes: np.ndarray) -> np.ndarray:
     return np.stack([v[:, :3], second], axis=1).astype(np.float32)
 
 
+def leaf_request(ptrs):
+    """(word offset (m,) int64 of the leaf, triangle index k (m,) int64) of triangle request
+    pointers: a triangle node, pair or group leaf (k = 0) or ``LEAF_NEXT_TYPE`` (k = bits
+    31:29 + 1)."""
+    ptrs = np.asarray(ptrs, np.uint32)
+    nxt = NodeRef.type(ptrs) == LEAF_NEXT_TYPE
+    k = np.where(nxt, (ptrs >> np.uint32(LEAF_INDEX_LSB)).astype(np.int64) + 1, 0)
+    p = np.where(nxt, ptrs & np.uint32((1 << LEAF_INDEX_LSB) - 1), ptrs)
+    return NodeRef.word(p), k
+
+
+def leaf_next(ptrs, k) -> np.ndarray:
+    """``LEAF_NEXT_TYPE`` pointers naming triangle k (>= 1) of the leaves at ``ptrs``."""
+    k = np.asarray(k, np.int64)
+    word = leaf_request(ptrs)[0]
+    if (word >= LEAF_OFFSET_LIMIT >> 2).any():
+        raise ValueError("a leaf's later triangles are addressable in the first 4 GiB only")
+    return (NodeRef.encode(word << 2, LEAF_NEXT_TYPE)
+            | ((k - 1).astype(np.uint32) << np.uint32(LEAF_INDEX_LSB))).astype(np.uint32)
+
+
+def leaf_prim_word(ptrs) -> np.ndarray:
+    """(m,) int64 image word of the primitive id of each triangle request (``leaf_request``):
+    a triangle node's, or prim[k] of a pair or group leaf."""
+    ptrs = np.asarray(ptrs, np.uint32)
+    word, k = leaf_request(ptrs)
+    tri = NodeRef.type(ptrs) == TRI_TYPE
+    return word + np.where(tri, node_word(TRI_NODE, "prim"),
+                           np.where(k < 2, node_word(GROUP_NODE, "prim") + k,
+                                    node_word(GROUP_NODE, "prim2") + k - 2))
+
+
+def leaf_count(image, ptrs) -> np.ndarray:
+    """(m,) int64 triangles in the pair or group leaves that ``ptrs`` (leaf or
+    ``LEAF_NEXT_TYPE`` pointers) name: 1 or 2 for a pair, 3..6 for a group."""
+    words = np.asarray(image).reshape(-1).view("<u4")
+    ptrs = np.asarray(ptrs, np.uint32)
+    word = leaf_request(ptrs)[0]
+    hi = words[word + node_word(GROUP_NODE, "idx") + 1].astype(np.int64)
+    count = (hi >> (GROUP_COUNT_LSB - 32)) & 7
+    pair = 1 + (words[word + node_word(PAIR_NODE, "prim") + 1] != NO_CHILD)
+    return np.where(count > 0, count, pair)
+
+
+def leaf_triangles(image, ptrs):
+    """(tris (m, 3, 3) float32, prim (m,) int64) of pair, group and ``LEAF_NEXT_TYPE`` request
+    pointers: triangle k of the leaf (``leaf_request``), its vertices in their stored order."""
+    words = np.asarray(image).reshape(-1).view("<u4")
+    word, k = leaf_request(ptrs)
+    base = word[:, None]
+    sel_word = node_word(GROUP_NODE, "idx")
+    sel = (words[base[:, 0] + sel_word].astype(np.uint64)
+           | (words[base[:, 0] + sel_word + 1].astype(np.uint64) << np.uint64(32)))
+    j = np.arange(3)
+    k2 = np.maximum(k - 2, 0)[:, None]
+    shift = np.where(k[:, None] >= 2, GROUP_SEL_LSB + GROUP_SEL_BITS * k2 + 3 * j, 2 * j)
+    mask = np.where(k[:, None] >= 2, 7, 3)
+    v = (sel[:, None] >> shift.astype(np.uint64)).astype(np.int64) & mask
+    v = np.where(k[:, None] == 0, j, v)                                  # (m, 3) vertex slots
+    vw = np.where(v < 4, node_word(GROUP_NODE, "v") + 3 * v,
+                  node_word(GROUP_NODE, "v2") + 3 * (v - 4))
+    tris = words[base[:, :, None] + vw[:, :, None] + j].view(np.float32)
+    prim = words[leaf_prim_word(ptrs)].astype(np.int64)
+    return tris.reshape(-1, 3, 3), prim
+
+
 def node_word(node: np.dtype, field: str) -> int:
     """Word offset of ``field`` inside a node struct."""
     return node.fields[field][1] // 4
@@ -500,8 +589,12 @@ def c_header() -> str:
     const("kTriType", TRI_TYPE, "uint32_t")
     const("kQ8Type", Q8_TYPE, "uint32_t")
     const("kPairType", PAIR_TYPE, "uint32_t")
-    const("kPairSecondType", PAIR_SECOND_TYPE, "uint32_t")
+    const("kLeafNextType", LEAF_NEXT_TYPE, "uint32_t")
+    const("kLeafIndexLsb", LEAF_INDEX_LSB)
     const("kGroupType", GROUP_TYPE, "uint32_t")
+    const("kGroupSelLsb", GROUP_SEL_LSB)
+    const("kGroupSelBits", GROUP_SEL_BITS)
+    const("kGroupCountLsb", GROUP_COUNT_LSB)
     const("kQ8CountLsb", Q8_COUNT_LSB)
     const("kNoChild", NO_CHILD, "uint32_t")
     node_bytes = ", ".join(str(NODE_BYTES.get(t, 0)) for t in range(_TYPE_MASK + 1))
@@ -510,7 +603,7 @@ def c_header() -> str:
     const("kTypeMask", _TYPE_MASK, "uint32_t")
     const("kPtrShift", _PTR_SHIFT)
     for prefix, node in (("kBoxNode", BOX_NODE), ("kTriNode", TRI_NODE), ("kQ8Node", Q8_NODE),
-                         ("kPairNode", PAIR_NODE)):
+                         ("kPairNode", PAIR_NODE), ("kGroupNode", GROUP_NODE)):
         const(f"{prefix}Words", node.itemsize // 4)
         for fname in node.names:
             sub = node.fields[fname][0]

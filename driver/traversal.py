@@ -7,11 +7,10 @@ pops one node and turns it into one datapath request:
   the response lists the children nearest first (``box_index``/``box_hit``), and the hit ones are
   pushed in reverse so that the nearest is popped next;
 - a q8 box node (q8 and q8g images) -> the same QUADBOX on its decoded child boxes;
-- a triangle-pair leaf -> two TRIANGLE requests of the ray, the first triangle (``prim0``) in
-  this step; the second is pushed as a ``PAIR_SECOND_TYPE`` pointer to the same node and so is
-  the ray's next request (an any-hit ray finished by the first never issues it); a group leaf
-  (q8g) is its first pair, and the pair leaf at offset + 64 is pushed below that pair's second
-  triangle, so the ray's next requests are the rest of the leaf in order;
+- a triangle-pair leaf or a group leaf (q8g: 3 to 6 triangles) -> one TRIANGLE request of the
+  ray per triangle, in the leaf's order: the first in this step; then a ``LEAF_NEXT_TYPE``
+  pointer naming the leaf's next triangle is pushed and so is the ray's next request (an any-hit
+  ray finished by one triangle never issues the rest);
 - triangle node -> TRIANGLE; on ``tri_hit`` the host computes
   ``t = float32(t_num) / float32(t_den)`` and keeps it if ``t < nearest`` (strictly: on an exact
   tie the triangle found first stays). An any-hit ray (occlusion) is finished by that first
@@ -42,17 +41,11 @@ from typing import Callable
 
 import numpy as np
 
-from .layout import (BOX_NODE, BOX_TYPE, GROUP_TYPE, NO_CHILD, NODE_BYTES, PAIR_BYTES, PAIR_NODE,
-                     PAIR_SECOND_TYPE, PAIR_TYPE, Q8_NODE, Q8_TYPE, TRI_NODE, TRI_TYPE, NodeRef,
-                     node_word)
+from .layout import (BOX_NODE, BOX_TYPE, NO_CHILD, NODE_BYTES, Q8_NODE, Q8_TYPE, TRI_TYPE, NodeRef,
+                     leaf_count, leaf_next, leaf_prim_word, leaf_request, node_word)
 
 _LANES = np.arange(BOX_NODE["child"].shape[0])
-# per pointer type: the word of the primitive id a triangle request reports, the node bytes a
-# request fetches (driver.layout.NODE_BYTES)
-_PRIM_WORD = np.zeros(8, np.int64)
-_PRIM_WORD[TRI_TYPE] = node_word(TRI_NODE, "prim")
-_PRIM_WORD[PAIR_TYPE] = _PRIM_WORD[GROUP_TYPE] = node_word(PAIR_NODE, "prim")
-_PRIM_WORD[PAIR_SECOND_TYPE] = node_word(PAIR_NODE, "prim") + 1
+# per pointer type: the node bytes a request fetches (driver.layout.NODE_BYTES)
 _CHILD_WORD = np.zeros(8, np.int64)           # per box-node type (a two-level image has both)
 _CHILD_WORD[BOX_TYPE] = node_word(BOX_NODE, "child")
 _CHILD_WORD[Q8_TYPE] = node_word(Q8_NODE, "child")
@@ -181,25 +174,22 @@ def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
         better = rsp.tri_hit & (t < nearest[ray_t])
         nearest[ray_t[better]] = t[better]
         tb = ti[better]
-        prim[ray_t[better]] = image[base[tb] + _PRIM_WORD[typ[tb]]].astype(np.int64)
+        prim[ray_t[better]] = image[leaf_prim_word(ptr[tb])].astype(np.int64)
         if instances is not None:
             instances.hit(ray_t[better])
         if any_hit:
             sp[ray_t[better]] = 0
-        # the rest of a leaf is the ray's next requests (unless the ray is done): a group's
-        # second pair, then (on top) the pair's second triangle
-        leaf = ti[(typ[ti] == PAIR_TYPE) | (typ[ti] == GROUP_TYPE)]
+        # the rest of a leaf is the ray's next request (unless the ray is done): its next
+        # triangle, named by a LEAF_NEXT_TYPE pointer
+        leaf = ti[typ[ti] != TRI_TYPE]
         if any_hit:
             leaf = leaf[~better[np.searchsorted(ti, leaf)]]
-        group = leaf[typ[leaf] == GROUP_TYPE]
-        ray_g = active[group]
-        stack[ray_g, sp[ray_g]] = NodeRef.encode(NodeRef.offset(ptr[group]) + PAIR_BYTES,
-                                                 PAIR_TYPE)
-        sp[ray_g] += 1
-        pair = leaf[image[base[leaf] + _PRIM_WORD[PAIR_SECOND_TYPE]] != NO_CHILD]
-        ray_p = active[pair]
-        stack[ray_p, sp[ray_p]] = NodeRef.retype(ptr[pair], PAIR_SECOND_TYPE)
-        sp[ray_p] += 1
+        k = leaf_request(ptr[leaf])[1] + 1
+        more = k < leaf_count(image, ptr[leaf])
+        leaf, k = leaf[more], k[more]
+        ray_l = active[leaf]
+        stack[ray_l, sp[ray_l]] = leaf_next(ptr[leaf], k)
+        sp[ray_l] += 1
 
         active = active[sp[active] > 0]
         if progress is not None:

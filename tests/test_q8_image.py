@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from driver.bvh4 import PAD_REL, build, request_operands
-from driver.layout import (GROUP_TYPE, NO_CHILD, NODE_BYTES, PAIR_NODE, PAIR_SECOND_TYPE, PAIR_TYPE,
-                           Q8_BYTES, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE, REQUEST_DTYPE,
-                           NodeRef, decode_q8, pack_requests, pair_triangles, q8_count,
-                           ray_words)
+from driver.layout import (GROUP_BYTES, GROUP_MAX_TRIS, GROUP_NODE, GROUP_TYPE, LEAF_NEXT_TYPE,
+                           NO_CHILD, NODE_BYTES, PAIR_BYTES, PAIR_NODE, PAIR_TYPE, Q8_BYTES,
+                           Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE, REQUEST_DTYPE, NodeRef,
+                           decode_q8, leaf_count, leaf_next, leaf_triangles, pack_requests,
+                           q8_count, ray_words)
 from driver.tracer import trace
 from support import meshes
 
@@ -24,27 +25,53 @@ def _grown(lo, hi, pad):
     return glo.astype(np.float32), ghi.astype(np.float32)
 
 
+def image_leaves(bvh):
+    """Every leaf the box nodes reference: (pointers (l,) uint32, triangle count (l,),
+    triangles (l, GROUP_MAX_TRIS, 3, 3) float32 and prims (l, GROUP_MAX_TRIS) int64 (-1
+    padded)), read through the request pointers the traversal issues (``leaf_next``)."""
+    nb = bvh.stats["box_nodes"]
+    nodes = bvh.image[:Q8_BYTES * nb].view(Q8_NODE)
+    ptr = nodes["child"][np.arange(4)[None, :] < q8_count(nodes)[:, None]]
+    ptr = ptr[NodeRef.type(ptr) != Q8_TYPE]
+    count = leaf_count(bvh.image, ptr)
+    tris = np.zeros((len(ptr), GROUP_MAX_TRIS, 3, 3), np.float32)
+    prim = np.full((len(ptr), GROUP_MAX_TRIS), -1, np.int64)
+    for k in range(GROUP_MAX_TRIS):
+        has = np.flatnonzero(count > k)
+        req = ptr[has] if k == 0 else leaf_next(ptr[has], k)
+        tris[has, k], prim[has, k] = leaf_triangles(bvh.image, req)
+    return ptr, count, tris, prim
+
+
 def check_image(bvh, tris) -> None:
     """Every triangle in exactly one leaf, bit for bit in its input vertex order; every used
     child slot's decoded box contains the box32 stored box of that child, recomputed here from
-    the triangles below it; unused slots decode to +inf; exponents and counts in range."""
+    the triangles below it; unused slots decode to +inf; exponents and counts in range; group
+    leaves hold 3 to 6 triangles and 128 bytes, pair leaves 1 or 2 and 64."""
     tris = np.asarray(tris, np.float32)
     nb = bvh.stats["box_nodes"]
     nodes = bvh.image[:Q8_BYTES * nb].view(Q8_NODE)
-    leaves = bvh.image[Q8_BYTES * nb:].view(PAIR_NODE)        # 64-byte pair slots
     assert bvh.format in ("q8", "q8g") and bvh.root == Q8_TYPE
-    assert bvh.stats["bytes"] == bvh.image.nbytes == 64 * (nb + len(leaves))
-    assert bvh.stats["leaf_nodes"] + 2 * bvh.stats["group_leaves"] == len(leaves) + \
-        bvh.stats["group_leaves"]
+    lptr, lcount, ltris, lprim = image_leaves(bvh)
+    group = NodeRef.type(lptr) == GROUP_TYPE
+    assert np.isin(NodeRef.type(lptr), (PAIR_TYPE, GROUP_TYPE)).all()
+    assert bvh.format == "q8g" or not group.any()
+    assert ((lcount[group] >= 3) & (lcount[group] <= GROUP_MAX_TRIS)).all()
+    assert ((lcount[~group] >= 1) & (lcount[~group] <= 2)).all()
+    assert group.sum() == bvh.stats["group_leaves"] and len(lptr) == bvh.stats["leaf_nodes"]
+    assert lcount[group].sum() == bvh.stats["grouped_triangles"]
+    assert bvh.stats["bytes"] == bvh.image.nbytes == 64 * nb + 64 * (~group).sum() + \
+        GROUP_BYTES * group.sum()
+    # leaves follow the box nodes back to back, each in its own 64-byte slots
+    off = np.sort(NodeRef.offset(lptr))
+    size = np.where(group, GROUP_BYTES, PAIR_BYTES)[np.argsort(NodeRef.offset(lptr))]
+    assert off[0] == 64 * nb and np.array_equal(off[1:], (off + size)[:-1])
 
-    prim = leaves["prim"].astype(np.int64)
-    two = prim[:, 1] != NO_CHILD
-    ids = np.concatenate([prim[:, 0], prim[two, 1]])
-    assert np.array_equal(np.sort(ids), np.arange(len(tris)))
-    lt = pair_triangles(leaves)
-    assert np.array_equal(lt[:, 0].view(np.uint32), tris[prim[:, 0]].view(np.uint32))
-    assert np.array_equal(lt[two, 1].view(np.uint32), tris[prim[two, 1]].view(np.uint32))
-    assert np.isclose(bvh.stats["pair_ratio"], 2 * two.sum() / len(tris))
+    used = lprim >= 0
+    assert np.array_equal(np.sort(lprim[used]), np.arange(len(tris)))
+    assert np.array_equal(ltris[used].view(np.uint32), tris[lprim[used]].view(np.uint32))
+    if bvh.format == "q8":
+        assert np.isclose(bvh.stats["pair_ratio"], 2 * (lcount == 2).sum() / len(tris))
 
     exp = nodes["exp"][:, :3].view(np.int8)
     assert ((exp >= Q8_EXP_MIN) & (exp <= Q8_EXP_MAX)).all()
@@ -53,8 +80,10 @@ def check_image(bvh, tris) -> None:
     assert not (nodes["exp"][:, 3] & ~np.uint8(7)).any()
 
     # exact bounds of every leaf and, bottom up (children follow their parent), of every node
-    leaf_tris = np.where(two[:, None, None, None], lt, lt[:, :1])
-    leaf_lo, leaf_hi = leaf_tris.min(axis=(1, 2)), leaf_tris.max(axis=(1, 2))
+    big = np.float32(np.inf)
+    leaf_lo = np.where(used[..., None, None], ltris, big).min(axis=(1, 2))
+    leaf_hi = np.where(used[..., None, None], ltris, -big).max(axis=(1, 2))
+    leaf_at = {int(p): i for i, p in enumerate(lptr)}
     node_lo = np.full((nb, 3), np.inf, np.float32)
     node_hi = np.full((nb, 3), -np.inf, np.float32)
     child_lo = np.zeros((nb, 4, 3), np.float32)
@@ -62,19 +91,16 @@ def check_image(bvh, tris) -> None:
     ptr = nodes["child"]
     typ, off = NodeRef.type(ptr), NodeRef.offset(ptr)
     used = np.arange(4)[None, :] < count[:, None]
-    leaf_types = (PAIR_TYPE, GROUP_TYPE) if bvh.format == "q8g" else (PAIR_TYPE,)
-    assert (ptr[~used] == NO_CHILD).all() and np.isin(typ[used], (Q8_TYPE,) + leaf_types).all()
-    assert (typ == GROUP_TYPE).sum() == bvh.stats["group_leaves"]
+    assert (ptr[~used] == NO_CHILD).all()
     for i in range(nb - 1, -1, -1):
         for j in range(count[i]):
             if typ[i, j] == Q8_TYPE:
                 k = off[i, j] // Q8_BYTES
                 assert k > i
                 lo, hi = node_lo[k], node_hi[k]
-            else:                                          # a group: two slots
-                k = (off[i, j] - Q8_BYTES * nb) // 64
-                h = k + (typ[i, j] == GROUP_TYPE) + 1
-                lo, hi = leaf_lo[k:h].min(axis=0), leaf_hi[k:h].max(axis=0)
+            else:
+                k = leaf_at[int(ptr[i, j])]
+                lo, hi = leaf_lo[k], leaf_hi[k]
             child_lo[i, j], child_hi[i, j] = lo, hi
             node_lo[i] = np.minimum(node_lo[i], lo)
             node_hi[i] = np.maximum(node_hi[i], hi)
@@ -142,6 +168,9 @@ def test_mesh_and_triangle_inputs_give_the_same_image():
     check_image(a, np.asarray(m.vertices, np.float32)[m.faces])
     assert a.stats["pair_ratio"] > 0.9 and a.stats["bytes_per_triangle"] < 50
     assert a.stats["box_nodes"] * 64 + a.stats["leaf_nodes"] * 64 == a.stats["bytes"]
+    g = build(m, format="q8g")                  # the denser leaves: at most 40 bytes a triangle
+    check_image(g, np.asarray(m.vertices, np.float32)[m.faces])
+    assert g.stats["bytes_per_triangle"] <= 40 and g.stats["group_leaves"] > 0
 
 
 def test_bad_format():
@@ -207,17 +236,19 @@ def test_q8_hits_equal_box32(scene_pair, fmt, any_hit, double_sided):
     assert b.stats["node_bytes_fetched"] < 0.7 * a.stats["node_bytes_fetched"]
 
 
-def test_pair_leaves_keep_winding():
-    """Culled (single-sided) hits on a closed mesh seen from outside and inside: box32 and q8
-    agree ray by ray, so no paired triangle turned its face."""
+@pytest.mark.parametrize("fmt", ["q8", "q8g"])
+def test_leaves_keep_winding(fmt):
+    """Culled (single-sided) hits on a closed mesh seen from outside and inside: box32 and
+    q8/q8g agree ray by ray, so no triangle of a pair or group leaf turned its face."""
     tris = meshes.icosphere(3)
     rng = np.random.default_rng(11)
     o = rng.normal(size=(600, 3))
     o *= (rng.uniform(0.2, 3.0, 600) / np.linalg.norm(o, axis=1))[:, None]  # inside and out
     d = rng.normal(size=(600, 3))
     a = trace(build(tris), o, d, backend="golden")
-    q8 = build(tris, format="q8")
+    q8 = build(tris, format=fmt)
     assert q8.stats["pair_ratio"] > 0.9
+    assert (q8.stats["grouped_triangles"] > 0.2 * len(tris)) == (fmt == "q8g")
     b = trace(q8, o, d, backend="golden")
     inside = np.linalg.norm(o, axis=1) < 0.95
     assert not a.hit[inside].any()                          # the inside sees only back faces
@@ -227,11 +258,12 @@ def test_pair_leaves_keep_winding():
     assert both.hit[inside].all()
 
 
-def test_traversal_requests_per_pair_leaf():
-    """A pair leaf is two TRIANGLE requests of the ray, prim0 first; a group leaf its two pairs
-    in order; an any-hit ray finished by a triangle issues no more of the leaf; node bytes count
-    each fetched 64-byte node once."""
-    tris = _grid(4)
+def test_traversal_requests_per_leaf():
+    """A leaf is one TRIANGLE request per triangle of the ray, in the leaf's order: its own
+    pointer, then LEAF_NEXT_TYPE pointers to triangles 1, 2, ... of the same leaf; an any-hit ray
+    finished by a triangle issues no more of the leaf; node bytes count each leaf once (a group
+    leaf's 128 bytes at its first request)."""
+    tris = _grid(8)
     for fmt in ("q8", "q8g"):
         _leaf_requests(build(tris, format=fmt))
 
@@ -239,35 +271,38 @@ def test_traversal_requests_per_pair_leaf():
 def _leaf_requests(q8):
     from support.recording import RecordingBackend
     from driver import backend
-    o = np.array([[0.3, 0.3, 1.0], [0.71, 0.42, 1.0]])
-    d = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, -1.0]])
+    rng = np.random.default_rng(5)
+    o = np.column_stack([rng.uniform(0.05, 0.95, (40, 2)), np.ones(40)])
+    d = np.tile([0.0, 0.0, -1.0], (40, 1))
+    lptr, lcount, _, _ = image_leaves(q8)
+    count = dict(zip(lptr.tolist(), lcount.tolist()))
+    seen_group = False
     for any_hit in (False, True):
         res = trace(q8, o, d, backend=RecordingBackend(backend("golden")), record=True,
                     any_hit=any_hit)
         rec = res.record
         typ = NodeRef.type(rec.ptr)
         assert res.hit.all()
-        for r in range(2):
-            t = typ[rec.ray == r]
-            p = rec.ptr[rec.ray == r]
-            firsts = np.flatnonzero(t == PAIR_TYPE)
-            seconds = np.flatnonzero(t == PAIR_SECOND_TYPE)
-            groups = np.flatnonzero(t == GROUP_TYPE)
-            # every second triangle right after its own first one
-            assert np.array_equal(NodeRef.offset(p[seconds]), NodeRef.offset(p[seconds - 1]))
-            assert np.isin(t[seconds - 1], (PAIR_TYPE, GROUP_TYPE)).all()
-            # a group's second pair follows its first pair (and that pair's second triangle)
-            for g in groups:
-                k = g + 1 + (g + 1 < len(t) and t[g + 1] == PAIR_SECOND_TYPE)
-                if not any_hit:
-                    assert t[k] == PAIR_TYPE and NodeRef.offset(p[k]) == NodeRef.offset(p[g]) + 64
-            if any_hit:
-                assert len(seconds) <= len(firsts) + len(groups)
-            else:
-                assert len(firsts) + len(groups) > 0
+        for r in range(len(o)):
+            t, p = typ[rec.ray == r], rec.ptr[rec.ray == r]
+            i = 0
+            while i < len(t):
+                if t[i] not in (PAIR_TYPE, GROUP_TYPE):
+                    assert t[i] == Q8_TYPE
+                    i += 1
+                    continue
+                seen_group |= t[i] == GROUP_TYPE
+                n = count[int(p[i])]
+                got = 1
+                while i + got < len(t) and t[i + got] == LEAF_NEXT_TYPE:
+                    assert p[i + got] == leaf_next(p[i:i + 1], got)[0]
+                    got += 1
+                assert got == n or (any_hit and got < n and i + got == len(t))
+                i += got
         nbytes = sum(NODE_BYTES[int(x)] for x in typ)
         assert res.stats["node_bytes_fetched"] == nbytes
         assert res.stats["ops"] == len(rec.ptr)
+    assert seen_group == (q8.format == "q8g")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -276,7 +311,8 @@ def _leaf_requests(q8):
 
 def random_q8_image(n: int, seed: int):
     """n random q8 nodes (exponents over the whole range, zero and full planes, every count,
-    subnormal and signed-zero origins) followed by n random pair leaves."""
+    subnormal and signed-zero origins) followed by n random pair leaves and n random group
+    leaves; the pointers name every node and every triangle of every leaf."""
     rng = np.random.default_rng(seed)
     nodes = np.zeros(n, Q8_NODE)
     origin = rng.normal(size=(n, 3)) * 10.0 ** rng.uniform(-40, 30, (n, 3))
@@ -296,11 +332,21 @@ def random_q8_image(n: int, seed: int):
     leaves["v"] = rng.normal(size=(n, 4, 3))
     leaves["prim"] = rng.integers(0, 1000, (n, 2))
     leaves["idx"] = rng.integers(0, 64, n)
-    image = np.concatenate([nodes.view(np.uint8), leaves.view(np.uint8)])
+    groups = np.zeros(n, GROUP_NODE)
+    groups["v"] = rng.normal(size=(n, 4, 3))
+    groups["v2"] = rng.normal(size=(n, 4, 3))
+    groups["prim"] = rng.integers(0, 1000, (n, 2))
+    groups["prim2"] = rng.integers(0, 1000, (n, 4))
+    groups["idx"] = rng.integers(0, 1 << 42, n, dtype=np.uint64) | (np.uint64(6) << np.uint64(48))
+    image = np.concatenate([nodes.view(np.uint8), leaves.view(np.uint8), groups.view(np.uint8)])
+    pairs = 64 * (n + np.arange(n))
+    grp = 64 * 2 * n + GROUP_BYTES * np.arange(n)
     ptr = np.concatenate([NodeRef.encode(64 * np.arange(n), Q8_TYPE),
-                          NodeRef.encode(64 * (n + np.arange(n)), PAIR_TYPE),
-                          NodeRef.encode(64 * (n + np.arange(n)), PAIR_SECOND_TYPE),
-                          NodeRef.encode(64 * (n + np.arange(n - 1)), GROUP_TYPE)])
+                          NodeRef.encode(pairs, PAIR_TYPE),
+                          leaf_next(NodeRef.encode(pairs, PAIR_TYPE), 1),
+                          NodeRef.encode(grp, GROUP_TYPE),
+                          *(leaf_next(NodeRef.encode(grp, GROUP_TYPE), k)
+                            for k in range(1, GROUP_MAX_TRIS))])
     return image, ptr
 
 
@@ -337,7 +383,7 @@ def test_harness_decode_equals_python_on_random_nodes():
 
 
 @pytest.mark.parametrize("fmt", ["q8", "q8g"])
-def test_rtl_frame_and_memory_model_charge_64_bytes_per_q8_node(fmt):
+def test_rtl_frame_and_memory_model_charge_the_bytes_of_each_node(fmt):
     from driver import rtunit
     from driver.scenes.camera import primary_rays
     from driver.scenes.scene import load_scene
@@ -350,12 +396,14 @@ def test_rtl_frame_and_memory_model_charge_64_bytes_per_q8_node(fmt):
     assert np.array_equal(gold.prim, res.prim)
     rec = res.record
     typ = NodeRef.type(rec.ptr)
-    fetching = typ != PAIR_SECOND_TYPE
-    assert res.stats["node_bytes_fetched"] == 64 * int(fetching.sum())
+    nbytes = np.array([NODE_BYTES[int(x)] for x in typ])
+    assert res.stats["node_bytes_fetched"] == nbytes.sum()
+    assert (nbytes[typ == GROUP_TYPE] == 128).all() and (typ == GROUP_TYPE).any() == (fmt == "q8g")
     rep = rtunit.replay(rec, 16, memory=rtunit.MemoryModel())
     m = rep.memory
-    # every fetched node is one 64-byte line; a pair's second triangle fetches nothing
-    assert m["line_accesses"] == int(fetching.sum())
+    # a q8 node or a pair leaf is one 64-byte line, a group leaf two; a leaf's later triangles
+    # fetch nothing
+    assert m["line_accesses"] == nbytes.sum() // 64
     assert m["bytes_from_memory"] == 64 * m["line_misses"] > 0
     assert rep.verified
 

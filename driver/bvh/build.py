@@ -464,21 +464,33 @@ def _dp(left, right, area):
     """Bottom-up D(n, k) table (see module docstring) and the choices: choice[n, k-1] = slots
     given to the left child (0: D(n, k) = D(n, k - 1)). k runs to WIDTH - 1 only: a child of a
     split gets at most WIDTH - 1 slots (its sibling needs one)."""
+    return dp_table(left, right, area, area, np.full(len(left), np.inf))[0]
+
+
+@njit(cache=True)
+def dp_table(left, right, leaf_cost, node_cost, alt_cost):
+    """``_dp``'s table with costs per node: a leaf n costs ``leaf_cost[n]``, an interior node
+    made a wide node ``node_cost[n]`` plus its children's, or, in one slot, ``alt_cost[n]``
+    instead if less (``driver.bvh.q8``'s group leaves; inf: never). Returns (choice, alt (m,)
+    bool: where the alternative is the least D(n, 1))."""
     m = len(left)
     d = np.empty((m, WIDTH - 1))
     choice = np.zeros((m, WIDTH - 1), np.int8)
+    alt = np.zeros(m, np.bool_)
     for n in range(m - 1, -1, -1):                         # children are numbered after parents
         l, r = left[n], right[n]
         if l < 0:
-            d[n, :] = area[n]
+            d[n, :] = leaf_cost[n]
             continue
         best, ba = np.inf, 0
         for a in range(1, WIDTH):
             c = d[l, a - 1] + d[r, WIDTH - a - 1]
             if c < best:
                 best, ba = c, a
-        d[n, 0] = area[n] + best
+        d[n, 0] = node_cost[n] + best
         choice[n, 0] = ba
+        if alt_cost[n] < d[n, 0]:
+            d[n, 0], alt[n] = alt_cost[n], True
         for k in range(2, WIDTH):
             best, ba = d[n, k - 2], 0
             for a in range(1, k):
@@ -487,7 +499,7 @@ def _dp(left, right, area):
                     best, ba = c, a
             d[n, k - 1] = best
             choice[n, k - 1] = ba
-    return choice
+    return choice, alt
 
 
 @njit(cache=True)

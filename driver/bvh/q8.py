@@ -29,8 +29,10 @@ import math
 import numpy as np
 from numba import njit
 
-from ..layout import Q8_EXP_MAX, Q8_EXP_MIN, decode_q8
-from .build import WIDTH
+from ..layout import (GROUP_BYTES, GROUP_COUNT_LSB, GROUP_MAX_TRIS, GROUP_MAX_VERTS, GROUP_NODE,
+                      GROUP_SEL_BITS, GROUP_SEL_LSB, PAIR_BYTES, PAIR_NODE, Q8_BYTES, Q8_EXP_MAX,
+                      Q8_EXP_MIN, decode_q8, node_word)
+from .build import WIDTH, dp_table
 
 _HASH = np.uint64(0x9E3779B97F4A7C15)
 
@@ -234,18 +236,31 @@ def _compact(ids):
     return nv
 
 
-def vertex_ids(tris: np.ndarray, faces=None) -> np.ndarray:
-    """(n, 3) int64 vertex ids: ``faces`` when given (a mesh's vertex indices), else equal ids
-    (numbered in order of first use) for bit-identical float32 vertices."""
-    if faces is not None:
-        return np.ascontiguousarray(faces, np.int64)
-    m = 3 * len(tris)
-    size = 1 << max(4, int(2 * m - 1).bit_length())
-    table = np.full(size, -1, np.int32 if m < 1 << 31 else np.int64)
-    ids = _vertex_ids(np.ascontiguousarray(tris).view(np.uint32), table)
+def _bit_ids(points: np.ndarray) -> np.ndarray:
+    """(m,) int64 ids of (m, 3) float32 points, equal exactly for bit-identical points (numbered
+    in order of first use)."""
+    m = len(points)
+    pad = np.zeros((-m % 3, 3), np.float32)
+    bits = np.ascontiguousarray(np.concatenate([points, pad])).view(np.uint32).reshape(-1, 3, 3)
+    size = 1 << max(4, int(2 * len(bits) * 3 - 1).bit_length())
+    table = np.full(size, -1, np.int32 if 3 * len(bits) < 1 << 31 else np.int64)
+    ids = _vertex_ids(bits, table)
     del table
     _compact(ids)
-    return ids
+    return ids.reshape(-1)[:m]
+
+
+def vertex_ids(tris: np.ndarray, faces=None) -> np.ndarray:
+    """(n, 3) int64 vertex ids, equal for bit-identical float32 vertices (numbered in order of
+    first use). ``faces``: a mesh's vertex indices for ``tris``; then only the mesh's vertices
+    are hashed (a mesh may still hold one vertex several times, e.g. a mesh whose faces do not
+    share vertex rows)."""
+    if faces is None:
+        return _bit_ids(np.asarray(tris, np.float32).reshape(-1, 3)).reshape(-1, 3)
+    faces = np.ascontiguousarray(faces, np.int64)
+    verts = np.zeros((int(faces.max()) + 1, 3), np.float32)
+    verts[faces.reshape(-1)] = np.asarray(tris, np.float32).reshape(-1, 3)
+    return _bit_ids(verts)[faces]
 
 
 @njit(cache=True)
@@ -268,32 +283,190 @@ def _normals(tris, first, second):
 def facing(tris: np.ndarray, first: np.ndarray, second: np.ndarray,
            groups: np.ndarray) -> np.ndarray:
     """(m + g, 3) int8: per pair leaf, then per group leaf, and axis the sign of its face normal
-    (the sum of its triangles' ``(B - A) x (C - A)``, float64), the side rays leave it on."""
+    (the sum of its triangles' ``(B - A) x (C - A)``, float64), the side rays leave it on.
+    ``groups`` (g, GROUP_MAX_TRIS) int64: each group's pair leaves (-1 padded)."""
     n = _normals(tris, first, second)
-    n = np.concatenate([n, n[groups[:, 0]] + n[groups[:, 1]]])
-    return np.sign(n).astype(np.int8)
+    member = np.where(groups >= 0, groups, 0)
+    gn = (n[member] * (groups >= 0)[..., None]).sum(axis=1)
+    return np.sign(np.concatenate([n, gn])).astype(np.int8)
 
 
-def group_leaves(left, right, prim, n_pairs: int) -> np.ndarray:
-    """Turn, in place, every binary node whose two children are leaves into one leaf (a group
-    leaf of two pairs, ``prim`` = ``n_pairs`` + its index); returns the groups (g, 2) int64: the
-    two pairs' indices, in the children's order. The node keeps its (grown) box, the union of
-    the two."""
-    inner = np.flatnonzero(left >= 0)
-    both = inner[(left[left[inner]] < 0) & (left[right[inner]] < 0)]
-    groups = np.stack([prim[left[both]], prim[right[both]]], axis=1)
-    prim[both] = n_pairs + np.arange(len(both))
-    left[both] = right[both] = -1
-    return groups
+@njit(cache=True)
+def _group_order(members, first, second, ids, gtri, gvert):
+    """Lay out one group leaf of the pair leaves ``members`` (-1 padded): the triangles in
+    ``gtri`` (GROUP_MAX_TRIS,) (-1 padded; pairs first, each first triangle first, so that
+    triangle 1 shares an edge with triangle 0), the vertex slots in ``gvert``
+    (GROUP_MAX_VERTS,) (the flat index 3 t + corner of a triangle corner with that vertex; -1
+    unused). Returns the 64-bit ``idx`` word (selectors and count), or -1 when the triangles need
+    more than GROUP_MAX_VERTS vertex slots or triangle 1 a vertex beyond v3."""
+    nt = 0
+    for pass_ in range(2):                   # pairs first, then single triangles
+        for i in range(len(members)):
+            p = members[i]
+            if p < 0 or (second[p] >= 0) != (pass_ == 0):
+                continue
+            gtri[nt] = first[p]
+            nt += 1
+            if second[p] >= 0:
+                gtri[nt] = second[p]
+                nt += 1
+    for i in range(nt, GROUP_MAX_TRIS):
+        gtri[i] = -1
+    gvert[:] = -1
+    slot_id = np.full(GROUP_MAX_VERTS, -1, np.int64)
+    nv = 0
+    sel = np.int64(0)
+    for k in range(nt):
+        t = gtri[k]
+        for j in range(3):
+            v = -1
+            if k > 0:                          # triangle 0 is (v0, v1, v2), even if degenerate
+                for u in range(nv):
+                    if slot_id[u] == ids[t, j]:
+                        v = u
+                        break
+            if v < 0:
+                if nv == GROUP_MAX_VERTS:
+                    return -1
+                v = nv
+                slot_id[v] = ids[t, j]
+                gvert[v] = 3 * t + j
+                nv += 1
+            if k == 1:
+                if v > 3:
+                    return -1
+                sel |= np.int64(v) << np.int64(2 * j)
+            elif k >= 2:
+                sel |= np.int64(v) << np.int64(GROUP_SEL_LSB + GROUP_SEL_BITS * (k - 2) + 3 * j)
+    return sel | (np.int64(nt) << np.int64(GROUP_COUNT_LSB))
+
+
+@njit(cache=True)
+def _members(x, left, right, prim, members, stack):
+    """The pair leaves of binary node x's subtree, left to right, into ``members`` (-1
+    padded); returns their number (at most ``len(members)``: callers pass small subtrees)."""
+    nm, sp = 0, 1
+    stack[0] = x
+    while sp:
+        sp -= 1
+        y = stack[sp]
+        if left[y] < 0:
+            members[nm] = prim[y]
+            nm += 1
+        else:
+            stack[sp] = right[y]
+            stack[sp + 1] = left[y]
+            sp += 2
+    members[nm:] = -1
+    return nm
+
+
+@njit(cache=True)
+def _group_dp(left, right, prim, area, first, second, ids, lam):
+    """Choose the group leaves together with the 4-wide collapse (``driver.bvh.build.dp_table``,
+    the collapse's table with leaf costs and bytes): D(n, k) is the least ``cost + lam *
+    bytes`` of binary node n's subtree in k slots of its parent, where cost is the SAH of
+    datapath ops (``area``: the stored boxes' half areas; a wide box node costs its area once, a
+    leaf its area times its triangles: each is tested when the leaf's box is hit) and bytes the
+    image's (64 per q8 box node and pair leaf, GROUP_BYTES per group leaf). In one slot, a subtree of 3 to
+    GROUP_MAX_TRIS triangles that fit a group leaf (``_group_order``) may become one. ``lam``
+    weighs bytes against cost: a pair leaf's 64 bytes are worth ``lam`` times the cost of the
+    median pair leaf (a scale of the mesh's own leaves, which a few large triangles, a floor
+    under a model, do not move). Returns merge (m,) bool: the nodes that become group
+    leaves."""
+    m = len(left)
+    W = WIDTH
+    tri = np.zeros(m, np.int64)
+    ok = np.zeros(m, np.bool_)
+    members = np.empty(GROUP_MAX_TRIS, np.int64)
+    stack = np.empty(2 * GROUP_MAX_TRIS + 2, np.int64)
+    gtri = np.empty(GROUP_MAX_TRIS, np.int64)
+    gvert = np.empty(GROUP_MAX_VERTS, np.int64)
+    for n in range(m - 1, -1, -1):
+        if left[n] < 0:
+            tri[n] = 1 + (second[prim[n]] >= 0)
+            continue
+        tri[n] = tri[left[n]] + tri[right[n]]
+        if n > 0 and 3 <= tri[n] <= GROUP_MAX_TRIS:
+            _members(n, left, right, prim, members, stack)
+            ok[n] = _group_order(members, first, second, ids, gtri, gvert) >= 0
+    leaves = left < 0
+    lw = lam * np.median(area[leaves] * tri[leaves]) / PAIR_BYTES     # cost per byte
+    leaf_cost = area * tri + lw * PAIR_BYTES
+    node_cost = area + lw * Q8_BYTES
+    alt_cost = np.where(ok, area * tri + lw * GROUP_BYTES, np.inf)
+    choice, group = dp_table(left, right, leaf_cost, node_cost, alt_cost)
+    # top down as driver.bvh.build._emit walks the table: (node, slots) to place
+    merge = np.zeros(m, np.bool_)
+    work = np.empty((m + 2 * W, 2), np.int64)
+    work[0, 0], work[0, 1], wp = 0, 1, 1
+    while wp > 0:
+        wp -= 1
+        x, k = work[wp, 0], work[wp, 1]
+        while k > 1 and choice[x, k - 1] == 0:
+            k -= 1
+        if k == 1:
+            if group[x]:
+                merge[x] = True
+                continue
+            if left[x] < 0:
+                continue
+            c = choice[x, 0]
+            k = W                                # a wide box node: its W slots split below
+        else:
+            c = choice[x, k - 1]
+        work[wp, 0], work[wp, 1] = right[x], k - c
+        work[wp + 1, 0], work[wp + 1, 1] = left[x], c
+        wp += 2
+    return merge
+
+
+# lam of ``_group_dp`` for q8g images (docs/compressed.md: bytes and ops per ray type for
+# several values)
+GROUP_LAMBDA = 2.2
+
+
+def group_leaves(left, right, prim, area, pairs, enabled: bool = True, lam: float | None = None):
+    """Turn (``enabled``; else none), in place, the binary subtrees that ``_group_dp`` picks
+    into group leaves (``prim`` = the number of pairs + the group's index); the node keeps its
+    (grown) box, which contains its triangles. Returns (groups (g, GROUP_MAX_TRIS) the member
+    pair leaves (-1 padded), gtri (g, GROUP_MAX_TRIS) the triangles in leaf order, gvert (g,
+    GROUP_MAX_VERTS) each vertex slot's source corner 3 t + j, gidx (g,) uint64 the ``idx``
+    words)."""
+    first, second, ids = pairs[0], pairs[1], pairs[5]
+    lam = GROUP_LAMBDA if lam is None else lam
+    if enabled and left[0] >= 0:
+        merge = _group_dp(left, right, prim, area, first, second, ids, lam)
+    else:
+        merge = np.zeros(len(left), np.bool_)
+    return _apply_groups(merge, left, right, prim, first, second, ids, len(first))
+
+
+@njit(cache=True)
+def _apply_groups(merge, left, right, prim, first, second, ids, n_pairs):
+    nodes = np.flatnonzero(merge)
+    g = len(nodes)
+    groups = np.full((g, GROUP_MAX_TRIS), -1, np.int64)
+    gtri = np.empty((g, GROUP_MAX_TRIS), np.int64)
+    gvert = np.empty((g, GROUP_MAX_VERTS), np.int64)
+    gidx = np.empty(g, np.uint64)
+    stack = np.empty(2 * GROUP_MAX_TRIS + 2, np.int64)
+    for i in range(g):
+        x = nodes[i]
+        _members(x, left, right, prim, groups[i], stack)
+        gidx[i] = np.uint64(_group_order(groups[i], first, second, ids, gtri[i], gvert[i]))
+        left[x] = right[x] = -1
+        prim[x] = n_pairs + i
+    return groups, gtri, gvert, gidx
 
 
 def pair_triangles(tris: np.ndarray, faces=None):
     """Pair triangles that share an edge (module docstring). Returns (first, second, idx, v3,
-    box): see ``_pairs``; ``box`` is a fake triangle per leaf whose bounding box is the leaf's,
-    the builder's input."""
+    box, ids): see ``_pairs``; ``box`` is a fake triangle per leaf whose bounding box is the
+    leaf's, the builder's input; ``ids`` (n, 3) the vertex ids (``vertex_ids``)."""
     ids = vertex_ids(tris, faces)
     partner = _match(ids, tris, int(ids.max()) + 1)
-    return _pairs(ids, partner, tris)
+    return (*_pairs(ids, partner, tris), ids)
 
 
 @njit(cache=True)
@@ -330,32 +503,55 @@ def _origin(r, a, o, top, s, used, slots, left, prim, ref, facing):
     return best
 
 
+_PV, _PPRIM, _PIDX = (node_word(PAIR_NODE, f) for f in ("v", "prim", "idx"))
+_GV2, _GPRIM2 = (node_word(GROUP_NODE, f) - PAIR_BYTES // 4 for f in ("v2", "prim2"))
+
+
 @njit(cache=True)
-def _write_pair(p, slot, first, second, idx, v3, tris, pv, pprim, pidx, no_child):
-    """Pair leaf ``p`` (``_pairs``'s arrays) into 64-byte leaf slot ``slot``."""
+def _write_pair(p, slot, first, second, idx, v3, tris, lw, lf, no_child):
+    """Pair leaf ``p`` (``_pairs``'s arrays) into 64-byte leaf slot ``slot`` (``lw``/``lf``:
+    the leaf slots as (slots, 16) uint32 and float32 views of the same bytes)."""
     t = first[p]
-    pprim[slot, 0] = t
+    lw[slot, _PPRIM] = t
     for v in range(3):
         for c in range(3):
-            pv[slot, v, c] = tris[t, v, c]
+            lf[slot, _PV + 3 * v + c] = tris[t, v, c]
     if second[p] >= 0:
-        pprim[slot, 1] = second[p]
-        pidx[slot] = idx[p]
+        lw[slot, _PPRIM + 1] = second[p]
+        lw[slot, _PIDX] = idx[p]
         for c in range(3):
-            pv[slot, 3, c] = v3[p, c]
+            lf[slot, _PV + 9 + c] = v3[p, c]
     else:
-        pprim[slot, 1] = no_child
+        lw[slot, _PPRIM + 1] = no_child
 
 
 @njit(cache=True)
-def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, groups, tris, facing,
-              origin, exp, child, q, parent, ref, pv, pprim, pidx, box_ptr, leaf_base, types,
+def _write_group(g, slot, gtri, gvert, gidx, tris, lw, lf, no_child):
+    """Group leaf ``g`` (``group_leaves``'s arrays) into the leaf slots ``slot`` and ``slot +
+    1``."""
+    for v in range(GROUP_MAX_VERTS):
+        src = gvert[g, v]
+        if src < 0:
+            continue
+        row, w = (slot, _PV + 3 * v) if v < 4 else (slot + 1, _GV2 + 3 * (v - 4))
+        for c in range(3):
+            lf[row, w + c] = tris[src // 3, src % 3, c]
+    for k in range(GROUP_MAX_TRIS):
+        row, w = (slot, _PPRIM + k) if k < 2 else (slot + 1, _GPRIM2 + k - 2)
+        lw[row, w] = gtri[g, k] if gtri[g, k] >= 0 else no_child
+    lw[slot, _PIDX] = np.uint32(gidx[g] & np.uint64(0xFFFFFFFF))
+    lw[slot, _PIDX + 1] = np.uint32(gidx[g] >> np.uint64(32))
+
+
+@njit(cache=True)
+def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, gtri, gvert, gidx,
+              tris, facing, origin, exp, child, q, parent, ref, lw, lf, box_ptr, leaf_base, types,
               no_child):
     """Number the wide tree's nodes and write the q8 box nodes (origin, exp + count, child, q,
-    parent) and the leaves (pv, pprim, pidx: 64-byte pair slots in the order they are
-    referenced), as ``driver.bvh.build.fill_image`` does for box32. A leaf's ``prim`` below
-    ``len(first)`` is a pair leaf, else group ``prim - len(first)`` of ``groups`` (g, 2): two
-    pairs in consecutive slots. ``leaf_base``: byte offset of the first slot; ``types``: (pair,
+    parent) and the leaves (lw/lf: 64-byte leaf slots in the order they are referenced), as
+    ``driver.bvh.build.fill_image`` does for box32. A leaf's ``prim`` below ``len(first)`` is a
+    pair leaf (one slot), else group ``prim - len(first)`` (``gtri``, ``gvert``, ``gidx``: two
+    slots). ``leaf_base``: byte offset of the first slot; ``types``: (pair,
     group) pointer type codes. ``ref`` (k, 4, 6) float32 receives each used slot's stored box
     (+inf unused); ``facing`` (leaves, 3) int8: the sign of each leaf's face normal per axis
     (``_origin``). Returns 0, or the index + 1 of a node whose extent needs an exponent above
@@ -386,13 +582,11 @@ def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, group
                 kind = types[0] if p < n_pairs else types[1]
                 child[r, j] = ((leaf_base + 64 * nl) >> 3) | kind
                 if p < n_pairs:
-                    _write_pair(p, nl, first, second, idx, v3, tris, pv, pprim, pidx, no_child)
+                    _write_pair(p, nl, first, second, idx, v3, tris, lw, lf, no_child)
                     nl += 1
                 else:
-                    for h in range(2):
-                        _write_pair(groups[p - n_pairs, h], nl, first, second, idx, v3, tris, pv,
-                                    pprim, pidx, no_child)
-                        nl += 1
+                    _write_group(p - n_pairs, nl, gtri, gvert, gidx, tris, lw, lf, no_child)
+                    nl += 2
         for a in range(3):
             o = np.float32(np.inf)
             top = np.float32(-np.inf)

@@ -110,28 +110,50 @@ struct NodeSource {
     }
   }
 
-  // The triangle a pair leaf's pointer names: (v0, v1, v2) for kPairType and kGroupType (a
-  // group leaf's first pair), (v[i0], v[i1], v[i2]) for kPairSecondType
-  // (driver.layout.pair_triangles).
-  static void pair_triangle(const uint32_t* node, bool second, uint32_t* tri) {
-    const uint32_t sel = node[kPairNodeIdxWord];
-    for (uint32_t k = 0; k < 3; k++) {
-      const uint32_t v = second ? (sel >> (2 * k)) & 3u : k;
-      std::memcpy(tri + 3 * k, node + kPairNodeVWord + 3 * v, 12);
+  // The leaf and the triangle index k of a triangle request pointer of a pair or group leaf:
+  // k = 0 for the leaf's own pointer, bits 31:29 + 1 for kLeafNextType
+  // (driver.layout.leaf_request).
+  static uint32_t leaf_index(uint32_t p, uint32_t* leaf) {
+    if ((p & kTypeMask) != kLeafNextType) {
+      *leaf = p;
+      return 0;
+    }
+    *leaf = p & ((1u << kLeafIndexLsb) - 1u);
+    return (p >> kLeafIndexLsb) + 1u;
+  }
+
+  // Triangle k of a pair or group leaf (driver.layout.leaf_triangles): (v0, v1, v2) for k = 0;
+  // (v[i0], v[i1], v[i2]) with 2-bit selectors in idx bits 5:0 for k = 1; 3-bit selectors at idx
+  // bits kGroupSelLsb + kGroupSelBits (k - 2) for k >= 2 (a group leaf, whose vertices v4..v7
+  // are in its second 64 bytes).
+  static void leaf_triangle(const uint32_t* node, uint32_t k, uint32_t* tri) {
+    const uint64_t sel = static_cast<uint64_t>(node[kGroupNodeIdxWord]) |
+                         static_cast<uint64_t>(node[kGroupNodeIdxWord + 1]) << 32;
+    for (uint32_t j = 0; j < 3; j++) {
+      uint32_t v = j;
+      if (k == 1) v = (sel >> (2 * j)) & 3u;
+      if (k >= 2) v = (sel >> (kGroupSelLsb + kGroupSelBits * (k - 2) + 3 * j)) & 7u;
+      const uint32_t w = v < 4 ? kGroupNodeVWord + 3 * v : kGroupNodeV2Word + 3 * (v - 4);
+      std::memcpy(tri + 3 * j, node + w, 12);
     }
   }
 
   // Returns false for a pointer that is neither a box node nor a triangle request's node inside
   // the image.
   bool fill(int64_t i, uint32_t* dst) const {
-    const uint32_t r = ray[i], p = ptr[i], type = p & kTypeMask;
+    const uint32_t r = ray[i], type = ptr[i] & kTypeMask;
+    uint32_t p;
+    const uint32_t k = leaf_index(ptr[i], &p);
     const int64_t word = node_word(p);
     uint32_t& ctrl = dst[kReqOpcodeWord];
     std::memcpy(dst, rays + static_cast<int64_t>(r) * kRayWords, kRayWords * 4);
     dst[kReqTagWord] = r;                              // tag = ray index
     dst[kReqExtentWord] = ext[i];                      // extent = the ray's nearest t so far
     const bool box = type == kBoxType || type == kQ8Type;
-    const int64_t words = type == kPairSecondType ? kPairNodeWords : kNodeBytes[type] / 4;
+    // the words the request reads: a leaf's later triangle is in the node fetched for its first
+    const int64_t words = type != kLeafNextType ? kNodeBytes[type] / 4
+                          : k >= 2              ? kGroupNodeWords
+                                                : kPairNodeWords;
     if (words == 0 || word + words > image_words) return false;
     const uint32_t op = box ? kOpQuadbox : kOpTriangle;
     ctrl = (ctrl & ~(kOpcodeMask << kReqOpcodeLsb)) | (op << kReqOpcodeLsb);
@@ -143,8 +165,8 @@ struct NodeSource {
       q8_request(image + word, dst);
     } else if (type == kTriType) {
       std::memcpy(dst + kReqTriWord, image + word + kTriNodeTriWord, kReqTriCount * 4);
-    } else if (type == kPairType || type == kGroupType || type == kPairSecondType) {
-      pair_triangle(image + word, type == kPairSecondType, dst + kReqTriWord);
+    } else if (type == kPairType || type == kGroupType || type == kLeafNextType) {
+      leaf_triangle(image + word, k, dst + kReqTriWord);
     } else {
       return false;
     }
@@ -155,7 +177,9 @@ struct NodeSource {
   // each); fetching them a few requests ahead hides that behind the model's evaluation.
   void prefetch(int64_t i) const {
     const uint32_t* r = rays + static_cast<int64_t>(ray[i]) * kRayWords;
-    const uint32_t* node = image + node_word(ptr[i]);
+    uint32_t p;
+    leaf_index(ptr[i], &p);
+    const uint32_t* node = image + node_word(p);
     __builtin_prefetch(r);
     __builtin_prefetch(r + kRayWords - 1);
     __builtin_prefetch(node);
