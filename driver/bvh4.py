@@ -79,7 +79,7 @@ from .layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, FLAG_DECODE_Q8, IMAGE_FORMAT
                      GROUP_BYTES, GROUP_NODE, GROUP_TYPE, LEAF_NEXT_TYPE, LEAF_OFFSET_LIMIT,
                      PAIR_BYTES, PAIR_NODE, PAIR_TYPE, Q8_BYTES, Q8_NODE, Q8_TYPE, QUADBOX,
                      TRI_BYTES, TRI_NODE, TRI_TYPE, TRIANGLE, NodeRef, decode_q8,
-                     leaf_triangles, node_word, pair_triangles, read_nodes)
+                     leaf_triangles, node_word, read_nodes)
 
 PAD_REL = 2.0 ** -16
 from .bvh.params import SWEEP_MAX  # noqa: E402  (nodes of <= 8 primitives: exact SAH sweep)

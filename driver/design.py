@@ -165,7 +165,8 @@ OPTIONS: tuple[Option, ...] = (
     Option("bvh_format", "--bvh-format", str, "box32",
            "node image: box32 (128-byte float32 box nodes, a 64-byte node per triangle), q8 "
            "(64-byte quantized box nodes, 64-byte triangle-pair leaves) or q8g (q8 with 128-byte "
-           "leaves of two pairs) (docs/compressed.md)", _choice(IMAGE_FORMATS), "bvh", "FORMAT",
+           "leaves of 3 to 6 triangles sharing vertices where they cost few ops) "
+           "(docs/compressed.md)", _choice(IMAGE_FORMATS), "bvh", "FORMAT",
            IMAGE_FORMATS),
     Option("rays_in_flight", "--rays-in-flight", int, 64,
            "ray pool of the RT unit: rays with a request chain in progress", _int_range(1),

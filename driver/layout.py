@@ -476,17 +476,6 @@ def decode_q8(nodes: np.ndarray) -> np.ndarray:
     return boxes
 
 
-def pair_triangles(nodes: np.ndarray) -> np.ndarray:
-    """(n, 2, 3, 3) float32 triangles of ``PAIR_NODE`` rows: (v0, v1, v2) and
-    (v[i0], v[i1], v[i2]), each in its stored vertex order (winding kept)."""
-    nodes = np.asarray(nodes).reshape(-1)
-    idx = nodes["idx"].astype(np.int64)
-    sel = np.stack([(idx >> (2 * k)) & 3 for k in range(3)], axis=1)    # (n, 3)
-    v = nodes["v"]
-    second = np.take_along_axis(v, sel[:, :, None], axis=1)
-    return np.stack([v[:, :3], second], axis=1).astype(np.float32)
-
-
 def leaf_request(ptrs):
     """(word offset (m,) int64 of the leaf, triangle index k (m,) int64) of triangle request
     pointers: a triangle node, pair or group leaf (k = 0) or ``LEAF_NEXT_TYPE`` (k = bits

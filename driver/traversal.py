@@ -45,11 +45,10 @@ from .layout import (BOX_NODE, BOX_TYPE, NO_CHILD, NODE_BYTES, Q8_NODE, Q8_TYPE,
                      leaf_count, leaf_next, leaf_prim_word, leaf_request, node_word)
 
 _LANES = np.arange(BOX_NODE["child"].shape[0])
-# per pointer type: the node bytes a request fetches (driver.layout.NODE_BYTES)
 _CHILD_WORD = np.zeros(8, np.int64)           # per box-node type (a two-level image has both)
 _CHILD_WORD[BOX_TYPE] = node_word(BOX_NODE, "child")
 _CHILD_WORD[Q8_TYPE] = node_word(Q8_NODE, "child")
-_BYTES = np.zeros(8, np.int64)
+_BYTES = np.zeros(8, np.int64)                # per pointer type: node bytes a request fetches
 for _t, _b in NODE_BYTES.items():
     _BYTES[_t] = _b
 

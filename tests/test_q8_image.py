@@ -482,3 +482,36 @@ def test_a_datapath_with_the_decode_gets_the_nodes_as_stored(backend_name):
     assert ((req["flags"][~q8] & FLAG_DECODE_Q8) == 0).all()
     if backend_name == "rtl":
         assert rtunit.replay(rec, 64, 1).verified
+
+
+def test_leaf_next_pointers_round_trip():
+    """LEAF_NEXT_TYPE pointers carry the leaf (bits 28:3) and the triangle index - 1 (bits
+    31:29); a leaf beyond the first 4 GiB has no such pointer."""
+    from driver.layout import LEAF_OFFSET_LIMIT, leaf_request
+    leaf = NodeRef.encode([0, 64, LEAF_OFFSET_LIMIT - 128], GROUP_TYPE)
+    for k in range(1, GROUP_MAX_TRIS):
+        p = leaf_next(leaf, k)
+        assert (NodeRef.type(p) == LEAF_NEXT_TYPE).all()
+        word, got = leaf_request(p)
+        assert np.array_equal(word, NodeRef.word(leaf)) and (got == k).all()
+        assert np.array_equal(leaf_next(p, k + 1), leaf_next(leaf, k + 1))   # from a later one
+    assert (leaf_request(leaf)[1] == 0).all()
+    with pytest.raises(ValueError, match="4 GiB"):
+        leaf_next(NodeRef.encode([LEAF_OFFSET_LIMIT], GROUP_TYPE), 1)
+
+
+def test_group_trade_off(monkeypatch):
+    """GROUP_LAMBDA weighs bytes against ops: on this sphere each larger value gives an image no
+    larger, lambda = 0 groups nothing and a large lambda groups most triangles; every image
+    keeps the containment and the leaves."""
+    import driver.bvh.q8 as q8mod
+    tris = meshes.icosphere(4)
+    seen = []
+    for lam in (0.0, 1.0, q8mod.GROUP_LAMBDA, 16.0):
+        monkeypatch.setattr(q8mod, "GROUP_LAMBDA", lam)
+        bvh = build(tris, format="q8g")
+        check_image(bvh, tris)
+        seen.append((bvh.stats["bytes"], bvh.stats["grouped_triangles"]))
+    assert seen[0][1] == 0 and seen[0][0] == build(tris, format="q8").stats["bytes"]
+    assert all(b1 <= b0 for (b0, _), (b1, _) in zip(seen, seen[1:]))
+    assert seen[-1][0] < 0.8 * seen[0][0] and seen[-1][1] > 0.5 * len(tris)
