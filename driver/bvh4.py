@@ -76,7 +76,8 @@ import numpy as np
 # the names are re-exported for users
 from .layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, FLAG_DECODE_Q8, IMAGE_FORMATS,  # noqa: F401
                      NO_CHILD, QNODE_WORDS,
-                     GROUP_TYPE, PAIR_BYTES, PAIR_NODE, PAIR_SECOND_TYPE, PAIR_TYPE, Q8_BYTES,
+                     GROUP_TYPE, INSTANCE_NODE, INSTANCE_TYPE, PAIR_BYTES, PAIR_NODE,
+                     PAIR_SECOND_TYPE, PAIR_TYPE, Q8_BYTES, TRANSFORM,
                      Q8_NODE,
                      Q8_TYPE, QUADBOX, TRI_BYTES, TRI_NODE, TRI_TYPE, TRIANGLE, NodeRef,
                      decode_q8, node_word, pair_triangles, read_nodes)
@@ -226,11 +227,20 @@ def tri_operands(image, ptrs):
 def request_operands(req: np.ndarray, image, ptrs, compressed: bool = False) -> None:
     """Fill ``opcode``, ``box`` and ``tri`` of ``REQUEST_DTYPE`` rows ``req`` for the node
     pointers ``ptrs`` (one per row), as the harness does (sim/rf_sim.h ``NodeSource``);
-    ``compressed``: q8 nodes go to a datapath with the decode (``q8_request``)."""
+    ``compressed``: q8 nodes go to a datapath with the decode (``q8_request``). An instance
+    node (two-level images) becomes a TRANSFORM of the row's ray by its ``world_to_object``
+    (``matrix``; the transform on the datapath, docs/instances.md)."""
     ptrs = np.asarray(ptrs, np.uint32)
     typ = NodeRef.type(ptrs)
+    xf = typ == INSTANCE_TYPE
     box = NodeRef.is_box(ptrs)
-    req["opcode"] = np.where(box, QUADBOX, TRIANGLE)
+    req["opcode"] = np.where(box, QUADBOX, np.where(xf, TRANSFORM, TRIANGLE))
+    if xf.any():
+        sel = np.flatnonzero(xf)
+        req["box"][sel] = 0
+        req["tri"][sel] = 0
+        req["matrix"][sel] = read_nodes(image, ptrs[sel], INSTANCE_NODE)["world_to_object"]
+        box = box | xf                    # no triangle operand below
     sel = np.flatnonzero(typ == BOX_TYPE)
     req["box"][sel] = read_nodes(image, ptrs[sel], BOX_NODE)["box"]
     sel = np.flatnonzero(typ == Q8_TYPE)

@@ -142,7 +142,9 @@ def _per_op(measured: dict, unit: str) -> dict:
 
 
 def energy_per_ray(counts: dict, table: dict | None):
-    if not table or not counts["rays"]:
+    """Box and triangle ops times their energy per op, per ray; None without a table, without
+    rays, or when the frame has TRANSFORM ops (``rayflex power`` measures no energy for them)."""
+    if not table or not counts["rays"] or counts.get("transform_ops"):
         return None
     return (counts["box_ops"] * table["box"] + counts["tri_ops"] * table["triangle"]) \
         / counts["rays"]

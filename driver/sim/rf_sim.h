@@ -121,8 +121,9 @@ struct NodeSource {
     }
   }
 
-  // Returns false for a pointer that is neither a box node nor a triangle request's node inside
-  // the image.
+  // Returns false for a pointer that is neither a box node, a triangle request's node nor an
+  // instance node inside the image. An instance node becomes a TRANSFORM of the ray by the
+  // node's world_to_object matrix (docs/instances.md: the transform on the datapath).
   bool fill(int64_t i, uint32_t* dst) const {
     const uint32_t r = ray[i], p = ptr[i], type = p & kTypeMask;
     const int64_t word = node_word(p);
@@ -131,10 +132,18 @@ struct NodeSource {
     dst[kReqTagWord] = r;                              // tag = ray index
     dst[kReqExtentWord] = ext[i];                      // extent = the ray's nearest t so far
     const bool box = type == kBoxType || type == kQ8Type;
+    const bool xf = type == kInstanceType;
     const int64_t words = type == kPairSecondType ? kPairNodeWords : kNodeBytes[type] / 4;
     if (words == 0 || word + words > image_words) return false;
-    const uint32_t op = box ? kOpQuadbox : kOpTriangle;
+    const uint32_t op = box ? kOpQuadbox : xf ? kOpTransform : kOpTriangle;
     ctrl = (ctrl & ~(kOpcodeMask << kReqOpcodeLsb)) | (op << kReqOpcodeLsb);
+    if (xf) {
+      std::memset(dst + kReqBoxWord, 0, kReqBoxCount * 4);
+      std::memset(dst + kReqTriWord, 0, kReqTriCount * 4);
+      std::memcpy(dst + kReqMatrixWord, image + word + kInstanceNodeMatrixWord,
+                  kReqMatrixCount * 4);
+      return true;
+    }
     std::memset(dst + (box ? kReqTriWord : kReqBoxWord), 0,
                 (box ? kReqTriCount : kReqBoxCount) * 4);
     if (type == kBoxType) {
