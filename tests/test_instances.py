@@ -567,6 +567,38 @@ def test_instances_study_hits_on_a_small_scene(tmp_path):
     assert p["hit_mismatch"] == 0 and p["prim_mismatch"] == p["edge_ties"]
     assert p["max_t_rel_diff"] <= T_REL and p["instance_ops_per_ray"] > 0
     assert doc["rays"]["shadow"]["hit_mismatch"] == 0
+    assert img["flattened_over_instanced"] == img["flattened_bytes"] / img["instanced_bytes"]
+
+
+def test_instances_study_transform_on_a_small_scene(in_tmp, capsys):
+    """The driver vs datapath transform study: same rays and hits, the datapath's ops add one
+    TRANSFORM per instance entered, its RT-unit cycles are the replays'; the JSON and the
+    Markdown table; a scene without instances refused before any work."""
+    import json
+
+    from driver.bvh.instances_study import main
+    glb = str(reuse_glb(in_tmp / "reuse.glb"))
+    assert main(["transform", "--scene", glb, "--size", "8", "--spp", "1", "--bounces", "1",
+                 "--json", "t.json", "--no-progress"]) == 0
+    doc = json.loads((in_tmp / "t.json").read_text())
+    a, b = doc["transforms"]["driver"], doc["transforms"]["datapath"]
+    assert doc["latency_cycles"] == 11 and set(a["by_type"]) == {"primary", "shadow", "bounce1"}
+    for kind in ("frame", *a["by_type"]):
+        x, y = (a, b) if kind == "frame" else (a["by_type"][kind], b["by_type"][kind])
+        x, y = (x["frame"], y["frame"]) if kind == "frame" else (x, y)
+        assert (x["rays"], x["hits"], x["box_ops_per_ray"]) == (y["rays"], y["hits"],
+                                                                y["box_ops_per_ray"])
+        assert x["transform_ops_per_ray"] == 0
+        assert y["transform_ops_per_ray"] == y["instance_ops_per_ray"] > 0
+        rel = doc["datapath_vs_driver"][kind]
+        assert rel["ops"] == pytest.approx(y["ops"] / x["ops"] - 1) and rel["ops"] > 0
+        assert rel["rtunit_cycles"] == y["rtunit"]["cycles"] / x["rtunit"]["cycles"] - 1
+        assert x["embree_hit_mismatch"] == y["embree_hit_mismatch"] == 0
+    out = capsys.readouterr().out
+    assert out.count("| frame |") == 2 and "| datapath |" in out
+    assert main(["transform", "--scene", "sphere", "--size", "8", "--json", "s.json"]) == 2
+    assert "has no instances" in capsys.readouterr().err
+    assert not (in_tmp / "s.json").exists()
 
 
 def test_bench_frame_refuses_the_city(error_line):

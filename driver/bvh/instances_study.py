@@ -17,7 +17,8 @@ same ``rayflex bench --workload`` frame with the instance transform in the drive
 datapath (``--transform driver|datapath``) and reports, per ray type and for the frame, the ops
 per ray (box, triangle, transform), the RT-unit cycles and utilization without and with the
 node memory (the design point's defaults), the datapath's latency, and the datapath
-transform's cycles relative to the driver's; a JSON document and a Markdown table.
+transform's relative change in ops and cycles (``datapath_vs_driver``: datapath / driver - 1);
+a JSON document and a Markdown table.
 """
 
 from __future__ import annotations
@@ -144,10 +145,11 @@ def transform_cost(scene: str = "bunny_grid", workload: str = "path", size: int 
     dict."""
     from ..bench import bench_workload
     from ..design import DesignPoint
-    from ..instances import TRANSFORMS
+    from ..instances import DATAPATH, TRANSFORMS
     from ..stats import provenance
     out: dict = {}
-    for where in TRANSFORMS:
+    # datapath first: a scene without instances is refused before any work
+    for where in sorted(TRANSFORMS, key=lambda w: w != DATAPATH):
         point = DesignPoint(scene=scene, workload=workload, size=size, spp=spp,
                             bounces=bounces, transform=where)
         doc = bench_workload(point, sweep_rays=(), progress=progress)
@@ -161,6 +163,7 @@ def transform_cost(scene: str = "bunny_grid", workload: str = "path", size: int 
         out["transforms"][where] = {"frame": _cost(f),
                                     "by_type": {k: _cost(t) for k, t in f["by_type"].items()},
                                     "wall_s": sum(f["wall_parts_s"].values())}
+    out["transforms"] = {w: out["transforms"][w] for w in TRANSFORMS}
     a, b = (out["transforms"][w] for w in TRANSFORMS)
     out["datapath_vs_driver"] = {
         kind: _relative(a["frame"] if kind == "frame" else a["by_type"][kind],
@@ -185,11 +188,13 @@ def _cost(t: dict) -> dict:
 
 
 def _relative(a: dict, b: dict) -> dict:
-    """Datapath (``b``) over driver (``a``): ops and RT-unit cycles, as ratios."""
-    out = {"ops": b["ops"] / a["ops"] if a["ops"] else None}
+    """Datapath (``b``) against driver (``a``): the relative change (b / a - 1) of the ops and
+    of the RT-unit cycles."""
+    def change(x, y):
+        return y / x - 1 if x else None
+    out = {"ops": change(a["ops"], b["ops"])}
     for key in ("rtunit", "rtunit_memory"):
-        ca, cb = a[key].get("cycles"), b[key].get("cycles")
-        out[f"{key}_cycles"] = cb / ca if ca else None
+        out[f"{key}_cycles"] = change(a[key].get("cycles"), b[key].get("cycles"))
     return out
 
 
@@ -200,6 +205,7 @@ def transform_markdown(doc: dict) -> str:
              "| RT-unit cycles | utilization | cycles with memory | utilization with memory "
              "| cycles vs driver (with memory) |", "|---|---|---:|---:|---:|---:|---:|---:|---:|"
              "---:|---:|"]
+    pct = lambda x: "—" if x is None else f"{100 * x:+.1f} %"     # noqa: E731
     kinds = [*next(iter(doc["transforms"].values()))["by_type"], "frame"]
     for kind in kinds:
         for where, m in doc["transforms"].items():
@@ -210,7 +216,7 @@ def transform_markdown(doc: dict) -> str:
                 f"| {c['tri_ops_per_ray']:.2f} | {c['transform_ops_per_ray']:.2f} "
                 f"| {c['rtunit']['cycles']:,} | {c['rtunit']['utilization']:.3f} "
                 f"| {c['rtunit_memory']['cycles']:,} | {c['rtunit_memory']['utilization']:.3f} "
-                f"| {'1' if where == 'driver' else format(rel, '.3f')} |")
+                f"| {'' if where == 'driver' else pct(rel)} |")
     return "\n".join(lines)
 
 

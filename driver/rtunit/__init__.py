@@ -69,7 +69,8 @@ class Record:
 
     ray_words : (n, RAY_WORDS) uint32, the packed prepared rays (``driver.layout.ray_words``)
     image : (k,) uint32, the BVH4 memory image as little-endian words
-    ray, ptr : (m,) uint32, ray index and node pointer of request i
+    ray, ptr : (m,) uint32, ray index and node pointer of request i (an instance node's
+        pointer is a TRANSFORM request: the instance transform on the datapath)
     extent : (m,) float32, the ray's nearest t when request i was issued
     responses : (m, RSP_WORDS) uint32 response words of the functional run, or None
     params : RTL build parameters for the replay (EXTENDED, DISJOINT, LATENCY)
