@@ -435,6 +435,35 @@ def test_datapath_transform_on_the_command_line(in_tmp):
             == Image.open(in_tmp / "tiles-datapath.png").tobytes())
 
 
+def test_sweep_over_the_transform(in_tmp):
+    """rayflex sweep --transform driver,datapath: one functional trace each; the datapath's
+    points replay the TRANSFORM requests (on a TRANSFORM build), the driver's do not; no energy
+    per ray where TRANSFORM ops have no measured energy; the CSV column."""
+    import csv
+    import json
+
+    from driver.cli import main
+    glb = str(reuse_glb(in_tmp / "reuse.glb"))
+    assert main(["sweep", "--scene", glb, "--size", "8", "--transform", "driver,datapath",
+                 "--rays-in-flight", "4", "--cache-kib", "0,16", "--json", "s.json", "--csv",
+                 "s.csv", "--no-progress"]) == 0
+    doc = json.loads((in_tmp / "s.json").read_text())
+    assert len(doc["functional"]) == 2 and doc["grid"]["transform"] == ["driver", "datapath"]
+    pts = {(e["design_point"]["transform"], e["design_point"]["cache_kib"]): e
+           for e in doc["points"]}
+    for kib in (0, 16):
+        a, b = pts["driver", kib], pts["datapath", kib]
+        _same_ops(a, b)
+        assert a["rtunit"]["ops"] == a["ops"] and b["rtunit"]["ops"] == b["ops"]
+        assert b["rtunit"]["cycles"] > a["rtunit"]["cycles"]
+        assert b["rtunit"]["responses_verified"] and b["rtunit_memory"]["responses_verified"]
+        assert a["energy_per_ray"]["signals"] > 0 and b["energy_per_ray"]["signals"] is None
+    with open(in_tmp / "s.csv") as f:
+        table = list(csv.DictReader(f))
+    assert {(r["transform"], r["transform_ops"] == "0") for r in table} == {
+        ("driver", True), ("datapath", False)}
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("backend", ["golden", "rtl"])
 def test_bunny_grid_datapath_transform_gives_the_driver_hits(backend):
