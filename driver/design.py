@@ -12,7 +12,8 @@ The groups (docs/datapath.md for the datapath, docs/workloads.md for the workloa
 docs/statistics.md for what is measured):
 
 - datapath: ``--config`` (a configuration of driver/area.py's table: EXTENDED x DISJOINT),
-  ``--latency`` (pipeline stages);
+  ``--latency`` (pipeline stages), ``--transform`` (an instanced scene's ray transform in the
+  driver, or on the datapath: build parameter TRANSFORM);
 - bvh: ``--bvh-fill``, ``--cull-stack``;
 - rtunit: ``--rays-in-flight``, ``--pipelines``, and the node memory ``--cache-kib`` (0: no node
   cache, every node fetch from memory), ``--cache-ways``, ``--line-bytes``,
