@@ -176,6 +176,7 @@ class InstanceStepper:
         self.hit_instance = np.full(n, -1, np.int64)
         self.instance_ops = np.zeros(n, np.int64)       # instances entered
         self.transform_ops = np.zeros(n, np.int64)      # TRANSFORM requests (on the datapath)
+        self._calls: list[int] = []                     # TRANSFORM batches not yet reported
         self.node_bytes = np.zeros(n, np.int64)         # instance node bytes fetched
 
     def step(self, active, stack, sp, nearest) -> np.ndarray:
@@ -203,6 +204,7 @@ class InstanceStepper:
                 from .issue import transformed
                 o2, d2 = transformed(self.issue.transforms(r, ptr, nearest[r]))
                 self.transform_ops[r] += 1
+                self._calls.append(len(r))
             else:
                 o2, d2 = transform_ray(node["world_to_object"], self.world["origin"][r],
                                        self.world["dir"][r])
@@ -223,6 +225,12 @@ class InstanceStepper:
                 sp[skip] -= 1
                 active = active[sp[active] >= 0]
                 sp[skip[sp[skip] < 0]] = 0
+
+    def transform_calls(self) -> list[int]:
+        """The sizes of the TRANSFORM batches issued since the last call (each one backend
+        call), in order."""
+        calls, self._calls = self._calls, []
+        return calls
 
     def hit(self, rays) -> None:
         """Rays ``rays`` accepted a triangle in their current instance."""

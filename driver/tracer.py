@@ -32,8 +32,9 @@ class TraceResult:
     box_ops, tri_ops : (n,) int64, QUADBOX / TRIANGLE requests issued for each ray
     transform_ops : (n,) int64, TRANSFORM requests issued for each ray (the instance transform
         on the datapath; zeros otherwise), or None for a one-level image
-    step_requests, step_box_requests : (steps,) int64, requests (all / QUADBOX) in each
-        traversal step (one backend call each), in order, for timing replays
+    step_requests, step_box_requests : (calls,) int64, requests (all / QUADBOX) in each
+        backend call, in order, for timing replays: one call per traversal step, and before it
+        the step's TRANSFORM requests, if any (the instance transform on the datapath)
     instance : (n,) int64, the instance of the hit triangle in a two-level image (-1 on a
         miss, and for every ray of a one-level image); ``prim`` is then the triangle's index in
         the flattened triangle list (``driver.instances.Instances.flatten``)

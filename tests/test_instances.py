@@ -332,6 +332,12 @@ def test_datapath_transform_gives_the_driver_hits(backend):
         _same_ops(a.stats, b.stats)
         assert a.transform_ops.sum() == 0
         assert np.array_equal(b.ops, a.ops + b.transform_ops)
+        # one backend call per step and per step's TRANSFORM batch, each paying the latency
+        for r in (a, b):
+            assert r.step_requests.sum() == r.stats["ops"]
+            assert r.stats["cycles"] == r.stats["ops"] + 11 * len(r.step_requests)
+        assert len(b.step_requests) > len(a.step_requests)
+        assert b.step_box_requests.sum() == a.step_box_requests.sum()
         closest = closest or b
     # the image says where its transform runs unless the call does
     bvh.transform = "datapath"
