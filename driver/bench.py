@@ -289,8 +289,12 @@ def table(doc: dict) -> str:
         ("frame", f"{doc['scene']} {doc['width']}x{doc['height']}: {f['rays']} rays, "
                   f"{f['hits']} hits, Embree: {e.get('hit_mismatch', '?')} hit/miss + "
                   f"{e.get('prim_mismatch', '?')} prim mismatches"),
-        ("datapath ops", f"{f['ops']} ({f['box_ops']} box + {f['tri_ops']} tri; "
-                         f"{f['box_ops_per_ray']:.2f} + {f['tri_ops_per_ray']:.2f} per ray)"),
+        ("datapath ops", f"{f['ops']} ({f['box_ops']} box + {f['tri_ops']} tri"
+                         + (f" + {f['transform_ops']} transform" if f.get("transform_ops")
+                            else "")
+                         + f"; {f['box_ops_per_ray']:.2f} + {f['tri_ops_per_ray']:.2f}"
+                         + (f" + {f['transform_ops_per_ray']:.2f}" if f.get("transform_ops")
+                            else "") + " per ray)"),
         *timing_rows(f),
         ("frame wall", f"{f['wall_s']:.2f} s (BVH {f['wall_parts_s']['bvh_build']:.2f} + "
                        f"traversal {f['wall_parts_s']['traversal']:.2f} + replays "

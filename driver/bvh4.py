@@ -76,9 +76,10 @@ import numpy as np
 # the names are re-exported for users
 from .layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, FLAG_DECODE_Q8, IMAGE_FORMATS,  # noqa: F401
                      NO_CHILD, QNODE_WORDS,
-                     GROUP_BYTES, GROUP_NODE, GROUP_TYPE, LEAF_NEXT_TYPE, LEAF_OFFSET_LIMIT,
+                     GROUP_BYTES, GROUP_NODE, GROUP_TYPE, INSTANCE_NODE, INSTANCE_TYPE,
+                     LEAF_NEXT_TYPE, LEAF_OFFSET_LIMIT,
                      PAIR_BYTES, PAIR_NODE, PAIR_TYPE, Q8_BYTES, Q8_NODE, Q8_TYPE, QUADBOX,
-                     TRI_BYTES, TRI_NODE, TRI_TYPE, TRIANGLE, NodeRef, decode_q8,
+                     TRANSFORM, TRI_BYTES, TRI_NODE, TRI_TYPE, TRIANGLE, NodeRef, decode_q8,
                      leaf_triangles, node_word, read_nodes)
 
 PAD_REL = 2.0 ** -16
@@ -223,11 +224,20 @@ def tri_operands(image, ptrs):
 def request_operands(req: np.ndarray, image, ptrs, compressed: bool = False) -> None:
     """Fill ``opcode``, ``box`` and ``tri`` of ``REQUEST_DTYPE`` rows ``req`` for the node
     pointers ``ptrs`` (one per row), as the harness does (sim/rf_sim.h ``NodeSource``);
-    ``compressed``: q8 nodes go to a datapath with the decode (``q8_request``)."""
+    ``compressed``: q8 nodes go to a datapath with the decode (``q8_request``). An instance
+    node (two-level images) becomes a TRANSFORM of the row's ray by its ``world_to_object``
+    (``matrix``; the transform on the datapath, docs/instances.md)."""
     ptrs = np.asarray(ptrs, np.uint32)
     typ = NodeRef.type(ptrs)
+    xf = typ == INSTANCE_TYPE
     box = NodeRef.is_box(ptrs)
-    req["opcode"] = np.where(box, QUADBOX, TRIANGLE)
+    req["opcode"] = np.where(box, QUADBOX, np.where(xf, TRANSFORM, TRIANGLE))
+    if xf.any():
+        sel = np.flatnonzero(xf)
+        req["box"][sel] = 0
+        req["tri"][sel] = 0
+        req["matrix"][sel] = read_nodes(image, ptrs[sel], INSTANCE_NODE)["world_to_object"]
+        box = box | xf                    # no triangle operand below
     sel = np.flatnonzero(typ == BOX_TYPE)
     req["box"][sel] = read_nodes(image, ptrs[sel], BOX_NODE)["box"]
     sel = np.flatnonzero(typ == Q8_TYPE)

@@ -12,7 +12,8 @@ The groups (docs/datapath.md for the datapath, docs/workloads.md for the workloa
 docs/statistics.md for what is measured):
 
 - datapath: ``--config`` (a configuration of driver/area.py's table: EXTENDED x DISJOINT),
-  ``--latency`` (pipeline stages);
+  ``--latency`` (pipeline stages), ``--transform`` (an instanced scene's ray transform in the
+  driver, or on the datapath: build parameter TRANSFORM);
 - bvh: ``--bvh-fill``, ``--cull-stack``;
 - rtunit: ``--rays-in-flight``, ``--pipelines``, and the node memory ``--cache-kib`` (0: no node
   cache, every node fetch from memory), ``--cache-ways``, ``--line-bytes``,
@@ -31,7 +32,7 @@ from typing import Callable
 from .area import ALL_CONFIGS, CONFIGS, Q8_SUFFIX
 from .backends.build import MIN_LATENCY
 from .datapath import LATENCY, default_latency
-from .instances import TRANSFORMS
+from .instances import DATAPATH, TRANSFORMS
 from .layout import IMAGE_FORMATS
 from .rtunit.order import DEFAULT_POLICY, DEFAULT_WINDOW, POLICIES
 from .workloads import WORKLOADS
@@ -147,9 +148,9 @@ OPTIONS: tuple[Option, ...] = (
            "configuration's own", _latency, "datapath"),
     Option("transform", "--transform", str, "driver",
            "where an instanced scene's ray transform runs: "
-           + ", ".join(TRANSFORMS) + " (driver: on the host, as a traversal shader does; "
-           "docs/instances.md)", _choice(tuple(TRANSFORMS)), "datapath", "WHERE",
-           tuple(TRANSFORMS)),
+           + "; ".join(f"{k}: {v}" for k, v in TRANSFORMS.items())
+           + "; the same hits, bit for bit (docs/instances.md)", _choice(tuple(TRANSFORMS)),
+           "datapath", "WHERE", tuple(TRANSFORMS)),
     Option("bvh_fill", "--bvh-fill", int, 0,
            "split subtrees of at most N triangles so that their 4-wide nodes can all be full: "
            "fewer box nodes and bytes, slightly more ops per ray (0: plain SAH; docs/bvh.md)",
@@ -255,6 +256,9 @@ class DesignPoint:
         if POLICIES[self.ray_order].schedule and self.ray_window < self.rays_in_flight:
             raise ValueError(f"--ray-order {self.ray_order}: --ray-window ({self.ray_window}) "
                              f"must be at least --rays-in-flight ({self.rays_in_flight})")
+        if self.flatten and self.transform_op:
+            raise ValueError(f"--transform {DATAPATH} with --flatten: a flattened scene is one "
+                             "mesh, with no instance transform to run")
         if self.cache_kib and (self.cache_kib * 1024) % (self.cache_ways * self.line_bytes):
             raise ValueError(f"--cache-kib {self.cache_kib} is not a whole number of sets of "
                              f"--cache-ways {self.cache_ways} x --line-bytes {self.line_bytes}")
@@ -273,15 +277,22 @@ class DesignPoint:
         """The q8 node decode is in the datapath (build parameter COMPRESSED)."""
         return self.config.endswith(Q8_SUFFIX)
 
+    @property
+    def transform_op(self) -> bool:
+        """The instance transform runs on the datapath (build parameter TRANSFORM)."""
+        return self.transform == DATAPATH
+
     def backend_options(self) -> dict:
         """Keyword options of ``driver.backends.backend`` for this datapath."""
         return {"extended": self.extended, "disjoint": self.disjoint, "latency": self.latency,
-                "compressed": self.compressed}
+                "compressed": self.compressed, "transform": self.transform_op}
 
     def rtl_params(self) -> dict:
-        """RTL build parameters (EXTENDED, DISJOINT, LATENCY, COMPRESSED) of this datapath."""
+        """RTL build parameters (EXTENDED, DISJOINT, LATENCY, COMPRESSED, TRANSFORM) of this
+        datapath."""
         from .backends.build import rtl_params
-        return rtl_params(self.extended, self.disjoint, self.latency, self.compressed)
+        return rtl_params(self.extended, self.disjoint, self.latency, self.compressed,
+                          self.transform_op)
 
     def memory(self):
         """The RT unit's ``driver.rtunit.MemoryModel`` (``cache_kib`` 0: no node cache, every
@@ -306,7 +317,11 @@ class DesignPoint:
                 "bvh_format": self.bvh_format}
 
     def scene_of(self, scene):
-        """The scene as this point traces it: flattened with ``flatten``."""
+        """The scene as this point traces it: flattened with ``flatten``. With the transform on
+        the datapath the scene must have instances (one-line ValueError otherwise)."""
+        if self.transform_op and getattr(scene, "instances", None) is None:
+            raise ValueError(f"--transform {DATAPATH}: scene {scene.name!r} has no instances "
+                             "(one mesh), so there is no instance transform to run")
         return scene.flattened() if self.flatten else scene
 
     def build(self, scene):

@@ -5,8 +5,10 @@ a ray enters an instance (docs/instances.md).
   the mesh of every instance and its ``object_to_world`` 3x4 transform; the flattened world-space
   triangles (instance after instance, each mesh's triangles in order) are what ``prim`` indexes.
 - ``transform_ray``: the ray into object space, every product and sum rounded to float32 in the
-  order of the instance transform (docs/instances.md); the one function a datapath ``TRANSFORM``
-  operation replaces (``TRANSFORMS``: "driver" only so far).
+  order of the instance transform (docs/instances.md).
+- ``TRANSFORMS``: where the transform runs: "driver" (``transform_ray`` on the host) or
+  "datapath" (a ``TRANSFORM`` request per instance entered, issued on the frame's backend with
+  the step's other requests; the same bits).
 - ``InstanceStepper``: the traversal's hook (``driver.traversal.traverse(instances=...)``): a ray
   whose next node is an instance node fetches it (128 bytes), transforms its world ray, prepares
   it again (``driver.datapath.prepare_rays``: the transformed ray is a new row of the issuer's
@@ -22,7 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .layout import INSTANCE_BYTES, INSTANCE_NODE, INSTANCE_TYPE, NodeRef, read_nodes
+from .layout import (INSTANCE_BYTES, INSTANCE_NODE, INSTANCE_TYPE, NO_CHILD, NodeRef,
+                     read_nodes)
 
 
 
@@ -47,10 +50,21 @@ def transform_ray(m, o, d):
     return o2, d2
 
 
-# Where the instance transform runs: "driver" = ``transform_ray`` on the host (RDNA2/3's
-# traversal shader). A datapath operation computing the same bits (RDNA4's way) joins this table
-# as "datapath" with a function of the same signature that issues it on the backend.
-TRANSFORMS = {"driver": transform_ray}
+# Where the instance transform runs (the ``--transform`` values, docs/instances.md): both give
+# the same bits.
+DATAPATH = "datapath"
+TRANSFORMS = {
+    "driver": "on the host (transform_ray), as RDNA2/3's traversal shader does",
+    DATAPATH: "a TRANSFORM request on the datapath per instance entered, as RDNA4's RT unit "
+              "does (the backend is built with the TRANSFORM operation)",
+}
+
+
+def check_transform(transform: str) -> str:
+    """``transform`` if it names an entry of ``TRANSFORMS``, else a one-line ValueError."""
+    if transform not in TRANSFORMS:
+        raise ValueError(f"transform must be one of {tuple(TRANSFORMS)}, got {transform!r}")
+    return transform
 
 
 def affine(m) -> np.ndarray:
@@ -142,18 +156,18 @@ class Instances:
 class InstanceStepper:
     """Per-ray instance state of one traversal (see the module docstring).
 
-    rays : (n,) prepared world rays (``REQUEST_DTYPE``); add_rays(prepared, rays, instance node
-    pointers) : appends transformed rays to the issuer's ray table and returns their rows (rows
-    0..n-1 are the world rays; ``driver.issue``).
+    rays : (n,) prepared world rays (``REQUEST_DTYPE``); issue : the traversal's issuer
+    (``driver.issue``): ``issue.add_rays(prepared, rays, instance node pointers)`` appends
+    transformed rays to its ray table and returns their rows (rows 0..n-1 are the world rays);
+    with ``transform`` "datapath", ``issue.transforms(rows, pointers, extents)`` runs the
+    TRANSFORM requests of world rays by instance nodes and returns their response words.
     """
 
-    def __init__(self, bvh, rays: np.ndarray, add_rays, transform: str = "driver"):
-        if transform not in TRANSFORMS:
-            raise ValueError(f"transform must be one of {tuple(TRANSFORMS)}, got {transform!r}")
-        self.transform = TRANSFORMS[transform]
+    def __init__(self, bvh, rays: np.ndarray, issue, transform: str = "driver"):
+        self.on_datapath = check_transform(transform) == DATAPATH
         self.image = bvh.image.view("<u4")
         self.world = rays
-        self.add_rays = add_rays
+        self.issue = issue
         n = len(rays)
         self.row = np.arange(n, dtype=np.int64)         # the issuer's row of each ray's ray
         self.base = np.zeros(n, np.int64)               # stack index of the BLAS root entry
@@ -161,6 +175,8 @@ class InstanceStepper:
         self.current = np.full(n, -1, np.int64)         # instance the ray is in
         self.hit_instance = np.full(n, -1, np.int64)
         self.instance_ops = np.zeros(n, np.int64)       # instances entered
+        self.transform_ops = np.zeros(n, np.int64)      # TRANSFORM requests (on the datapath)
+        self._calls: list[int] = []                     # TRANSFORM batches not yet reported
         self.node_bytes = np.zeros(n, np.int64)         # instance node bytes fetched
 
     def step(self, active, stack, sp, nearest) -> np.ndarray:
@@ -180,17 +196,27 @@ class InstanceStepper:
             if not enter.any():
                 return active
             r = active[enter]
-            node = read_nodes(self.image, top[enter], INSTANCE_NODE)
+            ptr = top[enter]
+            node = read_nodes(self.image, ptr, INSTANCE_NODE)
             self.instance_ops[r] += 1
             self.node_bytes[r] += INSTANCE_BYTES
-            o2, d2 = self.transform(node["world_to_object"], self.world["origin"][r],
-                                    self.world["dir"][r])
+            if self.on_datapath:      # one TRANSFORM request per ray, on its world row (= r)
+                from .issue import transformed
+                o2, d2 = transformed(self.issue.transforms(r, ptr, nearest[r]))
+                self.transform_ops[r] += 1
+                self._calls.append(len(r))
+            else:
+                o2, d2 = transform_ray(node["world_to_object"], self.world["origin"][r],
+                                       self.world["dir"][r])
             ok = (np.isfinite(o2).all(1) & np.isfinite(d2).all(1) & (d2 != 0).any(1))
             go, skip = r[ok], r[~ok]
             if len(go):
                 from .datapath import prepare_rays
                 prepared = prepare_rays(o2[ok], d2[ok], nearest[go], self.world["flags"][go])
-                self.row[go] = self.add_rays(prepared, go, top[enter][ok])
+                # the instance node is the TRANSFORM request's own on the datapath; in the
+                # driver it is fetched before the BLAS root (the record's ``before``)
+                via = np.full(len(go), NO_CHILD, np.uint32) if self.on_datapath else ptr[ok]
+                self.row[go] = self.issue.add_rays(prepared, go, via)
                 self.base[go] = sp[go]
                 self.inside[go] = True
                 self.current[go] = node["instance"][ok].astype(np.int64)
@@ -199,6 +225,12 @@ class InstanceStepper:
                 sp[skip] -= 1
                 active = active[sp[active] >= 0]
                 sp[skip[sp[skip] < 0]] = 0
+
+    def transform_calls(self) -> list[int]:
+        """The sizes of the TRANSFORM batches issued since the last call (each one backend
+        call), in order."""
+        calls, self._calls = self._calls, []
+        return calls
 
     def hit(self, rays) -> None:
         """Rays ``rays`` accepted a triangle in their current instance."""

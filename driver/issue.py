@@ -10,7 +10,10 @@
 
 Both check that the responses come back in order with the ray index in their ``tag``. The ray
 table grows when a traversal enters instances (``add_rays``: each transformed ray is a new row,
-``driver.instances``); a request then names its ray by that row.
+``driver.instances``); a request then names its ray by that row. With the instance transform on
+the datapath, ``transforms`` issues a batch of TRANSFORM requests the same way: a world ray's
+row and an instance node's pointer each (the harness, or ``request_operands``, puts the node's
+``world_to_object`` on the request's ``matrix``).
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import numpy as np
 
 from .backends.base import NodeBackend
 from .bvh4 import request_operands
+from .datapath import DatapathError
 from .layout import NO_CHILD, RESPONSE, RSP_WORDS, pack_responses, ray_words
 from .traversal import StepResponses
 
@@ -38,6 +42,11 @@ def _float(words: np.ndarray, name: str) -> np.ndarray:
     f = RESPONSE.field[name]
     vals = words[:, f.word:f.word + f.words].view(np.float32)
     return vals if f.shape else vals[:, 0]
+
+
+def transformed(words: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(o', d'), each (m, 3) float32, of TRANSFORM response words (m, RSP_WORDS)."""
+    return _float(words, "xf_origin").copy(), _float(words, "xf_dir").copy()
 
 
 def _check_order(got_tags: np.ndarray, active: np.ndarray, name: str) -> None:
@@ -87,11 +96,23 @@ class NodeIssue:
         ``Recorder.add_rays``)."""
         return self._table.append(ray_words(rays))
 
-    def __call__(self, active, ptr, ext, bi, ti) -> StepResponses:
+    def _run(self, active, ptr, ext) -> np.ndarray:
         t0 = time.perf_counter()
         words = self.backend.run_nodes(self.ray_words, self.image, active, ptr, ext)
         self.wall_s += time.perf_counter() - t0
         _check_order(words[:, RESPONSE.field["tag"].word], active, self.name)
+        return words
+
+    def transforms(self, rows, ptr, ext) -> np.ndarray:
+        """Response words (m, RSP_WORDS) of the TRANSFORM requests of ray-table rows ``rows``
+        by the instance nodes ``ptr`` (extent ``ext``, unused by the operation). The harness
+        does not check requests: a build without the operation is refused here."""
+        if not getattr(self.backend, "transform", False):
+            raise DatapathError("TRANSFORM needs backend(..., transform=True)")
+        return self._run(rows, ptr, ext)
+
+    def __call__(self, active, ptr, ext, bi, ti) -> StepResponses:
+        words = self._run(active, ptr, ext)
         wb, wt = words[bi], words[ti]
         return StepResponses(_bits(wb, "box_index"), _bits(wb, "box_hit").astype(bool),
                              _bits(wt, "tri_hit").astype(bool), _float(wt, "t_num"),
@@ -120,7 +141,7 @@ class RequestIssue:
         ``Recorder.add_rays``)."""
         return self._table.append(rays)
 
-    def __call__(self, active, ptr, ext, bi, ti) -> StepResponses:
+    def _run(self, active, ptr, ext) -> np.ndarray:
         req = self.rays[active]
         req["extent"] = ext
         req["tag"] = active
@@ -130,6 +151,14 @@ class RequestIssue:
         rsp = self.backend.run(req)
         self.wall_s += time.perf_counter() - t0
         _check_order(rsp["tag"], active, self.name)
+        return rsp
+
+    def transforms(self, rows, ptr, ext) -> np.ndarray:
+        """Response words of TRANSFORM requests (``NodeIssue.transforms``)."""
+        return pack_responses(self._run(rows, ptr, ext))
+
+    def __call__(self, active, ptr, ext, bi, ti) -> StepResponses:
+        rsp = self._run(active, ptr, ext)
         return StepResponses(rsp["box_index"][bi], rsp["box_hit"][bi].astype(bool),
                              rsp["tri_hit"][ti].astype(bool),
                              rsp["t_num"][ti].astype(np.float32),
@@ -169,9 +198,18 @@ class Recorder:
 
     def __call__(self, active, ptr, ext, bi, ti) -> StepResponses:
         rsp = self.inner(active, ptr, ext, bi, ti)
-        self.parts.append((active.astype(np.uint32), ptr, np.asarray(ext, np.float32),
-                           rsp.words))
+        self._keep(active, ptr, ext, rsp.words)
         return rsp
+
+    def transforms(self, rows, ptr, ext) -> np.ndarray:
+        """``NodeIssue.transforms``, recorded: the TRANSFORM requests join the rays' chains."""
+        words = self.inner.transforms(rows, ptr, ext)
+        self._keep(rows, ptr, ext, words)
+        return words
+
+    def _keep(self, active, ptr, ext, words) -> None:
+        self.parts.append((np.asarray(active).astype(np.uint32), np.asarray(ptr, np.uint32),
+                           np.asarray(ext, np.float32), words))
 
     def record(self, params: dict):
         from .rtunit import Record

@@ -447,7 +447,11 @@ INSTANCE_BYTES = INSTANCE_NODE.itemsize
 assert INSTANCE_BYTES == 128 and INSTANCE_NODE.fields["blas"][1] == 96
 NODE_BYTES[INSTANCE_TYPE] = INSTANCE_BYTES
 #   an instance node is fetched by the traversal when a ray enters the instance; with the
-#   transform in the driver it becomes no datapath request (NODE_OPCODE has no entry for it)
+#   transform on the datapath (``--transform datapath``) it becomes a TRANSFORM request of the
+#   world ray by the node's ``world_to_object`` (on the request's ``matrix``); with the transform
+#   in the driver it becomes no datapath request
+NODE_OPCODE[INSTANCE_TYPE] = TRANSFORM
+assert INSTANCE_NODE["world_to_object"].shape == MATRIX_SHAPE
 
 
 def q8_count(nodes: np.ndarray) -> np.ndarray:
@@ -584,6 +588,8 @@ def c_header() -> str:
     const("kGroupSelLsb", GROUP_SEL_LSB)
     const("kGroupSelBits", GROUP_SEL_BITS)
     const("kGroupCountLsb", GROUP_COUNT_LSB)
+    const("kInstanceType", INSTANCE_TYPE, "uint32_t")
+    const("kInstanceNodeMatrixWord", node_word(INSTANCE_NODE, "world_to_object"))
     const("kQ8CountLsb", Q8_COUNT_LSB)
     const("kNoChild", NO_CHILD, "uint32_t")
     node_bytes = ", ".join(str(NODE_BYTES.get(t, 0)) for t in range(_TYPE_MASK + 1))

@@ -182,7 +182,7 @@ def _render_whole(scene, w, h, backend, progress, check_embree, point,
 
     tri = scene.triangles
     image = shade(result, tri, dirs, w, h)
-    ops = (np.asarray(result.box_ops, np.int64) + np.asarray(result.tri_ops, np.int64))
+    ops = result.ops
     stats = dict(result.stats)
     if rtunit:
         with phase(f"RT-unit replay of {result.record.ops:,} requests", progress):

@@ -19,6 +19,7 @@ from .layout import BOX_BYTES, TRI_BYTES
 
 STACK_CULLS = "stack_culls"     # box nodes a distance-culled stack dropped
 INSTANCE_OPS = "instance_ops"   # instances entered (two-level images; docs/instances.md)
+TRANSFORM_OPS = "transform_ops"  # TRANSFORM requests (the instance transform on the datapath)
 # the replay's figures that replace the wavefront's (which are kept as wavefront_<name>)
 REPLAYED = ("cycles", "utilization", "sim_wall_s", "sim_cycles_per_s")
 # the replay's own figures that join the frame's statistics
@@ -29,17 +30,22 @@ REPLAY_KEYS = ("frame_us_at_1ghz", "rays_in_flight", "pipelines", "turnaround_cy
 def frame_stats(box_ops: np.ndarray, tri_ops: np.ndarray, hit: np.ndarray, cycles: int,
                 latency: int, sim_wall_s: float, backend: str,
                 culled: np.ndarray | None = None, node_bytes: np.ndarray | None = None,
-                instance_ops: np.ndarray | None = None) -> dict:
+                instance_ops: np.ndarray | None = None,
+                transform_ops: np.ndarray | None = None) -> dict:
     """Statistics of a traversal: per-ray op counts (n,), hit mask (n,), the datapath
     cycles it took, the pipeline latency, the wall time inside the backend, the backend's name;
     with ``culled`` (per-ray box nodes dropped by a distance-culled stack, ``driver.traversal``)
     also ``stack_culls``, their total (absent when the traversal does not cull); ``node_bytes``
     (n,) per-ray node bytes fetched (default: a box32 image's, 128 B per box op and 64 B per
     triangle op); ``instance_ops`` (n,) per-ray instances entered (a two-level image): adds
-    ``instance_ops`` and ``instance_ops_per_ray``."""
+    ``instance_ops`` and ``instance_ops_per_ray``, and ``transform_ops`` and
+    ``transform_ops_per_ray`` from ``transform_ops`` (n,), the TRANSFORM requests of the
+    instance transform on the datapath (default none); those are datapath ops like the box and
+    triangle ops (``ops`` is the sum of the three)."""
     n = len(box_ops)
     nb, nt = int(np.sum(box_ops)), int(np.sum(tri_ops))
-    ops = nb + nt
+    nx = 0 if transform_ops is None else int(np.sum(transform_ops))
+    ops = nb + nt + nx
     out = {
         "rays": n,
         "hits": int(np.sum(hit)),
@@ -63,6 +69,8 @@ def frame_stats(box_ops: np.ndarray, tri_ops: np.ndarray, hit: np.ndarray, cycle
     if instance_ops is not None:
         out[INSTANCE_OPS] = int(np.sum(instance_ops))
         out[INSTANCE_OPS + "_per_ray"] = out[INSTANCE_OPS] / n if n else 0.0
+        out[TRANSFORM_OPS] = nx
+        out[TRANSFORM_OPS + "_per_ray"] = nx / n if n else 0.0
     return out
 
 
@@ -92,9 +100,10 @@ def merge(parts: list[dict]) -> dict:
     s = {k: sum(p[k] for p in parts) for k in _SUMMED}
     if all(STACK_CULLS in p for p in parts):
         s[STACK_CULLS] = sum(p[STACK_CULLS] for p in parts)
-    if all(INSTANCE_OPS in p for p in parts):
-        s[INSTANCE_OPS] = sum(p[INSTANCE_OPS] for p in parts)
-        s[INSTANCE_OPS + "_per_ray"] = s[INSTANCE_OPS] / s["rays"] if s["rays"] else 0.0
+    for key in (INSTANCE_OPS, TRANSFORM_OPS):
+        if all(key in p for p in parts):
+            s[key] = sum(p[key] for p in parts)
+            s[key + "_per_ray"] = s[key] / s["rays"] if s["rays"] else 0.0
     n, cycles, wall = s["rays"], s["cycles"], s["sim_wall_s"]
     s.update({
         "utilization": s["ops"] / cycles if cycles else 0.0,

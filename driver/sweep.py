@@ -142,7 +142,9 @@ def _per_op(measured: dict, unit: str) -> dict:
 
 
 def energy_per_ray(counts: dict, table: dict | None):
-    if not table or not counts["rays"]:
+    """Box and triangle ops times their energy per op, per ray; None without a table, without
+    rays, or when the frame has TRANSFORM ops (``rayflex power`` measures no energy for them)."""
+    if not table or not counts["rays"] or counts.get("transform_ops"):
         return None
     return (counts["box_ops"] * table["box"] + counts["tri_ops"] * table["triangle"]) \
         / counts["rays"]
@@ -294,7 +296,8 @@ def _totals(by_type: dict, merge) -> dict:
 # ---------------------------------------------------------------------------------------------
 # outputs
 
-ROW_FIELDS = ("ray_type", "rays", "hits", "box_ops", "tri_ops", "ops", "box_ops_per_ray",
+ROW_FIELDS = ("ray_type", "rays", "hits", "box_ops", "tri_ops", "transform_ops", "ops",
+              "box_ops_per_ray",
               "tri_ops_per_ray", "rtunit_cycles", "rtunit_utilization", "rtunit_cycles_per_ray",
               "rtunit_memory_cycles", "rtunit_memory_utilization", "rtunit_memory_cycles_per_ray",
               "hit_rate", "bytes_per_ray", "energy_per_ray_signals", "energy_per_ray_gates",
@@ -310,6 +313,7 @@ def rows(doc: dict) -> list[dict]:
             out.append({**e["design_point"], "ray_type": kind,
                         **{k: t[k] for k in ("rays", "hits", "box_ops", "tri_ops", "ops",
                                              "box_ops_per_ray", "tri_ops_per_ray")},
+                        "transform_ops": t.get("transform_ops"),      # instanced scenes
                         "rtunit_cycles": r["cycles"], "rtunit_utilization": r["utilization"],
                         "rtunit_cycles_per_ray": r["cycles_per_ray"],
                         "rtunit_memory_cycles": m.get("cycles"),

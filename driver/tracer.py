@@ -16,7 +16,7 @@ from .backends import resolve
 from .bvh4 import BVH4, build
 from .datapath import prepare_rays
 from .layout import FLAG_NO_CULL
-from .instances import TRANSFORMS, InstanceStepper
+from .instances import DATAPATH, InstanceStepper, check_transform
 from .issue import issuer
 from .stats import frame_stats, with_replay
 from .traversal import traverse
@@ -30,8 +30,11 @@ class TraceResult:
     prim : (n,) int64, primitive id = triangle index in the scene (-1 on a miss)
     hit : (n,) bool
     box_ops, tri_ops : (n,) int64, QUADBOX / TRIANGLE requests issued for each ray
-    step_requests, step_box_requests : (steps,) int64, requests (all / QUADBOX) in each
-        traversal step (one backend call each), in order, for timing replays
+    transform_ops : (n,) int64, TRANSFORM requests issued for each ray (the instance transform
+        on the datapath; zeros otherwise), or None for a one-level image
+    step_requests, step_box_requests : (calls,) int64, requests (all / QUADBOX) in each
+        backend call, in order, for timing replays: one call per traversal step, and before it
+        the step's TRANSFORM requests, if any (the instance transform on the datapath)
     instance : (n,) int64, the instance of the hit triangle in a two-level image (-1 on a
         miss, and for every ray of a one-level image); ``prim`` is then the triangle's index in
         the flattened triangle list (``driver.instances.Instances.flatten``)
@@ -50,6 +53,13 @@ class TraceResult:
     stats: dict = field(default_factory=dict)
     record: object = None
     instance: np.ndarray | None = None
+    transform_ops: np.ndarray | None = None
+
+    @property
+    def ops(self) -> np.ndarray:
+        """(n,) int64: datapath requests issued for each ray (box, triangle and transform)."""
+        ops = np.asarray(self.box_ops, np.int64) + np.asarray(self.tri_ops, np.int64)
+        return ops if self.transform_ops is None else ops + self.transform_ops
 
 
 def as_bvh(scene, bvh_format: str | None = None) -> BVH4:
@@ -99,8 +109,11 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
         default), "q8" or "q8g" (``driver.bvh4.build``'s ``format``); a BVH4 given must be in
         this format
     transform : where a two-level image's instance transform runs
-        (``driver.instances.TRANSFORMS``: "driver", on the host); None: the image's own
-        (``TwoLevelBVH.transform``, set by ``driver.bvh.instances.build_scene``)
+        (``driver.instances.TRANSFORMS``): "driver" (on the host) or "datapath" (a TRANSFORM
+        request per instance entered, on ``backend``, which must be built with the operation:
+        a backend name is made with ``transform=True``, a backend object without it is a
+        ValueError before any work); None: the image's own (``TwoLevelBVH.transform``, set by
+        ``driver.bvh.instances.build_scene``)
     progress : optional callable(done_rays, total_rays), called once per step
     rays_in_flight, pipelines, turnaround : RT-unit model (``driver.rtunit``). With
         ``rays_in_flight=None`` (default) the statistics are the wavefront's: every ray in
@@ -114,8 +127,8 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
     record : keep the ``driver.rtunit.Record`` of every request (for ``rtunit.replay``/sweeps)
         in ``TraceResult.record`` (always kept when ``rays_in_flight`` is given).
     """
-    if transform is not None and transform not in TRANSFORMS:
-        raise ValueError(f"transform must be one of {tuple(TRANSFORMS)}, got {transform!r}")
+    if transform is not None:
+        check_transform(transform)
     if isinstance(scene_or_mesh_or_bvh, (str, bytes)) or hasattr(scene_or_mesh_or_bvh,
                                                                  "__fspath__"):
         from .scenes.scene import load_scene                      # the application layer; lazy
@@ -123,15 +136,19 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
     if double_sided is None:
         double_sided = bool(getattr(scene_or_mesh_or_bvh, "double_sided", False))
     bvh = as_bvh(scene_or_mesh_or_bvh, bvh_format)
-    be, be_name = resolve(backend)
+    instanced = getattr(bvh, "instances", None) is not None
+    where = transform or getattr(bvh, "transform", "driver")
+    xf = instanced and where == DATAPATH
+    be, be_name = resolve(backend, **({"transform": True} if xf else {}))
+    if xf and not getattr(be, "transform", False):
+        raise ValueError(f"transform='{DATAPATH}' needs a backend built with the TRANSFORM "
+                         f"operation (backend({be_name!r}, transform=True))")
     rays = prepare_rays(origins, directions, extent,
                         **({"flags": FLAG_NO_CULL} if double_sided else {}))
     timed = rays_in_flight is not None
     issue = issuer(be, rays, bvh, be_name, record=bool(record) or timed)
     cycles0 = int(be.cycles)
-    inst = (InstanceStepper(bvh, rays, issue.add_rays,
-                            transform or getattr(bvh, "transform", "driver"))
-            if getattr(bvh, "instances", None) is not None else None)
+    inst = InstanceStepper(bvh, rays, issue, where) if instanced else None
     trav = traverse(bvh, rays["extent"], issue, any_hit=any_hit, progress=progress,
                     cull=cull_stack, instances=inst)
     hit = trav.prim >= 0
@@ -144,19 +161,22 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
     stats = frame_stats(trav.box_ops, trav.tri_ops, hit, int(be.cycles) - cycles0,
                         int(getattr(be, "latency", 0)), issue.wall_s, be_name,
                         trav.culled if cull_stack else None, trav.node_bytes,
-                        None if inst is None else inst.instance_ops)
+                        None if inst is None else inst.instance_ops,
+                        None if inst is None else inst.transform_ops)
     rec = issue.record(_replay_params(be)) if hasattr(issue, "record") else None
     if timed:
         from . import rtunit
         ta = rtunit.DEFAULT_TURNAROUND if turnaround is None else turnaround
         stats = with_replay(stats, rtunit.replay(rec, rays_in_flight, pipelines, ta).stats())
     return TraceResult(t, trav.prim, hit, trav.box_ops, trav.tri_ops, trav.step_requests,
-                       trav.step_box_requests, stats, rec, instance)
+                       trav.step_box_requests, stats, rec, instance,
+                       None if inst is None else inst.transform_ops)
 
 
 def _replay_params(be) -> dict:
     """RTL build parameters for replaying this backend's requests (an RTL backend's own, else
-    the defaults with the backend's extended/disjoint/latency where it has them)."""
+    the defaults with the backend's extended/disjoint/latency/compressed/transform where it has
+    them)."""
     params = getattr(be, "params", None)
     if isinstance(params, dict) and {"EXTENDED", "DISJOINT", "LATENCY"} <= set(params):
         return dict(params)
@@ -165,4 +185,4 @@ def _replay_params(be) -> dict:
     compressed = bool(getattr(be, "compressed", False))
     return rtl_params(getattr(be, "extended", False), getattr(be, "disjoint", False),
                       lat if isinstance(lat, int) and lat >= MIN_LATENCY + compressed else None,
-                      compressed)
+                      compressed, bool(getattr(be, "transform", False)))

@@ -87,7 +87,9 @@ class Traversal:
     box_ops, tri_ops : (n,) int64, QUADBOX / TRIANGLE requests issued for each ray
     node_bytes : (n,) int64, node bytes each ray's requests fetched (``layout.NODE_BYTES``)
     culled : (n,) int64, box nodes dropped from each ray's stack by ``cull`` (no request)
-    step_requests, step_box_requests : (steps,) int64, requests (all / QUADBOX) per step
+    step_requests, step_box_requests : (calls,) int64, requests (all / QUADBOX) per backend
+        call: one per step, and before it the step's TRANSFORM requests, if any (an instance
+        transform on the datapath)
     """
 
     nearest: np.ndarray
@@ -135,6 +137,9 @@ def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
                 break
         if instances is not None:
             active = instances.step(active, stack, sp, nearest)
+            calls = instances.transform_calls()     # TRANSFORM batches: a backend call each
+            steps += calls
+            steps_box += [0] * len(calls)
             if not len(active):
                 if progress is not None:
                     progress(n, n)

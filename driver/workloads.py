@@ -327,7 +327,7 @@ def _finish(fr: Frame, radiance: np.ndarray) -> FrameResult:
     order = np.argsort(fr.pixels, kind="stable")      # pixel index -> row of this frame's arrays
     ops, stats = {}, {}
     for b in fr.batches:
-        k = b.result.box_ops + b.result.tri_ops
+        k = b.result.ops                     # box, triangle and transform requests
         idx = order[np.searchsorted(fr.pixels, b.pixel, sorter=order)]
         ops.setdefault(b.kind, np.zeros(npix, np.int64))
         np.add.at(ops[b.kind], idx, k)

@@ -45,12 +45,14 @@ def test_defaults_are_the_rt_unit_and_memory_models_own():
     assert DesignPoint(cache_kib=0).memory().cache_bytes == 0
     assert design.BY_NAME["config"].choices == tuple(ALL_CONFIGS)
     for name, (e, d) in CONFIGS.items():
-        for c in (0, 1):
-            q = DesignPoint(config=name + Q8_SUFFIX * c, latency=13)
+        for c, x in ((0, 0), (1, 0), (0, 1), (1, 1)):
+            q = DesignPoint(config=name + Q8_SUFFIX * c, latency=13,
+                            transform="datapath" if x else "driver")
             assert q.backend_options() == {"extended": bool(e), "disjoint": bool(d),
-                                           "latency": 13, "compressed": bool(c)}
+                                           "latency": 13, "compressed": bool(c),
+                                           "transform": bool(x)}
             assert q.rtl_params() == {"EXTENDED": e, "DISJOINT": d, "COMPRESSED": c,
-                                      "TRANSFORM": 0, "LATENCY": 13}
+                                      "TRANSFORM": x, "LATENCY": 13}
         # the latency defaults to the configuration's least: the q8 decode adds a stage
         assert DesignPoint(config=name).latency == 11
         assert DesignPoint(config=name + Q8_SUFFIX).latency == 12

@@ -3,12 +3,14 @@
 import numpy as np
 import pytest
 import trimesh
+from PIL import Image
 
 from driver.bvh.instances import build_two_level, world_boxes
 from driver.instances import Instances, affine, transform_ray
 from driver.layout import (BOX_NODE, BOX_TYPE, INSTANCE_BYTES, INSTANCE_NODE, INSTANCE_TYPE,
                            NO_CHILD, NODE_BYTES, NodeRef, read_nodes)
 from driver.tracer import trace
+from support.meshes import reuse_glb
 
 T_REL = 1e-5        # the transform's rounding: largest relative t difference allowed
 
@@ -151,7 +153,7 @@ def test_instances_reject_bad_input():
         Instances([tri], [0], np.full((1, 3, 4), np.inf))
     inst = Instances([tri], [0], np.eye(3, 4)[None])
     with pytest.raises(ValueError, match="transform must be one of"):
-        trace(build_two_level(inst), [[0, 0, -3]], [[0, 0, 1]], transform="datapath")
+        trace(build_two_level(inst), [[0, 0, -3]], [[0, 0, 1]], transform="shader")
 
 
 # ---- hits ---------------------------------------------------------------------------------------
@@ -291,6 +293,202 @@ def test_instanced_record_replays_with_instance_fetches(fmt):
     assert np.array_equal(g.prim, res.prim) and np.array_equal(g.t, res.t)
 
 
+# ---- the transform on the datapath (--transform datapath) ---------------------------------------
+
+def _same_trace(a, b):
+    """Bit-identical hits: t, primitive and instance of every ray."""
+    assert np.array_equal(a.t.view(np.uint32), b.t.view(np.uint32))
+    assert np.array_equal(a.prim, b.prim) and np.array_equal(a.instance, b.instance)
+
+
+def _same_ops(driver_stats, datapath_stats):
+    """The same traversal, and one TRANSFORM op per instance entered on the datapath."""
+    a, b = driver_stats, datapath_stats
+    for k in ("rays", "hits", "box_ops", "tri_ops", "instance_ops", "node_bytes_fetched"):
+        assert a[k] == b[k], k
+    assert a["transform_ops"] == 0 and a["ops"] == a["box_ops"] + a["tri_ops"]
+    assert b["transform_ops"] == b["instance_ops"] > 0
+    assert b["ops"] == b["box_ops"] + b["tri_ops"] + b["transform_ops"]
+    assert b["transform_ops_per_ray"] == b["transform_ops"] / b["rays"]
+
+
+@pytest.mark.parametrize("backend", ["golden", "rtl"])
+def test_datapath_transform_gives_the_driver_hits(backend):
+    """A random scene graph (rotations, non-uniform scales, mirrors): the transform as TRANSFORM
+    requests on the backend gives the hits of the host's transform bit for bit, for closest-hit,
+    any-hit and double-sided rays."""
+    import driver
+    inst = random_instances(3)
+    assert inst.mirrored.any()
+    bvh = build_two_level(inst)
+    o, d = random_rays(1500, 12)
+    be = driver.backend(backend, transform=True)
+    closest = None
+    for kw in ({}, {"any_hit": True, "extent": 15.0}, {"double_sided": True}):
+        a = trace(bvh, o, d, backend=backend, transform="driver", **kw)
+        b = trace(bvh, o, d, backend=be, transform="datapath", **kw)
+        assert a.hit.sum() > 100
+        _same_trace(a, b)
+        _same_ops(a.stats, b.stats)
+        assert a.transform_ops.sum() == 0
+        assert np.array_equal(b.ops, a.ops + b.transform_ops)
+        # one backend call per step and per step's TRANSFORM batch, each paying the latency
+        for r in (a, b):
+            assert r.step_requests.sum() == r.stats["ops"]
+            assert r.stats["cycles"] == r.stats["ops"] + 11 * len(r.step_requests)
+        assert len(b.step_requests) > len(a.step_requests)
+        assert b.step_box_requests.sum() == a.step_box_requests.sum()
+        closest = closest or b
+    # the image says where its transform runs unless the call does
+    bvh.transform = "datapath"
+    c = trace(bvh, o, d, backend=backend)
+    _same_trace(closest, c)
+    assert c.stats["transform_ops"] == closest.stats["transform_ops"]
+
+
+def test_datapath_transform_in_the_record_and_the_replay():
+    """The TRANSFORM requests join the rays' request chains (the instance node is their own
+    node; the harness assembles the same request words as the host); without them the chains
+    are the driver's. The RT-unit replay issues each like any request: with one ray in flight
+    each costs latency + turnaround (11 + 1) cycles; responses verified on the RTL. The driver's
+    cycles are those measured before the datapath transform existed."""
+    from driver import rtunit
+    from driver.backends.harness import build_requests
+    from driver.layout import pack_requests
+    inst = random_instances(2, k=8)
+    o, d = random_rays(300, 6)
+    # (rtunit cycles R=16, with the default node memory): driver mode, measured on the code
+    # before the transform could run on the datapath
+    before = {"box32": (1594, 7256), "q8": (1721, 5861)}
+    for fmt in ("box32", "q8"):
+        bvh = build_two_level(inst, format=fmt)
+        a = trace(bvh, o, d, transform="driver", record=True).record
+        b = trace(bvh, o, d, transform="datapath", record=True).record
+        xf = NodeRef.type(b.ptr) == INSTANCE_TYPE
+        assert a.transform_ops == 0 and b.transform_ops == xf.sum() > 0
+        assert b.transform_ops == (a.before != NO_CHILD).sum() and (b.before == NO_CHILD).all()
+        assert (b.responses[xf, 0] == b.ray[xf]).all()              # tag: the world ray
+        assert np.array_equal(build_requests(b.params, b.ray_words, b.image, b.ray, b.ptr,
+                                             b.extent), pack_requests(b.requests()))
+        ia, ib = a.chains()[0], b.chains()[0]
+        ib = ib[~xf[ib]]
+        for f in ("ray", "ptr", "responses"):
+            assert np.array_equal(getattr(a, f)[ia], getattr(b, f)[ib]), f
+        assert np.array_equal(a.extent[ia].view(np.uint32), b.extent[ib].view(np.uint32))
+        one_a, one_b = rtunit.replay(a, 1, 1), rtunit.replay(b, 1, 1)
+        assert one_b.cycles - one_a.cycles == 12 * b.transform_ops
+        assert one_b.verified and one_b.stats()["transform_ops"] == b.transform_ops
+        assert one_b.stats()["tri_ops"] == one_a.stats()["tri_ops"]
+        plain_a, plain_b = rtunit.replay(a, 16, 1), rtunit.replay(b, 16, 1)
+        mem = rtunit.MemoryModel()
+        mem_a, mem_b = rtunit.replay(a, 16, 1, memory=mem), rtunit.replay(b, 16, 1, memory=mem)
+        assert (plain_a.cycles, mem_a.cycles) == before[fmt]
+        assert plain_b.verified and mem_b.verified and plain_b.cycles > plain_a.cycles
+        big = rtunit.MemoryModel(cache_bytes=1 << 22)                # the same lines either way
+        assert (rtunit.replay(a, 16, 1, memory=big).memory["line_misses"]
+                == rtunit.replay(b, 16, 1, memory=big).memory["line_misses"])
+
+
+def test_datapath_transform_needs_the_operation(error_line, in_tmp):
+    import driver
+    from driver.cli import main
+    inst = random_instances(2, k=4)
+    o, d = random_rays(10, 6)
+    with pytest.raises(ValueError, match="needs a backend built with the TRANSFORM operation"):
+        trace(build_two_level(inst), o, d, backend=driver.backend("golden"), transform="datapath")
+    glb = str(reuse_glb(in_tmp / "reuse.glb"))
+    for argv, what in (
+            (["render", "sphere", "--transform", "datapath"], "has no instances"),
+            (["render", glb, "--transform", "datapath", "--flatten"], "--flatten"),
+            (["bench", "--scene", glb, "--workload", "path", "--transform", "gpu"],
+             "unknown value 'gpu'"),
+            (["sweep", "--scene", glb, "--transform", "driver,datapath", "--flatten", "yes"],
+             "--flatten")):
+        assert main(argv + ["--size", "8", "--no-progress", "--json", "x.json"]) == 2, argv
+        assert what in error_line()
+        assert not (in_tmp / "x.json").exists()
+
+
+def test_datapath_transform_on_the_command_line(in_tmp):
+    """render (whole frame and tiles) and bench --workload with --transform datapath: the driver's
+    hits and ops plus one TRANSFORM op per instance entered, recorded in the design point."""
+    import json
+
+    from driver.cli import main
+    glb = str(reuse_glb(in_tmp / "reuse.glb"))
+    docs = {}
+    for where in ("driver", "datapath"):
+        for name, argv in (("whole", ["render", glb, "--size", "12", "--rtunit"]),
+                           ("tiles", ["render", glb, "--size", "12", "--workload", "path",
+                                      "--tile", "6", "--backend", "golden"]),
+                           ("bench", ["bench", "--scene", glb, "--workload", "shadow",
+                                      "--size", "8", "--sweep-rays", "4"])):
+            out = f"{name}-{where}"
+            assert main(argv + ["--transform", where, "--json", f"{out}.json",
+                                "--no-progress"]
+                        + (["--out", f"{out}.png"] if argv[0] == "render" else [])) == 0
+            docs[out] = json.loads((in_tmp / f"{out}.json").read_text())
+    for name in ("whole", "tiles", "bench"):
+        a, b = docs[f"{name}-driver"], docs[f"{name}-datapath"]
+        fa, fb = (a.get("frame", a), b.get("frame", b))
+        assert b["provenance"]["design_point"]["transform"] == "datapath"
+        _same_ops(fa, fb)
+        for kind, t in fb["by_type"].items():
+            _same_ops(fa["by_type"][kind], t)
+        if "rtunit" in fb and fb["rtunit"]:
+            assert fb["rtunit"]["ops"] == fb["ops"] and fb["rtunit"]["responses_verified"]
+    assert (Image.open(in_tmp / "tiles-driver.png").tobytes()
+            == Image.open(in_tmp / "tiles-datapath.png").tobytes())
+
+
+def test_sweep_over_the_transform(in_tmp):
+    """rayflex sweep --transform driver,datapath: one functional trace each; the datapath's
+    points replay the TRANSFORM requests (on a TRANSFORM build), the driver's do not; no energy
+    per ray where TRANSFORM ops have no measured energy; the CSV column."""
+    import csv
+    import json
+
+    from driver.cli import main
+    glb = str(reuse_glb(in_tmp / "reuse.glb"))
+    assert main(["sweep", "--scene", glb, "--size", "8", "--transform", "driver,datapath",
+                 "--rays-in-flight", "4", "--cache-kib", "0,16", "--json", "s.json", "--csv",
+                 "s.csv", "--no-progress"]) == 0
+    doc = json.loads((in_tmp / "s.json").read_text())
+    assert len(doc["functional"]) == 2 and doc["grid"]["transform"] == ["driver", "datapath"]
+    pts = {(e["design_point"]["transform"], e["design_point"]["cache_kib"]): e
+           for e in doc["points"]}
+    for kib in (0, 16):
+        a, b = pts["driver", kib], pts["datapath", kib]
+        _same_ops(a, b)
+        assert a["rtunit"]["ops"] == a["ops"] and b["rtunit"]["ops"] == b["ops"]
+        assert b["rtunit"]["cycles"] > a["rtunit"]["cycles"]
+        assert b["rtunit"]["responses_verified"] and b["rtunit_memory"]["responses_verified"]
+        assert a["energy_per_ray"]["signals"] > 0 and b["energy_per_ray"]["signals"] is None
+    with open(in_tmp / "s.csv") as f:
+        table = list(csv.DictReader(f))
+    assert {(r["transform"], r["transform_ops"] == "0") for r in table} == {
+        ("driver", True), ("datapath", False)}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("backend", ["golden", "rtl"])
+def test_bunny_grid_datapath_transform_gives_the_driver_hits(backend):
+    """The bunny grid, primary rays of a small frame: --transform datapath gives the hits of
+    --transform driver bit for bit (t, primitive, instance), one TRANSFORM per instance entered."""
+    from driver.design import DesignPoint
+    from driver.render import render
+    from driver.scenes.scene import load_scene
+    scene = load_scene("bunny_grid")
+    res = {w: render(scene, 24, 24, backend=backend, progress=False,
+                     point=DesignPoint(scene="bunny_grid", transform=w))
+           for w in ("driver", "datapath")}
+    a, b = res["driver"].trace, res["datapath"].trace
+    assert a.hit.sum() > 50 and len(np.unique(a.instance[a.hit])) > 3
+    _same_trace(a, b)
+    _same_ops(a.stats, b.stats)
+    assert np.array_equal(res["datapath"].ops, res["driver"].ops + b.transform_ops.reshape(24, 24))
+
+
 # ---- large instanced scenes ---------------------------------------------------------------------
 
 def _small_city(side=5):
@@ -365,21 +563,11 @@ def test_embree_sample_is_the_full_check_on_its_rays():
     assert np.array_equal(tri[prim[hit]], inst.flatten()[res.prim[rows][hit]])
 
 
-def _reuse_glb(path):
-    s = trimesh.Scene()
-    s.add_geometry(trimesh.creation.icosphere(1), geom_name="ico", node_name="n0")
-    for i in (1, 2):
-        s.graph.update(frame_to=f"n{i}", frame_from=s.graph.base_frame, geometry="ico",
-                       matrix=trimesh.transformations.translation_matrix([3.0 * i, 0, 0]))
-    s.export(str(path))
-    return path
-
-
 def test_render_cli_instanced_and_flattened(in_tmp):
     import json
 
     from driver.cli import main
-    glb = _reuse_glb(in_tmp / "reuse.glb")
+    glb = reuse_glb(in_tmp / "reuse.glb")
     base = ["render", str(glb), "--size", "12", "--backend", "golden", "--no-progress",
             "--check-embree"]
     assert main(base + ["--json", "i.json", "--out", "i.png", "--transform", "driver"]) == 0
@@ -406,7 +594,7 @@ def test_flatten_refuses_a_scene_too_large(error_line):
 
 def test_instances_study_hits_on_a_small_scene(tmp_path):
     from driver.bvh.instances_study import hits
-    doc = hits(str(_reuse_glb(tmp_path / "reuse.glb")), size=24)
+    doc = hits(str(reuse_glb(tmp_path / "reuse.glb")), size=24)
     img = doc["images"]["box32"]
     assert img["instanced_bytes"] < img["flattened_bytes"] and img["ratio"] < 1
     p = doc["rays"]["primary"]
@@ -414,6 +602,38 @@ def test_instances_study_hits_on_a_small_scene(tmp_path):
     assert p["hit_mismatch"] == 0 and p["prim_mismatch"] == p["edge_ties"]
     assert p["max_t_rel_diff"] <= T_REL and p["instance_ops_per_ray"] > 0
     assert doc["rays"]["shadow"]["hit_mismatch"] == 0
+    assert img["flattened_over_instanced"] == img["flattened_bytes"] / img["instanced_bytes"]
+
+
+def test_instances_study_transform_on_a_small_scene(in_tmp, capsys):
+    """The driver vs datapath transform study: same rays and hits, the datapath's ops add one
+    TRANSFORM per instance entered, its RT-unit cycles are the replays'; the JSON and the
+    Markdown table; a scene without instances refused before any work."""
+    import json
+
+    from driver.bvh.instances_study import main
+    glb = str(reuse_glb(in_tmp / "reuse.glb"))
+    assert main(["transform", "--scene", glb, "--size", "8", "--spp", "1", "--bounces", "1",
+                 "--json", "t.json", "--no-progress"]) == 0
+    doc = json.loads((in_tmp / "t.json").read_text())
+    a, b = doc["transforms"]["driver"], doc["transforms"]["datapath"]
+    assert doc["latency_cycles"] == 11 and set(a["by_type"]) == {"primary", "shadow", "bounce1"}
+    for kind in ("frame", *a["by_type"]):
+        x, y = (a, b) if kind == "frame" else (a["by_type"][kind], b["by_type"][kind])
+        x, y = (x["frame"], y["frame"]) if kind == "frame" else (x, y)
+        assert (x["rays"], x["hits"], x["box_ops_per_ray"]) == (y["rays"], y["hits"],
+                                                                y["box_ops_per_ray"])
+        assert x["transform_ops_per_ray"] == 0
+        assert y["transform_ops_per_ray"] == y["instance_ops_per_ray"] > 0
+        rel = doc["datapath_vs_driver"][kind]
+        assert rel["ops"] == pytest.approx(y["ops"] / x["ops"] - 1) and rel["ops"] > 0
+        assert rel["rtunit_cycles"] == y["rtunit"]["cycles"] / x["rtunit"]["cycles"] - 1
+        assert x["embree_hit_mismatch"] == y["embree_hit_mismatch"] == 0
+    out = capsys.readouterr().out
+    assert out.count("| frame |") == 2 and "| datapath |" in out
+    assert main(["transform", "--scene", "sphere", "--size", "8", "--json", "s.json"]) == 2
+    assert "has no instances" in capsys.readouterr().err
+    assert not (in_tmp / "s.json").exists()
 
 
 def test_bench_frame_refuses_the_city(error_line):

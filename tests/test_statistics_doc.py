@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from driver.cli import main
+from support.meshes import reuse_glb
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "statistics.md"
 
@@ -20,6 +21,8 @@ RUNS = {
                      "--check-embree", "--rtunit", "--out", "t.png"],
     "bench": ["bench", "--size", "8", "--pyverilator-requests", "50", "--sweep-rays", "1,4",
               "--sweep-pipelines", "1", "--repeat", "1", "--cull-stack"],
+    "render_instanced": ["render", "./reuse.glb", "--size", "8", "--transform", "datapath",
+                         "--rtunit", "--check-embree", "--out", "i.png"],
     "bench_workload": ["bench", "--scene", "sphere", "--workload", "shadow", "--size", "8",
                        "--sweep-rays", "1,4"],
     "bench_workers": ["bench", "--scene", "sphere", "--workload", "ao", "--size", "8",
@@ -69,6 +72,7 @@ def documents(tmp_path_factory):
     cwd = os.getcwd()
     os.chdir(d)
     try:
+        reuse_glb(d / "reuse.glb")                  # an instanced scene (two-level image)
         docs = {}
         for name, argv in RUNS.items():
             assert main(argv + ["--json", f"{name}.json", "--no-progress"]) == 0, name
@@ -102,8 +106,9 @@ def test_every_json_carries_provenance(documents):
 def test_one_schema_for_every_frame_and_ray_type(documents):
     """The timing objects have the same keys in every command, frame and ray type."""
     shapes: dict = {}
-    frames = [documents["render"], documents["render_tiled"], documents["bench"]["frame"],
-              documents["bench_workload"]["frame"], *documents["sweep"]["points"]]
+    frames = [documents["render"], documents["render_tiled"], documents["render_instanced"],
+              documents["bench"]["frame"], documents["bench_workload"]["frame"],
+              *documents["sweep"]["points"]]
     for f in frames:
         for t in [f, *f["by_type"].values()]:
             for key in ("wavefront", "rtunit", "rtunit_memory"):

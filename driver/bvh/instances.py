@@ -31,7 +31,7 @@ import time
 import numpy as np
 
 from ..bvh4 import BVH4, build
-from ..instances import TRANSFORMS, Instances
+from ..instances import Instances, check_transform
 from ..layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, INSTANCE_BYTES, INSTANCE_NODE,
                       INSTANCE_TYPE, NO_CHILD, Q8_BYTES, Q8_NODE, TRI_NODE, TRI_TYPE, NodeRef,
                       read_nodes)
@@ -180,8 +180,7 @@ def build_scene(scene, fill: int = 0, format: str = "box32", transform: str = "d
     (``fill`` applies to the BLASes; ``transform``: where its traversals run the instance
     transform, ``driver.instances.TRANSFORMS``) or, for a one-mesh scene, ``driver.bvh4.build``
     of its mesh."""
-    if transform not in TRANSFORMS:
-        raise ValueError(f"transform must be one of {tuple(TRANSFORMS)}, got {transform!r}")
+    check_transform(transform)
     if getattr(scene, "instances", None) is not None:
         bvh = build_two_level(scene.instances, format=format, fill=fill)
         bvh.transform = transform

@@ -2,6 +2,8 @@
 
     python -m driver.bvh.instances_study hits [--scene bunny_grid] [--size 256] [--json OUT]
     python -m driver.bvh.instances_study table DOC.json [DOC.json ...]
+    python -m driver.bvh.instances_study transform [--scene bunny_grid] [--workload path]
+        [--size 64] [--spp 2] [--bounces 2] [--json OUT]
 
 ``hits`` builds a scene's image both ways (two-level and flattened, box32 and q8), reports their
 bytes, and traces the same rays through both on the golden model: the scene's primary rays
@@ -10,7 +12,13 @@ bytes, and traces the same rays through both on the golden model: the scene's pr
 rounding) with the largest relative difference. ``table`` prints, per document and ray type
 (``rayflex bench --workload ... --json`` documents, with or without ``--flatten``), the ops per
 ray (box, triangle, instance), node bytes and bytes from memory per ray, the node cache's hit
-rate and the utilization with the node memory, as a Markdown table.
+rate and the utilization with the node memory, as a Markdown table. ``transform`` runs the
+same ``rayflex bench --workload`` frame with the instance transform in the driver and on the
+datapath (``--transform driver|datapath``) and reports, per ray type and for the frame, the ops
+per ray (box, triangle, transform), the RT-unit cycles and utilization without and with the
+node memory (the design point's defaults), the datapath's latency, and the datapath
+transform's relative change in ops and cycles (``datapath_vs_driver``: datapath / driver - 1);
+a JSON document and a Markdown table.
 """
 
 from __future__ import annotations
@@ -39,6 +47,7 @@ def hits(scene_name: str = "bunny_grid", size: int = 256, backend: str = "golden
         images[fmt] = {"instanced_bytes": inst.stats["bytes"],
                        "flattened_bytes": flat.stats["bytes"],
                        "ratio": inst.stats["bytes"] / flat.stats["bytes"],
+                       "flattened_over_instanced": flat.stats["bytes"] / inst.stats["bytes"],
                        "instanced_build_s": inst.stats["build_s"],
                        "flattened_build_s": flat.stats["build_s"]}
         if fmt == "box32":
@@ -129,6 +138,88 @@ def markdown(docs: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def transform_cost(scene: str = "bunny_grid", workload: str = "path", size: int = 64,
+                   spp: int = 2, bounces: int = 2, progress: bool = False) -> dict:
+    """The ``transform`` study of the module docstring: ``driver.bench.bench_workload`` of the
+    same design point with each ``--transform`` (no rays-in-flight sweep), as a JSON-ready
+    dict."""
+    from ..bench import bench_workload
+    from ..design import DesignPoint
+    from ..instances import DATAPATH, TRANSFORMS
+    from ..stats import provenance
+    out: dict = {}
+    # datapath first: a scene without instances is refused before any work
+    for where in sorted(TRANSFORMS, key=lambda w: w != DATAPATH):
+        point = DesignPoint(scene=scene, workload=workload, size=size, spp=spp,
+                            bounces=bounces, transform=where)
+        doc = bench_workload(point, sweep_rays=(), progress=progress)
+        f = doc["frame"]
+        if not out:
+            out = {"provenance": provenance(point), "scene": doc["scene"], "workload": workload,
+                   "width": doc["width"], "height": doc["height"], "spp": spp,
+                   "bounces": bounces, "latency_cycles": f["latency_cycles"],
+                   "instances": f["instances"], "transforms": {}}
+            out["provenance"]["design_point"]["transform"] = list(TRANSFORMS)
+        out["transforms"][where] = {"frame": _cost(f),
+                                    "by_type": {k: _cost(t) for k, t in f["by_type"].items()},
+                                    "wall_s": sum(f["wall_parts_s"].values())}
+    out["transforms"] = {w: out["transforms"][w] for w in TRANSFORMS}
+    a, b = (out["transforms"][w] for w in TRANSFORMS)
+    out["datapath_vs_driver"] = {
+        kind: _relative(a["frame"] if kind == "frame" else a["by_type"][kind],
+                        b["frame"] if kind == "frame" else b["by_type"][kind])
+        for kind in ["frame", *a["by_type"]]}
+    return out
+
+
+def _cost(t: dict) -> dict:
+    """One frame's or ray type's figures of the ``transform`` study."""
+    n = t["rays"]
+    out = {"rays": n, "hits": t["hits"], "ops": t["ops"],
+           **{k: t[k] for k in ("box_ops_per_ray", "tri_ops_per_ray", "instance_ops_per_ray",
+                                "transform_ops_per_ray")},
+           "ops_per_ray": t["ops"] / n if n else 0.0,
+           "embree_hit_mismatch": (t.get("embree") or {}).get("hit_mismatch")}
+    for key in ("rtunit", "rtunit_memory"):
+        r = t.get(key) or {}
+        out[key] = {k: r.get(k) for k in ("cycles", "utilization", "cycles_per_ray",
+                                          "hit_rate", "bytes_per_ray") if k in r}
+    return out
+
+
+def _relative(a: dict, b: dict) -> dict:
+    """Datapath (``b``) against driver (``a``): the relative change (b / a - 1) of the ops and
+    of the RT-unit cycles."""
+    def change(x, y):
+        return y / x - 1 if x else None
+    out = {"ops": change(a["ops"], b["ops"])}
+    for key in ("rtunit", "rtunit_memory"):
+        out[f"{key}_cycles"] = change(a[key].get("cycles"), b[key].get("cycles"))
+    return out
+
+
+def transform_markdown(doc: dict) -> str:
+    """The ``transform`` study as a Markdown table: one row per ray type (and the frame) and
+    transform placement."""
+    lines = ["| ray type | transform | rays | box ops/ray | tri ops/ray | transform ops/ray "
+             "| RT-unit cycles | utilization | cycles with memory | utilization with memory "
+             "| cycles vs driver (with memory) |", "|---|---|---:|---:|---:|---:|---:|---:|---:|"
+             "---:|---:|"]
+    pct = lambda x: "—" if x is None else f"{100 * x:+.1f} %"     # noqa: E731
+    kinds = [*next(iter(doc["transforms"].values()))["by_type"], "frame"]
+    for kind in kinds:
+        for where, m in doc["transforms"].items():
+            c = m["frame"] if kind == "frame" else m["by_type"][kind]
+            rel = doc["datapath_vs_driver"][kind]["rtunit_memory_cycles"]
+            lines.append(
+                f"| {kind} | {where} | {c['rays']:,} | {c['box_ops_per_ray']:.2f} "
+                f"| {c['tri_ops_per_ray']:.2f} | {c['transform_ops_per_ray']:.2f} "
+                f"| {c['rtunit']['cycles']:,} | {c['rtunit']['utilization']:.3f} "
+                f"| {c['rtunit_memory']['cycles']:,} | {c['rtunit_memory']['utilization']:.3f} "
+                f"| {'' if where == 'driver' else pct(rel)} |")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m driver.bvh.instances_study",
                                 description=__doc__.split("\n\n")[0])
@@ -139,9 +230,31 @@ def main(argv=None) -> int:
     h.add_argument("--json", metavar="OUT")
     t = sub.add_parser("table", help="Markdown table of bench --workload documents")
     t.add_argument("docs", nargs="+", metavar="DOC.json")
+    x = sub.add_parser("transform", help="the instance transform in the driver vs on the "
+                                         "datapath: ops, RT-unit cycles, utilization")
+    x.add_argument("--scene", default="bunny_grid")
+    x.add_argument("--workload", default="path")
+    x.add_argument("--size", type=int, default=64)
+    x.add_argument("--spp", type=int, default=2)
+    x.add_argument("--bounces", type=int, default=2)
+    x.add_argument("--json", metavar="OUT")
+    x.add_argument("--no-progress", action="store_true")
     args = p.parse_args(argv)
     try:
-        if args.cmd == "hits":
+        if args.cmd == "transform":
+            from ..design import DesignPoint
+            from ..outputs import JSON, Outputs, write_json
+            DesignPoint(scene=args.scene, workload=args.workload, size=args.size,
+                        spp=args.spp, bounces=args.bounces)         # bad values fail now
+            outs = Outputs()
+            js = outs.add("--json", args.json, JSON) if args.json else None
+            doc = transform_cost(args.scene, args.workload, args.size, args.spp, args.bounces,
+                                 progress=not args.no_progress)
+            with outs.commit():
+                if js:
+                    write_json(doc, outs.temp(js))
+            print(transform_markdown(doc))
+        elif args.cmd == "hits":
             doc = hits(args.scene, args.size)
             text = json.dumps(doc, indent=1)
             if args.json:

@@ -147,16 +147,19 @@ def workload_table(doc: dict) -> str:
     head = (f"{doc['scene']} {doc['width']}x{doc['height']} {doc['workload']} (spp {pt['spp']}, "
             f"bounces {pt['bounces']}): {f['rays']} rays, {f['ops']} ops")
     rows = [head] + [f"{a}: {b}" for a, b in timing_rows(f)]
-    rows.append(f"{'type':>8} {'rays':>8} {'box/ray':>8} {'tri/ray':>8} {'rtunit':>7} "
+    rows.append(f"{'type':>8} {'rays':>8} {'box/ray':>8} {'tri/ray':>8} {'xf/ray':>7} "
+                f"{'rtunit':>7} "
                 f"{'+memory':>8} {'hit rate':>8} {'B/ray':>7} {'anyhit/closest':>14}")
     nan = float("nan")
     for kind, t in f["by_type"].items():
         m = t.get("rtunit_memory") or {}
         ratio = t.get("any_hit_vs_closest_ops")
         rows.append(f"{kind:>8} {t['rays']:>8} {t['box_ops_per_ray']:>8.2f} "
-                    f"{t['tri_ops_per_ray']:>8.2f} {t['rtunit']['utilization']:>7.3f} "
+                    f"{t['tri_ops_per_ray']:>8.2f} {t.get('transform_ops_per_ray', 0):>7.2f} "
+                    f"{t['rtunit']['utilization']:>7.3f} "
                     f"{m.get('utilization', nan):>8.3f} {m.get('hit_rate', nan):>8.3f} "
                     f"{m.get('bytes_per_ray', nan):>7.0f} "
                     f"{'' if ratio is None else format(ratio, '.3f'):>14}")
-    rows.append("(utilization: datapath ops / (pipelines x RT-unit cycles); docs/statistics.md)")
+    rows.append("(xf: transform ops, with --transform datapath; utilization: datapath ops / "
+                "(pipelines x RT-unit cycles); docs/statistics.md)")
     return "\n".join(rows)

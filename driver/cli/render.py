@@ -120,9 +120,12 @@ def summary(res) -> str:
     lines = [
         f"{res.scene.name} {res.width}x{res.height} on {s.get('backend', '?')}: "
         f"{rays} rays, {s.get('hits', 0)} hits ({100 * s.get('hits', 0) / max(rays, 1):.1f} %)",
-        f"datapath: {s.get('box_ops', 0)} box ops + {s.get('tri_ops', 0)} tri ops = "
-        f"{s.get('ops', 0)} ops ({s.get('box_ops_per_ray', 0):.1f} + "
-        f"{s.get('tri_ops_per_ray', 0):.1f} per ray)",
+        f"datapath: {s.get('box_ops', 0)} box ops + {s.get('tri_ops', 0)} tri ops"
+        + (f" + {s['transform_ops']} transform ops" if s.get("transform_ops") else "")
+        + f" = {s.get('ops', 0)} ops ({s.get('box_ops_per_ray', 0):.1f} + "
+        f"{s.get('tri_ops_per_ray', 0):.1f}"
+        + (f" + {s['transform_ops_per_ray']:.2f}" if s.get("transform_ops") else "")
+        + " per ray)",
         f"wavefront (every ray in flight, one pipeline): {wf['cycles']} cycles, utilization "
         f"{wf['utilization']:.3f}, {wf['frame_us_at_1ghz']:.1f} us at 1 GHz; simulated in "
         f"{wf['sim_wall_s']:.2f} s ({wf['sim_cycles_per_s']:.3g} cycles/s)",
@@ -141,8 +144,9 @@ def summary(res) -> str:
                      f"{b.get('bytes', 0) / 2**20:.2f} MiB, built in {b.get('build_s', 0):.2f} s")
     for kind, t in s.get("by_type", {}).items():
         lines.append(f"  {kind:>8}: {t['rays']} rays, {t['hits']} hits, "
-                     f"{t['box_ops_per_ray']:.1f} box + {t['tri_ops_per_ray']:.1f} tri ops per "
-                     f"ray, {t['ops']} ops")
+                     f"{t['box_ops_per_ray']:.1f} box + {t['tri_ops_per_ray']:.1f} tri"
+                     + (f" + {t['transform_ops_per_ray']:.2f} transform" if t.get("transform_ops")
+                        else "") + f" ops per ray, {t['ops']} ops")
     e = s.get("embree")
     if e:
         lines.append(f"embree: {e['rays_compared']} rays compared, {e['hit_mismatch']} hit/miss "

@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..datapath import LATENCY
-from ..layout import RAY_WORDS, REQ_WORDS, NodeRef, unpack_requests
+from ..layout import INSTANCE_TYPE, RAY_WORDS, REQ_WORDS, NodeRef, unpack_requests
 
 DEFAULT_RAYS_IN_FLIGHT = 64        # the default ray pool (see the module docstring)
 DEFAULT_TURNAROUND = 1
@@ -69,7 +69,8 @@ class Record:
 
     ray_words : (n, RAY_WORDS) uint32, the packed prepared rays (``driver.layout.ray_words``)
     image : (k,) uint32, the BVH4 memory image as little-endian words
-    ray, ptr : (m,) uint32, ray index and node pointer of request i
+    ray, ptr : (m,) uint32, ray index and node pointer of request i (an instance node's
+        pointer is a TRANSFORM request: the instance transform on the datapath)
     extent : (m,) float32, the ray's nearest t when request i was issued
     responses : (m, RSP_WORDS) uint32 response words of the functional run, or None
     params : RTL build parameters for the replay (EXTENDED, DISJOINT, LATENCY)
@@ -103,6 +104,11 @@ class Record:
     @property
     def box_ops(self) -> int:
         return int(NodeRef.is_box(self.ptr).sum())
+
+    @property
+    def transform_ops(self) -> int:
+        """TRANSFORM requests (an instance node's pointer: the transform on the datapath)."""
+        return int((NodeRef.type(self.ptr) == INSTANCE_TYPE).sum())
 
     def chains(self):
         """(chain_idx (m,) int64, chain_off (n + 1,) int64): ray r's requests, in issue order,
@@ -192,6 +198,7 @@ class ReplayResult:
     responses: np.ndarray
     memory: dict | None = None      # the memory model's parameters and counters, when on
     order: dict | None = None       # the ray-order policy and its cost (driver.rtunit.order)
+    transform_ops: int = 0          # TRANSFORM requests among ``ops``
 
     @property
     def utilization(self) -> float:
@@ -206,7 +213,8 @@ class ReplayResult:
             "rays": self.rays,
             "ops": self.ops,
             "box_ops": self.box_ops,
-            "tri_ops": self.ops - self.box_ops,
+            "tri_ops": self.ops - self.box_ops - self.transform_ops,
+            "transform_ops": self.transform_ops,
             "cycles": self.cycles,
             "utilization": self.utilization,
             "frame_us_at_1ghz": self.cycles / 1000,
@@ -284,7 +292,8 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
                                stats if pol.schedule else None)
     return ReplayResult(r, p, ta, record.rays, m, record.box_ops, stats["cycles"],
                         stats["starved_cycles"], stats["full_cycles"], stats["model_evals"],
-                        per_pipe.tolist(), wall, verified, latency, rsp, mem, cost)
+                        per_pipe.tolist(), wall, verified, latency, rsp, mem, cost,
+                        record.transform_ops)
 
 
 def sweep(record: Record, rays_in_flight=SWEEP_RAYS_IN_FLIGHT, pipelines=SWEEP_PIPELINES,

@@ -138,8 +138,9 @@ struct NodeSource {
     }
   }
 
-  // Returns false for a pointer that is neither a box node nor a triangle request's node inside
-  // the image.
+  // Returns false for a pointer that is neither a box node, a triangle request's node nor an
+  // instance node inside the image. An instance node becomes a TRANSFORM of the ray by the
+  // node's world_to_object matrix (docs/instances.md: the transform on the datapath).
   bool fill(int64_t i, uint32_t* dst) const {
     const uint32_t r = ray[i], type = ptr[i] & kTypeMask;
     uint32_t p;
@@ -154,9 +155,17 @@ struct NodeSource {
     const int64_t words = type != kLeafNextType ? kNodeBytes[type] / 4
                           : k >= 2              ? kGroupNodeWords
                                                 : kPairNodeWords;
+    const bool xf = type == kInstanceType;
     if (words == 0 || word + words > image_words) return false;
-    const uint32_t op = box ? kOpQuadbox : kOpTriangle;
+    const uint32_t op = box ? kOpQuadbox : xf ? kOpTransform : kOpTriangle;
     ctrl = (ctrl & ~(kOpcodeMask << kReqOpcodeLsb)) | (op << kReqOpcodeLsb);
+    if (xf) {
+      std::memset(dst + kReqBoxWord, 0, kReqBoxCount * 4);
+      std::memset(dst + kReqTriWord, 0, kReqTriCount * 4);
+      std::memcpy(dst + kReqMatrixWord, image + word + kInstanceNodeMatrixWord,
+                  kReqMatrixCount * 4);
+      return true;
+    }
     std::memset(dst + (box ? kReqTriWord : kReqBoxWord), 0,
                 (box ? kReqTriCount : kReqBoxCount) * 4);
     if (type == kBoxType) {

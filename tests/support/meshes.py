@@ -10,6 +10,8 @@ to.
 - ``degenerate()``: zero-area triangles (repeated vertex, collinear), axis-aligned flat triangles in
   x/y/z planes, a tiny triangle and exact duplicates.
 - ``bunny()``: the 99,785-triangle Stanford bunny shipped with pymeshfix (trimesh mesh, cached).
+- ``reuse_glb(path)``: a GLB scene that places one icosphere three times (three instances of one
+  mesh, 240 instanced triangles); returns ``path``.
 """
 
 from __future__ import annotations
@@ -95,3 +97,15 @@ def bunny() -> trimesh.Trimesh:
     which needs pyvista)."""
     p = importlib.resources.files("pymeshfix") / "examples" / "StanfordBunny.ply"
     return trimesh.load(str(p), force="mesh")
+
+
+def reuse_glb(path):
+    """Write a GLB scene of three nodes that reuse one icosphere (translated by 0, 3 and 6 along
+    x) to ``path``; returns it."""
+    s = trimesh.Scene()
+    s.add_geometry(trimesh.creation.icosphere(1), geom_name="ico", node_name="n0")
+    for i in (1, 2):
+        s.graph.update(frame_to=f"n{i}", frame_from=s.graph.base_frame, geometry="ico",
+                       matrix=trimesh.transformations.translation_matrix([3.0 * i, 0, 0]))
+    s.export(str(path))
+    return path
