@@ -25,23 +25,20 @@ module rf_s00_q8_decode import rf_pkg::*; (
   assign node      = q8_node_t'(box_words[QNODE_WORDS*32-1:0]);
   assign decode = (req_i.opcode == OP_QUADBOX) && req_i.flags[FLAG_DECODE_Q8_BIT];
 
-  logic        sign    [3], special [3], far [3], frac_nz [3];
-  fp32_t       plus0   [3], y_frac  [3], y_nfrac [3];
-  logic [23:0] sig     [3];
-  logic [7:0]  exp     [3], exp_inc [3], exp_dec [3], qmask [3], exp_near [3];
-  logic [4:0]  qshift  [3];
-  logic [8:0]  int_a   [3];
-  logic [25:0] frac    [3], nfrac   [3];
+  logic        sign   [3], special [3], frac_nz [3];
+  fp32_t       plus0  [3], y_frac  [3], y_nfrac [3];
+  logic [35:0] a_add  [3];
+  logic [4:0]  qshift [3];
+  logic [7:0]  qmask  [3], exp_base [3];
+  logic [25:0] nfrac  [3];
   fp32_t [3:0][5:0] y;
 
   for (genvar a = 0; a < 3; a++) begin : g_axis
     rf_s00_q8_axis u_axis (
       .origin_i(node.origin[a]), .exp_i(node.exp[a]),
-      .sign_o(sign[a]), .special_o(special[a]), .plus0_o(plus0[a]), .far_o(far[a]),
-      .sig_o(sig[a]), .exp_o(exp[a]), .exp_inc_o(exp_inc[a]), .exp_dec_o(exp_dec[a]),
-      .qshift_o(qshift[a]), .qmask_o(qmask[a]), .exp_near_o(exp_near[a]), .int_o(int_a[a]),
-      .frac_o(frac[a]), .nfrac_o(nfrac[a]), .frac_nz_o(frac_nz[a]), .y_frac_o(y_frac[a]),
-      .y_nfrac_o(y_nfrac[a]));
+      .sign_o(sign[a]), .special_o(special[a]), .plus0_o(plus0[a]), .a_o(a_add[a]),
+      .qshift_o(qshift[a]), .qmask_o(qmask[a]), .exp_base_o(exp_base[a]), .nfrac_o(nfrac[a]),
+      .frac_nz_o(frac_nz[a]), .y_frac_o(y_frac[a]), .y_nfrac_o(y_nfrac[a]));
   end
 
   for (genvar i = 0; i < 4; i++) begin : g_child
@@ -49,11 +46,9 @@ module rf_s00_q8_decode import rf_pkg::*; (
       localparam int A = j % 3;
       rf_s00_q8_bound u_bound (
         .q_i(node.q[i][j]),
-        .sign_i(sign[A]), .special_i(special[A]), .plus0_i(plus0[A]), .far_i(far[A]),
-        .sig_i(sig[A]), .exp_i(exp[A]), .exp_inc_i(exp_inc[A]), .exp_dec_i(exp_dec[A]),
-        .qshift_i(qshift[A]), .qmask_i(qmask[A]), .exp_near_i(exp_near[A]), .int_i(int_a[A]),
-        .frac_i(frac[A]), .nfrac_i(nfrac[A]), .frac_nz_i(frac_nz[A]), .y_frac_i(y_frac[A]),
-        .y_nfrac_i(y_nfrac[A]), .y_o(y[i][j]));
+        .sign_i(sign[A]), .special_i(special[A]), .plus0_i(plus0[A]), .a_i(a_add[A]),
+        .qshift_i(qshift[A]), .qmask_i(qmask[A]), .exp_base_i(exp_base[A]), .nfrac_i(nfrac[A]),
+        .frac_nz_i(frac_nz[A]), .y_frac_i(y_frac[A]), .y_nfrac_i(y_nfrac[A]), .y_o(y[i][j]));
     end
   end
 
