@@ -17,14 +17,17 @@
 //        (+0 for frac = 0) and y_nfrac_o = (1 - frac) * 2^e, rounded once per axis (subnormal
 //        results included). nfrac_o = 1 - frac (mod 1) is the fraction of q - A.
 //   exp_base_o  the biased exponent of a sum whose leading one is bit 35 (255: it overflows)
-//   plus0_o     A + (+0): the sum for q = 0 (A, -0 -> +0, NaN -> the canonical NaN), and for
-//               every q if A is NaN or inf (special_o)
+//   special_o   A is NaN or inf: every sum is A (inf) or the canonical NaN (nan_o; sign_o is then
+//               0); such an axis takes the far path, and the bounds replace the rounded sum
+// A sum for q = 0 needs no case of its own: it is A, exactly, through the far path and through the
+// near path with int(A) >= 1; with int(A) = 0 the near sum's integer part is zero and y_frac_o is
+// then A + (+0) (A; +0 for -0).
 module rf_s00_q8_axis import rf_pkg::*; (
   input  fp32_t       origin_i,
   input  logic [7:0]  exp_i,         // e, int8, in [-126, 119]
   output logic        sign_o,
   output logic        special_o,
-  output fp32_t       plus0_o,
+  output logic        nan_o,
   output logic [35:0] a_o,           // A in the adder
   output logic [4:0]  qshift_o,
   output logic [7:0]  qmask_o,
@@ -35,17 +38,23 @@ module rf_s00_q8_axis import rf_pkg::*; (
   output fp32_t       y_nfrac_o
 );
 
-  localparam fp32_t CanonicalNaN = 32'h7FC0_0000;
-
-  // v * 2^(e - 26) for a 26-bit v whose last bit is sticky, rounded (subnormal results included)
+  // v * 2^(e - 26) for a 26-bit v whose last bit may be sticky, rounded to nearest even. v's
+  // leading one is shifted to bit 32 of g, but no further than the subnormal range allows (the
+  // bit weighing 2^-149 at bit 9): then g[32] is 0 and the exponent field 0. A subnormal result is
+  // exact (both addends are multiples of 2^-149); a rounded one (a sticky v) is normal.
   function automatic fp32_t frac_to_fp(input logic sign, input logic [25:0] v,
                                        input logic signed [9:0] e);
-    logic [4:0]  lz;
-    logic [31:0] sig;
+    logic [4:0]        lz, sh;
+    logic signed [9:0] lim;
+    logic [32:0]       g;
+    logic [7:0]        ef;
     lz  = rf_fp_pkg::fp_lzc32({v, 6'd0});
-    sig = {v, 6'd0} << lz;
+    lim = e + 10'sd126;                                   // the shift that puts 2^-149 at bit 9
+    sh  = ($signed({5'd0, lz}) + 10'sd1 <= lim) ? lz + 5'd1 : 5'(lim);
+    g   = {1'b0, v, 6'd0} << sh;
+    ef  = g[32] ? 8'(lim + 10'sd1 - $signed({5'd0, sh})) : 8'd0;
     return (v == 26'd0) ? FP_POS_ZERO
-                        : rf_fp_pkg::fp_round(sign, e + 10'sd126 - $signed({5'd0, lz}), sig);
+         : {sign, {ef, g[31:9]} + {30'd0, g[8] & (g[9] | (g[7:0] != 8'd0))}};
   endfunction
 
   logic [7:0]        ea;
@@ -58,15 +67,13 @@ module rf_s00_q8_axis import rf_pkg::*; (
   assign ea        = origin_i[30:23];
   assign sig       = {ea != 8'd0, origin_i[22:0]};
   assign e         = 10'($signed(exp_i));
-  assign sign_o    = origin_i[31];
   assign special_o = (ea == 8'hFF);
-  assign plus0_o   = (special_o && origin_i[22:0] != 23'd0) ? CanonicalNaN
-                   : (origin_i[30:0] == 31'd0)               ? FP_POS_ZERO
-                   :                                           origin_i;
+  assign nan_o     = special_o && (origin_i[22:0] != 23'd0);
+  assign sign_o    = origin_i[31] && !nan_o;
 
   // dp: A's last significand bit weighs 2^(dp + e) (a subnormal's exponent is that of 1)
   assign dp  = $signed({2'b00, (ea == 8'd0) ? 8'd1 : ea}) - 10'sd150 - e;
-  assign far = (ea != 8'd0) && !special_o && (dp >= -10'sd14);
+  assign far = special_o || ((ea != 8'd0) && (dp >= -10'sd14));
 
   // near: a right shift t = -dp - 15 >= 0 of A's significand (bits shifted out: sticky bit 0)
   assign t  = -dp - 10'sd15;
@@ -87,7 +94,9 @@ module rf_s00_q8_axis import rf_pkg::*; (
   assign exp_base_o = far ? ea + 8'd1 : 8'(e + 10'sd136);
   assign nfrac_o    = -x[25:0];
   assign frac_nz_o  = (x[25:0] != 26'd0);
-  assign y_frac_o   = frac_to_fp(1'b1, x[25:0], e);
+  assign y_frac_o   = (x[34:26] != 9'd0)      ? frac_to_fp(1'b1, x[25:0], e)
+                    : (origin_i[30:0] == 31'd0) ? FP_POS_ZERO
+                    :                             origin_i;
   assign y_nfrac_o  = frac_to_fp(1'b0, nfrac_o, e);
 
 endmodule

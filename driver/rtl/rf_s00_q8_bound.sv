@@ -4,11 +4,14 @@
 // a negative difference made positive (its fraction is per axis), the leading one found in the
 // top 10 bits and shifted to bit 35 (at most 9 places), one rounder (the sum is normal here, or
 // overflows to inf). A sum with no leading one in the top 10 bits is per axis (y_frac, y_nfrac).
+// Forced results replace the rounded sum: inf on overflow, the origin's inf or the canonical NaN
+// (special_i, nan_i), +inf in an unused child slot (unused_i).
 module rf_s00_q8_bound import rf_pkg::*; (
   input  logic [7:0]  q_i,
   input  logic        sign_i,
   input  logic        special_i,
-  input  fp32_t       plus0_i,
+  input  logic        nan_i,
+  input  logic        unused_i,
   input  logic [35:0] a_i,
   input  logic [4:0]  qshift_i,
   input  logic [7:0]  qmask_i,
@@ -27,7 +30,7 @@ module rf_s00_q8_bound import rf_pkg::*; (
   logic [34:0] n;               // m normalised, its leading one (bit 35) dropped
   logic [30:0] frac, r;         // frac: fraction, round bit [7], sticky [6:0]
   logic [7:0]  ex;
-  logic        sign, ovf;
+  logic        sign, ovf, force_inf;
 
   assign qa     = {q_i, 26'd0} >> qshift_i;
   assign addend = {2'd0, qa[33:1], qa[0] | ((q_i & qmask_i) != 8'd0)};
@@ -43,9 +46,10 @@ module rf_s00_q8_bound import rf_pkg::*; (
   assign sign   = sign_i & ~s[35];
   assign r      = {ex, frac[30:8]} + {30'd0, frac[7] & (frac[8] | (frac[6:0] != 7'd0))};
 
-  assign y_o = (special_i || q_i == 8'd0) ? plus0_i
-             : (m[35:26] == 10'd0)        ? (s[35] ? y_nfrac_i : y_frac_i)
-             : ovf                        ? {sign, 8'hFF, 23'd0}
-             :                              {sign, r};
+  assign force_inf = ovf | special_i | unused_i;
+
+  assign y_o = (m[35:26] == 10'd0 && !unused_i) ? (s[35] ? y_nfrac_i : y_frac_i)
+             : force_inf ? {sign & ~unused_i, 8'hFF, nan_i & ~unused_i, 22'd0}
+             :             {sign, r};
 
 endmodule

@@ -25,8 +25,8 @@ module rf_s00_q8_decode import rf_pkg::*; (
   assign node      = q8_node_t'(box_words[QNODE_WORDS*32-1:0]);
   assign decode = (req_i.opcode == OP_QUADBOX) && req_i.flags[FLAG_DECODE_Q8_BIT];
 
-  logic        sign   [3], special [3], frac_nz [3];
-  fp32_t       plus0  [3], y_frac  [3], y_nfrac [3];
+  logic        sign   [3], special [3], nan [3], frac_nz [3];
+  fp32_t       y_frac [3], y_nfrac [3];
   logic [35:0] a_add  [3];
   logic [4:0]  qshift [3];
   logic [7:0]  qmask  [3], exp_base [3];
@@ -36,7 +36,7 @@ module rf_s00_q8_decode import rf_pkg::*; (
   for (genvar a = 0; a < 3; a++) begin : g_axis
     rf_s00_q8_axis u_axis (
       .origin_i(node.origin[a]), .exp_i(node.exp[a]),
-      .sign_o(sign[a]), .special_o(special[a]), .plus0_o(plus0[a]), .a_o(a_add[a]),
+      .sign_o(sign[a]), .special_o(special[a]), .nan_o(nan[a]), .a_o(a_add[a]),
       .qshift_o(qshift[a]), .qmask_o(qmask[a]), .exp_base_o(exp_base[a]), .nfrac_o(nfrac[a]),
       .frac_nz_o(frac_nz[a]), .y_frac_o(y_frac[a]), .y_nfrac_o(y_nfrac[a]));
   end
@@ -46,7 +46,8 @@ module rf_s00_q8_decode import rf_pkg::*; (
       localparam int A = j % 3;
       rf_s00_q8_bound u_bound (
         .q_i(node.q[i][j]),
-        .sign_i(sign[A]), .special_i(special[A]), .plus0_i(plus0[A]), .a_i(a_add[A]),
+        .sign_i(sign[A]), .special_i(special[A]), .nan_i(nan[A]),
+        .unused_i(3'(i) >= node.count), .a_i(a_add[A]),
         .qshift_i(qshift[A]), .qmask_i(qmask[A]), .exp_base_i(exp_base[A]), .nfrac_i(nfrac[A]),
         .frac_nz_i(frac_nz[A]), .y_frac_i(y_frac[A]), .y_nfrac_i(y_nfrac[A]), .y_o(y[i][j]));
     end
@@ -54,13 +55,7 @@ module rf_s00_q8_decode import rf_pkg::*; (
 
   always_comb begin
     req_o = req_i;
-    if (decode) begin
-      for (int i = 0; i < 4; i++) begin
-        for (int j = 0; j < 6; j++) begin
-          req_o.box[i][j] = (3'(i) < node.count) ? y[i][j] : FP_POS_INF;   // unused: +inf
-        end
-      end
-    end
+    if (decode) req_o.box = y;
   end
 
 endmodule
