@@ -18,12 +18,22 @@ module rf_s00_q8_decode import rf_pkg::*; (
 );
 
   logic [$bits(req_i.box)-1:0] box_words;
-  q8_node_t node;
+  q8_node_t stored;                           // the node as stored
+  fp32_t [2:0]           origin;              // the fields the decode reads
+  logic  [2:0][7:0]      exp;
+  logic  [2:0]           count;
+  logic  [3:0][5:0][7:0] q;
   logic     decode;
 
+  // Operand isolation: a request that is not decoded feeds the decode a zero node (its box words
+  // do not toggle the decode logic)
   assign box_words = req_i.box;
-  assign node      = q8_node_t'(box_words[QNODE_WORDS*32-1:0]);
-  assign decode = (req_i.opcode == OP_QUADBOX) && req_i.flags[FLAG_DECODE_Q8_BIT];
+  assign stored    = q8_node_t'(box_words[QNODE_WORDS*32-1:0]);
+  assign decode    = (req_i.opcode == OP_QUADBOX) && req_i.flags[FLAG_DECODE_Q8_BIT];
+  assign origin    = decode ? stored.origin : '0;
+  assign exp       = decode ? stored.exp    : '0;
+  assign count     = decode ? stored.count  : '0;
+  assign q         = decode ? stored.q      : '0;
 
   logic        sign   [3], special [3], nan [3], frac_nz [3];
   fp32_t       y_frac [3], y_nfrac [3];
@@ -35,7 +45,7 @@ module rf_s00_q8_decode import rf_pkg::*; (
 
   for (genvar a = 0; a < 3; a++) begin : g_axis
     rf_s00_q8_axis u_axis (
-      .origin_i(node.origin[a]), .exp_i(node.exp[a]),
+      .origin_i(origin[a]), .exp_i(exp[a]),
       .sign_o(sign[a]), .special_o(special[a]), .nan_o(nan[a]), .a_o(a_add[a]),
       .qshift_o(qshift[a]), .qmask_o(qmask[a]), .exp_base_o(exp_base[a]), .nfrac_o(nfrac[a]),
       .frac_nz_o(frac_nz[a]), .y_frac_o(y_frac[a]), .y_nfrac_o(y_nfrac[a]));
@@ -45,9 +55,9 @@ module rf_s00_q8_decode import rf_pkg::*; (
     for (genvar j = 0; j < 6; j++) begin : g_bound
       localparam int A = j % 3;
       rf_s00_q8_bound u_bound (
-        .q_i(node.q[i][j]),
+        .q_i(q[i][j]),
         .sign_i(sign[A]), .special_i(special[A]), .nan_i(nan[A]),
-        .unused_i(3'(i) >= node.count), .a_i(a_add[A]),
+        .unused_i(3'(i) >= count), .a_i(a_add[A]),
         .qshift_i(qshift[A]), .qmask_i(qmask[A]), .exp_base_i(exp_base[A]), .nfrac_i(nfrac[A]),
         .frac_nz_i(frac_nz[A]), .y_frac_i(y_frac[A]), .y_nfrac_i(y_nfrac[A]), .y_o(y[i][j]));
     end
