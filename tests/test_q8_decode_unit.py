@@ -142,6 +142,51 @@ def node_mix(rng, n: int) -> np.ndarray:
     return make_nodes(origin, exp, q, count)
 
 
+def cases_reached(nodes: np.ndarray) -> dict[str, int]:
+    """How many axes or bounds of ``nodes`` reach each case of the decode adder
+    (docs/q8_datapath.md, "The decode adder")."""
+    bits = nodes["origin"].view(np.uint32).astype(np.int64)              # (n, 3)
+    ea = (bits >> 23) & 0xFF
+    e = nodes["exp"][:, :3].view(np.int8).astype(np.int64)
+    dp = np.maximum(ea, 1) - 150 - e          # A's last significand bit weighs 2^(dp + e)
+    normal = (ea > 0) & (ea < 255)
+    far = normal & (dp >= -14)
+    near = (ea < 255) & ~far
+    y = reference(nodes)
+    used = np.arange(4)[None, :, None] < (nodes["exp"][:, 3] & 7)[:, None, None]
+    q = np.where(used, nodes["q"].astype(np.int64), -1)                   # -1: an unused slot
+    finite_origin = np.tile(ea < 255, 2)[:, None, :]                       # (n, 1, 6)
+    with np.errstate(all="ignore"):
+        a_u = np.abs(nodes["origin"].astype(np.float64)) / np.ldexp(1.0, e)   # |A| / 2^e, exact
+    neg_near = np.tile(near & (bits >> 31 == 1), 2)[:, None, :]
+    int_a = np.tile(np.floor(np.where(near, a_u, -9)), 2)[:, None, :]
+    cases = {
+        "near, integer part of the sum zero": (neg_near & ((q == int_a) | (q == int_a + 1))).sum(),
+        "far": far.sum(), "near": near.sum(), "near, dp = -15": (near & (dp == -15)).sum(),
+        "far, dp = -14": (far & (dp == -14)).sum(),
+        "near, origin bits lost": (near & (dp < -26) & ((bits & 0x7FFFFFFF) != 0)).sum(),
+        "far, q bits shifted out": (far & (dp > 11)).sum(),
+        "far, q's shift clamped to 31": (far & (dp >= 16)).sum(),
+        "nan/inf origin": (ea == 255).sum(),
+        "sum +0": ((y == 0) & (q > 0) & finite_origin).sum(),
+        "subnormal sum": (((y & 0x7F800000) == 0) & ((y & 0x7FFFFF) != 0) & (q > 0)).sum(),
+        "overflow to inf": ((y & 0x7FFFFFFF) == 0x7F800000) & (q > 0) & finite_origin,
+        "q = 0": (q == 0).sum(),
+    }
+    cases["overflow to inf"] = cases["overflow to inf"].sum()
+    return {k: int(v) for k, v in cases.items()}
+
+
+def test_node_mix_reaches_every_case():
+    """The mix of test_every_origin_class reaches each case many times: both paths and the
+    boundary between them, origin bits lost to the sticky bit (near) and q's bits shifted out
+    (far), sums cancelling to zero and into the subnormal range, overflow to inf, NaN and inf
+    origins, q = 0."""
+    cases = cases_reached(node_mix(np.random.default_rng(1), 100_000))
+    rare = {k: v for k, v in cases.items() if v < 100}
+    assert not rare, rare
+
+
 def test_every_origin_class(model):
     nodes = node_mix(np.random.default_rng(1), 100_000)
     check(model, nodes)
