@@ -11,7 +11,7 @@
 //        The sum's leading one is at bit 35, 34 or 33; its biased exponent is that of A, + 1 - the
 //        leading zeros;
 //   near (A < 2^9 * 2^e: zero, subnormal or normal): A / 2^e as 9.26 fixed point at bits 34:0
-//        (the last bit sticky: A's bits below 2^(e - 25) are OR-ed into it) and q at bits
+//        (the last bit sticky: A's bits below 2^(e - 26) are OR-ed into it) and q at bits
 //        33:26, unshifted. The sum's leading one is anywhere in bits 35:26 (the integer part), or
 //        the integer part is zero and the sum is frac(A) or 1 - frac(A): y_frac_o = -frac * 2^e
 //        (+0 for frac = 0) and y_nfrac_o = (1 - frac) * 2^e, rounded once per axis (subnormal
