@@ -105,20 +105,26 @@ def rtl_files() -> list[Path]:
 def snapshot(rev: str | None = None) -> list[tuple[str, bytes]]:
     """(file name, contents) of the RTL in compile order, read once: from the working tree, or
     with ``rev`` from that git revision (so that concurrent RTL edits cannot mix versions)."""
-    out = []
-    for f in rtl_files():
-        if rev is None:
+    if rev is None:
+        out = []
+        for f in rtl_files():
             if not f.is_file():
                 raise AreaError(f"RTL source {f} not found")
             out.append((f.name, f.read_bytes()))
-            continue
+        return out
+
+    def show(f: Path) -> bytes:
         rel = f.relative_to(ROOT).as_posix()
         r = subprocess.run(["git", "-C", str(ROOT), "show", f"{rev}:{rel}"], capture_output=True)
         if r.returncode:
             msg = r.stderr.decode(errors="replace").strip().splitlines()
             raise AreaError(f"git show {rev}:{rel}: {msg[0] if msg else 'failed'}")
-        out.append((f.name, r.stdout))
-    return out
+        return r.stdout
+
+    # the revision's own source list: files come and go between revisions
+    from .backends.build import SOURCE_LIST, parse_source_list
+    names = parse_source_list(show(SOURCE_LIST).decode(errors="replace"))
+    return [(name, show(RTL_DIR / name)) for name in names]
 
 
 def rtl_sha(sources: list[tuple[str, bytes]]) -> str:

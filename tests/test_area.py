@@ -55,6 +55,24 @@ def test_snapshot_from_git_and_mixed_versions_rejected():
     assert len(area.rtl_sha(head)) == 12
     with pytest.raises(area.AreaError, match="git show"):
         area.snapshot("no-such-revision-xyz")
+
+
+def test_snapshot_of_a_revision_reads_that_revision_s_source_list():
+    """Files come and go: a revision's snapshot holds the files of its own sources.txt."""
+    import subprocess
+    from driver.backends.build import SOURCE_LIST, parse_source_list
+    rel = SOURCE_LIST.relative_to(area.ROOT).as_posix()
+    log = subprocess.run(["git", "-C", str(area.ROOT), "log", "--format=%H", "-2", "--", rel],
+                         capture_output=True, text=True)
+    revs = log.stdout.split()
+    if log.returncode or len(revs) < 2:
+        pytest.skip("no two revisions of the source list in this checkout")
+    old = f"{revs[0]}~1"               # the list before its last change
+    text = subprocess.run(["git", "-C", str(area.ROOT), "show", f"{old}:{rel}"],
+                          capture_output=True, text=True, check=True).stdout
+    names = [n for n, _ in area.snapshot(old)]
+    assert names == parse_source_list(text)
+    assert names != [n for n, _ in area.snapshot(revs[0])]
     a = {"cells": 1, "sequential": 1, "inverter": 0, "buffer": 0, "logic": 0, "ge": 1.0}
     with pytest.raises(area.AreaError, match="different RTL versions"):
         area.report({"baseline-unified": {**a, "rtl_sha": "aaa"},

@@ -42,6 +42,11 @@ def source_names(list_file: Path = SOURCE_LIST) -> list[str]:
     except OSError as e:
         raise BackendError(f"RTL source list {list_file} not readable ({e.strerror}): the RTL "
                            "backends need the project's source tree (pip install -e .)") from None
+    return parse_source_list(text)
+
+
+def parse_source_list(text: str) -> list[str]:
+    """The file names of a ``sources.txt`` text (one a line; blank lines and # comments skipped)."""
     return [ln.strip() for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
 
 

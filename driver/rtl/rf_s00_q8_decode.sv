@@ -4,62 +4,68 @@
 // Every other request passes unchanged.
 //
 // Decode of used child i (i < count), bound j, axis a = j % 3:
-//   box[i][j] = origin[a] + float32(q[i][j]) * 2^exp[a]          (24 adders, one RNE add each)
-// The product needs no multiplier: q is an 8-bit integer and exp is in [-126, 119], so q * 2^exp
-// is 0 or a normal binary32 number (2^-126 <= q * 2^exp <= 255 * 2^119 < 2^127), exactly: its
-// significand is q shifted to put its leading one in the hidden bit, its biased exponent is
-// exp + 127 + (position of q's leading one). The add is the datapath's one adder (rf_fp_add):
-// subnormal, zero, inf and NaN origins are handled as by any add. Unused slots (i >= count) get
-// the unused box: six +inf.
-// Operand isolation: a request that is not decoded feeds the adders +0 + +0.
+//   box[i][j] = origin[a] + q[i][j] * 2^exp[a]          (one binary32 round-to-nearest-even add)
+// Unused slots (i >= count) get the unused box: six +inf.
+//
+// The 24 adds are not general adds: the addend q * 2^e (q 0..255, e = exp[a] in [-126, 119]) is
+// never negative and has 8 significant bits, and the 8 bounds of an axis share the origin and e.
+// So the work that depends on the origin and e is done once per axis (rf_s00_q8_axis), and each
+// bound (rf_s00_q8_bound) keeps a narrow add, a short normalisation and the rounding
+// (docs/q8_datapath.md, "The decode adder", has the design and the argument for exactness).
 module rf_s00_q8_decode import rf_pkg::*; (
   input  req_t req_i,
   output req_t req_o
 );
-  localparam int unsigned NB = 24;
 
   logic [$bits(req_i.box)-1:0] box_words;
-  q8_node_t node;
+  q8_node_t stored;                           // the node as stored
+  fp32_t [2:0]           origin;              // the fields the decode reads
+  logic  [2:0][7:0]      exp;
+  logic  [2:0]           count;
+  logic  [3:0][5:0][7:0] q;
   logic     decode;
-  fp32_t [NB-1:0] add_a, add_b, add_y;
 
+  // Operand isolation: a request that is not decoded feeds the decode a zero node (its box words
+  // do not toggle the decode logic)
   assign box_words = req_i.box;
-  assign node      = q8_node_t'(box_words[QNODE_WORDS*32-1:0]);
-  assign decode = (req_i.opcode == OP_QUADBOX) && req_i.flags[FLAG_DECODE_Q8_BIT];
+  assign stored    = q8_node_t'(box_words[QNODE_WORDS*32-1:0]);
+  assign decode    = (req_i.opcode == OP_QUADBOX) && req_i.flags[FLAG_DECODE_Q8_BIT];
+  assign origin    = decode ? stored.origin : '0;
+  assign exp       = decode ? stored.exp    : '0;
+  assign count     = decode ? stored.count  : '0;
+  assign q         = decode ? stored.q      : '0;
 
-  // float32(q) * 2^exp for exp in [-126, 119] (a normal number, or +0 for q = 0)
-  function automatic fp32_t q8_scaled(input logic [7:0] q, input logic [7:0] exp);
-    logic [2:0] lz;
-    logic [6:0] frac;
-    if (q == 8'd0) return FP_POS_ZERO;
-    lz   = 3'(rf_fp_pkg::fp_lzc32({q, 24'd0}));         // 0..7
-    frac = 7'(q << lz);                                  // below the leading one
-    // biased exponent exp + 127 + (7 - lz), in [1, 253]: modulo-256 arithmetic is exact here
-    return {1'b0, exp + 8'd134 - {5'd0, lz}, frac, 16'd0};
-  endfunction
+  logic        sign   [3], special [3], nan [3], frac_nz [3];
+  fp32_t       y_frac [3], y_nfrac [3];
+  logic [35:0] a_add  [3];
+  logic [4:0]  qshift [3];
+  logic [7:0]  qmask  [3], exp_base [3];
+  logic [25:0] nfrac  [3];
+  fp32_t [3:0][5:0] y;
 
-  always_comb begin
-    for (int i = 0; i < 4; i++) begin
-      for (int j = 0; j < 6; j++) begin
-        add_a[6*i+j] = decode ? node.origin[j % 3] : FP_POS_ZERO;
-        add_b[6*i+j] = decode ? q8_scaled(node.q[i][j], node.exp[j % 3]) : FP_POS_ZERO;
-      end
-    end
+  for (genvar a = 0; a < 3; a++) begin : g_axis
+    rf_s00_q8_axis u_axis (
+      .origin_i(origin[a]), .exp_i(exp[a]),
+      .sign_o(sign[a]), .special_o(special[a]), .nan_o(nan[a]), .a_o(a_add[a]),
+      .qshift_o(qshift[a]), .qmask_o(qmask[a]), .exp_base_o(exp_base[a]), .nfrac_o(nfrac[a]),
+      .frac_nz_o(frac_nz[a]), .y_frac_o(y_frac[a]), .y_nfrac_o(y_nfrac[a]));
   end
 
-  for (genvar k = 0; k < NB; k++) begin : g_add
-    rf_fu #(.IS_MUL(1'b0)) u_add (.a_i(add_a[k]), .b_i(add_b[k]), .y_o(add_y[k]));
+  for (genvar i = 0; i < 4; i++) begin : g_child
+    for (genvar j = 0; j < 6; j++) begin : g_bound
+      localparam int A = j % 3;
+      rf_s00_q8_bound u_bound (
+        .q_i(q[i][j]),
+        .sign_i(sign[A]), .special_i(special[A]), .nan_i(nan[A]),
+        .unused_i(3'(i) >= count), .a_i(a_add[A]),
+        .qshift_i(qshift[A]), .qmask_i(qmask[A]), .exp_base_i(exp_base[A]), .nfrac_i(nfrac[A]),
+        .frac_nz_i(frac_nz[A]), .y_frac_i(y_frac[A]), .y_nfrac_i(y_nfrac[A]), .y_o(y[i][j]));
+    end
   end
 
   always_comb begin
     req_o = req_i;
-    if (decode) begin
-      for (int i = 0; i < 4; i++) begin
-        for (int j = 0; j < 6; j++) begin
-          req_o.box[i][j] = (3'(i) < node.count) ? add_y[6*i+j] : FP_POS_INF;
-        end
-      end
-    end
+    if (decode) req_o.box = y;
   end
 
 endmodule
