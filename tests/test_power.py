@@ -128,8 +128,8 @@ def test_measure_is_deterministic_and_complete(signals):
     a = measure(signals, BASE, n=20, seed=5)
     b = measure(signals, BASE, n=20, seed=5)
     assert a == b
-    assert set(a) == {"box", "triangle", "triangle_no_cull", "idle_per_cycle"}
-    for op in ("box", "triangle", "triangle_no_cull"):
+    assert set(a) == {"box", "box_q8_host", "triangle", "triangle_no_cull", "idle_per_cycle"}
+    for op in ("box", "box_q8_host", "triangle", "triangle_no_cull"):
         r = a[op]
         assert r["energy_per_op"] > 0 and r["cycles_per_op"] == 1.0
         assert sum(r["stages"].values()) == pytest.approx(1, abs=1e-3)

@@ -63,13 +63,15 @@ def test_box_q8_stream_is_the_box_stream_as_valid_q8_nodes():
     assert (span <= 255 * np.ldexp(1.0, exp)).all()
     assert ((exp == Q8_EXP_MIN) | (span > 255 * np.ldexp(1.0, exp - 1))).all()
     assert np.array_equal(nodes["origin"], lo.astype(np.float32))
-    # the decode on the golden model == a plain QUADBOX on the decoded boxes
+    # the decode on the golden model == a plain QUADBOX on the decoded boxes == box_q8_host
     plain = q8.copy()
     plain["flags"] = 0
     plain["box"] = dec
+    host = stimulus.requests("box_q8_host", n, seed=4)
+    assert host["flags"].sum() == 0 and np.array_equal(host["box"], dec)
     got = backend("golden", compressed=True).run(q8)
     want = backend("golden").run(plain)
-    assert got.tobytes() == want.tobytes()
+    assert got.tobytes() == want.tobytes() == backend("golden").run(host).tobytes()
     share_q8 = got["box_hit"].sum() / used.sum()
     share_box = backend("golden").run(box)["box_hit"].mean()
     assert 0.2 < share_box < 0.8 and abs(share_q8 - share_box) < 0.1
@@ -92,11 +94,14 @@ def test_transform_stream_is_well_formed():
 
 def test_which_configuration_runs_which_operation():
     p = power.build_params
-    assert stimulus.measurable(p("baseline-unified")) == ["box", "triangle", "triangle_no_cull"]
+    assert stimulus.measurable(p("baseline-unified")) == [
+        "box", "box_q8_host", "triangle", "triangle_no_cull"]
     assert stimulus.measurable(p("baseline-unified" + Q8_SUFFIX)) == [
-        "box", "box_q8", "triangle", "triangle_no_cull"]
+        "box", "box_q8", "box_q8_host", "triangle", "triangle_no_cull"]
     assert stimulus.measurable(p("baseline-unified" + XF_SUFFIX)) == [
-        "box", "triangle", "triangle_no_cull", "transform"]
+        "box", "box_q8_host", "triangle", "triangle_no_cull", "transform"]
+    assert [stimulus.box_op(p(c), q8) for c in ("baseline-unified", "baseline-unified-q8")
+            for q8 in (False, True)] == ["box", "box_q8_host", "box", "box_q8"]
     assert set(stimulus.measurable(p("extended-disjoint" + Q8_SUFFIX + XF_SUFFIX))) == \
         set(stimulus.OPS)
     assert power.params_of("baseline-unified-q8") == Q8
@@ -178,28 +183,30 @@ def _fake(e, stages=None):
 
 
 def test_report_decode_and_transform_comparisons():
-    cfgs = {"baseline-unified": _fake({"box": 100, "triangle": 80}),
-            "baseline-unified-q8": _fake({"box": 104, "box_q8": 120, "triangle": 81},
+    cfgs = {"baseline-unified": _fake({"box": 100, "box_q8_host": 90, "triangle": 80}),
+            "baseline-unified-q8": _fake({"box": 104, "box_q8": 108, "box_q8_host": 96,
+                                          "triangle": 81},
                                          {"box_q8": {"S0": 0.25, "S1": 0.75},
                                           "box": {"S0": 0.01, "S1": 0.99}}),
             "baseline-unified-xf": _fake({"box": 102, "triangle": 82, "transform": 51})}
     r = report.ratios(cfgs)
     q = r["q8_decode"]["baseline-unified-q8"]
     assert q["base"] == "baseline-unified"
-    assert q["box_q8_vs_box"] == pytest.approx(120 / 104 - 1, abs=1e-4)
-    assert q["box_q8_vs_base_box"] == 0.2 and q["box_vs_base_box"] == 0.04
-    assert q["decode_share"] == 0.25 and q["decode_energy"] == 30.0
-    x = r["transform"]["baseline-unified-xf"]
+    assert q["box_q8_vs_host"] == 0.125
+    assert q["box_q8_vs_base_host"] == 0.2 and q["box_vs_base_box"] == 0.04
+    assert q["decode_share"] == 0.25 and q["decode_energy"] == 27.0
+    x = r["transform_op"]["baseline-unified-xf"]
     assert x["transform_vs_box"] == 0.5 - 1 and x["box_vs_base_box"] == 0.02
     assert x["triangle_vs_base_triangle"] == pytest.approx(0.025)
-    assert list(r["q8_decode"]) == ["baseline-unified-q8"] and list(r["transform"]) == [
+    assert list(r["q8_decode"]) == ["baseline-unified-q8"] and list(r["transform_op"]) == [
         "baseline-unified-xf"]
     mix = {"primary": {"rays": 2, "box_ops": 10, "tri_ops": 2}}
     pr = report.per_ray(mix, cfgs, q8_image=True)["primary"]["configs"]
-    assert pr["baseline-unified-q8"] == {"energy_per_ray": (10 * 120 + 2 * 81) / 2,
-                                         "energy_per_frame": 10 * 120 + 2 * 81,
+    assert pr["baseline-unified-q8"] == {"energy_per_ray": (10 * 108 + 2 * 81) / 2,
+                                         "energy_per_frame": 10 * 108 + 2 * 81,
                                          "box_op": "box_q8"}
-    assert pr["baseline-unified"]["box_op"] == "box"          # the host decodes the node
+    assert pr["baseline-unified"]["box_op"] == "box_q8_host"   # the host decodes the node
+    assert "baseline-unified-xf" not in pr                      # box_q8_host not measured
     assert report.per_ray(mix, cfgs)["primary"]["configs"]["baseline-unified-q8"][
         "box_op"] == "box"
     assert report.stage_columns([{"S0": 0.0, "S1": 1.0}, {"S1": 0.5, "S2": 0.5}]) == ["S1", "S2"]
@@ -212,8 +219,8 @@ def test_cli_q8_configuration_end_to_end(tmp_path, capsys):
     """--config with a -q8 configuration and --op: the JSON, the decode comparison rows and the
     S0 column of the stage table."""
     out = tmp_path / "p.json"
-    assert main(["power", "--config", "baseline-unified-q8", "--op", "box,box_q8", "--ops",
-                 "10", "--scene", "sphere", "--size", "4", "--bvh-format", "q8", "--json",
+    assert main(["power", "--config", "baseline-unified-q8", "--op", "box,box_q8,box_q8_host",
+                 "--ops", "10", "--scene", "sphere", "--size", "4", "--bvh-format", "q8", "--json",
                  str(out), "--no-progress"]) == 0
     rep = json.loads(out.read_text())
     cfg = rep["configs"]["baseline-unified-q8"]
@@ -222,7 +229,7 @@ def test_cli_q8_configuration_end_to_end(tmp_path, capsys):
     assert rep["per_ray"] == {} or all(
         "baseline-unified-q8" not in row["configs"] for row in rep["per_ray"].values())
     text = capsys.readouterr().out
-    assert "| box_q8 vs box (baseline-unified-q8) |" in text and "| S0 |" in text
+    assert "| box_q8 vs box_q8_host (baseline-unified-q8) |" in text and "| S0 |" in text
 
 
 def test_power_help_names_the_extra_configurations(capsys):
@@ -231,3 +238,35 @@ def test_power_help_names_the_extra_configurations(capsys):
     text = "".join(capsys.readouterr().out.split())        # argparse wraps at hyphens
     assert "baseline-unified,baseline-unified-q8,baseline-unified-xf" in text
     assert "all:thefourbaseconfigurations" in text and "box_q8needsa-q8configuration" in text
+
+
+# ------------------------------------------------------------------------------------------------
+# rayflex sweep's energy per ray
+
+def test_sweep_energy_of_a_q8_configuration(monkeypatch):
+    """A -q8 configuration tracing a q8 image is measured with box_q8 and its box ops are priced
+    as box_q8; without the decode as box_q8_host; on a box32 image as box."""
+    from driver import sweep
+    from driver.design import DesignPoint
+    asked = {}
+
+    def fake_run_level(level, cfgs, latency=None, ops=None, **k):
+        asked[(cfgs[0], level)] = (latency, tuple(ops))
+        e = {"box": 10.0, "triangle": 8.0, "box_q8": 12.0, "box_q8_host": 9.0}
+        return {"configs": {cfgs[0]: {op: {"energy_per_op": e[op]} for op in ops}
+                            | {"latency": latency, "idle_per_cycle": {"energy": 0}}}}
+
+    monkeypatch.setattr(power, "run_level", fake_run_level)
+    monkeypatch.setattr(power, "netlist_cached", lambda cfg: False)
+    points = [DesignPoint(config="baseline-unified-q8", bvh_format="q8"),
+              DesignPoint(config="baseline-unified", bvh_format="q8"),
+              DesignPoint(config="baseline-unified", bvh_format="box32")]
+    tables = sweep.energy_tables(points, progress=False)
+    assert asked == {("baseline-unified-q8", "signals"): (12, ("box", "triangle", "box_q8")),
+                     ("baseline-unified", "signals"): (11, ("box", "triangle", "box_q8_host"))}
+    t = tables[sweep.energy_key("baseline-unified-q8", 12)]["signals"]
+    assert t == {"box": 10.0, "triangle": 8.0, "box_q8": 12.0, "unit": "bit toggles"}
+    counts = {"rays": 2, "box_ops": 10, "tri_ops": 4}
+    assert sweep.energy_per_ray(counts, t, sweep._box_op(points[0])) == (10 * 12 + 4 * 8) / 2
+    assert sweep.energy_per_ray(counts, t) == (10 * 10 + 4 * 8) / 2
+    assert [sweep._box_op(p) for p in points] == ["box_q8", "box_q8_host", "box"]

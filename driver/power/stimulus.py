@@ -10,9 +10,12 @@ request flags and the build parameter the operation needs (``measurable``: the o
 configuration runs). An entry whose value is a string is not measurable yet (the reason is
 reported instead of a number). A stream's random numbers depend on the seed and the opcode only,
 so the variants of one opcode draw the same rays and operands: ``triangle_no_cull`` is the
-``triangle`` stream with the NO_CULL flag (docs/datapath.md#flags), and ``box_q8`` is the ``box``
+``triangle`` stream with the NO_CULL flag (docs/datapath.md#flags); ``box_q8`` is the ``box``
 stream's rays and boxes with each request's first 1-4 boxes encoded as a q8 node (the QUADBOX
-with DECODE_Q8 of a COMPRESSED build, docs/q8_datapath.md).
+with DECODE_Q8 of a COMPRESSED build, docs/q8_datapath.md), and ``box_q8_host`` the same nodes
+decoded on the host (plain QUADBOX requests with the decoded boxes: what a configuration without
+the decode receives for a q8 image), so box_q8 and box_q8_host send the same boxes down the
+pipeline from stage 1 on and differ only by where the decode runs.
 """
 
 from __future__ import annotations
@@ -28,16 +31,18 @@ from ..layout import FLAG_DECODE_Q8, FLAG_NO_CULL, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NO
 
 
 class Op(NamedTuple):
-    """An operation type: its opcode, request flags, and the build parameter it needs (None:
-    every configuration runs it)."""
+    """An operation type: its opcode, request flags, the build parameter it needs (None: every
+    configuration runs it), and whether its boxes are q8 nodes (the box stream's, quantized)."""
     opcode: int
     flags: int = 0
     needs: str | None = None
+    q8: bool = False
 
 
 OPS: dict[str, Op | str] = {
     "box": Op(QUADBOX),
-    "box_q8": Op(QUADBOX, FLAG_DECODE_Q8, "COMPRESSED"),   # the box stream as q8 nodes
+    "box_q8": Op(QUADBOX, FLAG_DECODE_Q8, "COMPRESSED", q8=True),   # decoded by the datapath
+    "box_q8_host": Op(QUADBOX, q8=True),                            # decoded by the host
     "triangle": Op(TRIANGLE),
     "triangle_no_cull": Op(TRIANGLE, FLAG_NO_CULL),        # the same triangles, both faces
     "euclidean": Op(EUCLIDEAN, needs="EXTENDED"),
@@ -58,6 +63,15 @@ def needs(op: str) -> str | None:
     """The build parameter operation ``op`` needs (None: any configuration)."""
     spec = OPS[op]
     return None if isinstance(spec, str) else spec.needs
+
+
+def box_op(params: dict, q8_image: bool) -> str:
+    """The operation a box node of a frame is on a configuration with build parameters
+    ``params``: ``box`` for a box32 image; for a q8 image ``box_q8`` where the datapath decodes
+    the node (COMPRESSED), else ``box_q8_host`` (the host decodes it, ``bvh4.q8_request``)."""
+    if not q8_image:
+        return "box"
+    return "box_q8" if params.get("COMPRESSED") else "box_q8_host"
 
 
 def pending() -> dict[str, str]:
@@ -130,6 +144,7 @@ def requests(op: str, n: int, seed=0) -> np.ndarray:
 
     box: a random ray against four random boxes placed near points along it (about half hit);
     box_q8: the same rays and boxes, the first 1-4 of each request (uniform) as a q8 node;
+    box_q8_host: those nodes decoded on the host (``bvh4.q8_request``), plain QUADBOX;
     triangle: a random ray against a random triangle placed along the ray (front and back faces);
     euclidean / cosine: random normal vectors, all 16 lanes, jobs of VECTOR_BEATS beats;
     transform: a random ray through a random rotation, scale and translation."""
@@ -150,8 +165,9 @@ def requests(op: str, n: int, seed=0) -> np.ndarray:
     req["tag"] = np.arange(n, dtype=np.uint32)
     if spec.opcode == QUADBOX:
         boxes = _boxes(rng, req)
-        if spec.flags & FLAG_DECODE_Q8:
-            q8_request(req, q8_nodes(boxes, rng.integers(1, 5, n)), compressed=True)
+        if spec.q8:
+            q8_request(req, q8_nodes(boxes, rng.integers(1, 5, n)),
+                       compressed=bool(spec.flags & FLAG_DECODE_Q8))
         else:
             req["box"] = boxes
     elif spec.opcode == TRIANGLE:
