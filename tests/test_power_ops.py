@@ -270,3 +270,28 @@ def test_sweep_energy_of_a_q8_configuration(monkeypatch):
     assert sweep.energy_per_ray(counts, t, sweep._box_op(points[0])) == (10 * 12 + 4 * 8) / 2
     assert sweep.energy_per_ray(counts, t) == (10 * 10 + 4 * 8) / 2
     assert [sweep._box_op(p) for p in points] == ["box_q8", "box_q8_host", "box"]
+
+
+@pytest.mark.slow
+def test_gates_level_of_the_decode_and_transform(tmp_path):
+    """Synthesis of baseline-unified-q8 and -xf (minutes each, cached), then box_q8 vs
+    box_q8_host and transform at the gate level: the decode stage's logic is labelled S0 and
+    costs energy only when it decodes."""
+    out = tmp_path / "g.json"
+    assert main(["power", "--level", "gates", "--config", "baseline-unified-q8,baseline-unified-xf",
+                 "--op", "box_q8_host,triangle", "--ops", "20", "--json", str(out),
+                 "--no-progress"]) == 0
+    rep = json.loads(out.read_text())
+    q8 = rep["configs"]["baseline-unified-q8"]
+    assert q8["latency"] == 12 and q8["box_q8_host"]["cycles_per_op"] == 1.0
+    assert 0 < q8["box_q8_host"]["stages"]["S0"] < 0.05
+    assert rep["configs"]["baseline-unified-xf"]["box_q8_host"]["stages"]["S0"] == 0
+    p = power.params_of("baseline-unified-q8")
+    net = netlist.synthesize(power.build_params("baseline-unified-q8"))
+    r = measure(activity.GateModel(net), p, n=20, ops=["box_q8", "box_q8_host"])
+    assert r["box_q8"]["stages"]["S0"] > 0.1
+    assert r["box_q8"]["energy_per_op"] > r["box_q8_host"]["energy_per_op"]
+    xf = power.params_of("baseline-unified-xf")
+    net = netlist.synthesize(power.build_params("baseline-unified-xf"))
+    r = measure(activity.GateModel(net), xf, n=20, ops=["transform"])
+    assert r["transform"]["energy_per_op"] > 0 and r["transform"]["stages"]["S2"] > 0.2

@@ -257,7 +257,7 @@ def plot(rep: dict, path) -> None:
     cfgs = rep["configs"]
     ops = [op for op in stimulus.OPS if any("energy_per_op" in r.get(op, {})
                                            for r in cfgs.values())]
-    fig, ax = plt.subplots(figsize=(7, 3.6), dpi=120)
+    fig, ax = plt.subplots(figsize=(max(7.0, 1.1 * len(ops) + 1.5), 3.8), dpi=120)
     width = 0.8 / max(1, len(cfgs))
     x = np.arange(len(ops))
     for i, (cfg, r) in enumerate(cfgs.items()):
@@ -265,7 +265,7 @@ def plot(rep: dict, path) -> None:
         bars = ax.bar(x + (i - (len(cfgs) - 1) / 2) * width, vals, width, label=cfg)
         ax.bar_label(bars, labels=["" if np.isnan(v) else _fmt(v) for v in vals], fontsize=6,
                      rotation=90, padding=2)
-    ax.set_xticks(x, ops)
+    ax.set_xticks(x, ops, rotation=20, ha="right", fontsize=8)
     unit = rep["unit"] + (f", {Path(rep['liberty']).stem}" if rep.get("liberty") else "")
     ax.set_ylabel(f"energy per operation ({unit})", fontsize=8)
     ax.set_title(f"RayFlex energy per operation, level {rep['level']} "
