@@ -2,7 +2,9 @@
 
 The RayFlex paper's power study (Genus on VCD activity of 100 random tests at 1 GHz) reports
 power per operation type at full throughput for the four configurations. This package measures
-the same structure with open tools, at three levels (docs/power.md):
+the same structure with open tools, for those four and each with the q8 decode (``-q8``) or the
+TRANSFORM operation (``-xf``) (driver/area.py's configuration names), at three levels
+(docs/power.md):
 
 * ``signals``: bit toggles of every traced RTL net (Verilator ``--trace``), seconds;
 * ``gates``: toggles of every gate output of a Yosys generic-gate netlist weighted by its
@@ -32,14 +34,13 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ..cli.common import add_json, add_progress, wrote
-from ..datapath import LATENCY, default_latency
+from ..datapath import default_latency
 from ..layout import pack_requests
 from ..outputs import JSON, PNG, Outputs, write_json
 from . import stimulus
 from .netlist import STAGE_LABELS, _area
 
 LEVELS = ("signals", "gates", "liberty")
-DEFAULT_LATENCY = LATENCY
 IDLE_CYCLES = 200
 DEFAULT_OPS = 100
 
@@ -148,7 +149,7 @@ def measure(model, params: dict, n: int = DEFAULT_OPS, seed: int = 0,
 
 
 def run_level(level: str, cfgs: list[str], n: int = DEFAULT_OPS, seed: int = 0,
-              liberty_path: str | None = None, progress=None, latency: int = DEFAULT_LATENCY,
+              liberty_path: str | None = None, progress=None, latency: int | None = None,
               ops=None) -> dict:
     """Measure ``cfgs`` at ``level``; returns the report's ``configs`` part and notes.
     ``latency``: the pipeline depth of the signals level's models (None: each configuration's
