@@ -349,22 +349,24 @@ class DesignPoint:
 # ---------------------------------------------------------------------------------------------
 # command line
 
-def _help(o: Option, listing: bool, default: str | None = None) -> str:
-    text = f"{o.help} (default: {default or o.describe_default()})"
-    if listing:
+def _help(o: Option, listing: bool, default: str | None = None, own: str | None = None) -> str:
+    text = f"{own or o.help} (default: {default or o.describe_default()})"
+    if listing and not own:
         text += "; a comma-separated list" + (", or all" if o.choices else "")
     return text
 
 
 def add_options(p, groups=tuple(GROUPS), sweep: bool = False, positional_scene: bool = False,
-                notes: dict | None = None, lists=(), defaults: dict | None = None) -> None:
+                notes: dict | None = None, lists=(), defaults: dict | None = None,
+                helps: dict | None = None) -> None:
     """Add the design-point options of ``groups`` to parser ``p``, one argument group each.
     Defaults are left as None (``from_args`` fills them in) so that a command can tell a value
     given from a default. ``sweep``: listable options take comma-separated lists (``lists``:
     those named take them). ``positional_scene``: SCENE may also be given as the first
     positional argument. ``notes``: group name -> how this command uses the group (shown in the
     group's title). ``defaults``: option name -> this command's default, as shown in the help
-    (the command applies it: ``power`` measures every configuration unless told)."""
+    (the command applies it: ``power`` measures every configuration unless told). ``helps``:
+    option name -> this command's own help text for it (the default is still appended)."""
     for g in groups:
         ag = p.add_argument_group(GROUPS[g] + (f" ({notes[g]})" if notes and g in notes else ""))
         if g == "workload" and positional_scene:
@@ -375,13 +377,14 @@ def add_options(p, groups=tuple(GROUPS), sweep: bool = False, positional_scene: 
                 continue
             listing = (sweep or o.name in lists) and o.listable
             shown = (defaults or {}).get(o.name)
+            own = (helps or {}).get(o.name)
             if o.type is _bool and not listing:
                 ag.add_argument(o.flag, dest=o.name, action="store_const", const=True,
-                                default=None, help=_help(o, listing, shown))
+                                default=None, help=_help(o, listing, shown, own))
                 continue
             ag.add_argument(o.flag, dest=o.name, default=None,
                             metavar=("LIST" if listing else o.metavar),
-                            type=str if listing else _parser(o), help=_help(o, listing, shown))
+                            type=str if listing else _parser(o), help=_help(o, listing, shown, own))
 
 
 def _parser(o: Option) -> Callable:

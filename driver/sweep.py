@@ -111,23 +111,23 @@ def measure_point(point: DesignPoint, records: dict) -> dict:
 # energy per op (driver.power)
 
 def energy_tables(points, progress: bool = True) -> dict:
-    """Energy per box and triangle op of every (configuration, latency) of ``points``:
-    {"CONFIG@LATENCY": {level: {"box": e, "triangle": e, "unit": unit} or None}}; level
-    ``gates`` only for configurations whose gate netlist is cached (at the netlist's
-    latency)."""
+    """Energy per box and triangle op of every (configuration, latency) of ``points`` (a q8
+    image's box op: box_q8 or box_q8_host, ``_box_op``): {"CONFIG@LATENCY": {level: {"box": e,
+    "triangle": e, ["box_q8" or "box_q8_host": e,] "unit": unit} or None}}; level ``gates``
+    only for configurations whose gate netlist is cached (at the netlist's latency)."""
     from . import power
     from .power.report import UNITS
     out: dict = {}
     for cfg, lat in sorted({(p.config, p.latency) for p in points}):
         entry = out[energy_key(cfg, lat)] = {lvl: None for lvl in ENERGY_LEVELS}
-        if cfg not in power.configs():          # the q8 decode stage has no power model yet
-            continue
+        ops = tuple(dict.fromkeys(["box", "triangle", *(_box_op(p) for p in points
+                                                        if p.config == cfg)]))
         with phase(f"energy per op of {cfg} (signals)", progress):
-            r = power.run_level("signals", [cfg], latency=lat, ops=("box", "triangle"))
+            r = power.run_level("signals", [cfg], latency=lat, ops=ops)
         entry["signals"] = _per_op(r["configs"][cfg], UNITS["signals"])
-        if lat == power.DEFAULT_LATENCY and power.netlist_cached(cfg):
+        if lat == power.least_latency(cfg) and power.netlist_cached(cfg):
             with phase(f"energy per op of {cfg} (gates)", progress):
-                r = power.run_level("gates", [cfg], ops=("box", "triangle"))
+                r = power.run_level("gates", [cfg], ops=ops)
             entry["gates"] = _per_op(r["configs"][cfg], UNITS["gates"])
     return out
 
@@ -136,17 +136,28 @@ def energy_key(config: str, latency: int) -> str:
     return f"{config}@{latency}"
 
 
+def _box_op(p: DesignPoint) -> str:
+    """The operation a box node of point ``p``'s frame is (``stimulus.box_op``: box, or for a
+    q8 image box_q8 / box_q8_host, decoded by the datapath / the host)."""
+    from .power.stimulus import box_op
+    return box_op({"COMPRESSED": p.compressed}, p.bvh_format != "box32")
+
+
 def _per_op(measured: dict, unit: str) -> dict:
-    return {"box": measured["box"]["energy_per_op"],
-            "triangle": measured["triangle"]["energy_per_op"], "unit": unit}
+    return {**{op: r["energy_per_op"] for op, r in measured.items()
+               if isinstance(r, dict) and "energy_per_op" in r}, "unit": unit}
 
 
-def energy_per_ray(counts: dict, table: dict | None):
-    """Box and triangle ops times their energy per op, per ray; None without a table, without
-    rays, or when the frame has TRANSFORM ops (``rayflex power`` measures no energy for them)."""
-    if not table or not counts["rays"] or counts.get("transform_ops"):
+def energy_per_ray(counts: dict, table: dict | None, box_op: str = "box"):
+    """Energy per ray of a frame's ``counts`` with the energies per op of ``table`` (``box_op``:
+    the operation its box ops are, ``_box_op``); its TRANSFORM ops are priced when the table has
+    a ``transform`` energy (a TRANSFORM configuration). None without a table, without rays, or
+    with TRANSFORM ops and no energy for them."""
+    xf = counts.get("transform_ops") or 0
+    if not table or not counts["rays"] or (xf and "transform" not in table):
         return None
-    return (counts["box_ops"] * table["box"] + counts["tri_ops"] * table["triangle"]) \
+    return (counts["box_ops"] * table[box_op] + counts["tri_ops"] * table["triangle"]
+            + (xf * table["transform"] if xf else 0)) \
         / counts["rays"]
 
 
@@ -268,17 +279,18 @@ def _entry(p: DesignPoint, result: dict, trace: Trace, energies: dict) -> dict:
     """A point's frame statistics: the functional counts with its RT-unit replays and energy."""
     from .stats import merge
     key = energy_key(p.config, p.latency)
+    bop = _box_op(p)
     by_type = {}
     for kind, counts in trace.by_type.items():
         e = dict(counts)
         e["rtunit"] = result["by_type"][kind]["rtunit"]
         e["rtunit_memory"] = result["by_type"][kind]["rtunit_memory"]
-        e["energy_per_ray"] = {lvl: energy_per_ray(counts, energies[key][lvl])
+        e["energy_per_ray"] = {lvl: energy_per_ray(counts, energies[key][lvl], bop)
                                for lvl in ENERGY_LEVELS}
         by_type[kind] = e
     total = _totals(trace.by_type, merge)
     total["rtunit"], total["rtunit_memory"] = result["rtunit"], result["rtunit_memory"]
-    total["energy_per_ray"] = {lvl: energy_per_ray(total, energies[key][lvl])
+    total["energy_per_ray"] = {lvl: energy_per_ray(total, energies[key][lvl], bop)
                                for lvl in ENERGY_LEVELS}
     return {"design_point": p.as_dict(), **total, "by_type": by_type, "wall_s": result["wall_s"]}
 

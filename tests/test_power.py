@@ -90,7 +90,7 @@ def test_vcd_header_aliases_and_testbench_inputs(signals, tmp_path):
 
 def test_streams_are_valid_requests():
     """Every operation's stream runs on the golden model; box streams hit about half the boxes."""
-    for op in stimulus.measurable(True):
+    for op in stimulus.measurable({"EXTENDED": 1}):
         req = stimulus.requests(op, 64, seed=3)
         rsp = backend("golden", extended=True).run(req)
         assert len(rsp) == 64 and (req["opcode"] == stimulus.OPS[op][0]).all()
@@ -125,17 +125,17 @@ def test_idle_pipeline_does_not_toggle(signals):
 
 
 def test_measure_is_deterministic_and_complete(signals):
-    a = measure(signals, extended=False, n=20, seed=5)
-    b = measure(signals, extended=False, n=20, seed=5)
+    a = measure(signals, BASE, n=20, seed=5)
+    b = measure(signals, BASE, n=20, seed=5)
     assert a == b
-    assert set(a) == {"box", "triangle", "triangle_no_cull", "idle_per_cycle"}
-    for op in ("box", "triangle", "triangle_no_cull"):
+    assert set(a) == {"box", "box_q8_host", "triangle", "triangle_no_cull", "idle_per_cycle"}
+    for op in ("box", "box_q8_host", "triangle", "triangle_no_cull"):
         r = a[op]
         assert r["energy_per_op"] > 0 and r["cycles_per_op"] == 1.0
         assert sum(r["stages"].values()) == pytest.approx(1, abs=1e-3)
         assert r["stages"]["S1"] > 0 and r["stages"]["registers"] > 0
     assert a["idle_per_cycle"]["energy"] == 0
-    c = measure(signals, extended=False, n=20, seed=6)
+    c = measure(signals, BASE, n=20, seed=6)
     assert c["box"]["energy_per_op"] != a["box"]["energy_per_op"]
 
 
@@ -215,6 +215,16 @@ def test_energy_per_ray_of_every_ray_type(tmp_path):
     (["--level", "gates", "--latency", "12"], "--latency"),
     (["--json", "/nonexistent-dir/p.json"], "directory"),
     (["--stimulus-seed", "-1"], "--stimulus-seed"),
+    # an operation or a latency a configuration cannot run (-q8, -xf configurations)
+    (["--op", "box_q8"], "--op box_q8: configuration baseline-unified cannot run it"),
+    (["--op", "transform", "--config", "baseline-unified-q8"], "a -xf configuration"),
+    (["--op", "euclidean", "--config", "baseline-unified-xf"], "extended"),
+    (["--op", "nope"], "unknown operation"),
+    (["--op", ","], "at least one"),
+    (["--config", "baseline-unified-xq"], "unknown value"),
+    (["--config", "baseline-unified-q8", "--latency", "11"], "at least 12"),
+    (["--config", "baseline-unified-q8", "--level", "gates", "--latency", "13"],
+     "baseline-unified-q8 has 12 stages"),
 ])
 def test_cli_bad_input_fails_before_any_measurement(argv, words, capsys, monkeypatch):
     import driver.power as power
@@ -509,8 +519,8 @@ def test_liberty_level_on_the_gate_model(tiny_net, tiny):
     net, _ = tiny_net
     priced = liberty.Priced(activity.GateModel(net), liberty.net_energies(
         tiny, net.cell_types, net.driver, net.sinks, net.in0))
-    gates = measure(activity.GateModel(net), extended=False, n=8, idle_cycles=10)
-    r = measure(priced, extended=False, n=8, idle_cycles=10)
+    gates = measure(activity.GateModel(net), BASE, n=8, idle_cycles=10)
+    r = measure(priced, BASE, n=8, idle_cycles=10)
     assert r["box"]["unit"] == "pJ" and r["box"]["energy_per_op"] > 0
     assert r["box"]["toggles_per_op"] == gates["box"]["toggles_per_op"]
     # 3 flip-flops (clock pin 0.2 pJ each at slew 0) and the leakage of every cell (nW) over

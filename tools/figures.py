@@ -95,6 +95,21 @@ def _power(level, minutes, workloads=True):
                   f"energy per operation (and per ray) of the four configurations, {level} level")
 
 
+# the q8 decode and TRANSFORM beside the configuration they extend (docs/power.md)
+POWER_Q8_XF = "baseline-unified,baseline-unified-q8,baseline-unified-xf"
+
+
+def _power_q8_xf(level, minutes):
+    stem = f"power_q8_xf_{level}"
+    return Figure(stem,
+                  (*RAYFLEX, "power", "--level", level, "--config", POWER_Q8_XF,
+                   "--scene", "bunny", "--size", "32", "--bvh-format", "q8",
+                   "--json", f"docs/{stem}.json", "--plot", f"images/{stem}.png", "--no-progress"),
+                  (f"docs/{stem}.json", f"images/{stem}.png"), minutes,
+                  f"energy per op of box_q8 (the q8 decode) and TRANSFORM beside box and "
+                  f"triangle, and per ray of a q8 image, {level} level")
+
+
 FORMATS = IMAGE_FORMATS                   # node images (docs/compressed.md)
 
 
@@ -157,6 +172,8 @@ FIGURES = [
     _power("signals", 1.0, workloads=False),
     _power("gates", 12.0),
     _power("liberty", 12.0),
+    *(_power_q8_xf(level, minutes) for level, minutes in
+      (("signals", 1.0), ("gates", 12.0), ("liberty", 12.0))),
     Figure("instances_hits",
            (sys.executable, "-m", "driver.bvh.instances_study", "hits", "--scene", "bunny_grid",
             "--size", "256", "--json", "docs/instances_hits.json"),
@@ -241,6 +258,13 @@ README_NUMBERS = {
                             "ratios.extended_vs_baseline.unified.triangle", "{:+.1%}"),
     "power_gates_tri_vs_box": ("docs/power_gates.json",
                                "ratios.triangle_vs_box.baseline-unified", "{:.2f}"),
+    "power_q8_decode": ("docs/power_q8_xf_gates.json",
+                        "ratios.q8_decode.baseline-unified-q8.box_q8_vs_base_host", "{:+.1%}"),
+    "power_q8_decode_share": ("docs/power_q8_xf_gates.json",
+                              "ratios.q8_decode.baseline-unified-q8.decode_share", "{:.1%}"),
+    "power_transform_vs_box": ("docs/power_q8_xf_gates.json",
+                               "ratios.transform_op.baseline-unified-xf.transform_vs_box",
+                               "{:+.1%}"),
     "paper_power_ext_box": ("docs/power_gates.json", "paper.extended_vs_baseline.box", "{:+.0%}"),
     "paper_power_ext_tri": ("docs/power_gates.json", "paper.extended_vs_baseline.triangle",
                             "{:+.0%}"),

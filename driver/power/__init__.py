@@ -2,7 +2,9 @@
 
 The RayFlex paper's power study (Genus on VCD activity of 100 random tests at 1 GHz) reports
 power per operation type at full throughput for the four configurations. This package measures
-the same structure with open tools, at three levels (docs/power.md):
+the same structure with open tools, for those four and each with the q8 decode (``-q8``) or the
+TRANSFORM operation (``-xf``) (driver/area.py's configuration names), at three levels
+(docs/power.md):
 
 * ``signals``: bit toggles of every traced RTL net (Verilator ``--trace``), seconds;
 * ``gates``: toggles of every gate output of a Yosys generic-gate netlist weighted by its
@@ -32,45 +34,85 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ..cli.common import add_json, add_progress, wrote
-from ..datapath import LATENCY
+from ..datapath import default_latency
 from ..layout import pack_requests
 from ..outputs import JSON, PNG, Outputs, write_json
 from . import stimulus
 from .netlist import STAGE_LABELS, _area
 
 LEVELS = ("signals", "gates", "liberty")
-DEFAULT_LATENCY = LATENCY
 IDLE_CYCLES = 200
 DEFAULT_OPS = 100
 
 
 def configs() -> dict[str, tuple[int, int]]:
-    """Configuration name -> (EXTENDED, DISJOINT), the table of driver/area.py."""
+    """The four base configurations (what ``--config all`` measures): name -> (EXTENDED,
+    DISJOINT), the table of driver/area.py."""
     return dict(_area().CONFIGS)
 
 
-def params_of(cfg: str, latency: int = DEFAULT_LATENCY) -> dict[str, int]:
-    e, d = configs()[cfg]
-    return {"EXTENDED": e, "DISJOINT": d, "LATENCY": latency}
+def all_configs() -> list[str]:
+    """Every configuration power measures: the four, each with the q8 decode (``-q8``,
+    COMPRESSED) and each of those with TRANSFORM (``-xf``), as driver/area.py names them."""
+    area = _area()
+    return [*area.ALL_CONFIGS, *area.XF_CONFIGS]
+
+
+def build_params(cfg: str) -> dict[str, int]:
+    """The build parameters of configuration ``cfg`` without the latency (EXTENDED, DISJOINT,
+    and COMPRESSED / TRANSFORM when set): what its gate netlist is synthesized with."""
+    return _area().config_params(cfg)
+
+
+def least_latency(cfg: str) -> int:
+    """The configuration's own pipeline depth (11, 12 with the q8 decode): its gate netlist's."""
+    return default_latency(bool(build_params(cfg).get("COMPRESSED")))
+
+
+def params_of(cfg: str, latency: int | None = None) -> dict[str, int]:
+    """The build parameters of the traced model of ``cfg`` (``latency`` None: its own)."""
+    return {**build_params(cfg), "LATENCY": least_latency(cfg) if latency is None else latency}
 
 
 def netlist_cached(cfg: str) -> bool:
     """Whether the gate netlist of configuration ``cfg`` is in the cache (no synthesis)."""
     from . import netlist
-    p = params_of(cfg)
-    return netlist.is_cached({k: p[k] for k in ("EXTENDED", "DISJOINT")})
+    return netlist.is_cached(build_params(cfg))
 
 
-def measure(model, extended: bool, n: int = DEFAULT_OPS, seed: int = 0,
+def check_ops(ops, cfgs) -> None:
+    """A one-line ValueError if an operation of ``ops`` is unknown or cannot run on a
+    configuration of ``cfgs`` (e.g. box_q8 without the q8 decode)."""
+    why = {"EXTENDED": "the extended operations (an extended-* configuration)",
+           "COMPRESSED": "the q8 decode (a -q8 configuration)",
+           "TRANSFORM": "TRANSFORM (a -xf configuration)"}
+    for op in ops:
+        if op not in stimulus.OPS:
+            raise ValueError(f"--op {op}: unknown operation; choose from "
+                             f"{', '.join(stimulus.OPS)}")
+        for cfg in cfgs:
+            if op not in stimulus.measurable(build_params(cfg)):
+                raise ValueError(f"--op {op}: configuration {cfg} cannot run it; it needs "
+                                 f"{why[stimulus.needs(op)]}")
+
+
+def measure(model, params: dict, n: int = DEFAULT_OPS, seed: int = 0,
             idle_cycles: int = IDLE_CYCLES, ops=None, progress=None) -> dict:
     """Energy per operation of one model (``activity.SignalModel``/``GateModel``, or a liberty
-    pricing of a gate model: anything with ``run``, ``weight``, ``stage``, ``unit``).
+    pricing of a gate model: anything with ``run``, ``weight``, ``stage``, ``unit``) of a
+    configuration with build parameters ``params`` (``ops``: the operation types to measure,
+    default every one it runs).
 
     Returns {op: {toggles_per_op, energy_per_op, unit, cycles_per_op, stages}, "idle_per_cycle":
     {...}} plus {op: {"pending": reason}} for operations the RTL cannot run yet."""
     if n < 1:
         raise ValueError(f"--ops must be >= 1, got {n}")
-    names = [o for o in (ops or stimulus.measurable(extended))]
+    runs = stimulus.measurable(params)
+    names = list(ops or runs)
+    bad = [o for o in names if o not in runs]
+    if bad:
+        raise ValueError(f"operation {bad[0]} needs the build parameter "
+                         f"{stimulus.needs(bad[0])}")
     w = model.weight
     counted = w > 0
     out: dict = {}
@@ -107,24 +149,25 @@ def measure(model, extended: bool, n: int = DEFAULT_OPS, seed: int = 0,
 
 
 def run_level(level: str, cfgs: list[str], n: int = DEFAULT_OPS, seed: int = 0,
-              liberty_path: str | None = None, progress=None, latency: int = DEFAULT_LATENCY,
+              liberty_path: str | None = None, progress=None, latency: int | None = None,
               ops=None) -> dict:
     """Measure ``cfgs`` at ``level``; returns the report's ``configs`` part and notes.
-    ``latency``: the pipeline depth of the signals level's models (the gate netlists have the
-    default); ``ops``: the operation types to measure (default: every one the configuration
-    runs)."""
+    ``latency``: the pipeline depth of the signals level's models (None: each configuration's
+    own; the gate netlists have their own); ``ops``: the operation types to measure (default:
+    every one the configuration runs)."""
     if level == "signals":
         from . import activity
         out = {}
         for cfg in cfgs:
             t0 = time.perf_counter()
             p = params_of(cfg, latency)
-            names = ops or stimulus.measurable(bool(p["EXTENDED"]))
+            names = ops or stimulus.measurable(p)
             bar = _bar(progress, {cfg: len(names)})
-            out[cfg] = measure(activity.SignalModel(p), bool(p["EXTENDED"]), n, seed, ops=ops,
+            out[cfg] = measure(activity.SignalModel(p), p, n, seed, ops=ops,
                                progress=(lambda op, c=cfg: bar.step(c, op)) if bar else None)
             if bar:
                 bar.close()
+            out[cfg]["latency"] = p["LATENCY"]
             out[cfg]["seconds"] = round(time.perf_counter() - t0, 1)
         return {"configs": out}
     nets = _netlists(cfgs, progress)
@@ -142,8 +185,9 @@ def _measure_net(level, cfg, net, n, seed, liberty_path, step=None, ops=None) ->
     if level == "liberty":
         from . import liberty
         model = liberty.price(model, net, liberty_path)
-    out = measure(model, bool(params_of(cfg)["EXTENDED"]), n, seed, ops=ops,
+    out = measure(model, params_of(cfg), n, seed, ops=ops,
                   progress=(lambda op: step(cfg, op)) if step else None)
+    out["latency"] = least_latency(cfg)
     out["seconds"] = round(time.perf_counter() - t0, 1)
     if level == "liberty":
         out["leakage"] = model.leakage
@@ -172,8 +216,7 @@ def _measure_nets(level, nets: dict, n, seed, liberty_path, progress=None, ops=N
     from concurrent.futures.process import BrokenProcessPool
     from queue import Empty
     cfgs = list(nets)
-    bar = _bar(progress, {c: len(ops or stimulus.measurable(bool(params_of(c)["EXTENDED"])))
-                          for c in cfgs})
+    bar = _bar(progress, {c: len(ops or stimulus.measurable(params_of(c))) for c in cfgs})
     step = bar.step if bar else None
     lanes = _lanes(len(cfgs))
     try:
@@ -220,7 +263,7 @@ def _netlists(cfgs: list[str], progress=None) -> dict:
     process per core (Yosys is single-threaded; the longest synthesis, by the last recorded
     times, starts first), so a cold run takes about its longest synthesis, not their sum."""
     from . import netlist
-    wanted = {c: {k: params_of(c)[k] for k in ("EXTENDED", "DISJOINT")} for c in cfgs}
+    wanted = {c: build_params(c) for c in cfgs}
     order = sorted(cfgs, key=lambda c: -netlist.estimate(wanted[c]))
     pool = ThreadPoolExecutor(_lanes(len(cfgs)), thread_name_prefix="rayflex-synth")
     try:
@@ -253,8 +296,8 @@ def uncached_models(models) -> list[str]:
             try:
                 (build_harness if kind == "rtl" else activity.SignalModel.library)(params)
             except _WouldBuild:
-                missing.append(f"{kind} EXTENDED={params['EXTENDED']} "
-                               f"DISJOINT={params['DISJOINT']} LATENCY={params['LATENCY']}")
+                missing.append(" ".join([kind, *(f"{k}={v}" for k, v in params.items()
+                                                 if v or k in ("EXTENDED", "DISJOINT"))]))
     finally:
         verilate.cached_build = real
     return missing
@@ -329,12 +372,24 @@ def add_parser(subparsers):
                         "qflow-tech-osu018)")
     p.add_argument("--stimulus-seed", type=int, default=0, metavar="N",
                    help="seed of the random request streams (default 0)")
+    p.add_argument("--op", metavar="LIST",
+                   help="operation types to measure, comma-separated: "
+                        f"{', '.join(stimulus.OPS)} (default: every one each configuration "
+                        "runs; box_q8 needs a -q8 configuration, transform a -xf one, euclidean "
+                        "and cosine an extended one)")
     add_json(p, "write the report as JSON")
     p.add_argument("--plot", metavar="PATH",
                    help="PNG of energy per operation (default: none)")
+    area = _area()
     design.add_options(p, lists=("config",), defaults={"config": "all"},
                        notes={"rtunit": "not used: energy per op and per ray do not depend on "
-                                        "the RT unit; see rayflex sweep"})
+                                        "the RT unit; see rayflex sweep"},
+                       helps={"config": "configurations to measure, comma-separated: any of "
+                              f"{', '.join(configs())}, each also with the q8 decode (NAME"
+                              f"{area.Q8_SUFFIX}, build parameter COMPRESSED) and with TRANSFORM "
+                              f"(NAME{area.XF_SUFFIX}, NAME{area.Q8_SUFFIX}{area.XF_SUFFIX}), "
+                              "e.g. baseline-unified,baseline-unified-q8,baseline-unified-xf; "
+                              "or all: the four base configurations"})
     add_progress(p)
     return p
 
@@ -343,21 +398,29 @@ def run(args) -> int:
     from .. import design
     from ..scenes.scene import resolve
     from . import report
-    cfgs = design.parse_list(design.BY_NAME["config"], args.config or "all")
-    if (args.config or "all") == "all":
-        cfgs = [c for c in cfgs if c in configs()]
-    q8 = [c for c in cfgs if c not in configs()]
-    if q8:
-        raise ValueError(f"--config {q8[0]}: power measures the configurations "
-                         f"{', '.join(configs())}; the q8 decode stage has no power model yet")
-    point = design.from_args(argparse_copy(args, config=cfgs[0]))
+    cfgs = parse_configs(args.config or "all")
+    ops = None
+    if args.op is not None:
+        ops = list(dict.fromkeys(x.strip() for x in args.op.split(",") if x.strip()))
+        if not ops:
+            raise ValueError("--op: give at least one operation type")
+        check_ops(ops, cfgs)
+    if args.latency is not None:
+        for c in cfgs:
+            if args.level != "signals" and args.latency != least_latency(c):
+                raise ValueError(f"--latency: the gate netlist of {c} has {least_latency(c)} "
+                                 "stages; other latencies are measured at --level signals")
+            if args.latency < least_latency(c):
+                raise ValueError(f"--latency must be at least {least_latency(c)} for --config "
+                                 f"{c}, got {args.latency}")
+    # the workload frame's design point: the first configuration's datapath (the traversal's
+    # operations are the same bits on every configuration)
+    point = design.from_args(argparse_copy(
+        args, config=cfgs[0].removesuffix(_area().XF_SUFFIX)))
     rt = design.given(args, ("rtunit",))
     if rt:
         raise ValueError(f"{rt[0]}: power does not model the RT unit (energy per op and per "
                          "ray do not depend on it); rayflex sweep measures both")
-    if args.level != "signals" and point.latency != DEFAULT_LATENCY:
-        raise ValueError(f"--latency: the gate netlists have {DEFAULT_LATENCY} stages; other "
-                         "latencies are measured at --level signals")
     if args.ops < 1:
         raise ValueError(f"--ops must be >= 1, got {args.ops}")
     if args.stimulus_seed < 0:
@@ -379,7 +442,7 @@ def run(args) -> int:
         liberty.load(path)                   # a bad file fails now, not after synthesis
         args.liberty = str(path)
     if args.level == "signals":
-        announce_builds("power", [("signals", params_of(c, point.latency)) for c in cfgs])
+        announce_builds("power", [("signals", params_of(c, args.latency)) for c in cfgs])
     else:
         todo = [c for c in cfgs if not netlist_cached(c)]
         if todo:
@@ -388,7 +451,7 @@ def run(args) -> int:
     t0 = time.perf_counter()
     mix = report.frame_mix(point, progress=not args.no_progress)
     res = run_level(args.level, cfgs, args.ops, args.stimulus_seed, args.liberty, progress=log,
-                    latency=point.latency)
+                    latency=args.latency, ops=ops)
     rep = report.build(args.level, res, args.ops, args.stimulus_seed, mix, point, cfgs,
                        liberty=args.liberty)
     rep["seconds"] = round(time.perf_counter() - t0, 1)
@@ -400,6 +463,21 @@ def run(args) -> int:
             report.plot(rep, outs.temp(png))
     wrote(outs.paths())
     return 0
+
+
+def parse_configs(text: str) -> list[str]:
+    """The configurations of ``--config``: a comma-separated list of ``all_configs()`` names,
+    or ``all``: the four base configurations."""
+    items = list(dict.fromkeys(x.strip() for x in str(text).split(",") if x.strip()))
+    if items == ["all"]:
+        return list(configs())
+    if not items:
+        raise ValueError("--config: give at least one configuration")
+    for c in items:
+        if c not in all_configs():
+            raise ValueError(f"--config: unknown value {c!r}; choose from all, "
+                             f"{', '.join(all_configs())}")
+    return items
 
 
 def argparse_copy(args, **changes):

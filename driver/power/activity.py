@@ -166,8 +166,8 @@ def _is_tb_input(path: str) -> bool:
     return len(parts) == 2 and parts[1] in TB_INPUTS        # TOP.<port>
 
 
-_SKID_REG = re.compile(r"\.(g_reg\[\d+\]\.u_reg|u_in_reg|u_out_reg)\.\w+_q$")
-_STAGE = re.compile(r"\.u_s(\d)\.")
+_SKID_REG = re.compile(r"\.(g_reg\[\d+\]\.u_reg|u_in_reg|u_dec_reg|u_out_reg)\.\w+_q$")
+_STAGE = re.compile(r"\.u_s(\d)\.")          # u_s0: the q8 decode stage (COMPRESSED)
 
 
 def _signal_stage(paths: list[str]) -> int:

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-RECIPE = 1                # bump when the synthesis script or the writer below changes meaning
+RECIPE = 2                # bump when the synthesis script or the writer below changes meaning
 
 # Yosys internal gate -> (gatesim code, input pins in the order A, B, S)
 GATES = {
@@ -46,7 +46,8 @@ GATES = {
 # flip-flops with a positive clock: $_DFF_P_, $_DFFE_PP_, $_DFF_PN0_, $_DFFE_PN0P_, $_SDFF_PP0_,
 # $_SDFFE_PP0P_ ... (kind, reset polarity and value, enable polarity)
 _FF = re.compile(r"\$_(S?DFFE?)_P(?:([PN])([01]))?([PN])?_")
-STAGE_LABELS = ["registers", *[f"S{k}" for k in range(1, 10)], "out", "control"]
+# S0: the q8 decode stage of a COMPRESSED build (the logic feeding its register R_dec)
+STAGE_LABELS = ["registers", *[f"S{k}" for k in range(0, 10)], "out", "control"]
 
 
 def _area():
@@ -142,7 +143,10 @@ def synthesize(params: dict[str, int], sources=None, progress=None) -> Netlist:
 
 
 def _pname(params):
-    return f"EXTENDED={params.get('EXTENDED', 0)} DISJOINT={params.get('DISJOINT', 0)}"
+    """``EXTENDED=e DISJOINT=d``, then ``COMPRESSED=1`` / ``TRANSFORM=1`` when set."""
+    return " ".join([f"EXTENDED={params.get('EXTENDED', 0)}",
+                     f"DISJOINT={params.get('DISJOINT', 0)}",
+                     *(f"{k}=1" for k in ("COMPRESSED", "TRANSFORM") if params.get(k))])
 
 
 # seconds per synthesis measured on the 2-core reference machine (docs/power.md): the estimate
@@ -291,7 +295,8 @@ def _levelize(comb: np.ndarray, n: int) -> dict:
             "groups": groups, "levels": int(lvl.max()) if len(lvl) else 0}
 
 
-_REG_SCOPE = re.compile(r"^(?:g_reg\[(\d+)\]\.u_reg|u_in_reg|u_out_reg|u_s(\d))\.")
+_REG_SCOPE = re.compile(
+    r"^(?:g_reg\[(\d+)\]\.u_reg|u_in_reg|u_out_reg|u_s(\d)|g_decode\.u_dec_reg)\.")
 
 
 def _stages(mod, n, driver, cell_out, cell_in, cell_src, cell_ff) -> np.ndarray:
@@ -311,6 +316,8 @@ def _stages(mod, n, driver, cell_out, cell_in, cell_src, cell_ff) -> np.ndarray:
             target = lab[f"S{m.group(2)}"]
         elif name.startswith("u_out_reg"):
             target = lab["out"]
+        elif name.startswith("g_decode."):          # R_dec, fed by the decode stage S0
+            target = lab["S0"]
         else:
             target = lab["control"]
         for b in v["bits"]:
