@@ -417,7 +417,8 @@ def cost(name: str, window: int, rays: int, rays_in_flight: int, depth: int,
         out.update(treelet_cost(config, tab.n_treelets, len(tab.node_offset), w))
         if sched:
             out.update(picks=sched["picks"], max_queued=sched["max_queued"],
-                       parked=sched["parked"], borrowed=sched["borrowed"],
+                       parked=sched["parked"], resumed=sched["resumed"],
+                       borrowed=sched["borrowed"],
                        max_held=sched["max_held"],
                        pick_comparisons=sched["picks"] * max(tab.n_treelets - 1, 0),
                        picks_per_ray=sched["picks"] / rays if rays else 0.0)
@@ -504,11 +505,11 @@ def frame_records(scene_name: str, size: int, spp: int, bounces: int, ao_rays: i
 def floor_bytes(records, line_bytes: int) -> int:
     """Bytes every order must fetch with a cold cache: each distinct line the batches touch, once
     per batch (each replay starts cold)."""
-    from ..layout import NODE_BYTES
     total = 0
     for rec in records:
-        off = NodeRef.offset(rec.ptr)
-        size = np.vectorize(NODE_BYTES.get)(NodeRef.type(rec.ptr)) if rec.ops else off
+        size = node_bytes(rec.ptr)
+        off = NodeRef.offset(rec.ptr)[size > 0]      # a pair's second triangle: no bytes more
+        size = size[size > 0]
         first, last = off // line_bytes, (off + size - 1) // line_bytes
         lines = np.unique(np.concatenate([first, last]))
         total += len(lines) * line_bytes
