@@ -325,17 +325,21 @@ class TreeletSchedule:
 _TREE_CACHE: dict = {}
 
 
+def _image_key(record) -> tuple:
+    """(digest of the record's node image, its root pointer): the key of the per-image caches
+    (every batch of a frame replays on the same image)."""
+    import hashlib
+    image = np.ascontiguousarray(record.image)
+    return hashlib.blake2b(image.tobytes(), digest_size=16).digest(), root_pointer(record)
+
+
 def treelet_schedule(record, config: TreeletConfig = DEFAULT_TREELETS) -> TreeletSchedule:
     """The treelet table of the record's BVH (``image_tree``, ``treelets``; cached per image and
     budget) and the treelet of each recorded request (by its node's offset: a pair's second
     triangle is in its pair leaf's treelet)."""
-    import hashlib
-    image = np.ascontiguousarray(record.image)
-    root = root_pointer(record)
-    key = (hashlib.blake2b(image.tobytes(), digest_size=16).digest(), root,
-           int(config.treelet_bytes))
+    key = (*_image_key(record), int(config.treelet_bytes))
     if key not in _TREE_CACHE:
-        ptrs, parent = image_tree(image, root)
+        ptrs, parent = image_tree(record.image, key[1])
         tl = treelets(ptrs, parent, int(config.treelet_bytes))
         off = NodeRef.offset(ptrs)
         by = np.argsort(off)
@@ -362,15 +366,22 @@ def ray_state_bytes() -> int:
 
 
 def tree_depth(record) -> int:
-    """Box levels of the record's BVH (the root with only triangle children: 1)."""
-    lo_chain = record.chains()
-    level = np.array([record.ptr[lo_chain[0][0]]], np.uint32) if record.ops else np.zeros(0)
-    depth = 0
-    while len(level):
-        depth += 1
-        child = read_nodes(record.image, level, BOX_NODE)["child"].ravel()
-        level = child[(child != NO_CHILD) & NodeRef.is_box(child)]
-    return depth
+    """Box levels of the record's BVH (the root with only leaf children: 1), for any node image
+    (``image_tree``)."""
+    if not record.ops:
+        return 0
+    key = ("depth", *_image_key(record))
+    if key not in _DEPTH_CACHE:
+        ptrs, parent = image_tree(record.image, root_pointer(record))
+        level = np.zeros(len(ptrs), np.int64)
+        for i in range(1, len(ptrs)):                     # parents come first
+            level[i] = level[parent[i]] + 1
+        _DEPTH_CACHE.clear()
+        _DEPTH_CACHE[key] = int(level[NodeRef.is_box(ptrs)].max()) + 1
+    return _DEPTH_CACHE[key]
+
+
+_DEPTH_CACHE: dict = {}
 
 
 def stack_entries(depth: int) -> int:
@@ -673,12 +684,38 @@ def plot_study(doc: dict, path) -> None:
     fig.savefig(str(path), format="png")
 
 
+def summary_table(doc: dict, fmt: str, scene: str) -> str:
+    """Markdown: per ray type of ``scene`` in ``fmt``, each policy at its window of highest
+    utilization (utilization with memory / bytes per ray, the window), index order with W rays in
+    the pool at its best W, and the cold-cache floor of bytes per ray."""
+    types = doc["formats"][fmt]["scenes"][scene]
+    pols = [p for p in doc["policies"]]
+    out = ["| ray type | " + " | ".join(f"`{p}`" if p != "index" else p for p in pols)
+           + " | index, R = W | floor B/ray |", "|---|" + "---|" * (len(pols) + 2)]
+    for kind, t in types.items():
+        cells = []
+        for pts in [t["policies"].get(p, {}) for p in pols] + [t.get("pool", {})]:
+            if not pts:
+                cells.append("")
+                continue
+            w, v = max(pts.items(), key=lambda kv: (kv[1]["utilization"], -int(kv[0])))
+            cells.append(f"{v['utilization']:.3f} / {v['bytes_per_ray']:.0f}"
+                         + ("" if w == "0" else f" (W = {window_label(w)})"))
+        out.append(f"| {kind} | " + " | ".join(cells) + f" | {t['floor_bytes_per_ray']:.0f} |")
+    return "\n".join(out)
+
+
 def study_tables(doc: dict) -> str:
     """Markdown tables of a ``study`` document: per format, scene and ray type, one row per
     policy, one column per window; each cell: utilization with memory / hit rate / bytes per ray
     / cycles; then the treelet variants."""
     ws = [str(w) for w in doc["windows"]]
     out = []
+    for fmt, f in doc["formats"].items():
+        for scene in f["scenes"]:
+            out += [f"**Summary: {scene} ({fmt})**, each policy at its best window "
+                    "(utilization with memory / bytes per ray)", "",
+                    summary_table(doc, fmt, scene), ""]
     for fmt, f in doc["formats"].items():
         for scene, types in f["scenes"].items():
             for kind, t in types.items():
