@@ -21,6 +21,7 @@ from .rtlbase import PATTERN_LEN, RtlBackendBase
 
 _U8P = ctypes.POINTER(ctypes.c_uint8)
 _U32P = ctypes.POINTER(ctypes.c_uint32)
+_I32P = ctypes.POINTER(ctypes.c_int32)
 _I64P = ctypes.POINTER(ctypes.c_int64)
 _LIBS: dict = {}
 BAD_NODE = -2             # return code of the harness calls: a pointer that names no node
@@ -72,8 +73,7 @@ def use_library(params: dict[str, int], path) -> ctypes.CDLL:
                               i64, _I64P, _I64P, i64, _U32P, _U32P, _U32P,
                               ctypes.POINTER(ReplayStats), _I64P, i64, i64, i64, i64, i64,
                               ctypes.c_double, _I64P, i64, _I64P,
-                              ctypes.POINTER(ctypes.c_int32), i64, i64, _I64P, _I64P, _I64P,
-                              i64]
+                              _I32P, i64, i64, _I64P, _I64P, _I64P, i64]
     lib.rf_memory_trace.restype = i64
     lib.rf_memory_trace.argtypes = [i64, i64, i64, i64, ctypes.c_double, i64, _I64P, _I64P,
                                     _I64P, _I64P, _I64P]
@@ -156,16 +156,16 @@ def replay_chains(params: dict[str, int], pipelines: int, slots: int, turnaround
     if window and not int(window) >= slots:
         raise ValueError(f"the scheduler's window ({window} rays) must hold at least the "
                          f"{slots} rays in flight")
-    tl, park = (None,) * 6, 0
+    ids, n_tl, active, pre, flags = None, 0, 0, (None,) * 3, 0
     if treelets is not None:
         if not window:
             raise ValueError("treelet scheduling needs a window")
         ids = np.ascontiguousarray(treelets.request_treelet, np.int32)
         if ids.shape != (len(r),):
             raise ValueError("treelet scheduling needs one treelet per request")
+        n_tl, active = int(treelets.n_treelets), int(treelets.active)
         pre = treelets.prefetch_lists()
-        tl, park = ((ids, int(treelets.n_treelets), int(treelets.active), *pre),
-                    int(treelets.park) | 2 * int(treelets.borrow))
+        flags = int(treelets.park) | 2 * int(treelets.borrow)     # rf_replay's treelet_flags
     rsp = np.zeros((len(r), RSP_WORDS), np.uint32)
     stats = ReplayStats()
     per_pipe = np.zeros(pipelines, np.int64)
@@ -175,9 +175,8 @@ def replay_chains(params: dict[str, int], pipelines: int, slots: int, turnaround
                        _i64p(co), len(co) - 1, _u32p(ch), _u32p(bf), _u32p(rsp),
                        ctypes.byref(stats), _i64p(per_pipe), max_idle, *memory,
                        None if order is None else _i64p(order), int(window), _i64p(sched),
-                       None if tl[0] is None else tl[0].ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
-                       tl[1] or 0, tl[2] or 0, *(None if a is None else _i64p(a) for a in tl[3:]),
-                       park)
+                       None if ids is None else ids.ctypes.data_as(_I32P), n_tl, active,
+                       *(None if a is None else _i64p(a) for a in pre), flags)
     if rc == BAD_GEOMETRY:
         raise ValueError(f"node cache geometry {memory[:3]} cannot be modelled: the cache size must "
                          "be a multiple of ways x line size, the line a power of two >= 4 bytes")

@@ -51,20 +51,23 @@ extern "C" {
 //
 // Treelet scheduling (window > 0 and treelet != null; Aila & Karras, HPG 2010): the BVH is cut
 // into n_treelets treelets; treelet[i] is the treelet of request i's node. Every held ray that
-// holds no issue slot waits in the queue (FIFO) of the treelet of its next node. At most
-// `active_treelets` treelets are active at once; free slots go to the rays queued on active
-// treelets (the earliest activated treelet first), after the parked rays whose node has arrived
-// (park_misses: a ray whose node misses parks as with node affinity, above, and stays a member
-// of its treelet); when no active treelet has a queued ray and
-// fewer than `active_treelets` are active, the unit picks the treelet with the most queued rays
-// (ties: the lowest index) and activates it. A ray in a slot keeps it while its next node is in
-// an active treelet (it waits there for its node as without a scheduler); a ray whose next node
-// is in an inactive treelet gives up its slot and joins that treelet's queue; a treelet with no
-// queued ray and no ray in a slot or parked is retired. New rays (up to `window` held) join the queue of
-// their first node's treelet. A ray's node is fetched when it takes a slot. Prefetch (tl_off !=
-// null): when a treelet is activated, every node of it (tl_node_off / tl_node_bytes, treelet t's
-// nodes at [tl_off[t], tl_off[t + 1])) is fetched through the node cache at once. sched[4] counts
-// the picks (treelet activations), sched[5] the most rays queued at once.
+// holds no issue slot waits in the queue (FIFO) of the treelet of its next node; new rays (up to
+// `window` held) join the queue of their first node's treelet. At most `active_treelets`
+// treelets are active at once. Free slots go to the parked rays whose node has arrived, then to
+// the rays queued on active treelets (the earliest activated treelet first); when no active
+// treelet has a queued ray and fewer than `active_treelets` are active, the unit picks the
+// treelet with the most queued rays (ties: the lowest index) and activates it. A ray's node is
+// fetched when it takes a slot. A ray in a slot keeps it while its next node is in an active
+// treelet; a ray whose next node is in an inactive treelet gives up its slot and joins that
+// treelet's queue; a treelet with no ray queued, parked or in a slot is retired.
+// treelet_flags bit 0 (park): a ray whose node misses parks as with node affinity (above) and
+// stays a member of its treelet; else it waits in its slot. Bit 1 (borrow): when no further
+// treelet may be activated, a free slot takes the first ray of the longest queue without
+// activating its treelet (for one request, unless its next node is in an active treelet).
+// Prefetch (tl_off != null): when a treelet is activated, every node of it (tl_node_off /
+// tl_node_bytes; treelet t's nodes at [tl_off[t], tl_off[t + 1])) is fetched through the node
+// cache at once. sched[4]: picks (treelet activations); sched[5]: most rays queued at once;
+// sched[6]: rays given a slot by borrowing.
 //
 // skip_idle: a pipeline that holds no request at the start of a cycle and gets none is not
 // evaluated in that cycle (clock gating: with nothing valid inside, a clock edge changes no state
@@ -83,7 +86,7 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
                   int64_t mem_latency, double bytes_per_cycle, const int64_t* order,
                   int64_t window, int64_t* sched, const int32_t* treelet, int64_t n_treelets,
                   int64_t active_treelets, const int64_t* tl_off, const int64_t* tl_node_off,
-                  const int64_t* tl_node_bytes, int64_t park_misses) {
+                  const int64_t* tl_node_bytes, int64_t treelet_flags) {
   if (pipelines < 1 || slots < 1 || turnaround < 0 || n_rays < 0 || n_chains < 0 || m < 0)
     return -3;
   if (window < 0 || (window > 0 && window < slots)) return -3;
@@ -92,7 +95,7 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
     if (treelet[i] < 0 || treelet[i] >= n_treelets) return -3;
   const bool treelets = treelet != nullptr;
   const bool affinity = window > 0 && !treelets;
-  const bool parking = affinity || (treelets && (park_misses & 1));
+  const bool parking = affinity || (treelets && (treelet_flags & 1));
   NodeMemory mem;
   if (!mem.configure(cache_bytes, ways, line_bytes, mem_latency, bytes_per_cycle)) return -4;
   const NodeSource src{rays, image, image_words, ray, ptr, ext};
@@ -147,14 +150,16 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
     return -1;
   };
   // Treelet scheduling state: per treelet its queue (ray, cycle its next request is known), its
-  // rays in slots, whether it is active; the active treelets in activation order; each slotted
-  // ray's treelet.
+  // members (rays in slots or parked), whether it is active; the active treelets in activation
+  // order; the treelet of each ray holding a slot or parked.
   std::vector<std::deque<std::pair<int64_t, int64_t>>> tq(treelets ? n_treelets : 0);
   std::vector<int64_t> tl_members(tq.size(), 0), cur_tl(treelets ? n_chains : 0, -1);
   std::vector<char> tl_active(tq.size(), 0);
   std::vector<int64_t> act;
   int64_t queued = 0, max_queued = 0, picks = 0, n_borrowed = 0;
-  auto tl_of = [&](int64_t r) { return static_cast<int64_t>(treelet[chain_idx[chain_off[r] + pos[r]]]); };
+  auto tl_of = [&](int64_t r) {                          // the treelet of ray r's next node
+    return static_cast<int64_t>(treelet[chain_idx[chain_off[r] + pos[r]]]);
+  };
   auto enqueue = [&](int64_t r, int64_t at) {
     tq[tl_of(r)].push_back({r, at});
     if (++queued > max_queued) max_queued = queued;
@@ -214,18 +219,17 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
           if (!tl_active[t] && (best < 0 || tq[t].size() > tq[best].size())) best = t;
         if (best < 0 || tq[best].empty()) break;
         if (static_cast<int64_t>(act.size()) >= active_treelets) {
-          if (!(park_misses & 2)) break;
-          from = best;                          // an idle slot serves the longest queue
-          n_borrowed++;
+          if (!(treelet_flags & 2)) break;
+          n_borrowed++;                         // a free slot serves the longest queue
         } else {
-        tl_active[best] = 1;
-        act.push_back(best);
-        picks++;
-        if (tl_off)
-          for (int64_t e = tl_off[best]; e < tl_off[best + 1]; e++)
-            mem.fetch(tl_node_off[e], tl_node_bytes[e], k);
-        from = best;
+          tl_active[best] = 1;
+          act.push_back(best);
+          picks++;
+          if (tl_off)
+            for (int64_t e = tl_off[best]; e < tl_off[best + 1]; e++)
+              mem.fetch(tl_node_off[e], tl_node_bytes[e], k);
         }
+        from = best;
       }
       const auto [r, at] = tq[from].front();
       tq[from].pop_front();
