@@ -536,13 +536,15 @@ STUDY_FORMATS = ("box32", "q8")
 
 def study(scenes=STUDY_SCENES, size: int = 64, spp: int = 2, bounces: int = 2, ao_rays: int = 4,
           windows=STUDY_WINDOWS, policies=None, rays_in_flight: int = 64, memory=None,
-          progress: bool = True, formats=("box32",), variants: bool = False) -> dict:
+          progress: bool = True, formats=("box32",), variants: bool = False,
+          variants_window: int = None) -> dict:
     """Every policy at every window on the path (and ao) frames of ``scenes``, for the BVH in
     each of ``formats``: per ray type the node cache's hit rate, bytes from memory per ray,
     utilization with the node memory, cycles per frame and the policy's cost; index order once
     (it has no window), and the cold-cache floor of the bytes per ray. The document:
     ``formats.<format>.scenes.<scene>.<ray type>``; with ``variants``, ``treelet_variants``
-    (``treelet_variants`` on the first scene and format)."""
+    (``treelet_variants`` on the first scene and format, at ``variants_window``, default
+    ``VARIANT_WINDOW``)."""
     from .. import rtunit
     from ..progress import bar
     from ..stats import rtunit_stats
@@ -588,7 +590,7 @@ def study(scenes=STUDY_SCENES, size: int = 64, spp: int = 2, bounces: int = 2, a
             if variants and fmt == formats[0] and scene == scenes[0]:
                 doc["treelet_variants"] = treelet_variants(
                     {k: recs[k] for k in VARIANT_TYPES if k in recs}, rays_in_flight, memory,
-                    progress)
+                    progress, variants_window or VARIANT_WINDOW)
     return doc
 
 
@@ -737,7 +739,8 @@ def study_tables(doc: dict) -> str:
     var = doc.get("treelet_variants")
     if var:
         kinds = [k for k in VARIANT_TYPES if any(k in v for v in var["variants"].values())]
-        out += [f"**treelet variants** (W = {var['window']}; utilization / bytes per ray / "
+        out += [f"**treelet variants** (W = {window_label(var['window'])}; utilization / "
+                "bytes per ray / "
                 "picks)", "", "| variant | " + " | ".join(kinds) + " |",
                 "|---|" + "---|" * len(kinds)]
         for name, v in var["variants"].items():
@@ -771,13 +774,30 @@ def main(argv=None) -> int:
     ap.add_argument("--bvh-formats", default=",".join(STUDY_FORMATS), metavar="LIST",
                     help=f"node image formats, comma-separated (default "
                          f"{','.join(STUDY_FORMATS)}; docs/compressed.md)")
+    ap.add_argument("--policies", default=",".join(POLICIES), metavar="LIST",
+                    help=f"policies, comma-separated (default {','.join(POLICIES)})")
     ap.add_argument("--no-variants", action="store_true",
                     help="skip the treelet variants (docs/rayorder.md)")
+    ap.add_argument("--variants-window", default=window_label(VARIANT_WINDOW), metavar="W",
+                    help="the window of the treelet variants (\"all\": every ray of a batch; "
+                         f"default {window_label(VARIANT_WINDOW)})")
     ap.add_argument("--no-progress", action="store_true", help="no progress on stderr")
     args = ap.parse_args(argv)
     try:
-        windows = [check_window(ALL_RAYS if x == "all" else int(x))
-                   for x in args.windows.split(",")]
+        def window(text, option):
+            try:
+                return check_window(ALL_RAYS if text == "all" else int(text))
+            except ValueError:
+                raise ValueError(f"{option}: a window is an integer >= 1 or \"all\", "
+                                 f"got {text!r}") from None
+
+        windows = [window(x, "--windows") for x in args.windows.split(",")]
+        variants_window = window(args.variants_window, "--variants-window")
+        policies = args.policies.split(",")
+        for name in policies:
+            if name not in POLICIES:
+                raise ValueError(f"--policies: unknown ray order {name!r} (choose from "
+                                 f"{', '.join(POLICIES)})")
         from ..layout import IMAGE_FORMATS
         formats = args.bvh_formats.split(",")
         bad = [f for f in formats if f not in IMAGE_FORMATS]
@@ -789,8 +809,8 @@ def main(argv=None) -> int:
         png = outs.add("--plot", args.plot, PNG) if args.plot else None
         with outs.commit():
             doc = study(args.scenes.split(","), args.size, windows=windows,
-                        progress=not args.no_progress, formats=formats,
-                        variants=not args.no_variants)
+                        progress=not args.no_progress, formats=formats, policies=policies,
+                        variants=not args.no_variants, variants_window=variants_window)
             doc["machine"] = machine()
             doc["command"] = "python -m driver.rtunit.order " + " ".join(
                 argv if argv is not None else __import__("sys").argv[1:])
