@@ -271,3 +271,16 @@ def test_the_study_runs_on_the_published_replay_schema(tmp_path):
     assert png.read_bytes()[:4] == b"\x89PNG"
     text = order.study_tables(doc)
     assert "primary** (q8)" in text and "W = all" in text and "treelet variants" in text
+
+
+def test_study_command_rejects_bad_arguments(tmp_path, capsys):
+    """python -m driver.rtunit.order: a bad option is one error line and exit 2 before any
+    replay, and no output file."""
+    for argv, what in ((["--policies", "index,sorted"], "--policies"),
+                       (["--windows", "64,0"], "--windows"),
+                       (["--variants-window", "x"], "--variants-window"),
+                       (["--bvh-formats", "q9"], "--bvh-formats")):
+        assert order.main(["--json", str(tmp_path / "x.json"), *argv]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"rayflex: error: {what}") and err.count("\n") == 1
+    assert not list(tmp_path.iterdir())
