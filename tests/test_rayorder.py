@@ -6,6 +6,7 @@ orders, cycle for cycle."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -124,6 +125,73 @@ def test_hand_checked_order_in_a_tiny_cache():
         assert two.memory["line_hits"] == 0
 
 
+def _two_node_record(ray, ptr):
+    """A hand-made record on two box nodes A (the root, offset 0) and B (offset 128) of a small
+    BVH: request i is ray ``ray[i]`` on node ``ptr[i]`` ("A" or "B")."""
+    bvh = build(meshes.soup(200))
+    assert bvh.stats["box_nodes"] >= 2
+    node = {n: int(NodeRef.encode(i * BOX_BYTES, BOX_TYPE)) for i, n in enumerate("AB")}
+    n = max(ray) + 1
+    rays = prepare_rays([[-50, 0, -5]] * n, [[0, 0, 1]] * n)
+    return rtunit.Record(ray_words(rays), bvh.image.view("<u4"), np.array(ray, np.uint32),
+                         np.array([node[p] for p in ptr], np.uint32),
+                         np.full(len(ray), np.inf, np.float32), None,
+                         rtl_params(0, 0, driver.LATENCY))
+
+
+def test_hand_checked_treelets_in_a_tiny_cache():
+    """Two rays each visit A then B (requests in ray order: A, A, B, B within the wavefront, so
+    index order with one ray in flight issues ray 0's A, B, then ray 1's A, B); a cache of one
+    128-byte box node. Index order misses every line (8 misses). With treelets of one box node
+    (128 B) and one active treelet, both rays wait in A's queue, A is picked (two rays queued),
+    ray 0 misses on A and ray 1 hits; both then wait in B's queue: B is picked, ray 0 misses,
+    ray 1 hits: 4 misses, 4 hits. With prefetch the pick fetches the treelet's two lines and all
+    four rays' requests hit: 4 misses, 8 hits."""
+    rec = _two_node_record([0, 1, 0, 1], "AABB")
+    tiny = rtunit.MemoryModel(cache_bytes=128, ways=2, line_bytes=64, latency_cycles=10)
+    idx = rtunit.replay(rec, 1, 1, memory=tiny)
+    assert (idx.memory["line_hits"], idx.memory["line_misses"]) == (0, 8)
+    one = order.TreeletConfig(treelet_bytes=128, active=1, park=False, borrow=False)
+    tab = order.treelet_schedule(rec, one)
+    assert tab.request_treelet[0] == tab.request_treelet[1] != tab.request_treelet[2]
+    tl = rtunit.replay(rec, 1, 1, memory=tiny, ray_order="treelet", ray_window=2, treelets=one)
+    assert (tl.memory["line_hits"], tl.memory["line_misses"]) == (4, 4)
+    assert tl.order["picks"] == 2 and tl.order["max_queued"] == 2 and tl.cycles < idx.cycles
+    pre = rtunit.replay(rec, 1, 1, memory=tiny, ray_order="treelet", ray_window=2,
+                        treelets=replace(one, prefetch=True))
+    assert (pre.memory["line_hits"], pre.memory["line_misses"]) == (8, 4)
+    # a window of one ray: no two rays ever share a queue, index order's misses
+    solo = rtunit.replay(rec, 1, 1, memory=tiny, ray_order="treelet", ray_window=1, treelets=one)
+    assert solo.memory["line_misses"] == 8 and solo.order["picks"] == 4
+
+
+@pytest.mark.parametrize("fmt", ["box32", "q8", "q8g"])
+@pytest.mark.parametrize("budget", [64, 512, 4096])
+def test_treelets_cover_every_node_once(fmt, budget):
+    """The treelet table holds every node of the image once (their bytes add up to the image's);
+    every treelet is connected (a node's parent is in its treelet, or the node is the treelet's
+    root) and within the budget unless it is one node; every request of a traversal has its
+    treelet."""
+    bvh = build(meshes.box_room(2), format=fmt)
+    ptrs, parent = order.image_tree(bvh.image, bvh.root)
+    off = NodeRef.offset(ptrs)
+    assert len(np.unique(off)) == len(off) and parent[0] == -1 and (parent[1:] >= 0).all()
+    assert order.node_bytes(ptrs).sum() == bvh.image.nbytes
+    tl = order.treelets(ptrs, parent, budget)
+    size = np.bincount(tl, weights=order.node_bytes(ptrs))
+    count = np.bincount(tl)
+    assert ((size <= budget) | (count == 1)).all() and tl[0] == 0
+    roots = np.flatnonzero((parent < 0) | (tl != tl[np.maximum(parent, 0)]))
+    assert np.array_equal(np.sort(tl[roots]), np.arange(tl.max() + 1))   # one root each
+    rng = np.random.default_rng(3)
+    rec = trace(bvh, rng.uniform(-0.5, 0.5, (50, 3)), rng.normal(size=(50, 3)), backend="rtl",
+                record=True).record
+    sched = order.treelet_schedule(rec, order.TreeletConfig(treelet_bytes=budget))
+    assert sched.n_treelets == tl.max() + 1 and len(sched.request_treelet) == rec.ops
+    of_node = dict(zip(off.tolist(), tl.tolist()))
+    assert sched.request_treelet.tolist() == [of_node[o] for o in NodeRef.offset(rec.ptr).tolist()]
+
+
 def test_cost_follows_the_layout_and_the_window(record):
     bits = sum(REQUEST.field[f].total_bits for f in order.RAY_STATE_FIELDS)
     assert order.ray_state_bytes() == -(-bits // 8)
@@ -138,6 +206,15 @@ def test_cost_follows_the_layout_and_the_window(record):
     assert s["traversal_state_bytes"] == order.ray_state_bytes() + 4 * (1 + 3 * 10 + 2)
     assert s["extra_state_bytes"] == 192 * s["traversal_state_bytes"]
     assert order.tree_depth(record) >= 2
+    # treelets: a queue entry (a 8-bit next index) per held ray; per treelet a head, a tail
+    # (8 bits each) and a count (9 bits); a treelet number (4 bits for 10 treelets) per node
+    t = order.treelet_cost(order.TreeletConfig(), 10, 100, 256)
+    assert t["queue_bytes"] == -(-(256 * 8 + 10 * (8 + 8 + 9)) // 8)
+    assert t["treelet_table_bytes"] == 100 * 4 // 8 and t["queue_entries"] == 256
+    rep = rtunit.replay(record, 16, 1, memory=SMALL, ray_order="treelet", ray_window=64)
+    c = rep.order
+    assert c["extra_rays_held"] == 48 and c["picks"] >= 1 and c["treelets"] >= 1
+    assert c["pick_comparisons"] == c["picks"] * (c["treelets"] - 1)
 
 
 def test_floor_bounds_every_order(record):
@@ -172,18 +249,38 @@ def test_the_study_runs_on_the_published_replay_schema(tmp_path):
     an ``rtunit_memory`` object (docs/statistics.md), sorting policies carry their cost, index
     order is one point, the plot is written."""
     from driver.rtunit import order
-    doc = order.study(scenes=("cornell",), size=8, windows=(64,), progress=False)
-    types = doc["scenes"]["cornell"]
-    assert "primary" in types
-    for kind, t in types.items():
-        pols = t["policies"]
-        assert set(pols["index"]) == {"0"}
-        for name, pts in pols.items():
-            for p in pts.values():
-                assert p["responses_verified"] and 0 < p["utilization"] <= 1
-                assert ("ray_order_cost" in p) == (name != "index")
-        assert t["floor_bytes_per_ray"] <= pols["index"]["0"]["bytes_per_ray"] + 1e-9
+    doc = order.study(scenes=("cornell",), size=8, windows=(64, order.ALL_RAYS), progress=False,
+                      formats=("box32", "q8"), variants=True)
+    for fmt in ("box32", "q8"):
+        types = doc["formats"][fmt]["scenes"]["cornell"]
+        assert "primary" in types
+        for kind, t in types.items():
+            pols = t["policies"]
+            assert set(pols["index"]) == {"0"} and set(pols) == set(order.POLICIES)
+            for name, pts in pols.items():
+                for p in pts.values():
+                    assert p["responses_verified"] and 0 < p["utilization"] <= 1
+                    assert ("ray_order_cost" in p) == (name != "index")
+            assert t["floor_bytes_per_ray"] <= pols["index"]["0"]["bytes_per_ray"] + 1e-9
+    var = doc["treelet_variants"]["variants"]
+    assert set(var) == set(order.TREELET_VARIANTS)
+    assert var["prefetch"]["config"]["prefetch"] and not var["default"]["config"]["prefetch"]
+    assert all(v["shadow"]["responses_verified"] for v in var.values())
     png = tmp_path / "o.png"
     order.plot_study(doc, png)
     assert png.read_bytes()[:4] == b"\x89PNG"
-    assert "primary" in order.study_tables(doc)
+    text = order.study_tables(doc)
+    assert "primary** (q8)" in text and "W = all" in text and "treelet variants" in text
+
+
+def test_study_command_rejects_bad_arguments(tmp_path, capsys):
+    """python -m driver.rtunit.order: a bad option is one error line and exit 2 before any
+    replay, and no output file."""
+    for argv, what in ((["--policies", "index,sorted"], "--policies"),
+                       (["--windows", "64,0"], "--windows"),
+                       (["--variants-window", "x"], "--variants-window"),
+                       (["--bvh-formats", "q9"], "--bvh-formats")):
+        assert order.main(["--json", str(tmp_path / "x.json"), *argv]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"rayflex: error: {what}") and err.count("\n") == 1
+    assert not list(tmp_path.iterdir())

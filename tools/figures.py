@@ -238,13 +238,13 @@ README_NUMBERS = {
                           f"per_ray.{t}.configs.baseline-unified.energy_per_ray", "{:,.0f}")
        for t in ("primary", "shadow", "bounce1")},
     **{f"order_{t}_{policy}": ("docs/rayorder.json",
-                               f"scenes.bunny_floor.{t}.policies.{policy}.{window}"
+                               f"formats.box32.scenes.bunny_floor.{t}.policies.{policy}.{window}"
                                ".utilization", "{:.2f}")
        for t in ("ao", "primary") for policy, window in (("index", 0), ("affinity", 256))},
-    "order_state_bytes": ("docs/rayorder.json", "scenes.bunny_floor.ao.policies.affinity.256"
-                          ".ray_order_cost.extra_state_bytes", "{:,}"),
-    "order_extra_rays": ("docs/rayorder.json", "scenes.bunny_floor.ao.policies.affinity.256"
-                         ".ray_order_cost.extra_rays_held", "{:d}"),
+    "order_state_bytes": ("docs/rayorder.json", "formats.box32.scenes.bunny_floor.ao.policies"
+                          ".affinity.256.ray_order_cost.extra_state_bytes", "{:,}"),
+    "order_extra_rays": ("docs/rayorder.json", "formats.box32.scenes.bunny_floor.ao.policies"
+                         ".affinity.256.ray_order_cost.extra_rays_held", "{:d}"),
     **{f"compressed_{fmt}_bytes_per_triangle": (f"images/compressed_path64_{fmt}.json",
                                                 "frame.bvh.bytes_per_triangle", "{:.1f}")
        for fmt in ("box32", "q8")},

@@ -21,6 +21,7 @@ from .rtlbase import PATTERN_LEN, RtlBackendBase
 
 _U8P = ctypes.POINTER(ctypes.c_uint8)
 _U32P = ctypes.POINTER(ctypes.c_uint32)
+_I32P = ctypes.POINTER(ctypes.c_int32)
 _I64P = ctypes.POINTER(ctypes.c_int64)
 _LIBS: dict = {}
 BAD_NODE = -2             # return code of the harness calls: a pointer that names no node
@@ -71,7 +72,8 @@ def use_library(params: dict[str, int], path) -> ctypes.CDLL:
     lib.rf_replay.argtypes = [i64, i64, i64, i64, _U32P, i64, _U32P, i64, _U32P, _U32P, _U32P,
                               i64, _I64P, _I64P, i64, _U32P, _U32P, _U32P,
                               ctypes.POINTER(ReplayStats), _I64P, i64, i64, i64, i64, i64,
-                              ctypes.c_double, _I64P, i64, _I64P]
+                              ctypes.c_double, _I64P, i64, _I64P,
+                              _I32P, i64, i64, _I64P, _I64P, _I64P, i64]
     lib.rf_memory_trace.restype = i64
     lib.rf_memory_trace.argtypes = [i64, i64, i64, i64, ctypes.c_double, i64, _I64P, _I64P,
                                     _I64P, _I64P, _I64P]
@@ -116,13 +118,14 @@ NO_MEMORY = (-1, 1, 64, 0, 1.0)      # cache_bytes < 0: no memory model, every n
 BAD_GEOMETRY = -4
 
 
-SCHED_STATS = ("parked", "resumed", "max_parked", "max_held")
+SCHED_STATS = ("parked", "resumed", "max_parked", "max_held", "picks", "max_queued",
+               "borrowed")
 
 
 def replay_chains(params: dict[str, int], pipelines: int, slots: int, turnaround: int,
                   skip_idle: bool, ray_words, image_words, ray, ptr, extent, chain_idx,
                   chain_off, max_idle: int, memory=NO_MEMORY, order=None, window: int = 0,
-                  chain=None, before=None):
+                  chain=None, before=None, treelets=None):
     """Run the RT-unit scheduler (sim/rtunit_scheduler.cpp) over recorded request chains.
     ``memory``: (cache_bytes, ways, line_bytes, latency_cycles, bytes_per_cycle) of the node
     memory (sim/rf_memory.h; cache_bytes = 0: no cache, every line from memory; < 0: no memory
@@ -130,7 +133,9 @@ def replay_chains(params: dict[str, int], pipelines: int, slots: int, turnaround
     indices; None: index order). ``window``: rays held by the node-affinity scheduler (0: none;
     else >= slots). ``chain``: the chain (world ray) of each request (default: its ray), when a
     ray's requests use several rows of the ray table (instances); ``before``: per request a node
-    fetched before its own (an instance node; ``NO_CHILD``: none, the default). Returns
+    fetched before its own (an instance node; ``NO_CHILD``: none, the default). ``treelets``:
+    treelet scheduling (needs a window) as a ``driver.rtunit.order.TreeletSchedule`` (the
+    treelet of each request, the treelets active at once, the prefetch lists). Returns
     (responses (m, RSP_WORDS) uint32 at the record index, ``ReplayStats`` dict plus the
     scheduler's ``SCHED_STATS`` counts, requests per pipeline (P,) int64)."""
     lib = harness_library(params)
@@ -151,6 +156,16 @@ def replay_chains(params: dict[str, int], pipelines: int, slots: int, turnaround
     if window and not int(window) >= slots:
         raise ValueError(f"the scheduler's window ({window} rays) must hold at least the "
                          f"{slots} rays in flight")
+    ids, n_tl, active, pre, flags = None, 0, 0, (None,) * 3, 0
+    if treelets is not None:
+        if not window:
+            raise ValueError("treelet scheduling needs a window")
+        ids = np.ascontiguousarray(treelets.request_treelet, np.int32)
+        if ids.shape != (len(r),):
+            raise ValueError("treelet scheduling needs one treelet per request")
+        n_tl, active = int(treelets.n_treelets), int(treelets.active)
+        pre = treelets.prefetch_lists()
+        flags = int(treelets.park) | 2 * int(treelets.borrow)     # rf_replay's treelet_flags
     rsp = np.zeros((len(r), RSP_WORDS), np.uint32)
     stats = ReplayStats()
     per_pipe = np.zeros(pipelines, np.int64)
@@ -159,7 +174,9 @@ def replay_chains(params: dict[str, int], pipelines: int, slots: int, turnaround
                        _u32p(img), img.size, _u32p(r), _u32p(p), _u32p(e), len(r), _i64p(ci),
                        _i64p(co), len(co) - 1, _u32p(ch), _u32p(bf), _u32p(rsp),
                        ctypes.byref(stats), _i64p(per_pipe), max_idle, *memory,
-                       None if order is None else _i64p(order), int(window), _i64p(sched))
+                       None if order is None else _i64p(order), int(window), _i64p(sched),
+                       None if ids is None else ids.ctypes.data_as(_I32P), n_tl, active,
+                       *(None if a is None else _i64p(a) for a in pre), flags)
     if rc == BAD_GEOMETRY:
         raise ValueError(f"node cache geometry {memory[:3]} cannot be modelled: the cache size must "
                          "be a multiple of ways x line size, the line a power of two >= 4 bytes")

@@ -233,14 +233,16 @@ class ReplayResult:
 def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelines: int = 1,
            turnaround: int = DEFAULT_TURNAROUND, skip_idle: bool = True,
            verify: bool = True, memory: MemoryModel | None = None,
-           ray_order: str = "index", ray_window: int | None = None) -> ReplayResult:
+           ray_order: str = "index", ray_window: int | None = None,
+           treelets=None) -> ReplayResult:
     """Replay a traversal ``Record`` through P Verilated pipelines with R rays in flight (see the
     module docstring). ``verify``: compare every response with the functional run's (raises
     ``ReplayMismatch``); without recorded responses only the tags are checked. ``memory``: a
     ``MemoryModel`` of node fetches (None: every fetch is free). ``ray_order``: the order
     policy of ``driver.rtunit.order`` (``POLICIES``; "index": rays enter in index order) with a
     window of ``ray_window`` rays (default ``order.DEFAULT_WINDOW``; for a scheduling policy at
-    least R); the result's ``order`` holds the policy and its cost."""
+    least R); the result's ``order`` holds the policy and its cost. ``treelets``: the
+    ``order.TreeletConfig`` of the "treelet" policy (default ``order.DEFAULT_TREELETS``)."""
     from ..backends.harness import NO_MEMORY, replay_chains
     from . import order as ray_orders
     r, p, ta = int(rays_in_flight), int(pipelines), int(turnaround)
@@ -257,6 +259,8 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
         raise ValueError(f"ray order {ray_order!r}: the window ({window} rays) must hold at "
                          f"least the {r} rays in flight")
     perm = ray_orders.permutation(record, ray_order, window)
+    tl = (ray_orders.treelet_schedule(record, treelets or ray_orders.DEFAULT_TREELETS)
+          if pol.treelets and record.ops else None)
     chain_idx, chain_off = record.chains()
     latency = int(record.params.get("LATENCY", LATENCY))
     t0 = time.perf_counter()
@@ -265,7 +269,7 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
                                          chain_idx, chain_off, 100 * latency + 1000,
                                          memory.args() if memory else NO_MEMORY, perm,
                                          window if pol.schedule else 0, record.chain,
-                                         record.before)
+                                         record.before, tl)
     wall = time.perf_counter() - t0
     m = len(rsp)
     if stats["bad_tags"]:
@@ -289,7 +293,9 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
     if ray_order != "index":
         depth = ray_orders.tree_depth(record) if pol.schedule else 0
         cost = ray_orders.cost(ray_order, window, record.rays, r, depth,
-                               stats if pol.schedule else None)
+                               stats if pol.schedule else None,
+                               treelets=(treelets or ray_orders.DEFAULT_TREELETS, tl)
+                               if tl is not None else None)
     return ReplayResult(r, p, ta, record.rays, m, record.box_ops, stats["cycles"],
                         stats["starved_cycles"], stats["full_cycles"], stats["model_evals"],
                         per_pipe.tolist(), wall, verified, latency, rsp, mem, cost,

@@ -20,6 +20,12 @@ The policies (``POLICIES``):
   ray (in index order). Ray queues waiting on nodes, as in Aila & Karras's treelet scheduling
   (HPG 2010), with the treelet one node.
 - ``hash-affinity``: the ``hash`` order feeding the ``affinity`` scheduler.
+- ``treelet``: treelet scheduling (Aila & Karras, "Architecture considerations for tracing
+  incoherent rays", HPG 2010) in the C++ scheduler: the BVH is cut into treelets of about
+  ``TreeletConfig.treelet_bytes`` (``treelets``); the W held rays wait in per-treelet queues (the
+  queue of the treelet of their next node); the unit works on at most ``TreeletConfig.active``
+  treelets at once, picking the one with the most queued rays, so a treelet's nodes are fetched
+  once and used by many rays; a ray leaving an active treelet joins the queue of its next one.
 
 The cost of each policy (``cost``): what a hardware sorter or scheduler does per ray and the bytes
 of ray state its window needs, derived from the request layout (``driver.layout``).
@@ -35,13 +41,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..layout import BOX_NODE, NO_CHILD, REQUEST, NodeRef, read_nodes
+from ..layout import (BOX_NODE, BOX_TYPE, GROUP_TYPE, INSTANCE_NODE, INSTANCE_TYPE, NO_CHILD,
+                      NODE_BYTES, PAIR_BYTES, PAIR_TYPE, Q8_NODE, Q8_TYPE, REQUEST, NodeRef,
+                      node_word, read_nodes)
 
 GRID_BITS = 5          # origin (and end point) cells per axis: 2**GRID_BITS
 THETA_BITS = 2         # polar-angle bins of the direction: 2**THETA_BITS
 PHI_BITS = 3           # azimuth bins of the direction: 2**PHI_BITS
 DEFAULT_WINDOW = 1024
-STUDY_WINDOWS = (64, 256, 1024, 4096)
+ALL_RAYS = 1 << 16     # a window that holds every ray of the study's batches ("all")
+STUDY_WINDOWS = (64, 256, 1024, 4096, ALL_RAYS)
 # What a waiting ray must keep until it is issued: the ray (its tag, the ray index, names it).
 # The prepared fields of the request (inverse direction, shear, kx/ky/kz) are recomputed at issue.
 RAY_STATE_FIELDS = ("tag", "origin", "dir", "extent", "flags")
@@ -51,12 +60,13 @@ POINTER_BYTES = 4      # a node pointer (driver.layout.NodeRef) on the traversal
 @dataclass(frozen=True)
 class Policy:
     """One ray-order policy: ``key``: the sort key (None: no sort); ``schedule``: the C++
-    node-affinity scheduler holds the window's rays."""
+    scheduler holds the window's rays (node affinity, or with ``treelets`` the treelet queues)."""
 
     name: str
     key: str | None
     schedule: bool
     help: str
+    treelets: bool = False
 
 
 POLICIES = {p.name: p for p in (
@@ -66,6 +76,8 @@ POLICIES = {p.name: p for p in (
     Policy("affinity", None, True,
            "rays missing the node cache yield their slot to rays whose next node is cached"),
     Policy("hash-affinity", "hash", True, "hash order into the affinity scheduler"),
+    Policy("treelet", None, True, "rays queue per BVH treelet; the unit works on the treelets "
+           "with the most queued rays", treelets=True),
 )}
 DEFAULT_POLICY = "index"
 
@@ -92,10 +104,15 @@ def _ray_field(ray_words: np.ndarray, name: str) -> np.ndarray:
     return cols.view(np.float32).reshape(len(ray_words), *f.shape)
 
 
+def root_pointer(record) -> int:
+    """The BVH root's pointer: the first node of every chain."""
+    chain_idx, chain_off = record.chains()
+    return int(record.ptr[chain_idx[chain_off[np.flatnonzero(np.diff(chain_off))[0]]]])
+
+
 def scene_box(record) -> tuple[np.ndarray, np.ndarray]:
     """(lo, hi): the union of the root node's child boxes (every chain starts at the root)."""
-    chain_idx, chain_off = record.chains()
-    root = record.ptr[chain_idx[chain_off[np.flatnonzero(np.diff(chain_off))[0]]]]
+    root = root_pointer(record)
     node = read_nodes(record.image, np.array([root], np.uint32), BOX_NODE)[0]
     box = node["box"][node["child"] != NO_CHILD]
     return box[:, :3].min(0).astype(np.float64), box[:, 3:].max(0).astype(np.float64)
@@ -160,6 +177,185 @@ def permutation(record, name: str, window: int) -> np.ndarray | None:
 
 
 # ----------------------------------------------------------------------------------------------
+# Treelets
+
+_CHILD_WORDS = {BOX_TYPE: node_word(BOX_NODE, "child"), Q8_TYPE: node_word(Q8_NODE, "child")}
+_SLOTS = BOX_NODE["child"].shape[0]
+assert Q8_NODE["child"].shape[0] == _SLOTS
+
+
+def image_tree(image, root: int) -> tuple[np.ndarray, np.ndarray]:
+    """The nodes reachable from ``root`` in a node image, breadth first: (ptr (n,) uint32, parent
+    (n,) int64 index, -1 for the root). Box nodes (box32, q8) lead to their children, an instance
+    node to its BLAS root, a group leaf to its second pair (the pair leaf 64 bytes on, a node of
+    its own); a node reached twice (a BLAS shared by instances) is listed once."""
+    words = np.asarray(image).reshape(-1).view("<u4")
+    level, up = np.array([root], np.uint32), np.array([-1], np.int64)
+    ptrs, parents, seen, base = [], [], np.zeros(0, np.int64), 0
+    while len(level):
+        off = NodeRef.offset(level)
+        _, first = np.unique(off, return_index=True)
+        keep = np.sort(first)[~np.isin(off[np.sort(first)], seen)]
+        level, up = level[keep], up[keep]
+        ptrs.append(level)
+        parents.append(up)
+        seen = np.union1d(seen, NodeRef.offset(level))
+        typ, word = NodeRef.type(level), NodeRef.word(level)
+        idx = np.arange(len(level), dtype=np.int64) + base
+        base += len(level)
+        kids, kup = [], []
+        for t, cw in _CHILD_WORDS.items():
+            sel = typ == t
+            c = words[word[sel][:, None] + cw + np.arange(_SLOTS)]
+            ok = c != NO_CHILD
+            kids.append(c[ok])
+            kup.append(np.broadcast_to(idx[sel][:, None], c.shape)[ok])
+        sel = typ == INSTANCE_TYPE
+        kids.append(words[word[sel] + node_word(INSTANCE_NODE, "blas")])
+        kup.append(idx[sel])
+        sel = typ == GROUP_TYPE
+        kids.append(NodeRef.encode(NodeRef.offset(level[sel]) + PAIR_BYTES, PAIR_TYPE))
+        kup.append(idx[sel])
+        level, up = np.concatenate(kids).astype(np.uint32), np.concatenate(kup)
+    return np.concatenate(ptrs), np.concatenate(parents)
+
+
+def node_bytes(ptrs) -> np.ndarray:
+    """Bytes of each node (``driver.layout.NODE_BYTES`` by pointer type)."""
+    table = np.zeros(8, np.int64)
+    for t, b in NODE_BYTES.items():
+        table[t] = b
+    return table[NodeRef.type(ptrs)]
+
+
+def treelets(ptrs: np.ndarray, parent: np.ndarray, budget: int) -> np.ndarray:
+    """(n,) int64 treelet of each node of ``image_tree`` (breadth first, parents before their
+    children): connected pieces of the tree of at most ``budget`` bytes (a node larger than the
+    budget alone), formed bottom up: each node's treelet takes its children's open treelets,
+    smallest first, while they fit; the children's treelets that do not fit are closed. (Grown
+    top down from each treelet's root instead, as Aila & Karras 2010 did, the cut leaves many
+    tiny treelets near the leaves.) Treelets are numbered in breadth-first order of their roots
+    (the root's is 0)."""
+    n = len(ptrs)
+    size = node_bytes(ptrs)
+    order = np.argsort(parent, kind="stable")               # children grouped by parent
+    counts = np.bincount(parent[parent >= 0], minlength=n)
+    start = np.zeros(n + 1, np.int64)
+    np.cumsum(counts, out=start[1:])
+    kids = order[n - int(counts.sum()):]                    # the root (parent -1) sorts first
+    open_ = size.copy()
+    merged = np.zeros(n, bool)
+    for v in range(n - 1, -1, -1):
+        lo, hi = start[v], start[v + 1]
+        if lo == hi:
+            continue
+        ch = kids[lo:hi]
+        ch = ch[np.argsort(open_[ch], kind="stable")]
+        room = np.cumsum(open_[ch]) + size[v] <= budget
+        merged[ch[room]] = True
+        open_[v] = size[v] + open_[ch[room]].sum()
+    out = np.cumsum(~merged) - 1
+    for v in np.flatnonzero(merged):                        # parents first
+        out[v] = out[parent[v]]
+    return out
+
+
+@dataclass(frozen=True)
+class TreeletConfig:
+    """Treelet scheduling: treelets of at most ``treelet_bytes`` (a fraction of the node cache),
+    ``active`` treelets worked on at once; ``prefetch``: fetch all of a treelet's nodes when it is
+    picked; ``park``: a ray whose next node misses gives up its slot while the node is fetched
+    (as ``affinity``); ``borrow``: when every active treelet's queue is empty and no more
+    treelets may be active, an idle slot serves one request of the longest queue (without
+    activating its treelet) instead of staying idle. docs/rayorder.md compares the defaults with
+    the variants ``TREELET_VARIANTS``."""
+
+    treelet_bytes: int = 8 * 1024
+    active: int = 4
+    prefetch: bool = False
+    park: bool = True
+    borrow: bool = True
+
+    def __post_init__(self):
+        for name in ("treelet_bytes", "active"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+                raise ValueError(f"treelets: {name} must be an integer >= 1, got {v!r}")
+
+    def describe(self) -> dict:
+        return {"treelet_bytes": int(self.treelet_bytes), "active_treelets": int(self.active),
+                "prefetch": bool(self.prefetch), "park": bool(self.park),
+                "borrow": bool(self.borrow)}
+
+
+DEFAULT_TREELETS = TreeletConfig()
+
+
+@dataclass
+class TreeletSchedule:
+    """What the C++ treelet scheduler needs for one record: the treelet of each request, the
+    number of treelets, the treelets active at once, and (with prefetch) every node's offset,
+    bytes and treelet."""
+
+    request_treelet: np.ndarray
+    n_treelets: int
+    active: int
+    prefetch: bool
+    park: bool
+    borrow: bool
+    node_offset: np.ndarray
+    node_size: np.ndarray
+    node_treelet: np.ndarray
+
+    def prefetch_lists(self):
+        """(tl_off (T + 1,), node offsets, node bytes) with treelet t's nodes at
+        [tl_off[t], tl_off[t + 1]), or three Nones without prefetch."""
+        if not self.prefetch:
+            return None, None, None
+        by = np.argsort(self.node_treelet, kind="stable")
+        off = np.zeros(self.n_treelets + 1, np.int64)
+        np.cumsum(np.bincount(self.node_treelet, minlength=self.n_treelets), out=off[1:])
+        return (off, np.ascontiguousarray(self.node_offset[by], np.int64),
+                np.ascontiguousarray(self.node_size[by], np.int64))
+
+    def describe(self) -> dict:
+        return {"treelets": self.n_treelets, "nodes": len(self.node_offset)}
+
+
+_TREE_CACHE: dict = {}
+
+
+def _image_key(record) -> tuple:
+    """(digest of the record's node image, its root pointer): the key of the per-image caches
+    (every batch of a frame replays on the same image)."""
+    import hashlib
+    image = np.ascontiguousarray(record.image)
+    return hashlib.blake2b(image.tobytes(), digest_size=16).digest(), root_pointer(record)
+
+
+def treelet_schedule(record, config: TreeletConfig = DEFAULT_TREELETS) -> TreeletSchedule:
+    """The treelet table of the record's BVH (``image_tree``, ``treelets``; cached per image and
+    budget) and the treelet of each recorded request (by its node's offset: a pair's second
+    triangle is in its pair leaf's treelet)."""
+    key = (*_image_key(record), int(config.treelet_bytes))
+    if key not in _TREE_CACHE:
+        ptrs, parent = image_tree(record.image, key[1])
+        tl = treelets(ptrs, parent, int(config.treelet_bytes))
+        off = NodeRef.offset(ptrs)
+        by = np.argsort(off)
+        _TREE_CACHE.clear()
+        _TREE_CACHE[key] = (off[by], node_bytes(ptrs)[by], tl[by])
+    off, size, tl = _TREE_CACHE[key]
+    req = NodeRef.offset(record.ptr)
+    at = np.minimum(np.searchsorted(off, req), len(off) - 1)
+    if len(req) and not np.array_equal(off[at], req):
+        raise ValueError("a recorded request names a node the BVH image's tree does not hold")
+    return TreeletSchedule(tl[at].astype(np.int32), int(tl.max()) + 1, int(config.active),
+                           bool(config.prefetch), bool(config.park), bool(config.borrow), off, size,
+                           tl)
+
+
+# ----------------------------------------------------------------------------------------------
 # Cost
 
 
@@ -170,15 +366,22 @@ def ray_state_bytes() -> int:
 
 
 def tree_depth(record) -> int:
-    """Box levels of the record's BVH (the root with only triangle children: 1)."""
-    lo_chain = record.chains()
-    level = np.array([record.ptr[lo_chain[0][0]]], np.uint32) if record.ops else np.zeros(0)
-    depth = 0
-    while len(level):
-        depth += 1
-        child = read_nodes(record.image, level, BOX_NODE)["child"].ravel()
-        level = child[(child != NO_CHILD) & NodeRef.is_box(child)]
-    return depth
+    """Box levels of the record's BVH (the root with only leaf children: 1), for any node image
+    (``image_tree``)."""
+    if not record.ops:
+        return 0
+    key = ("depth", *_image_key(record))
+    if key not in _DEPTH_CACHE:
+        ptrs, parent = image_tree(record.image, root_pointer(record))
+        level = np.zeros(len(ptrs), np.int64)
+        for i in range(1, len(ptrs)):                     # parents come first
+            level[i] = level[parent[i]] + 1
+        _DEPTH_CACHE.clear()
+        _DEPTH_CACHE[key] = int(level[NodeRef.is_box(ptrs)].max()) + 1
+    return _DEPTH_CACHE[key]
+
+
+_DEPTH_CACHE: dict = {}
 
 
 def stack_entries(depth: int) -> int:
@@ -196,7 +399,7 @@ def bitonic_compare_exchanges(w: int) -> int:
 
 
 def cost(name: str, window: int, rays: int, rays_in_flight: int, depth: int,
-         sched: dict | None = None) -> dict:
+         sched: dict | None = None, treelets=None) -> dict:
     """What policy ``name`` with a window of ``window`` rays costs in hardware, for ``rays`` rays:
     keys computed, comparisons (a bitonic network per window), buffer entries and their bytes;
     for the scheduler, the rays it holds beyond the pool with their traversal state (ray, next
@@ -216,15 +419,43 @@ def cost(name: str, window: int, rays: int, rays_in_flight: int, depth: int,
         traversal_b = ray_b + POINTER_BYTES * (1 + stack_entries(depth))
         out.update(held_rays=w, extra_rays_held=held, traversal_state_bytes=traversal_b,
                    extra_state_bytes=held * traversal_b)
-        if sched:
+        if sched and not pol.treelets:
             out.update({k: sched[k] for k in ("parked", "resumed", "max_parked", "max_held")},
                        extra_tag_lookups=sched["resumed"],
                        parked_per_ray=sched["parked"] / rays if rays else 0.0)
+    if pol.treelets and treelets is not None:
+        config, tab = treelets
+        out.update(treelet_cost(config, tab.n_treelets, len(tab.node_offset), w))
+        if sched:
+            out.update(picks=sched["picks"], max_queued=sched["max_queued"],
+                       parked=sched["parked"], resumed=sched["resumed"],
+                       borrowed=sched["borrowed"],
+                       max_held=sched["max_held"],
+                       pick_comparisons=sched["picks"] * max(tab.n_treelets - 1, 0),
+                       picks_per_ray=sched["picks"] / rays if rays else 0.0)
     return out
 
 
-_SUMMED = ("keys_computed", "compare_exchanges", "parked", "resumed", "extra_tag_lookups", "rays")
-_MAXED = ("max_parked", "max_held", "traversal_state_bytes", "extra_state_bytes")
+def _bits(n: int) -> int:
+    """Bits of an index into n things."""
+    return max(1, math.ceil(math.log2(max(n, 2))))
+
+
+def treelet_cost(config: TreeletConfig, n_treelets: int, nodes: int, window: int) -> dict:
+    """Storage of treelet scheduling beyond the held rays' state: the per-treelet queues (a linked
+    list through the W ray entries: a next index per entry; per treelet a head, a tail and a count)
+    and the treelet table (a treelet number per node; an image laid out treelet by treelet would
+    need only the treelets' start offsets)."""
+    queue_bits = window * _bits(window) + n_treelets * (2 * _bits(window) + _bits(window + 1))
+    return {**config.describe(), "treelets": n_treelets, "treelet_nodes": nodes,
+            "queue_entries": window, "queue_bytes": math.ceil(queue_bits / 8),
+            "treelet_table_bytes": math.ceil(nodes * _bits(n_treelets) / 8)}
+
+
+_SUMMED = ("keys_computed", "compare_exchanges", "parked", "resumed", "extra_tag_lookups", "rays",
+           "picks", "pick_comparisons", "borrowed")
+_MAXED = ("max_parked", "max_held", "traversal_state_bytes", "extra_state_bytes", "max_queued",
+          "queue_bytes", "treelet_table_bytes", "treelets", "treelet_nodes")
 
 
 def merge_costs(costs: list[dict]) -> dict:
@@ -242,6 +473,8 @@ def merge_costs(costs: list[dict]) -> dict:
         out["compare_exchanges_per_ray"] = out["compare_exchanges"] / rays if rays else 0.0
     if "parked" in out:
         out["parked_per_ray"] = out["parked"] / rays if rays else 0.0
+    if "picks" in out:
+        out["picks_per_ray"] = out["picks"] / rays if rays else 0.0
     return out
 
 
@@ -253,9 +486,9 @@ STUDY_TYPES = ("primary", "shadow", "bounce1", "bounce2", "ao")
 
 
 def frame_records(scene_name: str, size: int, spp: int, bounces: int, ao_rays: int,
-                  seed: int = 0) -> dict:
+                  seed: int = 0, bvh_format: str = "box32") -> dict:
     """{ray type: [Record, ...]}: the path frame's batches and the ao frame's ao rays, traced on
-    "rtl" with every request recorded."""
+    "rtl" with every request recorded, on the scene's BVH in ``bvh_format``."""
     from .. import workloads
     from ..backends import backend
     from ..bvh4 import build
@@ -265,7 +498,7 @@ def frame_records(scene_name: str, size: int, spp: int, bounces: int, ao_rays: i
     scene = load_scene(scene_name)
     setup = workloads.setup_for(scene)
     rtl = backend("rtl")
-    bvh = build(scene.triangles)
+    bvh = build(scene.triangles, format=bvh_format)
 
     def tracer(bvh_, o, d, **kw):
         return trace(bvh_, o, d, backend=rtl, record=True, **kw)
@@ -283,24 +516,35 @@ def frame_records(scene_name: str, size: int, spp: int, bounces: int, ao_rays: i
 def floor_bytes(records, line_bytes: int) -> int:
     """Bytes every order must fetch with a cold cache: each distinct line the batches touch, once
     per batch (each replay starts cold)."""
-    from ..layout import NODE_BYTES
     total = 0
     for rec in records:
-        off = NodeRef.offset(rec.ptr)
-        size = np.vectorize(NODE_BYTES.get)(NodeRef.type(rec.ptr)) if rec.ops else off
+        size = node_bytes(rec.ptr)
+        off = NodeRef.offset(rec.ptr)[size > 0]      # a pair's second triangle: no bytes more
+        size = size[size > 0]
         first, last = off // line_bytes, (off + size - 1) // line_bytes
         lines = np.unique(np.concatenate([first, last]))
         total += len(lines) * line_bytes
     return total
 
 
+def window_label(w) -> str:
+    return "all" if int(w) >= ALL_RAYS else str(w)
+
+
+STUDY_FORMATS = ("box32", "q8")
+
+
 def study(scenes=STUDY_SCENES, size: int = 64, spp: int = 2, bounces: int = 2, ao_rays: int = 4,
           windows=STUDY_WINDOWS, policies=None, rays_in_flight: int = 64, memory=None,
-          progress: bool = True) -> dict:
-    """Every policy at every window on the path (and ao) frames of ``scenes``: per ray type the
-    node cache's hit rate, bytes from memory per ray, utilization with the node memory, cycles
-    per frame and the policy's cost; index order once (it has no window), and the cold-cache
-    floor of the bytes per ray."""
+          progress: bool = True, formats=("box32",), variants: bool = False,
+          variants_window: int = None) -> dict:
+    """Every policy at every window on the path (and ao) frames of ``scenes``, for the BVH in
+    each of ``formats``: per ray type the node cache's hit rate, bytes from memory per ray,
+    utilization with the node memory, cycles per frame and the policy's cost; index order once
+    (it has no window), and the cold-cache floor of the bytes per ray. The document:
+    ``formats.<format>.scenes.<scene>.<ray type>``; with ``variants``, ``treelet_variants``
+    (``treelet_variants`` on the first scene and format, at ``variants_window``, default
+    ``VARIANT_WINDOW``)."""
     from .. import rtunit
     from ..progress import bar
     from ..stats import rtunit_stats
@@ -315,48 +559,98 @@ def study(scenes=STUDY_SCENES, size: int = 64, spp: int = 2, bounces: int = 2, a
     policies = list(policies or POLICIES)
     doc = {"size": size, "spp": spp, "bounces": bounces, "ao_rays": ao_rays,
            "rays_in_flight": rays_in_flight, "pipelines": 1, "memory": memory.describe(),
-           "windows": list(windows), "policies": policies, "scenes": {}}
-    for scene in scenes:
-        recs = frame_records(scene, size, spp, bounces, ao_rays)
-        kinds = [k for k in STUDY_TYPES if k in recs] + [k for k in recs if k not in STUDY_TYPES]
-        # "pool": index order with all W rays in the pool (R = W), the scheduler's rays without
-        # the scheduler
-        runs = [(k, p, w) for k in kinds for p in policies + ["pool"]
-                for w in ([None] if p == "index" else windows)]
-        pb = bar(len(runs), f"{scene}: ray-order replays", "replay", progress)
-        types = {}
-        for n, (kind, pol, w) in enumerate(runs):
-            t = types.setdefault(kind, {
-                "rays": sum(r.rays for r in recs[kind]), "ops": sum(r.ops for r in recs[kind]),
-                "batches": len(recs[kind]),
-                "floor_bytes_per_ray": floor_bytes(recs[kind], memory.line_bytes)
-                / max(1, sum(r.rays for r in recs[kind])), "policies": {}})
-            if pol == "pool":
-                t.setdefault("pool", {})[str(w)] = replay_all(recs[kind], w)
-            elif not (POLICIES[pol].schedule and w is not None and w < rays_in_flight):
-                point = replay_all(recs[kind], rays_in_flight, pol, w)
-                t["policies"].setdefault(pol, {})[str(w or 0)] = point
-            pb.hook(n + 1, len(runs))
-        pb.close()
-        doc["scenes"][scene] = types
+           "treelets": DEFAULT_TREELETS.describe(), "windows": list(windows),
+           "policies": policies, "formats": {}}
+    for fmt in formats:
+        doc["formats"][fmt] = {"scenes": {}}
+        for scene in scenes:
+            recs = frame_records(scene, size, spp, bounces, ao_rays, bvh_format=fmt)
+            kinds = ([k for k in STUDY_TYPES if k in recs]
+                     + [k for k in recs if k not in STUDY_TYPES])
+            # "pool": index order with all W rays in the pool (R = W), the scheduler's rays
+            # without the scheduler
+            runs = [(k, p, w) for k in kinds for p in policies + ["pool"]
+                    for w in ([None] if p == "index" else windows)]
+            pb = bar(len(runs), f"{scene} ({fmt}): ray-order replays", "replay", progress)
+            types = {}
+            for n, (kind, pol, w) in enumerate(runs):
+                t = types.setdefault(kind, {
+                    "rays": sum(r.rays for r in recs[kind]),
+                    "ops": sum(r.ops for r in recs[kind]), "batches": len(recs[kind]),
+                    "floor_bytes_per_ray": floor_bytes(recs[kind], memory.line_bytes)
+                    / max(1, sum(r.rays for r in recs[kind])), "policies": {}})
+                if pol == "pool":
+                    t.setdefault("pool", {})[str(w)] = replay_all(recs[kind], w)
+                elif not (POLICIES[pol].schedule and w is not None and w < rays_in_flight):
+                    point = replay_all(recs[kind], rays_in_flight, pol, w)
+                    t["policies"].setdefault(pol, {})[str(w or 0)] = point
+                pb.hook(n + 1, len(runs))
+            pb.close()
+            doc["formats"][fmt]["scenes"][scene] = types
+            if variants and fmt == formats[0] and scene == scenes[0]:
+                doc["treelet_variants"] = treelet_variants(
+                    {k: recs[k] for k in VARIANT_TYPES if k in recs}, rays_in_flight, memory,
+                    progress, variants_window or VARIANT_WINDOW)
     return doc
 
 
+VARIANT_TYPES = ("shadow", "bounce1")
+VARIANT_WINDOW = 256
+# the treelet variants the study compares (changes from DEFAULT_TREELETS)
+TREELET_VARIANTS = {
+    "default": {},
+    "no borrow": {"borrow": False},
+    "no borrow, 64 active": {"borrow": False, "active": 64},
+    "no borrow, any number active": {"borrow": False, "active": ALL_RAYS},
+    "2 KiB treelets": {"treelet_bytes": 2048},
+    "32 KiB treelets, 1 active": {"treelet_bytes": 32768, "active": 1},
+    "no parking": {"park": False},
+    "prefetch": {"prefetch": True},
+}
+
+
+def treelet_variants(recs: dict, rays_in_flight: int, memory, progress: bool = True,
+                     window: int = VARIANT_WINDOW) -> dict:
+    """The ``treelet`` policy under each of ``TREELET_VARIANTS`` at one window: per ray type of
+    ``recs`` the published ``rtunit_memory`` object with the variant's configuration."""
+    from dataclasses import replace
+
+    from .. import rtunit
+    from ..progress import bar
+    from ..stats import rtunit_stats
+    out = {"window": window, "variants": {}}
+    runs = [(v, k) for v in TREELET_VARIANTS for k in recs]
+    pb = bar(len(runs), "treelet variants", "replay", progress)
+    for n, (name, kind) in enumerate(runs):
+        cfg = replace(DEFAULT_TREELETS, **TREELET_VARIANTS[name])
+        point = rtunit_stats([rtunit.replay(r, rays_in_flight, 1, memory=memory,
+                                            ray_order="treelet", ray_window=window, treelets=cfg)
+                              for r in recs[kind]])
+        out["variants"].setdefault(name, {"config": cfg.describe()})[kind] = point
+        pb.hook(n + 1, len(runs))
+    pb.close()
+    return out
+
+
 def plot_study(doc: dict, path) -> None:
-    """PNG: utilization with the node memory vs window, one panel per scene and ray type, one line
-    per policy (index order dashed; grey dotted: index order with all W rays in the pool)."""
+    """PNG: utilization with the node memory vs window, one panel per format, scene and ray type,
+    one line per policy (index order dashed; grey dotted: index order with all W rays in the
+    pool); the window that holds every ray is drawn at ``ALL_RAYS``."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    scenes = list(doc["scenes"])
-    kinds = [k for k in STUDY_TYPES if any(k in doc["scenes"][s] for s in scenes)]
-    fig = Figure(figsize=(3.0 * len(kinds), 2.8 * len(scenes)), dpi=100)
+    rows = [(fmt, scene, types) for fmt, f in doc["formats"].items()
+            for scene, types in f["scenes"].items()]
+    kinds = [k for k in STUDY_TYPES if any(k in types for _, _, types in rows)]
+    fig = Figure(figsize=(3.0 * len(kinds), 2.6 * len(rows)), dpi=90)
     FigureCanvasAgg(fig)
-    colours = dict(zip(POLICIES, ["black", "tab:blue", "tab:orange", "tab:green", "tab:red"]))
-    for i, scene in enumerate(scenes):
+    colours = dict(zip(POLICIES, ["black", "tab:blue", "tab:orange", "tab:green", "tab:red",
+                                  "tab:purple"]))
+    ticks = [int(w) for w in doc["windows"]]
+    for i, (fmt, scene, types) in enumerate(rows):
         for j, kind in enumerate(kinds):
-            ax = fig.add_subplot(len(scenes), len(kinds), i * len(kinds) + j + 1)
-            t = doc["scenes"][scene].get(kind)
+            ax = fig.add_subplot(len(rows), len(kinds), i * len(kinds) + j + 1)
+            t = types.get(kind)
             if t is None:
                 ax.set_axis_off()
                 continue
@@ -373,10 +667,13 @@ def plot_study(doc: dict, path) -> None:
                 ax.plot(ws, [t["pool"][str(w)]["utilization"] for w in ws], ":",
                         color="grey", label="index, R = W")
             ax.set_xscale("log", base=2)
+            ax.set_xticks(ticks)
+            ax.set_xticklabels([window_label(w) for w in ticks])
+            ax.minorticks_off()
             ax.set_ylim(0, 1.05)
             ax.grid(True, alpha=0.3)
-            ax.set_title(f"{scene} {kind}", fontsize=9)
-            if i == len(scenes) - 1:
+            ax.set_title(f"{scene} {kind} ({fmt})", fontsize=9)
+            if i == len(rows) - 1:
                 ax.set_xlabel("window W (rays)", fontsize=8)
             if j == 0:
                 ax.set_ylabel("utilization with memory", fontsize=8)
@@ -389,28 +686,68 @@ def plot_study(doc: dict, path) -> None:
     fig.savefig(str(path), format="png")
 
 
+def summary_table(doc: dict, fmt: str, scene: str) -> str:
+    """Markdown: per ray type of ``scene`` in ``fmt``, each policy at its window of highest
+    utilization (utilization with memory / bytes per ray, the window), index order with W rays in
+    the pool at its best W, and the cold-cache floor of bytes per ray."""
+    types = doc["formats"][fmt]["scenes"][scene]
+    pols = [p for p in doc["policies"]]
+    out = ["| ray type | " + " | ".join(f"`{p}`" if p != "index" else p for p in pols)
+           + " | index, R = W | floor B/ray |", "|---|" + "---|" * (len(pols) + 2)]
+    for kind, t in types.items():
+        cells = []
+        for pts in [t["policies"].get(p, {}) for p in pols] + [t.get("pool", {})]:
+            if not pts:
+                cells.append("")
+                continue
+            w, v = max(pts.items(), key=lambda kv: (kv[1]["utilization"], -int(kv[0])))
+            cells.append(f"{v['utilization']:.3f} / {v['bytes_per_ray']:.0f}"
+                         + ("" if w == "0" else f" (W = {window_label(w)})"))
+        out.append(f"| {kind} | " + " | ".join(cells) + f" | {t['floor_bytes_per_ray']:.0f} |")
+    return "\n".join(out)
+
+
 def study_tables(doc: dict) -> str:
-    """Markdown tables of a ``study`` document: per scene and ray type, one row per policy, one
-    column per window; each cell: utilization with memory / hit rate / bytes per ray / cycles."""
+    """Markdown tables of a ``study`` document: per format, scene and ray type, one row per
+    policy, one column per window; each cell: utilization with memory / hit rate / bytes per ray
+    / cycles; then the treelet variants."""
     ws = [str(w) for w in doc["windows"]]
     out = []
-    for scene, types in doc["scenes"].items():
-        for kind, t in types.items():
-            out += [f"**{scene} {kind}**: {t['rays']} rays, {t['ops']} ops, cold-cache floor "
-                    f"{t['floor_bytes_per_ray']:.0f} B/ray", "",
-                    "| policy | " + " | ".join(f"W = {w}" for w in ws) + " |",
-                    "|---|" + "---|" * len(ws)]
-            rows = dict(t["policies"])
-            rows["index, R = W"] = t.get("pool", {})
-            for pol, pts in rows.items():
-                cells = []
-                for w in ws:
-                    v = pts.get("0" if pol == "index" else w)
-                    cells.append("" if v is None else
-                                 f"{v['utilization']:.3f} / {v['hit_rate']:.3f} / "
-                                 f"{v['bytes_per_ray']:.0f} / {v['cycles']}")
-                out.append(f"| {pol} | " + " | ".join(cells) + " |")
-            out.append("")
+    for fmt, f in doc["formats"].items():
+        for scene in f["scenes"]:
+            out += [f"**Summary: {scene} ({fmt})**, each policy at its best window "
+                    "(utilization with memory / bytes per ray)", "",
+                    summary_table(doc, fmt, scene), ""]
+    for fmt, f in doc["formats"].items():
+        for scene, types in f["scenes"].items():
+            for kind, t in types.items():
+                out += [f"**{scene} {kind}** ({fmt}): {t['rays']} rays, {t['ops']} ops, "
+                        f"cold-cache floor {t['floor_bytes_per_ray']:.0f} B/ray", "",
+                        "| policy | " + " | ".join(f"W = {window_label(w)}" for w in ws) + " |",
+                        "|---|" + "---|" * len(ws)]
+                rows = dict(t["policies"])
+                rows["index, R = W"] = t.get("pool", {})
+                for pol, pts in rows.items():
+                    cells = []
+                    for w in ws:
+                        v = pts.get("0" if pol == "index" else w)
+                        cells.append("" if v is None else
+                                     f"{v['utilization']:.3f} / {v['hit_rate']:.3f} / "
+                                     f"{v['bytes_per_ray']:.0f} / {v['cycles']}")
+                    out.append(f"| {pol} | " + " | ".join(cells) + " |")
+                out.append("")
+    var = doc.get("treelet_variants")
+    if var:
+        kinds = [k for k in VARIANT_TYPES if any(k in v for v in var["variants"].values())]
+        out += [f"**treelet variants** (W = {window_label(var['window'])}; utilization / "
+                "bytes per ray / "
+                "picks)", "", "| variant | " + " | ".join(kinds) + " |",
+                "|---|" + "---|" * len(kinds)]
+        for name, v in var["variants"].items():
+            out.append(f"| {name} | " + " | ".join(
+                f"{v[k]['utilization']:.3f} / {v[k]['bytes_per_ray']:.0f} / "
+                f"{v[k]['ray_order_cost']['picks']}" for k in kinds) + " |")
+        out.append("")
     return "\n".join(out)
 
 
@@ -431,18 +768,49 @@ def main(argv=None) -> int:
                     help=f"scenes, comma-separated (default {','.join(STUDY_SCENES)})")
     ap.add_argument("--size", type=int, default=64, metavar="N",
                     help="square frame N x N (default 64; path with spp 2, bounces 2)")
-    ap.add_argument("--windows", default=",".join(map(str, STUDY_WINDOWS)), metavar="LIST",
-                    help=f"windows W (default {','.join(map(str, STUDY_WINDOWS))})")
+    ap.add_argument("--windows", default=",".join(map(window_label, STUDY_WINDOWS)),
+                    metavar="LIST", help="windows W, \"all\": every ray of a batch (default "
+                    f"{','.join(map(window_label, STUDY_WINDOWS))})")
+    ap.add_argument("--bvh-formats", default=",".join(STUDY_FORMATS), metavar="LIST",
+                    help=f"node image formats, comma-separated (default "
+                         f"{','.join(STUDY_FORMATS)}; docs/compressed.md)")
+    ap.add_argument("--policies", default=",".join(POLICIES), metavar="LIST",
+                    help=f"policies, comma-separated (default {','.join(POLICIES)})")
+    ap.add_argument("--no-variants", action="store_true",
+                    help="skip the treelet variants (docs/rayorder.md)")
+    ap.add_argument("--variants-window", default=window_label(VARIANT_WINDOW), metavar="W",
+                    help="the window of the treelet variants (\"all\": every ray of a batch; "
+                         f"default {window_label(VARIANT_WINDOW)})")
     ap.add_argument("--no-progress", action="store_true", help="no progress on stderr")
     args = ap.parse_args(argv)
     try:
-        windows = [check_window(int(x)) for x in args.windows.split(",")]
+        def window(text, option):
+            try:
+                return check_window(ALL_RAYS if text == "all" else int(text))
+            except ValueError:
+                raise ValueError(f"{option}: a window is an integer >= 1 or \"all\", "
+                                 f"got {text!r}") from None
+
+        windows = [window(x, "--windows") for x in args.windows.split(",")]
+        variants_window = window(args.variants_window, "--variants-window")
+        policies = args.policies.split(",")
+        for name in policies:
+            if name not in POLICIES:
+                raise ValueError(f"--policies: unknown ray order {name!r} (choose from "
+                                 f"{', '.join(POLICIES)})")
+        from ..layout import IMAGE_FORMATS
+        formats = args.bvh_formats.split(",")
+        bad = [f for f in formats if f not in IMAGE_FORMATS]
+        if bad:
+            raise ValueError(f"--bvh-formats: unknown format {bad[0]!r} (choose from "
+                             f"{', '.join(IMAGE_FORMATS)})")
         outs = Outputs()
         js = outs.add("--json", args.json, JSON)
         png = outs.add("--plot", args.plot, PNG) if args.plot else None
         with outs.commit():
             doc = study(args.scenes.split(","), args.size, windows=windows,
-                        progress=not args.no_progress)
+                        progress=not args.no_progress, formats=formats, policies=policies,
+                        variants=not args.no_variants, variants_window=variants_window)
             doc["machine"] = machine()
             doc["command"] = "python -m driver.rtunit.order " + " ".join(
                 argv if argv is not None else __import__("sys").argv[1:])

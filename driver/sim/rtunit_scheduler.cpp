@@ -49,6 +49,26 @@ extern "C" {
 // parked at once, most rays held.
 // window == 0: no parking, every ray waits in its slot (the behaviour above, cycle for cycle).
 //
+// Treelet scheduling (window > 0 and treelet != null; Aila & Karras, HPG 2010): the BVH is cut
+// into n_treelets treelets; treelet[i] is the treelet of request i's node. Every held ray that
+// holds no issue slot waits in the queue (FIFO) of the treelet of its next node; new rays (up to
+// `window` held) join the queue of their first node's treelet. At most `active_treelets`
+// treelets are active at once. Free slots go to the parked rays whose node has arrived, then to
+// the rays queued on active treelets (the earliest activated treelet first); when no active
+// treelet has a queued ray and fewer than `active_treelets` are active, the unit picks the
+// treelet with the most queued rays (ties: the lowest index) and activates it. A ray's node is
+// fetched when it takes a slot. A ray in a slot keeps it while its next node is in an active
+// treelet; a ray whose next node is in an inactive treelet gives up its slot and joins that
+// treelet's queue; a treelet with no ray queued, parked or in a slot is retired.
+// treelet_flags bit 0 (park): a ray whose node misses parks as with node affinity (above) and
+// stays a member of its treelet; else it waits in its slot. Bit 1 (borrow): when no further
+// treelet may be activated, a free slot takes the first ray of the longest queue without
+// activating its treelet (for one request, unless its next node is in an active treelet).
+// Prefetch (tl_off != null): when a treelet is activated, every node of it (tl_node_off /
+// tl_node_bytes; treelet t's nodes at [tl_off[t], tl_off[t + 1])) is fetched through the node
+// cache at once. sched[4]: picks (treelet activations); sched[5]: most rays queued at once;
+// sched[6]: rays given a slot by borrowing.
+//
 // skip_idle: a pipeline that holds no request at the start of a cycle and gets none is not
 // evaluated in that cycle (clock gating: with nothing valid inside, a clock edge changes no state
 // of the RayFlex pipeline, whose registers load only on a handshake); cycles still count.
@@ -64,11 +84,18 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
                   const uint32_t* before, uint32_t* rsp, ReplayStats* stats, int64_t* per_pipe,
                   int64_t max_idle, int64_t cache_bytes, int64_t ways, int64_t line_bytes,
                   int64_t mem_latency, double bytes_per_cycle, const int64_t* order,
-                  int64_t window, int64_t* sched) {
+                  int64_t window, int64_t* sched, const int32_t* treelet, int64_t n_treelets,
+                  int64_t active_treelets, const int64_t* tl_off, const int64_t* tl_node_off,
+                  const int64_t* tl_node_bytes, int64_t treelet_flags) {
   if (pipelines < 1 || slots < 1 || turnaround < 0 || n_rays < 0 || n_chains < 0 || m < 0)
     return -3;
   if (window < 0 || (window > 0 && window < slots)) return -3;
-  const bool affinity = window > 0;
+  if (treelet && (window == 0 || n_treelets < 1 || active_treelets < 1)) return -3;
+  for (int64_t i = 0; treelet && i < m; i++)
+    if (treelet[i] < 0 || treelet[i] >= n_treelets) return -3;
+  const bool treelets = treelet != nullptr;
+  const bool affinity = window > 0 && !treelets;
+  const bool parking = affinity || (treelets && (treelet_flags & 1));
   NodeMemory mem;
   if (!mem.configure(cache_bytes, ways, line_bytes, mem_latency, bytes_per_cycle)) return -4;
   const NodeSource src{rays, image, image_words, ray, ptr, ext};
@@ -101,7 +128,7 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
         b == kNoChild ? at : mem.fetch(NodeSource::node_word(b) * 4, kNodeBytes[b & kTypeMask], at);
     int64_t off;
     const int64_t bytes = node_of(r, &off);
-    const bool park = affinity && bytes && !mem.present(off, bytes, after);
+    const bool park = parking && bytes && !mem.present(off, bytes, after);
     const int64_t when = bytes ? mem.fetch(off, bytes, after) : after;
     node_wait += when - at;
     if (!park) {
@@ -122,32 +149,100 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
     }
     return -1;
   };
+  // Treelet scheduling state: per treelet its queue (ray, cycle its next request is known), its
+  // members (rays in slots or parked), whether it is active; the active treelets in activation
+  // order; the treelet of each ray holding a slot or parked.
+  std::vector<std::deque<std::pair<int64_t, int64_t>>> tq(treelets ? n_treelets : 0);
+  std::vector<int64_t> tl_members(tq.size(), 0), cur_tl(treelets ? n_chains : 0, -1);
+  std::vector<char> tl_active(tq.size(), 0);
+  std::vector<int64_t> act;
+  int64_t queued = 0, max_queued = 0, picks = 0, n_borrowed = 0;
+  auto tl_of = [&](int64_t r) {                          // the treelet of ray r's next node
+    return static_cast<int64_t>(treelet[chain_idx[chain_off[r] + pos[r]]]);
+  };
+  auto enqueue = [&](int64_t r, int64_t at) {
+    tq[tl_of(r)].push_back({r, at});
+    if (++queued > max_queued) max_queued = queued;
+  };
   auto enter = [&](int64_t at) {
     const int64_t r = next_in_order();
     if (r < 0) return;
-    active++;
     if (++held > max_held) max_held = held;
+    if (treelets) {
+      enqueue(r, at);
+      return;
+    }
+    active++;
     wait(r, at);
   };
   // Affinity: give free slots to parked rays whose node has arrived, then to new rays.
+  auto resume = [&](int64_t k) {                         // a parked ray whose node arrived
+    if (parked.empty() || parked.top().at > k) return false;
+    const int64_t r = parked.top().ray;
+    parked.pop();
+    n_resumed++;
+    active++;
+    int64_t off;
+    const int64_t bytes = node_of(r, &off);
+    if (bytes) mem.touch(off, bytes);
+    ready.push({r, k, seq++});
+    return true;
+  };
   auto fill = [&](int64_t k, int64_t new_at) {
     while (active < slots) {
-      if (!parked.empty() && parked.top().at <= k) {
-        const int64_t r = parked.top().ray;
-        parked.pop();
-        n_resumed++;
-        active++;
-        int64_t off;
-        const int64_t bytes = node_of(r, &off);
-        if (bytes) mem.touch(off, bytes);
-        ready.push({r, k, seq++});
-        continue;
-      }
+      if (resume(k)) continue;
       if (held >= window || next_ray >= n_chains) break;
       enter(new_at);
     }
   };
-  if (affinity) {
+  // Treelets: new rays join their queues; retired treelets leave the active set; free slots go
+  // to rays queued on active treelets, activating the treelet with the most queued rays when no
+  // active treelet has one.
+  auto fill_treelets = [&](int64_t k, int64_t new_at) {
+    while (held < window && next_ray < n_chains) enter(new_at);
+    size_t j = 0;
+    for (size_t a = 0; a < act.size(); a++) {
+      const int64_t t = act[a];
+      if (tq[t].empty() && tl_members[t] == 0) tl_active[t] = 0;
+      else act[j++] = t;
+    }
+    act.resize(j);
+    while (active < slots) {
+      if (resume(k)) continue;
+      int64_t from = -1;
+      for (const int64_t t : act)
+        if (!tq[t].empty()) { from = t; break; }
+      if (from < 0) {
+        if (queued == 0) break;
+        int64_t best = -1;
+        for (int64_t t = 0; t < n_treelets; t++)
+          if (!tl_active[t] && (best < 0 || tq[t].size() > tq[best].size())) best = t;
+        if (best < 0 || tq[best].empty()) break;
+        if (static_cast<int64_t>(act.size()) >= active_treelets) {
+          if (!(treelet_flags & 2)) break;
+          n_borrowed++;                         // a free slot serves the longest queue
+        } else {
+          tl_active[best] = 1;
+          act.push_back(best);
+          picks++;
+          if (tl_off)
+            for (int64_t e = tl_off[best]; e < tl_off[best + 1]; e++)
+              mem.fetch(tl_node_off[e], tl_node_bytes[e], k);
+        }
+        from = best;
+      }
+      const auto [r, at] = tq[from].front();
+      tq[from].pop_front();
+      queued--;
+      active++;
+      tl_members[from]++;
+      cur_tl[r] = from;
+      wait(r, at > k ? at : k);
+    }
+  };
+  if (treelets) {
+    fill_treelets(0, 0);
+  } else if (affinity) {
     fill(0, 0);
   } else {
     for (int64_t s = 0; s < slots && next_ray < n_chains; s++) enter(0);
@@ -172,7 +267,19 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
       last = k;
       progress = true;
       const int64_t r = chain[i];
-      if (++pos[r] < chain_off[r + 1] - chain_off[r]) {
+      const bool more = ++pos[r] < chain_off[r + 1] - chain_off[r];
+      if (treelets) {
+        tl_members[cur_tl[r]]--;
+        if (more && tl_active[tl_of(r)]) {          // stays in its slot
+          cur_tl[r] = tl_of(r);
+          tl_members[cur_tl[r]]++;
+          wait(r, k + turnaround);
+        } else {
+          active--;
+          if (more) enqueue(r, k + turnaround);
+          else held--;
+        }
+      } else if (more) {
         wait(r, k + turnaround);
       } else {
         active--;
@@ -180,7 +287,8 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
         if (!affinity) enter(k + turnaround);
       }
     }
-    if (affinity) fill(k, k + turnaround);
+    if (treelets) fill_treelets(k, k + turnaround);
+    else if (affinity) fill(k, k + turnaround);
     int64_t issued = 0;
     for (int64_t p = 0; p < pipelines; p++) {
       Vrayflex& t = sims[p]->top;
@@ -212,6 +320,7 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
     }
     if (!ready.empty() && ready.top().at > k) progress = true;   // waiting on a node fetch
     if (!parked.empty() && parked.top().at > k) progress = true;
+    if (queued && active) progress = true;             // queued rays wait for their treelet
     idle = progress ? 0 : idle + 1;
     if (idle > max_idle + turnaround) return -1;
     k++;
@@ -234,6 +343,9 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
     sched[1] = n_resumed;
     sched[2] = max_parked;
     sched[3] = max_held;
+    sched[4] = picks;
+    sched[5] = max_queued;
+    sched[6] = n_borrowed;
   }
   return 0;
 }
