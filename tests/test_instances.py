@@ -249,6 +249,25 @@ def test_q8_two_level_gives_the_box32_two_level_hits(backend):
             assert rtunit.replay(rec, 32, 1).verified
 
 
+def test_bunny_grid_q8_two_level_gives_the_box32_hits():
+    """bunny_grid, primary rays of a small frame: the q8 and q8g two-level images (q8 TLAS) hit
+    as the box32 one, t bit for bit, on the golden model and on the RTL with the q8 decode."""
+    import driver
+    from driver.scenes.camera import primary_rays
+    from driver.scenes.scene import load_scene
+    scene = load_scene("bunny_grid")
+    o, d = primary_rays(scene.camera, 20, 20)
+    a = trace(build_two_level(scene.instances, format="box32"), o, d)
+    assert a.hit.sum() > 30 and len(np.unique(a.instance[a.hit])) > 3
+    be = driver.backend("rtl", compressed=True)
+    for fmt in ("q8", "q8g"):
+        bvh = build_two_level(scene.instances, format=fmt)
+        assert bvh.stats["tlas_format"] == "q8"
+        host = trace(bvh, o, d)
+        _same_image_hits(host, a)
+        _same_trace(trace(bvh, o, d, backend=be), host)
+
+
 def test_q8_tlas_with_the_transform_on_the_datapath():
     """--transform datapath on a q8 two-level image, on a datapath with the q8 decode and the
     TRANSFORM operation: the driver's hits bit for bit, one TRANSFORM per instance entered."""
