@@ -559,7 +559,7 @@ PROGRESS_MIN = 1_000_000        # progress=None shows a bar from this many trian
 
 
 def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collapse: str = "sah",
-          fill: int = 0, progress=None, format: str = "box32") -> BVH4:
+          fill: int = 0, progress=None, format: str = "box32", pair: bool = True) -> BVH4:
     """Build a BVH4 (binned SAH, one triangle per leaf) and its memory image
     (docs/datapath.md#bvh4-image, docs/compressed.md).
 
@@ -578,6 +578,8 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
         "q8g" (q8 where the subtrees of 3 to 6 triangles that the SAH trade-off of
         ``driver.bvh.q8.group_leaves`` picks become 128-byte group leaves sharing up to 8
         vertices)
+    pair : q8 formats: pair triangles that share an edge (default); False: one triangle per
+        pair leaf, e.g. the instance boxes of a q8 TLAS (``driver.bvh.instances``)
     Degenerate (zero-area) triangles are kept (the datapath never hits them).
     Raises ValueError for an empty input, a wrong shape, non-finite coordinates or a bad option."""
     t0 = time.perf_counter()
@@ -596,9 +598,13 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
     tris = as_triangles(triangles_or_trimesh)
     pairs, prims = None, tris
     if format != "box32":
-        from .bvh.q8 import pair_triangles as pair_up
-        faces = getattr(triangles_or_trimesh, "faces", None)
-        pairs = pair_up(tris, None if faces is None else np.asarray(faces))
+        from .bvh.q8 import _pairs, pair_triangles, vertex_ids
+        if pair:
+            faces = getattr(triangles_or_trimesh, "faces", None)
+            pairs = pair_triangles(tris, None if faces is None else np.asarray(faces))
+        else:                           # no partner: every leaf holds one triangle
+            ids = vertex_ids(tris)
+            pairs = (*_pairs(ids, np.full(len(tris), -1, np.int64), tris), ids)
         prims = pairs[4]                # one box-shaped triangle per leaf: the builder's input
 
     from .bvh import build as bvh_build

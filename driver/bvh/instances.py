@@ -4,16 +4,20 @@
 
 Image layout (one contiguous little-endian buffer, every node 64-byte aligned)::
 
-    [0, 128 * tlas_box_nodes)          TLAS box nodes (box32), breadth-first, root at offset 0
+    [0, B * tlas_box_nodes)            TLAS box nodes, breadth-first, root at offset 0: box32
+                                       (B = 128) under box32 BLASes, q8 (B = 64) under q8 or q8g
     [.., + 128 * instances)            instance nodes (driver.layout.INSTANCE_NODE), in order
     [.., ...)                          the BLASes, one after another, each as ``driver.bvh4.build``
-                                       writes it (box32 or q8), its pointers moved by its offset
+                                       writes it (box32, q8 or q8g), its pointers moved by its
+                                       offset
 
-The TLAS is built by the same builder as any BVH4, from one degenerate "triangle" per instance
-whose box is the instance's world box: the BLAS root's stored box (the union of its child boxes)
-with its 8 corners through ``object_to_world`` in float64, rounded outward to float32 (the builder
-then grows it by its usual margin), so every TLAS box contains the transformed BLAS boxes. Its
-triangle leaves become instance pointers.
+The TLAS is built by the same builder as any BVH4 (``tlas_format``), from one degenerate
+"triangle" per instance whose box is the instance's world box: the BLAS root's stored box (the
+union of its child boxes) with its 8 corners through ``object_to_world`` in float64, rounded
+outward to float32 (the builder then grows it by its usual margin), so every TLAS box contains
+the transformed BLAS boxes. A q8 TLAS is quantized as any q8 image, so its decoded child boxes
+contain those grown boxes; its triangles are not paired (one instance per leaf). Its leaves
+become instance pointers.
 
 Mirrored instances (negative determinant): the datapath judges a triangle's facing in the space
 it is tested in, the instance's object space, where a mirroring transform swaps the faces. The
@@ -33,8 +37,19 @@ import numpy as np
 from ..bvh4 import BVH4, build
 from ..instances import Instances, check_transform
 from ..layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, INSTANCE_BYTES, INSTANCE_NODE,
-                      INSTANCE_TYPE, NO_CHILD, Q8_BYTES, Q8_NODE, TRI_NODE, TRI_TYPE, NodeRef,
-                      read_nodes)
+                      INSTANCE_TYPE, NO_CHILD, PAIR_NODE, PAIR_TYPE, Q8_BYTES, Q8_NODE, Q8_TYPE,
+                      TRI_NODE, TRI_TYPE, NodeRef, read_nodes)
+
+
+def tlas_format(format: str) -> str:
+    """The TLAS's image format under BLASes in ``format``: box32 under box32, else q8 (a q8g
+    TLAS would group instance leaves, which are single nodes)."""
+    return "box32" if format == "box32" else "q8"
+
+
+def _box_node(fmt: str):
+    """(node struct, bytes, pointer type) of the box nodes of an image in ``fmt``."""
+    return (BOX_NODE, BOX_BYTES, BOX_TYPE) if fmt == "box32" else (Q8_NODE, Q8_BYTES, Q8_TYPE)
 
 
 class TwoLevelBVH(BVH4):
@@ -47,8 +62,8 @@ class TwoLevelBVH(BVH4):
     def __init__(self, image, instances: Instances, stats: dict, format: str, blas_root,
                  blas: list):
         super().__init__(image, None, stats, format)
-        self.root = int(NodeRef.encode(0, BOX_TYPE))
-        self.box_type = None                    # box32 TLAS and box32 or q8 BLASes
+        self.root = int(NodeRef.encode(0, _box_node(tlas_format(format))[2]))
+        self.box_type = None            # box nodes of the TLAS's and the BLASes' formats
         self.instances = instances
         self.blas_root = np.asarray(blas_root, np.uint32)
         self.blas = blas
@@ -77,8 +92,7 @@ class TwoLevelBVH(BVH4):
 
 def _relocate(image: np.ndarray, box_nodes: int, fmt: str, base: int) -> None:
     """Move the pointers of a BLAS image (in place) to its place ``base`` bytes into the image."""
-    node = Q8_NODE if fmt == "q8" else BOX_NODE
-    size = Q8_BYTES if fmt == "q8" else BOX_BYTES
+    node, size, _ = _box_node(fmt)
     rows = image[:size * box_nodes].view(node)
     shift = np.uint32(base >> 3)
     for field in ("child", "parent"):
@@ -108,8 +122,9 @@ def world_boxes(instances: Instances, local_boxes: np.ndarray) -> np.ndarray:
 
 def build_two_level(instances: Instances, format: str = "box32", progress=None,
                     **build_kw) -> TwoLevelBVH:
-    """The two-level image of ``instances`` (module docstring): BLASes in ``format`` ("box32"
-    or "q8"), a box32 TLAS; ``build_kw`` go to every ``driver.bvh4.build``."""
+    """The two-level image of ``instances`` (module docstring): BLASes in ``format`` ("box32",
+    "q8" or "q8g"), the TLAS in ``tlas_format(format)``; ``build_kw`` go to every
+    ``driver.bvh4.build``."""
     t0 = time.perf_counter()
     mirrored = instances.mirrored
     keys = sorted({(int(j), bool(mi)) for j, mi in zip(instances.mesh, mirrored)})
@@ -124,10 +139,12 @@ def build_two_level(instances: Instances, format: str = "box32", progress=None,
     local = np.stack([root_box[key] for key in key_of])
     wb = world_boxes(instances, local)
     k = len(instances)
-    tlas = build(np.stack([wb[:, 0], wb[:, 1], wb[:, 0]], axis=1), format="box32",
+    t_fmt = tlas_format(format)
+    t_node, t_bytes, _ = _box_node(t_fmt)
+    tlas = build(np.stack([wb[:, 0], wb[:, 1], wb[:, 0]], axis=1), format=t_fmt, pair=False,
                  progress=False, **{key: v for key, v in build_kw.items() if key != "fill"})
     nb_t = tlas.stats["box_nodes"]
-    inst_off = BOX_BYTES * nb_t
+    inst_off = t_bytes * nb_t
     offset = inst_off + INSTANCE_BYTES * k
     layout, blas_info = {}, []
     for key in keys:
@@ -137,11 +154,17 @@ def build_two_level(instances: Instances, format: str = "box32", progress=None,
         raise ValueError(f"two-level image of {offset} bytes exceeds the 32 GiB a uint32 "
                          "pointer reaches")
     image = np.zeros(offset, np.uint8)
-    tnodes = image[:inst_off].view(BOX_NODE)
-    tnodes[:] = tlas.image[:inst_off].view(BOX_NODE)
+    tnodes = image[:inst_off].view(t_node)
+    tnodes[:] = tlas.image[:inst_off].view(t_node)
     child = tnodes["child"]
-    leaf = (child != NO_CHILD) & (NodeRef.type(child) == TRI_TYPE)
-    which = read_nodes(tlas.image, child[leaf], TRI_NODE)["prim"].astype(np.int64)
+    if t_fmt == "box32":
+        leaf = (child != NO_CHILD) & (NodeRef.type(child) == TRI_TYPE)
+        which = read_nodes(tlas.image, child[leaf], TRI_NODE)["prim"].astype(np.int64)
+    else:                               # unpaired pair leaves: prim[0] is the instance
+        leaf = (child != NO_CHILD) & (NodeRef.type(child) == PAIR_TYPE)
+        which = read_nodes(tlas.image, child[leaf], PAIR_NODE)["prim"][:, 0].astype(np.int64)
+    if leaf.sum() != k or not np.array_equal(np.sort(which), np.arange(k)):
+        raise AssertionError("TLAS: every instance must be exactly one leaf")
     child[leaf] = NodeRef.encode(inst_off + INSTANCE_BYTES * which, INSTANCE_TYPE)
     for key in keys:
         b, off = blases[key], layout[key]
@@ -159,7 +182,7 @@ def build_two_level(instances: Instances, format: str = "box32", progress=None,
     inodes["instance"] = np.arange(k, dtype=np.uint32)
     blas_bytes = sum(b["bytes"] for b in blas_info)
     depth = tlas.stats["depth"] + max(b.stats["depth"] for b in blases.values())
-    stats = {"format": format, "instances": k,
+    stats = {"format": format, "tlas_format": t_fmt, "instances": k,
              "instanced_triangles": instances.triangles_total,
              "blas_triangles": instances.blas_triangles, "blas": len(keys),
              "tlas_box_nodes": nb_t, "tlas_bytes": inst_off, "instance_bytes": INSTANCE_BYTES * k,

@@ -1,15 +1,20 @@
 """Instanced vs flattened: the figures of docs/instances.md.
 
     python -m driver.bvh.instances_study hits [--scene bunny_grid] [--size 256] [--json OUT]
+    python -m driver.bvh.instances_study images [--scene NAME ...] [--json OUT]
     python -m driver.bvh.instances_study table DOC.json [DOC.json ...]
     python -m driver.bvh.instances_study transform [--scene bunny_grid] [--workload path]
         [--size 64] [--spp 2] [--bounces 2] [--json OUT]
 
-``hits`` builds a scene's image both ways (two-level and flattened, box32 and q8), reports their
-bytes, and traces the same rays through both on the golden model: the scene's primary rays
-(closest hit) and, from every primary hit, an occlusion ray to the centre of its first light
-(any-hit): hit and primitive mismatches, and the rays whose ``t`` differs (by the transform's
-rounding) with the largest relative difference. ``table`` prints, per document and ray type
+``hits`` builds a scene's image both ways (two-level and flattened, in every image format),
+reports their bytes (the two-level image's TLAS, instance nodes and BLASes apart), and traces
+the same rays through both (box32) on the golden model: the scene's primary rays (closest hit)
+and, from every primary hit, an occlusion ray to the centre of its first light (any-hit): hit
+and primitive mismatches, and the rays whose ``t`` differs (by the transform's rounding) with
+the largest relative difference; it also traces the primary rays through the two-level image
+of every other format and compares them with box32's (``formats_vs_box32``: ``t`` bit for
+bit). ``images`` builds the two-level image of each scene in every format and reports its
+bytes (TLAS, instance nodes, BLASes). ``table`` prints, per document and ray type
 (``rayflex bench --workload ... --json`` documents, with or without ``--flatten``), the ops per
 ray (box, triangle, instance), node bytes and bytes from memory per ray, the node cache's hit
 rate and the utilization with the node memory, as a Markdown table. ``transform`` runs the
@@ -29,6 +34,8 @@ import sys
 
 import numpy as np
 
+from ..layout import IMAGE_FORMATS
+
 
 def hits(scene_name: str = "bunny_grid", size: int = 256, backend: str = "golden") -> dict:
     """The image sizes and the hit comparison of the module docstring, as a JSON-ready dict."""
@@ -41,22 +48,28 @@ def hits(scene_name: str = "bunny_grid", size: int = 256, backend: str = "golden
     scene = load_scene(scene_name)
     if scene.instances is None:
         raise ValueError(f"scene {scene_name!r} has no instances")
-    images = {}
-    for fmt in ("box32", "q8"):
+    images, two_level = {}, {}
+    for fmt in IMAGE_FORMATS:
         inst, flat = build_two_level(scene.instances, format=fmt), build(scene.mesh, format=fmt)
         images[fmt] = {"instanced_bytes": inst.stats["bytes"],
+                       **_parts(inst.stats),
                        "flattened_bytes": flat.stats["bytes"],
                        "ratio": inst.stats["bytes"] / flat.stats["bytes"],
                        "flattened_over_instanced": flat.stats["bytes"] / inst.stats["bytes"],
                        "instanced_build_s": inst.stats["build_s"],
                        "flattened_build_s": flat.stats["build_s"]}
+        two_level[fmt] = inst
         if fmt == "box32":
-            bvh_i, bvh_f = inst, flat
+            bvh_f = flat
+    bvh_i = two_level["box32"]
     o, d = primary_rays(scene.camera, size, size)
     out = {"scene": scene.name, **scene.counts(), "size": size, "backend": backend,
            "images": images, "rays": {}}
     a, b = trace(bvh_i, o, d, backend=backend), trace(bvh_f, o, d, backend=backend)
     out["rays"]["primary"] = _compare(a, b, scene.triangles)
+    out["formats_vs_box32"] = {fmt: _same_image_hits(trace(two_level[fmt], o, d,
+                                                           backend=backend), a)
+                               for fmt in IMAGE_FORMATS if fmt != "box32"}
     rows = np.flatnonzero(a.hit & b.hit)
     p = o[rows].astype(np.float64) + b.t[rows, None].astype(np.float64) * d[rows]
     from ..workloads import setup_for
@@ -81,6 +94,64 @@ def hits(scene_name: str = "bunny_grid", size: int = 256, backend: str = "golden
             node_bytes_per_ray_instanced=x.stats["node_bytes_fetched"] / max(len(x.t), 1),
             node_bytes_per_ray_flattened=y.stats["node_bytes_fetched"] / max(len(y.t), 1))
     return out
+
+
+def _parts(stats: dict) -> dict:
+    """The parts of a two-level image's bytes (``build_two_level`` statistics)."""
+    return {k: stats[k] for k in ("tlas_format", "tlas_box_nodes", "tlas_bytes",
+                                  "instance_bytes", "blas_bytes")}
+
+
+def _same_image_hits(a, b) -> dict:
+    """Closest hits of two two-level images of one scene (another format ``a`` vs box32 ``b``):
+    the same instance transforms and BLAS triangles, so the same hits with ``t`` bit for bit;
+    ``prim_mismatch``/``instance_mismatch``: another triangle or instance at that same ``t``."""
+    both = a.hit & b.hit
+    return {"rays": int(len(a.t)), "hits": int(a.hit.sum()),
+            "hit_mismatch": int((a.hit != b.hit).sum()),
+            "t_bits_differ": int((a.t[both].view(np.uint32) != b.t[both].view(np.uint32)).sum()),
+            "prim_mismatch": int((a.prim[both] != b.prim[both]).sum()),
+            "instance_mismatch": int((a.instance[both] != b.instance[both]).sum()),
+            "box_ops_per_ray": a.stats["box_ops_per_ray"],
+            "box_ops_per_ray_box32": b.stats["box_ops_per_ray"],
+            "node_bytes_per_ray": a.stats["node_bytes_fetched"] / max(len(a.t), 1),
+            "node_bytes_per_ray_box32": b.stats["node_bytes_fetched"] / max(len(b.t), 1)}
+
+
+def images(scene_names=("bunny_grid", "city")) -> dict:
+    """The two-level image of each scene in every format (``IMAGE_FORMATS``): its bytes (TLAS,
+    instance nodes, BLASes, total), bytes per instanced triangle and build time."""
+    from ..scenes.scene import load_scene
+    from .instances import build_two_level
+    out = {"scenes": {}}
+    for name in scene_names:
+        scene = load_scene(name)
+        if scene.instances is None:
+            raise ValueError(f"scene {name!r} has no instances")
+        counts = scene.counts()
+        rows = {}
+        for fmt in IMAGE_FORMATS:
+            s = build_two_level(scene.instances, format=fmt).stats
+            rows[fmt] = {"bytes": s["bytes"], **_parts(s),
+                         "bytes_per_instanced_triangle": s["bytes_per_triangle"],
+                         "build_s": s["build_s"]}
+        out["scenes"][scene.name] = {**counts, "blas": len(scene.instances.meshes),
+                                     "images": rows}
+    return out
+
+
+def images_markdown(doc: dict) -> str:
+    """The ``images`` document as a Markdown table."""
+    lines = ["| scene | format | TLAS | TLAS bytes | instance node bytes | BLAS bytes "
+             "| image bytes | bytes / instanced triangle | image / box32 |", "|" + "---|" * 9]
+    for name, sc in doc["scenes"].items():
+        base = sc["images"]["box32"]["bytes"]
+        for fmt, r in sc["images"].items():
+            lines.append(f"| {name} | {fmt} | {r['tlas_format']} ({r['tlas_box_nodes']:,} "
+                         f"nodes) | {r['tlas_bytes']:,} | {r['instance_bytes']:,} "
+                         f"| {r['blas_bytes']:,} | {r['bytes']:,} "
+                         f"| {r['bytes_per_instanced_triangle']:.3f} | {r['bytes'] / base:.3f} |")
+    return "\n".join(lines)
 
 
 def _compare(a, b, triangles) -> dict:
@@ -228,6 +299,11 @@ def main(argv=None) -> int:
     h.add_argument("--scene", default="bunny_grid")
     h.add_argument("--size", type=int, default=256)
     h.add_argument("--json", metavar="OUT")
+    g = sub.add_parser("images", help="two-level image bytes per format (TLAS, instance "
+                                      "nodes, BLASes)")
+    g.add_argument("--scene", action="append", metavar="NAME",
+                   help="an instanced scene (repeatable; default: bunny_grid and city)")
+    g.add_argument("--json", metavar="OUT")
     t = sub.add_parser("table", help="Markdown table of bench --workload documents")
     t.add_argument("docs", nargs="+", metavar="DOC.json")
     x = sub.add_parser("transform", help="the instance transform in the driver vs on the "
@@ -254,6 +330,15 @@ def main(argv=None) -> int:
                 if js:
                     write_json(doc, outs.temp(js))
             print(transform_markdown(doc))
+        elif args.cmd == "images":
+            from ..outputs import JSON, Outputs, write_json
+            outs = Outputs()
+            js = outs.add("--json", args.json, JSON) if args.json else None
+            doc = images(tuple(args.scene or ("bunny_grid", "city")))
+            with outs.commit():
+                if js:
+                    write_json(doc, outs.temp(js))
+            print(images_markdown(doc))
         elif args.cmd == "hits":
             doc = hits(args.scene, args.size)
             text = json.dumps(doc, indent=1)
