@@ -353,6 +353,17 @@ def _bar(progress, per_cfg):
 # ------------------------------------------------------------------------------------------------
 # command line
 
+def config_help() -> str:
+    """The help of power's ``--config`` (a list of configurations, unlike the design point's)."""
+    area = _area()
+    return ("configurations to measure, comma-separated: any of "
+            f"{', '.join(configs())}, each also with the q8 decode (NAME"
+            f"{area.Q8_SUFFIX}, build parameter COMPRESSED) and with TRANSFORM "
+            f"(NAME{area.XF_SUFFIX}, NAME{area.Q8_SUFFIX}{area.XF_SUFFIX}), "
+            "e.g. baseline-unified,baseline-unified-q8,baseline-unified-xf; "
+            "or all: the four base configurations")
+
+
 def add_parser(subparsers):
     from .. import design
     p = subparsers.add_parser(
@@ -380,16 +391,10 @@ def add_parser(subparsers):
     add_json(p, "write the report as JSON")
     p.add_argument("--plot", metavar="PATH",
                    help="PNG of energy per operation (default: none)")
-    area = _area()
     design.add_options(p, lists=("config",), defaults={"config": "all"},
                        notes={"rtunit": "not used: energy per op and per ray do not depend on "
                                         "the RT unit; see rayflex sweep"},
-                       helps={"config": "configurations to measure, comma-separated: any of "
-                              f"{', '.join(configs())}, each also with the q8 decode (NAME"
-                              f"{area.Q8_SUFFIX}, build parameter COMPRESSED) and with TRANSFORM "
-                              f"(NAME{area.XF_SUFFIX}, NAME{area.Q8_SUFFIX}{area.XF_SUFFIX}), "
-                              "e.g. baseline-unified,baseline-unified-q8,baseline-unified-xf; "
-                              "or all: the four base configurations"})
+                       helps={"config": config_help()})
     add_progress(p)
     return p
 
