@@ -193,6 +193,10 @@ FIGURES = [
     Figure("area", (sys.executable, "-m", "driver.area", "--jobs", "2", "--json",
                     "docs/area.json"),
            ("docs/area.json",), 60.0, "Yosys cell counts of the four configurations"),
+    Figure("area_q8_xf", (sys.executable, "-m", "driver.area", "--configs", POWER_Q8_XF,
+                          "--jobs", "2", "--json", "docs/area_q8_xf.json"),
+           ("docs/area_q8_xf.json",), 45.0,
+           "Yosys cell counts of the q8 decode and TRANSFORM beside baseline-unified"),
 ]
 BY_NAME = {f.name: f for f in FIGURES}
 LIGHT_MINUTES = 1.5        # --light: the figures at most this long
