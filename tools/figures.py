@@ -283,6 +283,8 @@ README_NUMBERS = {
     "area_disjoint": ("docs/area.json", "configs.baseline-disjoint.ratio.cells", "{:.2f}"),
     "area_extended": ("docs/area.json", "configs.extended-unified.ratio.cells", "{:.2f}"),
     "area_both": ("docs/area.json", "configs.extended-disjoint.ratio.cells", "{:.2f}"),
+    **{f"area_{suffix}": ("docs/area_q8_xf.json", f"configs.baseline-unified-{suffix}.ratio.cells",
+                          "{:.2f}") for suffix in ("q8", "xf")},
     "instances_bytes_ratio": ("docs/instances_hits.json",
                               "images.box32.flattened_over_instanced", "{:.1f}"),
     "transform_ops_per_ray": ("docs/instances_transform.json",
