@@ -127,6 +127,18 @@ def snapshot(rev: str | None = None) -> list[tuple[str, bytes]]:
     return [(name, show(RTL_DIR / name)) for name in names]
 
 
+def rev_label(rev: str | None) -> str:
+    """What a report records as the RTL's revision: the commit ``rev`` resolves to (short hash,
+    so that "HEAD" still names the RTL later), or "working tree"."""
+    if rev is None:
+        return "working tree"
+    r = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "--verify",
+                        f"{rev}^{{commit}}"], capture_output=True, text=True)
+    if r.returncode:
+        raise AreaError(f"git rev-parse {rev}: not a commit")
+    return r.stdout.strip()
+
+
 def rtl_sha(sources: list[tuple[str, bytes]]) -> str:
     """A short hash of the RTL snapshot (names and contents)."""
     h = hashlib.sha256()
@@ -286,7 +298,8 @@ def synthesize_all(names=None, jobs: int = 1, cache: bool = True, timeout=None,
     or git revision ``rev``), ``jobs`` at a time; returns the report: per-configuration results
     and ratios relative to baseline-unified."""
     names = list(names or CONFIGS)
-    sources = snapshot(rev)
+    label = rev_label(rev)             # resolved first: HEAD may move during the synthesis
+    sources = snapshot(None if rev is None else label)
     params = {n: config_params(n) for n in names}
 
     def one(n):
@@ -302,7 +315,7 @@ def synthesize_all(names=None, jobs: int = 1, cache: bool = True, timeout=None,
     with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
         results = dict(zip(names, pool.map(one, names)))
     rep = report(results)
-    rep["rtl_sha"], rep["rtl_rev"] = rtl_sha(sources), rev or "working tree"
+    rep["rtl_sha"], rep["rtl_rev"] = rtl_sha(sources), label
     return rep
 
 
@@ -418,7 +431,7 @@ def main(argv=None) -> int:
             rep = {"yosys": r["yosys"],
                    "flow": f"read_slang; synth -top {args.top} -flatten -noshare",
                    "baseline": None, "configs": {args.top: {**r, "paper_ratio": None}},
-                   "rtl_sha": rtl_sha(src), "rtl_rev": args.rev or "working tree"}
+                   "rtl_sha": rtl_sha(src), "rtl_rev": rev_label(args.rev)}
         else:
             names = [n.strip() for n in args.configs.split(",") if n.strip()]
             rep = synthesize_all(names, args.jobs, not args.no_cache, args.timeout, log,

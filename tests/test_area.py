@@ -57,6 +57,17 @@ def test_snapshot_from_git_and_mixed_versions_rejected():
         area.snapshot("no-such-revision-xyz")
 
 
+def test_rev_label_records_the_resolved_commit():
+    """A report run with --rev HEAD names the commit, not "HEAD" (which moves)."""
+    import subprocess
+    head = subprocess.run(["git", "-C", str(area.ROOT), "rev-parse", "--short", "HEAD"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+    assert area.rev_label("HEAD") == head != "HEAD"
+    assert area.rev_label(None) == "working tree"
+    with pytest.raises(area.AreaError, match="not a commit"):
+        area.rev_label("no-such-revision-xyz")
+
+
 def test_snapshot_of_a_revision_reads_that_revision_s_source_list():
     """Files come and go: a revision's snapshot holds the files of its own sources.txt."""
     import subprocess

@@ -193,6 +193,10 @@ FIGURES = [
     Figure("area", (sys.executable, "-m", "driver.area", "--jobs", "2", "--json",
                     "docs/area.json"),
            ("docs/area.json",), 60.0, "Yosys cell counts of the four configurations"),
+    Figure("area_q8_xf", (sys.executable, "-m", "driver.area", "--configs", POWER_Q8_XF,
+                          "--jobs", "2", "--json", "docs/area_q8_xf.json"),
+           ("docs/area_q8_xf.json",), 45.0,
+           "Yosys cell counts of the q8 decode and TRANSFORM beside baseline-unified"),
 ]
 BY_NAME = {f.name: f for f in FIGURES}
 LIGHT_MINUTES = 1.5        # --light: the figures at most this long
@@ -279,6 +283,8 @@ README_NUMBERS = {
     "area_disjoint": ("docs/area.json", "configs.baseline-disjoint.ratio.cells", "{:.2f}"),
     "area_extended": ("docs/area.json", "configs.extended-unified.ratio.cells", "{:.2f}"),
     "area_both": ("docs/area.json", "configs.extended-disjoint.ratio.cells", "{:.2f}"),
+    **{f"area_{suffix}": ("docs/area_q8_xf.json", f"configs.baseline-unified-{suffix}.ratio.cells",
+                          "{:.2f}") for suffix in ("q8", "xf")},
     "instances_bytes_ratio": ("docs/instances_hits.json",
                               "images.box32.flattened_over_instanced", "{:.1f}"),
     "transform_ops_per_ray": ("docs/instances_transform.json",
