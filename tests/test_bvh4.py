@@ -438,8 +438,17 @@ def test_instanced_bunnies():
         instanced_bunnies(0)
 
 
+def test_bvh_bench_command_checks_before_building(tmp_path, capsys):
+    from driver.bvh.bench import main
+    assert main(["--counts", "-1"]) == 2
+    assert main(["--counts", "0", "--json", str(tmp_path / "none" / "b.json")]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 2 and all(e.startswith("rayflex: error: ") for e in err)
+    assert not (tmp_path / "none").exists()
+
+
 def test_bvh_bench_dict(tmp_path):
-    from driver.bvh.bench import BUNNY_TRIANGLES, FORMATS, bvh_bench
+    from driver.bvh.bench import BUNNY_TRIANGLES, FORMATS, build_table, bvh_bench
     r = bvh_bench(counts=(0,), size=32, progress=False, fills=(0, 1 << 30),
                   plot=tmp_path / "fills.png")
     assert [b["format"] for b in r["builds"]] == list(FORMATS)
@@ -449,6 +458,10 @@ def test_bvh_bench_dict(tmp_path):
         assert ("vs_box32_build_s" in b) == (b["format"] != "box32")
     size = {b["format"]: b["bytes_per_triangle"] for b in r["builds"]}
     assert size["q8g"] < size["q8"] < 0.5 * size["box32"]
+    table = build_table(r).splitlines()               # the docs/compressed.md table
+    assert len(table) == 3 and table[2].startswith(f"| bunny, {BUNNY_TRIANGLES:,} triangles |")
+    cpu = {b["format"]: b["build_cpu_s"] for b in r["builds"]}
+    assert f"| {cpu['q8g'] / cpu['box32']:.2f} (" in table[2]
     q = r["quality"]
     assert q["sah"]["sah_cost"] <= q["greedy"]["sah_cost"]
     assert q["sah"]["box_nodes"] < q["greedy"]["box_nodes"]

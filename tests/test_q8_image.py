@@ -160,6 +160,45 @@ def test_pairs_share_edges_and_cover_a_mesh():
     assert soup.stats["pair_ratio"] == 0.0
 
 
+def test_vertex_ids_number_bit_identical_points_by_first_use_on_any_shards():
+    """The sharded hash tables (one per thread) give the first-use numbering of the exact
+    float32 bits, whatever the number of shards: numpy's unique rows as the reference."""
+    from driver.bvh.q8 import _vertex_ids
+    rng = np.random.default_rng(3)
+    pts = rng.integers(-6, 7, (6000, 3)).astype(np.float32)
+    pts[::7, 1] = -0.0                                      # -0.0 and 0.0 are different bits
+    pts[::11, 2] = 0.0
+    bits = pts.view(np.uint32)
+    _, first, inverse = np.unique(bits, axis=0, return_index=True, return_inverse=True)
+    rank = np.empty(len(first), np.int64)
+    rank[np.argsort(first)] = np.arange(len(first))
+    want = rank[inverse.reshape(-1)]
+    assert len(first) < len(pts) / 2                         # many repeats
+    for shards in (1, 2, 3, 4):
+        got = _vertex_ids(bits, np.full((shards, 1 << 14), -1, np.int32))
+        assert np.array_equal(got, want), shards
+
+
+def test_edge_neighbours_equal_a_plain_scan():
+    """The parallel adjacency (``_neighbours``) lists, per triangle, the triangles sharing each
+    of its edges in edge order and index order, each once, as a plain scan over all triangles."""
+    from driver.bvh.q8 import _neighbours, vertex_ids
+    tris = np.concatenate([_grid(5), _grid(5)[:9], meshes.soup(4, seed=2)])   # doubled edges
+    tris[3, 2] = tris[3, 1]                                  # a degenerate triangle
+    ids = vertex_ids(tris)
+    adj, deg = _neighbours(ids, int(ids.max()) + 1)
+    for t in range(len(ids)):
+        want = []
+        for e in range(3):
+            a, b = ids[t, e], ids[t, (e + 1) % 3]
+            if a != b:
+                want += [u for u in range(len(ids)) if u != t and a in ids[u] and b in ids[u]
+                         and u not in want]
+        assert list(adj[t, :deg[t]]) == want[:len(adj[t])], t
+        assert (adj[t, deg[t]:] == -1).all()
+    assert deg.max() >= 3
+
+
 def test_mesh_and_triangle_inputs_give_the_same_image():
     m = meshes.bunny()
     a = build(m, format="q8")

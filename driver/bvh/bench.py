@@ -11,12 +11,20 @@ same closest hits; then the shape trade-off: box nodes and ops per ray for each 
 in ``FILLS``, with the docs/datapath.md#traversal traversal and with the distance-culled stack
 (``cull_stack``), against the reference point ``REFERENCE`` (box nodes, ops per ray), optionally
 plotted.
+
+    python -m driver.bvh.bench --counts 0 50 --json builds.json
+
+times the builds only (no tree quality) and prints them as the Markdown table of
+docs/compressed.md: process CPU and wall seconds per format, their ratios to box32, and the
+machine's load average while they ran.
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 import multiprocessing
+import sys
 import resource
 import time
 
@@ -197,3 +205,66 @@ def bvh_bench(counts=(0, 20, 50), quality: bool = True, size: int = 256,
     if quality:
         result["quality"] = _quality(size, fills, plot, progress)
     return result
+
+
+def build_table(doc: dict) -> str:
+    """Markdown: per mesh, each format's build CPU seconds (wall seconds), the ratios of q8 and
+    q8g to box32 (CPU and wall), q8g's bytes per triangle and the load averages seen."""
+    by = {}
+    for b in doc["builds"]:
+        by.setdefault(b["bunnies"], {})[b["format"]] = b
+    fmts = [f for f in FORMATS if any(f in row for row in by.values())]
+    head = ["mesh", *(f"{f} CPU s (wall)" for f in fmts),
+            *(f"{f} / box32 CPU (wall)" for f in fmts if f != "box32"),
+            "q8g bytes / triangle", "load average"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for count, row in by.items():
+        any_row = next(iter(row.values()))
+        mesh = (f"bunny, {any_row['triangles']:,} triangles" if count == 1
+                else f"{count} bunnies, {any_row['triangles']:,} triangles")
+        cells = [mesh, *(f"{row[f]['build_cpu_s']:.2f} ({row[f]['build_s']:.2f})"
+                         if f in row else "–" for f in fmts)]
+        base = row.get("box32")
+        for f in fmts:
+            if f != "box32":
+                cells.append(f"{row[f]['build_cpu_s'] / base['build_cpu_s']:.2f} "
+                             f"({row[f]['build_s'] / base['build_s']:.2f})"
+                             if base and f in row else "–")
+        cells.append(f"{row['q8g']['bytes_per_triangle']:.1f}" if "q8g" in row else "–")
+        loads = [b["load_average"] for b in row.values()]
+        cells.append(f"{min(loads):.1f}–{max(loads):.1f}")
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m driver.bvh.bench",
+                                description="Time BVH builds per image format, each in a fresh "
+                                            "process, and print the table.")
+    p.add_argument("--counts", type=int, nargs="+", default=[0, 50], metavar="N",
+                   help="meshes: 0 = the bunny, N = N instanced bunnies (default: 0 50)")
+    p.add_argument("--formats", nargs="+", default=list(FORMATS), choices=FORMATS,
+                   help="image formats to build (default: all)")
+    p.add_argument("--json", metavar="PATH", help="write the builds here")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    args = p.parse_args(argv)
+    from ..outputs import JSON, Outputs, OutputError, write_json
+    try:
+        if any(c < 0 for c in args.counts):
+            raise ValueError(f"--counts must be >= 0, got {args.counts}")
+        outs = Outputs()
+        js = outs.add("--json", args.json, JSON) if args.json else None
+        doc = bvh_bench(counts=tuple(args.counts), quality=False, progress=not args.no_progress,
+                        formats=tuple(args.formats))
+        if js:
+            with outs.commit():
+                write_json(doc, outs.temp(js))
+    except (ValueError, OSError, OutputError) as e:
+        print(f"rayflex: error: {e}", file=sys.stderr)
+        return 2
+    print(build_table(doc))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

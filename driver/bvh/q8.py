@@ -11,6 +11,10 @@ at once; otherwise the lowest-index unmatched triangle takes, among its unmatche
 neighbours, the one whose union box with it has the least surface area.
 Unmatched triangles become one-triangle leaves (``prim1 = NO_CHILD``). Each triangle keeps its
 input vertex order (the watertight test's arithmetic depends on it, not only on the winding).
+The vertex ids (``_vertex_ids``: one hash table per thread, each holding one shard of the hash
+values) and the edge adjacency (``_neighbours``: one row per triangle) run on all cores with
+numba's ``prange``; both give the same result on any number of threads, so the image does not
+depend on the machine. The matching itself is sequential (each choice depends on the last).
 
 Group leaves (``group_leaves``, q8g): after the build over pair leaves, binary subtrees of 3 to 6
 triangles whose vertices fit the group leaf's 8 slots may become one 128-byte leaf; which ones
@@ -32,7 +36,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import get_num_threads, njit, prange
 
 from ..layout import (GROUP_BYTES, GROUP_COUNT_LSB, GROUP_MAX_TRIS, GROUP_MAX_VERTS, GROUP_NODE,
                       GROUP_SEL_BITS, GROUP_SEL_LSB, PAIR_BYTES, PAIR_NODE, Q8_BYTES, Q8_EXP_MAX,
@@ -42,39 +46,52 @@ from .build import WIDTH, dp_table
 _HASH = np.uint64(0x9E3779B97F4A7C15)
 
 
-@njit(cache=True)
-def _vertex_ids(bits, table):
-    """(n, 3) int64 vertex ids of (n, 3, 3) uint32 coordinate bits: the flat index (3 t + k) of
-    the first vertex with the same bits. ``table``: a power-of-two sized array of -1 (open
-    addressing)."""
-    n = bits.shape[0]
-    mask = np.uint64(len(table) - 1)
-    ids = np.empty((n, 3), np.int64)
-    for t in range(n):
-        for k in range(3):
-            x, y, z = bits[t, k, 0], bits[t, k, 1], bits[t, k, 2]
+@njit(cache=True, parallel=True)
+def _vertex_ids(bits, tables):
+    """(m,) int64 vertex ids of (m, 3) uint32 coordinate bits, numbered 0, 1, ... in order of
+    first use: equal exactly for bit-identical rows. ``tables`` (shards, power of two) of -1:
+    open-addressing hash tables, one per shard of the hash values, each filled by one thread
+    that reads all rows in order and inserts its shard's, so that each row finds the first row
+    with its bits as one table filled in order would (the ids do not depend on the shards)."""
+    m = bits.shape[0]
+    shards, size = tables.shape
+    mask = np.uint64(size - 1)
+    first = np.empty(m, np.int64)
+    for s in prange(shards):
+        table = tables[s]
+        for i in range(m):
+            x, y, z = bits[i, 0], bits[i, 1], bits[i, 2]
             h = ((np.uint64(x) * _HASH) ^ (np.uint64(y) << np.uint64(21))
                  ^ (np.uint64(z) * np.uint64(0xC2B2AE3D27D4EB4F)))
             h ^= h >> np.uint64(29)
+            if (h >> np.uint64(40)) % np.uint64(shards) != np.uint64(s):
+                continue
             slot = h & mask
             while True:
                 f = table[slot]
                 if f < 0:
-                    table[slot] = 3 * t + k
-                    ids[t, k] = 3 * t + k
+                    table[slot] = i
+                    first[i] = i
                     break
-                ft, fk = f // 3, f % 3
-                if bits[ft, fk, 0] == x and bits[ft, fk, 1] == y and bits[ft, fk, 2] == z:
-                    ids[t, k] = f
+                if bits[f, 0] == x and bits[f, 1] == y and bits[f, 2] == z:
+                    first[i] = f
                     break
                 slot = (slot + np.uint64(1)) & mask
-    return ids
+    rank = np.empty(m, np.int64)               # first rows numbered in order
+    nv = 0
+    for i in range(m):
+        if first[i] == i:
+            rank[i] = nv
+            nv += 1
+    for i in prange(m):
+        first[i] = rank[first[i]]
+    return first
 
 
 _ADJ = 6      # edge neighbours kept per triangle (a manifold triangle has at most 3)
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _neighbours(ids, nv):
     """(n, _ADJ) int32 triangles sharing an edge with each triangle (-1 padded; an image holds
     fewer than 2**31 triangles), and their count (n,) int8. ids (n, 3) vertex ids below
@@ -86,32 +103,37 @@ def _neighbours(ids, nv):
             cnt[ids[t, k] + 1] += 1
     for v in range(nv):
         cnt[v + 1] += cnt[v]
-    lst = np.empty(3 * n, np.int64)
+    lst = np.empty((3 * n, 3), ids.dtype)    # per vertex: triangle, its other two vertices
     fill = cnt[:-1].copy()
     for t in range(n):
         for k in range(3):
             v = ids[t, k]
             if k and (v == ids[t, 0] or (k == 2 and v == ids[t, 1])):
                 continue                                   # a repeated vertex lists t once
-            lst[fill[v]] = t
+            j = fill[v]
+            lst[j, 0] = t
+            lst[j, 1] = ids[t, (k + 1) % 3]
+            lst[j, 2] = ids[t, (k + 2) % 3]
             fill[v] += 1
     adj = np.full((n, _ADJ), -1, np.int32)       # n < 2**31: images hold < 2**29 nodes
     deg = np.zeros(n, np.int8)
-    for t in range(n):
+    for t in prange(n):                          # each triangle's row, in list order
+        d = 0
         for e in range(3):
             a, b = ids[t, e], ids[t, (e + 1) % 3]
             if a == b:
                 continue
             for j in range(cnt[a], fill[a]):
-                u = lst[j]
-                if u == t or (ids[u, 0] != b and ids[u, 1] != b and ids[u, 2] != b):
+                u = lst[j, 0]
+                if u == t or (lst[j, 1] != b and lst[j, 2] != b):
                     continue
                 seen = False
-                for i in range(deg[t]):
+                for i in range(d):
                     seen |= adj[t, i] == u
-                if not seen and deg[t] < _ADJ:
-                    adj[t, deg[t]] = u
-                    deg[t] += 1
+                if not seen and d < _ADJ:
+                    adj[t, d] = u
+                    d += 1
+        deg[t] = d
     return adj, deg
 
 
@@ -129,13 +151,12 @@ def _union_area(t, u, tris):
 
 
 @njit(cache=True)
-def _match(ids, tris, nv):
+def _match(adj, deg, tris):
     """Edge matching, Karp-Sipser style: partner (n,) int64 (-1: unmatched). A triangle left
     with one unmatched neighbour is matched to it first (no choice can do better for it);
     otherwise the lowest-index unmatched triangle takes the unmatched neighbour whose union box
     with it has the least surface area (``tris`` (n, 3, 3) float32)."""
-    n = ids.shape[0]
-    adj, deg = _neighbours(ids, nv)
+    n = len(deg)
     free = deg.astype(np.int64)                             # unmatched neighbours
     partner = np.full(n, -1, np.int64)
     stack = np.empty(2 * n, np.int64)         # pushed once at the start, once on free == 1
@@ -225,34 +246,14 @@ def _pairs(ids, partner, tris):
     return first, second, idx, v3, box
 
 
-@njit(cache=True)
-def _compact(ids):
-    """Renumber vertex ids 0, 1, ... in order of first use, in place (a dense id range keeps
-    the vertex tables of ``_neighbours`` small); returns the number of vertices."""
-    new = np.full(3 * ids.shape[0], -1, np.int64)
-    nv = 0
-    for t in range(ids.shape[0]):
-        for k in range(3):
-            f = ids[t, k]
-            if new[f] < 0:
-                new[f] = nv
-                nv += 1
-            ids[t, k] = new[f]
-    return nv
-
-
 def _bit_ids(points: np.ndarray) -> np.ndarray:
     """(m,) int64 ids of (m, 3) float32 points, equal exactly for bit-identical points (numbered
     in order of first use)."""
-    m = len(points)
-    pad = np.zeros((-m % 3, 3), np.float32)
-    bits = np.ascontiguousarray(np.concatenate([points, pad])).view(np.uint32).reshape(-1, 3, 3)
-    size = 1 << max(4, int(2 * len(bits) * 3 - 1).bit_length())
-    table = np.full(size, -1, np.int32 if 3 * len(bits) < 1 << 31 else np.int64)
-    ids = _vertex_ids(bits, table)
-    del table
-    _compact(ids)
-    return ids.reshape(-1)[:m]
+    bits = np.ascontiguousarray(points, np.float32).view(np.uint32)
+    shards = get_num_threads()
+    size = 1 << max(4, int(2 * len(bits) // shards).bit_length())   # at most half full
+    tables = np.full((shards, size), -1, np.int32 if len(bits) < 1 << 31 else np.int64)
+    return _vertex_ids(bits, tables)
 
 
 def vertex_ids(tris: np.ndarray, faces=None) -> np.ndarray:
@@ -285,15 +286,29 @@ def _normals(tris, first, second):
     return n
 
 
+@njit(cache=True)
+def _facing(n, groups):
+    m, g = n.shape[0], groups.shape[0]
+    out = np.empty((m + g, 3), np.int8)
+    for i in range(m):
+        for c in range(3):
+            out[i, c] = np.sign(n[i, c])
+    for i in range(g):
+        for c in range(3):
+            s = 0.0
+            for j in range(groups.shape[1]):
+                if groups[i, j] >= 0:
+                    s += n[groups[i, j], c]
+            out[m + i, c] = np.sign(s)
+    return out
+
+
 def facing(tris: np.ndarray, first: np.ndarray, second: np.ndarray,
            groups: np.ndarray) -> np.ndarray:
     """(m + g, 3) int8: per pair leaf, then per group leaf, and axis the sign of its face normal
     (the sum of its triangles' ``(B - A) x (C - A)``, float64), the side rays leave it on.
     ``groups`` (g, GROUP_MAX_TRIS) int64: each group's pair leaves (-1 padded)."""
-    n = _normals(tris, first, second)
-    member = np.where(groups >= 0, groups, 0)
-    gn = (n[member] * (groups >= 0)[..., None]).sum(axis=1)
-    return np.sign(np.concatenate([n, gn])).astype(np.int8)
+    return _facing(_normals(tris, first, second), groups)
 
 
 @njit(cache=True)
@@ -470,7 +485,7 @@ def pair_triangles(tris: np.ndarray, faces=None):
     box, ids): see ``_pairs``; ``box`` is a fake triangle per leaf whose bounding box is the
     leaf's, the builder's input; ``ids`` (n, 3) the vertex ids (``vertex_ids``)."""
     ids = vertex_ids(tris, faces)
-    partner = _match(ids, tris, int(ids.max()) + 1)
+    partner = _match(*_neighbours(ids, int(ids.max()) + 1), tris)
     return (*_pairs(ids, partner, tris), ids)
 
 
