@@ -255,13 +255,21 @@ README_NUMBERS = {
                                f"formats.box32.scenes.bunny_floor.{t}.policies.{policy}.{window}"
                                ".utilization", "{:.2f}")
        for t in ("ao", "primary") for policy, window in (("index", 0), ("affinity", 256))},
+    **{f"order_q8_{t}_{policy}": ("docs/rayorder.json",
+                                  f"formats.q8.scenes.bunny_floor.{t}.policies.{policy}.{window}"
+                                  ".utilization", "{:.2f}")
+       for t in ("shadow", "bounce1") for policy, window in (("index", 0), ("affinity", 256))},
     "order_state_bytes": ("docs/rayorder.json", "formats.box32.scenes.bunny_floor.ao.policies"
                           ".affinity.256.ray_order_cost.extra_state_bytes", "{:,}"),
     "order_extra_rays": ("docs/rayorder.json", "formats.box32.scenes.bunny_floor.ao.policies"
                          ".affinity.256.ray_order_cost.extra_rays_held", "{:d}"),
     **{f"compressed_{fmt}_bytes_per_triangle": (f"images/compressed_path64_{fmt}.json",
                                                 "frame.bvh.bytes_per_triangle", "{:.1f}")
-       for fmt in ("box32", "q8")},
+       for fmt in ("box32", "q8", "q8g")},
+    **{f"compressed_q8g_{t}_utilization": ("images/compressed_path64_q8g.json",
+                                           f"frame.by_type.{t}.rtunit_memory.utilization",
+                                           "{:.2f}")
+       for t in ("primary", "bounce1")},
     **{f"compressed_{fmt}_{t}_{key}": (f"images/compressed_path64_{fmt}.json",
                                        f"frame.by_type.{t}.rtunit_memory.{key}", fmt_)
        for fmt in ("box32", "q8") for t in ("primary", "bounce1")
