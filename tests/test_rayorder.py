@@ -16,7 +16,7 @@ from driver import prepare_rays, rtunit
 from driver.backends.build import rtl_params
 from driver.bvh4 import build
 from driver.cli import main as cli_main
-from driver.layout import BOX_BYTES, BOX_TYPE, REQUEST, NodeRef, ray_words
+from driver.layout import BOX_BYTES, BOX_TYPE, REQUEST, NodeRef, leaf_request, ray_words
 from driver.rtunit import order
 from driver.tracer import trace
 from support import meshes
@@ -189,7 +189,8 @@ def test_treelets_cover_every_node_once(fmt, budget):
     sched = order.treelet_schedule(rec, order.TreeletConfig(treelet_bytes=budget))
     assert sched.n_treelets == tl.max() + 1 and len(sched.request_treelet) == rec.ops
     of_node = dict(zip(off.tolist(), tl.tolist()))
-    assert sched.request_treelet.tolist() == [of_node[o] for o in NodeRef.offset(rec.ptr).tolist()]
+    leaf_word = leaf_request(rec.ptr)[0]            # a leaf's later triangle: its leaf's node
+    assert sched.request_treelet.tolist() == [of_node[4 * w] for w in leaf_word.tolist()]
 
 
 def test_cost_follows_the_layout_and_the_window(record):

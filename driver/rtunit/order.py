@@ -41,9 +41,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..layout import (BOX_NODE, BOX_TYPE, GROUP_TYPE, INSTANCE_NODE, INSTANCE_TYPE, NO_CHILD,
-                      NODE_BYTES, PAIR_BYTES, PAIR_TYPE, Q8_NODE, Q8_TYPE, REQUEST, NodeRef,
-                      node_word, read_nodes)
+from ..layout import (BOX_NODE, BOX_TYPE, INSTANCE_NODE, INSTANCE_TYPE, NO_CHILD,
+                      NODE_BYTES, Q8_NODE, Q8_TYPE, REQUEST, NodeRef,
+                      leaf_request, node_word, read_nodes)
 
 GRID_BITS = 5          # origin (and end point) cells per axis: 2**GRID_BITS
 THETA_BITS = 2         # polar-angle bins of the direction: 2**THETA_BITS
@@ -187,8 +187,8 @@ assert Q8_NODE["child"].shape[0] == _SLOTS
 def image_tree(image, root: int) -> tuple[np.ndarray, np.ndarray]:
     """The nodes reachable from ``root`` in a node image, breadth first: (ptr (n,) uint32, parent
     (n,) int64 index, -1 for the root). Box nodes (box32, q8) lead to their children, an instance
-    node to its BLAS root, a group leaf to its second pair (the pair leaf 64 bytes on, a node of
-    its own); a node reached twice (a BLAS shared by instances) is listed once."""
+    node to its BLAS root; a leaf (triangle, pair or group) is one node; a node reached twice (a
+    BLAS shared by instances) is listed once."""
     words = np.asarray(image).reshape(-1).view("<u4")
     level, up = np.array([root], np.uint32), np.array([-1], np.int64)
     ptrs, parents, seen, base = [], [], np.zeros(0, np.int64), 0
@@ -212,9 +212,6 @@ def image_tree(image, root: int) -> tuple[np.ndarray, np.ndarray]:
             kup.append(np.broadcast_to(idx[sel][:, None], c.shape)[ok])
         sel = typ == INSTANCE_TYPE
         kids.append(words[word[sel] + node_word(INSTANCE_NODE, "blas")])
-        kup.append(idx[sel])
-        sel = typ == GROUP_TYPE
-        kids.append(NodeRef.encode(NodeRef.offset(level[sel]) + PAIR_BYTES, PAIR_TYPE))
         kup.append(idx[sel])
         level, up = np.concatenate(kids).astype(np.uint32), np.concatenate(kup)
     return np.concatenate(ptrs), np.concatenate(parents)
@@ -335,8 +332,8 @@ def _image_key(record) -> tuple:
 
 def treelet_schedule(record, config: TreeletConfig = DEFAULT_TREELETS) -> TreeletSchedule:
     """The treelet table of the record's BVH (``image_tree``, ``treelets``; cached per image and
-    budget) and the treelet of each recorded request (by its node's offset: a pair's second
-    triangle is in its pair leaf's treelet)."""
+    budget) and the treelet of each recorded request (by its node's offset: a leaf's later
+    triangles are in their leaf's treelet)."""
     key = (*_image_key(record), int(config.treelet_bytes))
     if key not in _TREE_CACHE:
         ptrs, parent = image_tree(record.image, key[1])
@@ -346,7 +343,7 @@ def treelet_schedule(record, config: TreeletConfig = DEFAULT_TREELETS) -> Treele
         _TREE_CACHE.clear()
         _TREE_CACHE[key] = (off[by], node_bytes(ptrs)[by], tl[by])
     off, size, tl = _TREE_CACHE[key]
-    req = NodeRef.offset(record.ptr)
+    req = leaf_request(record.ptr)[0] * 4       # a leaf's later triangle: the leaf's own offset
     at = np.minimum(np.searchsorted(off, req), len(off) - 1)
     if len(req) and not np.array_equal(off[at], req):
         raise ValueError("a recorded request names a node the BVH image's tree does not hold")
