@@ -68,22 +68,40 @@ def test_rev_label_records_the_resolved_commit():
         area.rev_label("no-such-revision-xyz")
 
 
-def test_snapshot_of_a_revision_reads_that_revision_s_source_list():
-    """Files come and go: a revision's snapshot holds the files of its own sources.txt."""
+def test_snapshot_of_a_revision_reads_that_revision_s_source_list(tmp_path, monkeypatch):
+    """Files come and go: a revision's snapshot holds the files of its own sources.txt (a
+    two-commit repository of its own, so the test does not depend on this checkout's history)."""
     import subprocess
-    from driver.backends.build import SOURCE_LIST, parse_source_list
-    rel = SOURCE_LIST.relative_to(area.ROOT).as_posix()
-    log = subprocess.run(["git", "-C", str(area.ROOT), "log", "--format=%H", "-2", "--", rel],
-                         capture_output=True, text=True)
-    revs = log.stdout.split()
-    if log.returncode or len(revs) < 2:
-        pytest.skip("no two revisions of the source list in this checkout")
-    old = f"{revs[0]}~1"               # the list before its last change
-    text = subprocess.run(["git", "-C", str(area.ROOT), "show", f"{old}:{rel}"],
-                          capture_output=True, text=True, check=True).stdout
-    names = [n for n, _ in area.snapshot(old)]
-    assert names == parse_source_list(text)
-    assert names != [n for n, _ in area.snapshot(revs[0])]
+    from driver.backends import build as build_mod
+    from driver.backends.build import parse_source_list
+    rtl = tmp_path / "driver" / "rtl"
+    rtl.mkdir(parents=True)
+
+    def git(*args):
+        subprocess.run(["git", "-C", str(tmp_path), "-c", "user.name=t", "-c", "user.email=t@t",
+                        *args], capture_output=True, check=True)
+
+    git("init", "-q")
+    lists = ("a.sv\nb.sv\n", "# compile order\na.sv\nc.sv\nb.sv\n")
+    for i, text in enumerate(lists):
+        for name in parse_source_list(text):
+            (rtl / name).write_text(f"// {name} at revision {i}\n")
+        (rtl / "sources.txt").write_text(text)
+        git("add", "-A")
+        git("commit", "-q", "-m", f"revision {i}")
+    monkeypatch.setattr(area, "ROOT", tmp_path)
+    monkeypatch.setattr(area, "RTL_DIR", rtl)
+    monkeypatch.setattr(build_mod, "SOURCE_LIST", rtl / "sources.txt")
+    (rtl / "sources.txt").write_text("a.sv\n")            # the working tree differs from both
+    old, new = area.snapshot("HEAD~1"), area.snapshot("HEAD")
+    assert [n for n, _ in old] == ["a.sv", "b.sv"]
+    assert [n for n, _ in new] == ["a.sv", "c.sv", "b.sv"]
+    assert dict(new)["b.sv"] == b"// b.sv at revision 1\n"
+    with pytest.raises(area.AreaError, match="git show"):
+        area.snapshot("no-such-revision-xyz")
+
+
+def test_report_refuses_results_of_different_rtl_versions():
     a = {"cells": 1, "sequential": 1, "inverter": 0, "buffer": 0, "logic": 0, "ge": 1.0}
     with pytest.raises(area.AreaError, match="different RTL versions"):
         area.report({"baseline-unified": {**a, "rtl_sha": "aaa"},

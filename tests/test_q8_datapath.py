@@ -28,7 +28,8 @@ from driver.layout import (FLAG_DECODE_Q8, FLAG_NO_CULL, FLAGS_DEFINED, Q8_EXP_M
 from support.scalar_ref import ScalarState, q8_boxes, scalar_run
 from support.scoreboard import assert_bit_equal, bits
 from support.streams import extended_stream, interleave, q8_requests, q8_stream
-from support.testbench import PRESSURE_IDS, PRESSURES, Testbench, run_isolated
+from support.testbench import (PRESSURE_IDS, PRESSURES, Testbench, assert_pyverilator_equals_rtl,
+                               run_isolated)
 
 F32 = np.float32
 CONFIGS = [(False, False), (False, True), (True, False), (True, True)]
@@ -325,14 +326,8 @@ def test_latency_and_throughput():
 
 
 def test_random_q8_stream_pyverilator_equals_rtl():
-    req = q8_stream(31, 400, 100, 100)
-    chunks = [req[:350], req[350:]]
-    opts = dict(compressed=True, gaps=0.5, stalls=0.5, seed=31)
-    (py, py_cycles) = run_isolated("pyverilator", opts, chunks)
-    tb = Testbench("rtl", **opts)
-    for c, p in zip(chunks, py):
-        assert tb.run(c).tobytes() == p.tobytes()
-    assert tb.runs == py_cycles
+    assert_pyverilator_equals_rtl(q8_stream(31, 400, 100, 100),
+                                  dict(compressed=True, gaps=0.5, stalls=0.5, seed=31), 350)
 
 
 @pytest.mark.slow

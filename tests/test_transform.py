@@ -28,7 +28,8 @@ from support.scalar_ref import ScalarState, scalar_run
 from support.scoreboard import assert_bit_equal, bits
 from support.streams import (extended_stream, interleave, q8_requests, random_matrices,
                              random_ray_vectors, transform_requests_random, transform_stream)
-from support.testbench import PRESSURE_IDS, PRESSURES, Testbench, run_isolated
+from support.testbench import (PRESSURE_IDS, PRESSURES, Testbench, assert_pyverilator_equals_rtl,
+                               run_isolated)
 
 F32 = np.float32
 # (extended, disjoint, compressed): every configuration, each with TRANSFORM
@@ -250,14 +251,8 @@ def test_latency_and_throughput():
 
 
 def test_pyverilator_equals_rtl():
-    req = _stream(45, False, False, 400, 100, 100)
-    chunks = [req[:350], req[350:]]
-    opts = dict(transform=True, gaps=0.5, stalls=0.5, seed=45)
-    (py, py_cycles) = run_isolated("pyverilator", opts, chunks)
-    tb = Testbench("rtl", **opts)
-    for c, p in zip(chunks, py):
-        assert tb.run(c).tobytes() == p.tobytes()
-    assert tb.runs == py_cycles
+    assert_pyverilator_equals_rtl(_stream(45, False, False, 400, 100, 100),
+                                  dict(transform=True, gaps=0.5, stalls=0.5, seed=45), 350)
 
 
 @pytest.mark.slow

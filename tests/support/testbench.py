@@ -175,3 +175,14 @@ def _isolated_child(name, options, chunks, patterns):
         return "raised", e
     except BaseException as e:           # pytest.fail's Failed is not an Exception
         return "failed", f"{name} (in a subprocess): {e}"
+
+
+def assert_pyverilator_equals_rtl(req, options: dict, split: int) -> None:
+    """``req`` in two chunks (at ``split``) on pyverilator, in its own process, and on the rtl
+    fast path with the same ``options``: identical responses per chunk and identical cycles."""
+    chunks = [req[:split], req[split:]]
+    py, py_cycles = run_isolated("pyverilator", options, chunks)
+    tb = Testbench("rtl", **options)
+    for c, p in zip(chunks, py):
+        assert tb.run(c).tobytes() == p.tobytes()
+    assert tb.runs == py_cycles
