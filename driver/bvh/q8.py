@@ -44,6 +44,7 @@ from ..layout import (GROUP_BYTES, GROUP_COUNT_LSB, GROUP_MAX_TRIS, GROUP_MAX_VE
 from .build import WIDTH, dp_table
 
 _HASH = np.uint64(0x9E3779B97F4A7C15)
+_CHUNKS_PER_THREAD = 8    # work items of a parallel loop with scratch: a few per thread
 
 
 @njit(cache=True, parallel=True)
@@ -381,35 +382,45 @@ def _members(x, left, right, prim, members, stack):
     return nm
 
 
+@njit(cache=True, parallel=True)
+def _group_fits(left, right, prim, first, second, ids, chunks):
+    """(tri (m,) int64, ok (m,) bool): per binary node its triangles, and whether its subtree
+    of 3 to GROUP_MAX_TRIS triangles fits a group leaf (``_group_order``; never the root). The
+    triangle counts go bottom up (children are numbered after their parent); the fit of each
+    small subtree is independent of the others' and runs on all cores, in chunks that each
+    have their own scratch (``chunks``: a few per thread)."""
+    m = len(left)
+    tri = np.zeros(m, np.int64)
+    for n in range(m - 1, -1, -1):
+        tri[n] = (1 + (second[prim[n]] >= 0)) if left[n] < 0 else tri[left[n]] + tri[right[n]]
+    ok = np.zeros(m, np.bool_)
+    for c in prange(chunks):
+        members = np.empty(GROUP_MAX_TRIS, np.int64)
+        stack = np.empty(2 * GROUP_MAX_TRIS + 2, np.int64)
+        gtri = np.empty(GROUP_MAX_TRIS, np.int64)
+        gvert = np.empty(GROUP_MAX_VERTS, np.int64)
+        for n in range(max(1, c * m // chunks), (c + 1) * m // chunks):
+            if left[n] >= 0 and 3 <= tri[n] <= GROUP_MAX_TRIS:
+                _members(n, left, right, prim, members, stack)
+                ok[n] = _group_order(members, first, second, ids, gtri, gvert) >= 0
+    return tri, ok
+
+
 @njit(cache=True)
-def _group_dp(left, right, prim, area, first, second, ids, lam):
+def _group_dp(left, right, prim, area, tri, ok, lam):
     """Choose the group leaves together with the 4-wide collapse (``driver.bvh.build.dp_table``,
     the collapse's table with leaf costs and bytes): D(n, k) is the least ``cost + lam *
     bytes`` of binary node n's subtree in k slots of its parent, where cost is the SAH of
     datapath ops (``area``: the stored boxes' half areas; a wide box node costs its area once, a
     leaf its area times its triangles: each is tested when the leaf's box is hit) and bytes the
-    image's (64 per q8 box node and pair leaf, GROUP_BYTES per group leaf). In one slot, a subtree of 3 to
-    GROUP_MAX_TRIS triangles that fit a group leaf (``_group_order``) may become one. ``lam``
-    weighs bytes against cost: a pair leaf's 64 bytes are worth ``lam`` times the cost of the
-    median pair leaf (a scale of the mesh's own leaves, which a few large triangles, a floor
-    under a model, do not move). Returns merge (m,) bool: the nodes that become group
-    leaves."""
+    image's (64 per q8 box node and pair leaf, GROUP_BYTES per group leaf). In one slot, a
+    subtree whose triangles fit a group leaf (``ok``, ``tri`` from ``_group_fits``) may become
+    one. ``lam`` weighs bytes against cost: a pair leaf's 64 bytes are worth ``lam`` times the
+    cost of the median pair leaf (a scale of the mesh's own leaves, which a few large
+    triangles, a floor under a model, do not move). Returns merge (m,) bool: the nodes that
+    become group leaves."""
     m = len(left)
     W = WIDTH
-    tri = np.zeros(m, np.int64)
-    ok = np.zeros(m, np.bool_)
-    members = np.empty(GROUP_MAX_TRIS, np.int64)
-    stack = np.empty(2 * GROUP_MAX_TRIS + 2, np.int64)
-    gtri = np.empty(GROUP_MAX_TRIS, np.int64)
-    gvert = np.empty(GROUP_MAX_VERTS, np.int64)
-    for n in range(m - 1, -1, -1):
-        if left[n] < 0:
-            tri[n] = 1 + (second[prim[n]] >= 0)
-            continue
-        tri[n] = tri[left[n]] + tri[right[n]]
-        if n > 0 and 3 <= tri[n] <= GROUP_MAX_TRIS:
-            _members(n, left, right, prim, members, stack)
-            ok[n] = _group_order(members, first, second, ids, gtri, gvert) >= 0
     leaves = left < 0
     lw = lam * np.median(area[leaves] * tri[leaves]) / PAIR_BYTES     # cost per byte
     leaf_cost = area * tri + lw * PAIR_BYTES
@@ -456,27 +467,33 @@ def group_leaves(left, right, prim, area, pairs, enabled: bool = True, lam: floa
     first, second, ids = pairs[0], pairs[1], pairs[5]
     lam = GROUP_LAMBDA if lam is None else lam
     if enabled and left[0] >= 0:
-        merge = _group_dp(left, right, prim, area, first, second, ids, lam)
+        tri, ok = _group_fits(left, right, prim, first, second, ids,
+                              _CHUNKS_PER_THREAD * get_num_threads())
+        merge = _group_dp(left, right, prim, area, tri, ok, lam)
     else:
         merge = np.zeros(len(left), np.bool_)
-    return _apply_groups(merge, left, right, prim, first, second, ids, len(first))
+    return _apply_groups(merge, left, right, prim, first, second, ids, len(first),
+                         _CHUNKS_PER_THREAD * get_num_threads())
 
 
-@njit(cache=True)
-def _apply_groups(merge, left, right, prim, first, second, ids, n_pairs):
+@njit(cache=True, parallel=True)
+def _apply_groups(merge, left, right, prim, first, second, ids, n_pairs, chunks):
+    """Group i is merged node ``nodes[i]`` (in node order); the groups are independent (each
+    writes its own rows and its own node) and are laid out on all cores."""
     nodes = np.flatnonzero(merge)
     g = len(nodes)
     groups = np.full((g, GROUP_MAX_TRIS), -1, np.int64)
     gtri = np.empty((g, GROUP_MAX_TRIS), np.int64)
     gvert = np.empty((g, GROUP_MAX_VERTS), np.int64)
     gidx = np.empty(g, np.uint64)
-    stack = np.empty(2 * GROUP_MAX_TRIS + 2, np.int64)
-    for i in range(g):
-        x = nodes[i]
-        _members(x, left, right, prim, groups[i], stack)
-        gidx[i] = np.uint64(_group_order(groups[i], first, second, ids, gtri[i], gvert[i]))
-        left[x] = right[x] = -1
-        prim[x] = n_pairs + i
+    for c in prange(chunks):
+        stack = np.empty(2 * GROUP_MAX_TRIS + 2, np.int64)
+        for i in range(c * g // chunks, (c + 1) * g // chunks):
+            x = nodes[i]
+            _members(x, left, right, prim, groups[i], stack)
+            gidx[i] = np.uint64(_group_order(groups[i], first, second, ids, gtri[i], gvert[i]))
+            left[x] = right[x] = -1
+            prim[x] = n_pairs + i
     return groups, gtri, gvert, gidx
 
 
