@@ -125,6 +125,7 @@ def merge(parts: list[dict]) -> dict:
 # the published schema (docs/statistics.md)
 
 WAVEFRONT, RTUNIT, RTUNIT_MEMORY = "wavefront", "rtunit", "rtunit_memory"
+WAVEFRONTS = "wavefronts"      # an RT-unit object's replayed wavefronts, in the order they ran
 # the wavefront's timing figures (flat in a TraceResult's statistics, an object when published)
 WAVEFRONT_KEYS = ("cycles", "utilization", "frame_us_at_1ghz", "sim_wall_s", "sim_cycles_per_s")
 # RT-unit figures added up over replays run one after another
@@ -162,11 +163,23 @@ def rtunit_stats(replays: list) -> dict:
     if first.memory:
         for k in _MEM_SUMMED:
             out[k] = sum(r.memory[k] for r in replays)
+    out[WAVEFRONTS] = [_wavefront_row(r) for r in replays]
     costs = [r.order for r in replays if getattr(r, "order", None)]
     if costs:
         from .rtunit.order import merge_costs
         out["ray_order_cost"] = merge_costs(costs)
     return _rt_derived(out)
+
+
+def _wavefront_row(r) -> dict:
+    """One replayed wavefront of an RT-unit object's ``wavefronts``: its size and timing, and
+    with a node memory its bytes from memory (each wavefront starts with an empty ray pool and
+    a cold node cache, so a small one is bound by the memory's latency)."""
+    row = {"rays": r.rays, "ops": r.ops, "cycles": r.cycles,
+           "utilization": r.ops / (r.pipelines * r.cycles) if r.cycles else 0.0}
+    if r.memory:
+        row["bytes_from_memory"] = r.memory["bytes_from_memory"]
+    return row
 
 
 def _rt_derived(s: dict) -> dict:
@@ -189,6 +202,8 @@ def merge_rtunit(parts: list) -> dict | None:
     keys = _RT_SUMMED + (_MEM_SUMMED if "line_accesses" in parts[0] else ())
     out.update({k: sum(p[k] for p in parts) for k in keys})
     out["responses_verified"] = all(p["responses_verified"] for p in parts)
+    if all(WAVEFRONTS in p for p in parts):
+        out[WAVEFRONTS] = [w for p in parts for w in p[WAVEFRONTS]]
     return _rt_derived(out)
 
 

@@ -93,10 +93,12 @@ _ADJ = 6      # edge neighbours kept per triangle (a manifold triangle has at mo
 
 
 @njit(cache=True, parallel=True)
-def _neighbours(ids, nv):
+def _neighbours(ids, nv, shards):
     """(n, _ADJ) int32 triangles sharing an edge with each triangle (-1 padded; an image holds
     fewer than 2**31 triangles), and their count (n,) int8. ids (n, 3) vertex ids below
-    ``nv``."""
+    ``nv``. Each vertex's list of triangles (a counting sort, in triangle order) is filled by
+    the one of ``shards`` workers that owns the vertex's range, each reading every triangle, so
+    the lists come out the same on any number of threads."""
     n = ids.shape[0]
     cnt = np.zeros(nv + 1, np.int64)
     for t in range(n):
@@ -104,18 +106,22 @@ def _neighbours(ids, nv):
             cnt[ids[t, k] + 1] += 1
     for v in range(nv):
         cnt[v + 1] += cnt[v]
-    lst = np.empty((3 * n, 3), ids.dtype)    # per vertex: triangle, its other two vertices
+    lst = np.empty((3 * n, 3), np.int32)     # per vertex: triangle, its other two vertices
     fill = cnt[:-1].copy()
-    for t in range(n):
-        for k in range(3):
-            v = ids[t, k]
-            if k and (v == ids[t, 0] or (k == 2 and v == ids[t, 1])):
-                continue                                   # a repeated vertex lists t once
-            j = fill[v]
-            lst[j, 0] = t
-            lst[j, 1] = ids[t, (k + 1) % 3]
-            lst[j, 2] = ids[t, (k + 2) % 3]
-            fill[v] += 1
+    for c in prange(shards):
+        v0, v1 = c * nv // shards, (c + 1) * nv // shards
+        for t in range(n):
+            for k in range(3):
+                v = ids[t, k]
+                if v < v0 or v >= v1:
+                    continue
+                if k and (v == ids[t, 0] or (k == 2 and v == ids[t, 1])):
+                    continue                           # a repeated vertex lists t once
+                j = fill[v]
+                lst[j, 0] = t
+                lst[j, 1] = ids[t, (k + 1) % 3]
+                lst[j, 2] = ids[t, (k + 2) % 3]
+                fill[v] += 1
     adj = np.full((n, _ADJ), -1, np.int32)       # n < 2**31: images hold < 2**29 nodes
     deg = np.zeros(n, np.int8)
     for t in prange(n):                          # each triangle's row, in list order
@@ -502,7 +508,7 @@ def pair_triangles(tris: np.ndarray, faces=None):
     box, ids): see ``_pairs``; ``box`` is a fake triangle per leaf whose bounding box is the
     leaf's, the builder's input; ``ids`` (n, 3) the vertex ids (``vertex_ids``)."""
     ids = vertex_ids(tris, faces)
-    partner = _match(*_neighbours(ids, int(ids.max()) + 1), tris)
+    partner = _match(*_neighbours(ids, int(ids.max()) + 1, get_num_threads()), tris)
     return (*_pairs(ids, partner, tris), ids)
 
 
@@ -580,7 +586,7 @@ def _write_group(g, slot, gtri, gvert, gidx, tris, lw, lf, no_child):
     lw[slot, _PIDX + 1] = np.uint32(gidx[g] >> np.uint64(32))
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, gtri, gvert, gidx,
               tris, facing, origin, exp, child, q, parent, ref, lw, lf, box_ptr, leaf_base, types,
               no_child):
@@ -592,12 +598,29 @@ def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, gtri,
     group) pointer type codes. ``ref`` (k, 4, 6) float32 receives each used slot's stored box
     (+inf unused); ``facing`` (leaves, 3) int8: the sign of each leaf's face normal per axis
     (``_origin``). Returns 0, or the index + 1 of a node whose extent needs an exponent above
-    Q8_EXP_MAX."""
+    Q8_EXP_MAX (the first such node). Node r's box children and leaf slots are numbered after
+    those of nodes 0..r-1 (a prefix sum of each node's counts), so the nodes are then written
+    independently, on all cores."""
     k = slots.shape[0]
-    nb, nl = 0, 0
     n_pairs = len(first)
-    parent[0] = no_child
+    nb0 = np.zeros(k + 1, np.int64)                # box children / leaf slots before node r
+    nl0 = np.zeros(k + 1, np.int64)
     for r in range(k):
+        b, sl = 0, 0
+        for j in range(WIDTH):
+            x = slots[r, j]
+            if x < 0:
+                continue
+            if left[x] >= 0:
+                b += 1
+            else:
+                sl += 1 if prim[x] < n_pairs else 2
+        nb0[r + 1] = nb0[r] + b
+        nl0[r + 1] = nl0[r] + sl
+    parent[0] = no_child
+    bad = np.zeros(k, np.bool_)
+    for r in prange(k):
+        nb, nl = nb0[r], nl0[r]
         used = 0
         for j in range(WIDTH):
             x = slots[r, j]
@@ -637,7 +660,8 @@ def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, gtri,
             while e <= Q8_EXP_MAX and ext > 255.0 * math.ldexp(1.0, e):
                 e += 1
             if e > Q8_EXP_MAX:
-                return r + 1
+                bad[r] = True
+                break
             s = math.ldexp(1.0, e)
             o = _origin(r, a, o, top, s, used, slots, left, prim, ref, facing)
             origin[r, a] = o
@@ -648,6 +672,9 @@ def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, gtri,
                 q[r, j, a] = np.uint8(min(max(lo, 0.0), 255.0))
                 q[r, j, 3 + a] = np.uint8(min(max(hi, 0.0), 255.0))
         exp[r, 3] = np.uint8(used)
+    for r in range(k):
+        if bad[r]:
+            return r + 1
     return 0
 
 
