@@ -12,9 +12,12 @@ neighbours, the one whose union box with it has the least surface area.
 Unmatched triangles become one-triangle leaves (``prim1 = NO_CHILD``). Each triangle keeps its
 input vertex order (the watertight test's arithmetic depends on it, not only on the winding).
 The vertex ids (``_vertex_ids``: one hash table per thread, each holding one shard of the hash
-values) and the edge adjacency (``_neighbours``: one row per triangle) run on all cores with
-numba's ``prange``; both give the same result on any number of threads, so the image does not
-depend on the machine. The matching itself is sequential (each choice depends on the last).
+values) and the edge adjacency (``_neighbours``: each thread fills the triangle lists of its own
+range of vertices, then one row per triangle) run on all cores with numba's ``prange``, as do
+the group-leaf fits and layout (``_group_fits``, ``_apply_groups``) and the quantization
+(``_quantize``); each gives the same result on any number of threads, so the image does not
+depend on the machine. The matching itself is sequential (each choice depends on the last), as
+is the group choice's pass over the tree (``_group_dp``).
 
 Group leaves (``group_leaves``, q8g): after the build over pair leaves, binary subtrees of 3 to 6
 triangles whose vertices fit the group leaf's 8 slots may become one 128-byte leaf; which ones
