@@ -175,8 +175,7 @@ def _wavefront_row(r) -> dict:
     """One replayed wavefront of an RT-unit object's ``wavefronts``: its size and timing, and
     with a node memory its bytes from memory (each wavefront starts with an empty ray pool and
     a cold node cache, so a small one is bound by the memory's latency)."""
-    row = {"rays": r.rays, "ops": r.ops, "cycles": r.cycles,
-           "utilization": r.ops / (r.pipelines * r.cycles) if r.cycles else 0.0}
+    row = {"rays": r.rays, "ops": r.ops, "cycles": r.cycles, "utilization": r.utilization}
     if r.memory:
         row["bytes_from_memory"] = r.memory["bytes_from_memory"]
     return row

@@ -475,14 +475,13 @@ def group_leaves(left, right, prim, area, pairs, enabled: bool = True, lam: floa
     words)."""
     first, second, ids = pairs[0], pairs[1], pairs[5]
     lam = GROUP_LAMBDA if lam is None else lam
+    chunks = _CHUNKS_PER_THREAD * get_num_threads()
     if enabled and left[0] >= 0:
-        tri, ok = _group_fits(left, right, prim, first, second, ids,
-                              _CHUNKS_PER_THREAD * get_num_threads())
+        tri, ok = _group_fits(left, right, prim, first, second, ids, chunks)
         merge = _group_dp(left, right, prim, area, tri, ok, lam)
     else:
         merge = np.zeros(len(left), np.bool_)
-    return _apply_groups(merge, left, right, prim, first, second, ids, len(first),
-                         _CHUNKS_PER_THREAD * get_num_threads())
+    return _apply_groups(merge, left, right, prim, first, second, ids, len(first), chunks)
 
 
 @njit(cache=True, parallel=True)
