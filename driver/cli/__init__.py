@@ -30,8 +30,9 @@ COMMANDS = {
 
 EXIT_CODES = {
     EXIT_OK: "success",
-    EXIT_CHECK: "a result check failed (render --check-embree: unexplained Embree mismatches; "
-                "knn: neighbours differ beyond float32 rounding)",
+    EXIT_CHECK: "a result check failed (render --check-embree, suite: rays where exact "
+                "arithmetic finds the datapath wrong; knn: neighbours differ beyond float32 "
+                "rounding)",
     EXIT_USAGE: "bad input, usage or environment error (one line on stderr; nothing written)",
     EXIT_INTERNAL: "internal error, a bug (one line; RAYFLEX_TRACEBACK=1 shows the traceback)",
     EXIT_INTERRUPTED: "interrupted (SIGINT, Ctrl-C); nothing written, builds cleaned up",
@@ -43,6 +44,8 @@ ENVIRONMENT = {
     "RAYFLEX_PGO": "0: build RTL models in one pass, without profile-guided optimisation",
     "CXX": "C++ compiler for the RTL builds (default g++, else clang++)",
     "RAYFLEX_TRACEBACK": "1: print the traceback of an internal error",
+    "LUMIBENCH_ROOT": "a clone of LumiBench's repository, for scenes lumibench:ID",
+    "RAYFLEX_SCENE_CACHE": "0: read LumiBench scenes from their OBJ files, not from the cache",
 }
 
 
@@ -70,7 +73,9 @@ def main(argv=None) -> int:
         return EXIT_USAGE
     previous = _on_sigterm_raise()
     try:
-        return int(args.handler.run(args) or 0)
+        from ..scenes.lumibench import using_root
+        with using_root(args.lumibench_root):
+            return int(args.handler.run(args) or 0)
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
@@ -115,6 +120,9 @@ def build_parser() -> argparse.ArgumentParser:
     for target in COMMANDS.values():
         handler = _load(target)
         p = handler.add_parser(sub)
+        p.add_argument("--lumibench-root", metavar="DIR",
+                       help="a clone of LumiBench's repository, for scenes lumibench:ID "
+                            "(default: $LUMIBENCH_ROOT; docs/lumibench.md)")
         p.formatter_class = argparse.RawDescriptionHelpFormatter
         if p.epilog is None:
             p.epilog = epilog()

@@ -62,6 +62,14 @@ def provenance(point=None) -> dict:
     return make(point)
 
 
+def scene_info(scene) -> dict:
+    """What a JSON says about where its scene came from: ``lumibench`` (docs/lumibench.md:
+    the scene's ID, models, whether it is ``partial`` and the files missing) for a LumiBench
+    scene, else nothing."""
+    info = getattr(scene, "info", None)
+    return {"lumibench": info()} if callable(info) else {}
+
+
 def add_workers(p) -> None:
     from ..render import MEMORY_TILE, WHOLE_FRAME_PIXELS
     from ..tiles import DEFAULT_TILE

@@ -103,7 +103,8 @@ def load(name_or_path) -> trimesh.Trimesh:
 
 
 class Source(NamedTuple):
-    """Where a scene comes from: kind "toml" or "mesh" with a Path, or "builtin" with a name."""
+    """Where a scene comes from: kind "toml" or "mesh" with a Path, "builtin" with a name, or
+    "lumibench" with ``lumibench:ID`` (``driver.scenes.lumibench``)."""
 
     kind: str
     ref: object
@@ -117,6 +118,9 @@ def load_scene(name_or_path, up_axis: str | None = None) -> Scene:
         return name_or_path
     kind, ref = name_or_path if isinstance(name_or_path, Source) else resolve(name_or_path)
     check_up_axis(up_axis, kind)
+    if kind == "lumibench":
+        from .lumibench import load
+        return load(ref, progress=True)
     if kind == "toml":
         return _from_toml(ref)
     if kind == "mesh":
@@ -168,6 +172,9 @@ def resolve(name_or_path) -> Source:
     text = str(name_or_path)
     if not text.strip():
         raise SceneError("empty scene name")
+    from . import lumibench
+    if lumibench.is_lumibench(text):           # lumibench:ID (docs/lumibench.md)
+        return Source("lumibench", f"{lumibench.PREFIX}{lumibench.check(text).id}")
     path = Path(text).expanduser()
     bare = isinstance(name_or_path, str) and path.name == text and not path.suffix
     named = SCENES_DIR / f"{text}.toml"
@@ -197,6 +204,8 @@ def scene_name(name_or_path) -> str:
     if kind == "toml":
         name = _read_toml(ref).get("name", ref.stem)
         return name if isinstance(name, str) and name else ref.stem
+    if kind == "lumibench":
+        return ref.split(":", 1)[1]
     return ref.stem if kind == "mesh" else ref
 
 
