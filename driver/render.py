@@ -131,7 +131,7 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
                   workers, scheduler) -> RenderResult:
     from .stats import public
     from .tiles import plan, render_tiles
-    from .workloads import setup_for, tone_map
+    from .workloads import LINEAR, setup_for, tone_map
     workload = point.workload
     name = backend if isinstance(backend, str) else getattr(backend, "name", "backend")
     spec = (backend, point.backend_options()) if isinstance(backend, str) else backend
@@ -150,7 +150,7 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
                            check_embree, bar.hook)
     finally:
         bar.close()
-    image = tone_map(res.radiance, w, h, linear=workload in ("primary", "ao"))
+    image = tone_map(res.radiance, w, h, linear=workload in LINEAR)
     by_type = {k: v.reshape(h, w) for k, v in res.ops.items()}
     total = sum(by_type.values())                   # int32: ops per pixel stay far below 2**31
     stats = public(res.stats)

@@ -29,10 +29,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import lumibench_shaders
 from .scenes import sampling
 from .stats import merge
 
-WORKLOADS = ("primary", "shadow", "ao", "path")
+WORKLOADS = ("primary", "shadow", "ao", "path") + lumibench_shaders.WORKLOADS
+LINEAR = ("primary", "ao") + lumibench_shaders.WORKLOADS   # images shown linear (no exposure)
 SHADOW_EXTENT = 1.0 - 1e-4     # shadow rays aim at the light sample with d = y - x: t in [0, 1)
 DEFAULT_ALBEDO = 0.75
 TONE_ROWS = 256                                # tone mapping works on this many rows at a time
@@ -166,6 +168,10 @@ class Frame:
                        else np.asarray(pixels, np.int64))
         self.batches: list[Batch] = []
 
+    def trace_rays(self, kind, pixel, sample, origins, dirs, extent, any_hit) -> Batch:
+        """Trace one wavefront of ray type ``kind`` (a ``Batch``'s fields) and keep it."""
+        return self._run(Batch(kind, pixel, sample, origins, dirs, extent, any_hit))
+
     def _run(self, batch: Batch) -> Batch:
         batch.result = self.trace(self.bvh, batch.origins, batch.dirs, extent=batch.extent,
                                   any_hit=batch.any_hit, double_sided=self.setup.double_sided)
@@ -260,6 +266,8 @@ def run(setup: Setup, bvh, width: int, height: int, tracer, workload: str = "pri
     if workload not in WORKLOADS:
         raise ValueError(f"unknown workload {workload!r}; available: {', '.join(WORKLOADS)}")
     fr = Frame(setup, bvh, width, height, tracer, **options)
+    if workload in lumibench_shaders.WORKLOADS:             # docs/lumibench.md
+        return _finish(fr, lumibench_shaders.run(fr, workload))
     npix = len(fr.pixels)
     radiance = np.zeros((npix * fr.spp, 3))
     prim = fr.primary()
@@ -372,9 +380,12 @@ def embree_check(result: FrameResult, setup: Setup) -> dict:
             rows, tri, prim = embree_sample(tri.instances, b.origins, b.dirs, b.extent, r.t,
                                             r.prim)
         ext = np.broadcast_to(np.asarray(b.extent, np.float64), (len(r.t),))
-        per_kind.setdefault(b.kind, []).append(check_rays(
-            tri, b.origins[rows], b.dirs[rows], ext[rows], r.t[rows], prim, b.any_hit,
-            setup.double_sided))
+        part = check_rays(tri, b.origins[rows], b.dirs[rows], ext[rows], r.t[rows], prim,
+                          b.any_hit, setup.double_sided)
+        for rec in part["adjudicated"]["rays"]:         # which ray: its type, pixel, sample
+            at = np.arange(len(r.t))[rows][rec.pop("ray")]
+            rec.update(ray_type=b.kind, pixel=int(b.pixel[at]), sample=int(b.sample[at]))
+        per_kind.setdefault(b.kind, []).append(part)
     for kind, parts in per_kind.items():
         result.stats["by_type"][kind]["embree"] = merge_checks(parts)
     total = merge_checks([p for parts in per_kind.values() for p in parts])

@@ -11,8 +11,8 @@ import sys
 
 from .. import design
 from .common import (EXIT_CHECK, PROG, add_backend, add_json, add_progress, add_view, add_workers,
-                     check_backend, check_flag_size, check_positive, provenance, view_options,
-                     wrote)
+                     check_backend, check_flag_size, check_positive, provenance, scene_info,
+                     view_options, wrote)
 from .export import Export, add_export
 
 
@@ -46,6 +46,7 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
+    from ..check import failed
     from ..scenes.camera import check_size
     from ..outputs import IMAGE, JSON, Outputs, write_json
     from ..progress import phase
@@ -98,16 +99,19 @@ def run(args) -> int:
         res.save_heatmap(outs.temp(hm))
         if js:
             write_json({"provenance": provenance(point), "scene": scene.name, "width": w,
-                        "height": h, **res.stats}, outs.temp(js))
+                        "height": h, **scene_info(scene), **res.stats}, outs.temp(js))
         if dump:
             dump.write(scene, w, h, point.workload, point.workload_options(), res.stats.get("tile"),
                        point.tree_options(), not args.no_progress, point.backend_options())
     print(summary(res))
     wrote(outs.paths())
     emb = res.stats.get("embree")
-    if emb and (emb["hit_mismatch"] or emb["prim_mismatch"]):
+    if failed(emb):
+        wrong = (emb.get("adjudicated") or {}).get("classes", {}).get("datapath_wrong")
         print(f"{PROG}: Embree check: {emb['hit_mismatch']} hit/miss and "
-              f"{emb['prim_mismatch']} primitive mismatches", file=sys.stderr)
+              f"{emb['prim_mismatch']} primitive mismatches"
+              + (f", {wrong} rays where the datapath is wrong" if wrong is not None else ""),
+              file=sys.stderr)
         return EXIT_CHECK
     return 0
 
@@ -152,4 +156,8 @@ def summary(res) -> str:
         lines.append(f"embree: {e['rays_compared']} rays compared, {e['hit_mismatch']} hit/miss "
                      f"mismatches, {e['prim_mismatch']} primitive mismatches, {e['edge_ties']} "
                      f"edge ties, max t rel err {e['max_t_rel_err']:.2g}")
+        if "adjudicated" in e:
+            c = e["adjudicated"]["classes"]
+            lines.append("embree adjudicated (exact arithmetic): "
+                         + ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in c.items()))
     return "\n".join(lines)
