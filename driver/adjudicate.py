@@ -8,9 +8,12 @@ far below the tie band below, so the decision is exact for this purpose:
 
 - ``agree``: the same primitive, or both miss (any-hit rays: both occluded or both not).
 - ``edge_tie``: both answers are right to float32 precision: the two hits lie within the tie
-  band of each other (``T_REL`` of t, or ``POINT_REL`` of the scene's size along the ray), or the
-  hit in question lies within ``POINT_REL`` of the scene's size of its triangle's edge or of the
-  ray's extent (a ray through a shared edge or vertex, coplanar overlaps).
+  band of each other, or the hit in question lies within the band of its triangle's edge, of
+  the ray's origin or of its extent (a ray through a shared edge or vertex, coplanar overlaps,
+  a ray leaving a surface). The band: ``POINT_REL`` of the scene's coordinate scale as a
+  distance (where float32 coordinates put a triangle's plane and edges), which along a ray that
+  crosses the plane at a grazing angle is that distance over the sine of the angle
+  (``tie_band``), plus ``T_REL`` of t.
 - ``embree_wrong``: our hit is the exact nearest valid hit (closest-hit rays: among both
   candidates, then among all triangles of the scene; any-hit rays: a valid hit within the
   extent), Embree's answer is not; counted, not a failure. Each such ray is explained, e.g. a
@@ -35,7 +38,7 @@ from numba import njit, prange
 T_REL = 1e-5          # relative t band of a tie
 POINT_REL = 1e-5      # distance band (edges, extent), relative to the scene's coordinate scale
 MAX_SEARCH = 4096     # rays searched over all triangles per call
-RECORDS = 16          # per-ray explanations kept in an ``embree`` object
+RECORDS = 16          # explained rays of each class kept in an ``embree`` object
 CLASSES = ("agree", "edge_tie", "embree_wrong", "datapath_wrong")
 EXPLAIN = {
     "agree": "the same primitive, or both miss (any-hit rays: both occluded or both not)",
@@ -53,8 +56,10 @@ EXPLAIN = {
 
 def exact(tri, o, d):
     """Exact (float64) intersection of rays with the planes of their triangles: (t, margin,
-    front, degenerate). ``margin``: the signed distance of the plane point from the nearest
-    edge line (positive inside); ``front``: d . n < 0 (n = (B - A) x (C - A))."""
+    front, degenerate, slope). ``margin``: the signed distance of the plane point from the
+    nearest edge line (positive inside); ``front``: d . n < 0 (n = (B - A) x (C - A));
+    ``slope``: |d . n| / |n|, how far the ray moves off the plane per unit of t (a grazing ray's
+    crossing moves far along the ray for a small change of the plane: ``tie_band``)."""
     tri = np.asarray(tri, np.float64).reshape(-1, 3, 3)
     o = np.asarray(o, np.float64).reshape(-1, 3)
     d = np.asarray(d, np.float64).reshape(-1, 3)
@@ -71,16 +76,26 @@ def exact(tri, o, d):
             e = v - u
             s = np.einsum("ij,ij->i", np.cross(e, q - u), n) / (nn * np.linalg.norm(e, axis=1))
             margin = np.minimum(margin, s)
+        slope = np.abs(den) / nn
     t = np.where(degenerate, np.nan, t)
     margin = np.where(degenerate, -np.inf, np.nan_to_num(margin, nan=-np.inf))
-    return t, margin, den < 0, degenerate
+    return t, margin, den < 0, degenerate, np.where(degenerate, 0.0, slope)
+
+
+def tie_band(t, slope, band):
+    """The tie band in t of a plane crossing at ``t`` whose ray moves ``slope`` off the plane
+    per unit of t: ``T_REL`` of t, plus the plane's position band (``band``, a distance) seen
+    along the ray."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return T_REL * np.abs(np.nan_to_num(t)) + band / np.asarray(slope, np.float64)
 
 
 @njit(cache=True, parallel=True)
-def _search(tri, o, d, limit, same_t, band, t_rel, double_sided):
-    """For each ray: the nearest clearly valid hit (margin > band, 0 < t < limit, facing the
-    ray unless double-sided) over all triangles, and the nearest back face within the tie band
-    of ``same_t`` (culled rays). Returns (t, prim, back_prim)."""
+def _search(tri, o, d, limit, same_t, same_tol, band, t_rel, double_sided):
+    """For each ray: the nearest clearly valid hit (margin > band, clearly in front of the
+    origin and clearly before ``limit`` by its own tie band, facing the ray unless
+    double-sided) over all triangles, and the nearest back face within the tie bands of
+    ``same_t`` (culled rays). Returns (t, prim, back_prim)."""
     k = o.shape[0]
     best_t = np.full(k, np.inf)
     best_p = np.full(k, -1, np.int64)
@@ -89,10 +104,8 @@ def _search(tri, o, d, limit, same_t, band, t_rel, double_sided):
     for r in prange(k):
         ox, oy, oz = o[r, 0], o[r, 1], o[r, 2]
         dx, dy, dz = d[r, 0], d[r, 1], d[r, 2]
-        dn = np.sqrt(dx * dx + dy * dy + dz * dz)
         lim = limit[r]
         st = same_t[r]
-        tol = t_rel * abs(st) + band / dn
         bt = np.inf
         bp = -1
         kp = -1
@@ -110,14 +123,14 @@ def _search(tri, o, d, limit, same_t, band, t_rel, double_sided):
             if den == 0.0:
                 continue
             t = ((ax - ox) * nx + (ay - oy) * ny + (az - oz) * nz) / den
-            if not t > band / dn:
-                continue
+            nl = np.sqrt(nx * nx + ny * ny + nz * nz)
+            tol = t_rel * abs(t) + band * nl / abs(den)
             front = den < 0.0
-            near_same = abs(t - st) <= tol
-            if not (t < lim or (near_same and not front)):
+            near_same = abs(t - st) <= tol + same_tol[r]
+            candidate = t - tol > 0.0 and t + tol < lim and (double_sided or front)
+            if not (candidate or (near_same and not front)):
                 continue
             qx, qy, qz = ox + t * dx, oy + t * dy, oz + t * dz
-            nl = np.sqrt(nx * nx + ny * ny + nz * nz)
             margin = np.inf
             for j in range(3):
                 ux, uy, uz = float(tri[i, j, 0]), float(tri[i, j, 1]), float(tri[i, j, 2])
@@ -132,7 +145,7 @@ def _search(tri, o, d, limit, same_t, band, t_rel, double_sided):
                 s = (cxx * nx + cyy * ny + czz * nz) / (nl * el) if el > 0 else -np.inf
                 if s < margin:
                     margin = s
-            if t < lim and margin > band and (double_sided or front) and t < bt:
+            if candidate and margin > band and t < bt:
                 bt = t
                 bp = i
             if near_same and not front and margin >= -band and abs(t - st) < kd:
@@ -149,13 +162,18 @@ class Verdicts:
 
     def __init__(self, n: int):
         self.cls = np.zeros(n, np.int8)                 # index into CLASSES (0: agree)
-        self.records: list = []
+        self.by_class: dict = {c: [] for c in CLASSES[1:]}
 
     def set(self, i: int, cls: str, reason: str, **fields) -> None:
         self.cls[i] = CLASSES.index(cls)
-        if cls != "agree" and len(self.records) < RECORDS:
-            self.records.append({"ray": int(i), "class": cls, "reason": reason,
-                                 **{k: _plain(v) for k, v in fields.items()}})
+        if cls != "agree" and len(self.by_class[cls]) < RECORDS:
+            self.by_class[cls].append({"ray": int(i), "class": cls, "reason": reason,
+                                       **{k: _plain(v) for k, v in fields.items()}})
+
+    @property
+    def records(self) -> list:
+        """The explained rays: up to ``RECORDS`` of each class, datapath-wrong ones first."""
+        return [r for c in reversed(CLASSES[1:]) for r in self.by_class[c]]
 
     def counts(self) -> dict:
         c = np.bincount(self.cls, minlength=len(CLASSES))
@@ -171,17 +189,33 @@ def _plain(v):
 
 
 def _cand(tri, prim, o, d):
-    """(t, margin, front, degenerate) of each ray's candidate triangle (nan where prim < 0)."""
+    """(t, margin, front, degenerate, slope) of each ray's candidate triangle (t nan where
+    prim < 0)."""
     k = len(prim)
-    t = np.full(k, np.nan)
-    margin = np.full(k, -np.inf)
-    front = np.zeros(k, bool)
-    deg = np.ones(k, bool)
+    t, margin, slope = np.full(k, np.nan), np.full(k, -np.inf), np.zeros(k)
+    front, deg = np.zeros(k, bool), np.ones(k, bool)
     has = prim >= 0
     if has.any():
-        t[has], margin[has], front[has], deg[has] = exact(
+        t[has], margin[has], front[has], deg[has], slope[has] = exact(
             np.asarray(tri[prim[has]], np.float64), o[has], d[has])
-    return t, margin, front, deg
+    return t, margin, front, deg, slope
+
+
+class _Candidate:
+    """One side's candidate hit of the rays being decided, and whether it is valid (a hit of
+    the ray to float32 precision) and clear (valid, and clear of its edges, the origin and the
+    extent by the tie bands)."""
+
+    def __init__(self, tri, prim, o, d, ext, band, double_sided):
+        self.has = prim >= 0
+        self.t, self.margin, self.front, self.degenerate, slope = _cand(tri, prim, o, d)
+        self.tol = tie_band(self.t, slope, band)
+        with np.errstate(invalid="ignore"):
+            self.valid = (self.has & ~self.degenerate & (self.t > -self.tol)
+                          & (self.t < ext + self.tol) & (self.margin >= -band)
+                          & (self.front | double_sided))
+            self.clear = (self.valid & (self.margin > band) & (self.t > self.tol)
+                          & (self.t < ext - self.tol))
 
 
 def adjudicate(triangles, origins, dirs, extent, our_t, our_prim, emb_t, emb_prim,
@@ -208,95 +242,77 @@ def adjudicate(triangles, origins, dirs, extent, our_t, our_prim, emb_t, emb_pri
         return v
     band = POINT_REL * scale
     oo, dd, ee = o[rays], d[rays], ext[rays]
-    dn = np.linalg.norm(dd, axis=1)
-    ta, ma, fa, ga = _cand(triangles, prim[rays], oo, dd)
-    tb, mb, fb, gb = _cand(triangles, eprim[rays], oo, dd)
-
-    def tol(t):
-        return T_REL * np.abs(np.nan_to_num(t)) + band / dn
-
-    def valid(t, m, f, g):
-        with np.errstate(invalid="ignore"):
-            return (~g & (t > -tol(t)) & (t < ee + tol(t)) & (m >= -band)
-                    & (f | double_sided))
-
-    def clear(t, m, f, g):
-        with np.errstate(invalid="ignore"):
-            return valid(t, m, f, g) & (m > band) & (t > tol(t)) & (t < ee - tol(t))
-
-    va, vb = valid(ta, ma, fa, ga), valid(tb, mb, fb, gb)
-    ca, cb = clear(ta, ma, fa, ga), clear(tb, mb, fb, gb)
-    has_a, has_b = prim[rays] >= 0, eprim[rays] >= 0
+    a = _Candidate(triangles, prim[rays], oo, dd, ee, band, double_sided)
+    b = _Candidate(triangles, eprim[rays], oo, dd, ee, band, double_sided)
     search = []
     for k, i in enumerate(rays):
-        info = dict(ours_prim=prim[i], ours_t=our_t[i], ours_t_exact=ta[k], ours_margin=ma[k],
-                    embree_prim=eprim[i], embree_t=emb_t[i], embree_t_exact=tb[k],
-                    embree_margin=mb[k])
-        if has_a[k] and not va[k]:
-            v.set(i, "datapath_wrong", _why_invalid("our", ta[k], ma[k], fa[k], ga[k], ee[k],
-                                                    band, double_sided), **info)
+        info = dict(ours_prim=prim[i], ours_t=our_t[i], ours_t_exact=a.t[k],
+                    ours_margin=a.margin[k], embree_prim=eprim[i], embree_t=emb_t[i],
+                    embree_t_exact=b.t[k], embree_margin=b.margin[k])
+        if a.has[k] and not a.valid[k]:
+            v.set(i, "datapath_wrong", _why_invalid("our", a, k, ee[k], band, double_sided),
+                  **info)
         elif any_hit:
-            if has_a[k]:                     # we are occluded, Embree is not
-                if ca[k]:
+            if a.has[k]:                     # we are occluded, Embree is not
+                if a.clear[k]:
                     v.set(i, "embree_wrong", "Embree's occlusion query reports nothing within "
                           "the extent; our triangle is hit exactly within it", **info)
                 else:
-                    v.set(i, "edge_tie", _why_marginal("our", ta[k], ma[k], ee[k], band), **info)
-            elif has_b[k] and cb[k]:
+                    v.set(i, "edge_tie", _why_marginal("our", a, k, ee[k], band), **info)
+            elif b.clear[k]:
                 v.set(i, "datapath_wrong", "Embree's occluder is hit exactly within the extent "
                       "and clear of its edges; we report no hit", **info)
-            elif has_b[k] and vb[k]:
-                v.set(i, "edge_tie", _why_marginal("Embree's", tb[k], mb[k], ee[k], band),
-                      **info)
+            elif b.valid[k]:
+                v.set(i, "edge_tie", _why_marginal("Embree's", b, k, ee[k], band), **info)
             else:
                 v.set(i, "embree_wrong", "Embree reports an occluder that is no exact hit of "
                       "the ray within its extent", **info)
-        elif has_b[k] and vb[k] and (not has_a[k] or tb[k] < ta[k] - tol(ta[k:k + 1])[0]):
-            if cb[k]:
+        elif b.valid[k] and (not a.has[k] or b.t[k] + b.tol[k] < a.t[k] - a.tol[k]):
+            if b.clear[k]:
                 v.set(i, "datapath_wrong", "Embree's triangle is hit exactly, clearly nearer "
                       "than ours (or we report no hit)", **info)
             else:
-                v.set(i, "edge_tie", _why_marginal("Embree's", tb[k], mb[k], ee[k], band), **info)
-        elif has_a[k]:
-            if has_b[k] and vb[k] and abs(ta[k] - tb[k]) <= tol(ta[k:k + 1])[0]:
+                v.set(i, "edge_tie", _why_marginal("Embree's", b, k, ee[k], band), **info)
+        elif a.has[k]:
+            if b.valid[k] and abs(a.t[k] - b.t[k]) <= a.tol[k] + b.tol[k]:
                 v.set(i, "edge_tie", "both triangles are hit at the same t to float32 precision "
                       "(a shared edge or vertex, or coplanar triangles)", **info)
             else:
                 search.append((k, i, info))
-        elif has_b[k]:
-            v.set(i, "embree_wrong", _why_invalid("Embree's", tb[k], mb[k], fb[k], gb[k], ee[k],
-                                                  band, double_sided), **info)
+        elif b.has[k]:
+            v.set(i, "embree_wrong", _why_invalid("Embree's", b, k, ee[k], band, double_sided),
+                  **info)
         else:
             v.set(i, "agree", "", **info)
     if search:
-        _settle(v, search, np.asarray(triangles, np.float32).reshape(-1, 3, 3), oo, dd, ta, ma,
-                has_b, vb, band, double_sided, tol)
+        _settle(v, search, np.asarray(triangles, np.float32).reshape(-1, 3, 3), oo, dd, ee, a, b,
+                band, double_sided)
     return v
 
 
-def _settle(v, search, tri, oo, dd, ta, ma, has_b, vb, band, double_sided, tol):
+def _settle(v, search, tri, oo, dd, ee, a, b, band, double_sided):
     """Rays where our hit is valid and at least as near as Embree's candidate: search every
     triangle for a clearly nearer valid hit."""
     todo = search[:MAX_SEARCH]
     ks = np.array([k for k, _, _ in todo], np.int64)
-    limit = ta[ks] - tol(ta[ks])
+    limit = a.t[ks] - a.tol[ks]
     bt, bp, back = _search(tri, np.ascontiguousarray(oo[ks]), np.ascontiguousarray(dd[ks]),
-                           limit, ta[ks], band, T_REL, bool(double_sided))
+                           limit, a.t[ks], a.tol[ks], band, T_REL, bool(double_sided))
     for j, (k, i, info) in enumerate(todo):
         if bp[j] >= 0:
             v.set(i, "datapath_wrong", f"triangle {bp[j]} is hit exactly at t {bt[j]:.9g}, "
                   "clearly nearer than ours", nearest_prim=bp[j], nearest_t=bt[j], **info)
-        elif ma[k] <= band:
-            v.set(i, "edge_tie", _why_marginal("our", ta[k], ma[k], np.inf, band), **info)
+        elif not a.clear[k]:
+            v.set(i, "edge_tie", _why_marginal("our", a, k, ee[k], band), **info)
         elif back[j] >= 0 and not double_sided:
             v.set(i, "embree_wrong", f"ours is the nearest front face; back face {back[j]} lies "
                   "at the same t (a two-sided sheet of two opposite triangles): the culling "
                   "emulation re-casts past the back face and skips the coincident front face",
                   back_prim=back[j], **info)
-        elif has_b[k] and vb[k]:
+        elif b.valid[k]:
             v.set(i, "embree_wrong", "ours is the exact nearest valid hit among all triangles; "
                   "Embree's is farther", **info)
-        elif has_b[k]:
+        elif b.has[k]:
             v.set(i, "embree_wrong", "ours is the exact nearest valid hit among all triangles; "
                   "Embree's is no exact hit of the ray", **info)
         else:
@@ -307,30 +323,35 @@ def _settle(v, search, tri, oo, dd, ta, ma, has_b, vb, band, double_sided, tol):
               "batch", **info)
 
 
-def _why_invalid(who, t, m, front, degenerate, ext, band, double_sided) -> str:
-    if degenerate:
+def _why_invalid(who, c: _Candidate, k, ext, band, double_sided) -> str:
+    t, m = c.t[k], c.margin[k]
+    if c.degenerate[k]:
         return f"{who} triangle is degenerate or parallel to the ray (no hit)"
-    if not t > 0:
+    if not t > -c.tol[k]:
         return f"{who} hit lies behind the ray's origin (exact t {t:.6g})"
-    if not t < ext:
+    if not t < ext + c.tol[k]:
         return f"{who} hit lies beyond the ray's extent (exact t {t:.6g}, extent {ext:.6g})"
     if m < -band:
         return f"{who} hit point lies {-m:.3g} outside its triangle"
-    if not (front or double_sided):
+    if not (c.front[k] or double_sided):
         return f"{who} triangle is a back face of the ray (culled)"
     return f"{who} hit is no exact hit"
 
 
-def _why_marginal(who, t, m, ext, band) -> str:
+def _why_marginal(who, c: _Candidate, k, ext, band) -> str:
+    t, m = c.t[k], c.margin[k]
     if m <= band:
         return f"{who} hit lies on its triangle's edge (within {band:.3g} of it: {m:.3g})"
-    if abs(t) < abs(ext - t):
-        return f"{who} hit lies at the ray's origin to float32 precision (exact t {t:.3g})"
+    if abs(t) <= c.tol[k]:
+        return (f"{who} hit lies at the ray's origin to float32 precision (exact t {t:.3g}, "
+                f"band {c.tol[k]:.3g})")
     return f"{who} hit lies at the ray's extent to float32 precision (t {t:.6g}, extent {ext:.6g})"
 
 
 def merge(parts: list[dict]) -> dict:
-    """Adjudication objects of several batches taken together."""
+    """Adjudication objects of several batches taken together (up to ``RECORDS`` explained rays
+    of each class, datapath-wrong ones first)."""
     out = {c: sum(p["classes"][c] for p in parts) for c in CLASSES}
-    rays = [r for p in parts for r in p.get("rays", [])][:RECORDS]
+    rays = [r for c in reversed(CLASSES[1:])
+            for r in [r for p in parts for r in p.get("rays", []) if r["class"] == c][:RECORDS]]
     return {"classes": out, "explain": dict(EXPLAIN), "rays": rays}

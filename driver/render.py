@@ -80,7 +80,7 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
            check_embree: bool = False, workload: str = "primary", spp: int = 1, bounces: int = 1,
            ao_rays: int = 4, seed: int = 0, tile: int | None = None, workers: int = 1,
            scheduler: str | None = None, fill: int = 0, cull_stack: bool = False,
-           point=None, rtunit: bool = False) -> RenderResult:
+           point=None, rtunit: bool = False, replay_plain: bool = True) -> RenderResult:
     """Render ``scene`` (a Scene, or anything ``load_scene`` takes) at width x height (default:
     the scene's size) with every box/triangle test on ``backend``; optionally cross-check every
     ray against Embree.
@@ -96,7 +96,8 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
     ``point``: a ``driver.design.DesignPoint``; its datapath configuration and latency make the
     backend (a backend name; a backend object is used as it is), and its workload and BVH
     options replace the keyword arguments above. ``rtunit``: also replay every wavefront's
-    requests on the point's RT unit (statistics ``rtunit`` and ``rtunit_memory``). The
+    requests on the point's RT unit (statistics ``rtunit`` and ``rtunit_memory``;
+    ``replay_plain`` False: only ``rtunit_memory``, each request simulated twice in all). The
     statistics are in the published schema (``driver.stats.public``, docs/statistics.md)."""
     from .design import DesignPoint
     if point is None:
@@ -107,6 +108,7 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
                       height if height is not None else scene.size[1])
     tile = plan_tile(w * h, point.workload, point.spp, tile, workers, scheduler)
     check_frame_memory(w * h, point.spp, tile)
+    rtunit = "plain" if rtunit and replay_plain else ("memory" if rtunit else None)
     if tile is None:
         return _render_whole(scene, w, h, backend, progress, check_embree, point, rtunit)
     return _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, tile,
@@ -144,7 +146,8 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
     tiles = plan(w, h, tile)
     bar = progress_bar(len(tiles), f"{scene.name} {w}x{h} {workload} {name}", "tile", progress)
     options = point.workload_options() | {"cull_stack": point.cull_stack,
-                                          "rtunit": point if rtunit else None}
+                                          "rtunit": point if rtunit else None,
+                                          "rtunit_plain": rtunit == "plain"}
     try:
         res = render_tiles(setup, bvh, w, h, workload, options, spec, tile, workers, scheduler,
                            check_embree, bar.hook)
@@ -160,7 +163,7 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
 
 
 def _render_whole(scene, w, h, backend, progress, check_embree, point,
-                  rtunit=False) -> RenderResult:
+                  rtunit=None) -> RenderResult:
     """The primary frame as one wavefront of every pixel."""
     from .stats import public, replay_stats
     from .tracer import trace
@@ -176,7 +179,7 @@ def _render_whole(scene, w, h, backend, progress, check_embree, point,
     try:
         result = trace(bvh, origins, dirs, backend=be, progress=bar.hook,
                        cull_stack=point.cull_stack, double_sided=scene.double_sided,
-                       record=rtunit)
+                       record=rtunit is not None)
     finally:
         bar.close()
 
@@ -186,7 +189,8 @@ def _render_whole(scene, w, h, backend, progress, check_embree, point,
     stats = dict(result.stats)
     if rtunit:
         with phase(f"RT-unit replay of {result.record.ops:,} requests", progress):
-            stats["rtunit"], stats["rtunit_memory"] = replay_stats([result.record], point)
+            stats["rtunit"], stats["rtunit_memory"] = replay_stats([result.record], point,
+                                                                   rtunit == "plain")
     stats = public(stats)
     emb = None
     if check_embree:

@@ -102,13 +102,14 @@ def run_tile(setup, bvh, width: int, height: int, pixels, workload: str, options
     options = dict(options)
     cull = bool(options.pop("cull_stack", False))
     point = options.pop("rtunit", None)
+    plain = bool(options.pop("rtunit_plain", True))
 
     def tracer(bvh_, o, d, **kw):
         return trace(bvh_, o, d, backend=be, cull_stack=cull, record=point is not None, **kw)
 
     res = run(setup, bvh, width, height, tracer, workload, pixels=pixels, **options)
     if point is not None:
-        add_replays(res, point)
+        add_replays(res, point, plain)
     embree = {}
     if check_embree:
         embree_check(res, setup)
@@ -118,15 +119,16 @@ def run_tile(setup, bvh, width: int, height: int, pixels, workload: str, options
                       res.stats["by_type"], embree)
 
 
-def add_replays(res: FrameResult, point) -> None:
+def add_replays(res: FrameResult, point, plain: bool = True) -> None:
     """Replay each ray type's recorded wavefronts of a traced frame on the RT unit of design
-    point ``point``: ``rtunit`` and ``rtunit_memory`` into each ``by_type`` entry and, added
-    up, into the frame's statistics (``driver.stats.replay_stats``)."""
+    point ``point``: ``rtunit`` (unless not ``plain``) and ``rtunit_memory`` into each
+    ``by_type`` entry and, added up, into the frame's statistics
+    (``driver.stats.replay_stats``)."""
     from .stats import merge_rtunit, replay_stats
     by_type = res.stats["by_type"]
     for kind, entry in by_type.items():
         records = [b.result.record for b in res.batches if b.kind == kind]
-        entry["rtunit"], entry["rtunit_memory"] = replay_stats(records, point)
+        entry["rtunit"], entry["rtunit_memory"] = replay_stats(records, point, plain)
     for key in ("rtunit", "rtunit_memory"):
         res.stats[key] = merge_rtunit([e[key] for e in by_type.values()])
 

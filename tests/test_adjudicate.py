@@ -90,14 +90,25 @@ def test_datapath_wrong_when_the_reported_triangle_is_missed():
 
 
 def test_embree_wrong_when_ours_is_the_nearest_among_all_triangles():
-    """Embree's candidate is farther and nothing nearer than ours exists in the scene (the
-    search over every triangle settles it)."""
-    tri = np.array([NEAR, FAR], F32)
-    o, d = ray(*DOWN)
-    v = adjudicate(tri, o, d, np.inf, np.array([10.0], F32), np.array([0]),
-                   np.array([15.0], F32), np.array([1]), False, False, 10.0)
-    assert v.counts()["embree_wrong"] == 1
-    assert "nearest valid hit among all triangles" in v.records[0]["reason"]
+    """Embree's candidate is farther (or missing) and nothing nearer than ours exists in the
+    scene: the search over every triangle settles it, for the rays that need it among others
+    (rays 0 and 3 agree; 1 and 2 are searched; on ray 4 Embree's nearer hit shows the
+    datapath's error)."""
+    hidden = [[-0.5, -0.5, 5.0], [0.5, -0.5, 5.0], [0.0, 0.5, 5.0]]   # between camera and NEAR
+    tri = np.array([NEAR, FAR, hidden], F32)
+    o, d = ray((0.9, -0.9, 10.0), (0.0, 0.0, -1.0), n=5)
+    o[[1, 4]] = (0.0, 0.0, 10.0)
+    o[3] = (1.5, -1.5, 10.0)
+    our_t = np.array([10.0, 5.0, 10.0, 15.0, 10.0], F32)
+    ours = np.array([0, 2, 0, 1, 0])
+    o[2] = (0.9, -0.9, 10.0)
+    emb_t = np.array([10.0, 15.0, np.inf, 15.0, 5.0], F32)
+    emb = np.array([0, 1, -1, 1, 2])
+    v = adjudicate(tri, o, d, np.inf, our_t, ours, emb_t, emb, False, False, 10.0)
+    assert [CLASSES[c] for c in v.cls] == ["agree", "embree_wrong", "embree_wrong", "agree",
+                                           "datapath_wrong"]
+    reasons = {r["ray"]: r["reason"] for r in v.records}
+    assert "Embree's is farther" in reasons[1] and "Embree reports no hit" in reasons[2]
 
 
 def test_any_hit_classes():

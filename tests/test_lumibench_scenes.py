@@ -63,7 +63,7 @@ def root(tmp_path, monkeypatch):
     (folder / "flag.mtl").write_text(FLAG_MTL)
     (folder / "tub.mtl").write_text("newmtl tub\nKd 1 1 1\n")   # its tub.obj is missing
     (folder / "Camera.camera").write_text("0.5 0.5 6\n0.5 0.5 0\n")
-    monkeypatch.setenv("RAYFLEX_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("RAYFLEX_SCENE_CACHE", str(tmp_path / "cache"))
     monkeypatch.setenv(lb.ROOT_ENV, str(tmp_path))
     return tmp_path
 

@@ -25,6 +25,7 @@ COMMANDS = {
     "knn": "driver.cli.knn",
     "bench": "driver.cli.bench",
     "sweep": "driver.cli.sweep",
+    "suite": "driver.cli.suite",
     "power": "driver.power",
 }
 
@@ -45,7 +46,8 @@ ENVIRONMENT = {
     "CXX": "C++ compiler for the RTL builds (default g++, else clang++)",
     "RAYFLEX_TRACEBACK": "1: print the traceback of an internal error",
     "LUMIBENCH_ROOT": "a clone of LumiBench's repository, for scenes lumibench:ID",
-    "RAYFLEX_SCENE_CACHE": "0: read LumiBench scenes from their OBJ files, not from the cache",
+    "RAYFLEX_SCENE_CACHE": "LumiBench scene cache: a folder (default: RAYFLEX_CACHE/scenes), "
+                           "or 0: read the OBJ files every time",
 }
 
 

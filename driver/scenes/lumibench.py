@@ -25,7 +25,8 @@ those definitions; ``load(id)`` reproduces one from the repository at ``root()``
 
 Loaded scenes are cached (``CACHE_VERSION``) as an ``.npz`` in ``cache_dir()/scenes``, keyed by
 the definition and the contents (BLAKE2b) of every file it reads, so a second run of a scene
-reads one file instead of its OBJ files (set ``RAYFLEX_SCENE_CACHE=0`` to bypass it).
+reads one file instead of its OBJ files (``RAYFLEX_SCENE_CACHE``: 0 bypasses the cache, a
+folder puts it there).
 """
 
 from __future__ import annotations
@@ -246,7 +247,7 @@ def check(name: str, root_dir=None) -> Definition:
     base = root(root_dir) / d.path
     if d.kind == "folder" and not base.is_dir():
         raise SceneError(f"{PREFIX}{d.id}: the folder {d.path} is not in {root(root_dir)}")
-    if d.kind == "model" and not base.is_file() and not d.cornell:
+    if d.kind == "model" and not base.is_file():
         raise SceneError(f"{PREFIX}{d.id}: its model {d.path} is not in {root(root_dir)}")
     return d
 
@@ -316,6 +317,10 @@ def _inputs(d: Definition, base: Path) -> tuple[list[Path], list[Path]]:
 
 
 def _cache_dir() -> Path:
+    """``$RAYFLEX_SCENE_CACHE`` when it names a folder, else the build cache's ``scenes``."""
+    given = os.environ.get(CACHE_ENV)
+    if given and given != "0" and given != "1":
+        return Path(given).expanduser()
     from ..verilate import cache_dir
     return cache_dir() / "scenes"
 

@@ -1,0 +1,425 @@
+"""``rayflex suite``: a benchmark's runs, each on the RTL with every ray checked and replayed on
+the RT unit (docs/lumibench.md).
+
+A suite is a list of runs (``Run``: a name, a scene, a workload, a frame size and samples per
+pixel). LumiBench is the built-in one (``lumibench_runs``): every scene x shader the given
+repository can make, each at the benchmark's 128 x 128 and 2 samples per pixel, named like the
+benchmark's logs (``BATH_AO``); ``read_suite`` reads any other list from a TOML file.
+
+Every run (``execute``) loads its scene (a LumiBench scene from its cache after the first
+time), builds its BVH, traces the frame on the backend with the design point's datapath, checks
+every ray against Embree (adjudicated, ``driver.adjudicate``) and replays every wavefront on
+the point's RT unit (``rtunit_memory``; with ``plain`` also without the node memory,
+``rtunit``). Runs are independent tasks: in this process, or on Dask workers (``--workers``,
+``--scheduler``, the cluster code of ``driver.tiles``), the largest first. Each finished run is
+written at once into the output folder as ``NAME.json`` (its statistics, docs/statistics.md)
+and ``NAME.png`` (its image), atomically; a suite started again on the same folder skips every
+run whose JSON was made by the same source tree with the same run and design point, so an
+interrupted suite resumes where it stopped. At the end ``summary.json`` and ``summary.csv``
+(one row per run: rays, ops per ray, RT-unit utilization with the node memory, bytes from
+memory per ray, cache hit rate, energy per ray, the check's classes) and ``summary.png`` (those
+figures per run, grouped by shader).
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from .errors import RayflexError
+
+SUMMARY = ("summary.json", "summary.csv", "summary.png")
+_RUN_KEYS = {"name", "scene", "workload", "size", "spp", "bounces", "ao_rays", "seed"}
+_COST = {"lumibench-pt": 4.0, "path": 4.0, "lumibench-ao": 2.5, "ao": 2.5}   # order only
+
+
+class SuiteError(RayflexError):
+    """A bad suite: file, run list, or output folder (one line)."""
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run of a suite: ``name`` (its files' stem), ``scene``, ``workload``, and the
+    workload options that differ from the design point's."""
+
+    name: str
+    scene: str
+    workload: str
+    size: int = 128
+    spp: int = 2
+    bounces: int | None = None
+    ao_rays: int | None = None
+    seed: int | None = None
+
+    def point(self, base):
+        """The design point of this run: ``base`` with the run's workload fields."""
+        extra = {k: v for k, v in (("bounces", self.bounces), ("ao_rays", self.ao_rays),
+                                   ("seed", self.seed)) if v is not None}
+        return base.replace(scene=self.scene, workload=self.workload, size=self.size,
+                            spp=self.spp, **extra)
+
+
+def lumibench_runs(root=None, scenes=None, shaders=None) -> tuple[list[Run], dict]:
+    """(runs, skipped): LumiBench's runs that ``root`` can make, restricted to ``scenes`` (IDs)
+    and ``shaders`` (pt, sh, ao); ``skipped``: run or scene -> why not (one line each)."""
+    from .lumibench_shaders import WORKLOADS
+    from .scenes import lumibench as lb
+    shader_names = {w.split("-")[1]: w for w in WORKLOADS}
+    wanted = None if shaders is None else [s.strip().lower() for s in shaders]
+    for s in wanted or ():
+        if s not in shader_names:
+            raise SuiteError(f"--workloads: unknown shader {s!r}; LumiBench's: "
+                             f"{', '.join(shader_names)}")
+    ids = list(lb.DEFINITIONS) if scenes is None else [s.strip().upper() for s in scenes]
+    for sid in ids:
+        if sid not in lb.DEFINITIONS:
+            raise SuiteError(f"--scenes: unknown LumiBench scene {sid!r}; scenes: "
+                             f"{', '.join(lb.DEFINITIONS)}")
+    why = lb.available(root)
+    runs, skipped = [], {}
+    for sid in ids:
+        d = lb.DEFINITIONS[sid]
+        if why[sid]:
+            skipped[sid] = why[sid]
+            continue
+        for shader in d.shaders:
+            if wanted is None or shader in wanted:
+                runs.append(Run(f"{sid}_{shader.upper()}", f"{lb.PREFIX}{sid}",
+                                shader_names[shader], lb.SIZE, lb.SPP))
+    return runs, skipped
+
+
+def read_suite(path) -> tuple[str, list[Run]]:
+    """(name, runs) of a suite TOML file: optional top-level ``name`` and defaults ``size``,
+    ``spp``, ``bounces``, ``ao_rays``, ``seed``; one ``[[runs]]`` table per run with ``scene``
+    and ``workload`` (required), ``name`` (default SCENE_WORKLOAD) and any of the defaults'
+    keys. Scene paths are relative to the file. One-line SuiteError for a bad file."""
+    from .scenes.scene import _read_toml
+    path = Path(path).expanduser()
+    if not path.is_file():
+        raise SuiteError(f"--suite {path}: no such file")
+    data = _read_toml(path)
+    top = {"name", "runs", *(_RUN_KEYS - {"name", "scene", "workload"})}
+    unknown = set(data) - top
+    if unknown:
+        raise SuiteError(f"{path}: unknown key(s) {', '.join(sorted(unknown))}; allowed: "
+                         f"{', '.join(sorted(top))}")
+    specs = data.get("runs")
+    if not isinstance(specs, list) or not specs:
+        raise SuiteError(f"{path}: needs at least one [[runs]] table (scene, workload)")
+    defaults = {k: v for k, v in data.items() if k in _RUN_KEYS - {"name"}}
+    runs = []
+    for i, spec in enumerate(specs):
+        if not isinstance(spec, dict) or set(spec) - _RUN_KEYS:
+            bad = sorted(set(spec) - _RUN_KEYS) if isinstance(spec, dict) else []
+            raise SuiteError(f"{path}: runs[{i}]: unknown key(s) {', '.join(bad)}; allowed: "
+                             f"{', '.join(sorted(_RUN_KEYS))}")
+        spec = {**defaults, **spec}
+        if not isinstance(spec.get("scene"), str) or not isinstance(spec.get("workload"), str):
+            raise SuiteError(f"{path}: runs[{i}] needs scene and workload (strings)")
+        scene = spec["scene"]
+        local = path.parent / scene
+        if ":" not in scene and ("/" in scene or "." in Path(scene).name) and local.exists():
+            scene = str(local)
+        name = spec.get("name") or _default_name(spec["scene"], spec["workload"])
+        runs.append(Run(name, scene, spec["workload"], int(spec.get("size", 128)),
+                        int(spec.get("spp", 2)), spec.get("bounces"), spec.get("ao_rays"),
+                        spec.get("seed")))
+    names = [r.name for r in runs]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise SuiteError(f"{path}: two runs named {dup[0]} (give each a name)")
+    bad = [n for n in names if not n or any(c in n for c in '/\\:*?"<>|') or n.startswith(".")]
+    if bad:
+        raise SuiteError(f"{path}: run name {bad[0]!r} is not a file name")
+    return str(data.get("name") or path.stem), runs
+
+
+def _default_name(scene: str, workload: str) -> str:
+    stem = scene.split(":", 1)[1] if ":" in scene else Path(scene).stem
+    return f"{stem}_{workload.removeprefix('lumibench-').upper()}"
+
+
+def check_runs(runs: list[Run], base) -> list:
+    """Every run's design point, checked before any work (one-line errors)."""
+    from .design import DesignPoint  # noqa: F401  (base is one)
+    points = []
+    for r in runs:
+        try:
+            points.append(r.point(base))
+        except ValueError as e:
+            raise SuiteError(f"run {r.name}: {e}") from None
+    return points
+
+
+# ---------------------------------------------------------------------------------------------
+# one run
+
+def key(run: Run, point, backend: str) -> str:
+    """What makes a run's result: the run, its design point, the backend and the source tree."""
+    from .stats import git_commit, rayflex_version
+    text = json.dumps([asdict(run), point.as_dict(), backend, rayflex_version(), git_commit()],
+                      sort_keys=True, default=str)
+    return hashlib.blake2b(text.encode(), digest_size=12).hexdigest()
+
+
+def execute(run: Run, point, backend: str = "rtl", root=None, plain: bool = False,
+            energy: dict | None = None) -> tuple[dict, bytes]:
+    """Trace, check and replay one run (a task: pure in its inputs); returns its JSON document
+    and its PNG image bytes."""
+    from PIL import Image
+
+    from .render import render
+    from .scenes import lumibench as lb
+    from .scenes.scene import load_scene
+    from .stats import provenance
+    t0 = time.perf_counter()
+    with lb.using_root(root):
+        scene = load_scene(point.scene)
+    t_load = time.perf_counter() - t0
+    res = render(scene, point.size, point.size, backend=backend, progress=False,
+                 check_embree=True, point=point, rtunit=True, tile=max(point.size, 1),
+                 replay_plain=plain)
+    stats = res.stats
+    if energy:
+        _add_energy(stats, energy)
+    info = scene.info() if hasattr(scene, "info") else {}
+    doc = {"provenance": provenance(point), "run": asdict(run), "key": key(run, point, backend),
+           "scene": scene.name, "width": point.size, "height": point.size,
+           **({"lumibench": info} if info else {}), **stats,
+           "timing": {"load_s": t_load, "wall_s": time.perf_counter() - t0,
+                      "scene_cached": bool(getattr(scene, "cached", False))}}
+    buf = io.BytesIO()
+    Image.fromarray(res.image).save(buf, format="PNG")
+    return doc, buf.getvalue()
+
+
+def _add_energy(stats: dict, energy: dict) -> None:
+    """``energy_per_ray`` (bit toggles per ray, level signals) of the frame and each ray type,
+    from the configuration's energy per op (``driver.sweep.energy_per_ray``)."""
+    from .sweep import energy_per_ray
+    table = energy.get("table")
+    bop = energy.get("box_op", "box")
+    for s in [stats, *stats.get("by_type", {}).values()]:
+        s["energy_per_ray"] = energy_per_ray(s, table, bop)
+    stats["energy_unit"] = energy.get("unit")
+
+
+# ---------------------------------------------------------------------------------------------
+# the suite
+
+def done_runs(out: Path, runs: list[Run], points: list, backend: str) -> dict:
+    """{run name: its document} of the runs already made in ``out`` by this source tree."""
+    done = {}
+    for r, p in zip(runs, points):
+        path = out / f"{r.name}.json"
+        try:
+            doc = json.loads(path.read_text())
+        except (OSError, ValueError):
+            continue
+        if isinstance(doc, dict) and doc.get("key") == key(r, p, backend) \
+                and (out / f"{r.name}.png").is_file():
+            done[r.name] = doc
+    return done
+
+
+def run_suite(name: str, runs: list[Run], base, out, backend: str = "rtl", root=None,
+              workers: int = 1, scheduler: str | None = None, plain: bool = False,
+              skipped: dict | None = None, progress: bool = True) -> dict:
+    """Make every run not already in ``out`` (module docstring); returns the summary."""
+    from .progress import bar as progress_bar
+    from .progress import phase
+    t0 = time.perf_counter()
+    out = Path(out)
+    points = check_runs(runs, base)
+    out.mkdir(parents=True, exist_ok=True)
+    done = done_runs(out, runs, points, backend)
+    todo = [(r, p) for r, p in zip(runs, points) if r.name not in done]
+    todo.sort(key=lambda rp: -_COST.get(rp[0].workload, 1.0) * rp[1].size ** 2 * rp[1].spp)
+    if progress:
+        print(f"rayflex: suite {name}: {len(runs)} runs, {len(done)} already in {out}, "
+              f"{len(todo)} to make", file=sys.stderr, flush=True)
+    with phase("energy per op (level signals)", progress):
+        energy = _energy(base)
+    bar = progress_bar(len(todo), f"suite {name}", "run", progress)
+    bar.hook(0, len(todo))
+    for n, (r, doc, png) in enumerate(_execute_all(todo, backend, root, plain, energy,
+                                                   workers, scheduler), 1):
+        _write_run(out, r.name, doc, png)
+        done[r.name] = doc
+        bar.hook(n, len(todo))
+        if progress:
+            bar.set_postfix_str(f"{r.name} {doc['timing']['wall_s']:.1f} s")
+    bar.close()
+    summary = _summary(name, runs, done, skipped or {}, base, backend, root,
+                       time.perf_counter() - t0, len(todo), workers, scheduler)
+    _write_summary(out, summary)
+    return summary
+
+
+def _energy(base) -> dict:
+    """Energy per op of the design point's configuration (``driver.sweep.energy_tables``)."""
+    from .sweep import ENERGY_LEVELS, _box_op, energy_key, energy_tables  # noqa: F401
+    tables = energy_tables([base], progress=False)
+    table = tables[energy_key(base.config, base.latency)]["signals"]
+    return {"table": table, "box_op": _box_op(base), "unit": (table or {}).get("unit")}
+
+
+def _execute_all(todo, backend, root, plain, energy, workers, scheduler):
+    """(run, document, png) of every run to make, in this process or on Dask."""
+    if not todo:
+        return
+    if workers == 1 and not scheduler:
+        for r, p in todo:
+            doc, png = execute(r, p, backend, root, plain, energy)
+            yield r, doc, png
+        return
+    import uuid
+
+    from .tiles import _client
+    with _client(workers, scheduler) as client:
+        sid = uuid.uuid4().hex[:12]
+        futures = {client.submit(execute, r, p, backend, str(root) if root else None, plain,
+                                 energy, key=f"rayflex-suite-{sid}-{i}", retries=2): r
+                   for i, (r, p) in enumerate(todo)}
+        from distributed import as_completed
+        try:
+            for fut in as_completed(futures):
+                doc, png = fut.result()
+                yield futures[fut], doc, png
+        finally:
+            client.cancel(list(futures))
+
+
+def _write_run(out: Path, name: str, doc: dict, png: bytes) -> None:
+    """NAME.png then NAME.json, each atomically (the JSON last: it marks the run done)."""
+    from .outputs import jsonable
+    for path, data in ((out / f"{name}.png", png),
+                       (out / f"{name}.json",
+                        (json.dumps(jsonable(doc), indent=1) + "\n").encode())):
+        tmp = path.with_name(f".{path.name}.tmp")
+        tmp.write_bytes(data)
+        tmp.replace(path)
+
+
+ROW_KEYS = ("name", "scene", "workload", "size", "spp", "partial", "rays", "hits",
+            "ops_per_ray", "box_ops_per_ray", "tri_ops_per_ray", "utilization_memory",
+            "utilization", "hit_rate", "bytes_per_ray", "energy_per_ray", "agree", "edge_tie",
+            "embree_wrong", "datapath_wrong", "wall_s")
+
+
+def row(name: str, doc: dict) -> dict:
+    """One run's summary row (``ROW_KEYS``)."""
+    mem = doc.get("rtunit_memory") or {}
+    plain = doc.get("rtunit") or {}
+    cls = ((doc.get("embree") or {}).get("adjudicated") or {}).get("classes", {})
+    rays = doc.get("rays", 0)
+    return {"name": name, "scene": doc["run"]["scene"], "workload": doc["run"]["workload"],
+            "size": doc["width"], "spp": doc["run"]["spp"],
+            "partial": bool((doc.get("lumibench") or {}).get("partial", False)),
+            "rays": rays, "hits": doc.get("hits"),
+            "ops_per_ray": doc.get("ops", 0) / rays if rays else 0.0,
+            "box_ops_per_ray": doc.get("box_ops_per_ray"),
+            "tri_ops_per_ray": doc.get("tri_ops_per_ray"),
+            "utilization_memory": mem.get("utilization"), "utilization": plain.get("utilization"),
+            "hit_rate": mem.get("hit_rate"), "bytes_per_ray": mem.get("bytes_per_ray"),
+            "energy_per_ray": doc.get("energy_per_ray"),
+            **{c: cls.get(c) for c in ("agree", "edge_tie", "embree_wrong", "datapath_wrong")},
+            "wall_s": doc.get("timing", {}).get("wall_s")}
+
+
+def _summary(name, runs, done, skipped, base, backend, root, wall, made, workers,
+             scheduler) -> dict:
+    from .stats import provenance
+    rows = [row(r.name, done[r.name]) for r in runs if r.name in done]
+    wrong = sum(r["datapath_wrong"] or 0 for r in rows)
+    return {"provenance": provenance(base), "suite": name, "backend": backend,
+            "root": str(root) if root else None, "runs": rows,
+            "skipped": skipped, "datapath_wrong": wrong,
+            "totals": {"runs": len(rows), "rays": sum(r["rays"] for r in rows),
+                       **{c: sum(r[c] or 0 for r in rows)
+                          for c in ("agree", "edge_tie", "embree_wrong", "datapath_wrong")}},
+            "wall_s": wall, "runs_made": made, "workers": workers, "scheduler": scheduler}
+
+
+def _write_summary(out: Path, summary: dict) -> None:
+    from .outputs import jsonable
+    tmp = out / ".summary.json.tmp"
+    tmp.write_text(json.dumps(jsonable(summary), indent=1) + "\n")
+    tmp.replace(out / "summary.json")
+    tmp = out / ".summary.csv.tmp"
+    with open(tmp, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=ROW_KEYS)
+        w.writeheader()
+        for r in summary["runs"]:
+            w.writerow(r)
+    tmp.replace(out / "summary.csv")
+    if summary["runs"]:
+        tmp = out / ".summary.png.tmp"
+        with open(tmp, "wb") as f:
+            f.write(figure(summary))
+        tmp.replace(out / "summary.png")
+
+
+PANELS = (("ops_per_ray", "datapath ops per ray", None),
+          ("utilization_memory", "RT-unit utilization\n(node cache + memory)", (0.0, 1.0)),
+          ("bytes_per_ray", "bytes from memory per ray", None),
+          ("hit_rate", "node cache hit rate", (0.0, 1.0)),
+          ("energy_per_ray", "energy per ray\n(bit toggles, signals)", None))
+
+
+def figure(summary: dict) -> bytes:
+    """PNG bytes: one panel per figure of ``PANELS``, one bar per run, runs grouped by shader
+    (workload), scenes in the same order in every group."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    rows = summary["runs"]
+    groups = list(dict.fromkeys(r["workload"] for r in rows))
+    scenes = list(dict.fromkeys(r["scene"] for r in rows))
+    colours = {s: c for s, c in zip(scenes, ["#4C72B0", "#DD8452", "#55A868", "#C44E52",
+                                             "#8172B3", "#937860", "#DA8BC3", "#8C8C8C",
+                                             "#CCB974", "#64B5CD"] * 4)}
+    fig = Figure(figsize=(2.6 * len(PANELS) + 1.6, 3.4), dpi=110)
+    FigureCanvasAgg(fig)
+    width = 0.8 / max(len(scenes), 1)
+    for i, (k, label, ylim) in enumerate(PANELS):
+        ax = fig.add_subplot(1, len(PANELS), i + 1)
+        for j, s in enumerate(scenes):
+            xs, ys = [], []
+            for g, wl in enumerate(groups):
+                v = [r[k] for r in rows if r["scene"] == s and r["workload"] == wl]
+                if v and v[0] is not None:
+                    xs.append(g - 0.4 + width * (j + 0.5))
+                    ys.append(v[0])
+            ax.bar(xs, ys, width * 0.92, color=colours[s], label=_short(s))
+        ax.set_xticks(range(len(groups)))
+        ax.set_xticklabels([_short(g).upper() for g in groups], fontsize=8)
+        ax.set_title(label, fontsize=9)
+        ax.tick_params(axis="y", labelsize=7)
+        if ylim:
+            ax.set_ylim(*ylim)
+        else:
+            ax.set_ylim(bottom=0)
+        ax.grid(axis="y", alpha=0.3)
+    handles, labels = fig.axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="center right", fontsize=8, frameon=False,
+               title="scene", title_fontsize=8)
+    dp = (summary.get("provenance") or {}).get("design_point") or {}
+    fig.suptitle(f"suite {summary['suite']}: {len(rows)} runs on the RTL "
+                 f"({dp.get('config', '?')}, {dp.get('bvh_format', '?')}, RT unit "
+                 f"R={dp.get('rays_in_flight', '?')}, {dp.get('cache_kib', '?')} KiB node cache, "
+                 f"{dp.get('mem_latency', '?')}-cycle memory)", fontsize=9)
+    fig.tight_layout(rect=(0, 0, 1 - 1.4 / fig.get_figwidth(), 0.93))
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    return buf.getvalue()
+
+
+def _short(text: str) -> str:
+    return text.split(":", 1)[-1].removeprefix("lumibench-")
