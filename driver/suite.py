@@ -180,8 +180,8 @@ def execute(run: Run, point, backend: str = "rtl", root=None, plain: bool = Fals
     from .scenes.scene import load_scene
     from .stats import provenance
     t0 = time.perf_counter()
-    with lb.using_root(root):
-        scene = load_scene(point.scene)
+    with lb.using_root(root):       # partial scenes are reported once, by the summary
+        scene = lb.load(point.scene) if lb.is_lumibench(point.scene) else load_scene(point.scene)
     t_load = time.perf_counter() - t0
     res = render(scene, point.size, point.size, backend=backend, progress=False,
                  check_embree=True, point=point, rtunit=True, tile=max(point.size, 1),
@@ -339,9 +339,14 @@ def _summary(name, runs, done, skipped, base, backend, root, wall, made, workers
     from .stats import provenance
     rows = [row(r.name, done[r.name]) for r in runs if r.name in done]
     wrong = sum(r["datapath_wrong"] or 0 for r in rows)
+    partial = {}
+    for r in runs:
+        info = done.get(r.name, {}).get("lumibench") or {}
+        if info.get("partial"):
+            partial[info["id"]] = info["missing"]
     return {"provenance": provenance(base), "suite": name, "backend": backend,
             "root": str(root) if root else None, "runs": rows,
-            "skipped": skipped, "datapath_wrong": wrong,
+            "skipped": skipped, "partial": partial, "datapath_wrong": wrong,
             "totals": {"runs": len(rows), "rays": sum(r["rays"] for r in rows),
                        **{c: sum(r[c] or 0 for r in rows)
                           for c in ("agree", "edge_tie", "embree_wrong", "datapath_wrong")}},

@@ -186,3 +186,26 @@ def test_render_a_lumibench_scene_from_the_command_line(root, in_tmp):
     assert set(out["by_type"]) == {"primary", "ao"}
     assert out["embree"]["adjudicated"]["classes"]["datapath_wrong"] == 0
     assert (in_tmp / "BATH.png").is_file()
+
+
+def test_bench_scene_load_cold_then_from_the_cache(root, in_tmp):
+    assert main(["bench", "--scene-load", "--scene", "lumibench:BATH", "--json", "l.json",
+                 "--no-progress"]) == 0
+    doc = json.loads((in_tmp / "l.json").read_text())
+    assert not doc["cold"]["cached"] and doc["warm"]["cached"]
+    for name in ("cold", "warm"):
+        r = doc[name]
+        assert r["triangles"] == 7 and r["models"] == 2 and r["peak_rss_bytes"] > 0
+        assert r["to_tracing_s"] >= r["import_s"] + r["load_s"] + r["build_s"]
+    assert main(["bench", "--scene-load", "--synthetic", "3,60", "--json", "s.json",
+                 "--no-progress"]) == 0
+    doc = json.loads((in_tmp / "s.json").read_text())
+    assert doc["synthetic"] == {"files": 3, "triangles": 60}
+    assert doc["warm"]["models"] == 3 and 30 <= doc["warm"]["triangles"] <= 90
+
+
+def test_bench_scene_load_needs_a_lumibench_scene(in_tmp, error_line):
+    assert main(["bench", "--scene-load", "--scene", "bunny"]) == 2
+    assert "lumibench:ID" in error_line()
+    assert main(["bench", "--synthetic", "3,60"]) == 2
+    assert "--scene-load" in error_line()

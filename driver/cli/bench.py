@@ -49,9 +49,51 @@ def add_parser(subparsers):
                         "2 M / 5 M instanced bunnies, tree quality of the SAH vs greedy collapse, "
                         "box nodes vs ops per ray for each --bvh-fill with and without "
                         "--cull-stack (PNG plot)")
+    p.add_argument("--scene-load", action="store_true",
+                   help="the scene loader instead: load a LumiBench scene (--scene "
+                        "lumibench:ID) in a fresh process with an empty scene cache and again "
+                        "from the cache, each with its BVH build: times to tracing and peak "
+                        "memory (docs/lumibench.md)")
+    p.add_argument("--synthetic", metavar="FILES,TRIANGLES",
+                   help="with --scene-load: measure a LumiBench-format folder of FILES OBJ "
+                        "files of TRIANGLES triangles in all, written to a temporary folder")
     design.add_options(p)
     add_progress(p)
     return p
+
+
+def scene_load(args, point) -> int:
+    """``--scene-load``: ``driver.load_bench``."""
+    from ..load_bench import load_bench
+    from ..outputs import JSON, Outputs, write_json
+    from ..scenes.lumibench import is_lumibench, root
+    synthetic = None
+    if args.synthetic:
+        _int_list(args.synthetic, "--synthetic")
+        if len(args.synthetic.split(",")) != 2:
+            raise ValueError(f"--synthetic is FILES,TRIANGLES, got {args.synthetic!r}")
+        synthetic = tuple(int(x) for x in args.synthetic.split(","))
+        if not 1 <= synthetic[0] <= synthetic[1] or synthetic[1] > 50_000_000:
+            raise ValueError("--synthetic: 1 <= FILES <= TRIANGLES <= 50,000,000")
+    elif not is_lumibench(point.scene):
+        raise ValueError("--scene-load measures a LumiBench scene: give --scene lumibench:ID "
+                         "(or --synthetic FILES,TRIANGLES)")
+    outs = Outputs()
+    js = outs.add("--json", args.json, JSON) if args.json else None
+    lroot = None if synthetic else root()
+    doc = {"provenance": provenance(point),
+           **load_bench(point.scene, lroot, synthetic, point.bvh_format, not args.no_progress)}
+    with outs.commit():
+        if js:
+            write_json(doc, outs.temp(js))
+    for name in ("cold", "warm"):
+        r = doc[name]
+        print(f"{name:>4}: {r['triangles']:,} triangles in {r['models']:,} models: start "
+              f"{r['start_s']:.2f} s + imports {r['import_s']:.2f} s + load {r['load_s']:.2f} s "
+              f"+ BVH {r['build_s']:.2f} s = tracing after {r['to_tracing_s']:.2f} s; peak "
+              f"{r['peak_rss_bytes'] / 2**20:,.0f} MiB")
+    wrote(outs.paths())
+    return 0
 
 
 def _int_list(text: str, flag: str) -> list[int]:
@@ -72,6 +114,10 @@ def run(args) -> int:
     from ..render import check_memory
 
     point = design.from_args(args)
+    if args.synthetic and not args.scene_load:
+        raise ValueError("--synthetic goes with --scene-load")
+    if args.scene_load:
+        return scene_load(args, point)
     check_positive("--sweep-size", args.sweep_size, 0)
     check_positive("--pyverilator-requests", args.pyverilator_requests, 0)
     check_positive("--repeat", args.repeat)

@@ -115,6 +115,9 @@ def table(summary: dict) -> str:
                      f"{fmt(r['hit_rate'], '8.3f')} {fmt(r['energy_per_ray'], '10.3g')}  "
                      f"{r['agree']} / {r['edge_tie']} / {r['embree_wrong']} / "
                      f"{r['datapath_wrong']}" + ("  (partial scene)" if r["partial"] else ""))
+    for k, missing in summary.get("partial", {}).items():
+        lines.append(f"partial: {k} without {len(missing)} missing file(s): "
+                     + ", ".join(missing[:4]) + (", ..." if len(missing) > 4 else ""))
     for k, why in summary.get("skipped", {}).items():
         lines.append(f"not run: {k}: {why}")
     return "\n".join(lines)
