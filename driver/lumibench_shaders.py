@@ -119,7 +119,7 @@ def _camera(fr):
     jx, jy = sampling.uniform2(fr.seed, 0, smp, 0, sampling.CAMERA)
     o, d = camera_rays(fr.setup.camera, fr.w, fr.h, pix, jx, jy)
     o, d, ext = _with_tmin(o, d, TMAX)
-    return fr.trace_rays("primary", pix, smp, o, d, ext, False)
+    return fr.trace_rays("primary", pix, smp, o, d, ext, False, np.zeros(len(pix), np.int64))
 
 
 def _hits(fr, b):
@@ -141,9 +141,17 @@ def _miss_colour(fr, dirs, sky: bool) -> np.ndarray:
     return sky_colour(dirs) if sky else np.zeros((len(dirs), 3))
 
 
+def calls(workload: str, ao_rays: int) -> int:
+    """Trace calls per pixel sample of a shader's program (at most): its rays' slots are
+    ``sample * calls + call``, call 0 the camera ray (a ray's place in its thread's program,
+    which the RT unit's one-kernel replay follows)."""
+    return {PT: PT_RAYS + 1, SH: 1 + SH_RAYS, AO: 1 + ao_rays}[workload]
+
+
 def run(fr, workload: str) -> np.ndarray:
     """Trace ``workload`` on frame ``fr`` (``driver.workloads.Frame``); the radiance of every
     (pixel, sample) row (npix * spp, 3), linear."""
+    fr.calls = calls(workload, fr.ao_rays)
     if workload == PT:
         return _pt(fr)
     if workload == SH:
@@ -195,7 +203,8 @@ def _pt(fr) -> np.ndarray:
         o, d, ext = _with_tmin(p[go], d, TMAX)
         through = through[r] * alb[go]
         ray = ray[r]
-        b = fr.trace_rays(f"bounce{depth + 1}", pix, smp, o, d, ext, False)
+        b = fr.trace_rays(f"bounce{depth + 1}", pix, smp, o, d, ext, False,
+                          np.full(len(pix), depth + 1, np.int64))
     return colour
 
 
@@ -223,7 +232,7 @@ def _sh(fr) -> np.ndarray:
         d = to / np.maximum(tmax, 1e-300)[:, None]
     go = np.flatnonzero(np.einsum("ij,ij->i", d, nn) > 0)
     o2, d2, ext = _with_tmin(o[go], d[go], tmax[go])
-    sh = fr.trace_rays("shadow", pix[go], smp[go], o2, d2, ext, True)
+    sh = fr.trace_rays("shadow", pix[go], smp[go], o2, d2, ext, True, 1 + j[go])
     shadowed = np.ones(len(pix), bool)          # a ray not traced counts as shadowed
     shadowed[go] = sh.result.hit
     count = shadowed.reshape(k, SH_RAYS).sum(axis=1)
@@ -246,7 +255,7 @@ def _ao(fr) -> np.ndarray:
     d = np.where((np.einsum("ij,ij->i", d, nn) <= 0)[:, None], -d, d)
     o = np.repeat(p, m, axis=0) + AO_OFFSET * d
     o2, d2, ext = _with_tmin(o, d, AO_EXTENT)
-    ao = fr.trace_rays("ao", pix, smp, o2, d2, ext, True)
+    ao = fr.trace_rays("ao", pix, smp, o2, d2, ext, True, 1 + np.tile(np.arange(m), len(rows)))
     count = ao.result.hit.reshape(len(rows), m).sum(axis=1)
     colour[rows] = _albedo(fr, prim) * (AO_SCALE ** count)[:, None]
     return colour

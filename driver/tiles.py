@@ -206,8 +206,20 @@ def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
         finally:
             client.cancel(futures)
         clock.mark("tiles_s")
+        peaks = sorted(client.run(peak_rss).values())
     clock.mark("close_s")
-    return asm.frame()
+    frame = asm.frame()
+    frame.stats[WORKER_PEAKS] = peaks
+    return frame
+
+
+WORKER_PEAKS = "workers_peak_rss_bytes"     # peak resident memory of each Dask worker
+
+
+def peak_rss() -> int:
+    """This process's peak resident memory in bytes (``ru_maxrss``)."""
+    import resource
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
 class _Phases:

@@ -168,9 +168,17 @@ class Frame:
                        else np.asarray(pixels, np.int64))
         self.batches: list[Batch] = []
 
-    def trace_rays(self, kind, pixel, sample, origins, dirs, extent, any_hit) -> Batch:
-        """Trace one wavefront of ray type ``kind`` (a ``Batch``'s fields) and keep it."""
-        return self._run(Batch(kind, pixel, sample, origins, dirs, extent, any_hit))
+    def trace_rays(self, kind, pixel, sample, origins, dirs, extent, any_hit,
+                   call=None) -> Batch:
+        """Trace one wavefront of ray type ``kind`` (a ``Batch``'s fields) and keep it.
+        ``call``: each ray's trace call in its pixel sample's program (``self.calls`` per
+        sample): the batch's ``thread`` (the pixel) and ``slot`` (``sample * calls + call``),
+        its rays' places in their threads' programs (the RT unit's one-kernel replay)."""
+        b = Batch(kind, pixel, sample, origins, dirs, extent, any_hit)
+        if call is not None:
+            b.thread = np.asarray(pixel, np.int64)
+            b.slot = np.asarray(sample, np.int64) * self.calls + np.asarray(call, np.int64)
+        return self._run(b)
 
     def _run(self, batch: Batch) -> Batch:
         batch.result = self.trace(self.bvh, batch.origins, batch.dirs, extent=batch.extent,

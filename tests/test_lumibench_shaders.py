@@ -168,3 +168,27 @@ def test_a_tile_traced_alone_is_that_tile_of_the_frame(workload):
     tile = np.arange(SIZE * SIZE)[10:30]
     part = workloads.run(s, bvh, SIZE, SIZE, tracer, workload, spp=SPP, pixels=tile)
     assert np.array_equal(part.radiance, whole.radiance[tile])
+
+
+@pytest.mark.parametrize("workload", ls.WORKLOADS)
+def test_every_ray_has_its_place_in_its_threads_program(workload):
+    """thread = pixel, slot = sample * calls + call, growing along each thread's program, never
+    two rays of a thread at one slot (what the RT unit's one-kernel replay follows)."""
+    box = np.concatenate([floor(), floor(y=6.0, up=False)])
+    res = frame(setup(box), workload, ao_rays=4)
+    calls = ls.calls(workload, 4)
+    seen = {}
+    for b in res.batches:
+        assert np.array_equal(b.thread, b.pixel)
+        call = b.slot - b.sample * calls
+        assert ((0 <= call) & (call < calls)).all()
+        for t, s in zip(b.thread.tolist(), b.slot.tolist()):
+            assert (t, s) not in seen
+            seen[(t, s)] = b.kind
+    # a thread's camera ray of sample 1 comes after every ray of its sample 0
+    by_thread = {}
+    for (t, s), kind in seen.items():
+        by_thread.setdefault(t, []).append((s, kind))
+    for rays in by_thread.values():
+        rays.sort()
+        assert rays[0][1] == "primary" and [k for _, k in rays].count("primary") == SPP
