@@ -201,14 +201,14 @@ def execute(run: Run, point, backend: str = "rtl", root=None, plain: bool = Fals
 
 
 def _add_energy(stats: dict, energy: dict) -> None:
-    """``energy_per_ray`` (bit toggles per ray, level signals) of the frame and each ray type,
-    from the configuration's energy per op (``driver.sweep.energy_per_ray``)."""
+    """``energy_per_ray`` of the frame and each ray type, as a sweep gives it (by level:
+    ``signals``; ``gates`` null), from the configuration's energy per op
+    (``driver.sweep.energy_per_ray``)."""
     from .sweep import energy_per_ray
     table = energy.get("table")
     bop = energy.get("box_op", "box")
     for s in [stats, *stats.get("by_type", {}).values()]:
-        s["energy_per_ray"] = energy_per_ray(s, table, bop)
-    stats["energy_unit"] = energy.get("unit")
+        s["energy_per_ray"] = {"signals": energy_per_ray(s, table, bop), "gates": None}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -265,10 +265,10 @@ def run_suite(name: str, runs: list[Run], base, out, backend: str = "rtl", root=
 
 def _energy(base) -> dict:
     """Energy per op of the design point's configuration (``driver.sweep.energy_tables``)."""
-    from .sweep import ENERGY_LEVELS, _box_op, energy_key, energy_tables  # noqa: F401
+    from .sweep import _box_op, energy_key, energy_tables
     tables = energy_tables([base], progress=False)
-    table = tables[energy_key(base.config, base.latency)]["signals"]
-    return {"table": table, "box_op": _box_op(base), "unit": (table or {}).get("unit")}
+    return {"table": tables[energy_key(base.config, base.latency)]["signals"],
+            "box_op": _box_op(base)}
 
 
 def _execute_all(todo, backend, root, plain, energy, workers, scheduler):
@@ -310,7 +310,8 @@ def _write_run(out: Path, name: str, doc: dict, png: bytes) -> None:
 
 ROW_KEYS = ("name", "scene", "workload", "size", "spp", "partial", "rays", "hits",
             "ops_per_ray", "box_ops_per_ray", "tri_ops_per_ray", "utilization_memory",
-            "utilization", "hit_rate", "bytes_per_ray", "energy_per_ray", "agree", "edge_tie",
+            "utilization", "hit_rate", "bytes_per_ray", "energy_per_ray_signals", "agree",
+            "edge_tie",
             "embree_wrong", "datapath_wrong", "wall_s")
 
 
@@ -329,7 +330,7 @@ def row(name: str, doc: dict) -> dict:
             "tri_ops_per_ray": doc.get("tri_ops_per_ray"),
             "utilization_memory": mem.get("utilization"), "utilization": plain.get("utilization"),
             "hit_rate": mem.get("hit_rate"), "bytes_per_ray": mem.get("bytes_per_ray"),
-            "energy_per_ray": doc.get("energy_per_ray"),
+            "energy_per_ray_signals": (doc.get("energy_per_ray") or {}).get("signals"),
             **{c: cls.get(c) for c in ("agree", "edge_tie", "embree_wrong", "datapath_wrong")},
             "wall_s": doc.get("timing", {}).get("wall_s")}
 
@@ -376,7 +377,7 @@ PANELS = (("ops_per_ray", "datapath ops per ray", None),
           ("utilization_memory", "RT-unit utilization\n(node cache + memory)", (0.0, 1.0)),
           ("bytes_per_ray", "bytes from memory per ray", None),
           ("hit_rate", "node cache hit rate", (0.0, 1.0)),
-          ("energy_per_ray", "energy per ray\n(bit toggles, signals)", None))
+          ("energy_per_ray_signals", "energy per ray\n(bit toggles, signals)", None))
 
 
 def figure(summary: dict) -> bytes:

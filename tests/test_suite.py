@@ -67,7 +67,7 @@ def test_suite_writes_each_run_and_a_summary_and_resumes(root, in_tmp, capsys):
     summary = json.loads((out / "summary.json").read_text())
     assert [r["name"] for r in summary["runs"]] == names and summary["runs_made"] == 4
     assert summary["totals"]["rays"] == sum(r["rays"] for r in summary["runs"])
-    assert all(r["energy_per_ray"] > 0 and 0 < r["utilization_memory"] <= 1
+    assert all(r["energy_per_ray_signals"] > 0 and 0 < r["utilization_memory"] <= 1
                for r in summary["runs"])
     csv = (out / "summary.csv").read_text().splitlines()
     assert csv[0].split(",") == list(ROW_KEYS) and len(csv) == 5
@@ -141,3 +141,21 @@ def test_the_lumibench_runs_of_the_shared_scenes_on_the_rtl(tmp_path):
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert code == 0 and summary["datapath_wrong"] == 0
     assert len(summary["runs"]) == 12
+
+
+def test_every_key_the_suite_writes_is_documented(root, in_tmp):
+    from test_statistics_doc import documented, emitted
+    assert suite("lumibench", "--lumibench-root", str(root), "--scenes", "BATH", "--workloads",
+                 "sh", "--size", "8", "--out", "o") == 0
+    assert main(["bench", "--scene-load", "--lumibench-root", str(root), "--scene",
+                 "lumibench:BATH", "--json", "load.json", "--no-progress"]) == 0
+    keys, maps = documented()
+    docs = {"run": json.loads((in_tmp / "o" / "BATH_SH.json").read_text()),
+            "summary": json.loads((in_tmp / "o" / "summary.json").read_text()),
+            "scene-load": json.loads((in_tmp / "load.json").read_text())}
+    missing = {k: f"{name}: {path}" for name, doc in docs.items()
+               for k, path in emitted(doc, maps) if k not in keys}
+    assert not missing, f"not in docs/statistics.md: {missing}"
+    header = (in_tmp / "o" / "summary.csv").read_text().splitlines()[0].split(",")
+    text = Path(__file__).resolve().parents[1].joinpath("docs", "statistics.md").read_text()
+    assert all(f"`{h}`" in text for h in header)

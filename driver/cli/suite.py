@@ -112,7 +112,7 @@ def table(summary: dict) -> str:
     for r in summary["runs"]:
         lines.append(f"{r['name']:<12} {r['rays']:>9,} {fmt(r['ops_per_ray'], '8.2f')} "
                      f"{fmt(r['utilization_memory'], '8.3f')} {fmt(r['bytes_per_ray'], '7.0f')} "
-                     f"{fmt(r['hit_rate'], '8.3f')} {fmt(r['energy_per_ray'], '10.3g')}  "
+                     f"{fmt(r['hit_rate'], '8.3f')} {fmt(r['energy_per_ray_signals'], '10.3g')}  "
                      f"{r['agree']} / {r['edge_tie']} / {r['embree_wrong']} / "
                      f"{r['datapath_wrong']}" + ("  (partial scene)" if r["partial"] else ""))
     for k, missing in summary.get("partial", {}).items():

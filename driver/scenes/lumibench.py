@@ -56,6 +56,7 @@ SKY = (0.0, 1.0, 0.0)         # the sky scenes' light direction
 UP = (0.0, 1.0, 0.0)
 AO_EXTENT = 10.0              # the AO shader's ray extent
 SHADERS = ("pt", "sh", "ao")
+EMPTY = "no triangles"        # why an OBJ file without triangles is left out
 
 
 @dataclass(frozen=True)
@@ -287,9 +288,11 @@ class LumiBenchScene(Scene):
     def info(self) -> dict:
         """The ``lumibench`` object of a JSON (docs/statistics.md)."""
         d = DEFINITIONS[self.lumibench]
+        empty = [s for s in self.skipped if s["why"] == EMPTY]
         return {"id": d.id, "name": d.name, "root": self.root, "models": len(self.models),
                 "triangles": int(len(self.mesh)), "partial": self.partial,
-                "missing": list(self.missing), "skipped": list(self.skipped),
+                "missing": list(self.missing),
+                "skipped": [s for s in self.skipped if s["why"] != EMPTY], "empty": len(empty),
                 "light": ("sky" if d.light is None else "point"), "fov_deg": d.fov}
 
 
@@ -390,7 +393,7 @@ def _assemble(d: Definition, top: Path, base: Path, objs: list[Path], threads) -
         missing += [str(Path(x).relative_to(top)) for x in m.missing
                     if str(Path(x).relative_to(top)) not in missing]
         if not len(m.triangles):
-            skipped.append({"file": str(m.path.relative_to(top)), "why": "no triangles"})
+            skipped.append({"file": str(m.path.relative_to(top)), "why": EMPTY})
             continue
         t = m.triangles
         if d.matrix is not None:
