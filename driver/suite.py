@@ -34,7 +34,7 @@ from pathlib import Path
 
 from .errors import RayflexError
 
-SUMMARY = ("summary.json", "summary.csv", "summary.png")
+SUMMARY = ("summary.json", "summary.csv", "summary.png", "images.png")
 _RUN_KEYS = {"name", "scene", "workload", "size", "spp", "bounces", "ao_rays", "seed"}
 _COST = {"lumibench-pt": 4.0, "path": 4.0, "lumibench-ao": 2.5, "ao": 2.5}   # order only
 
@@ -367,17 +367,17 @@ def _write_summary(out: Path, summary: dict) -> None:
             w.writerow(r)
     tmp.replace(out / "summary.csv")
     if summary["runs"]:
-        tmp = out / ".summary.png.tmp"
-        with open(tmp, "wb") as f:
-            f.write(figure(summary))
-        tmp.replace(out / "summary.png")
+        for name, data in (("summary.png", figure(summary)), ("images.png", sheet(out, summary))):
+            tmp = out / f".{name}.tmp"
+            tmp.write_bytes(data)
+            tmp.replace(out / name)
 
 
-PANELS = (("ops_per_ray", "datapath ops per ray", None),
-          ("utilization_memory", "RT-unit utilization\n(node cache + memory)", (0.0, 1.0)),
-          ("bytes_per_ray", "bytes from memory per ray", None),
-          ("hit_rate", "node cache hit rate", (0.0, 1.0)),
-          ("energy_per_ray_signals", "energy per ray\n(bit toggles, signals)", None))
+PANELS = (("ops_per_ray", "datapath ops per ray", None, 1.0),
+          ("utilization_memory", "RT-unit utilization\n(node cache + memory)", (0.0, 1.0), 1.0),
+          ("bytes_per_ray", "bytes from memory per ray", None, 1.0),
+          ("hit_rate", "node cache hit rate", (0.0, 1.0), 1.0),
+          ("energy_per_ray_signals", "energy per ray\n(million bit toggles)", None, 1e-6))
 
 
 def figure(summary: dict) -> bytes:
@@ -391,10 +391,10 @@ def figure(summary: dict) -> bytes:
     colours = {s: c for s, c in zip(scenes, ["#4C72B0", "#DD8452", "#55A868", "#C44E52",
                                              "#8172B3", "#937860", "#DA8BC3", "#8C8C8C",
                                              "#CCB974", "#64B5CD"] * 4)}
-    fig = Figure(figsize=(2.6 * len(PANELS) + 1.6, 3.4), dpi=110)
+    fig = Figure(figsize=(2.5 * len(PANELS) + 1.1, 3.3), dpi=110)
     FigureCanvasAgg(fig)
     width = 0.8 / max(len(scenes), 1)
-    for i, (k, label, ylim) in enumerate(PANELS):
+    for i, (k, label, ylim, scale) in enumerate(PANELS):
         ax = fig.add_subplot(1, len(PANELS), i + 1)
         for j, s in enumerate(scenes):
             xs, ys = [], []
@@ -402,7 +402,7 @@ def figure(summary: dict) -> bytes:
                 v = [r[k] for r in rows if r["scene"] == s and r["workload"] == wl]
                 if v and v[0] is not None:
                     xs.append(g - 0.4 + width * (j + 0.5))
-                    ys.append(v[0])
+                    ys.append(v[0] * scale)
             ax.bar(xs, ys, width * 0.92, color=colours[s], label=_short(s))
         ax.set_xticks(range(len(groups)))
         ax.set_xticklabels([_short(g).upper() for g in groups], fontsize=8)
@@ -421,7 +421,34 @@ def figure(summary: dict) -> bytes:
                  f"({dp.get('config', '?')}, {dp.get('bvh_format', '?')}, RT unit "
                  f"R={dp.get('rays_in_flight', '?')}, {dp.get('cache_kib', '?')} KiB node cache, "
                  f"{dp.get('mem_latency', '?')}-cycle memory)", fontsize=9)
-    fig.tight_layout(rect=(0, 0, 1 - 1.4 / fig.get_figwidth(), 0.93))
+    fig.tight_layout(rect=(0, 0, 1 - 0.9 / fig.get_figwidth(), 0.93))
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    return buf.getvalue()
+
+
+def sheet(out: Path, summary: dict) -> bytes:
+    """PNG bytes: every run's image, one row per scene, one column per workload."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from PIL import Image
+    rows = summary["runs"]
+    scenes = list(dict.fromkeys(r["scene"] for r in rows))
+    groups = list(dict.fromkeys(r["workload"] for r in rows))
+    fig = Figure(figsize=(1.9 * len(groups) + 0.2, 1.9 * len(scenes) + 0.4), dpi=110)
+    FigureCanvasAgg(fig)
+    for i, sc in enumerate(scenes):
+        for j, wl in enumerate(groups):
+            ax = fig.add_subplot(len(scenes), len(groups), i * len(groups) + j + 1)
+            ax.set_axis_off()
+            run = [r for r in rows if r["scene"] == sc and r["workload"] == wl]
+            if run and (out / f"{run[0]['name']}.png").is_file():
+                with Image.open(out / f"{run[0]['name']}.png") as im:
+                    ax.imshow(im.convert("RGB"), interpolation="nearest")
+                ax.set_title(run[0]["name"] + (" (partial)" if run[0]["partial"] else ""),
+                             fontsize=7)
+    fig.suptitle(f"suite {summary['suite']}: every run's image", fontsize=8)
+    fig.tight_layout(rect=(0, 0, 1, 0.97))
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
     return buf.getvalue()
