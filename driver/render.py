@@ -16,6 +16,7 @@ exceeds the memory available.
 from __future__ import annotations
 
 import os
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -109,10 +110,14 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
     tile = plan_tile(w * h, point.workload, point.spp, tile, workers, scheduler)
     check_frame_memory(w * h, point.spp, tile)
     rtunit = "plain" if rtunit and replay_plain else ("memory" if rtunit else None)
+    t0 = time.perf_counter()
     if tile is None:
-        return _render_whole(scene, w, h, backend, progress, check_embree, point, rtunit)
-    return _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, tile,
-                         workers, scheduler)
+        res = _render_whole(scene, w, h, backend, progress, check_embree, point, rtunit)
+    else:
+        res = _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, tile,
+                            workers, scheduler)
+    res.stats["wall_s"] = time.perf_counter() - t0     # BVH build, tracing, replays, check
+    return res
 
 
 def plan_tile(pixels: int, workload: str, spp: int, tile: int | None, workers: int,
