@@ -11,7 +11,8 @@ time), builds its BVH, traces the frame on the backend with the design point's d
 every ray against Embree (adjudicated, ``driver.adjudicate``) and replays every wavefront on
 the point's RT unit (``rtunit_memory``; with ``plain`` also without the node memory,
 ``rtunit``). Runs are independent tasks: in this process, or on Dask workers (``--workers``,
-``--scheduler``, the cluster code of ``driver.tiles``), the largest first. Each finished run is
+``--scheduler``, the cluster code of ``driver.tiles``), the largest first; a suite of one run
+spreads that run's tiles over the workers instead. Each finished run is
 written at once into the output folder as ``NAME.json`` (its statistics, docs/statistics.md)
 and ``NAME.png`` (its image), atomically; a suite started again on the same folder skips every
 run whose JSON was made by the same source tree with the same run and design point, so an
@@ -169,10 +170,15 @@ def key(run: Run, point, backend: str) -> str:
     return hashlib.blake2b(text.encode(), digest_size=12).hexdigest()
 
 
+SPLIT_TILE = 128       # the tile of a run whose tiles are spread over the workers
+
+
 def execute(run: Run, point, backend: str = "rtl", root=None, plain: bool = False,
-            energy: dict | None = None) -> tuple[dict, bytes]:
+            energy: dict | None = None, workers: int = 1,
+            scheduler: str | None = None) -> tuple[dict, bytes]:
     """Trace, check and replay one run (a task: pure in its inputs); returns its JSON document
-    and its PNG image bytes."""
+    and its PNG image bytes. The frame is one tile in this process, or with ``workers`` > 1 or
+    a ``scheduler`` tiles of ``SPLIT_TILE`` on the Dask cluster (a suite of one run)."""
     from PIL import Image
 
     from .render import render
@@ -183,9 +189,11 @@ def execute(run: Run, point, backend: str = "rtl", root=None, plain: bool = Fals
     with lb.using_root(root):       # partial scenes are reported once, by the summary
         scene = lb.load(point.scene) if lb.is_lumibench(point.scene) else load_scene(point.scene)
     t_load = time.perf_counter() - t0
+    split = workers > 1 or bool(scheduler)
     res = render(scene, point.size, point.size, backend=backend, progress=False,
-                 check_embree=True, point=point, rtunit=True, tile=max(point.size, 1),
-                 replay_plain=plain)
+                 check_embree=True, point=point, rtunit=True,
+                 tile=SPLIT_TILE if split else max(point.size, 1), replay_plain=plain,
+                 workers=workers, scheduler=scheduler)
     stats = res.stats
     if energy:
         _add_energy(stats, energy)
@@ -285,9 +293,9 @@ def _execute_all(todo, backend, root, plain, energy, workers, scheduler):
     """(run, document, png) of every run to make, in this process or on Dask."""
     if not todo:
         return
-    if workers == 1 and not scheduler:
+    if len(todo) == 1 or (workers == 1 and not scheduler):     # one run: its tiles spread
         for r, p in todo:
-            doc, png = execute(r, p, backend, root, plain, energy)
+            doc, png = execute(r, p, backend, root, plain, energy, workers, scheduler)
             yield r, doc, png
         return
     import uuid
@@ -381,6 +389,30 @@ def _write_summary(out: Path, summary: dict) -> None:
             tmp = out / f".{name}.tmp"
             tmp.write_bytes(data)
             tmp.replace(out / name)
+
+
+def markdown_table(summary: dict) -> str:
+    """The summary's runs as a Markdown table (docs/lumibench.md shows it; a test checks the
+    page against the JSON)."""
+    lines = ["| run | rays | ops / ray | RT-unit utilization | bytes / ray | node cache hit rate "
+             "| energy / ray (M toggles) | agree | edge tie | Embree wrong | datapath wrong "
+             "| wall |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    fmt = lambda v, f: "–" if v is None else format(v, f)  # noqa: E731
+    for r in summary["runs"]:
+        e = r["energy_per_ray_signals"]
+        lines.append(
+            f"| {r['name']}{' (partial)' if r['partial'] else ''} | {r['rays']:,} | "
+            f"{fmt(r['ops_per_ray'], '.1f')} | {fmt(r['utilization_memory'], '.2f')} | "
+            f"{fmt(r['bytes_per_ray'], ',.0f')} | {fmt(r['hit_rate'], '.3f')} | "
+            f"{fmt(None if e is None else e / 1e6, '.2f')} | {r['agree']:,} | "
+            f"{r['edge_tie']:,} | {r['embree_wrong']:,} | {r['datapath_wrong']:,} | "
+            f"{fmt(r['wall_s'], '.1f')} s |")
+    t = summary["totals"]
+    lines.append(f"| all {t['runs']} runs | {t['rays']:,} | | | | | | {t['agree']:,} | "
+                 f"{t['edge_tie']:,} | {t['embree_wrong']:,} | {t['datapath_wrong']:,} | "
+                 f"{summary['wall_s']:.0f} s |")
+    return "\n".join(lines)
 
 
 PANELS = (("ops_per_ray", "datapath ops per ray", None, 1.0),

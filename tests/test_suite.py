@@ -159,3 +159,20 @@ def test_every_key_the_suite_writes_is_documented(root, in_tmp):
     header = (in_tmp / "o" / "summary.csv").read_text().splitlines()[0].split(",")
     text = Path(__file__).resolve().parents[1].joinpath("docs", "statistics.md").read_text()
     assert all(f"`{h}`" in text for h in header)
+
+
+def test_a_suite_of_one_run_spreads_its_tiles_over_the_workers(root, in_tmp, monkeypatch):
+    import driver.suite
+    monkeypatch.setattr(driver.suite, "SPLIT_TILE", 8)          # 9 tiles of the 24 x 24 frame
+    argv = ["lumibench", "--lumibench-root", str(root), "--scenes", "BATH", "--workloads", "ao",
+            "--size", "24"]
+    assert suite(*argv, "--out", "one") == 0
+    assert suite(*argv, "--out", "two", "--workers", "2") == 0
+    a, b = (json.loads((in_tmp / d / "BATH_AO.json").read_text()) for d in ("one", "two"))
+    for k in ("rays", "hits", "ops", "box_ops", "tri_ops"):
+        assert a[k] == b[k]
+    assert a["embree"]["adjudicated"]["classes"] == b["embree"]["adjudicated"]["classes"]
+    assert len(b["workers_peak_rss_bytes"]) == 2 and "workers_peak_rss_bytes" not in a
+    assert b["tile"] == 8 and a["tile"] == 24
+    assert (in_tmp / "one" / "BATH_AO.png").read_bytes() == (in_tmp / "two" / "BATH_AO.png"
+                                                              ).read_bytes()
