@@ -209,3 +209,20 @@ def test_bench_scene_load_needs_a_lumibench_scene(in_tmp, error_line):
     assert "lumibench:ID" in error_line()
     assert main(["bench", "--synthetic", "3,60"]) == 2
     assert "--scene-load" in error_line()
+
+
+def test_lumibench_scenes_anywhere_a_scene_is_accepted(root, in_tmp):
+    import driver
+    o = np.array([[0.5, 5.0, 0.5], [2.5, 0.5, 6.0]], np.float32)
+    d = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0]], np.float32)
+    hits = driver.trace("lumibench:BATH", o, d, backend="golden")   # the box's top, the flag
+    assert hits.prim.tolist() == [2, 4] and np.allclose(hits.t, [4.0, 7.0])
+    common = ["--scene", "lumibench:BATH", "--workload", "lumibench-sh", "--size", "8"]
+    assert main(["bench", *common, "--sweep-rays", "1,4", "--json", "b.json",
+                 "--no-progress"]) == 0
+    assert json.loads((in_tmp / "b.json").read_text())["frame"]["rays"] > 0
+    assert main(["sweep", *common, "--rays-in-flight", "2,8", "--json", "s.json",
+                 "--no-progress"]) == 0
+    assert len(json.loads((in_tmp / "s.json").read_text())["points"]) == 2
+    assert main(["power", "--config", "baseline-unified", "--ops", "10", *common, "--json",
+                 "p.json", "--no-progress"]) == 0
