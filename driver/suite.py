@@ -250,7 +250,16 @@ def done_runs(out: Path, runs: list[Run], points: list, backend: str) -> dict:
 def run_suite(name: str, runs: list[Run], base, out, backend: str = "rtl", root=None,
               workers: int = 1, scheduler: str | None = None, plain: bool = False,
               skipped: dict | None = None, progress: bool = True) -> dict:
-    """Make every run not already in ``out`` (module docstring); returns the summary."""
+    """Make every run not already in ``out`` (module docstring); returns the summary.
+    ``root``: the LumiBench repository (default: ``driver.scenes.lumibench.root()``)."""
+    from .scenes.lumibench import using_root
+    with using_root(root):
+        return _run_suite(name, runs, base, out, backend, root, workers, scheduler, plain,
+                          skipped, progress)
+
+
+def _run_suite(name, runs, base, out, backend, root, workers, scheduler, plain, skipped,
+               progress) -> dict:
     from .progress import bar as progress_bar
     from .progress import phase
     t0 = time.perf_counter()
@@ -259,7 +268,7 @@ def run_suite(name: str, runs: list[Run], base, out, backend: str = "rtl", root=
     out.mkdir(parents=True, exist_ok=True)
     done = done_runs(out, runs, points, backend)
     todo = [(r, p) for r, p in zip(runs, points) if r.name not in done]
-    todo.sort(key=lambda rp: -_COST.get(rp[0].workload, 1.0) * rp[1].size ** 2 * rp[1].spp)
+    todo.sort(key=lambda rp: -_cost(rp[0], rp[1], root))
     if progress:
         print(f"rayflex: suite {name}: {len(runs)} runs, {len(done)} already in {out}, "
               f"{len(todo)} to make", file=sys.stderr, flush=True)
@@ -279,6 +288,26 @@ def run_suite(name: str, runs: list[Run], base, out, backend: str = "rtl", root=
                        time.perf_counter() - t0, len(todo), workers, scheduler)
     _write_summary(out, summary)
     return summary
+
+
+def _cost(run: Run, point, root) -> float:
+    """A guess of a run's cost, to start the most expensive first (the suite's wall time is
+    the longest worker's): the workload's rays per sample, the pixels and samples, and the
+    log of the scene's size on disk (LumiBench scenes: their OBJ files)."""
+    import math
+
+    from .scenes import lumibench as lb
+    size = 1.0
+    if lb.is_lumibench(run.scene):
+        try:
+            d = lb.definition(run.scene)
+            base = lb.root(root) / d.path
+            files = base.glob("*.obj") if base.is_dir() else [base]
+            size = float(sum(f.stat().st_size for f in files))
+        except (ValueError, OSError):
+            pass
+    return (_COST.get(run.workload, 1.0) * point.size ** 2 * point.spp
+            * math.log10(10.0 + size))
 
 
 def _energy(base) -> dict:
