@@ -328,7 +328,11 @@ class DesignPoint:
 
     def build(self, scene):
         """The BVH of ``scene`` for this point (``driver.bvh.instances.build_scene``: a two-level
-        image for an instanced scene)."""
+        image for an instanced scene; a scene with its own ``build_bvh``, a LumiBench scene,
+        may take it from its cache)."""
+        own = getattr(scene, "build_bvh", None)
+        if own is not None:
+            return own(fill=self.bvh_fill, format=self.bvh_format, transform=self.transform)
         from .bvh.instances import build_scene
         return build_scene(scene, fill=self.bvh_fill, format=self.bvh_format,
                            transform=self.transform)

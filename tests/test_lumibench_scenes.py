@@ -226,3 +226,29 @@ def test_lumibench_scenes_anywhere_a_scene_is_accepted(root, in_tmp):
     assert len(json.loads((in_tmp / "s.json").read_text())["points"]) == 2
     assert main(["power", "--config", "baseline-unified", "--ops", "10", *common, "--json",
                  "p.json", "--no-progress"]) == 0
+
+
+def test_the_bvh_of_a_second_run_comes_from_the_cache(root):
+    from driver.bvh.instances import build_scene
+    from driver.design import DesignPoint
+    scene = lb.load("lumibench:BATH")
+    first = DesignPoint().build(scene)
+    assert not first.stats.get("from_cache")
+    again = DesignPoint().build(lb.load("lumibench:BATH"))
+    assert again.stats["from_cache"] and type(again) is type(first)
+    assert np.array_equal(again.image, first.image) and again.blas == first.blas
+    assert np.array_equal(again.blas_root, first.blas_root)
+    fresh = build_scene(scene)
+    assert np.array_equal(fresh.image, again.image)
+    # other options, the flattened scene: other entries, each the same as a build
+    q8 = DesignPoint(bvh_format="q8").build(scene)
+    assert not q8.stats.get("from_cache") and q8.format == "q8"
+    flat_point = DesignPoint(flatten=True)
+    flat = flat_point.build(flat_point.scene_of(scene))
+    flat2 = flat_point.build(flat_point.scene_of(lb.load("lumibench:BATH")))
+    assert flat2.stats["from_cache"] and np.array_equal(flat.image, flat2.image)
+    assert not hasattr(flat2, "instances") or flat2.instances is None
+    # a changed file is another scene: built again
+    (root / "Scenes/Bathroom/flag.obj").write_text(FLAG_OBJ.replace("v 2 0 -1", "v 2 0 -1.5"))
+    changed = DesignPoint().build(lb.load("lumibench:BATH"))
+    assert not changed.stats.get("from_cache")

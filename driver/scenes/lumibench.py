@@ -268,6 +268,7 @@ class LumiBenchScene(Scene):
     root: str = ""
     load_s: float = 0.0
     cached: bool = False
+    cache_key: str = ""          # the scene cache's key ("" without the cache)
 
     @property
     def triangles(self) -> np.ndarray:
@@ -284,6 +285,12 @@ class LumiBenchScene(Scene):
 
     def flattened(self) -> "LumiBenchScene":
         return replace(self, instances=None)
+
+    def build_bvh(self, fill: int = 0, format: str = "box32", transform: str = "driver"):
+        """This scene's BVH (``driver.bvh.instances.build_scene``), from the cache when the
+        same scene files were built with the same options by the same source tree (its
+        ``stats["from_cache"]``): a second run of a scene starts tracing without a build."""
+        return cached_bvh(self, fill, format, transform)
 
     def info(self) -> dict:
         """The ``lumibench`` object of a JSON (docs/statistics.md)."""
@@ -351,6 +358,7 @@ def load(name: str, root_dir=None, progress: bool = False, use_cache: bool | Non
             _write_cache(cached, parts)
     scene = _scene(d, top, parts)
     scene.load_s, scene.cached = time.perf_counter() - t0, hit
+    scene.cache_key = f"{d.id}-{defn}-{key}" if use_cache else ""
     if scene.missing and progress:
         print(f"rayflex: note: {PREFIX}{d.id} is partial: {len(scene.missing)} file(s) missing "
               f"from {top}: {', '.join(scene.missing)}", file=sys.stderr)
@@ -416,6 +424,63 @@ def _assemble(d: Definition, top: Path, base: Path, objs: list[Path], threads) -
     return {"triangles": np.concatenate(tris), "albedo": np.concatenate(albedo),
             "emission": np.concatenate(emission), "sizes": sizes,
             "meta": {"models": names, "missing": missing, "skipped": skipped, "camera": camera}}
+
+
+_SOURCE: list = []
+
+
+def _source_digest() -> str:
+    """BLAKE2b of the package's Python sources: a BVH cached by another version of the
+    builder (or of anything it uses) is not used."""
+    if not _SOURCE:
+        h = hashlib.blake2b(digest_size=8)
+        pkg = Path(__file__).resolve().parent.parent
+        for p in sorted(pkg.rglob("*.py")):
+            h.update(str(p.relative_to(pkg)).encode() + b"\0" + p.read_bytes())
+        _SOURCE.append(h.hexdigest())
+    return _SOURCE[0]
+
+
+def cached_bvh(scene: "LumiBenchScene", fill: int, format: str, transform: str):
+    """``LumiBenchScene.build_bvh``: the image and its statistics in ``cache_dir()/scenes``
+    beside the scene, keyed by the scene's key, the options and the source tree."""
+    from ..bvh.instances import TwoLevelBVH, build_scene
+    from ..bvh4 import BVH4
+    if not scene.cache_key:
+        return build_scene(scene, fill=fill, format=format, transform=transform)
+    two = scene.instances is not None
+    path = _cache_dir() / (f"lumibench-{scene.cache_key}-bvh-{format}-f{fill}-"
+                           f"{'two' if two else 'flat'}-{_source_digest()}.npz")
+    t0 = time.perf_counter()
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            image, roots = z["image"], z["blas_root"]
+            meta = json.loads(str(z["meta"]))
+        stats = dict(meta["stats"], build_s=time.perf_counter() - t0, from_cache=True)
+        if two:
+            bvh = TwoLevelBVH(image, scene.instances, stats, format, roots, meta["blas"])
+            bvh.transform = transform
+        else:
+            bvh = BVH4(image, scene.triangles, stats, format)
+        return bvh
+    except (OSError, ValueError, KeyError):
+        pass
+    bvh = build_scene(scene, fill=fill, format=format, transform=transform)
+    meta = {"stats": bvh.stats, "blas": getattr(bvh, "blas", None)}
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        with open(tmp, "wb") as f:
+            np.savez(f, image=bvh.image, meta=np.array(json.dumps(meta, default=_plain)),
+                     blas_root=np.asarray(getattr(bvh, "blas_root", np.zeros(0, np.uint32))))
+        os.replace(tmp, path)
+    except OSError:
+        pass
+    return bvh
+
+
+def _plain(v):
+    return v.item() if hasattr(v, "item") else str(v)
 
 
 def _read_camera(path: Path) -> list:
