@@ -3,8 +3,8 @@ first time and from the cache, and the peak memory of each (docs/lumibench.md).
 
 Each phase runs in a fresh Python process (``python -m driver.load_bench PHASE ...``), as a user's
 run would: ``cold`` loads the scene with an empty scene cache and builds its BVH; ``warm`` loads it
-again (from the cache the cold phase wrote) and builds its BVH: the time until a second run
-starts tracing. Each reports its wall and CPU time split into imports, loading and building,
+again and its BVH (from the cache the cold phase wrote): the time until a second run starts
+tracing. Each reports its wall and CPU time split into imports, loading and building,
 and its peak resident memory (``ru_maxrss``). ``synthetic_root`` writes a LumiBench-format
 folder of N OBJ files (wavy grids of quads, an MTL each, a camera file) to measure a scene of
 any size.
@@ -69,15 +69,17 @@ def phase(name: str, scene: str, root: str, cache: str, bvh_format: str = "box32
     t_start = float(os.environ.get("RAYFLEX_T0", time.time()))
     wall0, cpu0 = time.time(), time.process_time()
     os.environ["RAYFLEX_SCENE_CACHE"] = cache
-    from .bvh.instances import build_scene
+    from .design import DesignPoint
     from .scenes import lumibench as lb
     t_imp = time.time()
     scene = lb.load(scene, root)
     t_load = time.time()
-    bvh = build_scene(scene, format=bvh_format)
+    bvh = DesignPoint(bvh_format=bvh_format).build(scene)     # as a run builds it
     t_build = time.time()
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-    return {"phase": name, "cached": scene.cached, "triangles": int(len(scene.triangles)),
+    return {"phase": name, "cached": scene.cached,
+            "bvh_cached": bool(bvh.stats.get("from_cache")),
+            "triangles": int(len(scene.triangles)),
             "models": len(scene.models), "start_s": wall0 - t_start,
             "import_s": t_imp - wall0, "load_s": t_load - t_imp, "build_s": t_build - t_load,
             "to_tracing_s": t_build - t_start, "cpu_s": time.process_time() - cpu0,

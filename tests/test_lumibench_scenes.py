@@ -193,6 +193,7 @@ def test_bench_scene_load_cold_then_from_the_cache(root, in_tmp):
                  "--no-progress"]) == 0
     doc = json.loads((in_tmp / "l.json").read_text())
     assert not doc["cold"]["cached"] and doc["warm"]["cached"]
+    assert not doc["cold"]["bvh_cached"] and doc["warm"]["bvh_cached"]
     for name in ("cold", "warm"):
         r = doc[name]
         assert r["triangles"] == 7 and r["models"] == 2 and r["peak_rss_bytes"] > 0
