@@ -187,7 +187,7 @@ def execute(run: Run, point, backend: str = "rtl", root=None, plain: bool = Fals
     from .stats import provenance
     t0 = time.perf_counter()
     with lb.using_root(root):       # partial scenes are reported once, by the summary
-        scene = lb.load(point.scene) if lb.is_lumibench(point.scene) else load_scene(point.scene)
+        scene = _scene(point.scene, load_scene)
     t_load = time.perf_counter() - t0
     split = workers > 1 or bool(scheduler)
     res = render(scene, point.size, point.size, backend=backend, progress=False,
@@ -205,6 +205,29 @@ def execute(run: Run, point, backend: str = "rtl", root=None, plain: bool = Fals
     buf = io.BytesIO()
     Image.fromarray(res.image).save(buf, format="PNG")
     return doc, buf.getvalue()
+
+
+_LAST: dict = {}     # this process's last LumiBench scene: its runs of other shaders reuse it
+
+
+def _scene(name: str, load_scene):
+    """The scene of a run. A LumiBench scene is kept for this process's next run of the same
+    scene (the suite makes a scene's shaders one after another), with what is built from its
+    triangles: the Embree scene of the check (``driver.check``)."""
+    from .scenes import lumibench as lb
+    if not lb.is_lumibench(name):
+        return load_scene(name)
+    t0 = time.perf_counter()
+    key = lb.key_of(name)
+    last = _LAST.get(key)
+    if key and last is not None:
+        last.load_s = time.perf_counter() - t0
+        return last
+    scene = lb.load(name)
+    _LAST.clear()
+    if scene.cache_key:
+        _LAST[scene.cache_key] = scene
+    return scene
 
 
 def _timing(stats: dict, load_s: float, wall_s: float, scene) -> dict:

@@ -335,6 +335,18 @@ def _cache_dir() -> Path:
     return cache_dir() / "scenes"
 
 
+def key_of(name: str, root_dir=None) -> str:
+    """The cache key ``load`` gives the scene (its definition and the digest of its files),
+    without reading it; "" when the cache is off."""
+    if os.environ.get(CACHE_ENV, "1") == "0":
+        return ""
+    d = check(name, root_dir)
+    top = root(root_dir)
+    _, keyed = _inputs(d, top / d.path)
+    defn = hashlib.blake2b(repr((CACHE_VERSION, d)).encode(), digest_size=8).hexdigest()
+    return f"{d.id}-{defn}-{_digest(keyed, top)}"
+
+
 def load(name: str, root_dir=None, progress: bool = False, use_cache: bool | None = None,
          threads: int | None = None) -> LumiBenchScene:
     """The scene ``lumibench:ID`` (module docstring). ``use_cache`` None: unless
@@ -443,12 +455,27 @@ def _source_digest() -> str:
 
 def cached_bvh(scene: "LumiBenchScene", fill: int, format: str, transform: str):
     """``LumiBenchScene.build_bvh``: the image and its statistics in ``cache_dir()/scenes``
-    beside the scene, keyed by the scene's key, the options and the source tree."""
-    from ..bvh.instances import TwoLevelBVH, build_scene
-    from ..bvh4 import BVH4
+    beside the scene, keyed by the scene's key, the options and the source tree; kept on the
+    scene object for the next build in this process."""
+    from ..bvh.instances import build_scene
     if not scene.cache_key:
         return build_scene(scene, fill=fill, format=format, transform=transform)
     two = scene.instances is not None
+    memo = scene.__dict__.setdefault("_bvh", {})        # this process's builds of the scene
+    if (format, fill, two) in memo:
+        bvh = memo[(format, fill, two)]
+        if two:
+            bvh.transform = transform
+        bvh.stats.update(build_s=0.0, from_cache=True)     # no time spent on it this time
+        return bvh
+    bvh = _cached_bvh(scene, fill, format, transform, two)
+    memo[(format, fill, two)] = bvh
+    return bvh
+
+
+def _cached_bvh(scene, fill, format, transform, two):
+    from ..bvh.instances import TwoLevelBVH, build_scene
+    from ..bvh4 import BVH4
     path = _cache_dir() / (f"lumibench-{scene.cache_key}-bvh-{format}-f{fill}-"
                            f"{'two' if two else 'flat'}-{_source_digest()}.npz")
     t0 = time.perf_counter()
