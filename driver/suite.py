@@ -291,7 +291,13 @@ def _run_suite(name, runs, base, out, backend, root, workers, scheduler, plain, 
     out.mkdir(parents=True, exist_ok=True)
     done = done_runs(out, runs, points, backend)
     todo = [(r, p) for r, p in zip(runs, points) if r.name not in done]
-    todo.sort(key=lambda rp: -_cost(rp[0], rp[1], root))
+    cost = {r.name: _cost(r, p, root) for r, p in todo}
+    per_scene: dict = {}
+    for r, _ in todo:
+        per_scene[r.scene] = per_scene.get(r.scene, 0.0) + cost[r.name]
+    # the most expensive scene's runs first, its longest run first: a worker that finishes a
+    # run of a scene takes the next run of the same scene (and keeps the scene and its BVH)
+    todo.sort(key=lambda rp: (-per_scene[rp[0].scene], -cost[rp[0].name]))
     if progress:
         print(f"rayflex: suite {name}: {len(runs)} runs, {len(done)} already in {out}, "
               f"{len(todo)} to make", file=sys.stderr, flush=True)
