@@ -208,18 +208,24 @@ def _pt(fr) -> np.ndarray:
     return colour
 
 
-def _sh(fr) -> np.ndarray:
+def _per_hit(fr, count: int):
+    """The camera rays, the colour of every (pixel, sample) so far (the sky's where they
+    miss), and ``count`` secondary rays' keys per hit: (light kind, light, rows, hit points,
+    normals, primitives, pixel, sample, j (0..count-1) of each, the normal repeated)."""
     kind, light = shader_light(fr.setup)
     b = _camera(fr)
     colour = _miss_colour(fr, b.dirs, kind == "sky")
     rows, p, n, prim = _hits(fr, b)
+    pix = np.repeat(b.pixel[rows], count)
+    smp = np.repeat(b.sample[rows], count)
+    j = np.tile(np.arange(count), len(rows))
+    return kind, light, colour, rows, p, n, prim, pix, smp, j, np.repeat(n, count, axis=0)
+
+
+def _sh(fr) -> np.ndarray:
+    kind, light, colour, rows, p, n, prim, pix, smp, j, nn = _per_hit(fr, SH_RAYS)
     k = len(rows)
-    origin = p + SH_OFFSET * n
-    pix = np.repeat(b.pixel[rows], SH_RAYS)
-    smp = np.repeat(b.sample[rows], SH_RAYS)
-    j = np.tile(np.arange(SH_RAYS), k)
-    o = np.repeat(origin, SH_RAYS, axis=0)
-    nn = np.repeat(n, SH_RAYS, axis=0)
+    o = np.repeat(p + SH_OFFSET * n, SH_RAYS, axis=0)
     if kind == "sky":
         d = np.broadcast_to(light / np.linalg.norm(light), (len(pix), 3)).copy()
         tmax = np.full(len(pix), TMAX)
@@ -241,21 +247,14 @@ def _sh(fr) -> np.ndarray:
 
 
 def _ao(fr) -> np.ndarray:
-    kind, _ = shader_light(fr.setup)
-    b = _camera(fr)
-    colour = _miss_colour(fr, b.dirs, kind == "sky")
-    rows, p, n, prim = _hits(fr, b)
     m = fr.ao_rays
-    pix = np.repeat(b.pixel[rows], m)
-    smp = np.repeat(b.sample[rows], m)
-    key = smp * m + np.tile(np.arange(m), len(rows))
-    u1, u2 = sampling.uniform2(fr.seed, pix, key, 0, sampling.AO)
+    _, _, colour, rows, p, n, prim, pix, smp, j, nn = _per_hit(fr, m)
+    u1, u2 = sampling.uniform2(fr.seed, pix, smp * m + j, 0, sampling.AO)
     d = unit_sphere(u1, u2)
-    nn = np.repeat(n, m, axis=0)
     d = np.where((np.einsum("ij,ij->i", d, nn) <= 0)[:, None], -d, d)
     o = np.repeat(p, m, axis=0) + AO_OFFSET * d
     o2, d2, ext = _with_tmin(o, d, AO_EXTENT)
-    ao = fr.trace_rays("ao", pix, smp, o2, d2, ext, True, 1 + np.tile(np.arange(m), len(rows)))
+    ao = fr.trace_rays("ao", pix, smp, o2, d2, ext, True, 1 + j)
     count = ao.result.hit.reshape(len(rows), m).sum(axis=1)
     colour[rows] = _albedo(fr, prim) * (AO_SCALE ** count)[:, None]
     return colour
