@@ -176,3 +176,16 @@ def test_a_suite_of_one_run_spreads_its_tiles_over_the_workers(root, in_tmp, mon
     assert b["tile"] == 8 and a["tile"] == 24
     assert (in_tmp / "one" / "BATH_AO.png").read_bytes() == (in_tmp / "two" / "BATH_AO.png"
                                                               ).read_bytes()
+
+
+def test_the_lumibench_page_quotes_its_json():
+    """docs/lumibench.md's table of runs is the summary's, and every number it quotes from a
+    JSON (tools/figures.py LUMIBENCH_NUMBERS) is as that JSON says."""
+    from driver.suite import markdown_table
+    from test_docs import ROOT, _figures
+    page = (ROOT / "docs" / "lumibench.md").read_text()
+    summary = json.loads((ROOT / "images" / "lumibench" / "summary.json").read_text())
+    assert markdown_table(summary) in page
+    numbers = _figures().readme_numbers(table=_figures().LUMIBENCH_NUMBERS)
+    missing = {k: v for k, v in numbers.items() if v not in page}
+    assert not missing, f"docs/lumibench.md does not quote these as their JSON says: {missing}"

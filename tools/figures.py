@@ -341,8 +341,65 @@ README_NUMBERS = {
                                        f"transforms.{where}.frame.rtunit_memory.utilization",
                                        "{:.2f}")
        for where in ("driver", "datapath")},
+    "lumibench_runs": ("images/lumibench/summary.json", "totals.runs", "{:d}"),
+    "lumibench_size": ("images/lumibench/summary.json", "runs.0.size", "{:d}"),
+    "lumibench_rays": ("images/lumibench/summary.json", "totals.rays", "{:,}"),
+    "lumibench_datapath_wrong": ("images/lumibench/summary.json", "totals.datapath_wrong",
+                                 "{:d}"),
+    "lumibench_edge_ties": ("images/lumibench/summary.json", "totals.edge_tie", "{:,}"),
+    "lumibench_bath_pt_util": ("images/lumibench/summary.json", "runs.9.utilization_memory",
+                               "{:.2f}"),
+    "lumibench_bath_pt_bytes": ("images/lumibench/summary.json", "runs.9.bytes_per_ray",
+                                "{:.0f}"),
+    "lumibench_lands_ao_util": ("images/lumibench/summary.json", "runs.8.utilization_memory",
+                                "{:.2f}"),
+    "lumibench_wall": ("images/lumibench/summary.json", "wall_s", "{:.0f}"),
     "bvh_build_bunny": ("docs/bvh_bench.json", "builds.0.build_s", "{:.2f}"),
     "bvh_build_5m": ("docs/bvh_bench.json", "builds.2.build_s", "{:.1f}"),
+}
+
+
+MIB = 2 ** 20
+# The numbers docs/lumibench.md quotes (the same form; tests/test_suite.py checks the page)
+LUMIBENCH_NUMBERS = {
+    "lb_runs": ("images/lumibench/summary.json", "totals.runs", "{:d}"),
+    "lb_rays": ("images/lumibench/summary.json", "totals.rays", "{:,}"),
+    "lb_edge_ties": ("images/lumibench/summary.json", "totals.edge_tie", "{:,}"),
+    "lb_wall": ("images/lumibench/summary.json", "wall_s", "{:.0f}"),
+    "lb_bath_ao_rays_per_s": ("images/lumibench/BATH_AO.json", "timing.rays_per_s", "{:,.0f}"),
+    "lb_bath_ao_trace": ("images/lumibench/BATH_AO.json", "timing.trace_s", "{:.1f}"),
+    "lb_bath_ao_functional": ("images/lumibench/BATH_AO.json", "wavefront.sim_wall_s",
+                              "{:.1f}"),
+    "lb_bath_ao_replay": ("images/lumibench/BATH_AO.json", "rtunit_memory.sim_wall_s",
+                          "{:.1f}"),
+    "lb512_rays": ("images/lumibench_512/BATH_AO.json", "rays", "{:,}"),
+    "lb512_wall": ("images/lumibench_512/BATH_AO.json", "timing.wall_s", "{:.0f}"),
+    "lb512_rays_per_s": ("images/lumibench_512/BATH_AO.json", "timing.rays_per_s", "{:,.0f}"),
+    **{f"lb512_peak{i}": ("images/lumibench_512/BATH_AO.json", f"workers_peak_rss_bytes.{i}",
+                          lambda v: f"{v / MIB:,.0f}") for i in (0, 1)},
+    **{f"load_bath_{p}": ("docs/lumibench_load_bath.json", f"{p}.to_tracing_s", "{:.1f}")
+       for p in ("cold", "warm")},
+    **{f"load_1000_{p}": ("docs/lumibench_load_1000.json", f"{p}.to_tracing_s", "{:.1f}")
+       for p in ("cold", "warm")},
+    "load_1000_cold_peak": ("docs/lumibench_load_1000.json", "cold.peak_rss_bytes",
+                            lambda v: f"{v / MIB:,.0f}"),
+    "load_1000_triangles": ("docs/lumibench_load_1000.json", "cold.triangles", "{:,}"),
+    **{f"lb_bath_{t}_util": ("images/lumibench/BATH_PT.json",
+                             f"by_type.{t}.rtunit_memory.utilization", "{:.2f}")
+       for t in ("primary", "bounce2")},
+    **{f"lb_bath_{t}_bytes": ("images/lumibench/BATH_PT.json",
+                              f"by_type.{t}.rtunit_memory.bytes_per_ray", "{:,.0f}")
+       for t in ("primary", "bounce2")},
+    "lb_sprng_bounce2_bytes": ("images/lumibench/SPRNG_PT.json",
+                               "by_type.bounce2.rtunit_memory.bytes_per_ray", "{:,.0f}"),
+    "lb_sprng_bounce2_util": ("images/lumibench/SPRNG_PT.json",
+                              "by_type.bounce2.rtunit_memory.utilization", "{:.2f}"),
+    **{f"lb_{n}_util": ("images/lumibench/summary.json", f"runs.{i}.utilization_memory",
+                        "{:.2f}") for n, i in (("ship_sh", 1), ("ship_ao", 2), ("lands_ao", 8),
+                                               ("bath_ao", 11))},
+    **{f"lb_{n}_ops": ("images/lumibench/summary.json", f"runs.{i}.ops_per_ray", "{:.1f}")
+       for n, i in (("ship_sh", 1), ("ship_ao", 2), ("lands_sh", 7), ("lands_ao", 8))},
+    "lb_ship_ao_ties": ("images/lumibench/summary.json", "runs.2.edge_tie", "{:,}"),
 }
 
 
@@ -353,15 +410,17 @@ def lookup(data, path: str):
     return data
 
 
-def readme_numbers(root: Path = ROOT) -> dict[str, str]:
-    """Every quoted README number, formatted from its JSON file."""
+def readme_numbers(root: Path = ROOT, table: dict | None = None) -> dict[str, str]:
+    """Every quoted README number (or of ``table``, e.g. ``LUMIBENCH_NUMBERS``), formatted
+    from its JSON file."""
     cache: dict[str, object] = {}
     out = {}
-    for name, (file, path, fmt) in README_NUMBERS.items():
+    for name, (file, path, fmt) in (README_NUMBERS if table is None else table).items():
         if file not in cache:
             cache[file] = json.loads((root / file).read_text())
         value = lookup(cache[file], path)
-        out[name] = fmt.format(value).replace("%", " %")
+        text = fmt(value) if callable(fmt) else fmt.format(value)
+        out[name] = text.replace("%", " %")
     return out
 
 
@@ -457,7 +516,8 @@ def main(argv=None) -> int:
                   f"  (last: commit {made.get('commit', '?')})")
         return 0
     if args.numbers:
-        for name, value in readme_numbers().items():
+        quoted = {**readme_numbers(), **readme_numbers(table=LUMIBENCH_NUMBERS)}
+        for name, value in quoted.items():
             print(f"{name:32} {value}")
         return 0
     if args.record_existing:
