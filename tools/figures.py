@@ -403,6 +403,91 @@ LUMIBENCH_NUMBERS = {
 }
 
 
+LUMIBENCH_PAGE = ROOT / "docs" / "lumibench.md"
+LUMIBENCH_FIGURES = ("lumibench", "lumibench_bath_ao512", "lumibench_load_bath",
+                     "lumibench_load_1000")
+
+
+def lumibench_sections(root: Path = ROOT) -> dict[str, str]:
+    """The generated sections of docs/lumibench.md (between ``<!-- generated: NAME -->`` and
+    ``<!-- end: NAME -->``): the table of runs and the text that quotes the JSON."""
+    from driver.suite import markdown_table
+    n = readme_numbers(root, LUMIBENCH_NUMBERS)
+    summary = json.loads((root / "images" / "lumibench" / "summary.json").read_text())
+    table = markdown_table(summary) + f"""
+
+Each run's wall time is its own, in one Dask worker process while the other worker made other
+runs; the last line's is the whole suite's. `edge tie`: mostly the ship's, whose sails are
+duplicated coplanar triangles (two triangles at the same t on every ray that meets them; the
+ship's AO run alone has {n['lb_ship_ao_ties']})."""
+    reading = f"""What the runs say about an RT unit of this design point:
+
+- **Camera rays and the short shadow and AO rays keep the datapath busy** where the scene is
+  small or the rays coherent: the ship's shadow and AO runs issue an op in {n['lb_ship_sh_util']}
+  and {n['lb_ship_ao_util']} of the cycles, the landscape's AO run in {n['lb_lands_ao_util']}; the
+  bathroom's camera rays in {n['lb_bath_primary_util']}, fetching {n['lb_bath_primary_bytes']}
+  bytes of nodes per ray from memory: the 32 KiB node cache holds most of what neighbouring rays
+  share.
+- **Path-traced bounces on the large scenes are memory-bound**: from the second bounce on, the
+  bathroom's rays keep the datapath busy in only {n['lb_bath_bounce2_util']} of the cycles and
+  fetch {n['lb_bath_bounce2_bytes']} bytes per ray; Spring's fetch {n['lb_sprng_bounce2_bytes']}
+  bytes per ray at {n['lb_sprng_bounce2_util']}. On these frames the memory side (node cache,
+  bandwidth, latency, ray order, compressed nodes) decides what path tracing costs, which the
+  bunny frames could not show.
+- **Ops per ray depend on the scene more than on the shader**: the ship costs
+  {n['lb_ship_ao_ops']} (AO) to {n['lb_ship_sh_ops']} (SH) ops per ray (duplicated sails, long
+  thin rigging in overlapping boxes), the landscape {n['lb_lands_ao_ops']} to
+  {n['lb_lands_sh_ops']} (most rays see the sky). Energy per ray follows ops per ray: a
+  configuration's energy per op does not depend on the scene.
+- **The bathroom's shadows are all dark**: it is lit by the sky from (0, 1, 0) and the room is
+  closed, so every shadow ray that faces the sky meets the ceiling, as it does in the benchmark.
+- Each ray type here is replayed as a wavefront that starts with an empty ray pool and a cold
+  node cache (`rtunit_memory`, docs/workloads.md#the-node-memory-of-the-rt-unit-model); a
+  path's later bounces are small wavefronts, which a cold cache penalises."""
+    times = f"""Measured on the reference machine (AMD EPYC, 2 cores) while other jobs shared it (a load of
+4 to 10 on its 2 cores): the wall times here are upper bounds; the parts of one run share the
+same conditions, so their ratios hold.
+
+- **The suite**: the {n['lb_runs']} runs, {n['lb_rays']} rays, in {n['lb_wall']} s on 2 Dask
+  workers (`images/lumibench/summary.json`), every ray traced on the RTL, checked against Embree
+  and replayed on the RT unit with its node memory: each request is simulated twice, once by
+  the functional trace and once by the timing replay.
+- **The bathroom's AO frame** (128 × 128, 2 spp, 163,840 rays): {n['lb_bath_ao_rays_per_s']}
+  rays per second end to end outside loading and BVH build ({n['lb_bath_ao_trace']} s, of which
+  the functional RTL pass {n['lb_bath_ao_functional']} s and the RT-unit replay
+  {n['lb_bath_ao_replay']} s; the rest is the traversal's own work between the datapath's
+  steps, the Embree check, shading).
+- **The bathroom's AO frame at 512 × 512** (16 × the benchmark's pixels, {n['lb512_rays']} rays;
+  `rayflex suite lumibench --scenes BATH --workloads ao --size 512 --workers 2`: a suite of one
+  run spreads its tiles over the workers): {n['lb512_wall']} s, {n['lb512_rays_per_s']} rays
+  per second; the two workers' peak memory {n['lb512_peak0']} MiB and {n['lb512_peak1']} MiB
+  (`images/lumibench_512/BATH_AO.json`).
+- **Loading** (`rayflex bench --scene-load`, each phase a fresh process,
+  `docs/lumibench_load_bath.json`): the bathroom starts tracing {n['load_bath_cold']} s after
+  its process starts the first time (reading its 46 OBJ files, building its two-level BVH) and
+  {n['load_bath_warm']} s the second time (the scene and its BVH from the cache; most of it is
+  importing the tool).
+- **A large folder**: 1,000 OBJ files of {n['load_1000_triangles']} triangles
+  (`rayflex bench --scene-load --synthetic 1000,3000000`, `docs/lumibench_load_1000.json`) load
+  and build in {n['load_1000_cold']} s the first time, peak memory
+  {n['load_1000_cold_peak']} MiB, and start tracing {n['load_1000_warm']} s after the start the
+  second time."""
+    return {"table": table, "reading": reading, "times": times}
+
+
+def lumibench_page(root: Path = ROOT) -> str:
+    """docs/lumibench.md with its generated sections made from the JSON files."""
+    import re
+    text = (root / "docs" / "lumibench.md").read_text()
+    for name, body in lumibench_sections(root).items():
+        pattern = re.compile(rf"(<!-- generated: {name}\b[^>]*-->\n).*?(<!-- end: {name} -->)",
+                             re.S)
+        if not pattern.search(text):
+            raise SystemExit(f"figures: error: docs/lumibench.md has no section {name!r}")
+        text = pattern.sub(lambda m: m.group(1) + body + "\n" + m.group(2), text)
+    return text
+
+
 def lookup(data, path: str):
     """``data`` at a dotted key path (list indices are integers)."""
     for key in path.split("."):
@@ -502,6 +587,9 @@ def main(argv=None) -> int:
                    help="rebuild only this figure (repeatable)")
     p.add_argument("--light", action="store_true",
                    help=f"rebuild the figures of at most {LIGHT_MINUTES} min")
+    p.add_argument("--lumibench-page", action="store_true",
+                   help="rewrite docs/lumibench.md's generated sections from the JSON files "
+                        "(done after any LumiBench figure is rebuilt)")
     p.add_argument("--numbers", action="store_true",
                    help="print the README's numbers as their JSON files give them")
     p.add_argument("--record-existing", action="store_true",
@@ -515,6 +603,9 @@ def main(argv=None) -> int:
                   f"{'':24} {fig.shown()}\n{'':24} -> {', '.join(fig.outputs)}"
                   f"  (last: commit {made.get('commit', '?')})")
         return 0
+    if args.lumibench_page:
+        LUMIBENCH_PAGE.write_text(lumibench_page())
+        return 0
     if args.numbers:
         quoted = {**readme_numbers(), **readme_numbers(table=LUMIBENCH_NUMBERS)}
         for name, value in quoted.items():
@@ -527,6 +618,8 @@ def main(argv=None) -> int:
               [f for f in FIGURES if f.minutes <= LIGHT_MINUTES] if args.light else FIGURES)
     for fig in chosen:
         rebuild(fig)
+    if any(f.name in LUMIBENCH_FIGURES for f in chosen):
+        LUMIBENCH_PAGE.write_text(lumibench_page())
     return 0
 
 
