@@ -11,7 +11,8 @@ time), builds its BVH, traces the frame on the backend with the design point's d
 every ray against Embree (adjudicated, ``driver.adjudicate``) and replays every wavefront on
 the point's RT unit (``rtunit_memory``; with ``plain`` also without the node memory,
 ``rtunit``). Runs are independent tasks: in this process, or on Dask workers (``--workers``,
-``--scheduler``, the cluster code of ``driver.tiles``), the largest first; a suite of one run
+``--scheduler``, the cluster code of ``driver.tiles``), scene by scene, the most expensive
+first (a worker keeps its last scene and BVH for its next run of that scene); a suite of one run
 spreads that run's tiles over the workers instead. Each finished run is
 written at once into the output folder as ``NAME.json`` (its statistics, docs/statistics.md)
 and ``NAME.png`` (its image), atomically; a suite started again on the same folder skips every
