@@ -36,8 +36,13 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent          # the directory holding the package
-RTL_DIR = Path(__file__).resolve().parent / "rtl"
+from .core import resources
+from .core.resources import checkout, data_dir
+
+ROOT = checkout() or resources.ROOT      # the checkout (whose git history --rev reads)
+RTL_DIR = data_dir("rtl")
+# where revisions before the top-level rtl/ kept the RTL (git show REV:PATH of an old revision)
+OLD_RTL_DIRS = ("driver/rtl",)
 TOP = "rayflex"
 RECIPE = 2             # bump when the script below changes meaning
 
@@ -113,18 +118,28 @@ def snapshot(rev: str | None = None) -> list[tuple[str, bytes]]:
             out.append((f.name, f.read_bytes()))
         return out
 
-    def show(f: Path) -> bytes:
-        rel = f.relative_to(ROOT).as_posix()
+    def show(rel: str) -> bytes:
         r = subprocess.run(["git", "-C", str(ROOT), "show", f"{rev}:{rel}"], capture_output=True)
         if r.returncode:
             msg = r.stderr.decode(errors="replace").strip().splitlines()
             raise AreaError(f"git show {rev}:{rel}: {msg[0] if msg else 'failed'}")
         return r.stdout
 
-    # the revision's own source list: files come and go between revisions
+    # the revision's own source list: files come and go between revisions, and so did the RTL's
+    # folder (``OLD_RTL_DIRS``): the first folder whose source list the revision has
     from .backends.build import SOURCE_LIST, parse_source_list
-    names = parse_source_list(show(SOURCE_LIST).decode(errors="replace"))
-    return [(name, show(RTL_DIR / name)) for name in names]
+    here = RTL_DIR.relative_to(ROOT).as_posix()
+    listed = SOURCE_LIST.relative_to(RTL_DIR).as_posix()
+    first = None
+    for folder in (here, *(d for d in OLD_RTL_DIRS if d != here)):
+        try:
+            text = show(f"{folder}/{listed}")
+        except AreaError as e:
+            first = first or e
+            continue
+        names = parse_source_list(text.decode(errors="replace"))
+        return [(name, show(f"{folder}/{name}")) for name in names]
+    raise first
 
 
 def rev_label(rev: str | None) -> str:

@@ -250,9 +250,10 @@ def rayflex_version() -> str | None:
 def git_commit() -> str | None:
     """HEAD of the git checkout holding this package (None when it is not in one)."""
     import subprocess
-    from pathlib import Path
-    root = Path(__file__).resolve().parent.parent
-    if not (root / ".git").exists():
+
+    from .core.resources import checkout
+    root = checkout()
+    if root is None or not (root / ".git").exists():
         return None
     try:
         out = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True,

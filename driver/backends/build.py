@@ -18,13 +18,12 @@ import os
 from pathlib import Path
 
 from .. import layout, verilate
+from ..core.resources import ROOT, data_dir
 from ..datapath import LATENCY, default_latency
 from .base import BackendError
 
-PACKAGE = Path(__file__).resolve().parent.parent       # the driver package
-ROOT = PACKAGE.parent                                    # the directory that holds it
-RTL_DIR = PACKAGE / "rtl"
-SIM_DIR = PACKAGE / "sim"
+RTL_DIR = data_dir("rtl")
+SIM_DIR = data_dir("sim")
 TOP = "rayflex"
 SOURCE_LIST = RTL_DIR / "sources.txt"
 LINT_WAIVERS = "lint.vlt"

@@ -28,9 +28,10 @@ import numpy as np
 import trimesh
 
 from .camera import Camera, check_size, fmt_vec, frame
+from ..core.resources import data_dir
 from ..errors import CameraError, SceneError
 
-SCENES_DIR = Path(__file__).resolve().parent / "data"
+SCENES_DIR = data_dir("scenes")
 BUILTINS = ("bunny", "room", "soup", "sphere")
 RENDER_BUILTINS = ("cornell", "bunny_floor", "bunny_grid", "city")   # with materials and lights
 DEFAULT_SIZE = 256
@@ -201,7 +202,7 @@ def scene_name(name_or_path) -> str:
 
 
 def available() -> list[str]:
-    """Names accepted besides paths: TOML scenes in driver/scenes/data/ and built-in meshes."""
+    """Names accepted besides paths: TOML scenes in scenes/ and built-in meshes."""
     tomls = sorted(p.stem for p in SCENES_DIR.glob("*.toml")) if SCENES_DIR.is_dir() else []
     return sorted(set(tomls) | set(BUILTINS) | set(RENDER_BUILTINS))
 
