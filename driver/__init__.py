@@ -1,8 +1,8 @@
 """RayFlex driver: BVH4, traversal, rendering and checks around the RayFlex datapath RTL."""
 
 from .backends import BACKENDS, BackendError, backend
-from .datapath import (ANGULAR, EUCLIDEAN, LATENCY, QUADBOX, REQUEST_DTYPE, RESPONSE_DTYPE,
-                       TRIANGLE, DatapathError, FLAG_NO_CULL, prepare_rays)
+from .core.datapath import (ANGULAR, EUCLIDEAN, LATENCY, QUADBOX, REQUEST_DTYPE, RESPONSE_DTYPE,
+                            TRIANGLE, DatapathError, FLAG_NO_CULL, prepare_rays)
 
 __all__ = ["ANGULAR", "BACKENDS", "BackendError", "DatapathError", "EUCLIDEAN", "FLAG_NO_CULL",
            "LATENCY", "QUADBOX", "REQUEST_DTYPE", "RESPONSE_DTYPE", "TRIANGLE", "backend",

@@ -44,7 +44,7 @@ import numpy as np
 
 from . import rtunit
 from .design import DesignPoint
-from .progress import bar as _bar
+from .core.progress import bar as _bar
 from .stats import machine, merge_rtunit, provenance, public, replay_stats
 
 PYVERILATOR_REQUESTS = 2000
@@ -239,7 +239,7 @@ def _pyverilator_stream(rec, k: int, progress, repeat: int, point) -> dict:
     calls and count the same cycles), ``repeat`` times each; every pass checked against the
     frame's responses bit for bit. Rates: the best pass (all passes in ``*_runs``)."""
     from .backends import backend
-    from .layout import pack_responses
+    from .core.layout import pack_responses
     req = rec.requests(np.arange(k))
     expect = rec.responses[:k]
     pv = backend("pyverilator", **point.backend_options())

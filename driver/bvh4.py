@@ -74,13 +74,12 @@ import numpy as np
 
 # the node image's layout is driver.layout's (docs/datapath.md#bvh4-image, docs/compressed.md);
 # the names are re-exported for users
-from .layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, FLAG_DECODE_Q8, IMAGE_FORMATS,  # noqa: F401
-                     NO_CHILD, QNODE_WORDS,
-                     GROUP_BYTES, GROUP_NODE, GROUP_TYPE, INSTANCE_NODE, INSTANCE_TYPE,
-                     LEAF_NEXT_TYPE, LEAF_OFFSET_LIMIT,
-                     PAIR_BYTES, PAIR_NODE, PAIR_TYPE, Q8_BYTES, Q8_NODE, Q8_TYPE, QUADBOX,
-                     TRANSFORM, TRI_BYTES, TRI_NODE, TRI_TYPE, TRIANGLE, NodeRef, decode_q8,
-                     leaf_triangles, node_word, read_nodes)
+from .core.layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, FLAG_DECODE_Q8,  # noqa: F401
+                          IMAGE_FORMATS, NO_CHILD, QNODE_WORDS, GROUP_BYTES, GROUP_NODE,
+                          GROUP_TYPE, INSTANCE_NODE, INSTANCE_TYPE, LEAF_NEXT_TYPE,
+                          LEAF_OFFSET_LIMIT, PAIR_BYTES, PAIR_NODE, PAIR_TYPE, Q8_BYTES, Q8_NODE,
+                          Q8_TYPE, QUADBOX, TRANSFORM, TRI_BYTES, TRI_NODE, TRI_TYPE, TRIANGLE,
+                          NodeRef, decode_q8, leaf_triangles, node_word, read_nodes)
 
 PAD_REL = 2.0 ** -16
 from .bvh.params import SWEEP_MAX  # noqa: E402  (nodes of <= 8 primitives: exact SAH sweep)
@@ -608,7 +607,7 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
         prims = pairs[4]                # one box-shaped triangle per leaf: the builder's input
 
     from .bvh import build as bvh_build
-    from .progress import bar as progress_bar
+    from .core.progress import bar as progress_bar
     show = None if progress is None and len(tris) >= PROGRESS_MIN else bool(progress)
     with progress_bar(len(tris), "BVH build", "tri", show, leave=False) as bar:
         if builder == "fast":

@@ -31,9 +31,9 @@ from typing import Callable
 
 from .area import ALL_CONFIGS, CONFIGS, Q8_SUFFIX
 from .backends.build import MIN_LATENCY
-from .datapath import LATENCY, default_latency
+from .core.datapath import LATENCY, default_latency
 from .instances import DATAPATH, TRANSFORMS
-from .layout import IMAGE_FORMATS
+from .core.layout import IMAGE_FORMATS
 from .rtunit.order import DEFAULT_POLICY, DEFAULT_WINDOW, POLICIES
 from .workloads import WORKLOADS
 

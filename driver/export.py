@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .layout import (REQUEST, REQUEST_DTYPE, RESPONSE, RESPONSE_DTYPE, Wire, unpack_responses)
+from .core.layout import REQUEST, REQUEST_DTYPE, RESPONSE, RESPONSE_DTYPE, Wire, unpack_responses
 
 FORMAT_VERSION = 1
 HEX_FILES = {"requests": "requests.hex", "responses": "responses.hex", "format": "format.txt"}

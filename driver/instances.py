@@ -24,8 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .layout import (INSTANCE_BYTES, INSTANCE_NODE, INSTANCE_TYPE, NO_CHILD, NodeRef,
-                     read_nodes)
+from .core.layout import (INSTANCE_BYTES, INSTANCE_NODE, INSTANCE_TYPE, NO_CHILD, NodeRef,
+                          read_nodes)
 
 
 
@@ -201,7 +201,7 @@ class InstanceStepper:
             self.instance_ops[r] += 1
             self.node_bytes[r] += INSTANCE_BYTES
             if self.on_datapath:      # one TRANSFORM request per ray, on its world row (= r)
-                from .issue import transformed
+                from .tracing.issue import transformed
                 o2, d2 = transformed(self.issue.transforms(r, ptr, nearest[r]))
                 self.transform_ops[r] += 1
                 self._calls.append(len(r))
@@ -211,7 +211,7 @@ class InstanceStepper:
             ok = (np.isfinite(o2).all(1) & np.isfinite(d2).all(1) & (d2 != 0).any(1))
             go, skip = r[ok], r[~ok]
             if len(go):
-                from .datapath import prepare_rays
+                from .core.datapath import prepare_rays
                 prepared = prepare_rays(o2[ok], d2[ok], nearest[go], self.world["flags"][go])
                 # the instance node is the TRANSFORM request's own on the datapath; in the
                 # driver it is fetched before the BLAS root (the record's ``before``)

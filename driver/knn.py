@@ -36,8 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .datapath import ANGULAR, EUCLIDEAN, REQUEST_DTYPE
-from .layout import ANG_LANES, EUC_LANES
+from .core.datapath import ANGULAR, EUCLIDEAN, REQUEST_DTYPE
+from .core.layout import ANG_LANES, EUC_LANES
 
 F32 = np.float32
 LANES = {EUCLIDEAN: EUC_LANES, ANGULAR: ANG_LANES}
@@ -220,7 +220,7 @@ def datapath_distances(dp, queries: np.ndarray, cands: np.ndarray, metric: str,
                        stats: RunStats | None = None, progress: bool = False):
     """(Q, M) distances with every sum on backend ``dp`` (an extended build): float32 squared
     Euclidean distances, or float64 cosine distances from float32 datapath dot/norms."""
-    from .progress import bar as progress_bar
+    from .core.progress import bar as progress_bar
     stats = stats if stats is not None else RunStats()
     nq, dim = queries.shape
     nc = len(cands)

@@ -24,10 +24,10 @@ from .backends import resolve
 from .bvh.instances import build_label
 from .scenes.camera import check_size, primary_rays
 from .tiles import DEFAULT_TILE
-from .errors import RayflexError
-from .outputs import save_image
-from .progress import bar as progress_bar
-from .progress import phase
+from .core.errors import RayflexError
+from .core.outputs import save_image
+from .core.progress import bar as progress_bar
+from .core.progress import phase
 from .scenes.scene import Scene, load_scene
 
 # Peak resident memory of a frame, measured with /usr/bin/time -v (maximum RSS) on the sphere

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .layout import BOX_BYTES, TRI_BYTES
+from .core.layout import BOX_BYTES, TRI_BYTES
 
 STACK_CULLS = "stack_culls"     # box nodes a distance-culled stack dropped
 INSTANCE_OPS = "instance_ops"   # instances entered (two-level images; docs/instances.md)

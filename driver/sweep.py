@@ -39,8 +39,8 @@ from pathlib import Path
 
 from . import design
 from .design import DesignPoint
-from .progress import bar as progress_bar
-from .progress import phase
+from .core.progress import bar as progress_bar
+from .core.progress import phase
 from .stats import merge_rtunit, provenance, public, replay_stats
 
 ENERGY_LEVELS = ("signals", "gates")
@@ -187,7 +187,7 @@ def _source() -> list:
 
 
 def _append(path: Path, key: str, result: dict) -> None:
-    from .outputs import jsonable
+    from .core.outputs import jsonable
     with open(path, "a") as f:
         f.write(json.dumps({"key": key, "source": _source(), "result": jsonable(result)})
                 + "\n")

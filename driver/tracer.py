@@ -14,10 +14,10 @@ import numpy as np
 
 from .backends import resolve
 from .bvh4 import BVH4, build
-from .datapath import prepare_rays
-from .layout import FLAG_NO_CULL
+from .core.datapath import prepare_rays
+from .core.layout import FLAG_NO_CULL
 from .instances import DATAPATH, InstanceStepper, check_transform
-from .issue import issuer
+from .tracing.issue import issuer
 from .stats import frame_stats, with_replay
 from .traversal import traverse
 

@@ -41,8 +41,8 @@ from typing import Callable
 
 import numpy as np
 
-from .layout import (BOX_NODE, BOX_TYPE, NO_CHILD, NODE_BYTES, Q8_NODE, Q8_TYPE, TRI_TYPE, NodeRef,
-                     leaf_count, leaf_next, leaf_prim_word, leaf_request, node_word)
+from .core.layout import (BOX_NODE, BOX_TYPE, NO_CHILD, NODE_BYTES, Q8_NODE, Q8_TYPE, TRI_TYPE,
+                          NodeRef, leaf_count, leaf_next, leaf_prim_word, leaf_request, node_word)
 
 _LANES = np.arange(BOX_NODE["child"].shape[0])
 _CHILD_WORD = np.zeros(8, np.int64)           # per box-node type (a two-level image has both)

@@ -426,7 +426,7 @@ def test_boxes_conservative_on_the_datapath(name, dist):
 # ---- benchmark helpers -----------------------------------------------------------------------
 
 def test_instanced_bunnies():
-    from driver.bvh.bench import BUNNY_TRIANGLES, instanced_bunnies
+    from driver.studies.bvh import BUNNY_TRIANGLES, instanced_bunnies
     x = instanced_bunnies(2, seed=1)
     assert x.shape == (2 * BUNNY_TRIANGLES, 3, 3) and x.dtype == np.float32
     assert np.array_equal(x, instanced_bunnies(2, seed=1))
@@ -439,7 +439,7 @@ def test_instanced_bunnies():
 
 
 def test_bvh_bench_command_checks_before_building(tmp_path, capsys):
-    from driver.bvh.bench import main
+    from driver.studies.bvh import main
     assert main(["--counts", "-1"]) == 2
     assert main(["--counts", "0", "--json", str(tmp_path / "none" / "b.json")]) == 2
     err = capsys.readouterr().err.splitlines()
@@ -448,7 +448,7 @@ def test_bvh_bench_command_checks_before_building(tmp_path, capsys):
 
 
 def test_bvh_bench_dict(tmp_path):
-    from driver.bvh.bench import BUNNY_TRIANGLES, FORMATS, build_table, bvh_bench
+    from driver.studies.bvh import BUNNY_TRIANGLES, FORMATS, build_table, bvh_bench
     r = bvh_bench(counts=(0,), size=32, progress=False, fills=(0, 1 << 30),
                   plot=tmp_path / "fills.png")
     assert [b["format"] for b in r["builds"]] == list(FORMATS)

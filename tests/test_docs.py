@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from driver import layout
+from driver.core import layout
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"

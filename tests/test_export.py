@@ -16,8 +16,8 @@ import pytest
 import driver
 from driver import export as ex
 from driver.cli import main
-from driver.layout import (REQUEST, REQUEST_DTYPE, RESPONSE, RESPONSE_DTYPE, pack_requests,
-                           pack_responses)
+from driver.core.layout import (REQUEST, REQUEST_DTYPE, RESPONSE, RESPONSE_DTYPE, pack_requests,
+                                pack_responses)
 from driver.render import render
 from driver.scenes.scene import load_scene
 

@@ -8,9 +8,9 @@ from PIL import Image
 from driver.bvh.instances import _box_node, build_two_level, tlas_format, world_boxes
 from driver.bvh4 import box_operands
 from driver.instances import Instances, affine, transform_ray
-from driver.layout import (FLAG_DECODE_Q8, IMAGE_FORMATS, INSTANCE_BYTES, INSTANCE_NODE, INSTANCE_TYPE,
-                           NO_CHILD, NODE_BYTES, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE,
-                           NodeRef, read_nodes)
+from driver.core.layout import (FLAG_DECODE_Q8, IMAGE_FORMATS, INSTANCE_BYTES, INSTANCE_NODE,
+                                INSTANCE_TYPE, NO_CHILD, NODE_BYTES, Q8_EXP_MAX, Q8_EXP_MIN,
+                                Q8_NODE, Q8_TYPE, NodeRef, read_nodes)
 from driver.tracer import trace
 from support.meshes import reuse_glb
 
@@ -543,7 +543,7 @@ def test_datapath_transform_in_the_record_and_the_replay():
     cycles are those measured before the datapath transform existed."""
     from driver import rtunit
     from driver.backends.harness import build_requests
-    from driver.layout import pack_requests
+    from driver.core.layout import pack_requests
     inst = random_instances(2, k=8)
     o, d = random_rays(300, 6)
     # (rtunit cycles R=16, with the default node memory): driver mode, measured on the code
@@ -783,7 +783,7 @@ def test_flatten_refuses_a_scene_too_large(error_line):
 
 
 def test_instances_study_hits_on_a_small_scene(tmp_path):
-    from driver.bvh.instances_study import hits
+    from driver.studies.instances import hits
     doc = hits(str(reuse_glb(tmp_path / "reuse.glb")), size=24)
     img = doc["images"]["box32"]
     assert img["instanced_bytes"] < img["flattened_bytes"] and img["ratio"] < 1
@@ -801,7 +801,7 @@ def test_instances_study_transform_on_a_small_scene(in_tmp, capsys):
     Markdown table; a scene without instances refused before any work."""
     import json
 
-    from driver.bvh.instances_study import main
+    from driver.studies.instances import main
     glb = str(reuse_glb(in_tmp / "reuse.glb"))
     assert main(["transform", "--scene", glb, "--size", "8", "--spp", "1", "--bounces", "1",
                  "--json", "t.json", "--no-progress"]) == 0
@@ -847,7 +847,7 @@ def test_bunny_grid_is_21_instances_of_one_bunny():
 def test_bunny_grid_instanced_image_and_hits_against_flattened():
     """The instanced bunny grid: at most 1/15 of the flattened image's bytes, the same hits
     (t within the transform's rounding; another triangle only across a shared edge)."""
-    from driver.bvh.instances_study import hits
+    from driver.studies.instances import hits
     doc = hits("bunny_grid", size=96)
     assert doc["images"]["box32"]["ratio"] <= 1 / 15 and doc["images"]["q8"]["ratio"] <= 1 / 15
     p = doc["rays"]["primary"]

@@ -9,7 +9,8 @@ import sys
 import numpy as np
 import pytest
 
-from driver import layout, verilate
+from driver.core import layout
+from driver.backends import verilate
 from driver.backends.build import RTL_DIR
 
 PKG = RTL_DIR / "rf_pkg.sv"
@@ -206,7 +207,7 @@ def test_c_header_has_every_constant_the_harness_uses():
 def test_q8_node_words_and_decode():
     """The q8 box node's words (origin 0-2, exponents + count in word 3, children 4-7, planes at
     byte 32 + 6i + j, parent 14) and its decode: exact product, one float32 add, unused = +inf."""
-    from driver.layout import Q8_NODE, decode_q8
+    from driver.core.layout import Q8_NODE, decode_q8
     n = np.zeros(1, Q8_NODE)
     n["origin"] = [1.0, 2.0, 3.0]
     n["exp"][0, :3] = np.array([-2, 0, 3], np.int8).view(np.uint8)

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from driver.backends.build import RTL_DIR, SIM_DIR, source_names
-from driver.layout import Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, QNODE_WORDS, decode_q8
-from driver.verilate import build_library
+from driver.core.layout import Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, QNODE_WORDS, decode_q8
+from driver.backends.verilate import build_library
 
 F32 = np.float32
 CANONICAL_NAN = np.uint32(0x7FC00000)

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from driver.bvh4 import PAD_REL, build, request_operands
-from driver.layout import (GROUP_BYTES, GROUP_MAX_TRIS, GROUP_NODE, GROUP_TYPE, LEAF_NEXT_TYPE,
-                           NO_CHILD, NODE_BYTES, PAIR_BYTES, PAIR_NODE, PAIR_TYPE, Q8_BYTES,
-                           Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE, REQUEST_DTYPE, NodeRef,
-                           decode_q8, leaf_count, leaf_next, leaf_triangles, pack_requests,
-                           q8_count, ray_words)
+from driver.core.layout import (GROUP_BYTES, GROUP_MAX_TRIS, GROUP_NODE, GROUP_TYPE,
+                                LEAF_NEXT_TYPE, NO_CHILD, NODE_BYTES, PAIR_BYTES, PAIR_NODE,
+                                PAIR_TYPE, Q8_BYTES, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE,
+                                REQUEST_DTYPE, NodeRef, decode_q8, leaf_count, leaf_next,
+                                leaf_triangles, pack_requests, q8_count, ray_words)
 from driver.tracer import trace
 from support import meshes
 
@@ -494,7 +494,7 @@ def test_study_table_and_plot(tmp_path, capsys):
     type and image, the plot written; bad input is a one-line error."""
     import json
     from pathlib import Path
-    from driver.bvh import study
+    from driver.studies import compressed as study
     images = Path(__file__).resolve().parent.parent / "images"
     paths = [str(images / f"compressed_path64_{f}.json") for f in ("box32", "q8", "q8g")]
     docs = study.load(paths)
@@ -524,7 +524,7 @@ def test_a_datapath_with_the_decode_gets_the_nodes_as_stored(backend_name):
     the same hits, bit for bit, as the host's decode on a datapath without it; the replay on the
     RT unit of such a configuration checks every response against the trace's."""
     from driver import backend, rtunit
-    from driver.layout import FLAG_DECODE_Q8, Q8_TYPE, NodeRef
+    from driver.core.layout import FLAG_DECODE_Q8, Q8_TYPE, NodeRef
     from driver.scenes.camera import primary_rays
     from driver.scenes.scene import load_scene
     scene = load_scene("bunny_floor")
@@ -548,7 +548,7 @@ def test_a_datapath_with_the_decode_gets_the_nodes_as_stored(backend_name):
 def test_leaf_next_pointers_round_trip():
     """LEAF_NEXT_TYPE pointers carry the leaf (bits 28:3) and the triangle index - 1 (bits
     31:29); a leaf beyond the first 4 GiB has no such pointer."""
-    from driver.layout import LEAF_OFFSET_LIMIT, leaf_request
+    from driver.core.layout import LEAF_OFFSET_LIMIT, leaf_request
     leaf = NodeRef.encode([0, 64, LEAF_OFFSET_LIMIT - 128], GROUP_TYPE)
     for k in range(1, GROUP_MAX_TRIS):
         p = leaf_next(leaf, k)

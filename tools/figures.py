@@ -35,7 +35,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
-from driver.layout import IMAGE_FORMATS  # noqa: E402  (the checkout's, not an installed one)
+from driver.core.layout import IMAGE_FORMATS  # noqa: E402  (the checkout's, not an installed one)
 
 MANIFEST = ROOT / "docs" / "figures.json"
 RAYFLEX = [sys.executable, "-m", "driver.cli"]

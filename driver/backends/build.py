@@ -17,9 +17,10 @@ import json
 import os
 from pathlib import Path
 
-from .. import layout, verilate
+from ..core import layout
+from . import verilate
 from ..core.resources import ROOT, data_dir
-from ..datapath import LATENCY, default_latency
+from ..core.datapath import LATENCY, default_latency
 from .base import BackendError
 
 RTL_DIR = data_dir("rtl")

@@ -14,8 +14,8 @@ import ctypes
 
 import numpy as np
 
-from ..layout import (NO_CHILD, RAY_WORDS, REPLAY_STATS, REQ_WORDS, RSP_WORDS, pack_requests,
-                      unpack_responses)
+from ..core.layout import (NO_CHILD, RAY_WORDS, REPLAY_STATS, REQ_WORDS, RSP_WORDS, pack_requests,
+                           unpack_responses)
 from .build import build_harness
 from .rtlbase import PATTERN_LEN, RtlBackendBase
 

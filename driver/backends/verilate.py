@@ -46,7 +46,7 @@ import time
 from pathlib import Path
 from typing import Callable, Iterable, Mapping, Sequence
 
-from .errors import Terminated
+from ..core.errors import Terminated
 
 __all__ = ["BuildError", "PYTHON", "verilator_bin", "find_cxx", "find_make", "cache_dir",
            "build_library", "build_pyverilator", "cached_build", "lint"]
@@ -306,7 +306,7 @@ def _lock(lock, root: Path, what: str) -> None:
         return
     except BlockingIOError:
         pass
-    from .progress import phase
+    from ..core.progress import phase
     with phase(f"waiting for the {what} build in {root} (another process holds the lock)",
                delay=0):
         fcntl.flock(lock, fcntl.LOCK_EX)
@@ -403,7 +403,7 @@ PYVERILATOR_STEPS = {"generate": "Verilator and pyverilator: SystemVerilog to C+
 
 def _steps(steps: dict):
     """``step(name)``: the progress phase of one build step, ``[i/n] name: what``."""
-    from .progress import phase
+    from ..core.progress import phase
     names = list(steps)
 
     def step(name: str):

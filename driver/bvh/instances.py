@@ -36,9 +36,9 @@ import numpy as np
 
 from ..bvh4 import BVH4, build
 from ..instances import Instances, check_transform
-from ..layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, INSTANCE_BYTES, INSTANCE_NODE,
-                      INSTANCE_TYPE, NO_CHILD, PAIR_NODE, PAIR_TYPE, Q8_BYTES, Q8_NODE, Q8_TYPE,
-                      TRI_NODE, TRI_TYPE, NodeRef, read_nodes)
+from ..core.layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, INSTANCE_BYTES, INSTANCE_NODE,
+                           INSTANCE_TYPE, NO_CHILD, PAIR_NODE, PAIR_TYPE, Q8_BYTES, Q8_NODE,
+                           Q8_TYPE, TRI_NODE, TRI_TYPE, NodeRef, read_nodes)
 
 
 def tlas_format(format: str) -> str:

@@ -41,9 +41,9 @@ import math
 import numpy as np
 from numba import get_num_threads, njit, prange
 
-from ..layout import (GROUP_BYTES, GROUP_COUNT_LSB, GROUP_MAX_TRIS, GROUP_MAX_VERTS, GROUP_NODE,
-                      GROUP_SEL_BITS, GROUP_SEL_LSB, PAIR_BYTES, PAIR_NODE, Q8_BYTES, Q8_EXP_MAX,
-                      Q8_EXP_MIN, decode_q8, node_word)
+from ..core.layout import (GROUP_BYTES, GROUP_COUNT_LSB, GROUP_MAX_TRIS, GROUP_MAX_VERTS,
+                           GROUP_NODE, GROUP_SEL_BITS, GROUP_SEL_LSB, PAIR_BYTES, PAIR_NODE,
+                           Q8_BYTES, Q8_EXP_MAX, Q8_EXP_MIN, decode_q8, node_word)
 from .build import WIDTH, dp_table
 
 _HASH = np.uint64(0x9E3779B97F4A7C15)

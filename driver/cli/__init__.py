@@ -15,7 +15,7 @@ import importlib
 import signal
 import sys
 
-from ..errors import Terminated
+from ..core.errors import Terminated
 from .common import (EXIT_CHECK, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED,
                      EXIT_USAGE, PROG, one_line)
 

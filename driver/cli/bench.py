@@ -68,7 +68,7 @@ def run(args) -> int:
     from pathlib import Path
 
     from ..bench import bench, bench_workers, bench_workload, table
-    from ..outputs import JSON, PNG, Outputs, write_json
+    from ..core.outputs import JSON, PNG, Outputs, write_json
     from ..render import check_memory
 
     point = design.from_args(args)
@@ -98,7 +98,7 @@ def run(args) -> int:
 
     with outs.commit():
         if args.bvh:
-            from ..bvh.bench import bvh_bench
+            from ..studies.bvh import bvh_bench
             doc = {"provenance": provenance(None),
                    **bvh_bench(progress=not args.no_progress, plot=outs.temp(plot))}
             doc["quality"]["fills"]["plot"] = str(plot)

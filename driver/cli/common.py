@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..layout import IMAGE_FORMATS
+from ..core.layout import IMAGE_FORMATS
 
 PROG = "rayflex"
 EXIT_OK = 0

@@ -39,7 +39,7 @@ class Export:
 
     def __init__(self, args, outs):
         from ..export import HEX_FILES, parse_window
-        from ..outputs import HEX, NPZ, TEXT, VCD, OutputError
+        from ..core.outputs import HEX, NPZ, TEXT, VCD, OutputError
         self.outs, self.npz, self.hex, self.vcd, self.window = outs, None, None, None, None
         if args.vcd_window is not None and not args.vcd:
             raise ValueError("--vcd-window needs --vcd PATH")
@@ -68,7 +68,7 @@ class Export:
         """Trace the frame's request stream into the outputs' temporary files; returns the
         number of requests."""
         from ..export import HexSink, NpzSink, WindowSink, export, write_vcd
-        from ..progress import bar as progress_bar
+        from ..core.progress import bar as progress_bar
         from ..tiles import DEFAULT_TILE, plan
         t = self.outs.temp
         sinks = []

@@ -41,7 +41,7 @@ def run(args) -> int:
     import numpy as np
 
     from ..knn import DEFAULT_QUERIES, knn, load_dataset, load_npy, summary, write_neighbors
-    from ..outputs import JSON, TABLE, Outputs, write_json
+    from ..core.outputs import JSON, TABLE, Outputs, write_json
 
     check_backend(args.backend)
     outs = Outputs(inputs=[args.dataset, args.query_file])

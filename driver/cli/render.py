@@ -47,8 +47,8 @@ def add_parser(subparsers):
 
 def run(args) -> int:
     from ..scenes.camera import check_size
-    from ..outputs import IMAGE, JSON, Outputs, write_json
-    from ..progress import phase
+    from ..core.outputs import IMAGE, JSON, Outputs, write_json
+    from ..core.progress import phase
     from ..backends import resolve as resolve_backend
     from ..render import check_frame_memory, plan_tile, render
     from ..scenes.scene import load_scene, resolve, scene_name, with_camera

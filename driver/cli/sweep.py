@@ -51,7 +51,7 @@ def results_path(args) -> Path:
 
 
 def run(args) -> int:
-    from ..outputs import JSON, PNG, TABLE, Outputs, write_json
+    from ..core.outputs import JSON, PNG, TABLE, Outputs, write_json
     from ..power import announce_builds
     from ..render import check_memory
     from ..sweep import plot, sweep, table, write_csv

@@ -34,9 +34,9 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ..cli.common import add_json, add_progress, wrote
-from ..datapath import default_latency
-from ..layout import pack_requests
-from ..outputs import JSON, PNG, Outputs, write_json
+from ..core.datapath import default_latency
+from ..core.layout import pack_requests
+from ..core.outputs import JSON, PNG, Outputs, write_json
 from . import stimulus
 from .netlist import STAGE_LABELS, _area
 
@@ -281,7 +281,7 @@ def uncached_models(models) -> list[str]:
     """Which of ``models`` ((kind, params): kind "rtl" for the harness of the rtl backend and
     the RT-unit replay, "signals" for the traced model of ``power --level signals``) are not in
     the build cache: their descriptions, to say before building how many builds will run."""
-    from .. import verilate
+    from ..backends import verilate
     from ..backends.build import build_harness
     from . import activity
 

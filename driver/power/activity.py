@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import verilate
+from ..backends import verilate
 from ..backends.build import LINT_WAIVERS, RTL_DIR, SIM_DIR, rtl_sources
-from ..layout import REQ_WORDS
+from ..core.layout import REQ_WORDS
 from . import gatesim
 from .netlist import STAGE_LABELS, Netlist
 

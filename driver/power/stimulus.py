@@ -24,10 +24,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..datapath import ANGULAR, EUCLIDEAN, QUADBOX, TRANSFORM, TRIANGLE, prepare_rays, \
-    transform_requests
+from ..core.datapath import (ANGULAR, EUCLIDEAN, QUADBOX, TRANSFORM, TRIANGLE, prepare_rays,
+                             transform_requests)
 from ..bvh4 import q8_request
-from ..layout import FLAG_DECODE_Q8, FLAG_NO_CULL, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE
+from ..core.layout import FLAG_DECODE_Q8, FLAG_NO_CULL, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE
 
 
 class Op(NamedTuple):

@@ -49,8 +49,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..datapath import LATENCY
-from ..layout import INSTANCE_TYPE, RAY_WORDS, REQ_WORDS, NodeRef, unpack_requests
+from ..core.datapath import LATENCY
+from ..core.layout import INSTANCE_TYPE, RAY_WORDS, REQ_WORDS, NodeRef, unpack_requests
 
 DEFAULT_RAYS_IN_FLIGHT = 64        # the default ray pool (see the module docstring)
 DEFAULT_TURNAROUND = 1

@@ -41,9 +41,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..layout import (BOX_NODE, BOX_TYPE, INSTANCE_NODE, INSTANCE_TYPE, NO_CHILD,
-                      NODE_BYTES, Q8_NODE, Q8_TYPE, REQUEST, NodeRef,
-                      leaf_request, node_word, read_nodes)
+from ..core.layout import (BOX_NODE, BOX_TYPE, INSTANCE_NODE, INSTANCE_TYPE, NO_CHILD, NODE_BYTES,
+                           Q8_NODE, Q8_TYPE, REQUEST, NodeRef, leaf_request, node_word, read_nodes)
 
 GRID_BITS = 5          # origin (and end point) cells per axis: 2**GRID_BITS
 THETA_BITS = 2         # polar-angle bins of the direction: 2**THETA_BITS
@@ -543,7 +542,7 @@ def study(scenes=STUDY_SCENES, size: int = 64, spp: int = 2, bounces: int = 2, a
     (``treelet_variants`` on the first scene and format, at ``variants_window``, default
     ``VARIANT_WINDOW``)."""
     from .. import rtunit
-    from ..progress import bar
+    from ..core.progress import bar
     from ..stats import rtunit_stats
 
     def replay_all(records, r, order="index", window=None):
@@ -613,7 +612,7 @@ def treelet_variants(recs: dict, rays_in_flight: int, memory, progress: bool = T
     from dataclasses import replace
 
     from .. import rtunit
-    from ..progress import bar
+    from ..core.progress import bar
     from ..stats import rtunit_stats
     out = {"window": window, "variants": {}}
     runs = [(v, k) for v in TREELET_VARIANTS for k in recs]
@@ -753,7 +752,7 @@ def main(argv=None) -> int:
     import argparse
     from ..bench import machine
     from ..cli.common import one_line
-    from ..outputs import JSON, PNG, Outputs, write_json
+    from ..core.outputs import JSON, PNG, Outputs, write_json
 
     ap = argparse.ArgumentParser(prog="python -m driver.rtunit.order",
                                  description="Ray-order study: every policy and window per scene "
@@ -795,7 +794,7 @@ def main(argv=None) -> int:
             if name not in POLICIES:
                 raise ValueError(f"--policies: unknown ray order {name!r} (choose from "
                                  f"{', '.join(POLICIES)})")
-        from ..layout import IMAGE_FORMATS
+        from ..core.layout import IMAGE_FORMATS
         formats = args.bvh_formats.split(",")
         bad = [f for f in formats if f not in IMAGE_FORMATS]
         if bad:

@@ -29,7 +29,7 @@ import trimesh
 
 from .camera import Camera, check_size, fmt_vec, frame
 from ..core.resources import data_dir
-from ..errors import CameraError, SceneError
+from ..core.errors import CameraError, SceneError
 
 SCENES_DIR = data_dir("scenes")
 BUILTINS = ("bunny", "room", "soup", "sphere")

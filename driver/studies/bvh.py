@@ -102,7 +102,7 @@ def _fills(scene, o, d, ref, fills, progress) -> dict:
     docs/datapath.md#traversal traversal and of the distance-culled stack, and whether the hits
     equal ``ref``'s."""
     from ..bvh4 import build
-    from ..progress import iterate
+    from ..core.progress import iterate
     from ..tracer import trace
     rows = []
     for fill in iterate(fills, "BVH fills", "fill", progress):
@@ -190,7 +190,7 @@ def bvh_bench(counts=(0, 20, 50), quality: bool = True, size: int = 256,
     0 = the bunny, k = k instanced bunnies, i.e. ~2 M for 20 and ~5 M for 50; each format's
     build time also as a ratio to box32's, ``vs_box32_build_s``) and ``quality`` (``_quality`` on the bunny's
     size x size primary frame, with the ``fills`` trade-off plotted to ``plot``)."""
-    from ..progress import iterate
+    from ..core.progress import iterate
     result = {"machine_cpus": multiprocessing.cpu_count(), "builds": []}
     runs = [(count, fmt) for count in counts for fmt in formats]
     for count, fmt in iterate(runs, "BVH bench", "build", progress):
@@ -248,7 +248,7 @@ def main(argv=None) -> int:
     p.add_argument("--json", metavar="PATH", help="write the builds here")
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     args = p.parse_args(argv)
-    from ..outputs import JSON, Outputs, OutputError, write_json
+    from ..core.outputs import JSON, Outputs, OutputError, write_json
     try:
         if any(c < 0 for c in args.counts):
             raise ValueError(f"--counts must be >= 0, got {args.counts}")

@@ -125,7 +125,7 @@ def main(argv=None) -> int:
         docs = load(args.json)
         table = rows(docs)
         if args.plot:
-            from ..outputs import Outputs, PNG
+            from ..core.outputs import Outputs, PNG
             outs = Outputs()
             png = outs.add("--plot", args.plot, PNG)
             d = docs["q8"]

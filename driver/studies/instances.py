@@ -34,7 +34,7 @@ import sys
 
 import numpy as np
 
-from ..layout import IMAGE_FORMATS
+from ..core.layout import IMAGE_FORMATS
 
 
 def hits(scene_name: str = "bunny_grid", size: int = 256, backend: str = "golden") -> dict:
@@ -43,7 +43,7 @@ def hits(scene_name: str = "bunny_grid", size: int = 256, backend: str = "golden
     from ..scenes.camera import primary_rays
     from ..scenes.scene import load_scene
     from ..tracer import trace
-    from .instances import build_two_level
+    from ..bvh.instances import build_two_level
 
     scene = load_scene(scene_name)
     if scene.instances is None:
@@ -122,7 +122,7 @@ def images(scene_names=("bunny_grid", "city")) -> dict:
     """The two-level image of each scene in every format (``IMAGE_FORMATS``): its bytes (TLAS,
     instance nodes, BLASes, total), bytes per instanced triangle and build time."""
     from ..scenes.scene import load_scene
-    from .instances import build_two_level
+    from ..bvh.instances import build_two_level
     out = {"scenes": {}}
     for name in scene_names:
         scene = load_scene(name)
@@ -319,7 +319,7 @@ def main(argv=None) -> int:
     try:
         if args.cmd == "transform":
             from ..design import DesignPoint
-            from ..outputs import JSON, Outputs, write_json
+            from ..core.outputs import JSON, Outputs, write_json
             DesignPoint(scene=args.scene, workload=args.workload, size=args.size,
                         spp=args.spp, bounces=args.bounces)         # bad values fail now
             outs = Outputs()
@@ -331,7 +331,7 @@ def main(argv=None) -> int:
                     write_json(doc, outs.temp(js))
             print(transform_markdown(doc))
         elif args.cmd == "images":
-            from ..outputs import JSON, Outputs, write_json
+            from ..core.outputs import JSON, Outputs, write_json
             outs = Outputs()
             js = outs.add("--json", args.json, JSON) if args.json else None
             doc = images(tuple(args.scene or ("bunny_grid", "city")))
@@ -343,7 +343,7 @@ def main(argv=None) -> int:
             doc = hits(args.scene, args.size)
             text = json.dumps(doc, indent=1)
             if args.json:
-                from ..outputs import write_json
+                from ..core.outputs import write_json
                 write_json(doc, args.json)
             print(text)
         else:

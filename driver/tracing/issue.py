@@ -22,11 +22,11 @@ import time
 
 import numpy as np
 
-from .backends.base import NodeBackend
-from .bvh4 import request_operands
-from .datapath import DatapathError
-from .layout import NO_CHILD, RESPONSE, RSP_WORDS, pack_responses, ray_words
-from .traversal import StepResponses
+from ..backends.base import NodeBackend
+from ..bvh4 import request_operands
+from ..core.datapath import DatapathError
+from ..core.layout import NO_CHILD, RESPONSE, RSP_WORDS, pack_responses, ray_words
+from ..traversal import StepResponses
 
 
 def _bits(words: np.ndarray, name: str) -> np.ndarray:
@@ -212,7 +212,7 @@ class Recorder:
                            np.asarray(ext, np.float32), words))
 
     def record(self, params: dict):
-        from .rtunit import Record
+        from ..rtunit import Record
 
         def cat(k, dtype, shape=(0,)):
             return (np.concatenate([p[k] for p in self.parts]) if self.parts

@@ -36,9 +36,9 @@ import struct
 
 import numpy as np
 
-from driver.datapath import (ANGULAR, EUCLIDEAN, LATENCY, QUADBOX, RESPONSE_DTYPE, TRANSFORM,
-                             TRIANGLE, DatapathError)
-from driver.layout import FLAG_DECODE_Q8, FLAG_NO_CULL
+from driver.core.datapath import (ANGULAR, EUCLIDEAN, LATENCY, QUADBOX, RESPONSE_DTYPE, TRANSFORM,
+                                  TRIANGLE, DatapathError)
+from driver.core.layout import FLAG_DECODE_Q8, FLAG_NO_CULL
 
 F32 = np.float32
 ZERO = F32(0.0)          # +0
@@ -392,7 +392,7 @@ def scalar_run(requests: np.ndarray, state: ScalarState | None = None) -> np.nda
 
 def prepare_rays(origins, directions, extent=np.inf) -> np.ndarray:
     """Scalar counterpart of driver.prepare_rays (no input validation): a REQUEST_DTYPE array."""
-    from driver.datapath import REQUEST_DTYPE
+    from driver.core.datapath import REQUEST_DTYPE
     o = np.asarray(origins, np.float32).reshape(-1, 3)
     d = np.asarray(directions, np.float32).reshape(-1, 3)
     ext = np.broadcast_to(np.asarray(extent, np.float32), (len(o),))
