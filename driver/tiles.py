@@ -34,14 +34,17 @@ cluster given by ``--scheduler`` keep whatever their operator configured (docs/w
 
 from __future__ import annotations
 
+import logging
 import time
 import uuid
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .stats import merge
-from .workloads import FrameResult
+from .backends import resolve
+from .check import merge_checks
+from .stats import merge, merge_rtunit, replay_stats
+from .workloads import FrameResult, embree_check, run
 
 DEFAULT_TILE = 64
 CONNECT_TIMEOUT = "5s"          # how long to wait for a Dask scheduler to answer
@@ -80,7 +83,6 @@ class TileResult:
 def _backend(spec):
     """This process's backend for ``spec`` (a name, or (name, options)), made once; a backend
     object is used as it is (in this process only)."""
-    from .backends import resolve
     if not isinstance(spec, (str, tuple)):
         return spec
     name, options = (spec, {}) if isinstance(spec, str) else spec
@@ -96,7 +98,6 @@ def run_tile(setup, bvh, width: int, height: int, pixels, workload: str, options
     the workload's (``driver.workloads.run``), ``cull_stack``, and ``rtunit``: a design point
     whose RT unit replays the tile's wavefronts (``add_replays``), or None."""
     from .tracer import trace
-    from .workloads import embree_check, run
 
     be = _backend(backend_spec)
     options = dict(options)
@@ -122,7 +123,6 @@ def add_replays(res: FrameResult, point) -> None:
     """Replay each ray type's recorded wavefronts of a traced frame on the RT unit of design
     point ``point``: ``rtunit`` and ``rtunit_memory`` into each ``by_type`` entry and, added
     up, into the frame's statistics (``driver.stats.replay_stats``)."""
-    from .stats import merge_rtunit, replay_stats
     by_type = res.stats["by_type"]
     for kind, entry in by_type.items():
         records = [b.result.record for b in res.batches if b.kind == kind]
@@ -151,7 +151,6 @@ class Assembler:
             self.checks.setdefault(kind, []).append((tuple(t.pixels[:1].tolist()), e))
 
     def frame(self) -> FrameResult:
-        from .check import merge_checks
         # merge in tile order, so that float sums (wall times) do not depend on arrival order
         by_type = {k: merge([s for _, s in sorted(v, key=lambda x: x[0])])
                    for k, v in self.parts.items()}
@@ -241,7 +240,6 @@ class _client:
             except (OSError, TimeoutError) as e:
                 raise OSError(f"no Dask scheduler answers at {self.scheduler} ({e})") from None
             return self.client
-        import logging
 
         import dask
         # silence_logs: the workers' own log lines (e.g. a heartbeat that races the scheduler's

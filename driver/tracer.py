@@ -13,10 +13,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .backends import resolve
+from .backends.build import MIN_LATENCY, rtl_params
 from .bvh4 import BVH4, build
 from .core.datapath import prepare_rays
 from .core.layout import FLAG_NO_CULL
-from .instances import DATAPATH, InstanceStepper, check_transform
+from .instances import DATAPATH, Instances, check_transform
+from .tracing.stepper import InstanceStepper
 from .tracing.issue import issuer
 from .stats import frame_stats, with_replay
 from .traversal import traverse
@@ -75,7 +77,6 @@ def as_bvh(scene, bvh_format: str | None = None) -> BVH4:
     if isinstance(scene, (str, bytes)) or hasattr(scene, "__fspath__"):
         from .scenes.scene import load_scene                      # the application layer; lazy
         scene = load_scene(scene)
-    from .instances import Instances
     if isinstance(scene, Instances) or getattr(scene, "instances", None) is not None:
         from .bvh.instances import build_two_level
         return build_two_level(scene if isinstance(scene, Instances) else scene.instances,
@@ -180,7 +181,6 @@ def _replay_params(be) -> dict:
     params = getattr(be, "params", None)
     if isinstance(params, dict) and {"EXTENDED", "DISJOINT", "LATENCY"} <= set(params):
         return dict(params)
-    from .backends.build import MIN_LATENCY, rtl_params
     lat = getattr(be, "latency", MIN_LATENCY)
     compressed = bool(getattr(be, "compressed", False))
     return rtl_params(getattr(be, "extended", False), getattr(be, "disjoint", False),

@@ -16,7 +16,8 @@ from driver.cli import main
 from driver.render import render
 from driver.scenes import scene as sc
 from driver.scenes.camera import Camera
-from driver.workloads import DEFAULT_ALBEDO, setup_for
+from driver.scenes.materials import DEFAULT_ALBEDO
+from driver.workloads import setup_for
 
 DOCS = Path(__file__).resolve().parent.parent / "docs" / "scenes.md"
 

@@ -9,7 +9,7 @@ import json
 import pytest
 
 from driver import design, rtunit
-from driver.area import ALL_CONFIGS, CONFIGS, Q8_SUFFIX
+from driver.core.configs import ALL_CONFIGS, CONFIGS, Q8_SUFFIX
 from driver.cli import build_parser, main
 from driver.design import OPTIONS, DesignPoint
 from driver.power import config_help

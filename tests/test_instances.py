@@ -5,7 +5,8 @@ import pytest
 import trimesh
 from PIL import Image
 
-from driver.bvh.instances import _box_node, build_two_level, tlas_format, world_boxes
+from driver.bvh.instances import _box_node, build_two_level, tlas_format
+from driver.instances import world_boxes
 from driver.bvh4 import box_operands
 from driver.instances import Instances, affine, transform_ray
 from driver.core.layout import (FLAG_DECODE_Q8, IMAGE_FORMATS, INSTANCE_BYTES, INSTANCE_NODE,
@@ -686,7 +687,7 @@ def _small_city(side=5):
     from driver.scenes.camera import Camera
     from driver.scenes.city import city
     from driver.scenes.scene import Scene
-    from driver.workloads import Materials
+    from driver.scenes.materials import Materials
     b = city(lambda: trimesh.creation.icosphere(2).triangles, side)
     return Scene(None, Camera(**b.camera).validate(), (24, 24), "city",
                  Materials(b.albedo, b.emission), list(b.lights), False, instances=b.instances)
@@ -737,7 +738,7 @@ def test_small_city_renders_every_workload_and_checks_against_embree():
 
 def test_embree_sample_is_the_full_check_on_its_rays():
     from driver.check import check
-    from driver.instances import embree_sample
+    from driver.check import embree_sample
     inst = random_instances(4)
     bvh = build_two_level(inst)
     o, d = random_rays(600, 8)
@@ -801,7 +802,10 @@ def test_instances_study_transform_on_a_small_scene(in_tmp, capsys):
     Markdown table; a scene without instances refused before any work."""
     import json
 
-    from driver.studies.instances import main
+    from driver.cli import main as cli_main
+
+    def main(argv):                          # the study's command: rayflex study instances
+        return cli_main(["study", "instances", *argv])
     glb = str(reuse_glb(in_tmp / "reuse.glb"))
     assert main(["transform", "--scene", glb, "--size", "8", "--spp", "1", "--bounces", "1",
                  "--json", "t.json", "--no-progress"]) == 0

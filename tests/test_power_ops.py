@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from driver import backend
-from driver.area import Q8_SUFFIX, XF_SUFFIX
+from driver.core.configs import Q8_SUFFIX, XF_SUFFIX
 from driver.cli import main
 from driver.core.datapath import QUADBOX, TRANSFORM, transform_results
 from driver.instances import transform_ray

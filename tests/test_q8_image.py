@@ -490,11 +490,15 @@ def test_quantization_slack_lies_behind_flat_leaves():
 
 
 def test_study_table_and_plot(tmp_path, capsys):
-    """driver.bvh.study on the committed bench documents: ratios against box32, one row per ray
+    """rayflex study compressed on the committed bench documents: ratios against box32, one row per ray
     type and image, the plot written; bad input is a one-line error."""
     import json
     from pathlib import Path
+    from driver.cli import main as cli_main
     from driver.studies import compressed as study
+
+    def study_main(argv):                    # the study's command: rayflex study compressed
+        return cli_main(["study", "compressed", *argv])
     images = Path(__file__).resolve().parent.parent / "images"
     paths = [str(images / f"compressed_path64_{f}.json") for f in ("box32", "q8", "q8g")]
     docs = study.load(paths)
@@ -507,12 +511,12 @@ def test_study_table_and_plot(tmp_path, capsys):
         if r["format"] == "box32":
             assert r["ops_ratio"] == r["memory_bytes_ratio"] == r["cycles_ratio"] == 1.0
     png = tmp_path / "sweep.png"
-    assert study.main(paths[:2] + ["--plot", str(png)]) == 0
+    assert study_main(paths[:2] + ["--plot", str(png)]) == 0
     out = capsys.readouterr().out
     assert len(out.splitlines()) == 2 + 2 * len(kinds) and png.stat().st_size > 1000
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"bvh_format": "q8"}))
-    assert study.main([paths[0], str(bad)]) == 2
+    assert study_main([paths[0], str(bad)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("rayflex: error: ") and "\n" not in err
 
@@ -565,7 +569,7 @@ def test_group_trade_off(monkeypatch):
     """GROUP_LAMBDA weighs bytes against ops: on this sphere each larger value gives an image no
     larger, lambda = 0 groups nothing and a large lambda groups most triangles; every image
     keeps the containment and the leaves."""
-    import driver.bvh.q8 as q8mod
+    import driver.bvh.q8g as q8mod
     tris = meshes.icosphere(4)
     seen = []
     for lam in (0.0, 1.0, q8mod.GROUP_LAMBDA, 16.0):

@@ -47,6 +47,7 @@ from pathlib import Path
 from typing import Callable, Iterable, Mapping, Sequence
 
 from ..core.errors import Terminated
+from ..core.progress import phase
 
 __all__ = ["BuildError", "PYTHON", "verilator_bin", "find_cxx", "find_make", "cache_dir",
            "build_library", "build_pyverilator", "cached_build", "lint"]
@@ -306,7 +307,6 @@ def _lock(lock, root: Path, what: str) -> None:
         return
     except BlockingIOError:
         pass
-    from ..core.progress import phase
     with phase(f"waiting for the {what} build in {root} (another process holds the lock)",
                delay=0):
         fcntl.flock(lock, fcntl.LOCK_EX)
@@ -403,7 +403,6 @@ PYVERILATOR_STEPS = {"generate": "Verilator and pyverilator: SystemVerilog to C+
 
 def _steps(steps: dict):
     """``step(name)``: the progress phase of one build step, ``[i/n] name: what``."""
-    from ..core.progress import phase
     names = list(steps)
 
     def step(name: str):

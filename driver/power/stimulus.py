@@ -93,7 +93,7 @@ def q8_nodes(boxes: np.ndarray, count: np.ndarray) -> np.ndarray:
     ``qlo`` = floor, ``qhi`` = ceil; then every bound the decode (a round-to-nearest add) puts
     inside its box moves out by one step (``verify_containment``), so each decoded box contains
     its box."""
-    from ..bvh.q8 import verify_containment
+    from ..bvh.q8_image import verify_containment
     n = len(boxes)
     used = np.arange(4)[None, :] < count[:, None]                      # (n, 4)
     ref = np.where(used[..., None], boxes, np.float32(np.inf)).astype(np.float32)

@@ -27,9 +27,20 @@ from typing import NamedTuple
 import numpy as np
 import trimesh
 
+if sys.version_info >= (3, 11):
+    import tomllib
+else:                                               # pragma: no cover
+    try:
+        import tomli as tomllib
+    except ImportError:
+        tomllib = None
+
 from .camera import Camera, check_size, fmt_vec, frame
 from ..core.resources import data_dir
 from ..core.errors import CameraError, SceneError
+from ..instances import InstancedTriangles, Instances
+from .builtins import BUILT
+from .materials import DEFAULT_ALBEDO, Materials, PointLight, QuadLight
 
 SCENES_DIR = data_dir("scenes")
 BUILTINS = ("bunny", "room", "soup", "sphere")
@@ -68,7 +79,6 @@ class Scene:
         of instances too large to flatten (``mesh`` None) gives an
         ``driver.instances.InstancedTriangles``, computed row by row when indexed."""
         if self.mesh is None:
-            from ..instances import InstancedTriangles
             return InstancedTriangles(self.instances)
         return triangles(self.mesh)
 
@@ -129,8 +139,6 @@ def load_scene(name_or_path, up_axis: str | None = None) -> Scene:
 
 
 def _rendering_builtin(name: str) -> Scene:
-    from .builtins import BUILT
-    from ..workloads import Materials
     b = BUILT[name](lambda: triangles(builtin("bunny")))
     mesh = None if b.triangles is None else _mesh(
         b.triangles.reshape(-1, 3), np.arange(3 * len(b.triangles)).reshape(-1, 3), name)
@@ -324,7 +332,6 @@ def _gltf_instances(path: Path):
     used = [g for _, _, g in nodes]
     if len(set(used)) == len(used):
         return None
-    from ..instances import Instances
     names = sorted(set(used), key=used.index)
     meshes = [triangles(_validated(loaded.geometry[g], f"{path}: mesh {g!r}")) for g in names]
     try:
@@ -349,7 +356,6 @@ def _gltf_materials(path: Path, faces: int):
     ``doubleSided``; a part's ``baseColorFactor`` (RGB, linear as glTF defines it) is the albedo
     of its triangles, ``DEFAULT_ALBEDO`` where a part has none; materials None (the default grey
     everywhere) when no part has one, or for any other file type."""
-    from ..workloads import DEFAULT_ALBEDO, Materials
     if path.suffix.lower() not in (".gltf", ".glb"):
         return False, None
     try:
@@ -465,7 +471,6 @@ def _from_toml(path: Path) -> Scene:
 
 def _lights(path: Path, specs) -> list:
     """Workload lights from the TOML's [[lights]] tables."""
-    from ..workloads import PointLight, QuadLight
     if not isinstance(specs, list):
         raise SceneError(f"{path}: lights must be an array of tables ([[lights]])")
     out = []
@@ -499,14 +504,9 @@ def _vec3(v, what) -> tuple:
 
 
 def _read_toml(path: Path) -> dict:
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:                                               # pragma: no cover
-        try:
-            import tomli as tomllib
-        except ImportError:
-            raise SceneError(f"{path}: reading .toml scenes needs Python >= 3.11 "
-                             "or the tomli package") from None
+    if tomllib is None:                                 # pragma: no cover
+        raise SceneError(f"{path}: reading .toml scenes needs Python >= 3.11 or the tomli "
+                         "package")
     try:
         with open(path, "rb") as f:
             return tomllib.load(f)

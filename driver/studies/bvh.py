@@ -21,14 +21,16 @@ machine's load average while they ran.
 
 from __future__ import annotations
 
-import argparse
 import os
 import multiprocessing
-import sys
 import resource
 import time
 
 import numpy as np
+
+from ..core.progress import iterate
+from ..scenes.builtins import instanced_bunnies as grid
+from ..scenes.camera import primary_rays
 
 BUNNY_TRIANGLES = 99_785
 FORMATS = ("box32", "q8", "q8g")    # image formats whose builds are timed
@@ -40,7 +42,6 @@ REFERENCE = {"box_nodes": 36_000, "ops_per_ray": 0.95 * 6.29}
 def instanced_bunnies(count: int, seed: int = 0) -> np.ndarray:
     """``count`` copies of the Stanford bunny (``driver.builtins.instanced_bunnies``), flattened:
     (count * bunny triangles, 3, 3) float32 world-space triangles."""
-    from ..scenes.builtins import instanced_bunnies as grid
     from ..scenes.scene import load
     return grid(load("bunny").triangles, count, seed).flatten()
 
@@ -102,7 +103,6 @@ def _fills(scene, o, d, ref, fills, progress) -> dict:
     docs/datapath.md#traversal traversal and of the distance-culled stack, and whether the hits
     equal ``ref``'s."""
     from ..bvh4 import build
-    from ..core.progress import iterate
     from ..tracer import trace
     rows = []
     for fill in iterate(fills, "BVH fills", "fill", progress):
@@ -156,7 +156,6 @@ def _quality(size: int = 256, fills=FILLS, plot=None, progress: bool = False) ->
     """Greedy vs SAH collapse on the bunny frame (golden model): tree and ops per ray; then the
     ``fills`` trade-off (``_fills``), plotted to ``plot`` (a PNG path) if given."""
     from ..bvh4 import build
-    from ..scenes.camera import primary_rays
     from ..scenes.scene import load_scene
     from ..tracer import trace
     scene = load_scene("bunny")
@@ -190,7 +189,6 @@ def bvh_bench(counts=(0, 20, 50), quality: bool = True, size: int = 256,
     0 = the bunny, k = k instanced bunnies, i.e. ~2 M for 20 and ~5 M for 50; each format's
     build time also as a ratio to box32's, ``vs_box32_build_s``) and ``quality`` (``_quality`` on the bunny's
     size x size primary frame, with the ``fills`` trade-off plotted to ``plot``)."""
-    from ..core.progress import iterate
     result = {"machine_cpus": multiprocessing.cpu_count(), "builds": []}
     runs = [(count, fmt) for count in counts for fmt in formats]
     for count, fmt in iterate(runs, "BVH bench", "build", progress):
@@ -235,36 +233,3 @@ def build_table(doc: dict) -> str:
         cells.append(f"{min(loads):.1f}–{max(loads):.1f}")
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
-
-
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m driver.bvh.bench",
-                                description="Time BVH builds per image format, each in a fresh "
-                                            "process, and print the table.")
-    p.add_argument("--counts", type=int, nargs="+", default=[0, 50], metavar="N",
-                   help="meshes: 0 = the bunny, N = N instanced bunnies (default: 0 50)")
-    p.add_argument("--formats", nargs="+", default=list(FORMATS), choices=FORMATS,
-                   help="image formats to build (default: all)")
-    p.add_argument("--json", metavar="PATH", help="write the builds here")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
-    args = p.parse_args(argv)
-    from ..core.outputs import JSON, Outputs, OutputError, write_json
-    try:
-        if any(c < 0 for c in args.counts):
-            raise ValueError(f"--counts must be >= 0, got {args.counts}")
-        outs = Outputs()
-        js = outs.add("--json", args.json, JSON) if args.json else None
-        doc = bvh_bench(counts=tuple(args.counts), quality=False, progress=not args.no_progress,
-                        formats=tuple(args.formats))
-        if js:
-            with outs.commit():
-                write_json(doc, outs.temp(js))
-    except (ValueError, OSError, OutputError) as e:
-        print(f"rayflex: error: {e}", file=sys.stderr)
-        return 2
-    print(build_table(doc))
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

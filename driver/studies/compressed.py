@@ -9,9 +9,7 @@ memory vs rays in flight, one colour per ray type, solid q8 and dashed box32.
 
 from __future__ import annotations
 
-import argparse
 import json
-import sys
 
 FORMATS = ("box32", "q8", "q8g")
 
@@ -112,32 +110,3 @@ def load(paths) -> dict:
            for doc in docs.values()):
         raise ValueError("the documents hold different ray types")
     return {f: docs[f] for f in FORMATS if f in docs}
-
-
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m driver.bvh.study", description=__doc__.split(
-        "\n\n")[0])
-    p.add_argument("json", nargs="+", help="one bench JSON per image format (box32, q8 and "
-                                           "optionally q8g)")
-    p.add_argument("--plot", metavar="PNG", help="draw the utilization sweep here")
-    args = p.parse_args(argv)
-    try:
-        docs = load(args.json)
-        table = rows(docs)
-        if args.plot:
-            from ..core.outputs import Outputs, PNG
-            outs = Outputs()
-            png = outs.add("--plot", args.plot, PNG)
-            d = docs["q8"]
-            with outs.commit():
-                plot(docs, outs.temp(png), f"{d['scene']} {d['width']}x{d['height']} "
-                     f"{d['workload']}, {d['spp']} spp: box32 vs q8 node images")
-    except (ValueError, OSError) as e:
-        print(f"rayflex: error: {e}", file=sys.stderr)
-        return 2
-    print(markdown(table))
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -28,19 +28,19 @@ a JSON document and a Markdown table.
 
 from __future__ import annotations
 
-import argparse
-import json
-import sys
-
 import numpy as np
 
 from ..core.layout import IMAGE_FORMATS
+from ..core.provenance import provenance
+from ..design import DesignPoint
+from ..instances import DATAPATH, TRANSFORMS
+from ..scenes.camera import primary_rays
+from ..workloads import setup_for
 
 
 def hits(scene_name: str = "bunny_grid", size: int = 256, backend: str = "golden") -> dict:
     """The image sizes and the hit comparison of the module docstring, as a JSON-ready dict."""
     from ..bvh4 import build
-    from ..scenes.camera import primary_rays
     from ..scenes.scene import load_scene
     from ..tracer import trace
     from ..bvh.instances import build_two_level
@@ -72,7 +72,6 @@ def hits(scene_name: str = "bunny_grid", size: int = 256, backend: str = "golden
                                for fmt in IMAGE_FORMATS if fmt != "box32"}
     rows = np.flatnonzero(a.hit & b.hit)
     p = o[rows].astype(np.float64) + b.t[rows, None].astype(np.float64) * d[rows]
-    from ..workloads import setup_for
     light = setup_for(scene).lights[0]                  # the scene's first (or default) light
     centre = (np.asarray(light.corner) + 0.5 * np.asarray(light.u) + 0.5 * np.asarray(light.v)
               if hasattr(light, "corner") else np.asarray(light.position))
@@ -215,9 +214,6 @@ def transform_cost(scene: str = "bunny_grid", workload: str = "path", size: int 
     same design point with each ``--transform`` (no rays-in-flight sweep), as a JSON-ready
     dict."""
     from ..bench import bench_workload
-    from ..design import DesignPoint
-    from ..instances import DATAPATH, TRANSFORMS
-    from ..stats import provenance
     out: dict = {}
     # datapath first: a scene without instances is refused before any work
     for where in sorted(TRANSFORMS, key=lambda w: w != DATAPATH):
@@ -289,74 +285,3 @@ def transform_markdown(doc: dict) -> str:
                 f"| {c['rtunit_memory']['cycles']:,} | {c['rtunit_memory']['utilization']:.3f} "
                 f"| {'' if where == 'driver' else pct(rel)} |")
     return "\n".join(lines)
-
-
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m driver.bvh.instances_study",
-                                description=__doc__.split("\n\n")[0])
-    sub = p.add_subparsers(dest="cmd", required=True)
-    h = sub.add_parser("hits", help="image bytes and hits, instanced vs flattened")
-    h.add_argument("--scene", default="bunny_grid")
-    h.add_argument("--size", type=int, default=256)
-    h.add_argument("--json", metavar="OUT")
-    g = sub.add_parser("images", help="two-level image bytes per format (TLAS, instance "
-                                      "nodes, BLASes)")
-    g.add_argument("--scene", action="append", metavar="NAME",
-                   help="an instanced scene (repeatable; default: bunny_grid and city)")
-    g.add_argument("--json", metavar="OUT")
-    t = sub.add_parser("table", help="Markdown table of bench --workload documents")
-    t.add_argument("docs", nargs="+", metavar="DOC.json")
-    x = sub.add_parser("transform", help="the instance transform in the driver vs on the "
-                                         "datapath: ops, RT-unit cycles, utilization")
-    x.add_argument("--scene", default="bunny_grid")
-    x.add_argument("--workload", default="path")
-    x.add_argument("--size", type=int, default=64)
-    x.add_argument("--spp", type=int, default=2)
-    x.add_argument("--bounces", type=int, default=2)
-    x.add_argument("--json", metavar="OUT")
-    x.add_argument("--no-progress", action="store_true")
-    args = p.parse_args(argv)
-    try:
-        if args.cmd == "transform":
-            from ..design import DesignPoint
-            from ..core.outputs import JSON, Outputs, write_json
-            DesignPoint(scene=args.scene, workload=args.workload, size=args.size,
-                        spp=args.spp, bounces=args.bounces)         # bad values fail now
-            outs = Outputs()
-            js = outs.add("--json", args.json, JSON) if args.json else None
-            doc = transform_cost(args.scene, args.workload, args.size, args.spp, args.bounces,
-                                 progress=not args.no_progress)
-            with outs.commit():
-                if js:
-                    write_json(doc, outs.temp(js))
-            print(transform_markdown(doc))
-        elif args.cmd == "images":
-            from ..core.outputs import JSON, Outputs, write_json
-            outs = Outputs()
-            js = outs.add("--json", args.json, JSON) if args.json else None
-            doc = images(tuple(args.scene or ("bunny_grid", "city")))
-            with outs.commit():
-                if js:
-                    write_json(doc, outs.temp(js))
-            print(images_markdown(doc))
-        elif args.cmd == "hits":
-            doc = hits(args.scene, args.size)
-            text = json.dumps(doc, indent=1)
-            if args.json:
-                from ..core.outputs import write_json
-                write_json(doc, args.json)
-            print(text)
-        else:
-            docs = []
-            for path in args.docs:
-                with open(path) as f:
-                    docs.append(json.load(f))
-            print(markdown(docs))
-    except (OSError, ValueError, KeyError) as e:
-        print(f"instances_study: error: {e}", file=sys.stderr)
-        return 2
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -27,6 +27,7 @@ from ..bvh4 import request_operands
 from ..core.datapath import DatapathError
 from ..core.layout import NO_CHILD, RESPONSE, RSP_WORDS, pack_responses, ray_words
 from ..traversal import StepResponses
+from .record import Record
 
 
 def _bits(words: np.ndarray, name: str) -> np.ndarray:
@@ -212,8 +213,6 @@ class Recorder:
                            np.asarray(ext, np.float32), words))
 
     def record(self, params: dict):
-        from ..rtunit import Record
-
         def cat(k, dtype, shape=(0,)):
             return (np.concatenate([p[k] for p in self.parts]) if self.parts
                     else np.zeros(shape, dtype))
