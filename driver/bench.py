@@ -45,7 +45,7 @@ import numpy as np
 from . import backends, rtunit, tiles, workloads
 from .backends import build as rtl_build
 from .check import compare, embree_closest, embree_json
-from .core.layout import pack_responses
+from .core.wire import pack_responses
 from .design import DesignPoint
 from .core.progress import bar as _bar
 from .core.provenance import machine, provenance
@@ -454,17 +454,17 @@ def bench_workers(point: DesignPoint, workers=2, tile=64, progress=True) -> dict
     rtl_build.build_harness(point.rtl_params())
     options = point.workload_options() | {"cull_stack": point.cull_stack}
     spec = ("rtl", point.backend_options())
-    runs, phases = {}, {}
+    runs = {}
     for n in (1, int(workers)):
         bar = _bar(n_tiles, f"{point.workload} {size}x{size} on {n} worker(s)", "tile",
                    progress)
         t0 = time.perf_counter()
         runs[n] = (tiles.render_tiles(setup, bvh, size, size, point.workload, options, spec,
-                                      tile, n, progress=bar.hook,
-                                      timings=phases if n > 1 else None),
+                                      tile, n, progress=bar.hook),
                    time.perf_counter() - t0)
         bar.close()
     (a, ta), (b, tb) = runs[1], runs[int(workers)]
+    phases = b.timings
     keep = ("rays", "hits", "box_ops", "tri_ops", "ops", "cycles")
     same = (np.array_equal(a.radiance, b.radiance)
             and all(np.array_equal(a.ops[k], b.ops[k]) for k in a.ops)

@@ -27,12 +27,12 @@ from .bvh.pipeline import (BUILDERS, COLLAPSES, PAD_REL, PROGRESS_MIN, as_triang
                            warm_up)
 # the node image's layout is driver.core.layout's (docs/datapath.md#bvh4-image,
 # docs/compressed.md); the names are re-exported for users
-from .core.layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, FLAG_DECODE_Q8,  # noqa: F401
-                          IMAGE_FORMATS, NO_CHILD, QNODE_WORDS, GROUP_BYTES, GROUP_NODE,
-                          GROUP_TYPE, INSTANCE_NODE, INSTANCE_TYPE, LEAF_NEXT_TYPE,
-                          LEAF_OFFSET_LIMIT, PAIR_BYTES, PAIR_NODE, PAIR_TYPE, Q8_BYTES, Q8_NODE,
-                          Q8_TYPE, QUADBOX, TRANSFORM, TRI_BYTES, TRI_NODE, TRI_TYPE, TRIANGLE,
-                          NodeRef, decode_q8, leaf_triangles, node_word, read_nodes)
+from .core.layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, IMAGE_FORMATS, NO_CHILD,  # noqa: F401
+                          GROUP_BYTES, GROUP_NODE, GROUP_TYPE, INSTANCE_NODE, INSTANCE_TYPE,
+                          LEAF_NEXT_TYPE, LEAF_OFFSET_LIMIT, PAIR_BYTES, PAIR_NODE, PAIR_TYPE,
+                          Q8_BYTES, Q8_NODE, Q8_TYPE, TRI_BYTES, TRI_NODE, TRI_TYPE, NodeRef,
+                          decode_q8, leaf_triangles, node_word, read_nodes)
+from .core.wire import FLAG_DECODE_Q8, QNODE_WORDS, QUADBOX, TRANSFORM, TRIANGLE
 from .instances import check_transform
 
 __all__ = ["BUILDERS", "BVH4", "COLLAPSES", "PAD_REL", "PROGRESS_MIN", "TwoLevelBVH",

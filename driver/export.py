@@ -50,7 +50,7 @@ import numpy as np
 
 from . import backends
 from .backends import resolve
-from .core.layout import REQUEST, REQUEST_DTYPE, RESPONSE, RESPONSE_DTYPE, Wire, unpack_responses
+from .core.wire import REQUEST, REQUEST_DTYPE, RESPONSE, RESPONSE_DTYPE, Wire, unpack_responses
 from .tiles import DEFAULT_TILE, plan
 from .workloads import run, setup_for
 

@@ -38,7 +38,7 @@ import numpy as np
 
 from . import backends
 from .core.datapath import ANGULAR, EUCLIDEAN, REQUEST_DTYPE
-from .core.layout import ANG_LANES, EUC_LANES
+from .core.wire import ANG_LANES, EUC_LANES
 from .core.progress import bar as progress_bar
 
 F32 = np.float32

@@ -81,30 +81,29 @@ class RenderResult:
 
 
 def render(scene, width=None, height=None, backend: str = "rtl", progress: bool = True,
-           check_embree: bool = False, workload: str = "primary", spp: int = 1, bounces: int = 1,
-           ao_rays: int = 4, seed: int = 0, tile: int | None = None, workers: int = 1,
-           scheduler: str | None = None, fill: int = 0, cull_stack: bool = False,
-           point=None, rtunit: bool = False) -> RenderResult:
+           check_embree: bool = False, point: DesignPoint | None = None, rtunit: bool = False,
+           tile: int | None = None, workers: int = 1,
+           scheduler: str | None = None) -> RenderResult:
     """Render ``scene`` (a Scene, or anything ``load_scene`` takes) at width x height (default:
     the scene's size) with every box/triangle test on ``backend``; optionally cross-check every
     ray against Embree.
 
-    The primary workload with one sample, untiled, is one wavefront of every pixel (the frame of
-    earlier versions, with ``trace`` the TraceResult). Any other ``workload``
-    (docs/workloads.md: shadow, ao, path with ``spp``, ``bounces``, ``ao_rays``, ``seed``), a
-    ``tile`` size, ``workers`` > 1 or a Dask ``scheduler`` renders through ``driver.tiles`` (``trace`` is None; statistics per
-    ray type in ``stats["by_type"]``); so does a frame too big for memory as one wavefront.
-    ``fill`` is the BVH build's (``driver.bvh4.build``), ``cull_stack`` the traversal's
-    (``driver.tracer.trace``).
+    ``point``: the ``driver.design.DesignPoint`` of the frame (default ``DesignPoint()``: the
+    primary workload, one sample): its workload (docs/workloads.md: primary, shadow, ao, path
+    with ``spp``, ``bounces``, ``ao_rays``, ``seed``), its BVH options (``bvh_fill``,
+    ``bvh_format``, ``flatten``, ``cull_stack``), and its datapath configuration and latency,
+    which make the backend (a backend name; a backend object is used as it is). ``rtunit``:
+    also replay every wavefront's requests on the point's RT unit (statistics ``rtunit`` and
+    ``rtunit_memory``).
 
-    ``point``: a ``driver.design.DesignPoint``; its datapath configuration and latency make the
-    backend (a backend name; a backend object is used as it is), and its workload and BVH
-    options replace the keyword arguments above. ``rtunit``: also replay every wavefront's
-    requests on the point's RT unit (statistics ``rtunit`` and ``rtunit_memory``). The
-    statistics are in the published schema (``driver.stats.public``, docs/statistics.md)."""
+    The primary workload with one sample, untiled, is one wavefront of every pixel (the frame of
+    earlier versions, with ``trace`` the TraceResult). Any other workload, a ``tile`` size,
+    ``workers`` > 1 or a Dask ``scheduler`` renders through ``driver.tiles`` (``trace`` is None;
+    statistics per ray type in ``stats["by_type"]``); so does a frame too big for memory as one
+    wavefront. The statistics are in the published schema (``driver.stats.public``,
+    docs/statistics.md)."""
     if point is None:
-        point = DesignPoint(workload=workload, spp=spp, bounces=bounces, ao_rays=ao_rays,
-                            seed=seed, bvh_fill=fill, cull_stack=cull_stack)
+        point = DesignPoint()
     scene = point.scene_of(load_scene(scene))
     w, h = check_size(width if width is not None else scene.size[0],
                       height if height is not None else scene.size[1])

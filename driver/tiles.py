@@ -166,11 +166,11 @@ class Assembler:
 def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
                  options: dict | None = None, backend="rtl", tile: int = DEFAULT_TILE,
                  workers: int = 1, scheduler: str | None = None, check_embree: bool = False,
-                 progress=None, timings: dict | None = None) -> FrameResult:
+                 progress=None) -> FrameResult:
     """Trace a frame tile by tile: in this process (``workers=1`` and no ``scheduler``), or as
     Dask tasks on a new ``LocalCluster`` of ``workers`` processes or on the cluster at
-    ``scheduler``. ``progress(done_tiles, total_tiles)``. Returns the merged ``FrameResult``.
-    ``timings`` (a dict) receives the distributed run's wall-time phases in seconds:
+    ``scheduler``. ``progress(done_tiles, total_tiles)``. Returns the merged ``FrameResult``;
+    its ``timings`` hold a distributed run's wall-time phases in seconds:
     ``start_s`` (importing Dask, starting the cluster or connecting, sending the scene and
     BVH), ``first_tile_s`` (from then to the first tile's result: a worker's one-time set-up and
     one tile), ``tiles_s`` (from then to the last result) and ``close_s``."""
@@ -184,7 +184,7 @@ def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
             if progress:
                 progress(i + 1, len(tiles))
         return asm.frame()
-    clock = _Phases(timings)
+    clock = _Phases({})
     with _client(workers, scheduler) as client:
         setup_f, bvh_f = client.scatter([setup, bvh], broadcast=True)
         clock.mark("start_s")
@@ -204,7 +204,9 @@ def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
             client.cancel(futures)
         clock.mark("tiles_s")
     clock.mark("close_s")
-    return asm.frame()
+    frame = asm.frame()
+    frame.timings = clock.out
+    return frame
 
 
 class _Phases:

@@ -8,20 +8,24 @@ timing replay (``driver.rtunit``).
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import rtunit
 from .backends import resolve
 from .backends.build import MIN_LATENCY, rtl_params
 from .bvh4 import BVH4, build
 from .core.datapath import prepare_rays
-from .core.layout import FLAG_NO_CULL
+from .core.wire import FLAG_NO_CULL
 from .instances import DATAPATH, Instances, check_transform
 from .tracing.stepper import InstanceStepper
 from .tracing.issue import issuer
 from .stats import frame_stats, with_replay
 from .traversal import traverse
+
+REPLAY_OPTIONS = inspect.signature(rtunit.replay)     # what ``trace(**rtunit_options)`` passes on
 
 
 @dataclass
@@ -87,9 +91,8 @@ def as_bvh(scene, bvh_format: str | None = None) -> BVH4:
 
 
 def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np.inf,
-          progress=None, rays_in_flight=None, pipelines=1, turnaround=None, record=False,
-          any_hit=False, double_sided=None, cull_stack=False, bvh_format=None,
-          transform=None) -> TraceResult:
+          progress=None, any_hit=False, double_sided=None, cull_stack=False, bvh_format=None,
+          transform=None, **rtunit_options) -> TraceResult:
     """Trace rays with every box and triangle test run on ``backend``.
 
     scene_or_mesh_or_bvh : BVH4, trimesh mesh, (n, 3, 3) triangles, or a scene name/path
@@ -116,18 +119,24 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
         ValueError before any work); None: the image's own (``TwoLevelBVH.transform``, set by
         ``driver.bvh.instances.build_scene``)
     progress : optional callable(done_rays, total_rays), called once per step
-    rays_in_flight, pipelines, turnaround : RT-unit model (``driver.rtunit``). With
-        ``rays_in_flight=None`` (default) the statistics are the wavefront's: every ray in
-        flight, one pipeline, cycles as the backend counts them. With an int R, the recorded
-        requests are replayed through ``pipelines`` Verilated pipelines holding R rays in flight
+    rtunit_options : the RT-unit model: ``record=True`` keeps the
+        ``driver.tracing.record.Record`` of every request (for ``rtunit.replay`` and sweeps) in
+        ``TraceResult.record`` (always kept when ``rays_in_flight`` is given); the others are
+        ``driver.rtunit.replay``'s keywords (``rays_in_flight``, ``pipelines``,
+        ``turnaround``, ...). Without ``rays_in_flight`` (or
+        with None, the default) the statistics are the wavefront's: every ray in flight, one
+        pipeline, cycles as the backend counts them. With an int R, the recorded requests are
+        replayed through ``pipelines`` Verilated pipelines (default 1) holding R rays in flight
         (``turnaround`` cycles from a response to the ray's next request, default 1); the
         statistics' ``cycles``, ``utilization`` (= ops / (pipelines * cycles)),
         ``frame_us_at_1ghz``, ``sim_wall_s`` and ``sim_cycles_per_s`` are then the replay's,
         the wavefront's are kept as ``wavefront_*``, and the replayed responses are checked
-        against the functional run bit for bit. Hits never depend on these parameters.
-    record : keep the ``driver.rtunit.Record`` of every request (for ``rtunit.replay``/sweeps)
-        in ``TraceResult.record`` (always kept when ``rays_in_flight`` is given).
+        against the functional run bit for bit. Hits never depend on these options; an option
+        ``driver.rtunit.replay`` does not take is a TypeError before any work.
     """
+    record = bool(rtunit_options.pop("record", False))
+    REPLAY_OPTIONS.bind(None, **rtunit_options)   # an unknown option fails here (TypeError)
+    replay = {k: v for k, v in rtunit_options.items() if v is not None}
     if transform is not None:
         check_transform(transform)
     if isinstance(scene_or_mesh_or_bvh, (str, bytes)) or hasattr(scene_or_mesh_or_bvh,
@@ -146,7 +155,7 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
                          f"operation (backend({be_name!r}, transform=True))")
     rays = prepare_rays(origins, directions, extent,
                         **({"flags": FLAG_NO_CULL} if double_sided else {}))
-    timed = rays_in_flight is not None
+    timed = "rays_in_flight" in replay
     issue = issuer(be, rays, bvh, be_name, record=bool(record) or timed)
     cycles0 = int(be.cycles)
     inst = InstanceStepper(bvh, rays, issue, where) if instanced else None
@@ -166,9 +175,7 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
                         None if inst is None else inst.transform_ops)
     rec = issue.record(_replay_params(be)) if hasattr(issue, "record") else None
     if timed:
-        from . import rtunit
-        ta = rtunit.DEFAULT_TURNAROUND if turnaround is None else turnaround
-        stats = with_replay(stats, rtunit.replay(rec, rays_in_flight, pipelines, ta).stats())
+        stats = with_replay(stats, rtunit.replay(rec, **replay).stats())
     return TraceResult(t, trav.prim, hit, trav.box_ops, trav.tri_ops, trav.step_requests,
                        trav.step_box_requests, stats, rec, instance,
                        None if inst is None else inst.transform_ops)

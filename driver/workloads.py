@@ -101,12 +101,14 @@ class Batch:
 @dataclass
 class FrameResult:
     """radiance (npix, 3) float64 (linear; AO: the unoccluded fraction); ops[type] (npix,) int64
-    datapath ops per pixel; stats: totals + ``by_type``; batches: every traced batch."""
+    datapath ops per pixel; stats: totals + ``by_type``; batches: every traced batch; timings:
+    the wall-time phases of a frame traced on Dask (``driver.tiles.render_tiles``), in seconds."""
 
     radiance: np.ndarray
     ops: dict
     stats: dict
     batches: list = field(default_factory=list)
+    timings: dict = field(default_factory=dict)
 
 
 class Frame:

@@ -9,9 +9,10 @@ from driver.bvh.instances import _box_node, build_two_level, tlas_format
 from driver.instances import world_boxes
 from driver.bvh4 import box_operands
 from driver.instances import Instances, affine, transform_ray
-from driver.core.layout import (FLAG_DECODE_Q8, IMAGE_FORMATS, INSTANCE_BYTES, INSTANCE_NODE,
-                                INSTANCE_TYPE, NO_CHILD, NODE_BYTES, Q8_EXP_MAX, Q8_EXP_MIN,
-                                Q8_NODE, Q8_TYPE, NodeRef, read_nodes)
+from driver.core.wire import FLAG_DECODE_Q8
+from driver.core.layout import (IMAGE_FORMATS, INSTANCE_BYTES, INSTANCE_NODE, INSTANCE_TYPE,
+                                NO_CHILD, NODE_BYTES, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE,
+                                NodeRef, read_nodes)
 from driver.tracer import trace
 from support.meshes import reuse_glb
 
@@ -544,7 +545,7 @@ def test_datapath_transform_in_the_record_and_the_replay():
     cycles are those measured before the datapath transform existed."""
     from driver import rtunit
     from driver.backends.harness import build_requests
-    from driver.core.layout import pack_requests
+    from driver.core.wire import pack_requests
     inst = random_instances(2, k=8)
     o, d = random_rays(300, 6)
     # (rtunit cycles R=16, with the default node memory): driver mode, measured on the code
@@ -719,14 +720,16 @@ def test_city_defaults_reach_game_scale():
 
 
 def test_small_city_renders_every_workload_and_checks_against_embree():
+    from driver.design import DesignPoint
     from driver.instances import InstancedTriangles
     from driver.render import render
     scene = _small_city()
     assert isinstance(scene.triangles, InstancedTriangles)
     assert scene.counts()["instances"] == 26
     for workload in ("primary", "shadow", "ao", "path"):
-        res = render(scene, 24, 24, backend="golden", workload=workload, progress=False,
-                     check_embree=True, tile=None if workload == "primary" else 16)
+        res = render(scene, 24, 24, backend="golden", point=DesignPoint(workload=workload),
+                     progress=False, check_embree=True,
+                     tile=None if workload == "primary" else 16)
         s = res.stats
         assert s["instances"] == 26 and s["instanced_triangles"] == len(scene.triangles)
         assert s["hits"] > 0 and s["instance_ops"] > 0

@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from driver.backends.build import RTL_DIR, SIM_DIR, source_names
-from driver.core.layout import Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, QNODE_WORDS, decode_q8
+from driver.core.layout import Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, decode_q8
+from driver.core.wire import QNODE_WORDS
 from driver.backends.verilate import build_library
 
 F32 = np.float32

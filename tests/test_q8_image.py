@@ -12,8 +12,9 @@ from driver.bvh4 import PAD_REL, build, request_operands
 from driver.core.layout import (GROUP_BYTES, GROUP_MAX_TRIS, GROUP_NODE, GROUP_TYPE,
                                 LEAF_NEXT_TYPE, NO_CHILD, NODE_BYTES, PAIR_BYTES, PAIR_NODE,
                                 PAIR_TYPE, Q8_BYTES, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE,
-                                REQUEST_DTYPE, NodeRef, decode_q8, leaf_count, leaf_next,
-                                leaf_triangles, pack_requests, q8_count, ray_words)
+                                NodeRef, decode_q8, leaf_count, leaf_next, leaf_triangles,
+                                q8_count)
+from driver.core.wire import REQUEST_DTYPE, pack_requests, ray_words
 from driver.tracer import trace
 from support import meshes
 
@@ -528,7 +529,8 @@ def test_a_datapath_with_the_decode_gets_the_nodes_as_stored(backend_name):
     the same hits, bit for bit, as the host's decode on a datapath without it; the replay on the
     RT unit of such a configuration checks every response against the trace's."""
     from driver import backend, rtunit
-    from driver.core.layout import FLAG_DECODE_Q8, Q8_TYPE, NodeRef
+    from driver.core.wire import FLAG_DECODE_Q8
+    from driver.core.layout import Q8_TYPE, NodeRef
     from driver.scenes.camera import primary_rays
     from driver.scenes.scene import load_scene
     scene = load_scene("bunny_floor")

@@ -16,7 +16,8 @@ from driver import prepare_rays, rtunit
 from driver.backends.build import rtl_params
 from driver.bvh4 import build
 from driver.cli import main as cli_main
-from driver.core.layout import BOX_BYTES, BOX_TYPE, REQUEST, NodeRef, leaf_request, ray_words
+from driver.core.layout import BOX_BYTES, BOX_TYPE, NodeRef, leaf_request
+from driver.core.wire import REQUEST, ray_words
 from driver.rtunit import order
 from driver.tracer import trace
 from support import meshes

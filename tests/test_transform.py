@@ -22,8 +22,8 @@ import driver
 from driver import QUADBOX, TRIANGLE, DatapathError
 from driver.core import golden
 from driver.core.datapath import run_transform, transform_requests, transform_results
-from driver.core.layout import (MATRIX_SHAPE, OPCODES, REQUEST, REQUEST_DTYPE, TRANSFORM,
-                                carries_matrix, pack_requests, unpack_requests)
+from driver.core.wire import (MATRIX_SHAPE, OPCODES, REQUEST, REQUEST_DTYPE, TRANSFORM,
+                              carries_matrix, pack_requests, unpack_requests)
 from support.scalar_ref import ScalarState, scalar_run
 from support.scoreboard import assert_bit_equal, bits
 from support.streams import (extended_stream, interleave, q8_requests, random_matrices,

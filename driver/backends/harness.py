@@ -14,8 +14,8 @@ import ctypes
 
 import numpy as np
 
-from ..core.layout import (NO_CHILD, RAY_WORDS, REPLAY_STATS, REQ_WORDS, RSP_WORDS, pack_requests,
-                           unpack_responses)
+from ..core.layout import NO_CHILD, REPLAY_STATS
+from ..core.wire import RAY_WORDS, REQ_WORDS, RSP_WORDS, pack_requests, unpack_responses
 from .build import build_harness
 from .rtlbase import PATTERN_LEN, RtlBackendBase
 
@@ -122,11 +122,13 @@ SCHED_STATS = ("parked", "resumed", "max_parked", "max_held", "picks", "max_queu
                "borrowed")
 
 
-def replay_chains(params: dict[str, int], pipelines: int, slots: int, turnaround: int,
-                  skip_idle: bool, ray_words, image_words, ray, ptr, extent, chain_idx,
-                  chain_off, max_idle: int, memory=NO_MEMORY, order=None, window: int = 0,
-                  chain=None, before=None, treelets=None):
+def replay_chains(params: dict[str, int], record, chains, pipelines: int, slots: int,
+                  turnaround: int, skip_idle: bool, max_idle: int, memory=NO_MEMORY, order=None,
+                  window: int = 0, treelets=None):
     """Run the RT-unit scheduler (sim/rtunit_scheduler.cpp) over recorded request chains.
+    ``record``: the requests (a ``driver.tracing.record.Record``: ``ray_words``, ``image``,
+    ``ray``, ``ptr``, ``extent``, ``chain``, ``before``); ``chains``: (chain_idx, chain_off), its
+    requests in chain order (``Record.chains``).
     ``memory``: (cache_bytes, ways, line_bytes, latency_cycles, bytes_per_cycle) of the node
     memory (sim/rf_memory.h; cache_bytes = 0: no cache, every line from memory; < 0: no memory
     model). ``order``: the order in which chains (world rays) enter (a permutation of the chain
@@ -139,9 +141,11 @@ def replay_chains(params: dict[str, int], pipelines: int, slots: int, turnaround
     (responses (m, RSP_WORDS) uint32 at the record index, ``ReplayStats`` dict plus the
     scheduler's ``SCHED_STATS`` counts, requests per pipeline (P,) int64)."""
     lib = harness_library(params)
-    rw, img, r, p, e = node_arrays(ray_words, image_words, ray, ptr, extent)
-    ci = np.ascontiguousarray(chain_idx, np.int64)
-    co = np.ascontiguousarray(chain_off, np.int64)
+    rw, img, r, p, e = node_arrays(record.ray_words, record.image, record.ray, record.ptr,
+                                   record.extent)
+    chain, before = record.chain, record.before
+    ci = np.ascontiguousarray(chains[0], np.int64)
+    co = np.ascontiguousarray(chains[1], np.int64)
     ch = r if chain is None else np.ascontiguousarray(chain, np.uint32).reshape(-1)
     bf = (np.full(len(r), NO_CHILD, np.uint32) if before is None
           else np.ascontiguousarray(before, np.uint32).reshape(-1))

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from . import verilate
-from ..core.layout import RSP_WORDS, pack_requests, unpack_responses
+from ..core.wire import RSP_WORDS, pack_requests, unpack_responses
 from .base import BackendError
 from .build import RTL_DIR, TOP, rtl_sources
 from .rtlbase import PATTERN_LEN, RtlBackendBase

@@ -31,10 +31,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.layout import (BOX_NODE, BOX_TYPE, FLAG_DECODE_Q8, GROUP_TYPE, IMAGE_FORMATS,
-                           INSTANCE_NODE, INSTANCE_TYPE, LEAF_NEXT_TYPE, PAIR_TYPE, QNODE_WORDS,
-                           Q8_NODE, Q8_TYPE, QUADBOX, TRANSFORM, TRI_NODE, TRI_TYPE, TRIANGLE,
-                           NodeRef, decode_q8, leaf_triangles, node_word, read_nodes)
+from ..core.layout import (BOX_NODE, BOX_TYPE, GROUP_TYPE, IMAGE_FORMATS, INSTANCE_NODE,
+                           INSTANCE_TYPE, LEAF_NEXT_TYPE, PAIR_TYPE, Q8_NODE, Q8_TYPE, TRI_NODE,
+                           TRI_TYPE, NodeRef, decode_q8, leaf_triangles, node_word, read_nodes)
+from ..core.wire import FLAG_DECODE_Q8, QNODE_WORDS, QUADBOX, TRANSFORM, TRIANGLE
 
 
 class BVH4:

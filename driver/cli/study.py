@@ -28,10 +28,11 @@ from ..studies import bvh, compressed, instances, rayorder
 from . import options
 
 STUDIES = {
-    "rayorder": "ray-order policies of the RT unit per scene and ray type (docs/rayorder.md)",
-    "bvh": "BVH build times per image format, each build in a fresh process",
-    "compressed": "box32 vs q8 (and q8g) from bench documents of one frame: table and plot",
-    "instances": "instanced vs flattened scenes (docs/instances.md)",
+    "rayorder": "ray-order policies of the RT unit per scene and ray type; docs/rayorder.md",
+    "bvh": "BVH build times per image format, each build in a fresh process; docs/compressed.md",
+    "compressed": "box32 vs q8 (and q8g) from bench documents of one frame: table and plot; "
+                  "docs/compressed.md",
+    "instances": "instanced vs flattened scenes; docs/instances.md",
 }
 INSTANCE_STUDIES = {
     "hits": "image bytes and hits, instanced vs flattened",

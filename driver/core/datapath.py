@@ -14,10 +14,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .layout import (ANGULAR, EUCLIDEAN, FLAG_DECODE_Q8, FLAG_NAMES, FLAG_NO_CULL,  # noqa: F401
-                     FLAGS_DEFINED, MATRIX_SHAPE, OPCODES, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE,
-                     QUADBOX, RAY_FLAGS, REQUEST_DTYPE, RESPONSE_DTYPE, TRANSFORM, TRIANGLE,
-                     carries_qnode, node_word)
+from .wire import (ANGULAR, EUCLIDEAN, FLAG_DECODE_Q8, FLAG_NAMES, FLAG_NO_CULL,  # noqa: F401
+                   FLAGS_DEFINED, MATRIX_SHAPE, OPCODES, QUADBOX, RAY_FLAGS, REQUEST_DTYPE,
+                   RESPONSE_DTYPE, TRANSFORM, TRIANGLE, carries_qnode)
+from .layout import Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, node_word
 
 LATENCY = 11
 DECODE_STAGES = 1         # pipeline stages the q8 decode adds in a COMPRESSED build

@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from .datapath import CANONICAL_NAN
-from .layout import ANG_LANES, EUC_LANES, Q8_NODE, carries_qnode, decode_q8
+from .wire import ANG_LANES, EUC_LANES, carries_qnode
+from .layout import Q8_NODE, decode_q8
 
 F32 = np.float32
 _INF = F32(np.inf)

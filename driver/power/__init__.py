@@ -41,7 +41,7 @@ from tqdm import tqdm
 from ..backends import build as rtl_build
 from ..backends import verilate
 from ..core.datapath import default_latency
-from ..core.layout import pack_requests
+from ..core.wire import pack_requests
 from . import activity, liberty, netlist, stimulus
 from .netlist import STAGE_LABELS, _area
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..backends import verilate
 from ..backends.build import LINT_WAIVERS, RTL_DIR, SIM_DIR, rtl_sources
-from ..core.layout import REQ_WORDS
+from ..core.wire import REQ_WORDS
 from . import gatesim
 from .netlist import STAGE_LABELS, Netlist
 

@@ -27,7 +27,8 @@ import numpy as np
 from ..core.datapath import (ANGULAR, EUCLIDEAN, QUADBOX, TRANSFORM, TRIANGLE, prepare_rays,
                              transform_requests)
 from ..bvh4 import q8_request
-from ..core.layout import FLAG_DECODE_Q8, FLAG_NO_CULL, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE
+from ..core.wire import FLAG_DECODE_Q8, FLAG_NO_CULL
+from ..core.layout import Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE
 
 
 class Op(NamedTuple):

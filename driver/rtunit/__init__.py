@@ -189,15 +189,13 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
     perm = ray_orders.permutation(record, ray_order, window)
     tl = (ray_orders.treelet_schedule(record, treelets or ray_orders.DEFAULT_TREELETS)
           if pol.treelets and record.ops else None)
-    chain_idx, chain_off = record.chains()
+    chains = record.chains()
     latency = int(record.params.get("LATENCY", LATENCY))
     t0 = time.perf_counter()
-    rsp, stats, per_pipe = replay_chains(record.params, p, r, ta, skip_idle, record.ray_words,
-                                         record.image, record.ray, record.ptr, record.extent,
-                                         chain_idx, chain_off, 100 * latency + 1000,
+    rsp, stats, per_pipe = replay_chains(record.params, record, chains, p, r, ta, skip_idle,
+                                         100 * latency + 1000,
                                          memory.args() if memory else NO_MEMORY, perm,
-                                         window if pol.schedule else 0, record.chain,
-                                         record.before, tl)
+                                         window if pol.schedule else 0, tl)
     wall = time.perf_counter() - t0
     m = len(rsp)
     if stats["bad_tags"]:

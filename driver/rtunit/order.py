@@ -43,7 +43,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.layout import (BOX_NODE, BOX_TYPE, INSTANCE_NODE, INSTANCE_TYPE, NO_CHILD, NODE_BYTES,
-                           Q8_NODE, Q8_TYPE, REQUEST, NodeRef, leaf_request, node_word, read_nodes)
+                           Q8_NODE, Q8_TYPE, NodeRef, leaf_request, node_word, read_nodes)
+from ..core.wire import REQUEST
 
 GRID_BITS = 5          # origin (and end point) cells per axis: 2**GRID_BITS
 THETA_BITS = 2         # polar-angle bins of the direction: 2**THETA_BITS

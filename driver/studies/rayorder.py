@@ -9,6 +9,7 @@ from dataclasses import replace
 
 from .. import backends, workloads
 from ..core.progress import bar
+from ..design import DesignPoint
 from ..rtunit.order import DEFAULT_TREELETS, POLICIES, floor_bytes
 from ..stats import rtunit_stats
 
@@ -49,14 +50,19 @@ def window_label(w) -> str:
 
 
 STUDY_FORMATS = ("box32", "q8")
+# the study's frames (path: 2 samples per pixel, 2 bounces; ao: 4 rays per hit) and RT unit (64
+# rays in flight, the default node cache and memory)
+STUDY_POINT = DesignPoint(spp=2, bounces=2, ao_rays=4, rays_in_flight=64)
 
 
-def study(scenes=STUDY_SCENES, size: int = 64, spp: int = 2, bounces: int = 2, ao_rays: int = 4,
-          windows=STUDY_WINDOWS, policies=None, rays_in_flight: int = 64, memory=None,
-          progress: bool = True, formats=("box32",), variants: bool = False,
-          variants_window: int = None) -> dict:
-    """Every policy at every window on the path (and ao) frames of ``scenes``, for the BVH in
-    each of ``formats``: per ray type the node cache's hit rate, bytes from memory per ray,
+def study(scenes=STUDY_SCENES, size: int = 64, windows=STUDY_WINDOWS, policies=None,
+          point: DesignPoint = STUDY_POINT, progress: bool = True, formats=("box32",),
+          variants: bool = False, variants_window: int = None) -> dict:
+    """Every policy at every window on the path (and ao) frames of ``scenes`` at ``size`` x
+    ``size``, for the BVH in each of ``formats``, on the RT unit of design point ``point`` (its
+    samples per pixel, bounces, AO rays and seed make the frames; its rays in flight and node
+    memory replay them; the default ``STUDY_POINT``): per ray type the node cache's hit rate,
+    bytes from memory per ray,
     utilization with the node memory, cycles per frame and the policy's cost; index order once
     (it has no window), and the cold-cache floor of the bytes per ray. The document:
     ``formats.<format>.scenes.<scene>.<ray type>``; with ``variants``, ``treelet_variants``
@@ -70,7 +76,8 @@ def study(scenes=STUDY_SCENES, size: int = 64, spp: int = 2, bounces: int = 2, a
         return rtunit_stats([rtunit.replay(rec, r, 1, memory=memory, ray_order=order,
                                            ray_window=window) for rec in records])
 
-    memory = memory or rtunit.MemoryModel()
+    spp, bounces, ao_rays = point.spp, point.bounces, point.ao_rays
+    rays_in_flight, memory = point.rays_in_flight, point.memory()
     policies = list(policies or POLICIES)
     doc = {"size": size, "spp": spp, "bounces": bounces, "ao_rays": ao_rays,
            "rays_in_flight": rays_in_flight, "pipelines": 1, "memory": memory.describe(),
@@ -79,7 +86,7 @@ def study(scenes=STUDY_SCENES, size: int = 64, spp: int = 2, bounces: int = 2, a
     for fmt in formats:
         doc["formats"][fmt] = {"scenes": {}}
         for scene in scenes:
-            recs = frame_records(scene, size, spp, bounces, ao_rays, bvh_format=fmt)
+            recs = frame_records(scene, size, spp, bounces, ao_rays, point.seed, fmt)
             kinds = ([k for k in STUDY_TYPES if k in recs]
                      + [k for k in recs if k not in STUDY_TYPES])
             # "pool": index order with all W rays in the pool (R = W), the scheduler's rays

@@ -25,7 +25,8 @@ import numpy as np
 from ..backends.base import NodeBackend
 from ..bvh4 import request_operands
 from ..core.datapath import DatapathError
-from ..core.layout import NO_CHILD, RESPONSE, RSP_WORDS, pack_responses, ray_words
+from ..core.layout import NO_CHILD
+from ..core.wire import RESPONSE, RSP_WORDS, pack_responses, ray_words
 from ..traversal import StepResponses
 from .record import Record
 

@@ -9,7 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..bvh4 import request_operands
-from ..core.layout import INSTANCE_TYPE, RAY_WORDS, REQ_WORDS, NodeRef, unpack_requests
+from ..core.layout import INSTANCE_TYPE, NodeRef
+from ..core.wire import RAY_WORDS, REQ_WORDS, unpack_requests
 
 
 @dataclass

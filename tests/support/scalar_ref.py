@@ -38,7 +38,7 @@ import numpy as np
 
 from driver.core.datapath import (ANGULAR, EUCLIDEAN, LATENCY, QUADBOX, RESPONSE_DTYPE, TRANSFORM,
                                   TRIANGLE, DatapathError)
-from driver.core.layout import FLAG_DECODE_Q8, FLAG_NO_CULL
+from driver.core.wire import FLAG_DECODE_Q8, FLAG_NO_CULL
 
 F32 = np.float32
 ZERO = F32(0.0)          # +0
