@@ -264,13 +264,7 @@ def synthesize(extended: int | None = 0, disjoint: int | None = 0, top: str = TO
         res["rtl_sha"] = rtl_sha(sources)
         return res
     t0 = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="rayflex-area-") as tmp:
-        work = Path(tmp)
-        _materialize(work, sources)
-        _run_yosys(work, script, timeout)
-        stat = json.loads((work / "stat.json").read_text())
-    design = stat.get("design") or next(iter(stat["modules"].values()))
-    by_type = dict(sorted(design["num_cells_by_type"].items()))
+    by_type = _cells_by_type(sources, script, timeout)
     res = {"rtl_sha": rtl_sha(sources), "config": name or (top if top != TOP else
                               _config_name(params)),
            "top": top, **{k.lower(): v for k, v in params.items()},
@@ -284,6 +278,18 @@ def synthesize(extended: int | None = 0, disjoint: int | None = 0, top: str = TO
         os.replace(tmp_entry, entry)
     res["cached"] = False
     return res
+
+
+def _cells_by_type(sources, script: str, timeout: float | None) -> dict:
+    """Run Yosys ``script`` (which writes ``stat.json``) in a temporary directory holding the RTL
+    ``sources``; the design's cell counts by type, sorted by name."""
+    with tempfile.TemporaryDirectory(prefix="rayflex-area-") as tmp:
+        work = Path(tmp)
+        _materialize(work, sources)
+        _run_yosys(work, script, timeout)
+        stat = json.loads((work / "stat.json").read_text())
+    design = stat.get("design") or next(iter(stat["modules"].values()))
+    return dict(sorted(design["num_cells_by_type"].items()))
 
 
 def _config_name(params: dict) -> str:
@@ -365,13 +371,7 @@ def elaborate(extended: int = 0, disjoint: int = 0, timeout: float | None = 300,
     g = " ".join(f"-G {k}={v}" for k, v in params.items())
     script = (f"read_slang -j 1 --top {TOP} {g} {' '.join(n for n, _ in sources)}\n"
               f"hierarchy -top {TOP}\ntee -q -o stat.json stat -json\n")
-    with tempfile.TemporaryDirectory(prefix="rayflex-area-") as tmp:
-        work = Path(tmp)
-        _materialize(work, sources)
-        _run_yosys(work, script, timeout)
-        stat = json.loads((work / "stat.json").read_text())
-    design = stat.get("design") or next(iter(stat["modules"].values()))
-    return dict(sorted(design["num_cells_by_type"].items()))
+    return _cells_by_type(sources, script, timeout)
 
 
 # ------------------------------------------------------------------------------------------------

@@ -13,6 +13,33 @@ from .image import _half_area
 from .params import WIDTH
 
 
+@njit(cache=True, inline="always")
+def place_slots(r, slots, left, child, box, parent, node_lo, node_hi, nb, box_ptr, no_child):
+    """Wide node ``r``'s slots (``slots[r]``: binary node ids, used first, -1 unused): each used
+    slot's stored box into ``box[r, j]`` (xmin ymin zmin xmax ymax zmax), an unused slot pointer
+    ``no_child`` and the +inf box; a box child the next box node number (breadth first, after
+    ``nb``) as its pointer and ``r`` as its parent, pointers affine in the node index
+    (``box_ptr``). Returns (the used slots, the last box node number). Every image writer
+    places its box nodes' slots with it; the leaves are the writer's own."""
+    used = 0
+    for j in range(WIDTH):
+        x = slots[r, j]
+        if x < 0:
+            child[r, j] = no_child
+            for c in range(6):
+                box[r, j, c] = np.inf
+            continue
+        used += 1
+        for c in range(3):
+            box[r, j, c] = node_lo[x, c]
+            box[r, j, 3 + c] = node_hi[x, c]
+        if left[x] >= 0:
+            nb += 1
+            child[r, j] = box_ptr[0] + nb * box_ptr[1]
+            parent[nb] = box_ptr[0] + r * box_ptr[1]
+    return used, nb
+
+
 @njit(cache=True)
 def fill_image(slots, left, prim, node_lo, node_hi, node_area, tris, child, box, parent, count,
                tri, tri_prim, box_ptr, tri_ptr, no_child):
@@ -31,24 +58,12 @@ def fill_image(slots, left, prim, node_lo, node_hi, node_area, tris, child, box,
     area = 0.0
     parent[0] = no_child
     for r in range(k):
-        used = 0
-        for j in range(WIDTH):
+        used, nb = place_slots(r, slots, left, child, box, parent, node_lo, node_hi, nb, box_ptr,
+                               no_child)
+        for j in range(used):
             x = slots[r, j]
-            if x < 0:
-                child[r, j] = no_child
-                for c in range(6):
-                    box[r, j, c] = np.inf
-                continue
-            used += 1
             area += node_area[x]
-            for c in range(3):
-                box[r, j, c] = node_lo[x, c]
-                box[r, j, 3 + c] = node_hi[x, c]
-            if left[x] >= 0:
-                nb += 1
-                child[r, j] = box_ptr[0] + nb * box_ptr[1]
-                parent[nb] = box_ptr[0] + r * box_ptr[1]
-            else:
+            if left[x] < 0:                                # a triangle node
                 child[r, j] = tri_ptr[0] + nt * tri_ptr[1]
                 p = prim[x]
                 tri_prim[nt] = p

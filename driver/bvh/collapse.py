@@ -71,6 +71,28 @@ def dp_table(left, right, leaf_cost, node_cost, alt_cost):
     return choice, alt
 
 
+@njit(cache=True, inline="always")
+def pop_slots(work, wp, choice):
+    """Pop the top (binary node x, slots k) of a walk's stack ``work`` (``wp`` entries) down the
+    table ``choice``: k lowered to the slots x really takes where the table chose fewer. Returns
+    (wp - 1, x, k). The collapse (``_emit``) and the group leaves' choice
+    (``driver.bvh.q8g``) walk their tables with it."""
+    wp -= 1
+    x, k = work[wp, 0], work[wp, 1]
+    while k > 1 and choice[x, k - 1] == 0:
+        k -= 1
+    return wp, x, k
+
+
+@njit(cache=True, inline="always")
+def push_children(work, wp, x, k, c, left, right):
+    """Push binary node x's children onto the walk's stack, the right one with k - c slots, the
+    left one (popped first) with c. Returns the new ``wp``."""
+    work[wp, 0], work[wp, 1] = right[x], k - c
+    work[wp + 1, 0], work[wp + 1, 1] = left[x], c
+    return wp + 2
+
+
 @njit(cache=True)
 def _emit(left, right, choice):
     """Wide nodes breadth first: (slots (k, 4) binary ids, -1 = unused, used first; depth of
@@ -96,10 +118,7 @@ def _emit(left, right, choice):
         work[1, 0], work[1, 1] = left[n], a
         wp = 2
         while wp > 0:
-            wp -= 1
-            x, k = work[wp, 0], work[wp, 1]
-            while k > 1 and choice[x, k - 1] == 0:
-                k -= 1
+            wp, x, k = pop_slots(work, wp, choice)
             if k == 1:
                 slots[row, used] = x
                 used += 1
@@ -108,10 +127,7 @@ def _emit(left, right, choice):
                     depth[tail] = depth[row] + 1
                     tail += 1
             else:
-                c = choice[x, k - 1]
-                work[wp, 0], work[wp, 1] = right[x], k - c
-                work[wp + 1, 0], work[wp + 1, 1] = left[x], c
-                wp += 2
+                wp = push_children(work, wp, x, k, choice[x, k - 1], left, right)
     return slots[:tail], depth[:tail]
 
 

@@ -24,6 +24,7 @@ from ..core.layout import GROUP_MAX_TRIS, GROUP_MAX_VERTS, GROUP_NODE, GROUP_TYP
 from .image import _half_area
 from .params import WIDTH
 from . import q8
+from .box32 import place_slots
 
 
 @njit(cache=True)
@@ -108,7 +109,7 @@ def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, gtri,
               no_child):
     """Number the wide tree's nodes and write the q8 box nodes (origin, exp + count, child, q,
     parent) and the leaves (lw/lf: 64-byte leaf slots in the order they are referenced), as
-    ``driver.bvh.build.fill_image`` does for box32. A leaf's ``prim`` below ``len(first)`` is a
+    ``driver.bvh.box32.fill_image`` does for box32. A leaf's ``prim`` below ``len(first)`` is a
     pair leaf (one slot), else group ``prim - len(first)`` (``gtri``, ``gvert``, ``gidx``: two
     slots). ``leaf_base``: byte offset of the first slot; ``types``: (pair,
     group) pointer type codes. ``ref`` (k, 4, 6) float32 receives each used slot's stored box
@@ -136,24 +137,12 @@ def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, gtri,
     parent[0] = no_child
     bad = np.zeros(k, np.bool_)
     for r in prange(k):
-        nb, nl = nb0[r], nl0[r]
-        used = 0
-        for j in range(WIDTH):
+        nl = nl0[r]
+        used = place_slots(r, slots, left, child, ref, parent, node_lo, node_hi, nb0[r], box_ptr,
+                           no_child)[0]
+        for j in range(used):
             x = slots[r, j]
-            if x < 0:
-                child[r, j] = no_child
-                for c in range(6):
-                    ref[r, j, c] = np.inf
-                continue
-            used += 1
-            for c in range(3):
-                ref[r, j, c] = node_lo[x, c]
-                ref[r, j, 3 + c] = node_hi[x, c]
-            if left[x] >= 0:
-                nb += 1
-                child[r, j] = box_ptr[0] + nb * box_ptr[1]
-                parent[nb] = box_ptr[0] + r * box_ptr[1]
-            else:
+            if left[x] < 0:                                # a pair or group leaf
                 p = prim[x]
                 kind = types[0] if p < n_pairs else types[1]
                 child[r, j] = ((leaf_base + 64 * nl) >> 3) | kind

@@ -15,7 +15,7 @@ import numpy as np
 from numba import get_num_threads, njit, prange
 
 from ..core.layout import GROUP_BYTES, GROUP_COUNT_LSB, GROUP_MAX_TRIS, GROUP_MAX_VERTS, GROUP_SEL_BITS, GROUP_SEL_LSB, PAIR_BYTES, Q8_BYTES
-from .collapse import dp_table
+from .collapse import dp_table, pop_slots, push_children
 from .params import WIDTH
 
 _CHUNKS_PER_THREAD = 8    # work items of a parallel loop with scratch: a few per thread
@@ -141,10 +141,7 @@ def _group_dp(left, right, prim, area, tri, ok, lam):
     work = np.empty((m + 2 * W, 2), np.int64)
     work[0, 0], work[0, 1], wp = 0, 1, 1
     while wp > 0:
-        wp -= 1
-        x, k = work[wp, 0], work[wp, 1]
-        while k > 1 and choice[x, k - 1] == 0:
-            k -= 1
+        wp, x, k = pop_slots(work, wp, choice)
         if k == 1:
             if group[x]:
                 merge[x] = True
@@ -155,9 +152,7 @@ def _group_dp(left, right, prim, area, tri, ok, lam):
             k = W                                # a wide box node: its W slots split below
         else:
             c = choice[x, k - 1]
-        work[wp, 0], work[wp, 1] = right[x], k - c
-        work[wp + 1, 0], work[wp + 1, 1] = left[x], c
-        wp += 2
+        wp = push_children(work, wp, x, k, c, left, right)
     return merge
 
 

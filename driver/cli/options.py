@@ -62,6 +62,15 @@ def _plot(help_text: str) -> Flag:
     return flag("--plot", metavar="PATH", help=help_text)
 
 
+def _workers(help_text: str) -> Flag:
+    return flag("--workers", type=int, default=1, metavar="N", help=help_text)
+
+
+def _scheduler(what: str) -> Flag:
+    return flag("--scheduler", metavar="ADDRESS",
+                help=f"{what} on the Dask cluster at ADDRESS (e.g. tcp://host:8786)")
+
+
 def _backend(default: str = "rtl") -> Flag:
     return flag("--backend", default=default, metavar="NAME",
                 help=f"datapath model: {', '.join(BACKENDS)} (default: {default})")
@@ -69,11 +78,9 @@ def _backend(default: str = "rtl") -> Flag:
 
 SHARED = {
     "progress": flag("--no-progress", action="store_true", help="no progress on stderr"),
-    "workers": flag("--workers", type=int, default=1, metavar="N",
-                    help="trace tiles on a local Dask cluster of N one-thread processes "
-                         "(default 1: this process)"),
-    "scheduler": flag("--scheduler", metavar="ADDRESS",
-                      help="trace tiles on the Dask cluster at ADDRESS (e.g. tcp://host:8786)"),
+    "workers": _workers("trace tiles on a local Dask cluster of N one-thread processes (default "
+                        "1: this process)"),
+    "scheduler": _scheduler("trace tiles"),
     "tile": flag("--tile", type=int, metavar="N",
                  help="tile size in pixels (default: a primary frame traced by one worker is "
                       "one wavefront up to "
@@ -182,9 +189,8 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
         flag("--repeat", type=int, default=bench.REPEAT, metavar="N",
              help=f"timed passes of the rtl and pyverilator streams; the best counts "
                   f"(default {bench.REPEAT})"),
-        flag("--workers", type=int, default=1, metavar="N",
-             help="instead, time the frame tiled on a local Dask cluster of N processes "
-                  "against one process: the speed-up"),
+        _workers("instead, time the frame tiled on a local Dask cluster of N processes against "
+                 "one process: the speed-up"),
         flag("--tile", type=int, default=64, metavar="N",
              help="tile size of the --workers comparison (default 64)"),
         flag("--bvh", action="store_true",
@@ -202,11 +208,9 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
              help="results file of finished points (JSON lines), read to resume and appended "
                   "to as points finish (default: beside the first of --json, --csv, --plot as "
                   "STEM.points.jsonl, else rayflex_sweep.points.jsonl)"),
-        flag("--workers", type=int, default=1, metavar="N",
-             help="measure points on a local Dask cluster of N one-thread processes (default "
-                  "1: this process)"),
-        flag("--scheduler", metavar="ADDRESS",
-             help="measure points on the Dask cluster at ADDRESS (e.g. tcp://host:8786)"),
+        _workers("measure points on a local Dask cluster of N one-thread processes (default 1: "
+                 "this process)"),
+        _scheduler("measure points"),
     )), (DESIGN, ()), (None, (SHARED["progress"],))),
     "power": ((None, (
         flag("--ops", type=int, default=DEFAULT_OPS, metavar="N",

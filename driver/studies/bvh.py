@@ -28,6 +28,7 @@ import time
 
 import numpy as np
 
+from ..core.markdown import table as markdown_table
 from ..core.progress import iterate
 from ..scenes.builtins import instanced_bunnies as grid
 from ..scenes.camera import primary_rays
@@ -215,7 +216,7 @@ def build_table(doc: dict) -> str:
     head = ["mesh", *(f"{f} CPU s (wall)" for f in fmts),
             *(f"{f} / box32 CPU (wall)" for f in fmts if f != "box32"),
             "q8g bytes / triangle", "load average"]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    rows = []
     for count, row in by.items():
         any_row = next(iter(row.values()))
         mesh = (f"bunny, {any_row['triangles']:,} triangles" if count == 1
@@ -231,5 +232,5 @@ def build_table(doc: dict) -> str:
         cells.append(f"{row['q8g']['bytes_per_triangle']:.1f}" if "q8g" in row else "–")
         loads = [b["load_average"] for b in row.values()]
         cells.append(f"{min(loads):.1f}–{max(loads):.1f}")
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+        rows.append(cells)
+    return markdown_table(head, rows)

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import json
 
+from ..core.markdown import table as markdown_table
+
 FORMATS = ("box32", "q8", "q8g")
 
 
@@ -42,18 +44,16 @@ def rows(docs: dict) -> list[dict]:
 
 
 def markdown(table: list[dict]) -> str:
-    lines = ["| ray type | image | B/triangle | ops/ray (box + tri) | ops vs box32 | node B/ray "
-             "| B from memory/ray | vs box32 | cache hit rate | utilization with memory "
-             "| cycles/ray with memory | vs box32 |", "|" + "---|" * 12]
-    for r in table:
-        lines.append(
-            f"| {r['type']} | {r['format']} | {r['bytes_per_triangle']:.1f} "
-            f"| {r['ops_per_ray']:.2f} ({r['box_ops_per_ray']:.2f} + {r['tri_ops_per_ray']:.2f}) "
-            f"| {r['ops_ratio']:.3f} | {r['node_bytes_per_ray']:.0f} "
-            f"| {r['memory_bytes_per_ray']:.0f} | {r['memory_bytes_ratio']:.3f} "
-            f"| {r['hit_rate']:.3f} | {r['utilization_memory']:.3f} "
-            f"| {r['cycles_per_ray_memory']:.1f} | {r['cycles_ratio']:.3f} |")
-    return "\n".join(lines)
+    return markdown_table(
+        ["ray type", "image", "B/triangle", "ops/ray (box + tri)", "ops vs box32", "node B/ray",
+         "B from memory/ray", "vs box32", "cache hit rate", "utilization with memory",
+         "cycles/ray with memory", "vs box32"],
+        ([r["type"], r["format"], f"{r['bytes_per_triangle']:.1f}",
+          f"{r['ops_per_ray']:.2f} ({r['box_ops_per_ray']:.2f} + {r['tri_ops_per_ray']:.2f})",
+          f"{r['ops_ratio']:.3f}", f"{r['node_bytes_per_ray']:.0f}",
+          f"{r['memory_bytes_per_ray']:.0f}", f"{r['memory_bytes_ratio']:.3f}",
+          f"{r['hit_rate']:.3f}", f"{r['utilization_memory']:.3f}",
+          f"{r['cycles_per_ray_memory']:.1f}", f"{r['cycles_ratio']:.3f}"] for r in table))
 
 
 def plot(docs: dict, path, title: str) -> None:

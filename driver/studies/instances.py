@@ -31,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.layout import IMAGE_FORMATS
+from ..core.markdown import table as markdown_table
 from ..core.provenance import provenance
 from ..design import DesignPoint
 from ..instances import DATAPATH, TRANSFORMS
@@ -141,16 +142,14 @@ def images(scene_names=("bunny_grid", "city")) -> dict:
 
 def images_markdown(doc: dict) -> str:
     """The ``images`` document as a Markdown table."""
-    lines = ["| scene | format | TLAS | TLAS bytes | instance node bytes | BLAS bytes "
-             "| image bytes | bytes / instanced triangle | image / box32 |", "|" + "---|" * 9]
-    for name, sc in doc["scenes"].items():
-        base = sc["images"]["box32"]["bytes"]
-        for fmt, r in sc["images"].items():
-            lines.append(f"| {name} | {fmt} | {r['tlas_format']} ({r['tlas_box_nodes']:,} "
-                         f"nodes) | {r['tlas_bytes']:,} | {r['instance_bytes']:,} "
-                         f"| {r['blas_bytes']:,} | {r['bytes']:,} "
-                         f"| {r['bytes_per_instanced_triangle']:.3f} | {r['bytes'] / base:.3f} |")
-    return "\n".join(lines)
+    return markdown_table(
+        ["scene", "format", "TLAS", "TLAS bytes", "instance node bytes", "BLAS bytes",
+         "image bytes", "bytes / instanced triangle", "image / box32"],
+        ([name, fmt, f"{r['tlas_format']} ({r['tlas_box_nodes']:,} nodes)",
+          f"{r['tlas_bytes']:,}", f"{r['instance_bytes']:,}", f"{r['blas_bytes']:,}",
+          f"{r['bytes']:,}", f"{r['bytes_per_instanced_triangle']:.3f}",
+          f"{r['bytes'] / sc['images']['box32']['bytes']:.3f}"]
+         for name, sc in doc["scenes"].items() for fmt, r in sc["images"].items()))
 
 
 def _compare(a, b, triangles) -> dict:
@@ -191,21 +190,21 @@ def rows(doc: dict) -> list[dict]:
 
 
 def markdown(docs: list[dict]) -> str:
-    lines = ["| scene | image | image bytes | ray type | rays | box ops/ray | tri ops/ray "
-             "| instance ops/ray | node B/ray | B from memory/ray | cache hit rate "
-             "| utilization with memory |", "|" + "---|" * 12]
-    for doc in docs:
-        image = "instanced" if doc.get("instances", 1) > 1 and "tlas_bytes" in doc["bvh"] \
-            else "flattened"
-        for r in rows(doc):
-            def f(v, fmt):
-                return "—" if v is None else format(v, fmt)
-            lines.append(f"| {doc['scene']} | {image} {doc['bvh']['format']} "
-                         f"| {doc['bvh']['bytes']:,} | {r['type']} | {r['rays']:,} "
-                         f"| {r['box']:.2f} | {r['tri']:.2f} | {r['instance']:.2f} "
-                         f"| {r['node_bytes']:.0f} | {f(r['memory_bytes'], '.0f')} "
-                         f"| {f(r['hit_rate'], '.3f')} | {f(r['utilization'], '.3f')} |")
-    return "\n".join(lines)
+    def f(v, fmt):
+        return "—" if v is None else format(v, fmt)
+
+    def image(doc):
+        kind = ("instanced" if doc.get("instances", 1) > 1 and "tlas_bytes" in doc["bvh"]
+                else "flattened")
+        return f"{kind} {doc['bvh']['format']}"
+    return markdown_table(
+        ["scene", "image", "image bytes", "ray type", "rays", "box ops/ray", "tri ops/ray",
+         "instance ops/ray", "node B/ray", "B from memory/ray", "cache hit rate",
+         "utilization with memory"],
+        ([doc["scene"], image(doc), f"{doc['bvh']['bytes']:,}", r["type"], f"{r['rays']:,}",
+          f"{r['box']:.2f}", f"{r['tri']:.2f}", f"{r['instance']:.2f}", f"{r['node_bytes']:.0f}",
+          f(r["memory_bytes"], ".0f"), f(r["hit_rate"], ".3f"), f(r["utilization"], ".3f")]
+         for doc in docs for r in rows(doc)))
 
 
 def transform_cost(scene: str = "bunny_grid", workload: str = "path", size: int = 64,
