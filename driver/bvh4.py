@@ -7,8 +7,8 @@ q8g), and ``build_scene`` builds a scene's BVH: the two-level image of an instan
 of its mesh. The stages, bottom up:
 
 - ``driver.bvh.image``: ``BVH4``, the built memory image with the decoders that read it like an
-  RT unit, and the request operands a node pointer becomes (the layout: docs/datapath.md#bvh4-image,
-  docs/compressed.md; the structs are ``driver.core.layout``'s);
+  RT unit, and the request operands a node pointer becomes (the layout:
+  docs/datapath.md#bvh4-image, docs/compressed.md; the structs are ``driver.core.layout``'s);
 - ``driver.bvh.build`` (numba) and ``driver.bvh.reference`` (numpy): the binary SAH build;
 - ``driver.bvh.collapse``: the SAH-optimal (or greedy) collapse to 4-wide box nodes;
 - ``driver.bvh.box32``, ``driver.bvh.q8_image``: the image writers; ``driver.bvh.q8`` pairs the

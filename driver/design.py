@@ -322,7 +322,7 @@ class DesignPoint:
         return scene.flattened() if self.flatten else scene
 
     def build(self, scene):
-        """The BVH of ``scene`` for this point (``driver.bvh.instances.build_scene``: a two-level
+        """The BVH of ``scene`` for this point (``driver.bvh4.build_scene``: a two-level
         image for an instanced scene)."""
         from .bvh4 import build_scene
         return build_scene(scene, fill=self.bvh_fill, format=self.bvh_format,

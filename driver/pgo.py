@@ -1,6 +1,6 @@
 """Training workload for the profile-guided build of the "rtl" harness library.
 
-``driver.verilate.build_library(train=...)`` compiles the harness instrumented, runs
+``driver.backends.verilate.build_library(train=...)`` compiles the harness instrumented, runs
 
     python -m driver.pgo '{"DISJOINT": 0, "EXTENDED": 0, "LATENCY": 11}' /path/to/librayflex_....so
 

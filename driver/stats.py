@@ -209,11 +209,11 @@ def merge_rtunit(parts: list) -> dict | None:
 
 
 def replay_stats(records: list, point) -> tuple[dict, dict | None]:
-    """(``rtunit``, ``rtunit_memory``) of recorded wavefronts (``driver.rtunit.Record``) replayed
-    one after another on the RT unit of design point ``point`` (``driver.design.DesignPoint``),
-    without and with its node memory (``point.cache_kib`` 0: no cache). The records replay on
-    the point's datapath configuration and latency; every response is checked against the
-    recorded one bit for bit."""
+    """(``rtunit``, ``rtunit_memory``) of recorded wavefronts (``driver.tracing.record.Record``)
+    replayed one after another on the RT unit of design point ``point``
+    (``driver.design.DesignPoint``), without and with its node memory (``point.cache_kib`` 0: no
+    cache). The records replay on the point's datapath configuration and latency; every response is
+    checked against the recorded one bit for bit."""
     from . import rtunit
     params = point.rtl_params()
     recs = [r if r.params == params else replace(r, params=params) for r in records]

@@ -5,7 +5,7 @@ combination. What each point costs:
 
 1. The functional trace: the workload's hits and datapath requests do not depend on the RT unit,
    so the frame is traced once per distinct (BVH options, workload options) on the "rtl" backend
-   of the first configuration listed, every wavefront recorded (``driver.rtunit.Record``).
+   of the first configuration listed, every wavefront recorded (``driver.tracing.record.Record``).
 2. Per point, each ray type's recorded wavefronts are replayed on the point's RT unit
    (``driver.stats.replay_stats``): without the node memory (``rtunit``) and with it
    (``rtunit_memory``), on the RTL of the point's datapath configuration and latency. Every

@@ -4,9 +4,9 @@ A frame is a list of tiles (squares of ``tile`` x ``tile`` pixels, row-major); e
 by the same code as a whole frame (``driver.workloads.run`` with the tile's pixels: every ray type
 and bounce is one wavefront within the tile) and its pixels, per-pixel ops, statistics and Embree
 check are merged into the frame. Because every random number is a pure function of (seed, pixel,
-sample, bounce, purpose) (``driver.sampling``), a tile traced alone is exactly that tile of the
-whole frame: the image, hits, per-pixel ops, ray and op counts do not depend on the tile size or
-on where a tile runs.
+sample, bounce, purpose) (``driver.scenes.sampling``), a tile traced alone is exactly that tile of
+the whole frame: the image, hits, per-pixel ops, ray and op counts do not depend on the tile size
+or on where a tile runs.
 
 Timing: a tile is the unit of scheduling (its ray types and bounces are its wavefronts), so the
 datapath ``cycles`` of a frame are the sum of its tiles' wavefront cycles (each wavefront pays its

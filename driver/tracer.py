@@ -1,9 +1,9 @@
 """``trace``: rays through a scene with every box and triangle test on a datapath backend.
 
 Composes the layers: the BVH4 (``driver.bvh4``), a backend (``driver.backends``), the issuer that
-feeds it each traversal step (``driver.issue``, optionally recording every request), the traversal
-loop (``driver.traversal``), the frame statistics (``driver.stats``) and, when asked, the RT-unit
-timing replay (``driver.rtunit``).
+feeds it each traversal step (``driver.tracing.issue``, optionally recording every request), the
+traversal loop (``driver.traversal``), the frame statistics (``driver.stats``) and, when asked, the
+RT-unit timing replay (``driver.rtunit``).
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ class TraceResult:
         the flattened triangle list (``driver.instances.Instances.flatten``)
     stats : dict, docs/datapath.md#statistics names, plain Python ints/floats/str (plus the RT-unit
         keys of ``trace(rays_in_flight=...)``)
-    record : ``driver.rtunit.Record`` of every request, when asked for (else None)
+    record : ``driver.tracing.record.Record`` of every request, when asked for (else None)
     """
 
     t: np.ndarray
@@ -69,7 +69,7 @@ class TraceResult:
 
 
 def as_bvh(scene, bvh_format: str | None = None) -> BVH4:
-    """A BVH4 from a BVH4, a scene name/path (``driver.scene.load``), a trimesh mesh, an
+    """A BVH4 from a BVH4, a scene name/path (``driver.scenes.scene.load``), a trimesh mesh, an
     (n, 3, 3) triangle array, or an object with a ``bvh`` or ``mesh`` attribute; built in
     ``bvh_format`` (``driver.bvh4.build``'s ``format``; None: box32). A given BVH4 must be in
     ``bvh_format`` when that is not None (ValueError)."""
@@ -104,7 +104,7 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
         (``hit``, ``prim``, ``t`` of that triangle); otherwise the closest hit
     double_sided : set ``NO_CULL`` on every ray (docs/datapath.md): triangles are hit from both
         sides. None (default): the scene's own setting when ``scene_or_mesh_or_bvh`` is a scene
-        (a name, a path or a ``driver.scene.Scene``), else False
+        (a name, a path or a ``driver.scenes.scene.Scene``), else False
     cull_stack : keep each stack entry's entry distance (the response's ``box_tmin``) and drop
         a popped box node that lies beyond the nearest hit without a request (beyond
         docs/datapath.md#traversal, off by default; ``driver.traversal``): the same hits with fewer
@@ -117,7 +117,7 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
         request per instance entered, on ``backend``, which must be built with the operation:
         a backend name is made with ``transform=True``, a backend object without it is a
         ValueError before any work); None: the image's own (``TwoLevelBVH.transform``, set by
-        ``driver.bvh.instances.build_scene``)
+        ``driver.bvh4.build_scene``)
     progress : optional callable(done_rays, total_rays), called once per step
     rtunit_options : the RT-unit model: ``record=True`` keeps the
         ``driver.tracing.record.Record`` of every request (for ``rtunit.replay`` and sweeps) in

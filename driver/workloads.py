@@ -18,8 +18,8 @@ them:
   ray sees a light directly; after that light arrives only through the shadow rays (no double
   counting).
 
-Every random decision is ``driver.sampling.uniform`` of (seed, pixel, sample, bounce, purpose), so
-any subset of pixels (a tile) traced alone gives exactly its part of the whole frame.
+Every random decision is ``driver.scenes.sampling.uniform`` of (seed, pixel, sample, bounce,
+purpose), so any subset of pixels (a tile) traced alone gives exactly its part of the whole frame.
 Ray types and their statistics: ``by_type`` (``driver.stats.merge``; docs/statistics.md).
 """
 
@@ -338,8 +338,8 @@ def embree_check(result: FrameResult, setup: Setup) -> dict:
 
 
 def setup_for(scene) -> Setup:
-    """The ``Setup`` of a loaded scene (``driver.scene.Scene``): its triangles and camera, and its
-    materials, lights, double-sidedness and AO radius where the scene defines them."""
+    """The ``Setup`` of a loaded scene (``driver.scenes.scene.Scene``): its triangles and camera,
+    and its materials, lights, double-sidedness and AO radius where the scene defines them."""
     tri = scene.triangles
     mats = getattr(scene, "materials", None) or Materials.plain(len(tri))
     return Setup(tri, scene.camera, mats, list(getattr(scene, "lights", None) or []),

@@ -1,6 +1,6 @@
 """The documentation as a reference that cannot drift.
 
-- docs/datapath.md's field tables equal the one layout table (``driver.layout``): a width or a
+- docs/datapath.md's field tables equal the one layout table (``driver.core.layout``): a width or a
   bit position is defined once;
 - README and docs speak about the product: no development words, no "SPEC n";
 - every ``docs/...`` link and ``#section`` reference in README, docs and the driver's and tests'
@@ -61,7 +61,7 @@ def _table(text: str, heading: str) -> list[list[str]]:
 
 
 # ------------------------------------------------------------------------------------------------
-# docs/datapath.md against driver.layout
+# docs/datapath.md against driver.core.layout
 
 
 @pytest.mark.parametrize("wire,heading", [(wire.REQUEST, "### Request fields"),

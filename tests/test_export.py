@@ -65,7 +65,7 @@ def test_hex_lines_decode_to_their_requests(tmp_path):
                               pack_requests(d["requests"][i:i + 1]))
         assert ex.decode_hex(rsp_lines[i], RESPONSE).tobytes() == d["responses"][i:i + 1].tobytes()
     # bit b of the number is bit b of the struct: the tag is the low 32 bits, the opcode the
-    # low bits of word 1, as driver.layout places them
+    # low bits of word 1, as driver.core.layout places them
     line = int(req_lines[n - 1], 16)
     for name in ("tag", "opcode"):
         f = REQUEST.field[name]

@@ -1,5 +1,5 @@
 """Bit-exact tests of the binary32 units (rtl/rf_fp_*.sv) against numpy float32, plus the
-Verilator build system (driver/verilate.py) they run on.
+Verilator build system (driver/backends/verilate.py) they run on.
 
 Every unit sees the same operand mix (tests/support/fpu.py: random bits, subnormals, specials,
 rounding ties and near-ties, overflow, underflow, cancellation, exponent differences 20..29,

@@ -1,4 +1,4 @@
-"""driver/layout.py against the RTL: every wire field's bit position and width, the structs' $bits,
+"""driver/core/wire.py and driver/core/layout.py against the RTL: every wire field's bit position and width, the structs' $bits,
 the opcodes and lane counts, as Verilator elaborates rtl/rf_pkg.sv; and the Python side of the
 table (pack/unpack round trips, node dtypes, NodeRef, the generated C header)."""
 

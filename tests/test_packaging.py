@@ -107,7 +107,7 @@ def test_wheel_holds_the_scenes_and_the_generated_header_code(wheel):
     assert scenes
     for s in scenes:
         assert f"driver/scenes/data/{s.name}" in names
-    assert "driver/layout.py" in names               # generates the harness's rf_layout.h
+    assert "driver/core/layout.py" in names          # generates the harness's rf_layout.h
     assert not any(n.startswith(("tests/", "tools/", "bench/", "docs/", "images/")) for n in names)
 
 

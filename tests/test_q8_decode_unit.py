@@ -1,5 +1,5 @@
 """The q8 decode stage on its own (rtl/rf_s00_q8_decode.sv through sim/q8_decode_tb_top.sv):
-every decoded bound equals the golden decode (``driver.layout.decode_q8``: one numpy float32 add
+every decoded bound equals the golden decode (``driver.core.layout.decode_q8``: one numpy float32 add
 ``origin + q * 2^exp``) bit for bit, NaN as the canonical quiet NaN, on nodes built to reach every
 case of the decode adder (docs/q8_datapath.md, "The decode adder"): every distance between the
 origin and the scale 2^exp (both paths and the boundary between them), cancellation to zero and

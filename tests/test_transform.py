@@ -3,7 +3,7 @@ out, every product and sum rounded to float32 in the one order
 ``o'[r] = ((m[r][0]*o[0] + m[r][1]*o[1]) + m[r][2]*o[2]) + m[r][3]``,
 ``d'[r] = (m[r][0]*d[0] + m[r][1]*d[1]) + m[r][2]*d[2]``.
 
-Golden model (``driver.golden.transform``), the fast RTL harness ("rtl"), pyverilator and the
+Golden model (``driver.core.golden.transform``), the fast RTL harness ("rtl"), pyverilator and the
 scalar reference, bit for bit, through the testbench (driver, monitor, golden scoreboard):
 directed matrices (identity, pure translation, rotation, mirror, zero), random matrices and rays
 (huge and tiny scales, negative determinants, zero and rank-2 matrices, +-0, subnormals, NaN,

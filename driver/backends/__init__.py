@@ -1,7 +1,7 @@
 """One interface for every datapath model: ``backend(name, **options)``.
 
-Layers: ``driver.datapath`` (dtypes, ray preparation) and ``driver.layout`` (wire words, node
-image) are the core; this package holds the models behind one ``Backend`` protocol, one module
+Layers: ``driver.core.datapath`` (dtypes, ray preparation) and ``driver.core.layout`` (wire words,
+node image) are the core; this package holds the models behind one ``Backend`` protocol, one module
 each (``golden``: numpy model; ``harness``: the "rtl" fast C++ harness over the Verilated RTL;
 ``pyverilator``: the same RTL cycle by cycle), and ``build`` (RTL sources, parameters, the
 Verilator build with its profile-guided policy). Nothing here imports the traversal or the

@@ -1,4 +1,5 @@
-"""The "golden" backend: the numpy model of ``driver.golden`` behind the ``Backend`` protocol."""
+"""The "golden" backend: the numpy model of ``driver.core.golden`` behind the ``Backend``
+protocol."""
 
 from __future__ import annotations
 

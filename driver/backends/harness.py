@@ -2,7 +2,7 @@
 
 ``HarnessBackend.run`` streams ready-made request words (sim/rayflex_harness.cpp);
 ``HarnessBackend.run_nodes`` is the traversal fast path: the harness assembles QUADBOX/TRIANGLE
-requests from a packed ray table (``driver.layout.ray_words``) and the BVH4 image, so the host
+requests from a packed ray table (``driver.core.wire.ray_words``) and the BVH4 image, so the host
 sends three numbers per request instead of 320 bytes. ``replay_chains`` runs the RT-unit scheduler
 (sim/rtunit_scheduler.cpp) for ``driver.rtunit``. ``harness_library(params)`` builds (cached; see
 ``driver.backends.build``) and loads the library once per process.
@@ -28,7 +28,7 @@ BAD_NODE = -2             # return code of the harness calls: a pointer that nam
 
 
 class ReplayStats(ctypes.Structure):
-    """rf_layout::ReplayStats (fields: ``driver.layout.REPLAY_STATS``)."""
+    """rf_layout::ReplayStats (fields: ``driver.core.layout.REPLAY_STATS``)."""
 
     _fields_ = [(name, ctypes.c_int64) for name in REPLAY_STATS]
 
@@ -235,7 +235,7 @@ class HarnessBackend(RtlBackendBase):
     def run_nodes(self, ray_words: np.ndarray, image_words: np.ndarray, ray: np.ndarray,
                   ptr: np.ndarray, extent: np.ndarray) -> np.ndarray:
         """Stream traversal requests: request i is ray ``ray[i]`` (a row of ``ray_words``, see
-        ``driver.layout.ray_words``; tag = the ray index) against the node at pointer ``ptr[i]``
+        ``driver.core.wire.ray_words``; tag = the ray index) against the node at pointer ``ptr[i]``
         of the BVH4 image ``image_words`` (QUADBOX for a box node, TRIANGLE for a triangle node),
         with extent ``extent[i]``. Returns the (n, RSP_WORDS) uint32 response words, in request
         order. Bit-identical to ``run()`` on the same requests built in Python (tests check)."""

@@ -108,7 +108,7 @@ def _pyverilator_model(params: dict[str, int]):
 
 
 def _build_pyverilator(params: dict[str, int]) -> Path:
-    """The cached pyverilator shared object (driver.verilate.build_pyverilator)."""
+    """The cached pyverilator shared object (driver.backends.verilate.build_pyverilator)."""
     try:
         return verilate.build_pyverilator(
             TOP, RTL_DIR / f"{TOP}.sv", rtl_sources(), [RTL_DIR / "rf_pkg.sv"], [RTL_DIR], params,

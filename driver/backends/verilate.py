@@ -13,10 +13,11 @@ A cache hit hashes the sources and returns; it runs neither Verilator nor the co
 builds in a temporary directory inside the cache under an ``fcntl`` lock (so concurrent processes
 build once; a process that waits for another's build says so on stderr) and renames the result
 into place atomically (``cached_build``, ``driver.backends.cache``; the pyverilator model,
-``build_pyverilator``, uses the same cache, lock and rename).  Every tool runs in its own process group: on SIGINT or SIGTERM the
-whole group (make and its compilers) is killed and the temporary directory removed.  A process
-killed with SIGKILL cannot clean up, so the next build of the same entry, holding its lock, kills
-any process still working inside a stale temporary directory and removes it.
+``build_pyverilator``, uses the same cache, lock and rename).  Every tool runs in its own process
+group: on SIGINT or SIGTERM the whole group (make and its compilers) is killed and the temporary
+directory removed.  A process killed with SIGKILL cannot clean up, so the next build of the same
+entry, holding its lock, kills any process still working inside a stale temporary directory and
+removes it.
 
 Profile-guided optimisation (``train=``): the library is first compiled instrumented
 (``-fprofile-generate``), the training command runs it on a representative workload (in a

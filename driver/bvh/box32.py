@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..core.layout import BOX_BYTES, BOX_NODE, BOX_TYPE, NO_CHILD, TRI_BYTES, TRI_NODE, TRI_TYPE, NodeRef
+from ..core.layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, NO_CHILD, TRI_BYTES, TRI_NODE, TRI_TYPE,
+                           NodeRef)
 from .image import _half_area
 from .params import WIDTH
 
@@ -50,8 +51,8 @@ def fill_image(slots, left, prim, node_lo, node_hi, node_area, tris, child, box,
     box node i's children that are box nodes are numbered in row-major slot order over all
     rows (breadth first), triangle nodes in the order they are referenced. child/box/parent/
     count: the box nodes' fields, tri/tri_prim the triangle nodes' (views into a zeroed image,
-    ``driver.layout``'s structs). Pointers are affine in the node index (``driver.bvh4`` derives
-    them from ``NodeRef``): box node i is ``box_ptr[0] + i * box_ptr[1]``, triangle node j
+    ``driver.core.layout``'s structs). Pointers are affine in the node index (``driver.bvh4``
+    derives them from ``NodeRef``): box node i is ``box_ptr[0] + i * box_ptr[1]``, triangle node j
     ``tri_ptr[0] + j * tri_ptr[1]``; an unused slot is ``no_child`` with a +inf box."""
     k = slots.shape[0]
     nb, nt = 0, 0
@@ -76,8 +77,8 @@ def fill_image(slots, left, prim, node_lo, node_hi, node_area, tris, child, box,
 
 
 def _write_image(levels, left, prim, node_lo, node_hi, node_area, tris):
-    """Number nodes, fill the byte image (``driver.bvh_build.fill_image``). node_lo/node_hi/
-    node_area: the stored boxes of the binary nodes (``driver.bvh_build.grow_boxes``). Returns
+    """Number nodes, fill the byte image (``driver.bvh.box32.fill_image``). node_lo/node_hi/
+    node_area: the stored boxes of the binary nodes (``driver.bvh.build.grow_boxes``). Returns
     (image, depth, sah_cost, child histogram)."""
     n_box = sum(len(s) for s in levels)
     n_tri = len(tris)
@@ -86,7 +87,7 @@ def _write_image(levels, left, prim, node_lo, node_hi, node_area, tris):
         raise ValueError(f"BVH image of {total} bytes exceeds the 32 GiB a uint32 pointer reaches")
     slots = np.concatenate(levels)                         # (n_box, 4) binary ids, breadth-first
     image = np.zeros(total, np.uint8)
-    bn = image[:BOX_BYTES * n_box].view(BOX_NODE)           # the node structs (driver.layout)
+    bn = image[:BOX_BYTES * n_box].view(BOX_NODE)           # the node structs (driver.core.layout)
     tn = image[BOX_BYTES * n_box:].view(TRI_NODE)
     box0, box1 = NodeRef.encode([0, BOX_BYTES], BOX_TYPE).astype(np.int64)
     tri0, tri1 = NodeRef.encode([BOX_BYTES * n_box, BOX_BYTES * n_box + TRI_BYTES],

@@ -451,8 +451,8 @@ def build_binary(tris, bins: int, progress=None, fill: int = 0, threads: int | N
 @njit(cache=True)
 def grow_boxes(lo, hi, pad):
     """Grow the (m, 3) node bounds in place into the stored boxes, ``nextafter(float32(min -
-    pad), -inf)`` and ``nextafter(float32(max + pad), +inf)`` (``driver.bvh.pipeline`` says why; float32
-    values, exact in either array dtype), and return their half areas (m,) float64."""
+    pad), -inf)`` and ``nextafter(float32(max + pad), +inf)`` (``driver.bvh.pipeline`` says why;
+    float32 values, exact in either array dtype), and return their half areas (m,) float64."""
     m = lo.shape[0]
     area = np.empty(m)
     down, up = np.float32(-np.inf), np.float32(np.inf)

@@ -93,7 +93,7 @@ class BVH4:
         """Decode box nodes (box32 or q8, the image's). ptrs : (m,) uint32 box-node pointers.
 
         Returns (children (m, 4) uint32, boxes (m, 4, 6) float32), read from ``image``; q8
-        boxes are decoded (``driver.layout.decode_q8``)."""
+        boxes are decoded (``driver.core.layout.decode_q8``)."""
         ptrs = np.asarray(ptrs, np.uint32)
         if (self.node_type(ptrs) != self.box_type).any():
             raise ValueError("box_nodes: a pointer is not a box-node pointer of this image")
@@ -152,7 +152,7 @@ def box_operands(image, ptrs):
 def tri_operands(image, ptrs):
     """(tris (m, 3, 3) float32, prim (m,) int64) named by triangle request pointers: a triangle
     node, a pair or group leaf (its first triangle) or ``LEAF_NEXT_TYPE`` (a leaf's later
-    triangle, ``driver.layout.leaf_triangles``)."""
+    triangle, ``driver.core.layout.leaf_triangles``)."""
     ptrs = np.asarray(ptrs, np.uint32)
     tris = np.empty((len(ptrs), 3, 3), np.float32)
     prim = np.empty(len(ptrs), np.int64)

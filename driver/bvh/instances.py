@@ -6,8 +6,9 @@ Image layout (one contiguous little-endian buffer, every node 64-byte aligned)::
 
     [0, B * tlas_box_nodes)            TLAS box nodes, breadth-first, root at offset 0: box32
                                        (B = 128) under box32 BLASes, q8 (B = 64) under q8 or q8g
-    [.., + 128 * instances)            instance nodes (driver.layout.INSTANCE_NODE), in order
-    [.., ...)                          the BLASes, one after another, each as ``driver.bvh.pipeline.build``
+    [.., + 128 * instances)            instance nodes (driver.core.layout.INSTANCE_NODE), in order
+    [.., ...)                          the BLASes, one after another, each as
+                                       ``driver.bvh.pipeline.build``
                                        writes it (box32, q8 or q8g), its pointers moved by its
                                        offset
 

@@ -113,7 +113,7 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
     builder : "fast" (numba, default) or "numpy" (the reference; same tree, ~10x slower)
     collapse : "sah" (SAH-optimal, default) or "greedy" (the earlier collapse, for comparisons)
     fill : subtrees of at most ``fill`` triangles are split so that their 4-wide nodes can all
-        be full (``driver.bvh_build``; fast builder only): fewer box nodes and bytes for a
+        be full (``driver.bvh.build``; fast builder only): fewer box nodes and bytes for a
         little more SAH; 0 (default) = plain SAH splits
     progress : True/False, or None = a bar on stderr (terminal only) from PROGRESS_MIN triangles
     format : "box32" (default: 128-byte float32 box nodes, one 64-byte node per triangle, the
@@ -121,7 +121,7 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
         paired first and each pair is one leaf primitive of the build; 64-byte quantized box
         nodes whose decoded child boxes contain the box32 stored boxes; 64-byte pair leaves) or
         "q8g" (q8 where the subtrees of 3 to 6 triangles that the SAH trade-off of
-        ``driver.bvh.q8.group_leaves`` picks become 128-byte group leaves sharing up to 8
+        ``driver.bvh.q8g.group_leaves`` picks become 128-byte group leaves sharing up to 8
         vertices)
     pair : q8 formats: pair triangles that share an edge (default); False: one triangle per
         pair leaf, e.g. the instance boxes of a q8 TLAS (``driver.bvh.instances``)

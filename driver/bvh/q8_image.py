@@ -8,8 +8,8 @@ children's stored (grown, ``driver.bvh.pipeline``) lower bounds, ``exp`` = the s
 ``qhi = ceil((hi - origin) / 2**exp)``; where a flat leaf child is thinner than one step, the
 origin moves down onto the grid of that leaf's front face instead (``_origin``), so that its
 step of slack lies behind the surface. ``verify_containment`` then decodes every node with
-``driver.layout.decode_q8`` (the datapath's arithmetic) and moves a ``qlo`` down or a ``qhi`` up
-by one wherever the decode put a bound inside the child's stored box, until none does.
+``driver.core.layout.decode_q8`` (the datapath's arithmetic) and moves a ``qlo`` down or a ``qhi``
+up by one wherever the decode put a bound inside the child's stored box, until none does.
 The quantization runs on all cores and gives the same image on any number of threads.
 """
 
@@ -20,7 +20,9 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ..core.layout import GROUP_MAX_TRIS, GROUP_MAX_VERTS, GROUP_NODE, GROUP_TYPE, LEAF_OFFSET_LIMIT, NO_CHILD, PAIR_BYTES, PAIR_NODE, PAIR_TYPE, Q8_BYTES, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE, NodeRef, decode_q8, node_word
+from ..core.layout import (GROUP_MAX_TRIS, GROUP_MAX_VERTS, GROUP_NODE, GROUP_TYPE,
+                           LEAF_OFFSET_LIMIT, NO_CHILD, PAIR_BYTES, PAIR_NODE, PAIR_TYPE, Q8_BYTES,
+                           Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE, NodeRef, decode_q8, node_word)
 from .image import _half_area
 from .params import WIDTH
 from . import q8
@@ -207,7 +209,7 @@ def verify_containment(nodes: np.ndarray, ref: np.ndarray):
 def _write_q8_image(levels, left, prim, node_lo, node_hi, pairs, groups, tris):
     """Number nodes, quantize and fill the q8/q8g image (``driver.bvh.q8``): q8 box nodes
     breadth first from offset 0, then the leaves (pair leaves, group leaves of ``groups``, the
-    four arrays of ``driver.bvh.q8.group_leaves``) in the order they are referenced. Returns
+    four arrays of ``driver.bvh.q8g.group_leaves``) in the order they are referenced. Returns
     (image, depth, sah_cost from the decoded boxes, child histogram)."""
     first, second, idx, v3 = pairs[:4]
     members, gtri, gvert, gidx = groups

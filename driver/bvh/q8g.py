@@ -14,7 +14,8 @@ from __future__ import annotations
 import numpy as np
 from numba import get_num_threads, njit, prange
 
-from ..core.layout import GROUP_BYTES, GROUP_COUNT_LSB, GROUP_MAX_TRIS, GROUP_MAX_VERTS, GROUP_SEL_BITS, GROUP_SEL_LSB, PAIR_BYTES, Q8_BYTES
+from ..core.layout import (GROUP_BYTES, GROUP_COUNT_LSB, GROUP_MAX_TRIS, GROUP_MAX_VERTS,
+                           GROUP_SEL_BITS, GROUP_SEL_LSB, PAIR_BYTES, Q8_BYTES)
 from .collapse import dp_table, pop_slots, push_children
 from .params import WIDTH
 
@@ -117,7 +118,7 @@ def _group_fits(left, right, prim, first, second, ids, chunks):
 
 @njit(cache=True)
 def _group_dp(left, right, prim, area, tri, ok, lam):
-    """Choose the group leaves together with the 4-wide collapse (``driver.bvh.build.dp_table``,
+    """Choose the group leaves together with the 4-wide collapse (``driver.bvh.collapse.dp_table``,
     the collapse's table with leaf costs and bytes): D(n, k) is the least ``cost + lam *
     bytes`` of binary node n's subtree in k slots of its parent, where cost is the SAH of
     datapath ops (``area``: the stored boxes' half areas; a wide box node costs its area once, a
@@ -136,7 +137,7 @@ def _group_dp(left, right, prim, area, tri, ok, lam):
     node_cost = area + lw * Q8_BYTES
     alt_cost = np.where(ok, area * tri + lw * GROUP_BYTES, np.inf)
     choice, group = dp_table(left, right, leaf_cost, node_cost, alt_cost)
-    # top down as driver.bvh.build._emit walks the table: (node, slots) to place
+    # top down as driver.bvh.collapse._emit walks the table: (node, slots) to place
     merge = np.zeros(m, np.bool_)
     work = np.empty((m + 2 * W, 2), np.int64)
     work[0, 0], work[0, 1], wp = 0, 1, 1

@@ -83,9 +83,8 @@ SHARED = {
     "scheduler": _scheduler("trace tiles"),
     "tile": flag("--tile", type=int, metavar="N",
                  help="tile size in pixels (default: a primary frame traced by one worker is "
-                      "one wavefront up to "
-                      f"{render.WHOLE_FRAME_PIXELS:,} pixels, tiles of {render.MEMORY_TILE} above; "
-                      f"else {DEFAULT_TILE})"),
+                      f"one wavefront up to {render.WHOLE_FRAME_PIXELS:,} pixels, tiles of "
+                      f"{render.MEMORY_TILE} above; else {DEFAULT_TILE})"),
 }
 
 # argument groups: name -> (title, description)

@@ -52,11 +52,12 @@ def run(args) -> int:
         power.check_ops(ops, cfgs)
     if args.latency is not None:
         for c in cfgs:
-            if args.level != "signals" and args.latency != power.least_latency(c):
-                raise ValueError(f"--latency: the gate netlist of {c} has {power.least_latency(c)} "
+            least = power.least_latency(c)
+            if args.level != "signals" and args.latency != least:
+                raise ValueError(f"--latency: the gate netlist of {c} has {least} "
                                  "stages; other latencies are measured at --level signals")
-            if args.latency < power.least_latency(c):
-                raise ValueError(f"--latency must be at least {power.least_latency(c)} for --config "
+            if args.latency < least:
+                raise ValueError(f"--latency must be at least {least} for --config "
                                  f"{c}, got {args.latency}")
     # the workload frame's design point: the first configuration's datapath (the traversal's
     # operations are the same bits on every configuration)

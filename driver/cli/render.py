@@ -1,8 +1,8 @@
 """``rayflex render SCENE``: render through the datapath, write the image, heat map and stats.
 
 Every check is made before any work: sizes, backend name, camera flags, memory for the frame, and
-every output path, the request-stream exports' too (``driver.outputs``, ``driver.cli.export``);
-the files are written all or nothing once the frame is done.
+every output path, the request-stream exports' too (``driver.core.outputs``,
+``driver.cli.export``); the files are written all or nothing once the frame is done.
 """
 
 from __future__ import annotations

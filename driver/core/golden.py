@@ -53,8 +53,8 @@ def quadbox(origin, inv, dirs, boxes, extent):
 
 def request_boxes(req):
     """The (n, 4, 6) boxes the QUADBOX requests ``req`` test: their ``box``, except on the rows
-    that carry a q8 node (``driver.layout.carries_qnode``), where they are its decode
-    (``driver.layout.decode_q8``)."""
+    that carry a q8 node (``driver.core.wire.carries_qnode``), where they are its decode
+    (``driver.core.layout.decode_q8``)."""
     boxes, qnode = req["box"], req["qnode"]
     rows = np.flatnonzero(carries_qnode(req))
     if not len(rows):

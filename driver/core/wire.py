@@ -1,4 +1,5 @@
-"""The wire words of a request and a response, defined once (docs/datapath.md#requests-and-responses).
+"""The wire words of a request and a response, defined once
+(docs/datapath.md#requests-and-responses).
 
 The single source of truth on the host side for the opcodes, the request flags and the packed
 ``req_t``/``rsp_t`` structs of ``rtl/rf_pkg.sv`` as little-endian uint32 words, word 0 holding

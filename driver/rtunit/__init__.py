@@ -6,7 +6,7 @@ and where does latency stop being hidden?
 
 Design: functional traversal first, timing by replay.
 
-1. ``driver.traversal.trace`` runs the wavefront closest-hit traversal (all rays in flight, one
+1. ``driver.tracer.trace`` runs the wavefront closest-hit traversal (all rays in flight, one
    ``backend.run()`` per step) and, when asked, records every datapath request as (ray index,
    node pointer, extent) in issue order, plus the response words (``Record``). A ray's requests
    depend only on that ray's own earlier responses (its stack and its nearest t), never on other
@@ -71,7 +71,7 @@ class MemoryModel:
     ``cache_bytes`` with ``ways`` ways and ``line_bytes`` lines in front of a memory that answers
     a line ``latency_cycles`` after its transfer, transfers serialised at ``bytes_per_cycle``;
     ``cache_bytes`` 0: no cache, every node fetch reads its lines from memory.
-    A request waits until its node's lines are present (``driver.layout.NODE_BYTES``: box32
+    A request waits until its node's lines are present (``driver.core.layout.NODE_BYTES``: box32
     box node 128 B; q8 box node, triangle node and pair leaf 64 B; a pair's second triangle
     none more); the cache changes timing only, never a response."""
 

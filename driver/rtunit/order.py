@@ -28,7 +28,7 @@ The policies (``POLICIES``):
   once and used by many rays; a ray leaving an active treelet joins the queue of its next one.
 
 The cost of each policy (``cost``): what a hardware sorter or scheduler does per ray and the bytes
-of ray state its window needs, derived from the request layout (``driver.layout``).
+of ray state its window needs, derived from the request layout (``driver.core.layout``).
 
 The study of docs/rayorder.md (every policy at every window, per scene and ray type) is
 ``driver.studies.rayorder``.
@@ -53,7 +53,7 @@ DEFAULT_WINDOW = 1024
 # What a waiting ray must keep until it is issued: the ray (its tag, the ray index, names it).
 # The prepared fields of the request (inverse direction, shear, kx/ky/kz) are recomputed at issue.
 RAY_STATE_FIELDS = ("tag", "origin", "dir", "extent", "flags")
-POINTER_BYTES = 4      # a node pointer (driver.layout.NodeRef) on the traversal stack
+POINTER_BYTES = 4      # a node pointer (driver.core.layout.NodeRef) on the traversal stack
 
 
 @dataclass(frozen=True)
@@ -217,7 +217,7 @@ def image_tree(image, root: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def node_bytes(ptrs) -> np.ndarray:
-    """Bytes of each node (``driver.layout.NODE_BYTES`` by pointer type)."""
+    """Bytes of each node (``driver.core.layout.NODE_BYTES`` by pointer type)."""
     table = np.zeros(8, np.int64)
     for t, b in NODE_BYTES.items():
         table[t] = b

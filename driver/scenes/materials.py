@@ -62,7 +62,8 @@ class Materials:
 class Built:
     """A built-in scene: triangles (m, 3, 3) float32 (None: an instanced scene too large to
     flatten, ``instances`` only), per-triangle albedo and emission (m, 3),
-    lights (``PointLight``, ``QuadLight``), camera (position, look_at, up, fov_deg), double-sided."""
+    lights (``PointLight``, ``QuadLight``), camera (position, look_at, up, fov_deg),
+    double-sided."""
 
     triangles: np.ndarray
     albedo: np.ndarray

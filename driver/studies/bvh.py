@@ -12,7 +12,7 @@ in ``FILLS``, with the docs/datapath.md#traversal traversal and with the distanc
 (``cull_stack``), against the reference point ``REFERENCE`` (box nodes, ops per ray), optionally
 plotted.
 
-    python -m driver.bvh.bench --counts 0 50 --json builds.json
+    rayflex study bvh --counts 0 50 --json builds.json
 
 times the builds only (no tree quality) and prints them as the Markdown table of
 docs/compressed.md: process CPU and wall seconds per format, their ratios to box32, and the
@@ -41,8 +41,8 @@ REFERENCE = {"box_nodes": 36_000, "ops_per_ray": 0.95 * 6.29}
 
 
 def instanced_bunnies(count: int, seed: int = 0) -> np.ndarray:
-    """``count`` copies of the Stanford bunny (``driver.builtins.instanced_bunnies``), flattened:
-    (count * bunny triangles, 3, 3) float32 world-space triangles."""
+    """``count`` copies of the Stanford bunny (``driver.scenes.builtins.instanced_bunnies``),
+    flattened: (count * bunny triangles, 3, 3) float32 world-space triangles."""
     from ..scenes.scene import load
     return grid(load("bunny").triangles, count, seed).flatten()
 

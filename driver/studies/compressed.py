@@ -1,7 +1,7 @@
 """box32 vs q8 (and q8g) on one workload frame: the table and the plot of docs/compressed.md,
 from ``rayflex bench --workload ... --bvh-format FORMAT --json`` documents of the same frame.
 
-    python -m driver.bvh.study BOX32.json Q8.json [Q8G.json] [--plot PNG]
+    rayflex study compressed BOX32.json Q8.json [Q8G.json] [--plot PNG]
 
 prints the per-ray-type comparison as a Markdown table and draws utilization with the node
 memory vs rays in flight, one colour per ray type, solid q8 and dashed box32.

@@ -1,9 +1,9 @@
 """Instanced vs flattened: the figures of docs/instances.md.
 
-    python -m driver.bvh.instances_study hits [--scene bunny_grid] [--size 256] [--json OUT]
-    python -m driver.bvh.instances_study images [--scene NAME ...] [--json OUT]
-    python -m driver.bvh.instances_study table DOC.json [DOC.json ...]
-    python -m driver.bvh.instances_study transform [--scene bunny_grid] [--workload path]
+    rayflex study instances hits [--scene bunny_grid] [--size 256] [--json OUT]
+    rayflex study instances images [--scene NAME ...] [--json OUT]
+    rayflex study instances table DOC.json [DOC.json ...]
+    rayflex study instances transform [--scene bunny_grid] [--workload path]
         [--size 64] [--spp 2] [--bounces 2] [--json OUT]
 
 ``hits`` builds a scene's image both ways (two-level and flattened, in every image format),

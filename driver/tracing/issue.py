@@ -6,7 +6,8 @@
   image (no per-request Python work); the host decodes only the response bits it needs.
 - ``RequestIssue``: any other backend gets a ``REQUEST_DTYPE`` array built in numpy from the
   prepared rays and the decoded nodes, by the same rules (tests check the words are identical).
-- ``Recorder``: wraps either and keeps every request and response as a ``driver.rtunit.Record``.
+- ``Recorder``: wraps either and keeps every request and response as a
+  ``driver.tracing.record.Record``.
 
 Both check that the responses come back in order with the ray index in their ``tag``. The ray
 table grows when a traversal enters instances (``add_rays``: each transformed ray is a new row,
@@ -171,7 +172,8 @@ class RequestIssue:
 
 class Recorder:
     """Wraps an issuer and keeps every request (ray, node pointer, extent) and its response
-    words, in issue order; ``record(params)`` returns them as a ``driver.rtunit.Record``."""
+    words, in issue order; ``record(params)`` returns them as a
+    ``driver.tracing.record.Record``."""
 
     def __init__(self, inner, rays: np.ndarray, bvh):
         self.inner = inner

@@ -18,7 +18,7 @@ class Record:
     """Every datapath request of a traversal, in issue order (wavefront step by step, rays in
     index order within a step).
 
-    ray_words : (n, RAY_WORDS) uint32, the packed prepared rays (``driver.layout.ray_words``)
+    ray_words : (n, RAY_WORDS) uint32, the packed prepared rays (``driver.core.wire.ray_words``)
     image : (k,) uint32, the BVH4 memory image as little-endian words
     ray, ptr : (m,) uint32, ray index and node pointer of request i (an instance node's
         pointer is a TRANSFORM request: the instance transform on the datapath)

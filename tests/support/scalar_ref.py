@@ -4,7 +4,7 @@ docs/datapath.md#ray-preparation, #quadbox, #triangle, #euclidean-and-angular.
 This is deliberately the slow, obvious version: one request at a time, one ``np.float32`` scalar
 operation per step of docs/datapath.md (every add, subtract, multiply and divide is rounded to
 binary32 on its own, nearest-even, subnormals kept), comparisons as plain IEEE compares, the box
-sort as five explicit compare-and-swap comparators. It shares nothing with ``driver/golden.py``
+sort as five explicit compare-and-swap comparators. It shares nothing with ``driver/core/golden.py``
 except the request and response dtypes, so the golden model and the RTL can both be checked against
 it bit for bit.
 
