@@ -44,6 +44,7 @@ import numpy as np
 
 from . import backends, rtunit, tiles, workloads
 from .backends import build as rtl_build
+from .bvh4 import warm_up
 from .check import compare, embree_closest, embree_json
 from .core.wire import pack_responses
 from .design import DesignPoint
@@ -51,6 +52,7 @@ from .core.progress import bar as _bar
 from .core.provenance import machine, provenance
 from .scenes.camera import check_size, primary_rays
 from .stats import merge_rtunit, public, replay_stats
+from .tracer import trace
 from .workloads import setup_for
 
 PYVERILATOR_REQUESTS = 2000
@@ -129,8 +131,6 @@ def bench(point: DesignPoint = DesignPoint(), sweep_size=SWEEP_SIZE,
 def _frame(scene, origins, dirs, rtl, point, label, progress):
     """The frame on "rtl": BVH build, wavefront traversal (recorded), RT-unit replays. Returns
     (frame statistics, trace result, BVH)."""
-    from .bvh4 import warm_up
-    from .tracer import trace
 
     t_kernels = warm_up()                           # the builder's JIT, like the model's build
     t0 = time.perf_counter()
@@ -161,7 +161,6 @@ def _frame(scene, origins, dirs, rtl, point, label, progress):
 
 def _golden(bvh, origins, dirs, res, label, progress, point, double_sided):
     """The whole frame on the numpy model: (wall seconds, hits equal to the RTL's)."""
-    from .tracer import trace
     bar = _bar(len(origins), f"frame {label} golden", "ray", progress)
     t0 = time.perf_counter()
     gold = trace(bvh, origins, dirs, backend=backends.backend("golden", **point.backend_options()),
@@ -177,7 +176,6 @@ def _golden(bvh, origins, dirs, res, label, progress, point, double_sided):
 def _sweep(scene, bvh, rtl, ss, sweep_rays, sweep_pipelines, plot, progress, point) -> dict:
     """The RT-unit sweep (node fetches free) on a smaller frame (ss x ss) of the same view, and
     its plot."""
-    from .tracer import trace
     so, sd = primary_rays(scene.camera, ss, ss)
     srec = trace(bvh, so, sd, backend=rtl, record=True, cull_stack=point.cull_stack,
                  double_sided=scene.double_sided).record
@@ -347,7 +345,6 @@ def bench_workload(point: DesignPoint, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, p
     ``rtunit_memory``), any-hit vs closest-hit ops of the same rays, and a sweep of utilization
     over rays in flight (one pipeline, the point's node memory), plotted per ray type."""
     from .scenes.scene import load_scene
-    from .tracer import trace
 
     scene = point.scene_of(load_scene(point.scene))
     size = point.size or scene.size[0]

@@ -29,9 +29,11 @@ from typing import Callable
 
 from .core.configs import ALL_CONFIGS, CONFIGS, Q8_SUFFIX
 from .backends.build import MIN_LATENCY, rtl_params
+from .bvh4 import build_scene
 from .core.datapath import LATENCY, default_latency
 from .instances import DATAPATH, TRANSFORMS
 from .core.layout import IMAGE_FORMATS
+from .rtunit import MemoryModel
 from .rtunit.order import DEFAULT_POLICY, DEFAULT_WINDOW, POLICIES
 from .scenes.camera import MAX_SIZE
 from .workloads import WORKLOADS
@@ -294,7 +296,6 @@ class DesignPoint:
     def memory(self):
         """The RT unit's ``driver.rtunit.MemoryModel`` (``cache_kib`` 0: no node cache, every
         node fetch from memory)."""
-        from .rtunit import MemoryModel
         return MemoryModel(self.cache_kib * 1024, self.cache_ways, self.line_bytes,
                            self.mem_latency, float(self.mem_bytes_per_cycle))
 
@@ -324,7 +325,6 @@ class DesignPoint:
     def build(self, scene):
         """The BVH of ``scene`` for this point (``driver.bvh4.build_scene``: a two-level
         image for an instanced scene)."""
-        from .bvh4 import build_scene
         return build_scene(scene, fill=self.bvh_fill, format=self.bvh_format,
                            transform=self.transform)
 

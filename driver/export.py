@@ -51,8 +51,10 @@ import numpy as np
 
 from . import backends
 from .backends import resolve
+from .bvh4 import build_scene
 from .core.wire import REQUEST, REQUEST_DTYPE, RESPONSE, RESPONSE_DTYPE, Wire, unpack_responses
 from .tiles import DEFAULT_TILE, plan
+from .tracer import trace
 from .workloads import run, setup_for
 
 FORMAT_VERSION = 1
@@ -79,8 +81,6 @@ def stream(scene, width: int, height: int, workload: str = "primary", options: d
     on ``backend`` (default the golden model). ``tile``: the tile size (default
     ``driver.tiles.DEFAULT_TILE``); ``options``: spp, bounces, ao_rays, seed;
     ``progress(done_tiles, total_tiles)``."""
-    from .bvh4 import build_scene
-    from .tracer import trace
 
     be = resolve(backend)[0]
     bvh = build_scene(scene, fill=fill, format=bvh_format)

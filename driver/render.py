@@ -32,6 +32,7 @@ from .core.progress import phase
 from .design import DesignPoint
 from .scenes.scene import Scene, load_scene
 from .stats import public, replay_stats
+from .tracer import trace
 from .workloads import headlight, setup_for, tone_map
 
 # Peak resident memory of a frame, measured with /usr/bin/time -v (maximum RSS) on the sphere
@@ -160,7 +161,6 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
 def _render_whole(scene, w, h, backend, progress, check_embree, point,
                   rtunit=False) -> RenderResult:
     """The primary frame as one wavefront of every pixel."""
-    from .tracer import trace
 
     origins, dirs = primary_rays(scene.camera, w, h)
     be = resolve(backend, **point.backend_options())[0]    # fail early, before a long BVH build

@@ -17,6 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from . import rtunit
 from .core.layout import BOX_BYTES, TRI_BYTES
 from .rtunit.order import merge_costs
 
@@ -214,7 +215,6 @@ def replay_stats(records: list, point) -> tuple[dict, dict | None]:
     (``driver.design.DesignPoint``), without and with its node memory (``point.cache_kib`` 0: no
     cache). The records replay on the point's datapath configuration and latency; every response is
     checked against the recorded one bit for bit."""
-    from . import rtunit
     params = point.rtl_params()
     recs = [r if r.params == params else replace(r, params=params) for r in records]
     order = point.order_options()

@@ -39,14 +39,17 @@ import uuid
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-from . import backends, design, workloads
+from . import backends, design, power, workloads
 from .core.outputs import jsonable
 from .design import DesignPoint
 from .core.progress import bar as progress_bar
 from .core.progress import phase
 from .stats import merge, merge_rtunit, public, replay_stats
 from .core.provenance import git_commit, provenance, rayflex_version
+from .power.report import UNITS
+from .power.stimulus import box_op
 from .tiles import _client
+from .tracer import trace
 
 ENERGY_LEVELS = ("signals", "gates")
 # the options that make the functional trace (everything else is replayed)
@@ -76,7 +79,6 @@ def trace_workload(point: DesignPoint, progress: bool = True) -> Trace:
     """Trace ``point``'s workload on the "rtl" backend of its datapath, every wavefront
     recorded."""
     from .scenes.scene import load_scene
-    from .tracer import trace
 
     t0 = time.perf_counter()
     scene = point.scene_of(load_scene(point.scene))
@@ -118,8 +120,6 @@ def energy_tables(points, progress: bool = True) -> dict:
     image's box op: box_q8 or box_q8_host, ``_box_op``): {"CONFIG@LATENCY": {level: {"box": e,
     "triangle": e, ["box_q8" or "box_q8_host": e,] "unit": unit} or None}}; level ``gates``
     only for configurations whose gate netlist is cached (at the netlist's latency)."""
-    from . import power
-    from .power.report import UNITS
     out: dict = {}
     for cfg, lat in sorted({(p.config, p.latency) for p in points}):
         entry = out[energy_key(cfg, lat)] = {lvl: None for lvl in ENERGY_LEVELS}
@@ -142,7 +142,6 @@ def energy_key(config: str, latency: int) -> str:
 def _box_op(p: DesignPoint) -> str:
     """The operation a box node of point ``p``'s frame is (``stimulus.box_op``: box, or for a
     q8 image box_q8 / box_q8_host, decoded by the datapath / the host)."""
-    from .power.stimulus import box_op
     return box_op({"COMPRESSED": p.compressed}, p.bvh_format != "box32")
 
 

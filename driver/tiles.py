@@ -44,6 +44,7 @@ import numpy as np
 from .backends import resolve
 from .check import merge_checks
 from .stats import merge, merge_rtunit, replay_stats
+from .tracer import trace
 from .workloads import FrameResult, embree_check, run
 
 DEFAULT_TILE = 64
@@ -97,7 +98,6 @@ def run_tile(setup, bvh, width: int, height: int, pixels, workload: str, options
     """Trace one tile (a task: pure in its inputs, the backend cached per process). ``options``:
     the workload's (``driver.workloads.run``), ``cull_stack``, and ``rtunit``: a design point
     whose RT unit replays the tile's wavefronts (``add_replays``), or None."""
-    from .tracer import trace
 
     be = _backend(backend_spec)
     options = dict(options)

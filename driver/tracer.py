@@ -16,7 +16,7 @@ import numpy as np
 from . import rtunit
 from .backends import resolve
 from .backends.build import MIN_LATENCY, rtl_params
-from .bvh4 import BVH4, build
+from .bvh4 import BVH4, build, build_two_level
 from .core.datapath import prepare_rays
 from .core.wire import FLAG_NO_CULL
 from .instances import DATAPATH, Instances, check_transform
@@ -82,7 +82,6 @@ def as_bvh(scene, bvh_format: str | None = None) -> BVH4:
         from .scenes.scene import load_scene                      # the application layer; lazy
         scene = load_scene(scene)
     if isinstance(scene, Instances) or getattr(scene, "instances", None) is not None:
-        from .bvh.instances import build_two_level
         return build_two_level(scene if isinstance(scene, Instances) else scene.instances,
                                format=bvh_format or "box32")
     if hasattr(scene, "mesh") and not hasattr(scene, "faces"):

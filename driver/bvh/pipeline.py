@@ -55,13 +55,7 @@ import numpy as np
 
 from ..core.layout import IMAGE_FORMATS
 from ..core.progress import bar as progress_bar
-from . import build as bvh_build
-from .box32 import _write_image
-from .collapse import _collapse, collapse_sah
 from .image import BVH4, _half_area
-from .q8 import _pairs, pair_triangles, vertex_ids
-from .q8_image import _write_q8_image
-from .q8g import group_leaves
 from .reference import _build_binary, _prim_boxes
 
 PAD_REL = 2.0 ** -16
@@ -127,6 +121,14 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
         pair leaf, e.g. the instance boxes of a q8 TLAS (``driver.bvh.instances``)
     Degenerate (zero-area) triangles are kept (the datapath never hits them).
     Raises ValueError for an empty input, a wrong shape, non-finite coordinates or a bad option."""
+    # the stages' numba kernels: loaded (compiled once per machine) when a BVH is first built,
+    # so that importing the package does not load numba
+    from . import build as bvh_build
+    from .box32 import _write_image
+    from .collapse import _collapse, collapse_sah
+    from .q8 import _pairs, pair_triangles, vertex_ids
+    from .q8_image import _write_q8_image
+    from .q8g import group_leaves
     t0 = time.perf_counter()
     if int(bins) < 2:
         raise ValueError(f"bins must be >= 2, got {bins}")
@@ -198,6 +200,7 @@ def warm_up() -> float:
     process) the fast builder's kernels by building a tiny mesh; returns the seconds it took.
     Benchmarks call it so that a build time is the build's, as they build the Verilated model
     before timing the simulation."""
+    from . import build as bvh_build
     t0 = time.perf_counter()
     tris = np.random.default_rng(0).random((64, 3, 3)).astype(np.float32)
     build(tris, progress=False)

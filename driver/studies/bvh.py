@@ -28,10 +28,12 @@ import time
 
 import numpy as np
 
+from ..bvh4 import build
 from ..core.markdown import table as markdown_table
 from ..core.progress import iterate
 from ..scenes.builtins import instanced_bunnies as grid
 from ..scenes.camera import primary_rays
+from ..tracer import trace
 
 BUNNY_TRIANGLES = 99_785
 FORMATS = ("box32", "q8", "q8g")    # image formats whose builds are timed
@@ -50,7 +52,6 @@ def instanced_bunnies(count: int, seed: int = 0) -> np.ndarray:
 def _build_child(count, fmt, conn):
     """In a fresh process: build ``count`` bunnies (0 = the bunny itself) in image format
     ``fmt`` and send the numbers."""
-    from ..bvh4 import build
     from ..scenes.scene import load
     tris = instanced_bunnies(count) if count else load("bunny")
     build(load("bunny"), progress=False, format=fmt)    # load the compiled kernels before timing
@@ -103,8 +104,6 @@ def _fills(scene, o, d, ref, fills, progress) -> dict:
     """The BVH shape trade-off: for each ``--bvh-fill``, the tree, the ops per ray of the
     docs/datapath.md#traversal traversal and of the distance-culled stack, and whether the hits
     equal ``ref``'s."""
-    from ..bvh4 import build
-    from ..tracer import trace
     rows = []
     for fill in iterate(fills, "BVH fills", "fill", progress):
         bvh = build(scene.mesh, fill=fill)
@@ -156,9 +155,7 @@ def plot_fills(fills: dict, path, title: str) -> None:
 def _quality(size: int = 256, fills=FILLS, plot=None, progress: bool = False) -> dict:
     """Greedy vs SAH collapse on the bunny frame (golden model): tree and ops per ray; then the
     ``fills`` trade-off (``_fills``), plotted to ``plot`` (a PNG path) if given."""
-    from ..bvh4 import build
     from ..scenes.scene import load_scene
-    from ..tracer import trace
     scene = load_scene("bunny")
     o, d = primary_rays(scene.camera, size, size)
     out, traces = {}, {}

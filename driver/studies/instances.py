@@ -30,21 +30,21 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..bench import bench_workload
+from ..bvh4 import build, build_two_level
 from ..core.layout import IMAGE_FORMATS
 from ..core.markdown import table as markdown_table
 from ..core.provenance import provenance
 from ..design import DesignPoint
 from ..instances import DATAPATH, TRANSFORMS
 from ..scenes.camera import primary_rays
+from ..tracer import trace
 from ..workloads import setup_for
 
 
 def hits(scene_name: str = "bunny_grid", size: int = 256, backend: str = "golden") -> dict:
     """The image sizes and the hit comparison of the module docstring, as a JSON-ready dict."""
-    from ..bvh4 import build
     from ..scenes.scene import load_scene
-    from ..tracer import trace
-    from ..bvh.instances import build_two_level
 
     scene = load_scene(scene_name)
     if scene.instances is None:
@@ -122,7 +122,6 @@ def images(scene_names=("bunny_grid", "city")) -> dict:
     """The two-level image of each scene in every format (``IMAGE_FORMATS``): its bytes (TLAS,
     instance nodes, BLASes, total), bytes per instanced triangle and build time."""
     from ..scenes.scene import load_scene
-    from ..bvh.instances import build_two_level
     out = {"scenes": {}}
     for name in scene_names:
         scene = load_scene(name)
@@ -212,7 +211,6 @@ def transform_cost(scene: str = "bunny_grid", workload: str = "path", size: int 
     """The ``transform`` study of the module docstring: ``driver.bench.bench_workload`` of the
     same design point with each ``--transform`` (no rays-in-flight sweep), as a JSON-ready
     dict."""
-    from ..bench import bench_workload
     out: dict = {}
     # datapath first: a scene without instances is refused before any work
     for where in sorted(TRANSFORMS, key=lambda w: w != DATAPATH):

@@ -7,11 +7,13 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from .. import backends, workloads
+from .. import backends, rtunit, workloads
+from ..bvh4 import build
 from ..core.progress import bar
 from ..design import DesignPoint
 from ..rtunit.order import DEFAULT_TREELETS, POLICIES, floor_bytes
 from ..stats import rtunit_stats
+from ..tracer import trace
 
 ALL_RAYS = 1 << 16     # a window that holds every ray of the study's batches ("all")
 STUDY_WINDOWS = (64, 256, 1024, 4096, ALL_RAYS)
@@ -23,9 +25,7 @@ def frame_records(scene_name: str, size: int, spp: int, bounces: int, ao_rays: i
                   seed: int = 0, bvh_format: str = "box32") -> dict:
     """{ray type: [Record, ...]}: the path frame's batches and the ao frame's ao rays, traced on
     "rtl" with every request recorded, on the scene's BVH in ``bvh_format``."""
-    from ..bvh4 import build
     from ..scenes.scene import load_scene
-    from ..tracer import trace
 
     scene = load_scene(scene_name)
     setup = workloads.setup_for(scene)
@@ -68,7 +68,6 @@ def study(scenes=STUDY_SCENES, size: int = 64, windows=STUDY_WINDOWS, policies=N
     ``formats.<format>.scenes.<scene>.<ray type>``; with ``variants``, ``treelet_variants``
     (``treelet_variants`` on the first scene and format, at ``variants_window``, default
     ``VARIANT_WINDOW``)."""
-    from .. import rtunit
 
     def replay_all(records, r, order="index", window=None):
         """The RT-unit replays (with ``memory``) of a ray type's batches, one after another:
@@ -135,7 +134,6 @@ def treelet_variants(recs: dict, rays_in_flight: int, memory, progress: bool = T
                      window: int = VARIANT_WINDOW) -> dict:
     """The ``treelet`` policy under each of ``TREELET_VARIANTS`` at one window: per ray type of
     ``recs`` the published ``rtunit_memory`` object with the variant's configuration."""
-    from .. import rtunit
     out = {"window": window, "variants": {}}
     runs = [(v, k) for v in TREELET_VARIANTS for k in recs]
     pb = bar(len(runs), "treelet variants", "replay", progress)
