@@ -250,10 +250,49 @@ def test_function_local_imports_only_put_off_heavy_dependencies():
                      "heavy dependency only):\n" + "\n".join(bad))
 
 
-if __name__ == "__main__":                    # python tests/test_layers.py: the graph's numbers
+def elementary_cycles(edges: dict[str, set[str]], limit: int = 10 ** 6) -> int:
+    """The number of elementary cycles of a graph (each counted once, from its least module;
+    stops at ``limit``): the figure a tangle is measured by."""
+    order = sorted(set(edges) | {w for v in edges.values() for w in v})
+    rank = {v: i for i, v in enumerate(order)}
+    count = 0
+    for s in order:
+        stack = [(s, iter(sorted(edges.get(s, ()))))]
+        on_path = {s}
+        while stack and count < limit:
+            v, it = stack[-1]
+            for w in it:
+                if w == s:
+                    count += 1
+                elif rank[w] > rank[s] and w not in on_path:
+                    on_path.add(w)
+                    stack.append((w, iter(sorted(edges.get(w, ())))))
+                    break
+            else:
+                on_path.discard(stack.pop()[0])
+    return count
+
+
+if __name__ == "__main__":        # python tests/test_layers.py: the graph's numbers
     known = modules()
     found = imports(known)
-    internal = {(i.source, i.target) for i in found if i.internal}
-    print(f"{len(known)} modules, {len(internal)} import edges, "
+    edges: dict[str, set[str]] = {}
+    for i in found:
+        if i.internal:
+            edges.setdefault(i.source, set()).add(i.target)
+    layer, names = layer_of(known), [n for n, _ in layers()]
+    up = [i for i in found if i.internal and i.source in layer and i.target in layer
+          and layer[i.target] > layer[i.source]]
+    heavy = heavy_modules(known, found)
+    light = [i for i in found if i.local
+             and not (i.target in heavy if i.internal else i.target in HEAVY)]
+    print(f"{len(known)} modules, {sum(map(len, edges.values()))} import edges, "
           f"{sum(1 for i in found if i.local)} function-local imports")
+    print(f"import cycles: {elementary_cycles(edges)} elementary, strongly connected "
+          f"components {[len(c) for c in _cycles(edges)]}")
+    print(f"imports against the layer order: {len(up)} statements, "
+          f"{len({(i.source, i.target) for i in up})} module pairs")
+    for i in sorted({(i.source, i.target) for i in up}):
+        print(f"  {i[0]} ({names[layer[i[0]]]}) -> {i[1]} ({names[layer[i[1]]]})")
+    print(f"function-local imports that put off no heavy dependency: {len(light)}")
     sys.exit(0)
