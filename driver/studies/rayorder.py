@@ -75,7 +75,7 @@ def study(scenes=STUDY_SCENES, size: int = 64, windows=STUDY_WINDOWS, policies=N
         return rtunit_stats([rtunit.replay(rec, r, 1, memory=memory, ray_order=order,
                                            ray_window=window) for rec in records])
 
-    spp, bounces, ao_rays = point.spp, point.bounces, point.ao_rays
+    spp, bounces, ao_rays, seed = point.spp, point.bounces, point.ao_rays, point.seed
     rays_in_flight, memory = point.rays_in_flight, point.memory()
     policies = list(policies or POLICIES)
     doc = {"size": size, "spp": spp, "bounces": bounces, "ao_rays": ao_rays,
@@ -85,7 +85,7 @@ def study(scenes=STUDY_SCENES, size: int = 64, windows=STUDY_WINDOWS, policies=N
     for fmt in formats:
         doc["formats"][fmt] = {"scenes": {}}
         for scene in scenes:
-            recs = frame_records(scene, size, spp, bounces, ao_rays, point.seed, fmt)
+            recs = frame_records(scene, size, spp, bounces, ao_rays, seed, fmt)
             kinds = ([k for k in STUDY_TYPES if k in recs]
                      + [k for k in recs if k not in STUDY_TYPES])
             # "pool": index order with all W rays in the pool (R = W), the scheduler's rays
