@@ -25,17 +25,30 @@ figures per run, grouped by shader).
 
 from __future__ import annotations
 
-import csv
 import hashlib
 import io
 import json
+import math
 import sys
 import time
+import uuid
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from .errors import RayflexError
+from PIL import Image
 
+from . import suite_report
+from .core.errors import RayflexError
+from .core.outputs import jsonable
+from .core.progress import bar as progress_bar
+from .core.progress import phase
+from .core.provenance import git_commit, provenance, rayflex_version
+from .lumibench_shaders import WORKLOADS
+from .scenes import lumibench as lb
+from .sweep import _box_op, energy_key, energy_per_ray, energy_tables
+from .tiles import _client
+
+SUITES = ("lumibench",)     # the built-in suites
 SUMMARY = ("summary.json", "summary.csv", "summary.png", "images.png")
 _RUN_KEYS = {"name", "scene", "workload", "size", "spp", "bounces", "ao_rays", "seed"}
 _COST = {"lumibench-pt": 4.0, "path": 4.0, "lumibench-ao": 2.5, "ao": 2.5}   # order only
@@ -70,8 +83,6 @@ class Run:
 def lumibench_runs(root=None, scenes=None, shaders=None) -> tuple[list[Run], dict]:
     """(runs, skipped): LumiBench's runs that ``root`` can make, restricted to ``scenes`` (IDs)
     and ``shaders`` (pt, sh, ao); ``skipped``: run or scene -> why not (one line each)."""
-    from .lumibench_shaders import WORKLOADS
-    from .scenes import lumibench as lb
     shader_names = {w.split("-")[1]: w for w in WORKLOADS}
     wanted = None if shaders is None else [s.strip().lower() for s in shaders]
     for s in wanted or ():
@@ -150,7 +161,6 @@ def _default_name(scene: str, workload: str) -> str:
 
 def check_runs(runs: list[Run], base) -> list:
     """Every run's design point, checked before any work (one-line errors)."""
-    from .design import DesignPoint  # noqa: F401  (base is one)
     points = []
     for r in runs:
         try:
@@ -165,7 +175,6 @@ def check_runs(runs: list[Run], base) -> list:
 
 def key(run: Run, point, backend: str) -> str:
     """What makes a run's result: the run, its design point, the backend and the source tree."""
-    from .stats import git_commit, rayflex_version
     text = json.dumps([asdict(run), point.as_dict(), backend, rayflex_version(), git_commit()],
                       sort_keys=True, default=str)
     return hashlib.blake2b(text.encode(), digest_size=12).hexdigest()
@@ -180,12 +189,8 @@ def execute(run: Run, point, backend: str = "rtl", root=None, plain: bool = Fals
     """Trace, check and replay one run (a task: pure in its inputs); returns its JSON document
     and its PNG image bytes. The frame is one tile in this process, or with ``workers`` > 1 or
     a ``scheduler`` tiles of ``SPLIT_TILE`` on the Dask cluster (a suite of one run)."""
-    from PIL import Image
-
     from .render import render
-    from .scenes import lumibench as lb
     from .scenes.scene import load_scene
-    from .stats import provenance
     t0 = time.perf_counter()
     with lb.using_root(root):       # partial scenes are reported once, by the summary
         scene = _scene(point.scene, load_scene)
@@ -215,7 +220,6 @@ def _scene(name: str, load_scene):
     """The scene of a run. A LumiBench scene is kept for this process's next run of the same
     scene (the suite makes a scene's shaders one after another), with what is built from its
     triangles: the Embree scene of the check (``driver.check``)."""
-    from .scenes import lumibench as lb
     if not lb.is_lumibench(name):
         return load_scene(name)
     t0 = time.perf_counter()
@@ -246,7 +250,6 @@ def _add_energy(stats: dict, energy: dict) -> None:
     """``energy_per_ray`` of the frame and each ray type, as a sweep gives it (by level:
     ``signals``; ``gates`` null), from the configuration's energy per op
     (``driver.sweep.energy_per_ray``)."""
-    from .sweep import energy_per_ray
     table = energy.get("table")
     bop = energy.get("box_op", "box")
     for s in [stats, *stats.get("by_type", {}).values()]:
@@ -276,16 +279,13 @@ def run_suite(name: str, runs: list[Run], base, out, backend: str = "rtl", root=
               skipped: dict | None = None, progress: bool = True) -> dict:
     """Make every run not already in ``out`` (module docstring); returns the summary.
     ``root``: the LumiBench repository (default: ``driver.scenes.lumibench.root()``)."""
-    from .scenes.lumibench import using_root
-    with using_root(root):
+    with lb.using_root(root):
         return _run_suite(name, runs, base, out, backend, root, workers, scheduler, plain,
                           skipped, progress)
 
 
 def _run_suite(name, runs, base, out, backend, root, workers, scheduler, plain, skipped,
                progress) -> dict:
-    from .progress import bar as progress_bar
-    from .progress import phase
     t0 = time.perf_counter()
     out = Path(out)
     points = check_runs(runs, base)
@@ -314,9 +314,9 @@ def _run_suite(name, runs, base, out, backend, root, workers, scheduler, plain, 
         if progress:
             bar.set_postfix_str(f"{r.name} {doc['timing']['wall_s']:.1f} s")
     bar.close()
-    summary = _summary(name, runs, done, skipped or {}, base, backend, root,
+    summary = suite_report.summary(name, runs, done, skipped or {}, base, backend, root,
                        time.perf_counter() - t0, len(todo), workers, scheduler)
-    _write_summary(out, summary)
+    suite_report.write_summary(out, summary)
     return summary
 
 
@@ -324,9 +324,6 @@ def _cost(run: Run, point, root) -> float:
     """A guess of a run's cost, to start the most expensive first (the suite's wall time is
     the longest worker's): the workload's rays per sample, the pixels and samples, and the
     log of the scene's size on disk (LumiBench scenes: their OBJ files)."""
-    import math
-
-    from .scenes import lumibench as lb
     size = 1.0
     if lb.is_lumibench(run.scene):
         try:
@@ -342,7 +339,6 @@ def _cost(run: Run, point, root) -> float:
 
 def _energy(base) -> dict:
     """Energy per op of the design point's configuration (``driver.sweep.energy_tables``)."""
-    from .sweep import _box_op, energy_key, energy_tables
     tables = energy_tables([base], progress=False)
     return {"table": tables[energy_key(base.config, base.latency)]["signals"],
             "box_op": _box_op(base)}
@@ -357,9 +353,6 @@ def _execute_all(todo, backend, root, plain, energy, workers, scheduler):
             doc, png = execute(r, p, backend, root, plain, energy, workers, scheduler)
             yield r, doc, png
         return
-    import uuid
-
-    from .tiles import _client
     with _client(workers, scheduler) as client:
         sid = uuid.uuid4().hex[:12]
         futures = {client.submit(execute, r, p, backend, str(root) if root else None, plain,
@@ -376,184 +369,9 @@ def _execute_all(todo, backend, root, plain, energy, workers, scheduler):
 
 def _write_run(out: Path, name: str, doc: dict, png: bytes) -> None:
     """NAME.png then NAME.json, each atomically (the JSON last: it marks the run done)."""
-    from .outputs import jsonable
     for path, data in ((out / f"{name}.png", png),
                        (out / f"{name}.json",
                         (json.dumps(jsonable(doc), indent=1) + "\n").encode())):
         tmp = path.with_name(f".{path.name}.tmp")
         tmp.write_bytes(data)
         tmp.replace(path)
-
-
-ROW_KEYS = ("name", "scene", "workload", "size", "spp", "partial", "rays", "hits",
-            "ops_per_ray", "box_ops_per_ray", "tri_ops_per_ray", "utilization_memory",
-            "utilization", "hit_rate", "bytes_per_ray", "energy_per_ray_signals", "agree",
-            "edge_tie",
-            "embree_wrong", "datapath_wrong", "wall_s")
-
-
-def row(name: str, doc: dict) -> dict:
-    """One run's summary row (``ROW_KEYS``)."""
-    mem = doc.get("rtunit_memory") or {}
-    plain = doc.get("rtunit") or {}
-    cls = ((doc.get("embree") or {}).get("adjudicated") or {}).get("classes", {})
-    rays = doc.get("rays", 0)
-    return {"name": name, "scene": doc["run"]["scene"], "workload": doc["run"]["workload"],
-            "size": doc["width"], "spp": doc["run"]["spp"],
-            "partial": bool((doc.get("lumibench") or {}).get("partial", False)),
-            "rays": rays, "hits": doc.get("hits"),
-            "ops_per_ray": doc.get("ops", 0) / rays if rays else 0.0,
-            "box_ops_per_ray": doc.get("box_ops_per_ray"),
-            "tri_ops_per_ray": doc.get("tri_ops_per_ray"),
-            "utilization_memory": mem.get("utilization"), "utilization": plain.get("utilization"),
-            "hit_rate": mem.get("hit_rate"), "bytes_per_ray": mem.get("bytes_per_ray"),
-            "energy_per_ray_signals": (doc.get("energy_per_ray") or {}).get("signals"),
-            **{c: cls.get(c) for c in ("agree", "edge_tie", "embree_wrong", "datapath_wrong")},
-            "wall_s": doc.get("timing", {}).get("wall_s")}
-
-
-def _summary(name, runs, done, skipped, base, backend, root, wall, made, workers,
-             scheduler) -> dict:
-    from .stats import provenance
-    rows = [row(r.name, done[r.name]) for r in runs if r.name in done]
-    wrong = sum(r["datapath_wrong"] or 0 for r in rows)
-    partial = {}
-    for r in runs:
-        info = done.get(r.name, {}).get("lumibench") or {}
-        if info.get("partial"):
-            partial[info["id"]] = info["missing"]
-    return {"provenance": provenance(base), "suite": name, "backend": backend,
-            "root": str(root) if root else None, "runs": rows,
-            "skipped": skipped, "partial": partial, "datapath_wrong": wrong,
-            "totals": {"runs": len(rows), "rays": sum(r["rays"] for r in rows),
-                       **{c: sum(r[c] or 0 for r in rows)
-                          for c in ("agree", "edge_tie", "embree_wrong", "datapath_wrong")}},
-            "wall_s": wall, "runs_made": made, "workers": workers, "scheduler": scheduler}
-
-
-def _write_summary(out: Path, summary: dict) -> None:
-    from .outputs import jsonable
-    tmp = out / ".summary.json.tmp"
-    tmp.write_text(json.dumps(jsonable(summary), indent=1) + "\n")
-    tmp.replace(out / "summary.json")
-    tmp = out / ".summary.csv.tmp"
-    with open(tmp, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=ROW_KEYS)
-        w.writeheader()
-        for r in summary["runs"]:
-            w.writerow(r)
-    tmp.replace(out / "summary.csv")
-    if summary["runs"]:
-        for name, data in (("summary.png", figure(summary)), ("images.png", sheet(out, summary))):
-            tmp = out / f".{name}.tmp"
-            tmp.write_bytes(data)
-            tmp.replace(out / name)
-
-
-def markdown_table(summary: dict) -> str:
-    """The summary's runs as a Markdown table (docs/lumibench.md shows it; a test checks the
-    page against the JSON)."""
-    lines = ["| run | rays | ops / ray | RT-unit utilization | bytes / ray | node cache hit rate "
-             "| energy / ray (M toggles) | agree | edge tie | Embree wrong | datapath wrong "
-             "| wall |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    fmt = lambda v, f: "–" if v is None else format(v, f)  # noqa: E731
-    for r in summary["runs"]:
-        e = r["energy_per_ray_signals"]
-        lines.append(
-            f"| {r['name']}{' (partial)' if r['partial'] else ''} | {r['rays']:,} | "
-            f"{fmt(r['ops_per_ray'], '.1f')} | {fmt(r['utilization_memory'], '.2f')} | "
-            f"{fmt(r['bytes_per_ray'], ',.0f')} | {fmt(r['hit_rate'], '.3f')} | "
-            f"{fmt(None if e is None else e / 1e6, '.2f')} | {r['agree']:,} | "
-            f"{r['edge_tie']:,} | {r['embree_wrong']:,} | {r['datapath_wrong']:,} | "
-            f"{fmt(r['wall_s'], '.1f')} s |")
-    t = summary["totals"]
-    lines.append(f"| all {t['runs']} runs | {t['rays']:,} | | | | | | {t['agree']:,} | "
-                 f"{t['edge_tie']:,} | {t['embree_wrong']:,} | {t['datapath_wrong']:,} | "
-                 f"{summary['wall_s']:.0f} s |")
-    return "\n".join(lines)
-
-
-PANELS = (("ops_per_ray", "datapath ops per ray", None, 1.0),
-          ("utilization_memory", "RT-unit utilization\n(node cache + memory)", (0.0, 1.0), 1.0),
-          ("bytes_per_ray", "bytes from memory per ray", None, 1.0),
-          ("hit_rate", "node cache hit rate", (0.0, 1.0), 1.0),
-          ("energy_per_ray_signals", "energy per ray\n(million bit toggles)", None, 1e-6))
-
-
-def figure(summary: dict) -> bytes:
-    """PNG bytes: one panel per figure of ``PANELS``, one bar per run, runs grouped by shader
-    (workload), scenes in the same order in every group."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    rows = summary["runs"]
-    groups = list(dict.fromkeys(r["workload"] for r in rows))
-    scenes = list(dict.fromkeys(r["scene"] for r in rows))
-    colours = {s: c for s, c in zip(scenes, ["#4C72B0", "#DD8452", "#55A868", "#C44E52",
-                                             "#8172B3", "#937860", "#DA8BC3", "#8C8C8C",
-                                             "#CCB974", "#64B5CD"] * 4)}
-    fig = Figure(figsize=(2.5 * len(PANELS) + 1.1, 3.3), dpi=110)
-    FigureCanvasAgg(fig)
-    width = 0.8 / max(len(scenes), 1)
-    for i, (k, label, ylim, scale) in enumerate(PANELS):
-        ax = fig.add_subplot(1, len(PANELS), i + 1)
-        for j, s in enumerate(scenes):
-            xs, ys = [], []
-            for g, wl in enumerate(groups):
-                v = [r[k] for r in rows if r["scene"] == s and r["workload"] == wl]
-                if v and v[0] is not None:
-                    xs.append(g - 0.4 + width * (j + 0.5))
-                    ys.append(v[0] * scale)
-            ax.bar(xs, ys, width * 0.92, color=colours[s], label=_short(s))
-        ax.set_xticks(range(len(groups)))
-        ax.set_xticklabels([_short(g).upper() for g in groups], fontsize=8)
-        ax.set_title(label, fontsize=9)
-        ax.tick_params(axis="y", labelsize=7)
-        if ylim:
-            ax.set_ylim(*ylim)
-        else:
-            ax.set_ylim(bottom=0)
-        ax.grid(axis="y", alpha=0.3)
-    handles, labels = fig.axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="center right", fontsize=8, frameon=False,
-               title="scene", title_fontsize=8)
-    dp = (summary.get("provenance") or {}).get("design_point") or {}
-    fig.suptitle(f"suite {summary['suite']}: {len(rows)} runs on the RTL "
-                 f"({dp.get('config', '?')}, {dp.get('bvh_format', '?')}, RT unit "
-                 f"R={dp.get('rays_in_flight', '?')}, {dp.get('cache_kib', '?')} KiB node cache, "
-                 f"{dp.get('mem_latency', '?')}-cycle memory)", fontsize=9)
-    fig.tight_layout(rect=(0, 0, 1 - 0.9 / fig.get_figwidth(), 0.93))
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png")
-    return buf.getvalue()
-
-
-def sheet(out: Path, summary: dict) -> bytes:
-    """PNG bytes: every run's image, one row per scene, one column per workload."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from PIL import Image
-    rows = summary["runs"]
-    scenes = list(dict.fromkeys(r["scene"] for r in rows))
-    groups = list(dict.fromkeys(r["workload"] for r in rows))
-    fig = Figure(figsize=(1.9 * len(groups) + 0.2, 1.9 * len(scenes) + 0.4), dpi=110)
-    FigureCanvasAgg(fig)
-    for i, sc in enumerate(scenes):
-        for j, wl in enumerate(groups):
-            ax = fig.add_subplot(len(scenes), len(groups), i * len(groups) + j + 1)
-            ax.set_axis_off()
-            run = [r for r in rows if r["scene"] == sc and r["workload"] == wl]
-            if run and (out / f"{run[0]['name']}.png").is_file():
-                with Image.open(out / f"{run[0]['name']}.png") as im:
-                    ax.imshow(im.convert("RGB"), interpolation="nearest")
-                ax.set_title(run[0]["name"] + (" (partial)" if run[0]["partial"] else ""),
-                             fontsize=7)
-    fig.suptitle(f"suite {summary['suite']}: every run's image", fontsize=8)
-    fig.tight_layout(rect=(0, 0, 1, 0.97))
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png")
-    return buf.getvalue()
-
-
-def _short(text: str) -> str:
-    return text.split(":", 1)[-1].removeprefix("lumibench-")

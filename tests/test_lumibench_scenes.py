@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from driver.cli import main
-from driver.errors import SceneError
+from driver.core.errors import SceneError
 from driver.scenes import lumibench as lb
 from driver.scenes.objfile import DEFAULT_DIFFUSE, read_obj
 from driver.scenes.scene import load_scene, resolve, scene_name
@@ -230,7 +230,7 @@ def test_lumibench_scenes_anywhere_a_scene_is_accepted(root, in_tmp):
 
 
 def test_the_bvh_of_a_second_run_comes_from_the_cache(root):
-    from driver.bvh.instances import build_scene
+    from driver.bvh4 import build_scene
     from driver.design import DesignPoint
     scene = lb.load("lumibench:BATH")
     first = DesignPoint().build(scene)

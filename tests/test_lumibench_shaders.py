@@ -11,6 +11,7 @@ from driver import workloads
 from driver.bvh4 import build
 from driver.scenes.camera import Camera, camera_rays
 from driver.scenes.lumibench import SkyLight, SphereLight
+from driver.scenes.materials import Materials
 from driver.tracer import trace
 
 SIZE, SPP = 8, 2
@@ -26,7 +27,7 @@ def floor(y=0.0, half=50.0, up=True):
 
 def setup(tri, light=None, albedo=0.5):
     cam = Camera((0.0, 4.0, 0.0), (0.0, 0.0, 0.01), (0.0, 1.0, 0.0), 40.0)   # looking down
-    mats = workloads.Materials(np.full((len(tri), 3), albedo), np.zeros((len(tri), 3)))
+    mats = Materials(np.full((len(tri), 3), albedo), np.zeros((len(tri), 3)))
     return workloads.Setup(tri, cam, mats, [light or SkyLight()], True, 10.0)
 
 

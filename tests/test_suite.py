@@ -11,7 +11,8 @@ from pathlib import Path
 import pytest
 
 from driver.cli import main
-from driver.suite import ROW_KEYS, SuiteError, lumibench_runs, read_suite
+from driver.suite import SuiteError, lumibench_runs, read_suite
+from driver.suite_report import ROW_KEYS
 from test_lumibench_scenes import BOX_MTL, BOX_OBJ, FLAG_MTL, FLAG_OBJ
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "scenes" / "lumibench"

@@ -12,10 +12,13 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import signal
 import sys
+from importlib.metadata import PackageNotFoundError, version as dist_version
 
-from ..errors import Terminated
+from ..core.errors import Terminated
+from ..scenes.lumibench import using_root
 from .common import (EXIT_CHECK, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED,
                      EXIT_USAGE, PROG, one_line)
 
@@ -26,7 +29,8 @@ COMMANDS = {
     "bench": "driver.cli.bench",
     "sweep": "driver.cli.sweep",
     "suite": "driver.cli.suite",
-    "power": "driver.power",
+    "power": "driver.cli.power",
+    "study": "driver.cli.study",
 }
 
 EXIT_CODES = {
@@ -52,8 +56,6 @@ ENVIRONMENT = {
 
 
 def version() -> str:
-    from importlib.metadata import PackageNotFoundError
-    from importlib.metadata import version as dist_version
     try:
         return dist_version("rayflex-driver")
     except PackageNotFoundError:
@@ -70,12 +72,12 @@ def main(argv=None) -> int:
     """Entry point of the ``rayflex`` console script; returns the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = list(argv) if argv is not None else sys.argv[1:]   # what a JSON may record
     if not getattr(args, "command", None):
         parser.print_help(sys.stderr)
         return EXIT_USAGE
     previous = _on_sigterm_raise()
     try:
-        from ..scenes.lumibench import using_root
         with using_root(args.lumibench_root):
             return int(args.handler.run(args) or 0)
     except KeyboardInterrupt:
@@ -91,7 +93,6 @@ def main(argv=None) -> int:
         print(f"{PROG}: error: out of memory (try a smaller --size)", file=sys.stderr)
         return EXIT_USAGE
     except Exception as e:  # noqa: BLE001  (a bug: one line unless asked for the traceback)
-        import os
         if os.environ.get("RAYFLEX_TRACEBACK") == "1":
             raise
         print(f"{PROG}: internal error: {type(e).__name__}: {one_line(e)} "
@@ -118,13 +119,12 @@ def build_parser() -> argparse.ArgumentParser:
         prog=PROG, description="Workload driver for the RayFlex ray-tracing datapath.",
         epilog=epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
+    from .options import SHARED     # trimesh, embreex: every command's options need them
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for target in COMMANDS.values():
         handler = _load(target)
         p = handler.add_parser(sub)
-        p.add_argument("--lumibench-root", metavar="DIR",
-                       help="a clone of LumiBench's repository, for scenes lumibench:ID "
-                            "(default: $LUMIBENCH_ROOT; docs/lumibench.md)")
+        SHARED["lumibench_root"].add(p)
         p.formatter_class = argparse.RawDescriptionHelpFormatter
         if p.epilog is None:
             p.epilog = epilog()

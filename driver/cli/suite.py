@@ -5,10 +5,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .. import design
-from .common import EXIT_CHECK, add_backend, add_progress, check_backend, check_positive, wrote
-
-SUITES = ("lumibench",)
+from ..scenes.camera import MAX_SIZE
+from ..scenes.lumibench import root
+from ..suite import (SUMMARY, Run, SuiteError, check_runs, lumibench_runs, read_suite,
+                     run_suite)
+from . import options
+from .common import EXIT_CHECK, check_backend, check_positive, wrote
 
 
 def add_parser(subparsers):
@@ -22,41 +24,11 @@ def add_parser(subparsers):
                     "summary.png. Runs already in --out from the same source tree and design "
                     "point are kept, so an interrupted suite resumes. Exits 1 when any ray is "
                     "classified datapath-wrong.")
-    p.add_argument("suite_name", nargs="?", choices=SUITES, metavar="NAME",
-                   help="a built-in suite: lumibench (every run of LumiBench that "
-                        "--lumibench-root can make: its scenes x pt, sh, ao)")
-    p.add_argument("--suite", metavar="FILE",
-                   help="a TOML list of runs instead ([[runs]] with scene, workload and "
-                        "optionally name, size, spp, bounces, ao_rays, seed; docs/lumibench.md)")
-    p.add_argument("--scenes", metavar="LIST", help="lumibench: these scene IDs only "
-                                                    "(e.g. BATH,SHIP)")
-    p.add_argument("--workloads", metavar="LIST", help="lumibench: these shaders only "
-                                                       "(pt, sh, ao)")
-    p.add_argument("--size", type=int, metavar="N",
-                   help="every run's frame N x N (default: the suite's; LumiBench 128)")
-    p.add_argument("--spp", type=int, metavar="N",
-                   help="every run's samples per pixel (default: the suite's; LumiBench 2)")
-    p.add_argument("--out", metavar="DIR", help="output folder (default: suite-NAME)")
-    p.add_argument("--replay-plain", action="store_true",
-                   help="also replay every wavefront without the node memory (rtunit: one "
-                        "more simulation of every request)")
-    p.add_argument("--workers", type=int, default=1, metavar="N",
-                   help="make runs on a local Dask cluster of N one-thread processes "
-                        "(default 1: this process)")
-    p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="make runs on the Dask cluster at ADDRESS (e.g. tcp://host:8786)")
-    add_backend(p)
-    design.add_options(p, groups=("datapath", "bvh", "rtunit"))
-    add_progress(p)
+    options.add(p, "suite", groups=("datapath", "bvh", "rtunit"))
     return p
 
 
 def run(args) -> int:
-    from ..scenes.camera import MAX_SIZE
-    from ..scenes.lumibench import root
-    from ..suite import SUMMARY, Run, SuiteError, check_runs, lumibench_runs, read_suite
-    from ..suite import run_suite
-
     if (args.suite_name is None) == (args.suite is None):
         raise SuiteError("give a suite: NAME (lumibench) or --suite FILE, not both")
     if args.suite and (args.scenes or args.workloads):
@@ -70,7 +42,7 @@ def run(args) -> int:
         v = getattr(args, flag)
         if v is not None:
             check_positive(f"--{flag}", v, 1, MAX_SIZE if flag == "size" else 4096)
-    base = design.from_args(args)
+    base = options.from_args(args)
     skipped = {}
     if args.suite:
         name, runs = read_suite(args.suite)

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from ..errors import SceneError
+from ..core.errors import SceneError
 
 DEFAULT_DIFFUSE = (0.7, 0.7, 0.7)     # the benchmark's colour of a model without materials
 
