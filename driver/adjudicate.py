@@ -254,11 +254,9 @@ def adjudicate(triangles, origins, dirs, extent, our_t, our_prim, emb_t, emb_pri
                   **info)
         elif any_hit:
             if a.has[k]:                     # we are occluded, Embree is not
-                if a.clear[k]:
-                    v.set(i, "embree_wrong", "Embree's occlusion query reports nothing within "
-                          "the extent; our triangle is hit exactly within it", **info)
-                else:
-                    v.set(i, "edge_tie", _why_marginal("our", a, k, ee[k], band), **info)
+                _clear_or_tie(v, i, "embree_wrong", "Embree's occlusion query reports nothing "
+                              "within the extent; our triangle is hit exactly within it",
+                              ("our", a, k, ee[k], band), info)
             elif b.clear[k]:
                 v.set(i, "datapath_wrong", "Embree's occluder is hit exactly within the extent "
                       "and clear of its edges; we report no hit", **info)
@@ -268,11 +266,9 @@ def adjudicate(triangles, origins, dirs, extent, our_t, our_prim, emb_t, emb_pri
                 v.set(i, "embree_wrong", "Embree reports an occluder that is no exact hit of "
                       "the ray within its extent", **info)
         elif b.valid[k] and (not a.has[k] or b.t[k] + b.tol[k] < a.t[k] - a.tol[k]):
-            if b.clear[k]:
-                v.set(i, "datapath_wrong", "Embree's triangle is hit exactly, clearly nearer "
-                      "than ours (or we report no hit)", **info)
-            else:
-                v.set(i, "edge_tie", _why_marginal("Embree's", b, k, ee[k], band), **info)
+            _clear_or_tie(v, i, "datapath_wrong", "Embree's triangle is hit exactly, clearly "
+                          "nearer than ours (or we report no hit)", ("Embree's", b, k, ee[k], band),
+                          info)
         elif a.has[k]:
             if b.valid[k] and abs(a.t[k] - b.t[k]) <= a.tol[k] + b.tol[k]:
                 v.set(i, "edge_tie", "both triangles are hit at the same t to float32 precision "
@@ -288,6 +284,16 @@ def adjudicate(triangles, origins, dirs, extent, our_t, our_prim, emb_t, emb_pri
         _settle(v, search, np.asarray(triangles, np.float32).reshape(-1, 3, 3), oo, dd, ee, a, b,
                 band, double_sided)
     return v
+
+
+def _clear_or_tie(v, i, cls: str, why: str, marginal: tuple, info: dict) -> None:
+    """Ray ``i`` is ``cls`` when the candidate of ``marginal`` (who, candidate, k, extent,
+    band) is hit clear of its triangle's edges and of the extent, else an edge tie."""
+    _, c, k = marginal[:3]
+    if c.clear[k]:
+        v.set(i, cls, why, **info)
+    else:
+        v.set(i, "edge_tie", _why_marginal(*marginal), **info)
 
 
 def _settle(v, search, tri, oo, dd, ee, a, b, band, double_sided):

@@ -201,13 +201,13 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
                   "2 M / 5 M instanced bunnies, tree quality of the SAH vs greedy collapse, "
                   "box nodes vs ops per ray for each --bvh-fill with and without "
                   "--cull-stack (PNG plot)"),
-        flag("--scene-load", action="store_true",
-             help="the scene loader instead: load a LumiBench scene (--scene lumibench:ID) in a "
-                  "fresh process with an empty scene cache and again from the cache, each with "
-                  "its BVH build: times to tracing and peak memory (docs/lumibench.md)"),
-        flag("--synthetic", metavar="FILES,TRIANGLES",
-             help="with --scene-load: measure a LumiBench-format folder of FILES OBJ files of "
-                  "TRIANGLES triangles in all, written to a temporary folder"),
+        flag("--scene-load", action="store_true", help=(
+            "the scene loader instead: load a LumiBench scene (--scene lumibench:ID) in a fresh "
+            "process with an empty scene cache and again from the cache, each with its BVH "
+            "build: times to tracing and peak memory (docs/lumibench.md)")),
+        flag("--synthetic", metavar="FILES,TRIANGLES", help=(
+            "with --scene-load: measure a LumiBench-format folder of FILES OBJ files of "
+            "TRIANGLES triangles in all, written to a temporary folder")),
     )), (DESIGN, ()), (None, (SHARED["progress"],))),
     "sweep": ((None, (
         flag("--csv", metavar="PATH", help="one row per design point x ray type"),
