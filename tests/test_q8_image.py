@@ -179,26 +179,91 @@ def test_vertex_ids_number_bit_identical_points_by_first_use_on_any_shards():
         assert np.array_equal(got, want), shards
 
 
+def _scan_neighbours(ids):
+    """The edge neighbours ``_neighbours`` promises, by a plain scan: per edge in order, the
+    other triangles that share it in index order, all of them if they are at most three
+    triangles with t, else only the one before and the one after t; each once."""
+    rows = []
+    for t in range(len(ids)):
+        want = []
+        for e in range(3):
+            a, b = ids[t, e], ids[t, (e + 1) % 3]
+            if a == b:
+                continue
+            share = [u for u in range(len(ids)) if a in ids[u] and b in ids[u]]
+            if len(share) > 3:
+                i = share.index(t)
+                share = share[max(0, i - 1):i + 2]
+            want += [u for u in share if u != t and u not in want]
+        rows.append(want)
+    return rows
+
+
 def test_edge_neighbours_equal_a_plain_scan():
-    """The parallel adjacency (``_neighbours``) lists, per triangle, the triangles sharing each
-    of its edges in edge order and index order, each once, as a plain scan over all triangles,
-    whichever number of workers fills the per-vertex lists."""
+    """The parallel adjacency (``_neighbours``) equals a plain scan whichever number of workers
+    fills the per-vertex lists, on a grid with doubled edges, a degenerate triangle and an edge
+    shared by 40 triangles, and is symmetric."""
     from driver.bvh.q8 import _neighbours, vertex_ids
-    tris = np.concatenate([_grid(5), _grid(5)[:9], meshes.soup(4, seed=2)])   # doubled edges
+    rng = np.random.default_rng(4)
+    fan = np.zeros((40, 3, 3), np.float32)                   # 40 triangles on one edge
+    fan[:, 1, 2] = 1.0
+    fan[:, 2] = rng.normal(size=(40, 3))
+    fan[17, 2] = fan[3, 2]                                   # and a duplicate among them
+    tris = np.concatenate([_grid(5), _grid(5)[:9], meshes.soup(4, seed=2), fan, fan[:3]])
     tris[3, 2] = tris[3, 1]                                  # a degenerate triangle
+    tris[60, 2] = tris[60, 0]                                # and one with an edge twice
     ids = vertex_ids(tris)
+    want = _scan_neighbours(ids)
     for shards in (1, 2, 3, 7):                              # the vertex lists' owners
         adj, deg = _neighbours(ids, int(ids.max()) + 1, shards)
         for t in range(len(ids)):
-            want = []
-            for e in range(3):
-                a, b = ids[t, e], ids[t, (e + 1) % 3]
-                if a != b:
-                    want += [u for u in range(len(ids)) if u != t and a in ids[u]
-                             and b in ids[u] and u not in want]
-            assert list(adj[t, :deg[t]]) == want[:len(adj[t])], (shards, t)
+            assert list(adj[t, :deg[t]]) == want[t], (shards, t)
             assert (adj[t, deg[t]:] == -1).all()
-        assert deg.max() >= 3
+            assert all(t in adj[u, :deg[u]] for u in adj[t, :deg[t]])
+        assert deg.max() == 6
+
+
+def test_matching_ends_on_the_mesh_that_looped():
+    """Nine triangles on five vertices, every edge shared by 3 to 5 of them: the adjacency cut
+    at six per triangle was asymmetric, a triangle's count of unmatched neighbours stayed
+    above zero with none left, and the matching picked it forever. Now every triangle but one
+    is paired with an edge neighbour, and the step cap holds."""
+    from driver.bvh.q8 import _match, _neighbours, match_limit, pair_triangles, vertex_ids
+    v = np.array([(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 1)], np.float32)
+    f = [[0, 1, 2], [3, 1, 0], [3, 0, 4], [2, 0, 3], [4, 0, 1], [1, 2, 4], [0, 2, 3],
+         [3, 1, 0], [1, 3, 2]]
+    tris = v[np.array(f)]
+    first, second = pair_triangles(tris)[:2]
+    assert (second >= 0).sum() == 4
+    ids = vertex_ids(tris)
+    for a, b in zip(first[second >= 0], second[second >= 0]):
+        assert len(set(ids[a]) & set(ids[b])) >= 2
+    check_image(build(tris, format="q8"), tris)
+    adj, deg = _neighbours(ids, int(ids.max()) + 1, 2)
+    partner, steps = _match(adj, deg, tris, match_limit(len(tris)))
+    assert steps < match_limit(len(tris))
+
+
+def test_matching_falls_back_at_its_cap_and_on_an_inconsistent_adjacency():
+    """The step cap is reachable: at the cap the matching stops with the rest unpaired; an
+    adjacency whose rows disagree (u lists t, t does not list u) ends too, the triangle whose
+    count was wrong left alone."""
+    from driver.bvh.q8 import _match, _neighbours, vertex_ids
+    tris = _grid(6)
+    ids = vertex_ids(tris)
+    adj, deg = _neighbours(ids, int(ids.max()) + 1, 2)
+    full, _ = _match(adj, deg, tris, 10 ** 6)
+    part, steps = _match(adj, deg, tris, 3)
+    assert steps == 3 and (part >= 0).sum() <= 6 < (full >= 0).sum()
+    assert all(part[part[t]] == t for t in np.flatnonzero(part >= 0))
+    # t = 0 counts a neighbour that does not list it back: the old loop never ended here
+    bad_adj = np.full((3, 6), -1, np.int32)
+    bad_adj[0, :2] = 1, 2
+    bad_adj[1, 0] = 2
+    bad_adj[2, 0] = 1
+    bad_deg = np.array([2, 1, 1], np.int8)
+    partner, steps = _match(bad_adj, bad_deg, tris[:3], 100)
+    assert list(partner) == [-1, 2, 1] and steps < 100
 
 
 @pytest.mark.parametrize("fmt", ["q8", "q8g"])
