@@ -21,6 +21,7 @@ import textwrap
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from driver.cli import EXIT_CODES, main
@@ -165,6 +166,86 @@ def test_sigkill_during_a_build_then_rebuild(tmp_path):
     assert q.returncode == EXIT_OK, err
     assert not tmp.exists() and not list(cache.glob(".tmp-*")) and not processes_inside(cache)
     assert (work / "sphere.png").is_file()
+
+
+# ---------------------------------------------------------------------------------------------
+# Ctrl-C and SIGTERM inside native code
+
+_NATIVE_SPIN = textwrap.dedent("""
+    from numba import njit
+    from driver.interrupt import watch
+
+    @njit(nogil=True)
+    def spin(n):
+        x = 0.0
+        for i in range(n):
+            x += (i % 7) * 1e-9
+        return x
+
+    class Stop(BaseException):
+        pass
+
+    spin(10)
+    print("ready", flush=True)
+    with watch("spinner", {2: ("interrupted", 130), 15: ("terminated", 143)}, Stop):
+        spin(10 ** 13)                           # hours of native code
+""")
+
+
+@pytest.mark.parametrize("sig, code, word", [(signal.SIGINT, 130, "interrupted"),
+                                             (signal.SIGTERM, 143, "terminated")])
+def test_a_signal_ends_a_native_kernel_within_a_second(tmp_path, sig, code, word):
+    """Python's handler cannot run while the main thread is inside a numba kernel (the q8
+    encoder's matching once looped there and only SIGKILL ended it): ``driver.interrupt``
+    ends the process from its own thread."""
+    p = subprocess.Popen([sys.executable, "-c", _NATIVE_SPIN], env=env_for(tmp_path),
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert p.stdout.readline().strip() == "ready"
+        time.sleep(0.5)
+        t0 = time.monotonic()
+        p.send_signal(sig)
+        _, err = p.communicate(timeout=30)
+        latency = time.monotonic() - t0
+    finally:
+        p.kill()
+    assert p.returncode == code
+    assert last_line(err) == f"spinner: {word}"
+    assert latency < 3.0                      # 0.5 s grace, then the exit (~0.6 s measured)
+
+
+def test_sigint_during_a_large_q8_build_ends_the_command_at_once(tmp_path):
+    """``rayflex render`` of a 600,000-triangle mesh in q8: Ctrl-C during the build (native
+    kernels) ends it within about a second, exit 130, nothing written."""
+    import trimesh
+    rng = np.random.default_rng(0)
+    n = 600_000
+    c = rng.uniform(-1, 1, (n, 1, 3))
+    tris = (c + 0.01 * rng.normal(size=(n, 3, 3))).astype(np.float32).reshape(-1, 3)
+    trimesh.Trimesh(tris, np.arange(3 * n).reshape(-1, 3), process=False).export(
+        tmp_path / "big.ply")
+    work = tmp_path / "work"
+    work.mkdir()
+    p = rayflex("render", str(tmp_path / "big.ply"), "--bvh-format", "q8", "--backend",
+                "golden", "--size", "8", "--out", "x.png", cwd=work, env=env_for(tmp_path))
+    try:
+        wait_for(lambda: _cpu_seconds(p.pid) > 4.0, 120, "the command to load and build")
+        t0 = time.monotonic()
+        p.send_signal(signal.SIGINT)
+        _, err = p.communicate(timeout=30)
+        latency = time.monotonic() - t0
+    finally:
+        p.kill()
+    assert p.returncode == 130, err
+    assert last_line(err) == "rayflex: interrupted"
+    assert latency < 3.0
+    assert not list(work.iterdir())
+
+
+def _cpu_seconds(pid: int) -> float:
+    """User + system CPU time of a process (Linux /proc)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 # ---------------------------------------------------------------------------------------------
