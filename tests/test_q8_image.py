@@ -8,108 +8,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from driver.bvh4 import PAD_REL, build, request_operands
+from driver.bvh4 import build, request_operands
 from driver.layout import (GROUP_BYTES, GROUP_MAX_TRIS, GROUP_NODE, GROUP_TYPE, LEAF_NEXT_TYPE,
-                           NO_CHILD, NODE_BYTES, PAIR_BYTES, PAIR_NODE, PAIR_TYPE, Q8_BYTES,
-                           Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE, REQUEST_DTYPE, NodeRef,
-                           decode_q8, leaf_count, leaf_next, leaf_triangles, pack_requests,
-                           q8_count, ray_words)
+                           NO_CHILD, NODE_BYTES, PAIR_NODE, PAIR_TYPE, Q8_BYTES, Q8_EXP_MAX,
+                           Q8_EXP_MIN, Q8_NODE, Q8_TYPE, REQUEST_DTYPE, NodeRef, decode_q8,
+                           leaf_next, pack_requests, ray_words)
 from driver.tracer import trace
 from support import meshes
-
-
-def _grown(lo, hi, pad):
-    """The box32 stored box of exact float32 bounds (driver.bvh4's growth rule)."""
-    glo = np.nextafter(np.float32(lo.astype(np.float64) - pad), np.float32(-np.inf))
-    ghi = np.nextafter(np.float32(hi.astype(np.float64) + pad), np.float32(np.inf))
-    return glo.astype(np.float32), ghi.astype(np.float32)
-
-
-def image_leaves(bvh):
-    """Every leaf the box nodes reference: (pointers (l,) uint32, triangle count (l,),
-    triangles (l, GROUP_MAX_TRIS, 3, 3) float32 and prims (l, GROUP_MAX_TRIS) int64 (-1
-    padded)), read through the request pointers the traversal issues (``leaf_next``)."""
-    nb = bvh.stats["box_nodes"]
-    nodes = bvh.image[:Q8_BYTES * nb].view(Q8_NODE)
-    ptr = nodes["child"][np.arange(4)[None, :] < q8_count(nodes)[:, None]]
-    ptr = ptr[NodeRef.type(ptr) != Q8_TYPE]
-    count = leaf_count(bvh.image, ptr)
-    tris = np.zeros((len(ptr), GROUP_MAX_TRIS, 3, 3), np.float32)
-    prim = np.full((len(ptr), GROUP_MAX_TRIS), -1, np.int64)
-    for k in range(GROUP_MAX_TRIS):
-        has = np.flatnonzero(count > k)
-        req = ptr[has] if k == 0 else leaf_next(ptr[has], k)
-        tris[has, k], prim[has, k] = leaf_triangles(bvh.image, req)
-    return ptr, count, tris, prim
-
-
-def check_image(bvh, tris) -> None:
-    """Every triangle in exactly one leaf, bit for bit in its input vertex order; every used
-    child slot's decoded box contains the box32 stored box of that child, recomputed here from
-    the triangles below it; unused slots decode to +inf; exponents and counts in range; group
-    leaves hold 3 to 6 triangles and 128 bytes, pair leaves 1 or 2 and 64."""
-    tris = np.asarray(tris, np.float32)
-    nb = bvh.stats["box_nodes"]
-    nodes = bvh.image[:Q8_BYTES * nb].view(Q8_NODE)
-    assert bvh.format in ("q8", "q8g") and bvh.root == Q8_TYPE
-    lptr, lcount, ltris, lprim = image_leaves(bvh)
-    group = NodeRef.type(lptr) == GROUP_TYPE
-    assert np.isin(NodeRef.type(lptr), (PAIR_TYPE, GROUP_TYPE)).all()
-    assert bvh.format == "q8g" or not group.any()
-    assert ((lcount[group] >= 3) & (lcount[group] <= GROUP_MAX_TRIS)).all()
-    assert ((lcount[~group] >= 1) & (lcount[~group] <= 2)).all()
-    assert group.sum() == bvh.stats["group_leaves"] and len(lptr) == bvh.stats["leaf_nodes"]
-    assert lcount[group].sum() == bvh.stats["grouped_triangles"]
-    assert bvh.stats["bytes"] == bvh.image.nbytes == 64 * nb + 64 * (~group).sum() + \
-        GROUP_BYTES * group.sum()
-    # leaves follow the box nodes back to back, each in its own 64-byte slots
-    off = np.sort(NodeRef.offset(lptr))
-    size = np.where(group, GROUP_BYTES, PAIR_BYTES)[np.argsort(NodeRef.offset(lptr))]
-    assert off[0] == 64 * nb and np.array_equal(off[1:], (off + size)[:-1])
-
-    used = lprim >= 0
-    assert np.array_equal(np.sort(lprim[used]), np.arange(len(tris)))
-    assert np.array_equal(ltris[used].view(np.uint32), tris[lprim[used]].view(np.uint32))
-    if bvh.format == "q8":
-        assert np.isclose(bvh.stats["pair_ratio"], 2 * (lcount == 2).sum() / len(tris))
-
-    exp = nodes["exp"][:, :3].view(np.int8)
-    assert ((exp >= Q8_EXP_MIN) & (exp <= Q8_EXP_MAX)).all()
-    count = q8_count(nodes)
-    assert ((count >= 1) & (count <= 4)).all()
-    assert not (nodes["exp"][:, 3] & ~np.uint8(7)).any()
-
-    # exact bounds of every leaf and, bottom up (children follow their parent), of every node
-    big = np.float32(np.inf)
-    leaf_lo = np.where(used[..., None, None], ltris, big).min(axis=(1, 2))
-    leaf_hi = np.where(used[..., None, None], ltris, -big).max(axis=(1, 2))
-    leaf_at = {int(p): i for i, p in enumerate(lptr)}
-    node_lo = np.full((nb, 3), np.inf, np.float32)
-    node_hi = np.full((nb, 3), -np.inf, np.float32)
-    child_lo = np.zeros((nb, 4, 3), np.float32)
-    child_hi = np.zeros((nb, 4, 3), np.float32)
-    ptr = nodes["child"]
-    typ, off = NodeRef.type(ptr), NodeRef.offset(ptr)
-    used = np.arange(4)[None, :] < count[:, None]
-    assert (ptr[~used] == NO_CHILD).all()
-    for i in range(nb - 1, -1, -1):
-        for j in range(count[i]):
-            if typ[i, j] == Q8_TYPE:
-                k = off[i, j] // Q8_BYTES
-                assert k > i
-                lo, hi = node_lo[k], node_hi[k]
-            else:
-                k = leaf_at[int(ptr[i, j])]
-                lo, hi = leaf_lo[k], leaf_hi[k]
-            child_lo[i, j], child_hi[i, j] = lo, hi
-            node_lo[i] = np.minimum(node_lo[i], lo)
-            node_hi[i] = np.maximum(node_hi[i], hi)
-    pad = PAD_REL * float(max(-tris.min(), tris.max()))
-    ref_lo, ref_hi = _grown(child_lo, child_hi, pad)
-    dec = decode_q8(nodes)
-    assert (dec[..., :3][used] <= ref_lo[used]).all()
-    assert (dec[..., 3:][used] >= ref_hi[used]).all()
-    assert (dec[~used] == np.inf).all()
+from support.images import check_image, image_leaves
 
 
 def _grid(k: int, scale: float = 1.0, offset=(0.0, 0.0, 0.0)) -> np.ndarray:
