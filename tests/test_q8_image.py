@@ -69,7 +69,7 @@ def test_pairs_share_edges_and_cover_a_mesh():
 def test_vertex_ids_number_bit_identical_points_by_first_use_on_any_shards():
     """The sharded hash tables (one per thread) give the first-use numbering of the exact
     float32 bits, whatever the number of shards: numpy's unique rows as the reference."""
-    from driver.bvh.q8 import _vertex_ids
+    from driver.bvh.q8 import _vertex_ids_one, _vertex_ids_par
     rng = np.random.default_rng(3)
     pts = rng.integers(-6, 7, (6000, 3)).astype(np.float32)
     pts[::7, 1] = -0.0                                      # -0.0 and 0.0 are different bits
@@ -81,8 +81,10 @@ def test_vertex_ids_number_bit_identical_points_by_first_use_on_any_shards():
     want = rank[inverse.reshape(-1)]
     assert len(first) < len(pts) / 2                         # many repeats
     for shards in (1, 2, 3, 4):
-        got = _vertex_ids(bits, np.full((shards, 1 << 14), -1, np.int32))
-        assert np.array_equal(got, want), shards
+        for kernel in (_vertex_ids_par, _vertex_ids_one):
+            got = kernel(bits, np.full((shards, 1 << 14), -1, np.int32))
+            assert np.array_equal(got, want), shards
+        assert len(_vertex_ids_one(bits, np.full((shards, 1 << 8), -1, np.int32))) == 0  # full
 
 
 def _scan_neighbours(ids):
@@ -109,7 +111,7 @@ def test_edge_neighbours_equal_a_plain_scan():
     """The parallel adjacency (``_neighbours``) equals a plain scan whichever number of workers
     fills the per-vertex lists, on a grid with doubled edges, a degenerate triangle and an edge
     shared by 40 triangles, and is symmetric."""
-    from driver.bvh.q8 import _neighbours, vertex_ids
+    from driver.bvh.q8 import _neighbours_one, _neighbours_par, vertex_ids
     rng = np.random.default_rng(4)
     fan = np.zeros((40, 3, 3), np.float32)                   # 40 triangles on one edge
     fan[:, 1, 2] = 1.0
@@ -120,8 +122,9 @@ def test_edge_neighbours_equal_a_plain_scan():
     tris[60, 2] = tris[60, 0]                                # and one with an edge twice
     ids = vertex_ids(tris)
     want = _scan_neighbours(ids)
-    for shards in (1, 2, 3, 7):                              # the vertex lists' owners
-        adj, deg = _neighbours(ids, int(ids.max()) + 1, shards)
+    for shards, kernel in ((1, _neighbours_one), (1, _neighbours_par), (2, _neighbours_par),
+                           (3, _neighbours_par), (7, _neighbours_one)):   # the lists' owners
+        adj, deg = kernel(ids, int(ids.max()) + 1, shards)
         for t in range(len(ids)):
             assert list(adj[t, :deg[t]]) == want[t], (shards, t)
             assert (adj[t, deg[t]:] == -1).all()
@@ -134,7 +137,7 @@ def test_matching_ends_on_the_mesh_that_looped():
     at six per triangle was asymmetric, a triangle's count of unmatched neighbours stayed
     above zero with none left, and the matching picked it forever. Now every triangle but one
     is paired with an edge neighbour, and the step cap holds."""
-    from driver.bvh.q8 import _match, _neighbours, match_limit, pair_triangles, vertex_ids
+    from driver.bvh.q8 import _match, match_limit, neighbours, pair_triangles, vertex_ids
     v = np.array([(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 1)], np.float32)
     f = [[0, 1, 2], [3, 1, 0], [3, 0, 4], [2, 0, 3], [4, 0, 1], [1, 2, 4], [0, 2, 3],
          [3, 1, 0], [1, 3, 2]]
@@ -145,7 +148,7 @@ def test_matching_ends_on_the_mesh_that_looped():
     for a, b in zip(first[second >= 0], second[second >= 0]):
         assert len(set(ids[a]) & set(ids[b])) >= 2
     check_image(build(tris, format="q8"), tris)
-    adj, deg = _neighbours(ids, int(ids.max()) + 1, 2)
+    adj, deg = neighbours(ids)
     partner, steps = _match(adj, deg, tris, match_limit(len(tris)))
     assert steps < match_limit(len(tris))
 
@@ -154,10 +157,10 @@ def test_matching_falls_back_at_its_cap_and_on_an_inconsistent_adjacency():
     """The step cap is reachable: at the cap the matching stops with the rest unpaired; an
     adjacency whose rows disagree (u lists t, t does not list u) ends too, the triangle whose
     count was wrong left alone."""
-    from driver.bvh.q8 import _match, _neighbours, vertex_ids
+    from driver.bvh.q8 import _match, neighbours, vertex_ids
     tris = _grid(6)
     ids = vertex_ids(tris)
-    adj, deg = _neighbours(ids, int(ids.max()) + 1, 2)
+    adj, deg = neighbours(ids)
     full, _ = _match(adj, deg, tris, 10 ** 6)
     part, steps = _match(adj, deg, tris, 3)
     assert steps == 3 and (part >= 0).sum() <= 6 < (full >= 0).sum()
@@ -209,7 +212,7 @@ def test_bad_format():
     with pytest.raises(ValueError, match="format"):
         build(meshes.soup(4), format="q16")
     with pytest.raises(ValueError, match="box32"):
-        trace(build(meshes.soup(4)), [[0, 0, 0]], [[0, 0, 1]], bvh_format="q8")
+        trace(build(meshes.soup(4)), [[0, 0, 0]], [[0, 0, 1]], bvh_format="q8", backend="golden")
 
 
 # ----------------------------------------------------------------------------------------------

@@ -183,9 +183,11 @@ def build_two_level(instances: Instances, format: str = "box32", progress=None,
     blas_bytes = sum(b["bytes"] for b in blas_info)
     depth = tlas.stats["depth"] + max(b.stats["depth"] for b in blases.values())
     phase_s: dict[str, float] = {}
+    phase_cpu_s: dict[str, float] = {}
     for b in (tlas, *blases.values()):
-        for name, s in b.stats["phase_s"].items():
-            phase_s[name] = phase_s.get(name, 0.0) + s
+        for total, key in ((phase_s, "phase_s"), (phase_cpu_s, "phase_cpu_s")):
+            for name, seconds in b.stats[key].items():
+                total[name] = total.get(name, 0.0) + seconds
     tri = sum(b.stats["tri_nodes"] for b in blases.values())
     paired = sum(b.stats["pair_ratio"] * b.stats["tri_nodes"] for b in blases.values())
     stats = {"format": format, "tlas_format": t_fmt, "instances": k,
@@ -200,7 +202,8 @@ def build_two_level(instances: Instances, format: str = "box32", progress=None,
              "build_s": time.perf_counter() - t0, "bytes": int(image.nbytes),
              "bytes_per_triangle": image.nbytes / instances.triangles_total,
              "pair_ratio": paired / tri, "avg_children": tlas.stats["avg_children"],
-             "child_histogram": tlas.stats["child_histogram"], "phase_s": phase_s}
+             "child_histogram": tlas.stats["child_histogram"], "phase_s": phase_s,
+             "phase_cpu_s": phase_cpu_s}
     return TwoLevelBVH(image, instances, stats, format, roots, blas_info)
 
 

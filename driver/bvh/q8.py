@@ -16,7 +16,8 @@ values) and the edge adjacency (``_neighbours``: each thread fills the triangle 
 range of vertices, then one row per triangle) run on all cores with numba's ``prange``, as do
 the group-leaf fits and layout (``_group_fits``, ``_apply_groups``) and the quantization
 (``_quantize``); each gives the same result on any number of threads, so the image does not
-depend on the machine. The matching itself is sequential (each choice depends on the last), as
+depend on the machine (below ``PAIRING_PARALLEL_MIN`` triangles the vertex ids and adjacency run
+on one thread: starting the threads would cost more than the work). The matching itself is sequential (each choice depends on the last), as
 is the group choice's pass over the tree (``_group_dp``).
 
 Group leaves (``group_leaves``, q8g): after the build over pair leaves, binary subtrees of 3 to 6
@@ -37,6 +38,7 @@ by one wherever the decode put a bound inside the child's stored box, until none
 from __future__ import annotations
 
 import math
+import types
 
 import numpy as np
 from numba import get_num_threads, njit, prange
@@ -51,7 +53,6 @@ _HASH = np.uint64(0x9E3779B97F4A7C15)
 _CHUNKS_PER_THREAD = 8    # work items of a parallel loop with scratch: a few per thread
 
 
-@njit(cache=True, parallel=True, nogil=True)
 def _vertex_ids(bits, tables):
     """(m,) int64 vertex ids of (m, 3) uint32 coordinate bits, numbered 0, 1, ... in order of
     first use: equal exactly for bit-identical rows; or, if a shard's table filled up, an
@@ -108,7 +109,6 @@ _ADJ = 6      # edge neighbours kept per triangle: at most two per edge (``_neig
 _SMALL = 16   # a vertex's edge list up to this long is sorted by insertion, longer by merge sort
 
 
-@njit(cache=True, parallel=True, nogil=True)
 def _neighbours(ids, nv, shards):
     """(n, _ADJ) int32 edge neighbours of each triangle (-1 padded; an image holds fewer than
     2**29 triangles) and their count (n,) int8, a symmetric relation (u is t's neighbour exactly
@@ -218,6 +218,25 @@ def _link_edge(lst, i, j, link):
                 r += 1
             if r < j:
                 link[lst[q], 1] = lst[r] // 3
+
+
+# each pairing kernel twice: on all cores, and on one (prange runs as range) for small meshes,
+# where starting the threads costs more than the work (and, on a loaded machine, waits for them)
+PAIRING_PARALLEL_MIN = 20_000      # triangles
+
+
+def _twins(fn):
+    """(parallel, one-thread) kernels of ``fn``; the second compiles a copy under its own name,
+    so that numba's on-disk cache keeps the two apart."""
+    one = types.FunctionType(fn.__code__, fn.__globals__, fn.__name__ + "_one")
+    one.__qualname__ = fn.__qualname__ + "_one"
+    one.__doc__ = fn.__doc__
+    return (njit(cache=True, parallel=True, nogil=True)(fn),
+            njit(cache=True, nogil=True)(one))
+
+
+_vertex_ids_par, _vertex_ids_one = _twins(_vertex_ids)
+_neighbours_par, _neighbours_one = _twins(_neighbours)
 
 
 @njit(cache=True, inline="always")
@@ -352,12 +371,14 @@ def _bit_ids(points: np.ndarray) -> np.ndarray:
     """(m,) int64 ids of (m, 3) float32 points, equal exactly for bit-identical points (numbered
     in order of first use)."""
     bits = np.ascontiguousarray(points, np.float32).view(np.uint32)
-    shards = get_num_threads()
+    small = len(bits) < 3 * PAIRING_PARALLEL_MIN
+    shards = 1 if small else get_num_threads()
+    kernel = _vertex_ids_one if small else _vertex_ids_par
     dtype = np.int32 if len(bits) < 1 << 31 else np.int64
     size = 1 << max(4, int(2 * len(bits) // shards).bit_length())   # half full if hashes spread
-    ids = _vertex_ids(bits, np.full((shards, size), -1, dtype))
+    ids = kernel(bits, np.full((shards, size), -1, dtype))
     if len(ids) < len(bits):          # a shard got more than its share: one table of 2 m slots
-        ids = _vertex_ids(bits, np.full((1, 1 << max(4, 2 * len(bits)).bit_length()), -1, dtype))
+        ids = kernel(bits, np.full((1, 1 << max(4, 2 * len(bits)).bit_length()), -1, dtype))
     return ids
 
 
@@ -600,6 +621,14 @@ def _apply_groups(merge, left, right, prim, first, second, ids, n_pairs, chunks)
     return groups, gtri, gvert, gidx
 
 
+def neighbours(ids: np.ndarray):
+    """``_neighbours`` of vertex ids (n, 3): on all cores from PAIRING_PARALLEL_MIN triangles,
+    else on one (the same result)."""
+    if len(ids) < PAIRING_PARALLEL_MIN:
+        return _neighbours_one(ids, int(ids.max()) + 1, 1)
+    return _neighbours_par(ids, int(ids.max()) + 1, get_num_threads())
+
+
 def pair_triangles(tris: np.ndarray, faces=None, phases=None):
     """Pair triangles that share an edge (module docstring). Returns (first, second, idx, v3,
     box, ids): see ``_pairs``; ``box`` is a fake triangle per leaf whose bounding box is the
@@ -609,7 +638,7 @@ def pair_triangles(tris: np.ndarray, faces=None, phases=None):
     with phases("vertex ids"):
         ids = vertex_ids(tris, faces)
     with phases("adjacency"):
-        adj, deg = _neighbours(ids, int(ids.max()) + 1, get_num_threads())
+        adj, deg = neighbours(ids)
     with phases("matching"):
         partner, _ = _match(adj, deg, tris, match_limit(len(tris)))
     with phases("pairs"):

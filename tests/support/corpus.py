@@ -131,9 +131,10 @@ def rays(tris: np.ndarray, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def check_mesh(spec: dict | None = None, mesh=None, formats=FORMATS, n_rays: int = 64,
-               on_phase=None) -> dict:
+               cpu: bool = False, on_phase=None) -> dict:
     """Build the mesh of ``spec`` (or ``mesh``: (vertices, faces)) in ``formats`` and check it
-    (module docstring). Returns {"triangles": n, format: the build's ``phase_s``}."""
+    (module docstring). Returns {"triangles": n, format: the build's ``phase_s``, or with
+    ``cpu`` {"wall": ``phase_s``, "cpu": ``phase_cpu_s``}}."""
     from driver.bvh4 import build
     from driver.tracer import trace
     from support.images import check_bvh, check_image
@@ -159,7 +160,8 @@ def check_mesh(spec: dict | None = None, mesh=None, formats=FORMATS, n_rays: int
         else:
             check_image(bvh, tris)
         built[fmt] = bvh
-        out[fmt] = bvh.stats["phase_s"]
+        out[fmt] = ({"wall": bvh.stats["phase_s"], "cpu": bvh.stats["phase_cpu_s"]} if cpu
+                    else bvh.stats["phase_s"])
     if "box32" in built and n_rays:
         on_phase("trace")
         o, d = rays(tris, n_rays, spec["seed"] if spec else 0)
