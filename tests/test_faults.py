@@ -42,6 +42,12 @@ def rayflex(*args, cwd, env, **kw) -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
 
 
+def build_dirs(cache: Path) -> list[Path]:
+    """The temporary build directories in the Verilator cache under ``cache``
+    (RAYFLEX_CACHE)."""
+    return list((cache / "verilator").glob(".tmp-*"))
+
+
 def last_line(stderr: str) -> str:
     lines = [ln for ln in stderr.replace("\r", "\n").splitlines() if ln.strip()]
     assert lines, "no message on stderr"
@@ -86,7 +92,7 @@ def test_sigterm_during_a_build_kills_the_compilers_and_leaves_nothing(tmp_path)
     p = rayflex("render", "sphere", "--size", "4", "--backend", "rtl", "--no-progress",
                 cwd=work, env=env_for(cache))
     try:
-        tmp = wait_for(lambda: next(cache.glob(".tmp-*"), None), 60, "the build to start")
+        tmp = wait_for(lambda: next(iter(build_dirs(cache)), None), 60, "the build to start")
         wait_for(lambda: processes_inside(tmp), 60, "a build tool to run")
         time.sleep(0.5)
         p.send_signal(signal.SIGTERM)
@@ -95,7 +101,7 @@ def test_sigterm_during_a_build_kills_the_compilers_and_leaves_nothing(tmp_path)
         p.kill()
     assert p.returncode == EXIT_TERMINATED
     assert last_line(err) == "rayflex: terminated"
-    assert not list(cache.glob(".tmp-*")) and not processes_inside(cache)
+    assert not build_dirs(cache) and not processes_inside(cache)
     assert not list(work.iterdir())
 
 
@@ -115,14 +121,14 @@ def test_sigterm_during_a_build_in_a_library_user_cleans_up_then_dies_by_sigterm
     p = subprocess.Popen([sys.executable, "-c", _SLEEPING_BUILD], env=env_for(cache),
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        tmp = wait_for(lambda: next(cache.glob(".tmp-*"), None), 60, "the build to start")
+        tmp = wait_for(lambda: next(iter(build_dirs(cache)), None), 60, "the build to start")
         sleeper = wait_for(lambda: processes_inside(tmp), 60, "the tool to run")
         p.send_signal(signal.SIGTERM)
         p.communicate(timeout=60)
     finally:
         p.kill()
     assert p.returncode == -signal.SIGTERM
-    assert not list(cache.glob(".tmp-*")) and not processes_inside(cache)
+    assert not build_dirs(cache) and not processes_inside(cache)
     assert not Path(f"/proc/{sleeper[0]}").exists() or \
         Path(f"/proc/{sleeper[0]}/status").read_text().find("State:\tZ") >= 0
 
@@ -132,7 +138,7 @@ def test_next_build_kills_what_a_sigkilled_build_left(tmp_path):
     still working inside the stale temporary directory and removes it."""
     from driver import verilate
     cache = tmp_path / "cache"
-    stale = cache / ".tmp-model-abc-x1y2"
+    stale = cache / "verilator" / ".tmp-model-abc-x1y2"
     (stale / "obj").mkdir(parents=True)
     orphan = subprocess.Popen(["sleep", "600"], cwd=stale / "obj", start_new_session=True)
     other = subprocess.Popen(["sleep", "600"], cwd=tmp_path)      # not inside: must survive
@@ -155,7 +161,7 @@ def test_sigkill_during_a_build_then_rebuild(tmp_path):
     work.mkdir()
     p = rayflex("render", "sphere", "--size", "4", "--backend", "rtl", "--no-progress",
                 cwd=work, env=env_for(cache))
-    tmp = wait_for(lambda: next(cache.glob(".tmp-*"), None), 60, "the build to start")
+    tmp = wait_for(lambda: next(iter(build_dirs(cache)), None), 60, "the build to start")
     wait_for(lambda: processes_inside(tmp), 60, "a build tool to run")
     time.sleep(2)
     p.kill()
@@ -164,7 +170,7 @@ def test_sigkill_during_a_build_then_rebuild(tmp_path):
                 cwd=work, env=env_for(cache))
     out, err = q.communicate(timeout=900)
     assert q.returncode == EXIT_OK, err
-    assert not tmp.exists() and not list(cache.glob(".tmp-*")) and not processes_inside(cache)
+    assert not tmp.exists() and not build_dirs(cache) and not processes_inside(cache)
     assert (work / "sphere.png").is_file()
 
 
@@ -268,9 +274,9 @@ def test_lock_wait_is_announced_and_concurrent_builds_build_once(tmp_path):
     """Issue 11 #4: a wait on another process's build lock printed nothing; issue 11 #2: two
     concurrent builds both built (pyverilator had no lock). All builds share cached_build."""
     cache = tmp_path / "cache"
-    cache.mkdir()
+    (cache / "verilator").mkdir(parents=True)
     log = tmp_path / "builds.txt"
-    with open(cache / ".model-k.lock", "w") as held:
+    with open(cache / "verilator" / ".model-k.lock", "w") as held:
         fcntl.flock(held, fcntl.LOCK_EX)             # another process holds the lock
         procs = [subprocess.Popen([sys.executable, "-c", _BUILD, str(log)], env=env_for(cache),
                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -281,7 +287,7 @@ def test_lock_wait_is_announced_and_concurrent_builds_build_once(tmp_path):
     assert all(p.returncode == 0 and out.strip() == "ok" for p, (out, _) in zip(procs, results))
     assert log.read_text() == "built\n"              # built once
     assert all("(another process holds the lock)" in err for _, err in results)
-    assert not list(cache.glob(".tmp-*"))
+    assert not build_dirs(cache)
 
 
 @pytest.mark.slow
@@ -303,7 +309,7 @@ def test_concurrent_cold_cache_renders_with_both_backends(tmp_path):
     text = "".join(errs)
     assert text.count("building Verilator model rayflex") == 1
     assert text.count("building pyverilator model rayflex") == 1
-    assert not list(cache.glob(".tmp-*")) and not processes_inside(cache)
+    assert not build_dirs(cache) and not processes_inside(cache)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -51,7 +51,8 @@ def test_failed_training_is_a_build_error(tmp_path, monkeypatch):
         build_library("fpu_tb_top", FPU_TB_SOURCES, FPU_HARNESS,
                       train=[sys.executable, "-c", "import sys; sys.exit(3)"])
     assert "\n" not in str(e.value)
-    cached = [p for p in tmp_path.glob("fpu_tb_top-*/*.so") if p.parent.suffix != ".failed"]
+    cached = [p for p in tmp_path.glob("verilator/fpu_tb_top-*/*.so")
+              if p.parent.suffix != ".failed"]
     assert not cached
 
 

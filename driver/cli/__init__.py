@@ -39,7 +39,8 @@ EXIT_CODES = {
 }
 
 ENVIRONMENT = {
-    "RAYFLEX_CACHE": "Verilator build cache (default ~/.cache/rayflex/verilator)",
+    "RAYFLEX_CACHE": "the tool's cache (default ~/.cache/rayflex): Verilator models in "
+                     "verilator/, synthesized netlists in area/ and power/",
     "RAYFLEX_PGO": "0: build RTL models in one pass, without profile-guided optimisation",
     "CXX": "C++ compiler for the RTL builds (default g++, else clang++)",
     "RAYFLEX_TRACEBACK": "1: print the traceback of an internal error",

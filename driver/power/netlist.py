@@ -57,8 +57,8 @@ def _area():
 
 
 def cache_root() -> Path:
-    env = os.environ.get("RAYFLEX_CACHE")
-    return (Path(env).expanduser() if env else Path.home() / ".cache" / "rayflex") / "power"
+    from ..verilate import cache_root as root
+    return root() / "power"
 
 
 def synth_script(params: dict[str, int], files: list[str]) -> str:
