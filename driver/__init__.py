@@ -1,6 +1,6 @@
 """RayFlex driver: BVH4, traversal, rendering and checks around the RayFlex datapath RTL."""
 
-from .backends import BACKENDS, BackendError, backend
+from .backends import BACKENDS, DEFAULT_BACKEND, BackendError, backend
 from .datapath import (ANGULAR, EUCLIDEAN, LATENCY, QUADBOX, REQUEST_DTYPE, RESPONSE_DTYPE,
                        TRIANGLE, DatapathError, FLAG_NO_CULL, prepare_rays)
 
@@ -9,7 +9,7 @@ __all__ = ["ANGULAR", "BACKENDS", "BackendError", "DatapathError", "EUCLIDEAN", 
            "prepare_rays", "trace"]
 
 
-def trace(scene, origins, directions, backend="rtl", **options):
+def trace(scene, origins, directions, backend=DEFAULT_BACKEND, **options):
     """Trace rays through a scene (name, path, trimesh mesh or built BVH4) with every box and
     triangle test run on ``backend``: closest hit, or ``any_hit=True`` (occlusion), with
     ``double_sided=True`` for NO_CULL; see ``driver.tracer.trace``."""

@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .backends import DEFAULT_BACKEND
 from .datapath import ANGULAR, EUCLIDEAN, REQUEST_DTYPE
 from .layout import ANG_LANES, EUC_LANES
 
@@ -257,7 +258,7 @@ class KnnResult:
     stats: dict = field(default_factory=dict)
 
 
-def knn(queries, cands, k: int, metric: str = "euclidean", backend="rtl", disjoint=False,
+def knn(queries, cands, k: int, metric: str = "euclidean", backend=DEFAULT_BACKEND, disjoint=False,
         progress=False, query_ids=None, candidate_ids=None) -> KnnResult:
     """k nearest candidates of every query with all distance sums on the datapath, compared with
     the exact float64 search. ``backend``: a name (built with extended=True) or a backend object.

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .backends import resolve
+from .backends import DEFAULT_BACKEND, resolve
 from .bvh.instances import build_label
 from .scenes.camera import check_size, primary_rays
 from .tiles import DEFAULT_TILE
@@ -76,7 +76,7 @@ class RenderResult:
         save_image(self.heatmap_image(title), path)
 
 
-def render(scene, width=None, height=None, backend: str = "rtl", progress: bool = True,
+def render(scene, width=None, height=None, backend: str = DEFAULT_BACKEND, progress: bool = True,
            check_embree: bool = False, workload: str = "primary", spp: int = 1, bounces: int = 1,
            ao_rays: int = 4, seed: int = 0, tile: int | None = None, workers: int = 1,
            scheduler: str | None = None, fill: int = 0, cull_stack: bool = False,

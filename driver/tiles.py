@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .backends import DEFAULT_BACKEND
 from .stats import merge
 from .workloads import FrameResult
 
@@ -165,7 +166,7 @@ class Assembler:
 
 
 def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
-                 options: dict | None = None, backend="rtl", tile: int = DEFAULT_TILE,
+                 options: dict | None = None, backend=DEFAULT_BACKEND, tile: int = DEFAULT_TILE,
                  workers: int = 1, scheduler: str | None = None, check_embree: bool = False,
                  progress=None, timings: dict | None = None) -> FrameResult:
     """Trace a frame tile by tile: in this process (``workers=1`` and no ``scheduler``), or as

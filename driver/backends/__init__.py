@@ -10,9 +10,10 @@ application; the PGO training workload (``driver.pgo``) runs in a separate proce
 
 from __future__ import annotations
 
-from .base import BACKENDS, Backend, BackendError, NodeBackend
+from .base import BACKENDS, DEFAULT_BACKEND, Backend, BackendError, NodeBackend
 
-__all__ = ["BACKENDS", "Backend", "BackendError", "NodeBackend", "backend", "resolve"]
+__all__ = ["BACKENDS", "DEFAULT_BACKEND", "Backend", "BackendError", "NodeBackend", "backend",
+           "resolve"]
 
 
 def backend(name: str, **options) -> Backend:
