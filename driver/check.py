@@ -302,3 +302,11 @@ def merge_checks(parts: list[dict]) -> dict:
     for k in ("max_t_rel_err", "max_t_rel_err_exact"):
         out[k] = max((float(p.get(k, 0.0)) for p in parts), default=0.0)
     return out
+
+
+def summary(e: dict) -> str:
+    """The one line the commands print for an ``embree`` object: rays compared, each kind of
+    mismatch, the largest t difference."""
+    return (f"embree: {e['rays_compared']} rays compared, {e['hit_mismatch']} hit/miss "
+            f"mismatches, {e['prim_mismatch']} primitive mismatches, {e['edge_ties']} edge ties, "
+            f"max t rel err {e['max_t_rel_err']:.2g}")

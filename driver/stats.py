@@ -203,6 +203,9 @@ def merge_rtunit(parts: list) -> dict | None:
     out["responses_verified"] = all(p["responses_verified"] for p in parts)
     if all(WAVEFRONTS in p for p in parts):
         out[WAVEFRONTS] = [w for p in parts for w in p[WAVEFRONTS]]
+    if all("ray_order_cost" in p for p in parts):
+        from .rtunit.order import merge_costs
+        out["ray_order_cost"] = merge_costs([p["ray_order_cost"] for p in parts])
     return _rt_derived(out)
 
 

@@ -35,8 +35,9 @@ def note(text: str) -> None:
 # ---------------------------------------------------------------------------------------------
 # options
 
-def add_backend(p, default: str = "rtl") -> None:
-    from ..backends import BACKENDS
+def add_backend(p, default: str | None = None) -> None:
+    from ..backends import BACKENDS, DEFAULT_BACKEND
+    default = default or DEFAULT_BACKEND
     p.add_argument("--backend", default=default, metavar="NAME",
                    help=f"datapath model: {', '.join(BACKENDS)} (default: {default})")
 
@@ -75,6 +76,14 @@ def add_workers(p) -> None:
                         "one wavefront up to "
                         f"{WHOLE_FRAME_PIXELS:,} pixels, tiles of {MEMORY_TILE} above; else "
                         f"{DEFAULT_TILE})")
+
+
+def check_workers(args) -> None:
+    """--workers (>= 1) and --scheduler: one place to run tiles or points, not both."""
+    check_positive("--workers", args.workers)
+    if args.workers > 1 and getattr(args, "scheduler", None):
+        raise ValueError(f"--workers {args.workers} starts a local cluster and --scheduler "
+                         f"{args.scheduler} names another: give one of them")
 
 
 def add_progress(p) -> None:

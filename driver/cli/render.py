@@ -11,8 +11,8 @@ import sys
 
 from .. import design
 from .common import (EXIT_CHECK, PROG, add_backend, add_json, add_progress, add_view, add_workers,
-                     check_backend, check_flag_size, check_positive, provenance, view_options,
-                     wrote)
+                     check_backend, check_flag_size, check_positive, check_workers, provenance,
+                     view_options, wrote)
 from .export import Export, add_export
 
 
@@ -62,7 +62,7 @@ def run(args) -> int:
     if rt and not args.rtunit:
         raise ValueError(f"{rt[0]} sets the RT unit, which render models with --rtunit only")
     check_backend(args.backend)
-    check_positive("--workers", args.workers)
+    check_workers(args)
     if args.tile is not None:
         check_positive("--tile", args.tile)
     source = resolve(point.scene)
@@ -147,9 +147,7 @@ def summary(res) -> str:
                      f"{t['box_ops_per_ray']:.1f} box + {t['tri_ops_per_ray']:.1f} tri"
                      + (f" + {t['transform_ops_per_ray']:.2f} transform" if t.get("transform_ops")
                         else "") + f" ops per ray, {t['ops']} ops")
-    e = s.get("embree")
-    if e:
-        lines.append(f"embree: {e['rays_compared']} rays compared, {e['hit_mismatch']} hit/miss "
-                     f"mismatches, {e['prim_mismatch']} primitive mismatches, {e['edge_ties']} "
-                     f"edge ties, max t rel err {e['max_t_rel_err']:.2g}")
+    if s.get("embree"):
+        from ..check import summary
+        lines.append(summary(s["embree"]))
     return "\n".join(lines)
