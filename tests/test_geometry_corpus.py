@@ -130,6 +130,8 @@ def _reachable():
     for name, tris in (("soup", meshes.soup(300, seed=9)), ("room", meshes.box_room(3)),
                        ("icosphere", meshes.icosphere(3)), ("degenerate", meshes.degenerate())):
         out.append((f"tests:{name}", _soup(tris)))
+    b = meshes.bricks()                        # a LEGO-like model: the old matching looped
+    out.append(("tests:bricks", (np.asarray(b.vertices, np.float32), np.asarray(b.faces))))
     for pkg in ("pymeshfix",):
         root = importlib.resources.files(pkg)
         for path in sorted(root.rglob("*")) if hasattr(root, "rglob") else []:
@@ -149,7 +151,7 @@ def test_every_reachable_mesh_in_every_format(watchdog):
     found = _reachable()
     names = [n for n, _ in found]
     assert "bunny" in names and any(n.startswith("pymeshfix:") for n in names)
-    assert any(n.startswith("city[") for n in names)
+    assert any(n.startswith("city[") for n in names) and "tests:bricks" in names
     seen = set()
     for name, mesh in found:
         key = hash(mesh[0][mesh[1]].tobytes())          # the same triangles under two names

@@ -222,7 +222,7 @@ def _link_edge(lst, i, j, link):
 
 # each pairing kernel twice: on all cores, and on one (prange runs as range) for small meshes,
 # where starting the threads costs more than the work (and, on a loaded machine, waits for them)
-PAIRING_PARALLEL_MIN = 20_000      # triangles
+PAIRING_PARALLEL_MIN = 100_000     # triangles
 
 
 def _twins(fn):
