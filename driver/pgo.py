@@ -1,6 +1,6 @@
 """Training workload for the profile-guided build of the "rtl" harness library.
 
-``driver.verilate.build_library(train=...)`` compiles the harness instrumented, runs
+``driver.backends.verilate.build_library(train=...)`` compiles the harness instrumented, runs
 
     python -m driver.pgo '{"DISJOINT": 0, "EXTENDED": 0, "LATENCY": 11}' /path/to/librayflex_....so
 
@@ -26,7 +26,7 @@ from .backends.golden import GoldenBackend
 from .backends.harness import HarnessBackend, use_library
 from .bvh4 import build
 from .scenes.camera import frame, primary_rays
-from .datapath import ANGULAR, EUCLIDEAN
+from .core.datapath import ANGULAR, EUCLIDEAN
 from .knn import LANES, pad, run_jobs
 from .scenes.scene import load_scene
 from .tracer import trace

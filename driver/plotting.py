@@ -4,6 +4,8 @@ measured on (``describe``), and legends placed outside the data (``legend_right`
 
 from __future__ import annotations
 
+import textwrap
+
 
 def describe(point: dict, omit=(), parts=("frame", "datapath", "bvh", "rtunit")) -> str:
     """The design point ``point`` (``DesignPoint.as_dict()``, or a JSON's
@@ -57,7 +59,6 @@ def describe(point: dict, omit=(), parts=("frame", "datapath", "bvh", "rtunit"))
 
 def wrap(title: str, width: int = 110) -> str:
     """A title broken into lines of at most ``width`` characters (a figure clips a long one)."""
-    import textwrap
     return "\n".join(textwrap.fill(part, width) for part in title.split("\n"))
 
 

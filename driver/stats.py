@@ -13,9 +13,13 @@ node cache and memory; null without one), each ray type's the same under ``by_ty
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
-from .layout import BOX_BYTES, TRI_BYTES
+from . import rtunit
+from .core.layout import BOX_BYTES, TRI_BYTES
+from .rtunit.order import merge_costs
 
 STACK_CULLS = "stack_culls"     # box nodes a distance-culled stack dropped
 INSTANCE_OPS = "instance_ops"   # instances entered (two-level images; docs/instances.md)
@@ -166,7 +170,6 @@ def rtunit_stats(replays: list) -> dict:
     out[WAVEFRONTS] = [_wavefront_row(r) for r in replays]
     costs = [r.order for r in replays if getattr(r, "order", None)]
     if costs:
-        from .rtunit.order import merge_costs
         out["ray_order_cost"] = merge_costs(costs)
     return _rt_derived(out)
 
@@ -204,20 +207,16 @@ def merge_rtunit(parts: list) -> dict | None:
     if all(WAVEFRONTS in p for p in parts):
         out[WAVEFRONTS] = [w for p in parts for w in p[WAVEFRONTS]]
     if all("ray_order_cost" in p for p in parts):
-        from .rtunit.order import merge_costs
         out["ray_order_cost"] = merge_costs([p["ray_order_cost"] for p in parts])
     return _rt_derived(out)
 
 
 def replay_stats(records: list, point) -> tuple[dict, dict | None]:
-    """(``rtunit``, ``rtunit_memory``) of recorded wavefronts (``driver.rtunit.Record``) replayed
-    one after another on the RT unit of design point ``point`` (``driver.design.DesignPoint``),
-    without and with its node memory (``point.cache_kib`` 0: no cache). The records replay on
-    the point's datapath configuration and latency; every response is checked against the
-    recorded one bit for bit."""
-    from dataclasses import replace
-
-    from . import rtunit
+    """(``rtunit``, ``rtunit_memory``) of recorded wavefronts (``driver.tracing.record.Record``)
+    replayed one after another on the RT unit of design point ``point``
+    (``driver.design.DesignPoint``), without and with its node memory (``point.cache_kib`` 0: no
+    cache). The records replay on the point's datapath configuration and latency; every response is
+    checked against the recorded one bit for bit."""
     params = point.rtl_params()
     recs = [r if r.params == params else replace(r, params=params) for r in records]
     order = point.order_options()
@@ -230,59 +229,19 @@ def replay_stats(records: list, point) -> tuple[dict, dict | None]:
     return plain, mem
 
 
-# ---------------------------------------------------------------------------------------------
-# provenance: what produced a JSON document
-
-def provenance(point=None) -> dict:
-    """The ``provenance`` object of every JSON the commands write: the rayflex version, the git
-    commit of the source tree when it is a git checkout (None for an installed wheel), the whole
-    design point (``driver.design.DesignPoint``; None when there is none) and the machine."""
-    return {"rayflex_version": rayflex_version(), "git_commit": git_commit(),
-            "design_point": point.as_dict() if point is not None else None,
-            "machine": machine()}
-
-
-def rayflex_version() -> str | None:
-    from importlib.metadata import PackageNotFoundError, version
-    try:
-        return version("rayflex-driver")
-    except PackageNotFoundError:
-        return None
-
-
-def git_commit() -> str | None:
-    """HEAD of the git checkout holding this package (None when it is not in one)."""
-    import subprocess
-    from pathlib import Path
-    root = Path(__file__).resolve().parent.parent
-    if not (root / ".git").exists():
-        return None
-    try:
-        out = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True,
-                             text=True, timeout=10)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    commit = out.stdout.strip()
-    return commit if out.returncode == 0 and len(commit) == 40 else None
-
-
-def machine() -> dict:
-    """CPU model (first ``model name`` of /proc/cpuinfo), logical cores (all / usable)."""
-    import os
-    import platform
-    from pathlib import Path
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.lower().startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        usable = os.cpu_count()
-    return {"cpu": cpu, "cores": os.cpu_count(), "cores_usable": usable,
-            "python": platform.python_version(), "numpy": np.__version__,
-            "platform": platform.platform()}
+def order_cost_line(c: dict) -> str:
+    """What a ray-order policy costs in hardware (``ray_order_cost``, docs/rayorder.md), in
+    the terms of docs/statistics.md."""
+    parts = [f"{c['ray_order']}, window {c['ray_window']}"]
+    if "sort_buffer_entries" in c:
+        parts.append(f"sort buffer of {c['sort_buffer_entries']} rays, "
+                     f"{c['sort_buffer_bytes']:,} bytes, {c['compare_exchanges_per_ray']:.1f} "
+                     "compare-exchanges per ray")
+    if "held_rays" in c:
+        parts.append(f"{c['held_rays']} rays held ({c['extra_rays_held']} beyond the pool), "
+                     f"{c['extra_state_bytes']:,} bytes of traversal state "
+                     f"({c['traversal_state_bytes']} per ray)")
+    if "queue_bytes" in c:
+        parts.append(f"treelet queues {c['queue_bytes']:,} bytes, treelet table "
+                     f"{c['treelet_table_bytes']:,} bytes")
+    return "; ".join(parts)

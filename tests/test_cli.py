@@ -273,7 +273,8 @@ def test_one_name_for_the_cache_in_readme_help_and_code(capsys):
     import re
     from pathlib import Path
 
-    from driver import area, verilate
+    from driver import area
+    from driver.backends import cache as verilate
     from driver.cli import ENVIRONMENT
     from driver.power import netlist
     default = re.search(r"\(default (\S+?)\)", ENVIRONMENT["RAYFLEX_CACHE"]).group(1)

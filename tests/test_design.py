@@ -9,10 +9,10 @@ import json
 import pytest
 
 from driver import design, rtunit
-from driver.area import ALL_CONFIGS, CONFIGS, Q8_SUFFIX
-from driver.cli import build_parser, main
+from driver.core.configs import ALL_CONFIGS, CONFIGS, Q8_SUFFIX
+from driver.cli import build_parser, main, options
 from driver.design import OPTIONS, DesignPoint
-from driver.power import config_help
+from driver.cli.power import config_help
 
 COMMANDS = ("render", "bench", "power", "sweep")
 
@@ -66,7 +66,7 @@ def test_from_args_and_grid():
     p = _subparser("sweep")
     args = p.parse_args(["--config", "all", "--rays-in-flight", "16,64", "--cache-kib", "0,16",
                          "--scene", "sphere", "--size", "8"])
-    grid = design.grid_from_args(args)
+    grid = options.grid_from_args(args)
     assert len(grid) == len(ALL_CONFIGS) * 2 * 2
     assert {g.config for g in grid} == set(ALL_CONFIGS)
     assert {(g.rays_in_flight, g.cache_kib) for g in grid} == {(16, 0), (16, 16), (64, 0),
@@ -76,9 +76,9 @@ def test_from_args_and_grid():
     assert design.varied(grid) == ["config", "latency", "rays_in_flight", "cache_kib"]
     assert len({g.key() for g in grid}) == len(grid)
     args = _subparser("render").parse_args(["sphere", "--cull-stack", "--latency", "12"])
-    pt = design.from_args(args)
+    pt = options.from_args(args)
     assert pt.scene == "sphere" and pt.cull_stack is True and pt.latency == 12
-    assert design.given(args) == ["--latency", "--cull-stack"]
+    assert options.given(args) == ["--latency", "--cull-stack"]
 
 
 @pytest.mark.parametrize("argv", [

@@ -106,7 +106,7 @@ def test_sigterm_during_a_build_kills_the_compilers_and_leaves_nothing(tmp_path)
 
 
 _SLEEPING_BUILD = textwrap.dedent("""
-    from driver import verilate
+    from driver.backends import verilate
     def build(work):
         with open(work / "build.log", "w") as log:
             verilate._run(["sleep", "600"], work, log, "sleeping", work / "build.log", {})
@@ -136,7 +136,7 @@ def test_sigterm_during_a_build_in_a_library_user_cleans_up_then_dies_by_sigterm
 def test_next_build_kills_what_a_sigkilled_build_left(tmp_path):
     """SIGKILL cannot be handled: the next build of the entry (holding its lock) kills processes
     still working inside the stale temporary directory and removes it."""
-    from driver import verilate
+    from driver.backends import verilate
     cache = tmp_path / "cache"
     stale = cache / "verilator" / ".tmp-model-abc-x1y2"
     (stale / "obj").mkdir(parents=True)
@@ -179,7 +179,7 @@ def test_sigkill_during_a_build_then_rebuild(tmp_path):
 
 _NATIVE_SPIN = textwrap.dedent("""
     from numba import njit
-    from driver.interrupt import watch
+    from driver.cli.interrupt import watch
 
     @njit(nogil=True)
     def spin(n):
@@ -202,7 +202,7 @@ _NATIVE_SPIN = textwrap.dedent("""
                                              (signal.SIGTERM, 143, "terminated")])
 def test_a_signal_ends_a_native_kernel_within_a_second(tmp_path, sig, code, word):
     """Python's handler cannot run while the main thread is inside a numba kernel (the q8
-    encoder's matching once looped there and only SIGKILL ended it): ``driver.interrupt``
+    encoder's matching once looped there and only SIGKILL ended it): ``driver.cli.interrupt``
     ends the process from its own thread."""
     p = subprocess.Popen([sys.executable, "-c", _NATIVE_SPIN], env=env_for(tmp_path),
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -260,7 +260,7 @@ def _cpu_seconds(pid: int) -> float:
 _BUILD = textwrap.dedent("""
     import sys, time
     from pathlib import Path
-    from driver.verilate import cached_build
+    from driver.backends.verilate import cached_build
     def build(work):
         time.sleep(1.0)
         with open(sys.argv[1], "a") as f:
@@ -358,7 +358,7 @@ def test_read_only_output_dir_fails_before_any_work(tmp_path):
 def test_full_disk_on_an_output_write_leaves_nothing(capsys, tmp_path, monkeypatch):
     """A full disk (a write raising ENOSPC) on the last output: exit 2, one line, no file (an
     existing image untouched). Before: a failing --stats-json left the PNGs behind."""
-    import driver.outputs
+    from driver.core import outputs
     monkeypatch.chdir(tmp_path)
     (tmp_path / "img.png").write_bytes(b"old image")
 
@@ -366,7 +366,7 @@ def test_full_disk_on_an_output_write_leaves_nothing(capsys, tmp_path, monkeypat
         with open(path, "w") as f:
             f.write("{")
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
-    monkeypatch.setattr(driver.outputs, "write_json", full)
+    monkeypatch.setattr(outputs, "write_json", full)
     assert main(["render", "sphere", "--size", "8", "--backend", "golden", "--no-progress",
                  "--out", "img.png", "--json", "s.json"]) == EXIT_USAGE
     err = capsys.readouterr().err.strip()

@@ -84,7 +84,7 @@ def test_many_generated_meshes_build_check_and_hit_as_box32(watchdog, spec):
 def test_ten_thousand_generated_meshes_through_the_q8_encoders(watchdog):
     """10,000 meshes drawn with numpy (``corpus.random_spec``) built q8 and q8g and checked;
     prints the worst pairing time per triangle (the benchmark of docs/bvh.md)."""
-    from driver.bvh.bench import PAIRING
+    from driver.studies.bvh import PAIRING
     rng = np.random.default_rng(2024)
     worst, sizes = {}, []
     for i in range(10_000):

@@ -2,7 +2,7 @@
 
 ``HarnessBackend.run`` streams ready-made request words (sim/rayflex_harness.cpp);
 ``HarnessBackend.run_nodes`` is the traversal fast path: the harness assembles QUADBOX/TRIANGLE
-requests from a packed ray table (``driver.layout.ray_words``) and the BVH4 image, so the host
+requests from a packed ray table (``driver.core.wire.ray_words``) and the BVH4 image, so the host
 sends three numbers per request instead of 320 bytes. ``replay_chains`` runs the RT-unit scheduler
 (sim/rtunit_scheduler.cpp) for ``driver.rtunit``. ``harness_library(params)`` builds (cached; see
 ``driver.backends.build``) and loads the library once per process.
@@ -14,8 +14,8 @@ import ctypes
 
 import numpy as np
 
-from ..layout import (NO_CHILD, RAY_WORDS, REPLAY_STATS, REQ_WORDS, RSP_WORDS, pack_requests,
-                      unpack_responses)
+from ..core.layout import NO_CHILD, REPLAY_STATS
+from ..core.wire import RAY_WORDS, REQ_WORDS, RSP_WORDS, pack_requests, unpack_responses
 from .build import build_harness
 from .rtlbase import PATTERN_LEN, RtlBackendBase
 
@@ -28,7 +28,7 @@ BAD_NODE = -2             # return code of the harness calls: a pointer that nam
 
 
 class ReplayStats(ctypes.Structure):
-    """rf_layout::ReplayStats (fields: ``driver.layout.REPLAY_STATS``)."""
+    """rf_layout::ReplayStats (fields: ``driver.core.layout.REPLAY_STATS``)."""
 
     _fields_ = [(name, ctypes.c_int64) for name in REPLAY_STATS]
 
@@ -122,11 +122,13 @@ SCHED_STATS = ("parked", "resumed", "max_parked", "max_held", "picks", "max_queu
                "borrowed")
 
 
-def replay_chains(params: dict[str, int], pipelines: int, slots: int, turnaround: int,
-                  skip_idle: bool, ray_words, image_words, ray, ptr, extent, chain_idx,
-                  chain_off, max_idle: int, memory=NO_MEMORY, order=None, window: int = 0,
-                  chain=None, before=None, treelets=None):
+def replay_chains(params: dict[str, int], record, chains, pipelines: int, slots: int,
+                  turnaround: int, skip_idle: bool, max_idle: int, memory=NO_MEMORY, order=None,
+                  window: int = 0, treelets=None):
     """Run the RT-unit scheduler (sim/rtunit_scheduler.cpp) over recorded request chains.
+    ``record``: the requests (a ``driver.tracing.record.Record``: ``ray_words``, ``image``,
+    ``ray``, ``ptr``, ``extent``, ``chain``, ``before``); ``chains``: (chain_idx, chain_off), its
+    requests in chain order (``Record.chains``).
     ``memory``: (cache_bytes, ways, line_bytes, latency_cycles, bytes_per_cycle) of the node
     memory (sim/rf_memory.h; cache_bytes = 0: no cache, every line from memory; < 0: no memory
     model). ``order``: the order in which chains (world rays) enter (a permutation of the chain
@@ -139,9 +141,11 @@ def replay_chains(params: dict[str, int], pipelines: int, slots: int, turnaround
     (responses (m, RSP_WORDS) uint32 at the record index, ``ReplayStats`` dict plus the
     scheduler's ``SCHED_STATS`` counts, requests per pipeline (P,) int64)."""
     lib = harness_library(params)
-    rw, img, r, p, e = node_arrays(ray_words, image_words, ray, ptr, extent)
-    ci = np.ascontiguousarray(chain_idx, np.int64)
-    co = np.ascontiguousarray(chain_off, np.int64)
+    rw, img, r, p, e = node_arrays(record.ray_words, record.image, record.ray, record.ptr,
+                                   record.extent)
+    chain, before = record.chain, record.before
+    ci = np.ascontiguousarray(chains[0], np.int64)
+    co = np.ascontiguousarray(chains[1], np.int64)
     ch = r if chain is None else np.ascontiguousarray(chain, np.uint32).reshape(-1)
     bf = (np.full(len(r), NO_CHILD, np.uint32) if before is None
           else np.ascontiguousarray(before, np.uint32).reshape(-1))
@@ -231,7 +235,7 @@ class HarnessBackend(RtlBackendBase):
     def run_nodes(self, ray_words: np.ndarray, image_words: np.ndarray, ray: np.ndarray,
                   ptr: np.ndarray, extent: np.ndarray) -> np.ndarray:
         """Stream traversal requests: request i is ray ``ray[i]`` (a row of ``ray_words``, see
-        ``driver.layout.ray_words``; tag = the ray index) against the node at pointer ``ptr[i]``
+        ``driver.core.wire.ray_words``; tag = the ray index) against the node at pointer ``ptr[i]``
         of the BVH4 image ``image_words`` (QUADBOX for a box node, TRIANGLE for a triangle node),
         with extent ``extent[i]``. Returns the (n, RSP_WORDS) uint32 response words, in request
         order. Bit-identical to ``run()`` on the same requests built in Python (tests check)."""

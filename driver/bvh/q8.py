@@ -1,7 +1,7 @@
-"""The compressed ``q8`` and ``q8g`` images (docs/compressed.md): triangle pairing before the
-build, group leaves, and the writer of 64-byte quantized box nodes, 64-byte triangle-pair leaves
-and 128-byte group leaves (numba kernels for ``driver.bvh4.build(..., format="q8"|"q8g")``;
-``driver.layout`` owns the structs and the decode).
+"""The compressed images' leaf primitives (docs/compressed.md): triangle pairs that share an
+edge, the leaves of the ``q8`` and ``q8g`` images, and each leaf's facing (numba kernels for
+``driver.bvh.pipeline.build(..., format="q8"|"q8g")``; the group leaves are
+``driver.bvh.q8g``, the writer ``driver.bvh.q8_image``).
 
 Pairing (``pair_triangles``): vertices are identified by their exact float32 bits (or by the
 mesh's own vertex indices when the input is a mesh), so a shared vertex is stored once in the
@@ -13,44 +13,25 @@ Unmatched triangles become one-triangle leaves (``prim1 = NO_CHILD``). Each tria
 input vertex order (the watertight test's arithmetic depends on it, not only on the winding).
 The vertex ids (``_vertex_ids``: one hash table per thread, each holding one shard of the hash
 values) and the edge adjacency (``_neighbours``: each thread fills the triangle lists of its own
-range of vertices, then one row per triangle) run on all cores with numba's ``prange``, as do
-the group-leaf fits and layout (``_group_fits``, ``_apply_groups``) and the quantization
-(``_quantize``); each gives the same result on any number of threads, so the image does not
-depend on the machine (below ``PAIRING_PARALLEL_MIN`` triangles the vertex ids and adjacency run
-on one thread: starting the threads would cost more than the work). The matching itself is sequential (each choice depends on the last), as
-is the group choice's pass over the tree (``_group_dp``).
+range of vertices, then one row per triangle) run on all cores with numba's ``prange``; each
+gives the same result on any number of threads, so the image does not depend on the machine
+(below ``PAIRING_PARALLEL_MIN`` triangles they run on one thread: starting the threads would
+cost more than the work). The matching itself is sequential (each choice depends on the last).
 
-Group leaves (``group_leaves``, q8g): after the build over pair leaves, binary subtrees of 3 to 6
-triangles whose vertices fit the group leaf's 8 slots may become one 128-byte leaf; which ones
-do is chosen with the 4-wide collapse by the SAH cost of datapath ops plus ``GROUP_LAMBDA``
-times the bytes (``_group_dp``).
-
-Quantization (``_quantize``): per box node and axis, ``origin`` = the float32 minimum of the
-children's stored (grown, ``driver.bvh4``) lower bounds, ``exp`` = the smallest exponent in
-[-126, 119] with ``(max - origin) / 2**exp <= 255``, ``qlo = floor((lo - origin) / 2**exp)``,
-``qhi = ceil((hi - origin) / 2**exp)``; where a flat leaf child is thinner than one step, the
-origin moves down onto the grid of that leaf's front face instead (``_origin``), so that its
-step of slack lies behind the surface. ``verify_containment`` then decodes every node with
-``driver.layout.decode_q8`` (the datapath's arithmetic) and moves a ``qlo`` down or a ``qhi`` up
-by one wherever the decode put a bound inside the child's stored box, until none does.
+Facing (``facing``): the sign of each leaf's face normal per axis, which the q8 writer uses to
+put a flat leaf's slack behind its surface (``driver.bvh.q8_image``).
 """
 
 from __future__ import annotations
 
-import math
 import types
 
 import numpy as np
 from numba import get_num_threads, njit, prange
 
-from ..layout import (GROUP_BYTES, GROUP_COUNT_LSB, GROUP_MAX_TRIS, GROUP_MAX_VERTS, GROUP_NODE,
-                      GROUP_SEL_BITS, GROUP_SEL_LSB, PAIR_BYTES, PAIR_NODE, Q8_BYTES, Q8_EXP_MAX,
-                      Q8_EXP_MIN, decode_q8, node_word)
-from .build import WIDTH, dp_table
 from .phases import Phases
 
 _HASH = np.uint64(0x9E3779B97F4A7C15)
-_CHUNKS_PER_THREAD = 8    # work items of a parallel loop with scratch: a few per thread
 
 
 def _vertex_ids(bits, tables):
@@ -437,190 +418,6 @@ def facing(tris: np.ndarray, first: np.ndarray, second: np.ndarray,
     return _facing(_normals(tris, first, second), groups)
 
 
-@njit(cache=True, nogil=True)
-def _group_order(members, first, second, ids, gtri, gvert):
-    """Lay out one group leaf of the pair leaves ``members`` (-1 padded): the triangles in
-    ``gtri`` (GROUP_MAX_TRIS,) (-1 padded; pairs first, each first triangle first, so that
-    triangle 1 shares an edge with triangle 0), the vertex slots in ``gvert``
-    (GROUP_MAX_VERTS,) (the flat index 3 t + corner of a triangle corner with that vertex; -1
-    unused). Returns the 64-bit ``idx`` word (selectors and count), or -1 when the triangles need
-    more than GROUP_MAX_VERTS vertex slots or triangle 1 a vertex beyond v3."""
-    nt = 0
-    for pass_ in range(2):                   # pairs first, then single triangles
-        for i in range(len(members)):
-            p = members[i]
-            if p < 0 or (second[p] >= 0) != (pass_ == 0):
-                continue
-            gtri[nt] = first[p]
-            nt += 1
-            if second[p] >= 0:
-                gtri[nt] = second[p]
-                nt += 1
-    for i in range(nt, GROUP_MAX_TRIS):
-        gtri[i] = -1
-    gvert[:] = -1
-    slot_id = np.full(GROUP_MAX_VERTS, -1, np.int64)
-    nv = 0
-    sel = np.int64(0)
-    for k in range(nt):
-        t = gtri[k]
-        for j in range(3):
-            v = -1
-            if k > 0:                          # triangle 0 is (v0, v1, v2), even if degenerate
-                for u in range(nv):
-                    if slot_id[u] == ids[t, j]:
-                        v = u
-                        break
-            if v < 0:
-                if nv == GROUP_MAX_VERTS:
-                    return -1
-                v = nv
-                slot_id[v] = ids[t, j]
-                gvert[v] = 3 * t + j
-                nv += 1
-            if k == 1:
-                if v > 3:
-                    return -1
-                sel |= np.int64(v) << np.int64(2 * j)
-            elif k >= 2:
-                sel |= np.int64(v) << np.int64(GROUP_SEL_LSB + GROUP_SEL_BITS * (k - 2) + 3 * j)
-    return sel | (np.int64(nt) << np.int64(GROUP_COUNT_LSB))
-
-
-@njit(cache=True, nogil=True)
-def _members(x, left, right, prim, members, stack):
-    """The pair leaves of binary node x's subtree, left to right, into ``members`` (-1
-    padded); returns their number (at most ``len(members)``: callers pass small subtrees)."""
-    nm, sp = 0, 1
-    stack[0] = x
-    while sp:
-        sp -= 1
-        y = stack[sp]
-        if left[y] < 0:
-            members[nm] = prim[y]
-            nm += 1
-        else:
-            stack[sp] = right[y]
-            stack[sp + 1] = left[y]
-            sp += 2
-    members[nm:] = -1
-    return nm
-
-
-@njit(cache=True, parallel=True, nogil=True)
-def _group_fits(left, right, prim, first, second, ids, chunks):
-    """(tri (m,) int64, ok (m,) bool): per binary node its triangles, and whether its subtree
-    of 3 to GROUP_MAX_TRIS triangles fits a group leaf (``_group_order``; never the root). The
-    triangle counts go bottom up (children are numbered after their parent); the fit of each
-    small subtree is independent of the others' and runs on all cores, in chunks that each
-    have their own scratch (``chunks``: a few per thread)."""
-    m = len(left)
-    tri = np.zeros(m, np.int64)
-    for n in range(m - 1, -1, -1):
-        tri[n] = (1 + (second[prim[n]] >= 0)) if left[n] < 0 else tri[left[n]] + tri[right[n]]
-    ok = np.zeros(m, np.bool_)
-    for c in prange(chunks):
-        members = np.empty(GROUP_MAX_TRIS, np.int64)
-        stack = np.empty(2 * GROUP_MAX_TRIS + 2, np.int64)
-        gtri = np.empty(GROUP_MAX_TRIS, np.int64)
-        gvert = np.empty(GROUP_MAX_VERTS, np.int64)
-        for n in range(max(1, c * m // chunks), (c + 1) * m // chunks):
-            if left[n] >= 0 and 3 <= tri[n] <= GROUP_MAX_TRIS:
-                _members(n, left, right, prim, members, stack)
-                ok[n] = _group_order(members, first, second, ids, gtri, gvert) >= 0
-    return tri, ok
-
-
-@njit(cache=True, nogil=True)
-def _group_dp(left, right, prim, area, tri, ok, lam):
-    """Choose the group leaves together with the 4-wide collapse (``driver.bvh.build.dp_table``,
-    the collapse's table with leaf costs and bytes): D(n, k) is the least ``cost + lam *
-    bytes`` of binary node n's subtree in k slots of its parent, where cost is the SAH of
-    datapath ops (``area``: the stored boxes' half areas; a wide box node costs its area once, a
-    leaf its area times its triangles: each is tested when the leaf's box is hit) and bytes the
-    image's (64 per q8 box node and pair leaf, GROUP_BYTES per group leaf). In one slot, a
-    subtree whose triangles fit a group leaf (``ok``, ``tri`` from ``_group_fits``) may become
-    one. ``lam`` weighs bytes against cost: a pair leaf's 64 bytes are worth ``lam`` times the
-    cost of the median pair leaf (a scale of the mesh's own leaves, which a few large
-    triangles, a floor under a model, do not move). Returns merge (m,) bool: the nodes that
-    become group leaves."""
-    m = len(left)
-    W = WIDTH
-    leaves = left < 0
-    lw = lam * np.median(area[leaves] * tri[leaves]) / PAIR_BYTES     # cost per byte
-    leaf_cost = area * tri + lw * PAIR_BYTES
-    node_cost = area + lw * Q8_BYTES
-    alt_cost = np.where(ok, area * tri + lw * GROUP_BYTES, np.inf)
-    choice, group = dp_table(left, right, leaf_cost, node_cost, alt_cost)
-    # top down as driver.bvh.build._emit walks the table: (node, slots) to place
-    merge = np.zeros(m, np.bool_)
-    work = np.empty((m + 2 * W, 2), np.int64)
-    work[0, 0], work[0, 1], wp = 0, 1, 1
-    while wp > 0:
-        wp -= 1
-        x, k = work[wp, 0], work[wp, 1]
-        while k > 1 and choice[x, k - 1] == 0:
-            k -= 1
-        if k == 1:
-            if group[x]:
-                merge[x] = True
-                continue
-            if left[x] < 0:
-                continue
-            c = choice[x, 0]
-            k = W                                # a wide box node: its W slots split below
-        else:
-            c = choice[x, k - 1]
-        work[wp, 0], work[wp, 1] = right[x], k - c
-        work[wp + 1, 0], work[wp + 1, 1] = left[x], c
-        wp += 2
-    return merge
-
-
-# lam of ``_group_dp`` for q8g images: 39.2 bytes per triangle on the bunny, 7-14 % more ops
-# than box32 on the path workload of docs/compressed.md (which gives the bytes for other values)
-GROUP_LAMBDA = 2.2
-
-
-def group_leaves(left, right, prim, area, pairs, enabled: bool = True, lam: float | None = None):
-    """Turn (``enabled``; else none), in place, the binary subtrees that ``_group_dp`` picks
-    into group leaves (``prim`` = the number of pairs + the group's index); the node keeps its
-    (grown) box, which contains its triangles. Returns (groups (g, GROUP_MAX_TRIS) the member
-    pair leaves (-1 padded), gtri (g, GROUP_MAX_TRIS) the triangles in leaf order, gvert (g,
-    GROUP_MAX_VERTS) each vertex slot's source corner 3 t + j, gidx (g,) uint64 the ``idx``
-    words)."""
-    first, second, ids = pairs[0], pairs[1], pairs[5]
-    lam = GROUP_LAMBDA if lam is None else lam
-    chunks = _CHUNKS_PER_THREAD * get_num_threads()
-    if enabled and left[0] >= 0:
-        tri, ok = _group_fits(left, right, prim, first, second, ids, chunks)
-        merge = _group_dp(left, right, prim, area, tri, ok, lam)
-    else:
-        merge = np.zeros(len(left), np.bool_)
-    return _apply_groups(merge, left, right, prim, first, second, ids, len(first), chunks)
-
-
-@njit(cache=True, parallel=True, nogil=True)
-def _apply_groups(merge, left, right, prim, first, second, ids, n_pairs, chunks):
-    """Group i is merged node ``nodes[i]`` (in node order); the groups are independent (each
-    writes its own rows and its own node) and are laid out on all cores."""
-    nodes = np.flatnonzero(merge)
-    g = len(nodes)
-    groups = np.full((g, GROUP_MAX_TRIS), -1, np.int64)
-    gtri = np.empty((g, GROUP_MAX_TRIS), np.int64)
-    gvert = np.empty((g, GROUP_MAX_VERTS), np.int64)
-    gidx = np.empty(g, np.uint64)
-    for c in prange(chunks):
-        stack = np.empty(2 * GROUP_MAX_TRIS + 2, np.int64)
-        for i in range(c * g // chunks, (c + 1) * g // chunks):
-            x = nodes[i]
-            _members(x, left, right, prim, groups[i], stack)
-            gidx[i] = np.uint64(_group_order(groups[i], first, second, ids, gtri[i], gvert[i]))
-            left[x] = right[x] = -1
-            prim[x] = n_pairs + i
-    return groups, gtri, gvert, gidx
-
-
 def neighbours(ids: np.ndarray):
     """``_neighbours`` of vertex ids (n, 3): on all cores from PAIRING_PARALLEL_MIN triangles,
     else on one (the same result)."""
@@ -644,191 +441,3 @@ def pair_triangles(tris: np.ndarray, faces=None, phases=None):
     with phases("pairs"):
         return (*_pairs(ids, partner, tris), ids)
 
-
-@njit(cache=True, nogil=True)
-def _origin(r, a, o, top, s, used, slots, left, prim, ref, facing):
-    """The origin of node r on axis a: ``o`` (the children's lowest bound), or, when a leaf
-    child is thinner than one step ``s`` on this axis, a grid that puts that leaf's bound on its
-    front side (the side its face normal points to) on a grid plane, so that the step of slack
-    its decoded box must have lies behind the surface, where rays leaving the surface (shadow
-    and bounce rays start just in front of it) do not pass; the leaf of largest cross-section
-    wins, and only a grid that still spans the node in 255 steps."""
-    best, area = o, 0.0
-    b, c = (a + 1) % 3, (a + 2) % 3
-    for j in range(used):
-        x = slots[r, j]
-        lo, hi = np.float64(ref[r, j, a]), np.float64(ref[r, j, 3 + a])
-        if left[x] >= 0 or hi - lo >= s or facing[prim[x], a] == 0:
-            continue
-        cross = ((np.float64(ref[r, j, 3 + b]) - ref[r, j, b])
-                 * (np.float64(ref[r, j, 3 + c]) - ref[r, j, c]))
-        if cross <= area:
-            continue
-        up = facing[prim[x], a] > 0
-        plane = hi if up else lo
-        exact = plane - np.ceil((plane - np.float64(o)) / s) * s
-        cand = np.float32(exact)
-        # rounded so that the plane's step decodes on the front side of the plane (hi: at or
-        # above it, lo: at or below it)
-        if up and np.float64(cand) < exact:
-            cand = np.nextafter(cand, np.float32(np.inf))
-        elif not up and np.float64(cand) > exact:
-            cand = np.nextafter(cand, np.float32(-np.inf))
-        if cand <= o and np.float64(top) - np.float64(cand) <= 255.0 * s:
-            best, area = cand, cross
-    return best
-
-
-_PV, _PPRIM, _PIDX = (node_word(PAIR_NODE, f) for f in ("v", "prim", "idx"))
-_GV2, _GPRIM2 = (node_word(GROUP_NODE, f) - PAIR_BYTES // 4 for f in ("v2", "prim2"))
-
-
-@njit(cache=True, nogil=True)
-def _write_pair(p, slot, first, second, idx, v3, tris, lw, lf, no_child):
-    """Pair leaf ``p`` (``_pairs``'s arrays) into 64-byte leaf slot ``slot`` (``lw``/``lf``:
-    the leaf slots as (slots, 16) uint32 and float32 views of the same bytes)."""
-    t = first[p]
-    lw[slot, _PPRIM] = t
-    for v in range(3):
-        for c in range(3):
-            lf[slot, _PV + 3 * v + c] = tris[t, v, c]
-    if second[p] >= 0:
-        lw[slot, _PPRIM + 1] = second[p]
-        lw[slot, _PIDX] = idx[p]
-        for c in range(3):
-            lf[slot, _PV + 9 + c] = v3[p, c]
-    else:
-        lw[slot, _PPRIM + 1] = no_child
-
-
-@njit(cache=True, nogil=True)
-def _write_group(g, slot, gtri, gvert, gidx, tris, lw, lf, no_child):
-    """Group leaf ``g`` (``group_leaves``'s arrays) into the leaf slots ``slot`` and ``slot +
-    1``."""
-    for v in range(GROUP_MAX_VERTS):
-        src = gvert[g, v]
-        if src < 0:
-            continue
-        row, w = (slot, _PV + 3 * v) if v < 4 else (slot + 1, _GV2 + 3 * (v - 4))
-        for c in range(3):
-            lf[row, w + c] = tris[src // 3, src % 3, c]
-    for k in range(GROUP_MAX_TRIS):
-        row, w = (slot, _PPRIM + k) if k < 2 else (slot + 1, _GPRIM2 + k - 2)
-        lw[row, w] = gtri[g, k] if gtri[g, k] >= 0 else no_child
-    lw[slot, _PIDX] = np.uint32(gidx[g] & np.uint64(0xFFFFFFFF))
-    lw[slot, _PIDX + 1] = np.uint32(gidx[g] >> np.uint64(32))
-
-
-@njit(cache=True, parallel=True, nogil=True)
-def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, gtri, gvert, gidx,
-              tris, facing, origin, exp, child, q, parent, ref, lw, lf, box_ptr, leaf_base, types,
-              no_child):
-    """Number the wide tree's nodes and write the q8 box nodes (origin, exp + count, child, q,
-    parent) and the leaves (lw/lf: 64-byte leaf slots in the order they are referenced), as
-    ``driver.bvh.build.fill_image`` does for box32. A leaf's ``prim`` below ``len(first)`` is a
-    pair leaf (one slot), else group ``prim - len(first)`` (``gtri``, ``gvert``, ``gidx``: two
-    slots). ``leaf_base``: byte offset of the first slot; ``types``: (pair,
-    group) pointer type codes. ``ref`` (k, 4, 6) float32 receives each used slot's stored box
-    (+inf unused); ``facing`` (leaves, 3) int8: the sign of each leaf's face normal per axis
-    (``_origin``). Returns 0, or the index + 1 of a node whose extent needs an exponent above
-    Q8_EXP_MAX (the first such node). Node r's box children and leaf slots are numbered after
-    those of nodes 0..r-1 (a prefix sum of each node's counts), so the nodes are then written
-    independently, on all cores."""
-    k = slots.shape[0]
-    n_pairs = len(first)
-    nb0 = np.zeros(k + 1, np.int64)                # box children / leaf slots before node r
-    nl0 = np.zeros(k + 1, np.int64)
-    for r in range(k):
-        b, sl = 0, 0
-        for j in range(WIDTH):
-            x = slots[r, j]
-            if x < 0:
-                continue
-            if left[x] >= 0:
-                b += 1
-            else:
-                sl += 1 if prim[x] < n_pairs else 2
-        nb0[r + 1] = nb0[r] + b
-        nl0[r + 1] = nl0[r] + sl
-    parent[0] = no_child
-    bad = np.zeros(k, np.bool_)
-    for r in prange(k):
-        nb, nl = nb0[r], nl0[r]
-        used = 0
-        for j in range(WIDTH):
-            x = slots[r, j]
-            if x < 0:
-                child[r, j] = no_child
-                for c in range(6):
-                    ref[r, j, c] = np.inf
-                continue
-            used += 1
-            for c in range(3):
-                ref[r, j, c] = node_lo[x, c]
-                ref[r, j, 3 + c] = node_hi[x, c]
-            if left[x] >= 0:
-                nb += 1
-                child[r, j] = box_ptr[0] + nb * box_ptr[1]
-                parent[nb] = box_ptr[0] + r * box_ptr[1]
-            else:
-                p = prim[x]
-                kind = types[0] if p < n_pairs else types[1]
-                child[r, j] = ((leaf_base + 64 * nl) >> 3) | kind
-                if p < n_pairs:
-                    _write_pair(p, nl, first, second, idx, v3, tris, lw, lf, no_child)
-                    nl += 1
-                else:
-                    _write_group(p - n_pairs, nl, gtri, gvert, gidx, tris, lw, lf, no_child)
-                    nl += 2
-        for a in range(3):
-            o = np.float32(np.inf)
-            top = np.float32(-np.inf)
-            for j in range(used):
-                o = min(o, ref[r, j, a])
-                top = max(top, ref[r, j, 3 + a])
-            ext = np.float64(top) - np.float64(o)
-            e = Q8_EXP_MIN
-            if ext > 0:                                    # a first guess, then exact steps
-                e = max(Q8_EXP_MIN, int(np.ceil(np.log2(ext / 255.0))) - 1)
-            while e <= Q8_EXP_MAX and ext > 255.0 * math.ldexp(1.0, e):
-                e += 1
-            if e > Q8_EXP_MAX:
-                bad[r] = True
-                break
-            s = math.ldexp(1.0, e)
-            o = _origin(r, a, o, top, s, used, slots, left, prim, ref, facing)
-            origin[r, a] = o
-            exp[r, a] = np.uint8(e & 0xFF)
-            for j in range(used):
-                lo = np.floor((np.float64(ref[r, j, a]) - np.float64(o)) / s)
-                hi = np.ceil((np.float64(ref[r, j, 3 + a]) - np.float64(o)) / s)
-                q[r, j, a] = np.uint8(min(max(lo, 0.0), 255.0))
-                q[r, j, 3 + a] = np.uint8(min(max(hi, 0.0), 255.0))
-        exp[r, 3] = np.uint8(used)
-    for r in range(k):
-        if bad[r]:
-            return r + 1
-    return 0
-
-
-def verify_containment(nodes: np.ndarray, ref: np.ndarray, rounds: int = 256):
-    """Decode every q8 node with ``decode_q8`` and widen, in place, each quantized bound whose
-    decode lies inside the stored box ``ref`` (k, 4, 6) by one step, until every decoded child
-    box contains its stored box. Returns (the number of bounds moved, the final decoded boxes).
-    A bound moves at most 255 times, so ``rounds`` (256) passes always suffice. Raises
-    ValueError if a bound cannot move (a plane at 0 or 255 that still does not contain it) or
-    the rounds run out."""
-    moved = 0
-    for _ in range(rounds + 1):
-        dec = decode_q8(nodes)
-        low = dec[..., :3] > ref[..., :3]                  # unused slots: inf > inf is False
-        high = dec[..., 3:] < ref[..., 3:]
-        if not (low.any() or high.any()):
-            return moved, dec
-        q = nodes["q"]
-        if (q[..., :3][low] == 0).any() or (q[..., 3:][high] == 255).any():
-            raise ValueError("q8 encoding: a child box cannot be contained by its node's planes")
-        q[..., :3][low] -= 1
-        q[..., 3:][high] += 1
-        moved += int(low.sum() + high.sum())
-    raise ValueError(f"q8 encoding: child boxes still not contained after {rounds} widenings")

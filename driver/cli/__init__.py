@@ -12,12 +12,15 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import signal
 import sys
+from importlib.metadata import PackageNotFoundError, version as dist_version
 
-from ..errors import Terminated
+from ..core.errors import Terminated
 from .common import (EXIT_CHECK, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED,
                      EXIT_USAGE, PROG, one_line)
+from .interrupt import watch
 
 # name -> "module" or "module:attribute"; each provides add_parser(subparsers) and run(args)
 COMMANDS = {
@@ -25,7 +28,8 @@ COMMANDS = {
     "knn": "driver.cli.knn",
     "bench": "driver.cli.bench",
     "sweep": "driver.cli.sweep",
-    "power": "driver.power",
+    "power": "driver.cli.power",
+    "study": "driver.cli.study",
 }
 
 EXIT_CODES = {
@@ -48,8 +52,6 @@ ENVIRONMENT = {
 
 
 def version() -> str:
-    from importlib.metadata import PackageNotFoundError
-    from importlib.metadata import version as dist_version
     try:
         return dist_version("rayflex-driver")
     except PackageNotFoundError:
@@ -66,14 +68,14 @@ def main(argv=None) -> int:
     """Entry point of the ``rayflex`` console script; returns the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = list(argv) if argv is not None else sys.argv[1:]   # what a JSON may record
     if not getattr(args, "command", None):
         parser.print_help(sys.stderr)
         return EXIT_USAGE
-    from ..interrupt import watch
     codes = {signal.SIGINT: ("interrupted", EXIT_INTERRUPTED),
              signal.SIGTERM: ("terminated", EXIT_TERMINATED)}
     # SIGTERM raises Terminated so builds and output writes clean up; both signals end the
-    # process within about a second even inside a native kernel (driver.interrupt)
+    # process within about a second even inside a native kernel (driver.cli.interrupt)
     with watch(PROG, codes, Terminated):
         try:
             return int(args.handler.run(args) or 0)
@@ -90,7 +92,6 @@ def main(argv=None) -> int:
             print(f"{PROG}: error: out of memory (try a smaller --size)", file=sys.stderr)
             return EXIT_USAGE
         except Exception as e:  # noqa: BLE001  (a bug: one line unless asked for the traceback)
-            import os
             if os.environ.get("RAYFLEX_TRACEBACK") == "1":
                 raise
             print(f"{PROG}: internal error: {type(e).__name__}: {one_line(e)} "

@@ -33,6 +33,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import area
+from ..backends.cache import cache_root as tool_cache
+
 RECIPE = 2                # bump when the synthesis script or the writer below changes meaning
 
 # Yosys internal gate -> (gatesim code, input pins in the order A, B, S)
@@ -52,13 +55,11 @@ STAGE_LABELS = ["registers", *[f"S{k}" for k in range(0, 10)], "out", "control"]
 
 def _area():
     """``driver.area`` (the open area flow whose snapshot and Yosys runner we reuse)."""
-    from .. import area
     return area
 
 
 def cache_root() -> Path:
-    from ..verilate import cache_root as root
-    return root() / "power"
+    return tool_cache() / "power"
 
 
 def synth_script(params: dict[str, int], files: list[str]) -> str:

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from driver.bvh4 import BOX_BYTES, BOX_TYPE, NO_CHILD, PAD_REL, TRI_BYTES, TRI_TYPE
-from driver.layout import (GROUP_BYTES, GROUP_MAX_TRIS, GROUP_TYPE, PAIR_BYTES, PAIR_TYPE,
-                           Q8_BYTES, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE, NodeRef, decode_q8,
-                           leaf_count, leaf_next, leaf_triangles, q8_count)
+from driver.core.layout import (GROUP_BYTES, GROUP_MAX_TRIS, GROUP_TYPE, PAIR_BYTES, PAIR_TYPE,
+                                Q8_BYTES, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE, NodeRef,
+                                decode_q8, leaf_count, leaf_next, leaf_triangles, q8_count)
 
 
 def half_area(b):

@@ -12,7 +12,7 @@ in ``FILLS``, with the docs/datapath.md#traversal traversal and with the distanc
 (``cull_stack``), against the reference point ``REFERENCE`` (box nodes, ops per ray), optionally
 plotted.
 
-    python -m driver.bvh.bench --counts 0 50 --json builds.json
+    rayflex study bvh --counts 0 50 --json builds.json
 
 times the builds only (no tree quality) and prints them as the Markdown table of
 docs/compressed.md: process CPU and wall seconds per format, their ratios to box32, and the
@@ -21,14 +21,21 @@ machine's load average while they ran.
 
 from __future__ import annotations
 
-import argparse
 import os
 import multiprocessing
-import sys
 import resource
 import time
+from pathlib import Path
 
 import numpy as np
+
+from ..bvh4 import build
+from ..core.errors import SceneError
+from ..core.markdown import table as markdown_table
+from ..core.progress import iterate
+from ..scenes.builtins import instanced_bunnies as grid
+from ..scenes.camera import primary_rays
+from ..tracer import trace
 
 BUNNY_TRIANGLES = 99_785
 FORMATS = ("box32", "q8", "q8g")    # image formats whose builds are timed
@@ -38,9 +45,8 @@ REFERENCE = {"box_nodes": 36_000, "ops_per_ray": 0.95 * 6.29}
 
 
 def instanced_bunnies(count: int, seed: int = 0) -> np.ndarray:
-    """``count`` copies of the Stanford bunny (``driver.builtins.instanced_bunnies``), flattened:
-    (count * bunny triangles, 3, 3) float32 world-space triangles."""
-    from ..scenes.builtins import instanced_bunnies as grid
+    """``count`` copies of the Stanford bunny (``driver.scenes.builtins.instanced_bunnies``),
+    flattened: (count * bunny triangles, 3, 3) float32 world-space triangles."""
     from ..scenes.scene import load
     return grid(load("bunny").triangles, count, seed).flatten()
 
@@ -48,7 +54,6 @@ def instanced_bunnies(count: int, seed: int = 0) -> np.ndarray:
 def _build_child(count, fmt, conn):
     """In a fresh process: build ``count`` bunnies (0 = the bunny itself) in image format
     ``fmt`` and send the numbers."""
-    from ..bvh4 import build
     from ..scenes.scene import load
     tris = instanced_bunnies(count) if count else load("bunny")
     build(load("bunny"), progress=False, format=fmt)    # load the compiled kernels before timing
@@ -101,9 +106,6 @@ def _fills(scene, o, d, ref, fills, progress) -> dict:
     """The BVH shape trade-off: for each ``--bvh-fill``, the tree, the ops per ray of the
     docs/datapath.md#traversal traversal and of the distance-culled stack, and whether the hits
     equal ``ref``'s."""
-    from ..bvh4 import build
-    from ..progress import iterate
-    from ..tracer import trace
     rows = []
     for fill in iterate(fills, "BVH fills", "fill", progress):
         bvh = build(scene.mesh, fill=fill)
@@ -157,10 +159,7 @@ def plot_fills(fills: dict, path, title: str) -> None:
 def _quality(size: int = 256, fills=FILLS, plot=None, progress: bool = False) -> dict:
     """Greedy vs SAH collapse on the bunny frame (golden model): tree and ops per ray; then the
     ``fills`` trade-off (``_fills``), plotted to ``plot`` (a PNG path) if given."""
-    from ..bvh4 import build
-    from ..scenes.camera import primary_rays
     from ..scenes.scene import load_scene
-    from ..tracer import trace
     scene = load_scene("bunny")
     o, d = primary_rays(scene.camera, size, size)
     out, traces = {}, {}
@@ -193,7 +192,6 @@ def bvh_bench(counts=(0, 20, 50), quality: bool = True, size: int = 256,
     0 = the bunny, k = k instanced bunnies, i.e. ~2 M for 20 and ~5 M for 50; each format's
     build time also as a ratio to box32's, ``vs_box32_build_s``) and ``quality`` (``_quality`` on the bunny's
     size x size primary frame, with the ``fills`` trade-off plotted to ``plot``)."""
-    from ..progress import iterate
     result = {"machine_cpus": multiprocessing.cpu_count(), "builds": []}
     runs = [(count, fmt) for count in counts for fmt in formats]
     for count, fmt in iterate(runs, "BVH bench", "build", progress):
@@ -214,10 +212,9 @@ PAIRING = ("vertex ids", "adjacency", "matching", "pairs")    # build phases of 
 WORST_MIN = 1000      # triangles: below, a build's fixed costs (calls, allocations) dominate
 
 
-def _mesh_items(paths) -> list[tuple[str, list]]:
+def mesh_items(paths) -> list[tuple[str, list]]:
     """(name, mesh files) to build: each mesh file alone, and each folder's files (not its
     subfolders') alone and then together as one mesh (``folder/*``)."""
-    from pathlib import Path
 
     from ..scenes.scene import MESH_TYPES
     items = []
@@ -239,8 +236,6 @@ def _mesh_items(paths) -> list[tuple[str, list]]:
 def _mesh_child(conn, phase, formats) -> None:
     """In a fresh process: load and build each item the parent sends, in every format; send
     per format the build time, its phases and the pairing's microseconds per triangle."""
-    from ..bvh4 import build
-    from ..errors import SceneError
     from ..scenes.scene import load_scene
 
     def on_phase(name):
@@ -294,13 +289,12 @@ def _mesh_child(conn, phase, formats) -> None:
 
 def mesh_bench(paths, formats=FORMATS, bound_s: float = 60.0, bound_per_tri_s: float = 1e-4,
                progress: bool = True) -> dict:
-    """Build every mesh of ``paths`` (``_mesh_items``: files alone, folders' files alone and
+    """Build every mesh of ``paths`` (``mesh_items``: files alone, folders' files alone and
     whole) in ``formats``, in a worker process that is killed and replaced when an item runs
     longer than ``bound_s + bound_per_tri_s`` per triangle (a ``hang`` row naming the phase).
     Returns {"meshes": rows, "worst": the largest pairing and matching microseconds per
     triangle of q8 and q8g, "hangs", "errors"}."""
-    from ..progress import iterate
-    items = _mesh_items(paths)
+    items = mesh_items(paths)
     ctx = multiprocessing.get_context("spawn")
 
     def start():
@@ -363,7 +357,7 @@ def build_table(doc: dict) -> str:
     head = ["mesh", *(f"{f} CPU s (wall)" for f in fmts),
             *(f"{f} / box32 CPU (wall)" for f in fmts if f != "box32"),
             "q8g bytes / triangle", "load average"]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    rows = []
     for count, row in by.items():
         any_row = next(iter(row.values()))
         mesh = (f"bunny, {any_row['triangles']:,} triangles" if count == 1
@@ -379,8 +373,8 @@ def build_table(doc: dict) -> str:
         cells.append(f"{row['q8g']['bytes_per_triangle']:.1f}" if "q8g" in row else "–")
         loads = [b["load_average"] for b in row.values()]
         cells.append(f"{min(loads):.1f}–{max(loads):.1f}")
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+        rows.append(cells)
+    return markdown_table(head, rows)
 
 
 def mesh_table(doc: dict) -> str:
@@ -396,49 +390,3 @@ def mesh_table(doc: dict) -> str:
     lines += [f"hang: {r['mesh']} in {r['hang']!r}" for r in rows if "hang" in r]
     lines += [f"error: {r['mesh']}: {r['error']}" for r in rows if "error" in r]
     return "\n".join(lines)
-
-
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m driver.bvh.bench",
-                                description="Time BVH builds per image format, each in a fresh "
-                                            "process, and print the table.")
-    p.add_argument("--counts", type=int, nargs="+", default=[0, 50], metavar="N",
-                   help="meshes: 0 = the bunny, N = N instanced bunnies (default: 0 50)")
-    p.add_argument("--formats", nargs="+", default=list(FORMATS), choices=FORMATS,
-                   help="image formats to build (default: all)")
-    p.add_argument("--meshes", nargs="+", metavar="PATH",
-                   help="instead: build these mesh files, and each folder's mesh files alone "
-                        "and whole, in every format, under a time bound; print the worst "
-                        "pairing time per triangle and any hang")
-    p.add_argument("--json", metavar="PATH", help="write the builds here")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
-    args = p.parse_args(argv)
-    from ..outputs import JSON, Outputs, OutputError, write_json
-    try:
-        if any(c < 0 for c in args.counts):
-            raise ValueError(f"--counts must be >= 0, got {args.counts}")
-        outs = Outputs()
-        js = outs.add("--json", args.json, JSON) if args.json else None
-        if args.meshes:
-            _mesh_items(args.meshes)                         # bad paths: before any work
-            doc = mesh_bench(args.meshes, formats=tuple(args.formats),
-                             progress=not args.no_progress)
-            if js:
-                with outs.commit():
-                    write_json(doc, outs.temp(js))
-            print(mesh_table(doc))
-            return 0
-        doc = bvh_bench(counts=tuple(args.counts), quality=False, progress=not args.no_progress,
-                        formats=tuple(args.formats))
-        if js:
-            with outs.commit():
-                write_json(doc, outs.temp(js))
-    except (ValueError, OSError, OutputError) as e:
-        print(f"rayflex: error: {e}", file=sys.stderr)
-        return 2
-    print(build_table(doc))
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

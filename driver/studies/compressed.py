@@ -1,7 +1,7 @@
 """box32 vs q8 (and q8g) on one workload frame: the table and the plot of docs/compressed.md,
 from ``rayflex bench --workload ... --bvh-format FORMAT --json`` documents of the same frame.
 
-    python -m driver.bvh.study BOX32.json Q8.json [Q8G.json] [--plot PNG]
+    rayflex study compressed BOX32.json Q8.json [Q8G.json] [--plot PNG]
 
 prints the per-ray-type comparison as a Markdown table and draws utilization with the node
 memory vs rays in flight, one panel per ray type, one line per format.
@@ -9,9 +9,10 @@ memory vs rays in flight, one panel per ray type, one line per format.
 
 from __future__ import annotations
 
-import argparse
 import json
-import sys
+
+from ..core.markdown import table as markdown_table
+from ..plotting import wrap
 
 FORMATS = ("box32", "q8", "q8g")
 
@@ -44,18 +45,16 @@ def rows(docs: dict) -> list[dict]:
 
 
 def markdown(table: list[dict]) -> str:
-    lines = ["| ray type | image | B/triangle | ops/ray (box + tri) | ops vs box32 | node B/ray "
-             "| B from memory/ray | vs box32 | cache hit rate | utilization with memory "
-             "| cycles/ray with memory | vs box32 |", "|" + "---|" * 12]
-    for r in table:
-        lines.append(
-            f"| {r['type']} | {r['format']} | {r['bytes_per_triangle']:.1f} "
-            f"| {r['ops_per_ray']:.2f} ({r['box_ops_per_ray']:.2f} + {r['tri_ops_per_ray']:.2f}) "
-            f"| {r['ops_ratio']:.3f} | {r['node_bytes_per_ray']:.0f} "
-            f"| {r['memory_bytes_per_ray']:.0f} | {r['memory_bytes_ratio']:.3f} "
-            f"| {r['hit_rate']:.3f} | {r['utilization_memory']:.3f} "
-            f"| {r['cycles_per_ray_memory']:.1f} | {r['cycles_ratio']:.3f} |")
-    return "\n".join(lines)
+    return markdown_table(
+        ["ray type", "image", "B/triangle", "ops/ray (box + tri)", "ops vs box32", "node B/ray",
+         "B from memory/ray", "vs box32", "cache hit rate", "utilization with memory",
+         "cycles/ray with memory", "vs box32"],
+        ([r["type"], r["format"], f"{r['bytes_per_triangle']:.1f}",
+          f"{r['ops_per_ray']:.2f} ({r['box_ops_per_ray']:.2f} + {r['tri_ops_per_ray']:.2f})",
+          f"{r['ops_ratio']:.3f}", f"{r['node_bytes_per_ray']:.0f}",
+          f"{r['memory_bytes_per_ray']:.0f}", f"{r['memory_bytes_ratio']:.3f}",
+          f"{r['hit_rate']:.3f}", f"{r['utilization_memory']:.3f}",
+          f"{r['cycles_per_ray_memory']:.1f}", f"{r['cycles_ratio']:.3f}"] for r in table))
 
 
 def plot(docs: dict, path, title: str) -> None:
@@ -91,7 +90,6 @@ def plot(docs: dict, path, title: str) -> None:
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=len(labels), frameon=False,
                fontsize=8)
-    from ..plotting import wrap
     fig.suptitle(wrap(title, 150), fontsize=9)
     fig.tight_layout(rect=(0, 0.06, 1, 1))
     fig.savefig(str(path), format="png")
@@ -123,34 +121,3 @@ def load(paths) -> dict:
            for doc in docs.values()):
         raise ValueError("the documents hold different ray types")
     return {f: docs[f] for f in FORMATS if f in docs}
-
-
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m driver.bvh.study", description=__doc__.split(
-        "\n\n")[0])
-    p.add_argument("json", nargs="+", help="one bench JSON per image format (box32, q8 and "
-                                           "optionally q8g)")
-    p.add_argument("--plot", metavar="PNG", help="draw the utilization sweep here")
-    args = p.parse_args(argv)
-    try:
-        docs = load(args.json)
-        table = rows(docs)
-        if args.plot:
-            from ..outputs import Outputs, PNG
-            outs = Outputs()
-            png = outs.add("--plot", args.plot, PNG)
-            from ..plotting import describe
-            d = docs["q8"]
-            point = {**d["provenance"]["design_point"], "size": d["width"]}
-            with outs.commit():
-                plot(docs, outs.temp(png), f"{' vs '.join(docs)} node images: " + describe(
-                    point, omit=("bvh_format", "rays_in_flight", "pipelines")))
-    except (ValueError, OSError) as e:
-        print(f"rayflex: error: {e}", file=sys.stderr)
-        return 2
-    print(markdown(table))
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -19,7 +19,7 @@ The thread needs the GIL only for a moment; the native kernels release it while 
 builder's numba kernels are compiled ``nogil``, ctypes releases it around every call), so the
 thread runs beside them. Nothing is half-written by the hard exit: the commands write their
 outputs atomically when their work is done, and a model build's temporary directory left by
-it is removed by the next build of that model (``driver.verilate``).
+it is removed by the next build of that model (``driver.backends.cache``).
 
 Only the command line installs it (``driver.cli.main``): a library user, or a notebook whose
 interrupt should stop a cell rather than end the kernel, keeps Python's own behaviour.
