@@ -144,10 +144,9 @@ def test_the_build_notice_counts_only_models_really_missing(swept):
     """Once the sweep has run, every model it uses is cached: the notice named the traced models
     by the harness's parameters (rayflex_power_e0_d0_c0_t0_l11, cached as
     rayflex_power_e0_d0_l11) and announced "2 of 4 models to build first" on every sweep."""
-    from driver import design
-    from driver.cli import build_parser
+    from driver.cli import build_parser, options
     from driver.power import uncached_models
-    points = design.grid_from_args(build_parser().parse_args(["sweep", *GRID]))
+    points = options.grid_from_args(build_parser().parse_args(["sweep", *GRID]))
     models = sweep_mod.models(points)
     assert sorted(kind for kind, _ in models) == ["rtl", "rtl", "signals", "signals"]
     assert uncached_models(models) == []
