@@ -45,13 +45,14 @@ import numpy as np
 from . import backends, rtunit, tiles, workloads
 from .backends import build as rtl_build
 from .bvh4 import warm_up
-from .check import compare, embree_closest, embree_json
+from .check import compare, embree_closest, embree_json, summary
 from .core.wire import pack_responses
 from .design import DesignPoint
+from .plotting import describe, legend_right, wrap
 from .core.progress import bar as _bar
 from .core.provenance import machine, provenance
 from .scenes.camera import check_size, primary_rays
-from .stats import merge_rtunit, public, replay_stats
+from .stats import merge_rtunit, order_cost_line, public, replay_stats
 from .tracer import trace
 from .workloads import setup_for
 
@@ -190,9 +191,12 @@ def _sweep(scene, bvh, rtl, ss, sweep_rays, sweep_pipelines, plot, progress, poi
     keep = ("pipelines", "rays_in_flight", "cycles", "utilization", "frame_us_at_1ghz",
             "starved_cycles", "responses_verified")
     if plot:
-        rtunit.plot_sweep(points, plot, f"{scene.name} {ss}x{ss}: {srec.ops} datapath ops, "
-                                        f"latency {point.latency} + turnaround "
-                                        f"{rtunit.DEFAULT_TURNAROUND} cycles")
+        rtunit.plot_sweep(points, plot, "RT-unit cycles vs rays in flight and pipelines, free "
+                          "node fetches: " + describe(
+                              {**point.as_dict(), "size": ss, "scene": scene.name},
+                              omit=("rays_in_flight", "pipelines", "cache_kib", "mem_latency"))
+                          + f"\n{srec.ops:,} datapath ops, turnaround "
+                          f"{rtunit.DEFAULT_TURNAROUND} cycle")
     return {"width": ss, "height": ss, "rays": srec.rays, "ops": srec.ops,
             "latency_cycles": point.latency, "turnaround_cycles": rtunit.DEFAULT_TURNAROUND,
             "wall_s": t_sweep, "plot": str(plot) if plot else None,
@@ -281,11 +285,11 @@ def _pyverilator_stream(rec, k: int, progress, repeat: int, point) -> dict:
 def table(doc: dict) -> str:
     """The short human-readable summary printed by ``rayflex bench``."""
     f, pv = doc["frame"], doc.get("pyverilator")
-    e = f.get("embree") or {}
     rows = [
         ("frame", f"{doc['scene']} {doc['width']}x{doc['height']}: {f['rays']} rays, "
-                  f"{f['hits']} hits, Embree: {e.get('hit_mismatch', '?')} hit/miss + "
-                  f"{e.get('prim_mismatch', '?')} prim mismatches"),
+                  f"{f['hits']} hits"),
+        ("Embree", summary(f["embree"]).removeprefix("embree: ") if f.get("embree")
+         else "not checked"),
         ("datapath ops", f"{f['ops']} ({f['box_ops']} box + {f['tri_ops']} tri"
                          + (f" + {f['transform_ops']} transform" if f.get("transform_ops")
                             else "")
@@ -332,6 +336,9 @@ def timing_rows(f: dict) -> list[tuple[str, str]]:
                          f"{r['frame_us_at_1ghz']:.1f} us at 1 GHz ({what}"
                          + (f"; hit rate {r['hit_rate']:.3f}, {r['bytes_per_ray']:.0f} B/ray)"
                             if "hit_rate" in r else ")")))
+    cost = (f.get("rtunit_memory") or f.get("rtunit") or {}).get("ray_order_cost")
+    if cost:
+        rows.append(("ray order", order_cost_line(cost)))
     return rows
 
 
@@ -343,7 +350,8 @@ def bench_workload(point: DesignPoint, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, p
     """One workload frame of design point ``point`` on "rtl" (every batch recorded), checked
     against Embree; per ray type: the op mix, the RT-unit replays (``rtunit``,
     ``rtunit_memory``), any-hit vs closest-hit ops of the same rays, and a sweep of utilization
-    over rays in flight (one pipeline, the point's node memory), plotted per ray type."""
+    over ``sweep_rays`` rays in flight (one pipeline, the point's node memory; empty: no sweep),
+    plotted per ray type to ``plot``."""
     from .scenes.scene import load_scene
 
     scene = point.scene_of(load_scene(point.scene))
@@ -381,7 +389,8 @@ def bench_workload(point: DesignPoint, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, p
             entry["any_hit_vs_closest_ops"] = entry["ops"] / closest if closest else None
         done += 1
         bar.hook(done, steps)
-        sweep[kind] = []
+        if sweep_rays:
+            sweep[kind] = []
         for r in sweep_rays:
             plain, mem = replay_stats(records, point.replace(
                 rays_in_flight=r, pipelines=1, ray_window=max(point.ray_window, r)))
@@ -390,9 +399,10 @@ def bench_workload(point: DesignPoint, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, p
             bar.hook(done, steps)
     t_replay = time.perf_counter() - t2
     bar.close()
-    if plot:
-        plot_workload_sweep(sweep, plot, f"{scene.name} {size}x{size} {point.workload}: "
-                                         "utilization vs rays in flight, one pipeline")
+    if plot and sweep_rays:
+        plot_workload_sweep(sweep, plot, "utilization vs rays in flight: " + describe(
+            {**point.as_dict(), "size": size, "scene": scene.name},
+            omit=("rays_in_flight", "pipelines", "ray_window")))
     for key in ("rtunit", "rtunit_memory"):
         frame[key] = merge_rtunit([t[key] for t in frame["by_type"].values()])
     frame["wall_parts_s"] = {"bvh_build": t_bvh, "traversal": t_trace, "replay": t_replay}
@@ -400,34 +410,39 @@ def bench_workload(point: DesignPoint, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, p
     frame.update(scene.counts())
     return {"provenance": provenance(point), "scene": scene.name, "workload": point.workload,
             "width": size, "height": size, "frame": frame, "sweep": sweep,
-            "plot": str(plot) if plot else None}
+            "plot": str(plot) if plot and sweep_rays else None}
+
+
+MARKERS = ("o", "s", "^", "D", "v", "P")     # one per ray type: coinciding curves stay apart
 
 
 def plot_workload_sweep(sweep: dict, path, title: str) -> None:
-    """PNG: datapath utilization vs rays in flight (log x), one line per ray type."""
+    """PNG: datapath utilization vs rays in flight (log x), one line per ray type (colour and
+    marker), with the node cache and memory (left) and with free node fetches (right, where the
+    ray types' curves often coincide near 1: the markers tell them apart); legend to the
+    right of the data."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(7.0, 4.6), dpi=110)
+    with_memory = all(pts[0]["rtunit_memory"] for pts in sweep.values())
+    fig = Figure(figsize=(10.0, 4.4) if with_memory else (7.4, 4.4), dpi=110)
     FigureCanvasAgg(fig)
-    ax = fig.add_subplot(1, 1, 1)
-    colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown"]
-    for i, (kind, pts) in enumerate(sweep.items()):
-        c = colours[i % len(colours)]
-        x = [p["rays_in_flight"] for p in pts]
-        if pts[0]["rtunit_memory"]:
-            ax.plot(x, [p["rtunit_memory"]["utilization"] for p in pts], "o-", color=c,
-                    label=f"{kind} (node cache + memory)")
-            ax.plot(x, [p["rtunit"]["utilization"] for p in pts], ":", color=c, lw=1)
-        else:
-            ax.plot(x, [p["rtunit"]["utilization"] for p in pts], "o-", color=c, label=kind)
-    ax.set_xscale("log", base=2)
-    ax.set_ylim(0, 1.05)
-    ax.set_xlabel("rays in flight (ray pool size R)")
-    ax.set_ylabel("datapath utilization (ops / cycles)")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(title="ray type (dotted: free node fetches)", fontsize=7, loc="center right")
-    ax.set_title(title, fontsize=9)
+    panels = [("rtunit_memory", "with the node cache and memory")] if with_memory else []
+    panels.append(("rtunit", "with free node fetches"))
+    axes = fig.subplots(1, len(panels), sharey=True, squeeze=False)[0]
+    for ax, (key, what) in zip(axes, panels):
+        for i, (kind, pts) in enumerate(sweep.items()):
+            ax.plot([p["rays_in_flight"] for p in pts], [p[key]["utilization"] for p in pts],
+                    marker=MARKERS[i % len(MARKERS)], ms=7 - i, color=f"C{i}", lw=1.5,
+                    mfc="none" if i % 2 else f"C{i}", label=kind)
+        ax.set_xscale("log", base=2)
+        ax.set_ylim(0, 1.05)
+        ax.set_xlabel("rays in flight (ray pool size R)")
+        ax.set_title(what, fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel("datapath utilization, ops / cycles (one pipeline)")
+    legend_right(axes[-1], title="ray type", fontsize=8)
+    fig.suptitle(wrap(title, 130), fontsize=9)
     fig.tight_layout()
     fig.savefig(str(path), format="png")
 

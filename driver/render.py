@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .backends import resolve
+from .backends import DEFAULT_BACKEND, resolve
 from .bvh4 import build_label
 from .check import check, embree_json, embree_sample
 from .scenes.camera import check_size, primary_rays
@@ -82,21 +82,13 @@ class RenderResult:
         save_image(self.heatmap_image(title), path)
 
 
-def render(scene, width=None, height=None, backend: str = "rtl", progress: bool = True,
-           check_embree: bool = False, point: DesignPoint | None = None, rtunit: bool = False,
-           tile: int | None = None, workers: int = 1, scheduler: str | None = None,
-           replay_plain: bool = True) -> RenderResult:
+def render(scene, width=None, height=None, backend: str = DEFAULT_BACKEND,
+           progress: bool = True, check_embree: bool = False, point: DesignPoint | None = None,
+           rtunit: bool = False, tile: int | None = None, workers: int = 1,
+           scheduler: str | None = None, replay_plain: bool = True) -> RenderResult:
     """Render ``scene`` (a Scene, or anything ``load_scene`` takes) at width x height (default:
     the scene's size) with every box/triangle test on ``backend``; optionally cross-check every
     ray against Embree.
-
-    ``point``: the ``driver.design.DesignPoint`` of the frame (default ``DesignPoint()``: the
-    primary workload, one sample): its workload (docs/workloads.md: primary, shadow, ao, path
-    with ``spp``, ``bounces``, ``ao_rays``, ``seed``), its BVH options (``bvh_fill``,
-    ``bvh_format``, ``flatten``, ``cull_stack``), and its datapath configuration and latency,
-    which make the backend (a backend name; a backend object is used as it is). ``rtunit``:
-    also replay every wavefront's requests on the point's RT unit (statistics ``rtunit`` and
-    ``rtunit_memory``).
 
     ``point``: the ``driver.design.DesignPoint`` of the frame (default ``DesignPoint()``: the
     primary workload, one sample): its workload (docs/workloads.md: primary, shadow, ao, path

@@ -206,6 +206,8 @@ def merge_rtunit(parts: list) -> dict | None:
     out["responses_verified"] = all(p["responses_verified"] for p in parts)
     if all(WAVEFRONTS in p for p in parts):
         out[WAVEFRONTS] = [w for p in parts for w in p[WAVEFRONTS]]
+    if all("ray_order_cost" in p for p in parts):
+        out["ray_order_cost"] = merge_costs([p["ray_order_cost"] for p in parts])
     return _rt_derived(out)
 
 
@@ -226,3 +228,21 @@ def replay_stats(records: list, point, plain: bool = True) -> tuple[dict | None,
         [rtunit.replay(r, point.rays_in_flight, point.pipelines, memory=memory, **order)
          for r in recs])
     return plain, mem
+
+
+def order_cost_line(c: dict) -> str:
+    """What a ray-order policy costs in hardware (``ray_order_cost``, docs/rayorder.md), in
+    the terms of docs/statistics.md."""
+    parts = [f"{c['ray_order']}, window {c['ray_window']}"]
+    if "sort_buffer_entries" in c:
+        parts.append(f"sort buffer of {c['sort_buffer_entries']} rays, "
+                     f"{c['sort_buffer_bytes']:,} bytes, {c['compare_exchanges_per_ray']:.1f} "
+                     "compare-exchanges per ray")
+    if "held_rays" in c:
+        parts.append(f"{c['held_rays']} rays held ({c['extra_rays_held']} beyond the pool), "
+                     f"{c['extra_state_bytes']:,} bytes of traversal state "
+                     f"({c['traversal_state_bytes']} per ray)")
+    if "queue_bytes" in c:
+        parts.append(f"treelet queues {c['queue_bytes']:,} bytes, treelet table "
+                     f"{c['treelet_table_bytes']:,} bytes")
+    return "; ".join(parts)

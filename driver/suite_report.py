@@ -14,6 +14,7 @@ from PIL import Image
 
 from .core.outputs import jsonable
 from .core.provenance import provenance
+from .plotting import describe, wrap
 
 
 ROW_KEYS = ("name", "scene", "workload", "size", "spp", "partial", "rays", "hits",
@@ -151,10 +152,8 @@ def figure(summary: dict) -> bytes:
     fig.legend(handles, labels, loc="center right", fontsize=8, frameon=False,
                title="scene", title_fontsize=8)
     dp = (summary.get("provenance") or {}).get("design_point") or {}
-    fig.suptitle(f"suite {summary['suite']}: {len(rows)} runs on the RTL "
-                 f"({dp.get('config', '?')}, {dp.get('bvh_format', '?')}, RT unit "
-                 f"R={dp.get('rays_in_flight', '?')}, {dp.get('cache_kib', '?')} KiB node cache, "
-                 f"{dp.get('mem_latency', '?')}-cycle memory)", fontsize=9)
+    fig.suptitle(wrap(f"suite {summary['suite']}: {len(rows)} runs on the RTL; "
+                      + describe(dp, parts=("datapath", "bvh", "rtunit")), 150), fontsize=9)
     fig.tight_layout(rect=(0, 0, 1 - 0.9 / fig.get_figwidth(), 0.93))
     buf = io.BytesIO()
     fig.savefig(buf, format="png")

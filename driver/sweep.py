@@ -42,6 +42,7 @@ from pathlib import Path
 from . import backends, design, power, workloads
 from .core.outputs import jsonable
 from .design import DesignPoint
+from .plotting import describe, wrap
 from .core.progress import bar as progress_bar
 from .core.progress import phase
 from .stats import merge, merge_rtunit, public, replay_stats
@@ -132,6 +133,19 @@ def energy_tables(points, progress: bool = True) -> dict:
             with phase(f"energy per op of {cfg} (gates)", progress):
                 r = power.run_level("gates", [cfg], ops=ops)
             entry["gates"] = _per_op(r["configs"][cfg], UNITS["gates"])
+    return out
+
+
+def models(points) -> list[tuple[str, dict]]:
+    """The RTL models a sweep of ``points`` runs, as ``driver.power.uncached_models`` takes
+    them: each point's rtl harness (its datapath's ``rtl_params``) and the traced model of
+    each (configuration, latency) that ``energy_tables`` measures (``power.params_of``, the
+    parameters ``run_level`` builds it with)."""
+    out = []
+    for p in points:
+        for model in (("rtl", p.rtl_params()), ("signals", power.params_of(p.config, p.latency))):
+            if model not in out:
+                out.append(model)
     return out
 
 
@@ -351,14 +365,17 @@ def _timing(e: dict) -> dict:
 
 def plot(doc: dict, path) -> None:
     """Two panels: datapath utilization vs rays in flight, one line per (cache size, other
-    varied options); energy per ray (signals) vs RT-unit cycles per ray, one marker per point,
-    one colour per configuration."""
+    varied options), lines with the same values merged into one whose label says so (two
+    configurations with the same timing coincide); energy per ray (signals) vs RT-unit cycles
+    per ray, one marker per point, one colour per configuration, its axis from zero. Legends
+    below the data; the title names the frame and the options every point shares."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
+
     pts = doc["points"]
     others = [k for k in doc["grid"] if k not in ("rays_in_flight",)]
-    fig = Figure(figsize=(11.0, 4.6), dpi=110)
+    fig = Figure(figsize=(12.0, 5.6), dpi=110)
     FigureCanvasAgg(fig)
     ax1, ax2 = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
     lines: dict = {}
@@ -367,52 +384,68 @@ def plot(doc: dict, path) -> None:
         label = ", ".join(f"{k} {dp[k]}" for k in others) or "this point"
         lines.setdefault(label, []).append((dp["rays_in_flight"], _timing(e)["utilization"],
                                             dp["cache_kib"]))
+    merged: dict = {}                                  # identical series: one line, both named
     for label, xs in lines.items():
-        xs.sort()
-        style = "o-" if xs[0][2] else "s--"
-        ax1.plot([x[0] for x in xs], [x[1] for x in xs], style, label=label)
+        merged.setdefault(tuple(sorted(xs)), []).append(label)
+    markers = ("o", "s", "^", "D", "v", "P", "X", "*")
+    for i, (xs, labels) in enumerate(merged.items()):
+        ax1.plot([x[0] for x in xs], [x[1] for x in xs], marker=markers[i % len(markers)],
+                 ls="-" if xs[0][2] else "--", color=f"C{i}",
+                 label=" = ".join(labels) + (" (identical)" if len(labels) > 1 else ""))
     ax1.set_xscale("log", base=2)
     ax1.set_ylim(0, 1.05)
     ax1.set_xlabel("rays in flight (ray pool size)")
     ax1.set_ylabel("datapath utilization, ops / (pipelines x cycles)")
     ax1.set_title("RT-unit utilization with the node memory (dashed: cache 0, every node fetch "
-                  "from memory)",
-                  fontsize=8)
+                  "from memory)", fontsize=8)
     ax1.grid(True, which="both", alpha=0.3)
-    ax1.legend(fontsize=6)
+    ax1.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=1,
+               frameon=False)
     configs = sorted({e["design_point"]["config"] for e in pts})
     for i, cfg in enumerate(configs):
         sel = [e for e in pts if e["design_point"]["config"] == cfg
                and e["energy_per_ray"]["signals"] is not None]
         ax2.scatter([_timing(e)["cycles_per_ray"] for e in sel],
-                    [e["energy_per_ray"]["signals"] for e in sel], label=cfg, s=24,
-                    color=f"C{i}")
+                    [e["energy_per_ray"]["signals"] for e in sel], label=cfg, s=30,
+                    marker=markers[i % len(markers)], color=f"C{i}")
+    top = max((e["energy_per_ray"]["signals"] or 0 for e in pts), default=0)
+    ax2.set_ylim(0, 1.1 * top or 1)                   # from zero: differences at their size
+    ax2.set_xlim(0, 1.1 * max(_timing(e)["cycles_per_ray"] for e in pts))
     ax2.set_xlabel("RT-unit cycles per ray (with the node memory)")
     ax2.set_ylabel("energy per ray (bit toggles, level signals)")
     ax2.set_title("energy per ray vs time per ray, one marker per design point", fontsize=8)
     ax2.grid(True, alpha=0.3)
-    ax2.legend(fontsize=7)
-    fig.suptitle(f"{doc['scene']} {doc['workload']}: {len(pts)} design points", fontsize=10)
+    ax2.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), frameon=False,
+               ncol=max(1, len(configs)))
+    varied_keys = set(doc["grid"]) | {"rays_in_flight"}
+    point = dict(pts[0]["design_point"])
+    fig.suptitle(wrap(f"{len(pts)} design points: " + describe(point, omit=varied_keys), 150),
+                 fontsize=9)
     fig.tight_layout()
     fig.savefig(str(path), format="png")
 
 
 def table(doc: dict) -> str:
-    """One line per point: the varied options, RT-unit utilization, hit rate, energy."""
+    """One line per point and ray type, then the point's frame (all rays): the varied options,
+    rays, ops per ray, RT-unit cycles and utilization without and with the node memory, hit
+    rate, bytes from memory and energy per ray."""
     keys = list(doc["grid"])
-    head = " ".join(f"{k:>18}" for k in keys) + f" {'rtunit':>6} {'+memory':>8} " \
-        f"{'hit rate':>8} {'cyc/ray':>8} {'E/ray':>9}"
+    nan = float("nan")
+    head = " ".join(f"{k:>18}" for k in keys) + \
+        f" {'type':>8} {'rays':>6} {'ops/ray':>7} {'cycles':>9} {'rtunit':>6} {'cycles':>9} " \
+        f"{'+memory':>7} {'hit rate':>8} {'B/ray':>6} {'E/ray':>9}"
     out = [head]
     for e in doc["points"]:
-        m = e["rtunit_memory"] or {}
         cells = " ".join(f"{str(e['design_point'][k]):>18}" for k in keys)
-        energy = e["energy_per_ray"]["signals"]
-        out.append(f"{cells} {e['rtunit']['utilization']:>6.3f} "
-                   f"{m.get('utilization', float('nan')):>8.3f} "
-                   f"{m.get('hit_rate', float('nan')):>8.3f} "
-                   f"{_timing(e)['cycles_per_ray']:>8.1f} "
-                   f"{float('nan') if energy is None else energy:>9.0f}")
-    out.append("(rtunit / +memory: utilization without / with the node memory; cyc/ray: RT-unit "
-               "cycles per ray, with the node memory where there is one; E/ray: energy per ray "
-               "in bit toggles; docs/statistics.md)")
+        for kind, t in [*e["by_type"].items(), ("all", e)]:
+            r, m = t["rtunit"], t["rtunit_memory"] or {}
+            energy = t["energy_per_ray"]["signals"]
+            out.append(f"{cells} {kind:>8} {t['rays']:>6} {t['ops'] / max(t['rays'], 1):>7.2f} "
+                       f"{r['cycles']:>9} {r['utilization']:>6.3f} {m.get('cycles', ''):>9} "
+                       f"{m.get('utilization', nan):>7.3f} {m.get('hit_rate', nan):>8.3f} "
+                       f"{m.get('bytes_per_ray', nan):>6.0f} "
+                       f"{nan if energy is None else energy:>9.0f}")
+    out.append("(per ray type, then all rays of the point; cycles / rtunit and cycles / +memory: "
+               "RT-unit cycles and utilization without and with the node memory; B/ray: bytes "
+               "from memory per ray; E/ray: energy per ray in bit toggles; docs/statistics.md)")
     return "\n".join(out)

@@ -212,6 +212,24 @@ def test_workload_bench_per_ray_type(tmp_path, capsys):
     assert "anyhit/closest" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("workload", ["primary", "ao"])
+def test_sweep_size_zero_means_no_sweep_in_every_mode(workload, tmp_path, monkeypatch):
+    """--sweep-size 0 ran the workload bench's rays-in-flight sweep anyway (44 replays)."""
+    from driver import bench
+    replays = []
+    real = bench.replay_stats
+    monkeypatch.setattr(bench, "replay_stats", lambda *a: replays.append(1) or real(*a))
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "w.json"
+    assert main(["bench", "--scene", "sphere", "--workload", workload, "--size", "8",
+                 "--sweep-size", "0", "--pyverilator-requests", "0", "--repeat", "1",
+                 "--json", str(out), "--no-progress"]) == 0
+    d = json.loads(out.read_text())
+    assert not d.get("sweep") and not d.get("rtunit_sweep") and not d.get("plot")
+    assert len(replays) == (1 if workload == "primary" else len(d["frame"]["by_type"]))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["w.json"]      # no plot
+
+
 def test_workers_bench_builds_the_model_before_timing(monkeypatch):
     """A cold build cache must not land in the one-process time (it did: 54 s vs 1.2 s)."""
     import driver.backends.build as build

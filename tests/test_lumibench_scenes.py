@@ -52,6 +52,20 @@ l 1 2
 FLAG_MTL = "newmtl only\nKd 0.2 0.4 0.6\n"
 
 
+def suite_root(path) -> object:
+    """A LumiBench root at ``path`` that two scenes can be run from: BATH (box and flag, a
+    camera file) and SHIP (one triangle); returns ``path``."""
+    folder = path / "Scenes" / "Bathroom"
+    folder.mkdir(parents=True)
+    for name, text in (("box.obj", BOX_OBJ), ("box.mtl", BOX_MTL), ("flag.obj", FLAG_OBJ),
+                       ("flag.mtl", FLAG_MTL), ("Camera.camera", "0.5 0.5 6 0.5 0.5 0")):
+        (folder / name).write_text(text)
+    (path / "assets" / "models").mkdir(parents=True)
+    (path / "assets" / "models" / "karimSchooner.obj").write_text(
+        "v 0 0 -1\nv 1 0 -1\nv 0 1 -1\nf 1 2 3\n")
+    return path
+
+
 @pytest.fixture
 def root(tmp_path, monkeypatch):
     """A LumiBench root whose Bathroom folder holds box, flag and the MTL of a missing OBJ."""

@@ -13,23 +13,15 @@ import pytest
 from driver.cli import main
 from driver.suite import SuiteError, lumibench_runs, read_suite
 from driver.suite_report import ROW_KEYS
-from test_lumibench_scenes import BOX_MTL, BOX_OBJ, FLAG_MTL, FLAG_OBJ
+from test_lumibench_scenes import suite_root
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "scenes" / "lumibench"
 
 
 @pytest.fixture
 def root(tmp_path, monkeypatch):
-    folder = tmp_path / "lumi" / "Scenes" / "Bathroom"
-    folder.mkdir(parents=True)
-    for name, text in (("box.obj", BOX_OBJ), ("box.mtl", BOX_MTL), ("flag.obj", FLAG_OBJ),
-                       ("flag.mtl", FLAG_MTL), ("Camera.camera", "0.5 0.5 6 0.5 0.5 0")):
-        (folder / name).write_text(text)
-    models = tmp_path / "lumi" / "assets" / "models"
-    models.mkdir(parents=True)
-    (models / "karimSchooner.obj").write_text("v 0 0 -1\nv 1 0 -1\nv 0 1 -1\nf 1 2 3\n")
     monkeypatch.setenv("RAYFLEX_SCENE_CACHE", str(tmp_path / "cache"))
-    return tmp_path / "lumi"
+    return suite_root(tmp_path / "lumi")
 
 
 def suite(*argv) -> int:

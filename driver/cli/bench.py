@@ -8,6 +8,7 @@ from pathlib import Path
 from .. import bench, design
 from ..core import outputs
 from ..core.outputs import JSON, PNG, Outputs
+from ..check import summary as check_summary
 from ..core.provenance import provenance
 from ..load_bench import load_bench
 from ..scenes.lumibench import is_lumibench, root
@@ -98,7 +99,7 @@ def run(args) -> int:
     outs = Outputs()
     js = outs.add("--json", args.json, JSON) if args.json else None
     plot = None
-    if args.bvh or (args.workers == 1 and (args.sweep_size or not default_frame)):
+    if args.bvh or (args.workers == 1 and args.sweep_size):
         kind = "bvh" if args.bvh else "rtunit"
         plot = outs.add("--plot", args.plot or (
             Path(args.json).with_name(f"{Path(args.json).stem}_{kind}.png") if args.json
@@ -122,7 +123,7 @@ def run(args) -> int:
             wrote(outs.paths())
             return 0 if doc["identical"] else 1
         if not default_frame:
-            doc = bench.bench_workload(point, sweep_rays=sweep_rays,
+            doc = bench.bench_workload(point, sweep_rays=sweep_rays if args.sweep_size else (),
                                  plot=outs.temp(plot) if plot else None,
                                  progress=not args.no_progress)
             if plot:
@@ -150,22 +151,30 @@ def workload_table(doc: dict) -> str:
     utilization without (``rtunit``) and with the node memory (``rtunit_memory``)."""
     pt = doc["provenance"]["design_point"]
     f = doc["frame"]
+    b = f["bvh"]
     head = (f"{doc['scene']} {doc['width']}x{doc['height']} {doc['workload']} (spp {pt['spp']}, "
             f"bounces {pt['bounces']}): {f['rays']} rays, {f['ops']} ops")
-    rows = [head] + [f"{a}: {b}" for a, b in bench.timing_rows(f)]
-    rows.append(f"{'type':>8} {'rays':>8} {'box/ray':>8} {'tri/ray':>8} {'xf/ray':>7} "
-                f"{'rtunit':>7} "
-                f"{'+memory':>8} {'hit rate':>8} {'B/ray':>7} {'anyhit/closest':>14}")
+    rows = [head, f"BVH4 {b['format']}: {b['bytes']:,} bytes, {b['bytes_per_triangle']:.1f} bytes "
+                  f"per triangle" + (f", {b['pair_ratio']:.1%} of the triangles paired"
+                                     if b["format"] != "box32" else "")]
+    rows += [f"{a}: {v}" for a, v in bench.timing_rows(f)]
+    if f.get("embree"):
+        rows.append(check_summary(f["embree"]))
+    rows.append(f"{'type':>8} {'rays':>7} {'box/ray':>7} {'tri/ray':>7} {'xf/ray':>6} "
+                f"{'cycles':>9} {'rtunit':>6} {'cycles':>9} {'+memory':>7} {'hit rate':>8} "
+                f"{'B/ray':>6} {'anyhit/closest':>14}")
     nan = float("nan")
     for kind, t in f["by_type"].items():
         m = t.get("rtunit_memory") or {}
         ratio = t.get("any_hit_vs_closest_ops")
-        rows.append(f"{kind:>8} {t['rays']:>8} {t['box_ops_per_ray']:>8.2f} "
-                    f"{t['tri_ops_per_ray']:>8.2f} {t.get('transform_ops_per_ray', 0):>7.2f} "
-                    f"{t['rtunit']['utilization']:>7.3f} "
-                    f"{m.get('utilization', nan):>8.3f} {m.get('hit_rate', nan):>8.3f} "
-                    f"{m.get('bytes_per_ray', nan):>7.0f} "
+        rows.append(f"{kind:>8} {t['rays']:>7} {t['box_ops_per_ray']:>7.2f} "
+                    f"{t['tri_ops_per_ray']:>7.2f} {t.get('transform_ops_per_ray', 0):>6.2f} "
+                    f"{t['rtunit']['cycles']:>9} {t['rtunit']['utilization']:>6.3f} "
+                    f"{m.get('cycles', ''):>9} {m.get('utilization', nan):>7.3f} "
+                    f"{m.get('hit_rate', nan):>8.3f} {m.get('bytes_per_ray', nan):>6.0f} "
                     f"{'' if ratio is None else format(ratio, '.3f'):>14}")
-    rows.append("(xf: transform ops, with --transform datapath; utilization: datapath ops / "
-                "(pipelines x RT-unit cycles); docs/statistics.md)")
+    rows.append("(xf: transform ops, with --transform datapath; cycles and utilization of the RT "
+                "unit with free node fetches (rtunit) and with the node cache and memory "
+                "(+memory); utilization: datapath ops / (pipelines x RT-unit cycles); B/ray: "
+                "bytes from memory per ray; docs/statistics.md)")
     return "\n".join(rows)

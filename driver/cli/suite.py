@@ -10,7 +10,7 @@ from ..scenes.lumibench import root
 from ..suite import (SUMMARY, Run, SuiteError, check_runs, lumibench_runs, read_suite,
                      run_suite)
 from . import options
-from .common import EXIT_CHECK, check_backend, check_positive, wrote
+from .common import EXIT_CHECK, check_backend, check_positive, check_workers, wrote
 
 
 def add_parser(subparsers):
@@ -35,9 +35,7 @@ def run(args) -> int:
         raise SuiteError("--scenes and --workloads choose LumiBench's runs; a --suite file "
                          "lists its own")
     check_backend(args.backend)
-    check_positive("--workers", args.workers)
-    if args.workers > 1 and args.scheduler:
-        raise SuiteError("give --workers or --scheduler, not both")
+    check_workers(args)
     for flag in ("size", "spp"):
         v = getattr(args, flag)
         if v is not None:

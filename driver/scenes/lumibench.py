@@ -23,7 +23,7 @@ those definitions (``driver.scenes.lumibench_defs``); ``load(id)`` reproduces on
   alpha-tested textures) is refused in one line (``SceneError``), as is a scene whose only
   model is missing.
 
-Loaded scenes are cached (``CACHE_VERSION``) as an ``.npz`` in ``cache_dir()/scenes``, keyed by
+Loaded scenes are cached (``CACHE_VERSION``) as an ``.npz`` in ``cache_root()/scenes``, keyed by
 the definition and the contents (BLAKE2b) of every file it reads, so a second run of a scene
 reads one file instead of its OBJ files (``RAYFLEX_SCENE_CACHE``: 0 bypasses the cache, a
 folder puts it there).
@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..backends.cache import cache_dir
+from ..backends.cache import cache_root
 from ..bvh.instances import TwoLevelBVH
 from ..bvh4 import BVH4, build_scene
 from ..core.errors import SceneError
@@ -136,11 +136,11 @@ def _inputs(d: Definition, base: Path) -> tuple[list[Path], list[Path]]:
 
 
 def _cache_dir() -> Path:
-    """``$RAYFLEX_SCENE_CACHE`` when it names a folder, else the build cache's ``scenes``."""
+    """``$RAYFLEX_SCENE_CACHE`` when it names a folder, else the tool cache's ``scenes``."""
     given = os.environ.get(CACHE_ENV)
     if given and given != "0" and given != "1":
         return Path(given).expanduser()
-    return cache_dir() / "scenes"
+    return cache_root() / "scenes"
 
 
 def key_of(name: str, root_dir=None) -> str:
@@ -261,7 +261,7 @@ def _source_digest() -> str:
 
 
 def cached_bvh(scene: "LumiBenchScene", fill: int, format: str, transform: str):
-    """``LumiBenchScene.build_bvh``: the image and its statistics in ``cache_dir()/scenes``
+    """``LumiBenchScene.build_bvh``: the image and its statistics in ``cache_root()/scenes``
     beside the scene, keyed by the scene's key, the options and the source tree; kept on the
     scene object for the next build in this process."""
     if not scene.cache_key:

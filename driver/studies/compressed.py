@@ -4,7 +4,7 @@ from ``rayflex bench --workload ... --bvh-format FORMAT --json`` documents of th
     rayflex study compressed BOX32.json Q8.json [Q8G.json] [--plot PNG]
 
 prints the per-ray-type comparison as a Markdown table and draws utilization with the node
-memory vs rays in flight, one colour per ray type, solid q8 and dashed box32.
+memory vs rays in flight, one panel per ray type, one line per format.
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 
 from ..core.markdown import table as markdown_table
+from ..plotting import wrap
 
 FORMATS = ("box32", "q8", "q8g")
 
@@ -57,30 +58,40 @@ def markdown(table: list[dict]) -> str:
 
 
 def plot(docs: dict, path, title: str) -> None:
-    """PNG: utilization with the node memory vs rays in flight (log x), per ray type, box32
-    (dashed) and q8 (solid)."""
+    """PNG: utilization with the node memory vs rays in flight (log x), one panel per ray type,
+    one line per image format (box32 dashed, q8 solid, q8g dotted, each its own marker), the
+    legend below the panels."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(7.0, 4.6), dpi=110)
+    kinds = list(docs["box32"]["sweep"])
+    cols = min(len(kinds), 4)
+    rows_ = -(-len(kinds) // cols)
+    fig = Figure(figsize=(3.2 * cols + 0.6, 3.0 * rows_ + 1.3), dpi=110)
     FigureCanvasAgg(fig)
-    ax = fig.add_subplot(1, 1, 1)
-    colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown"]
-    for i, kind in enumerate(docs["q8"]["sweep"]):
-        c = colours[i % len(colours)]
-        for fmt, style in (("q8", "o-"), ("box32", "s--")):
-            pts = docs[fmt]["sweep"][kind]
+    axes = fig.subplots(rows_, cols, sharex=True, sharey=True, squeeze=False).ravel()
+    style = {"box32": ("s", "--"), "q8": ("o", "-"), "q8g": ("^", ":")}
+    for ax, kind in zip(axes, kinds):
+        for i, (fmt, doc) in enumerate(docs.items()):
+            pts = doc["sweep"][kind]
             ax.plot([p["rays_in_flight"] for p in pts],
-                    [p["rtunit_memory"]["utilization"] for p in pts], style, color=c,
-                    ms=4, lw=1.5 if fmt == "q8" else 1, label=f"{kind} {fmt}")
-    ax.set_xscale("log", base=2)
-    ax.set_ylim(0, 1.05)
-    ax.set_xlabel("rays in flight (ray pool size R)")
-    ax.set_ylabel("datapath utilization with node cache + memory")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=2, loc="lower right")
-    ax.set_title(title, fontsize=9)
-    fig.tight_layout()
+                    [p["rtunit_memory"]["utilization"] for p in pts], marker=style[fmt][0],
+                    ls=style[fmt][1], color=f"C{i}", ms=4, lw=1.3, label=fmt)
+        ax.set_title(kind, fontsize=9)
+        ax.set_xscale("log", base=2)
+        ax.set_ylim(0, 1.05)
+        ax.grid(True, which="both", alpha=0.3)
+    for ax in axes[len(kinds):]:
+        ax.set_visible(False)
+    for ax in axes[-cols:]:
+        ax.set_xlabel("rays in flight (R)")
+    for ax in axes[::cols]:
+        ax.set_ylabel("utilization with the\nnode cache + memory")
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), frameon=False,
+               fontsize=8)
+    fig.suptitle(wrap(title, 150), fontsize=9)
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
     fig.savefig(str(path), format="png")
 
 
