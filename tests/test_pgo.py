@@ -56,6 +56,7 @@ def test_failed_training_is_a_build_error(tmp_path, monkeypatch):
     assert not cached
 
 
+@pytest.mark.slow                      # an instrumented build of its own (~50 s)
 def test_training_that_runs_nothing_is_a_build_error(tmp_path, monkeypatch):
     monkeypatch.setenv("RAYFLEX_CACHE", str(tmp_path))
     with pytest.raises(BuildError, match="wrote no profile"):
