@@ -16,6 +16,7 @@ exceeds the memory available.
 from __future__ import annotations
 
 import os
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -33,7 +34,7 @@ from .design import DesignPoint
 from .scenes.scene import Scene, load_scene
 from .stats import public, replay_stats
 from .tracer import trace
-from .workloads import headlight, setup_for, tone_map
+from .workloads import LINEAR, headlight, setup_for, tone_map
 
 # Peak resident memory of a frame, measured with /usr/bin/time -v (maximum RSS) on the sphere
 # scene at 256², 512² and 1024² (--check-embree makes no difference): golden 167 / 403 / 1,294 MB,
@@ -84,25 +85,27 @@ class RenderResult:
 def render(scene, width=None, height=None, backend: str = DEFAULT_BACKEND,
            progress: bool = True, check_embree: bool = False, point: DesignPoint | None = None,
            rtunit: bool = False, tile: int | None = None, workers: int = 1,
-           scheduler: str | None = None) -> RenderResult:
+           scheduler: str | None = None, replay_plain: bool = True) -> RenderResult:
     """Render ``scene`` (a Scene, or anything ``load_scene`` takes) at width x height (default:
     the scene's size) with every box/triangle test on ``backend``; optionally cross-check every
     ray against Embree.
 
     ``point``: the ``driver.design.DesignPoint`` of the frame (default ``DesignPoint()``: the
     primary workload, one sample): its workload (docs/workloads.md: primary, shadow, ao, path
-    with ``spp``, ``bounces``, ``ao_rays``, ``seed``), its BVH options (``bvh_fill``,
-    ``bvh_format``, ``flatten``, ``cull_stack``), and its datapath configuration and latency,
-    which make the backend (a backend name; a backend object is used as it is). ``rtunit``:
-    also replay every wavefront's requests on the point's RT unit (statistics ``rtunit`` and
-    ``rtunit_memory``).
+    with ``spp``, ``bounces``, ``ao_rays``, ``seed``; docs/lumibench.md: lumibench-pt,
+    lumibench-sh, lumibench-ao), its BVH options (``bvh_fill``, ``bvh_format``, ``flatten``,
+    ``cull_stack``), and its datapath configuration and latency, which make the backend (a
+    backend name; a backend object is used as it is). ``rtunit``: also replay every
+    wavefront's requests on the point's RT unit (statistics ``rtunit`` and ``rtunit_memory``;
+    ``replay_plain`` False: only ``rtunit_memory``, each request simulated twice in all).
 
     The primary workload with one sample, untiled, is one wavefront of every pixel (the frame of
     earlier versions, with ``trace`` the TraceResult). Any other workload, a ``tile`` size,
     ``workers`` > 1 or a Dask ``scheduler`` renders through ``driver.tiles`` (``trace`` is None;
     statistics per ray type in ``stats["by_type"]``); so does a frame too big for memory as one
     wavefront. The statistics are in the published schema (``driver.stats.public``,
-    docs/statistics.md)."""
+    docs/statistics.md); ``stats["wall_s"]`` is the render's wall time (BVH build, tracing,
+    replays and check)."""
     if point is None:
         point = DesignPoint()
     scene = point.scene_of(load_scene(scene))
@@ -110,10 +113,15 @@ def render(scene, width=None, height=None, backend: str = DEFAULT_BACKEND,
                       height if height is not None else scene.size[1])
     tile = plan_tile(w * h, point.workload, point.spp, tile, workers, scheduler)
     check_frame_memory(w * h, point.spp, tile)
+    rtunit = "plain" if rtunit and replay_plain else ("memory" if rtunit else None)
+    t0 = time.perf_counter()
     if tile is None:
-        return _render_whole(scene, w, h, backend, progress, check_embree, point, rtunit)
-    return _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, tile,
-                         workers, scheduler)
+        res = _render_whole(scene, w, h, backend, progress, check_embree, point, rtunit)
+    else:
+        res = _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, tile,
+                            workers, scheduler)
+    res.stats["wall_s"] = time.perf_counter() - t0     # BVH build, tracing, replays, check
+    return res
 
 
 def plan_tile(pixels: int, workload: str, spp: int, tile: int | None, workers: int,
@@ -143,13 +151,14 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
     tiles = plan(w, h, tile)
     bar = progress_bar(len(tiles), f"{scene.name} {w}x{h} {workload} {name}", "tile", progress)
     options = point.workload_options() | {"cull_stack": point.cull_stack,
-                                          "rtunit": point if rtunit else None}
+                                          "rtunit": point if rtunit else None,
+                                          "rtunit_plain": rtunit == "plain"}
     try:
         res = render_tiles(setup, bvh, w, h, workload, options, spec, tile, workers, scheduler,
                            check_embree, bar.hook)
     finally:
         bar.close()
-    image = tone_map(res.radiance, w, h, linear=workload in ("primary", "ao"))
+    image = tone_map(res.radiance, w, h, linear=workload in LINEAR)
     by_type = {k: v.reshape(h, w) for k, v in res.ops.items()}
     total = sum(by_type.values())                   # int32: ops per pixel stay far below 2**31
     stats = public(res.stats)
@@ -159,7 +168,7 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
 
 
 def _render_whole(scene, w, h, backend, progress, check_embree, point,
-                  rtunit=False) -> RenderResult:
+                  rtunit=None) -> RenderResult:
     """The primary frame as one wavefront of every pixel."""
 
     origins, dirs = primary_rays(scene.camera, w, h)
@@ -173,7 +182,7 @@ def _render_whole(scene, w, h, backend, progress, check_embree, point,
     try:
         result = trace(bvh, origins, dirs, backend=be, progress=bar.hook,
                        cull_stack=point.cull_stack, double_sided=scene.double_sided,
-                       record=rtunit)
+                       record=rtunit is not None)
     finally:
         bar.close()
 
@@ -183,7 +192,8 @@ def _render_whole(scene, w, h, backend, progress, check_embree, point,
     stats = dict(result.stats)
     if rtunit:
         with phase(f"RT-unit replay of {result.record.ops:,} requests", progress):
-            stats["rtunit"], stats["rtunit_memory"] = replay_stats([result.record], point)
+            stats["rtunit"], stats["rtunit_memory"] = replay_stats([result.record], point,
+                                                                   rtunit == "plain")
     stats = public(stats)
     emb = None
     if check_embree:

@@ -211,17 +211,18 @@ def merge_rtunit(parts: list) -> dict | None:
     return _rt_derived(out)
 
 
-def replay_stats(records: list, point) -> tuple[dict, dict | None]:
+def replay_stats(records: list, point, plain: bool = True) -> tuple[dict | None, dict | None]:
     """(``rtunit``, ``rtunit_memory``) of recorded wavefronts (``driver.tracing.record.Record``)
     replayed one after another on the RT unit of design point ``point``
     (``driver.design.DesignPoint``), without and with its node memory (``point.cache_kib`` 0: no
-    cache). The records replay on the point's datapath configuration and latency; every response is
-    checked against the recorded one bit for bit."""
+    cache). The records replay on the point's datapath configuration and latency; every response
+    is checked against the recorded one bit for bit. ``plain`` False: no replay without the
+    memory (``rtunit`` None), so that each request is simulated once more only."""
     params = point.rtl_params()
     recs = [r if r.params == params else replace(r, params=params) for r in records]
     order = point.order_options()
     plain = rtunit_stats([rtunit.replay(r, point.rays_in_flight, point.pipelines, **order)
-                          for r in recs])
+                          for r in recs]) if plain else None
     memory = point.memory()
     mem = None if memory is None else rtunit_stats(
         [rtunit.replay(r, point.rays_in_flight, point.pipelines, memory=memory, **order)

@@ -35,6 +35,7 @@ cluster given by ``--scheduler`` keep whatever their operator configured (docs/w
 from __future__ import annotations
 
 import logging
+import resource
 import time
 import uuid
 from dataclasses import dataclass, field
@@ -103,13 +104,14 @@ def run_tile(setup, bvh, width: int, height: int, pixels, workload: str, options
     options = dict(options)
     cull = bool(options.pop("cull_stack", False))
     point = options.pop("rtunit", None)
+    plain = bool(options.pop("rtunit_plain", True))
 
     def tracer(bvh_, o, d, **kw):
         return trace(bvh_, o, d, backend=be, cull_stack=cull, record=point is not None, **kw)
 
     res = run(setup, bvh, width, height, tracer, workload, pixels=pixels, **options)
     if point is not None:
-        add_replays(res, point)
+        add_replays(res, point, plain)
     embree = {}
     if check_embree:
         embree_check(res, setup)
@@ -119,14 +121,15 @@ def run_tile(setup, bvh, width: int, height: int, pixels, workload: str, options
                       res.stats["by_type"], embree)
 
 
-def add_replays(res: FrameResult, point) -> None:
+def add_replays(res: FrameResult, point, plain: bool = True) -> None:
     """Replay each ray type's recorded wavefronts of a traced frame on the RT unit of design
-    point ``point``: ``rtunit`` and ``rtunit_memory`` into each ``by_type`` entry and, added
-    up, into the frame's statistics (``driver.stats.replay_stats``)."""
+    point ``point``: ``rtunit`` (unless not ``plain``) and ``rtunit_memory`` into each
+    ``by_type`` entry and, added up, into the frame's statistics
+    (``driver.stats.replay_stats``)."""
     by_type = res.stats["by_type"]
     for kind, entry in by_type.items():
         records = [b.result.record for b in res.batches if b.kind == kind]
-        entry["rtunit"], entry["rtunit_memory"] = replay_stats(records, point)
+        entry["rtunit"], entry["rtunit_memory"] = replay_stats(records, point, plain)
     for key in ("rtunit", "rtunit_memory"):
         res.stats[key] = merge_rtunit([e[key] for e in by_type.values()])
 
@@ -203,10 +206,20 @@ def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
         finally:
             client.cancel(futures)
         clock.mark("tiles_s")
+        peaks = sorted(client.run(peak_rss).values())
     clock.mark("close_s")
     frame = asm.frame()
     frame.timings = clock.out
+    frame.stats[WORKER_PEAKS] = peaks
     return frame
+
+
+WORKER_PEAKS = "workers_peak_rss_bytes"     # peak resident memory of each Dask worker
+
+
+def peak_rss() -> int:
+    """This process's peak resident memory in bytes (``ru_maxrss``)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
 class _Phases:

@@ -29,13 +29,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import lumibench_shaders
 from .check import check_rays, embree_sample, merge_checks
 from .scenes import sampling
 from .scenes.camera import camera_rays
 from .scenes.materials import Materials, PointLight
 from .stats import merge
 
-WORKLOADS = ("primary", "shadow", "ao", "path")
+WORKLOADS = ("primary", "shadow", "ao", "path") + lumibench_shaders.WORKLOADS
+LINEAR = ("primary", "ao") + lumibench_shaders.WORKLOADS   # images shown linear (no exposure)
 SHADOW_EXTENT = 1.0 - 1e-4     # shadow rays aim at the light sample with d = y - x: t in [0, 1)
 TONE_ROWS = 256                                # tone mapping works on this many rows at a time
 BASE_COLOUR = np.array([0.92, 0.86, 0.76])     # the primary workload's surface colour
@@ -123,6 +125,18 @@ class Frame:
         self.pixels = (np.arange(width * height) if pixels is None
                        else np.asarray(pixels, np.int64))
         self.batches: list[Batch] = []
+
+    def trace_rays(self, kind, pixel, sample, origins, dirs, extent, any_hit,
+                   call=None) -> Batch:
+        """Trace one wavefront of ray type ``kind`` (a ``Batch``'s fields) and keep it.
+        ``call``: each ray's trace call in its pixel sample's program (``self.calls`` per
+        sample): the batch's ``thread`` (the pixel) and ``slot`` (``sample * calls + call``),
+        its rays' places in their threads' programs (the RT unit's one-kernel replay)."""
+        b = Batch(kind, pixel, sample, origins, dirs, extent, any_hit)
+        if call is not None:
+            b.thread = np.asarray(pixel, np.int64)
+            b.slot = np.asarray(sample, np.int64) * self.calls + np.asarray(call, np.int64)
+        return self._run(b)
 
     def _run(self, batch: Batch) -> Batch:
         batch.result = self.trace(self.bvh, batch.origins, batch.dirs, extent=batch.extent,
@@ -217,6 +231,8 @@ def run(setup: Setup, bvh, width: int, height: int, tracer, workload: str = "pri
     if workload not in WORKLOADS:
         raise ValueError(f"unknown workload {workload!r}; available: {', '.join(WORKLOADS)}")
     fr = Frame(setup, bvh, width, height, tracer, **options)
+    if workload in lumibench_shaders.WORKLOADS:             # docs/lumibench.md
+        return _finish(fr, lumibench_shaders.run(fr, workload))
     npix = len(fr.pixels)
     radiance = np.zeros((npix * fr.spp, 3))
     prim = fr.primary()
@@ -327,9 +343,12 @@ def embree_check(result: FrameResult, setup: Setup) -> dict:
             rows, tri, prim = embree_sample(tri.instances, b.origins, b.dirs, b.extent, r.t,
                                             r.prim)
         ext = np.broadcast_to(np.asarray(b.extent, np.float64), (len(r.t),))
-        per_kind.setdefault(b.kind, []).append(check_rays(
-            tri, b.origins[rows], b.dirs[rows], ext[rows], r.t[rows], prim, b.any_hit,
-            setup.double_sided))
+        part = check_rays(tri, b.origins[rows], b.dirs[rows], ext[rows], r.t[rows], prim,
+                          b.any_hit, setup.double_sided)
+        for rec in part["adjudicated"]["rays"]:         # which ray: its type, pixel, sample
+            at = np.arange(len(r.t))[rows][rec.pop("ray")]
+            rec.update(ray_type=b.kind, pixel=int(b.pixel[at]), sample=int(b.sample[at]))
+        per_kind.setdefault(b.kind, []).append(part)
     for kind, parts in per_kind.items():
         result.stats["by_type"][kind]["embree"] = merge_checks(parts)
     total = merge_checks([p for parts in per_kind.values() for p in parts])
