@@ -45,7 +45,7 @@ import numpy as np
 from . import rtunit
 from .design import DesignPoint
 from .progress import bar as _bar
-from .stats import machine, merge_rtunit, provenance, public, replay_stats
+from .stats import machine, provenance, public
 
 PYVERILATOR_REQUESTS = 2000
 REPEAT = 3
@@ -55,7 +55,7 @@ SWEEP_SIZE = 64
 def bench(point: DesignPoint = DesignPoint(), sweep_size=SWEEP_SIZE,
           sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, sweep_pipelines=rtunit.SWEEP_PIPELINES,
           plot=None, pyverilator_requests=PYVERILATOR_REQUESTS, repeat=REPEAT,
-          progress=True, scene=None) -> dict:
+          progress=True, scene=None, ideal: bool = False) -> dict:
     """Run the benchmark of design point ``point`` (its primary frame); returns the JSON
     document (see the module docstring). ``scene``: a loaded scene instead of
     ``point.scene``."""
@@ -73,7 +73,7 @@ def bench(point: DesignPoint = DesignPoint(), sweep_size=SWEEP_SIZE,
     n = len(origins)
     rtl = backend("rtl", **point.backend_options())  # build (or load) first: fail early
 
-    frame, res, bvh = _frame(scene, origins, dirs, rtl, point, f"{w}x{h}", progress)
+    frame, res, bvh = _frame(scene, origins, dirs, rtl, point, f"{w}x{h}", progress, w, ideal)
     sided = scene.double_sided
     rec = res.record
     rtl_runs = [res.stats["sim_cycles_per_s"]]
@@ -123,9 +123,11 @@ def bench(point: DesignPoint = DesignPoint(), sweep_size=SWEEP_SIZE,
     }
 
 
-def _frame(scene, origins, dirs, rtl, point, label, progress):
-    """The frame on "rtl": BVH build, wavefront traversal (recorded), RT-unit replays. Returns
-    (frame statistics, trace result, BVH)."""
+def _frame(scene, origins, dirs, rtl, point, label, progress, width, ideal=False):
+    """The frame on "rtl": BVH build, wavefront traversal (recorded), the RT-unit replay (and
+    with ``ideal`` the one with free node fetches). Returns (frame statistics, trace result,
+    BVH)."""
+    from .rtunit.gpu import Wave, replay_point
     from .bvh4 import warm_up
     from .tracer import trace
 
@@ -139,15 +141,18 @@ def _frame(scene, origins, dirs, rtl, point, label, progress):
                 cull_stack=point.cull_stack, double_sided=scene.double_sided)
     t_trace = time.perf_counter() - t1
     bar.close()
-    bar = _bar(1, f"RT-unit replays R={point.rays_in_flight} P={point.pipelines}", "run",
+    bar = _bar(1, f"RT-unit replay R={point.rays_in_flight} P={point.pipelines}", "run",
                progress)
     t2 = time.perf_counter()
     frame = public(res.stats)
-    frame["rtunit"], frame["rtunit_memory"] = replay_stats([res.record], point)
+    n = res.record.rays
+    rp = replay_point([Wave(res.record, "primary", np.arange(n), np.zeros(n, np.int64))], point,
+                      width, ideal)
+    frame["rtunit"], frame["rtunit_memory"] = rp["rtunit"], rp["rtunit_memory"]
     t_replay = time.perf_counter() - t2
     bar.hook(1, 1)
     bar.close()
-    frame["by_type"] = {"primary": dict(frame)}
+    frame["by_type"] = {"primary": {**frame, **rp["by_type"]["primary"]}}
     frame["wall_s"] = time.perf_counter() - t0
     frame["wall_parts_s"] = {"bvh_build": t_bvh, "traversal": t_trace, "replay": t_replay}
     frame["bvh_kernels_s"] = t_kernels              # not in wall_s (see bvh4.warm_up)
@@ -327,28 +332,34 @@ def timing_rows(f: dict) -> list[tuple[str, str]]:
     wf = f["wavefront"]
     rows = [("wavefront", f"{wf['cycles']} cycles, utilization {wf['utilization']:.4f} (every "
                           "ray in flight, one pipeline)")]
-    for key, what in (("rtunit", "node fetches free"), ("rtunit_memory", "node cache + memory")):
+    for key, what in (("rtunit", "node fetches free"), ("rtunit_memory", "memory hierarchy")):
         r = f.get(key)
         if r:
-            rows.append((f"RT unit R={r['rays_in_flight']} P={r['pipelines']}",
+            rows.append((f"RT units {r['rt_units']} x R={r['rays_in_flight']} "
+                         f"P={r['pipelines']} warp {r['warp_size']}, {r['frame_schedule']}",
                          f"{r['cycles']} cycles, utilization {r['utilization']:.4f}, "
-                         f"{r['frame_us_at_1ghz']:.1f} us at 1 GHz ({what}"
-                         + (f"; hit rate {r['hit_rate']:.3f}, {r['bytes_per_ray']:.0f} B/ray)"
-                            if "hit_rate" in r else ")")))
+                         f"{r['frame_us_at_1ghz']:.1f} us at 1 GHz, latency "
+                         f"{r['latency_mean']:.0f} (p95 {r['latency_p95']:.0f}) cycles per ray "
+                         f"({what}"
+                         + (f"; L1 hit rate {r['hit_rate']:.3f}, {r['bytes_per_ray']:.0f} B/ray "
+                            "from DRAM)" if "hit_rate" in r else ")")))
     return rows
 
 
 # ----------------------------------------------------------------------------------------------
 # rayflex bench --workload: the datapath mix and the RT-unit timing per ray type
 
-def bench_workload(point: DesignPoint, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, plot=None,
-                   progress=True) -> dict:
+def bench_workload(point: DesignPoint, sweep_rays=(), plot=None, progress=True,
+                   ideal: bool = False) -> dict:
     """One workload frame of design point ``point`` on "rtl" (every batch recorded), checked
-    against Embree; per ray type: the op mix, the RT-unit replays (``rtunit``,
-    ``rtunit_memory``), any-hit vs closest-hit ops of the same rays, and a sweep of utilization
-    over rays in flight (one pipeline, the point's node memory), plotted per ray type."""
+    against Embree; the frame's RT-unit replay (``rtunit_memory``; with ``ideal`` also
+    ``rtunit``, free node fetches), per ray type its op mix, latency and bytes from each memory
+    level, any-hit vs closest-hit ops of the same rays; with ``sweep_rays`` (rays in flight per
+    unit, multiples of the warp size) the replay again at each, plotted (``plot``; without a
+    sweep the plot shows the rays each RT unit holds over the frame)."""
     from . import workloads
     from .backends import backend
+    from .rtunit.gpu import replay_point, waves_of
     from .scenes.scene import load_scene
     from .tracer import trace
 
@@ -357,6 +368,10 @@ def bench_workload(point: DesignPoint, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, p
     setup = workloads.setup_for(scene)
     rtl = backend("rtl", **point.backend_options())
     golden = backend("golden", **point.backend_options())
+    bad = [r for r in sweep_rays if r % point.warp_size]
+    if bad:
+        raise ValueError(f"--sweep-rays {bad[0]} is not a multiple of --warp-size "
+                         f"{point.warp_size}")
     t0 = time.perf_counter()
     bvh = point.build(scene)
     t_bvh = time.perf_counter() - t0
@@ -371,46 +386,86 @@ def bench_workload(point: DesignPoint, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, p
     workloads.embree_check(res, setup)
     frame = public(res.stats)
     kinds = list(frame["by_type"])
-    steps = len(kinds) * (1 + len(sweep_rays))
-    bar = _bar(steps, f"{point.workload}: RT-unit replays", "replay", progress)
-    sweep, done = {}, 0
+    waves = waves_of(res.batches)
+    steps = 1 + len(sweep_rays)
+    bar = _bar(steps, f"{point.workload}: RT-unit replay", "replay", progress)
     t2 = time.perf_counter()
+    rp = replay_point(waves, point, size, ideal)
+    for key in ("rtunit", "rtunit_memory"):
+        frame[key] = rp[key]
     for kind in kinds:
-        batches = [b for b in res.batches if b.kind == kind]
         entry = frame["by_type"][kind]
-        records = [b.result.record for b in batches]
-        entry["rtunit"], entry["rtunit_memory"] = replay_stats(records, point)
+        entry.update(rp["by_type"][kind])
+        batches = [b for b in res.batches if b.kind == kind]
         if batches[0].any_hit:
             closest = sum(trace(bvh, b.origins, b.dirs, backend=golden, extent=b.extent,
                                 double_sided=setup.double_sided).stats["ops"] for b in batches)
             entry["closest_hit_ops"] = closest
             entry["any_hit_vs_closest_ops"] = entry["ops"] / closest if closest else None
-        done += 1
-        bar.hook(done, steps)
-        sweep[kind] = []
-        for r in sweep_rays:
-            plain, mem = replay_stats(records, point.replace(
-                rays_in_flight=r, pipelines=1, ray_window=max(point.ray_window, r)))
-            sweep[kind].append({"rays_in_flight": r, "rtunit": plain, "rtunit_memory": mem})
-            done += 1
-            bar.hook(done, steps)
     t_replay = time.perf_counter() - t2
+    bar.hook(1, steps)
+    sweep = []
+    for i, r in enumerate(sweep_rays):
+        sp = replay_point(waves, point.replace(rays_in_flight=r,
+                                               ray_window=max(point.ray_window, r)), size)
+        sweep.append({"rays_in_flight": r, "rtunit_memory": sp["rtunit_memory"],
+                      "by_type": {k: {"rtunit_memory": v["rtunit_memory"]}
+                                  for k, v in sp["by_type"].items()}})
+        bar.hook(i + 2, steps)
     bar.close()
-    if plot:
-        plot_workload_sweep(sweep, plot, f"{scene.name} {size}x{size} {point.workload}: "
-                                         "utilization vs rays in flight, one pipeline")
-    for key in ("rtunit", "rtunit_memory"):
-        frame[key] = merge_rtunit([t[key] for t in frame["by_type"].values()])
+    if plot and sweep:
+        plot_workload_sweep(sweep, plot, f"{scene.name} {size}x{size} {point.workload}, "
+                                         f"{point.frame_schedule} frame: utilization vs rays "
+                                         "in flight")
+    elif plot:
+        plot_rays_held(frame, plot, f"{scene.name} {size}x{size} {point.workload}, "
+                                    f"{point.frame_schedule} frame, {point.rt_units} RT unit(s): "
+                                    "rays held over time")
     frame["wall_parts_s"] = {"bvh_build": t_bvh, "traversal": t_trace, "replay": t_replay}
     frame["bvh"] = dict(bvh.stats)
     frame.update(scene.counts())
     return {"provenance": provenance(point), "scene": scene.name, "workload": point.workload,
-            "width": size, "height": size, "frame": frame, "sweep": sweep,
+            "width": size, "height": size, "frame": frame, "sweep": sweep or None,
             "plot": str(plot) if plot else None}
 
 
-def plot_workload_sweep(sweep: dict, path, title: str) -> None:
-    """PNG: datapath utilization vs rays in flight (log x), one line per ray type."""
+def plot_rays_held(frame: dict, path, title: str) -> None:
+    """PNG: rays held per RT unit (admitted, not done) over the frame's cycles, for each replay
+    of the frame (``rtunit_memory``, and ``rtunit`` when there is one), with the unit's ray pool
+    as a dotted line."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7.0, 4.2), dpi=110)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    pool = frame["rtunit_memory"]["rays_in_flight"]
+    for key, style, label in (("rtunit_memory", "-", "with the memory hierarchy"),
+                              ("rtunit", "--", "node fetches free")):
+        r = frame.get(key)
+        series = (r or {}).get("simt", {}).get("rays_held_series")
+        if not series:
+            continue
+        b = series["bin_cycles"]
+        pts = series["per_unit"]
+        ax.plot([b * (i + 0.5) for i in range(len(pts))], pts, style, lw=1.5,
+                label=f"{label} ({r['cycles']:,} cycles, utilization {r['utilization']:.2f})")
+    ax.axhline(pool, color="grey", ls=":", lw=1, label=f"ray pool ({pool} rays)")
+    ax.set_ylim(0, pool * 1.1)
+    ax.set_xlim(left=0)
+    ax.set_xlabel("cycle")
+    ax.set_ylabel("rays held per RT unit (mean over the units)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, loc="upper right")
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(str(path), format="png")
+
+
+def plot_workload_sweep(sweep: list, path, title: str) -> None:
+    """PNG: datapath utilization with the memory hierarchy vs rays in flight (log x): the
+    frame's, and with the wavefront schedule each ray type's (one-kernel frames share the
+    pipelines between ray types: their mean latency per ray is drawn instead, right axis)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -418,24 +473,40 @@ def plot_workload_sweep(sweep: dict, path, title: str) -> None:
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
     colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown"]
-    for i, (kind, pts) in enumerate(sweep.items()):
+    x = [p["rays_in_flight"] for p in sweep]
+    ax.plot(x, [p["rtunit_memory"]["utilization"] for p in sweep], "o-", color="black", lw=2,
+            label="frame")
+    kinds = list(sweep[0]["by_type"])
+    typed = sweep[0]["by_type"][kinds[0]]["rtunit_memory"]["utilization"] is not None
+    ax2 = None if typed else ax.twinx()
+    for i, kind in enumerate(kinds):
         c = colours[i % len(colours)]
-        x = [p["rays_in_flight"] for p in pts]
-        if pts[0]["rtunit_memory"]:
-            ax.plot(x, [p["rtunit_memory"]["utilization"] for p in pts], "o-", color=c,
-                    label=f"{kind} (node cache + memory)")
-            ax.plot(x, [p["rtunit"]["utilization"] for p in pts], ":", color=c, lw=1)
+        ys = [p["by_type"][kind]["rtunit_memory"] for p in sweep]
+        if typed:
+            ax.plot(x, [y["utilization"] for y in ys], "o--", color=c, label=kind)
         else:
-            ax.plot(x, [p["rtunit"]["utilization"] for p in pts], "o-", color=c, label=kind)
+            ax2.plot(x, [y["latency_mean"] for y in ys], "s:", color=c,
+                     label=f"{kind}: latency")
     ax.set_xscale("log", base=2)
+    ax.set_xticks(x)
+    ax.set_xticklabels([str(v) for v in x])
+    ax.minorticks_off()
     ax.set_ylim(0, 1.05)
-    ax.set_xlabel("rays in flight (ray pool size R)")
-    ax.set_ylabel("datapath utilization (ops / cycles)")
+    ax.set_xlabel("rays in flight per RT unit (ray pool size R)")
+    ax.set_ylabel("datapath utilization with the memory hierarchy")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(title="ray type (dotted: free node fetches)", fontsize=7, loc="center right")
+    if ax2 is not None:
+        ax2.set_ylabel("mean latency per ray, issue to done (cycles)")
+        ax2.set_ylim(bottom=0)
+        h1, l1 = ax.get_legend_handles_labels()
+        h2, l2 = ax2.get_legend_handles_labels()
+        ax.legend(h1 + h2, l1 + l2, fontsize=7, loc="upper left")
+    else:
+        ax.legend(title="utilization", fontsize=7, loc="lower right")
     ax.set_title(title, fontsize=9)
     fig.tight_layout()
     fig.savefig(str(path), format="png")
+
 
 
 def bench_workers(point: DesignPoint, workers=2, tile=64, progress=True) -> dict:

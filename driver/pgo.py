@@ -7,7 +7,8 @@
 and recompiles with the profile this run wrote. The workload is what the library is for, on scenes
 other than the benchmark's: primary rays of an icosphere seen from outside and of the built-in room
 seen from inside, traversed through the library (the wavefront fast path ``run_nodes`` and the
-RT-unit replay ``rf_replay``), a slice of the same requests through ``run``, and, for an EXTENDED
+RT-unit replay ``rf_replay``, with warps, two RT units and a memory hierarchy too), a slice of the
+same requests through ``run``, and, for an EXTENDED
 build, Euclidean and cosine distance jobs. Every result is checked against the golden model; the
 build runs this on the instrumented library and again on the optimised one, so a library that
 computes anything wrong fails the build instead of being cached. Deterministic; a few seconds.
@@ -71,6 +72,7 @@ def train(params: dict[str, int]) -> dict:
         _check(f"{name} traversal", np.array_equal(got.prim, ref.prim)
                and np.array_equal(got.t.view(np.uint32), ref.t.view(np.uint32)))
         counts["traversal"] += int(got.record.ops)
+        _train_gpu_replay(got.record, size)
         if i == 0:
             req = ref.record.requests(np.arange(min(RUN_SLICE, ref.record.ops)))
             rsp = HarnessBackend(**opts).run(req)
@@ -89,6 +91,20 @@ def train(params: dict[str, int]) -> dict:
             _check(f"knn opcode {op}", got.tobytes() == ref.tobytes())
             counts["knn"] += len(qi) * (a.shape[1] // LANES[op])
     return counts
+
+
+def _train_gpu_replay(record, width: int) -> None:
+    """The replay's warps, RT units and memory hierarchy (``driver.rtunit.gpu``): a one-kernel
+    frame in warps of 8 on two units with an L1, MSHRs, sectors and an L2, every response
+    checked against the traversal's."""
+    from .rtunit import MemoryModel
+    from .rtunit.gpu import Schedule, Wave, replay_frame
+    n = record.rays
+    memory = MemoryModel(cache_bytes=16384, ways=8, line_bytes=128, sector_bytes=32,
+                         hit_latency=4, mshrs=16, l2_bytes=262144, l2_latency=40)
+    fr = replay_frame([Wave(record, "primary", np.arange(n), np.zeros(n, np.int64))], 64, 1,
+                      memory, Schedule("one-kernel", warp_size=8, rt_units=2), width=width)
+    _check("RT-unit replay with warps and a memory hierarchy", fr.verified)
 
 
 def main(argv=None) -> int:

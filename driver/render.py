@@ -80,7 +80,7 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
            check_embree: bool = False, workload: str = "primary", spp: int = 1, bounces: int = 1,
            ao_rays: int = 4, seed: int = 0, tile: int | None = None, workers: int = 1,
            scheduler: str | None = None, fill: int = 0, cull_stack: bool = False,
-           point=None, rtunit: bool = False) -> RenderResult:
+           point=None, rtunit: bool | str = False) -> RenderResult:
     """Render ``scene`` (a Scene, or anything ``load_scene`` takes) at width x height (default:
     the scene's size) with every box/triangle test on ``backend``; optionally cross-check every
     ray against Embree.
@@ -95,8 +95,9 @@ def render(scene, width=None, height=None, backend: str = "rtl", progress: bool 
 
     ``point``: a ``driver.design.DesignPoint``; its datapath configuration and latency make the
     backend (a backend name; a backend object is used as it is), and its workload and BVH
-    options replace the keyword arguments above. ``rtunit``: also replay every wavefront's
-    requests on the point's RT unit (statistics ``rtunit`` and ``rtunit_memory``). The
+    options replace the keyword arguments above. ``rtunit``: also replay the frame's requests
+    on the point's RT units (statistics ``rtunit_memory``; ``"ideal"``: and ``rtunit``, a second
+    replay with free node fetches; docs/rtunit.md). The
     statistics are in the published schema (``driver.stats.public``, docs/statistics.md)."""
     from .design import DesignPoint
     if point is None:
@@ -144,7 +145,8 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
     tiles = plan(w, h, tile)
     bar = progress_bar(len(tiles), f"{scene.name} {w}x{h} {workload} {name}", "tile", progress)
     options = point.workload_options() | {"cull_stack": point.cull_stack,
-                                          "rtunit": point if rtunit else None}
+                                          "rtunit": point if rtunit else None,
+                                          "ideal": rtunit == "ideal", "width": w}
     try:
         res = render_tiles(setup, bvh, w, h, workload, options, spec, tile, workers, scheduler,
                            check_embree, bar.hook)
@@ -162,7 +164,8 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
 def _render_whole(scene, w, h, backend, progress, check_embree, point,
                   rtunit=False) -> RenderResult:
     """The primary frame as one wavefront of every pixel."""
-    from .stats import public, replay_stats
+    from .rtunit.gpu import Wave, replay_point
+    from .stats import public
     from .tracer import trace
 
     origins, dirs = primary_rays(scene.camera, w, h)
@@ -176,7 +179,7 @@ def _render_whole(scene, w, h, backend, progress, check_embree, point,
     try:
         result = trace(bvh, origins, dirs, backend=be, progress=bar.hook,
                        cull_stack=point.cull_stack, double_sided=scene.double_sided,
-                       record=rtunit)
+                       record=bool(rtunit))
     finally:
         bar.close()
 
@@ -184,9 +187,13 @@ def _render_whole(scene, w, h, backend, progress, check_embree, point,
     image = shade(result, tri, dirs, w, h)
     ops = result.ops
     stats = dict(result.stats)
+    rp = None
     if rtunit:
         with phase(f"RT-unit replay of {result.record.ops:,} requests", progress):
-            stats["rtunit"], stats["rtunit_memory"] = replay_stats([result.record], point)
+            n = result.record.rays
+            rp = replay_point([Wave(result.record, "primary", np.arange(n),
+                                    np.zeros(n, np.int64))], point, w, rtunit == "ideal")
+            stats["rtunit"], stats["rtunit_memory"] = rp["rtunit"], rp["rtunit_memory"]
     stats = public(stats)
     emb = None
     if check_embree:
@@ -200,7 +207,7 @@ def _render_whole(scene, w, h, backend, progress, check_embree, point,
             emb = check(ctri, origins[rows], dirs[rows], result.t[rows], cprim,
                         scene.double_sided)
         stats["embree"] = embree_json(emb)
-    stats["by_type"] = {"primary": dict(stats)}
+    stats["by_type"] = {"primary": {**stats, **(rp["by_type"]["primary"] if rp else {})}}
     stats["bvh"] = bvh_stats
     stats.update(scene.counts())
     return RenderResult(scene, w, h, image, ops.reshape(h, w), result, stats, emb, bvh_stats)

@@ -187,7 +187,7 @@ def test_two_warps_hand_checked(base):
     fr, t = run(2)
     assert fr.cycles == 50 and fr.counters["frame_cycles"] == 50
     assert t == [[0, 0, 11], [0, 0, 24], [0, 25, 36], [0, 25, 37], [30, 38, 49]]
-    w = fr.summary()["warps"]
+    w = fr.summary()["simt"]
     assert (w["warps"], w["trace_calls"]) == (2, 3)
     assert w["simt_efficiency"] == pytest.approx(5 / 3 / 2)
     assert w["slowest_ray_wait_cycles"] == (24 - 11) + (37 - 36) + 0
@@ -244,7 +244,6 @@ def reference(lengths, plan, rays, warp, resident, units, pipes, ta, shader, lat
         unit_of = {}
 
         def resident_warp(u, w, at):
-            nonlocal nxt
             unit_of[w] = u
             heapq.heappush(waiting[u], (at, next(seq), wo[w]))
 
@@ -346,3 +345,14 @@ def test_bad_schedules_are_clear_errors(base):
     with pytest.raises(ValueError, match="frame schedule"):
         Schedule("megakernel")
     assert NO_CHILD  # (the fake records fetch no instance nodes)
+
+
+def test_docs_preset_table_is_the_presets():
+    """docs/rtunit.md's preset table is driver.rtunit.presets' (one fact, one place)."""
+    from pathlib import Path
+
+    from driver.rtunit.presets import markdown
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "rtunit.md").read_text()
+    start = "<!-- presets table: driver.rtunit.presets -->\n"
+    table = doc[doc.index(start) + len(start):doc.index("<!-- end presets table -->")]
+    assert table.strip() == markdown().strip()

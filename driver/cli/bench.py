@@ -15,22 +15,32 @@ def add_parser(subparsers):
         "bench", help="datapath utilization and simulation speed on a real frame",
         description="Run a design point's frame (default: the bunny, primary rays) through the "
                     "RTL (C++ harness over Verilator) and report its statistics "
-                    "(docs/statistics.md): the functional wavefront and the RT-unit replays "
-                    "without and with the node memory, per ray type. The primary workload "
+                    "(docs/statistics.md): the functional wavefront and the RT-unit replay of "
+                    "the design point (docs/rtunit.md), per ray type. The primary workload "
                     "also measures the simulation speed of the rtl and pyverilator backends, "
                     "golden and Embree ray rates, the BVH build time, and a sweep of rays in "
-                    "flight x pipelines (PNG plot); any other workload, utilization over rays "
-                    "in flight per ray type (PNG plot).")
+                    "flight x pipelines (PNG plot); any other workload, with --sweep-rays, "
+                    "utilization over rays in flight (PNG plot).")
     add_json(p, "write the results as JSON")
     p.add_argument("--sweep-size", type=int, default=SWEEP_SIZE, metavar="N",
                    help=f"frame size of the rays-in-flight x pipelines sweep (default "
                         f"{SWEEP_SIZE}, at most --size; 0: no sweep)")
-    p.add_argument("--sweep-rays", default=",".join(map(str, rtunit.SWEEP_RAYS_IN_FLIGHT)),
-                   metavar="LIST", help="rays in flight of the sweep (comma-separated)")
+    p.add_argument("--sweep-rays", default=None, metavar="LIST",
+                   help="rays in flight of the sweep (comma-separated; default for the primary "
+                        "frame: " + ",".join(map(str, rtunit.SWEEP_RAYS_IN_FLIGHT)) + "; a "
+                        "--workload frame is replayed again at each only when given, and "
+                        "--plot draws it; without it, --plot draws the rays each RT unit "
+                        "holds over the frame)")
+    p.add_argument("--ideal-replay", action="store_true",
+                   help="also replay the frame with every node fetch free (the rtunit object): "
+                        "a second timing replay; by default each request is simulated twice, "
+                        "the functional pass and the design point's replay (rtunit_memory)")
     p.add_argument("--sweep-pipelines", default=",".join(map(str, rtunit.SWEEP_PIPELINES)),
                    metavar="LIST", help="pipeline counts of the sweep (comma-separated)")
     p.add_argument("--plot", metavar="PATH",
-                   help="sweep plot PNG (default: beside --json as JSONSTEM_rtunit.png, else "
+                   help="PNG: the sweep (the primary frame; a --workload frame with "
+                        "--sweep-rays), or the rays each RT unit holds over a --workload frame "
+                        "(default: beside --json as JSONSTEM_rtunit.png, else "
                         "rayflex_bench_rtunit.png; with --bvh, the BVH shape plot "
                         "JSONSTEM_bvh.png or rayflex_bench_bvh.png)")
     p.add_argument("--pyverilator-requests", type=int, default=PYVERILATOR_REQUESTS,
@@ -67,6 +77,7 @@ def _int_list(text: str, flag: str) -> list[int]:
 def run(args) -> int:
     from pathlib import Path
 
+    from .. import rtunit
     from ..bench import bench, bench_workers, bench_workload, table
     from ..outputs import JSON, PNG, Outputs, write_json
     from ..render import check_memory
@@ -80,17 +91,21 @@ def run(args) -> int:
     if args.bvh and design.given(args):
         raise ValueError(f"--bvh measures its own scenes, BVH fills and culled stacks; drop "
                          f"{design.given(args)[0]}")
-    sweep_rays = _int_list(args.sweep_rays, "--sweep-rays")
+    default_frame = point.workload == "primary" and point.spp == 1
+    if args.sweep_rays is None:
+        sweep_rays = list(rtunit.SWEEP_RAYS_IN_FLIGHT) if default_frame else []
+    else:
+        sweep_rays = _int_list(args.sweep_rays, "--sweep-rays")
     sweep_pipes = _int_list(args.sweep_pipelines, "--sweep-pipelines")
     if max(sweep_pipes) > design.MAX_PIPELINES:
         raise ValueError(f"--sweep-pipelines: at most {design.MAX_PIPELINES} pipelines")
     if point.size is not None:
         check_memory(point.size * point.size)
-    default_frame = point.workload == "primary" and point.spp == 1
     outs = Outputs()
     js = outs.add("--json", args.json, JSON) if args.json else None
     plot = None
-    if args.bvh or (args.workers == 1 and (args.sweep_size or not default_frame)):
+    if args.bvh or (args.workers == 1 and (args.sweep_size if default_frame
+                                           else sweep_rays or args.plot)):
         kind = "bvh" if args.bvh else "rtunit"
         plot = outs.add("--plot", args.plot or (
             Path(args.json).with_name(f"{Path(args.json).stem}_{kind}.png") if args.json
@@ -117,7 +132,7 @@ def run(args) -> int:
         if not default_frame:
             doc = bench_workload(point, sweep_rays=sweep_rays,
                                  plot=outs.temp(plot) if plot else None,
-                                 progress=not args.no_progress)
+                                 progress=not args.no_progress, ideal=args.ideal_replay)
             if plot:
                 doc["plot"] = str(plot)
             if js:
@@ -128,7 +143,7 @@ def run(args) -> int:
         doc = bench(point, sweep_size=args.sweep_size, sweep_rays=sweep_rays,
                     sweep_pipelines=sweep_pipes, plot=outs.temp(plot) if plot else None,
                     pyverilator_requests=args.pyverilator_requests, repeat=args.repeat,
-                    progress=not args.no_progress)
+                    progress=not args.no_progress, ideal=args.ideal_replay)
         if plot and doc.get("rtunit_sweep"):
             doc["rtunit_sweep"]["plot"] = str(plot)     # the target, not the temporary file
         if js:
@@ -139,8 +154,9 @@ def run(args) -> int:
 
 
 def workload_table(doc: dict) -> str:
-    """The per-ray-type mix of a ``bench --workload`` run, one row per ray type: RT-unit
-    utilization without (``rtunit``) and with the node memory (``rtunit_memory``)."""
+    """The per-ray-type mix of a ``bench --workload`` run, one row per ray type: its rays, ops,
+    latency (issue to done) and bytes from each memory level per ray in the design point's
+    replay (``rtunit_memory``), and the frame's timing."""
     from ..bench import timing_rows
     pt = doc["provenance"]["design_point"]
     f = doc["frame"]
@@ -148,18 +164,23 @@ def workload_table(doc: dict) -> str:
             f"bounces {pt['bounces']}): {f['rays']} rays, {f['ops']} ops")
     rows = [head] + [f"{a}: {b}" for a, b in timing_rows(f)]
     rows.append(f"{'type':>8} {'rays':>8} {'box/ray':>8} {'tri/ray':>8} {'xf/ray':>7} "
-                f"{'rtunit':>7} "
-                f"{'+memory':>8} {'hit rate':>8} {'B/ray':>7} {'anyhit/closest':>14}")
+                f"{'util':>6} {'lat':>7} {'p95':>7} {'L1 B/ray':>9} {'L2 B/ray':>9} "
+                f"{'DRAM B/ray':>10} {'anyhit/closest':>14}")
     nan = float("nan")
     for kind, t in f["by_type"].items():
         m = t.get("rtunit_memory") or {}
+        served = m.get("bytes_served_per_ray", {})
         ratio = t.get("any_hit_vs_closest_ops")
+        util = m.get("utilization")
         rows.append(f"{kind:>8} {t['rays']:>8} {t['box_ops_per_ray']:>8.2f} "
                     f"{t['tri_ops_per_ray']:>8.2f} {t.get('transform_ops_per_ray', 0):>7.2f} "
-                    f"{t['rtunit']['utilization']:>7.3f} "
-                    f"{m.get('utilization', nan):>8.3f} {m.get('hit_rate', nan):>8.3f} "
-                    f"{m.get('bytes_per_ray', nan):>7.0f} "
+                    f"{'' if util is None else format(util, '.3f'):>6} "
+                    f"{m.get('latency_mean', nan):>7.0f} {m.get('latency_p95', nan):>7.0f} "
+                    f"{served.get('l1', nan):>9.0f} {served.get('l2', nan):>9.0f} "
+                    f"{served.get('dram', nan):>10.0f} "
                     f"{'' if ratio is None else format(ratio, '.3f'):>14}")
-    rows.append("(xf: transform ops, with --transform datapath; utilization: datapath ops / "
-                "(pipelines x RT-unit cycles); docs/statistics.md)")
+    rows.append("(xf: transform ops, with --transform datapath; util: a ray type's datapath "
+                "ops / (units x pipelines x its cycles), wavefront frames only; lat, p95: "
+                "cycles from the trace call to the ray's last response; B/ray: node bytes "
+                "supplied by each level; docs/statistics.md)")
     return "\n".join(rows)

@@ -15,9 +15,9 @@ def add_parser(subparsers):
                       "energy per ray",
         description="Measure every combination of the design-point options given as "
                     "comma-separated lists (--config all: every configuration) on one "
-                    "workload: per ray type the datapath ops, the RT-unit cycles and "
-                    "utilization without and with the node memory, cache hit rate, bytes and "
-                    "energy per ray (docs/statistics.md). The workload is traced once per "
+                    "workload: the frame's RT-unit cycles and utilization with the memory "
+                    "hierarchy, per ray type the datapath ops, latency, bytes from each memory "
+                    "level and energy per ray (docs/statistics.md, docs/rtunit.md). The workload is traced once per "
                     "BVH/workload option and replayed per RT-unit point; every configuration's "
                     "responses are checked bit for bit against the trace's. Finished points are "
                     "kept in a results file, so an interrupted sweep resumes where it stopped.")
@@ -35,6 +35,9 @@ def add_parser(subparsers):
                         "(default 1: this process)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="measure points on the Dask cluster at ADDRESS (e.g. tcp://host:8786)")
+    p.add_argument("--ideal-replay", action="store_true",
+                   help="also replay every point with free node fetches (rtunit): a second "
+                        "timing replay per point")
     design.add_options(p, sweep=True)
     add_progress(p)
     return p
@@ -86,7 +89,7 @@ def run(args) -> int:
             if (kind, p.rtl_params()) not in models:
                 models.append((kind, p.rtl_params()))
     announce_builds("sweep", models)
-    doc = sweep(points, args.workers, args.scheduler, res, progress)
+    doc = sweep(points, args.workers, args.scheduler, res, progress, args.ideal_replay)
     with outs.commit():
         if csv_path:
             write_csv(doc, outs.temp(csv_path))

@@ -35,6 +35,12 @@ request or per cycle, and the timing comes from the RTL's own handshakes rather 
 latency formula. With R = 1 and P = 1 every request waits for the previous one: a ray's requests
 are 11 + ``turnaround`` cycles apart, so cycles = ops * 12 with the defaults (>= ops * 11).
 
+``replay`` times one recorded batch on one RT unit with a per-ray pool (the wavefront schedule
+of ``driver.rtunit.gpu`` with one ray per warp): what the studies and the Python API call. A
+whole frame as a GPU issues it, warps of threads over many RT units in front of an L1, an L2 and
+DRAM (``MemoryModel``), is ``driver.rtunit.gpu.replay_frame`` (docs/rtunit.md); both run the
+same engine.
+
 Simulation shortcut (exact): a pipeline that holds no request at the start of a cycle and gets
 none is not evaluated in that cycle (``skip_idle``): the datapath's registers load only on a
 handshake (rf_skid.sv; accumulators only on an accepted beat), so a clock edge with nothing valid
@@ -44,12 +50,10 @@ identical responses and cycles (tests check).
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..datapath import LATENCY
 from ..layout import INSTANCE_TYPE, RAY_WORDS, REQ_WORDS, NodeRef, unpack_requests
 
 DEFAULT_RAYS_IN_FLIGHT = 64        # the default ray pool (see the module docstring)

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..layout import INSTANCE_TYPE, NO_CHILD, NodeRef
+from .energy import memory_energy
 
 FRAMES = ("one-kernel", "wavefront")
 MAX_WARP_SIZE = 64
@@ -85,7 +86,7 @@ class Schedule:
         return int(self.warps_per_unit) or 2 * max(held // self.warp_size, 1)
 
     def describe(self, rays_in_flight: int, window: int = 0) -> dict:
-        return {"frame": self.frame, "rt_units": int(self.rt_units),
+        return {"frame_schedule": self.frame, "rt_units": int(self.rt_units),
                 "warp_size": int(self.warp_size),
                 "warps_per_unit": self.resident(rays_in_flight, window),
                 "shader_cycles": int(self.shader_cycles),
@@ -307,6 +308,9 @@ class FrameReplay:
                 "bytes_served_per_ray": {lvl: (float(s[i + 1]) / n if n else 0.0)
                                          for i, lvl in enumerate(LEVELS)},
             })
+            l2_acc = int((s[2] + s[3]) // tx) if self.memory.l2_bytes else 0
+            out["memory_energy"] = memory_energy(self.memory, out["line_accesses"], l2_acc,
+                                                 int(s[3]), n)
         return out
 
     def _kernel_rows(self, kernels) -> list[dict]:
@@ -337,7 +341,9 @@ class FrameReplay:
         out.update(self._rays_part(called))
         if self.memory is not None:
             out.update(self.memory_levels())
-        out["warps"] = self.warp_stats()
+            out["memory_energy"] = memory_energy(self.memory, c["l1_accesses"],
+                                                 c["l2_accesses"], c["dram_bytes"], n)
+        out["simt"] = self.warp_stats()
         if self.schedule.frame == "wavefront":
             out["wavefronts"] = self._kernel_rows(range(len(self.kernel_waves)))
         if self.order_cost:
@@ -351,12 +357,13 @@ class FrameReplay:
         levels = {}
         for lvl in ("l1", "l2"):
             acc = c[f"{lvl}_accesses"]
-            levels[lvl] = {"accesses": c[f"{lvl}_accesses"], "hits": c[f"{lvl}_hits"],
-                           "merged": c[f"{lvl}_merged"], "misses": c[f"{lvl}_misses"],
-                           "bytes": c[f"{lvl}_bytes"], "wait_cycles": c[f"{lvl}_wait_cycles"],
-                           "hit_rate": (c[f"{lvl}_hits"] + c[f"{lvl}_merged"]) / acc
-                           if acc else 0.0}
-        levels["dram"] = {"transfers": c["dram_transfers"], "bytes": c["dram_bytes"],
+            hits = c[f"{lvl}_hits"] + c[f"{lvl}_merged"]
+            levels[lvl] = {"line_accesses": acc, "line_hits": hits,
+                           "merged_misses": c[f"{lvl}_merged"],
+                           "line_misses": c[f"{lvl}_misses"], "fill_bytes": c[f"{lvl}_bytes"],
+                           "wait_cycles": c[f"{lvl}_wait_cycles"],
+                           "hit_rate": hits / acc if acc else 0.0}
+        levels["dram"] = {"transfers": c["dram_transfers"], "transfer_bytes": c["dram_bytes"],
                           "wait_cycles": c["dram_wait_cycles"]}
         return {"levels": levels, "mshr_stalls": c["mshr_stalls"],
                 "mshr_stall_cycles": c["mshr_stall_cycles"]}
@@ -397,8 +404,8 @@ class FrameReplay:
 
     def type_summary(self, kind: str) -> dict:
         """One ray type's RT-unit object: its rays, ops, latency and bytes per level; with the
-        wavefront schedule also its kernels' cycles (one-kernel frames: null, the ray types
-        share the pipelines)."""
+        wavefront schedule also its kernels' cycles (one-kernel frames: null when the ray types
+        share the pipelines, the frame's when it is the only one)."""
         waves = [q for q, k in enumerate(self.kinds) if k == kind]
         ids = np.concatenate([self._wave_called[q] for q in waves]) if waves else \
             np.zeros(0, np.int64)
@@ -411,7 +418,10 @@ class FrameReplay:
             kt = self.arrays["kernel_times"]
             out["cycles"] = int(sum(kt[q, 1] - kt[q, 0] + 1 for q in kernels if kt[q, 0] >= 0))
             out["starved_cycles"] = int(sum(kt[q, 2] for q in kernels))
-        else:
+        elif set(self.kinds) == {kind}:     # the frame's only ray type: the frame's time
+            out["cycles"] = self.cycles
+            out["starved_cycles"] = int(self.counters["starved_cycles"])
+        else:                                # ray types share the pipelines: no time of its own
             out["cycles"] = None
             out["starved_cycles"] = None
         out.update(self._rays_part(ids))
@@ -574,3 +584,31 @@ def replay_frame(waves: list[Wave], rays_in_flight: int, pipelines: int = 1, mem
                        counters, per_pipe, arrays, counts.astype(np.int64),
                        chain_box.astype(np.int64), chain_xf.astype(np.int64), kernel_waves,
                        wall, verified, rsp, cost, window if pol.schedule else 0)
+
+
+def waves_of(batches) -> list[Wave]:
+    """The ``Wave``s of a workload frame's traced batches (``driver.workloads.Batch``, each
+    with its recorded ``result.record``), in trace order."""
+    return [Wave(b.result.record, b.kind, b.thread, b.slot) for b in batches]
+
+
+def replay_point(waves: list[Wave], point, width: int | None = None,
+                 ideal: bool = False) -> dict:
+    """A frame's RT-unit objects on design point ``point`` (``driver.design.DesignPoint``):
+    ``rtunit_memory``, the replay of the point's RT units and memory hierarchy, and with
+    ``ideal`` also ``rtunit``, the same replay with every node fetch free (a second replay: off
+    by default); ``by_type``: each ray type's objects. The records replay on the point's datapath
+    configuration and latency; every response is checked against the recorded one bit for bit."""
+    kinds = list(dict.fromkeys(w.kind for w in waves))
+    order = point.order_options()
+    args = dict(schedule=point.schedule(), width=width, params=point.rtl_params(), **order)
+    out = {"rtunit": None, "rtunit_memory": None,
+           "by_type": {k: {"rtunit": None, "rtunit_memory": None} for k in kinds}}
+    for key, memory in (("rtunit_memory", point.memory()), ("rtunit", None)):
+        if key == "rtunit" and not ideal:
+            continue
+        fr = replay_frame(waves, point.rays_in_flight, point.pipelines, memory, **args)
+        out[key] = fr.summary()
+        for k in kinds:
+            out["by_type"][k][key] = fr.type_summary(k)
+    return out

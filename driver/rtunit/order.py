@@ -478,6 +478,55 @@ def merge_costs(costs: list[dict]) -> dict:
 # ----------------------------------------------------------------------------------------------
 # The study (docs/rayorder.md)
 
+_MEM_SUMMED = ("line_accesses", "line_hits", "line_misses", "bytes_from_memory",
+               "node_wait_cycles")
+
+
+def study_stats(replays: list) -> dict:
+    """The study's ``rtunit_memory`` object of replays (``driver.rtunit.ReplayResult``) of a
+    ray type's batches, each on its own (an empty ray pool and a cold node cache, the wavefront
+    schedule of docs/rtunit.md), one after another: cycles add up."""
+    if not replays:
+        raise ValueError("no replay")
+    first = replays[0]
+    out = {"rays_in_flight": first.rays_in_flight, "pipelines": first.pipelines,
+           "turnaround_cycles": first.turnaround, "rays": sum(r.rays for r in replays),
+           "ops": sum(r.ops for r in replays), "cycles": sum(r.cycles for r in replays),
+           "starved_cycles": sum(r.starved_cycles for r in replays),
+           "sim_wall_s": sum(r.wall_s for r in replays),
+           "responses_verified": all(r.verified for r in replays)}
+    if first.memory:
+        for k in _MEM_SUMMED:
+            out[k] = sum(r.memory[k] for r in replays)
+    out["wavefronts"] = [_wavefront_row(r) for r in replays]
+    costs = [r.order for r in replays if getattr(r, "order", None)]
+    if costs:
+        out["ray_order_cost"] = merge_costs(costs)
+    return _rt_derived(out)
+
+
+def _wavefront_row(r) -> dict:
+    """One replayed wavefront of an RT-unit object's ``wavefronts``: its size and timing, and
+    with a node memory its bytes from memory (each wavefront starts with an empty ray pool and
+    a cold node cache, so a small one is bound by the memory's latency)."""
+    row = {"rays": r.rays, "ops": r.ops, "cycles": r.cycles, "utilization": r.utilization}
+    if r.memory:
+        row["bytes_from_memory"] = r.memory["bytes_from_memory"]
+    return row
+
+
+def _rt_derived(s: dict) -> dict:
+    cyc, n = s["cycles"], s["rays"]
+    s["utilization"] = s["ops"] / (s["pipelines"] * cyc) if cyc else 0.0
+    s["frame_us_at_1ghz"] = cyc / 1000
+    s["cycles_per_ray"] = cyc / n if n else 0.0
+    if "line_accesses" in s:
+        acc = s["line_accesses"]
+        s["hit_rate"] = s["line_hits"] / acc if acc else 0.0
+        s["bytes_per_ray"] = s["bytes_from_memory"] / n if n else 0.0
+    return s
+
+
 STUDY_SCENES = ("bunny_floor", "cornell")
 STUDY_TYPES = ("primary", "shadow", "bounce1", "bounce2", "ao")
 
@@ -544,13 +593,12 @@ def study(scenes=STUDY_SCENES, size: int = 64, spp: int = 2, bounces: int = 2, a
     ``VARIANT_WINDOW``)."""
     from .. import rtunit
     from ..progress import bar
-    from ..stats import rtunit_stats
 
     def replay_all(records, r, order="index", window=None):
         """The RT-unit replays (with ``memory``) of a ray type's batches, one after another:
         the published ``rtunit_memory`` object (docs/statistics.md)."""
-        return rtunit_stats([rtunit.replay(rec, r, 1, memory=memory, ray_order=order,
-                                           ray_window=window) for rec in records])
+        return study_stats([rtunit.replay(rec, r, 1, memory=memory, ray_order=order,
+                                          ray_window=window) for rec in records])
 
     memory = memory or rtunit.MemoryModel()
     policies = list(policies or POLICIES)
@@ -614,15 +662,14 @@ def treelet_variants(recs: dict, rays_in_flight: int, memory, progress: bool = T
 
     from .. import rtunit
     from ..progress import bar
-    from ..stats import rtunit_stats
     out = {"window": window, "variants": {}}
     runs = [(v, k) for v in TREELET_VARIANTS for k in recs]
     pb = bar(len(runs), "treelet variants", "replay", progress)
     for n, (name, kind) in enumerate(runs):
         cfg = replace(DEFAULT_TREELETS, **TREELET_VARIANTS[name])
-        point = rtunit_stats([rtunit.replay(r, rays_in_flight, 1, memory=memory,
-                                            ray_order="treelet", ray_window=window, treelets=cfg)
-                              for r in recs[kind]])
+        point = study_stats([rtunit.replay(r, rays_in_flight, 1, memory=memory,
+                                           ray_order="treelet", ray_window=window, treelets=cfg)
+                             for r in recs[kind]])
         out["variants"].setdefault(name, {"config": cfg.describe()})[kind] = point
         pb.hook(n + 1, len(runs))
     pb.close()
