@@ -122,8 +122,7 @@ def _compressed(fmt):
                   (out,), 4.0, f"the bunny on a floor, path traced, on the {fmt} node image")
 
 
-PATH64 = ("--scene", "bunny_floor", "--workload", "path", "--size", "64", "--spp", "2",
-          "--bounces", "2")
+PATH = ("--scene", "bunny_floor", "--workload", "path", "--spp", "2", "--bounces", "2")
 
 FIGURES = [
     _render("bunny", "bunny", json_out="images/bunny_stats.json", minutes=1.0,
@@ -173,19 +172,19 @@ FIGURES = [
            ("docs/rayorder.json", "images/rayorder.png"), 20.0,
            "ray-order policies of the RT unit per scene and ray type, with their state cost"),
     Figure("compressed_gpu",
-           (*RAYFLEX, "sweep", *PATH64, "--bvh-format", "box32,q8,q8g", "--rt-preset",
-            "default,rtx2060-vulkan-sim", "--json", "docs/compressed_gpu.json",
+           (*RAYFLEX, "sweep", *PATH, "--size", "64,128", "--bvh-format", "box32,q8,q8g",
+            "--rt-preset", "default,rtx2060-vulkan-sim", "--json", "docs/compressed_gpu.json",
             "--results", f"{TMP}/compressed_gpu.points.jsonl", "--no-progress"),
-           ("docs/compressed_gpu.json",), 3.0,
-           "box32 vs q8 vs q8g in a one-kernel frame on the default and rtx2060-vulkan-sim "
-           "presets: frame cycles, bytes per level and latency per ray type"),
+           ("docs/compressed_gpu.json",), 8.0,
+           "box32 vs q8 vs q8g in a one-kernel frame (64 x 64 and 128 x 128) on the default and "
+           "rtx2060-vulkan-sim presets: frame cycles, bytes per level and latency per ray type"),
     Figure("compressed_gpu_plot",
            (sys.executable, "-m", "driver.rtunit.frame_study", "compressed",
             "docs/compressed_gpu.json", "--plot", "images/compressed_gpu.png"),
            ("images/compressed_gpu.png",), 0.1,
            "latency per ray type and node format on both presets (from compressed_gpu)"),
     Figure("compressed_schedules",
-           (*RAYFLEX, "sweep", *PATH64, "--bvh-format", "box32,q8g", "--frame",
+           (*RAYFLEX, "sweep", *PATH, "--size", "64", "--bvh-format", "box32,q8g", "--frame",
             "wavefront,one-kernel", "--flush-between", "yes,no", "--json",
             "docs/compressed_schedules.json", "--results",
             f"{TMP}/compressed_schedules.points.jsonl", "--no-progress"),
@@ -193,12 +192,13 @@ FIGURES = [
            "box32 and q8g under the wavefront schedule with cold and warm caches and in one "
            "kernel (default preset): what the cold wavefronts hid"),
     Figure("rayorder_gpu",
-           (*RAYFLEX, "sweep", *PATH64, "--bvh-format", "box32,q8", "--rt-preset",
-            "default,rtx2060-vulkan-sim", "--ray-order", "index,affinity,treelet",
+           (*RAYFLEX, "sweep", *PATH, "--size", "64,128", "--bvh-format", "box32,q8",
+            "--rt-preset", "default,rtx2060-vulkan-sim", "--ray-order", "index,affinity,treelet",
             "--ray-window", "256,1024", "--json", "docs/rayorder_gpu.json", "--results",
             f"{TMP}/rayorder_gpu.points.jsonl", "--no-progress"),
-           ("docs/rayorder_gpu.json",), 8.0,
-           "ray-order policies in a one-kernel frame on both presets, box32 and q8"),
+           ("docs/rayorder_gpu.json",), 25.0,
+           "ray-order policies in a one-kernel frame (64 x 64 and 128 x 128) on both presets, "
+           "box32 and q8"),
     Figure("rayorder_gpu_plot",
            (sys.executable, "-m", "driver.rtunit.frame_study", "order",
             "docs/rayorder_gpu.json", "--plot", "images/rayorder_gpu.png"),

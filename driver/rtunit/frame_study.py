@@ -57,17 +57,22 @@ def frame_row(p: dict, ref: dict | None = None) -> dict:
     return row
 
 
+def _group(p: dict) -> str:
+    """A point's preset and frame size: the heading its rows go under."""
+    dp = p["design_point"]
+    return f"{dp['rt_preset']}, {dp['size']} x {dp['size']}"
+
+
 def compressed(doc: dict) -> dict:
-    """Per preset and node format: the frame's figures (cycles over box32's) and each ray
-    type's."""
+    """Per preset and frame size, per node format: the frame's figures (cycles over box32's)
+    and each ray type's."""
     out: dict = {}
-    for preset in dict.fromkeys(p["design_point"]["rt_preset"] for p in doc["points"]):
-        ref = _one(doc, rt_preset=preset, bvh_format="box32")
-        for p in _points(doc, rt_preset=preset):
-            fmt = p["design_point"]["bvh_format"]
-            out.setdefault(preset, {})[fmt] = {
-                "frame": frame_row(p, ref),
-                "by_type": {k: _type_row(t) for k, t in p["by_type"].items()}}
+    for p in doc["points"]:
+        dp = p["design_point"]
+        ref = _one(doc, rt_preset=dp["rt_preset"], size=dp["size"], bvh_format="box32")
+        out.setdefault(_group(p), {})[dp["bvh_format"]] = {
+            "frame": frame_row(p, ref),
+            "by_type": {k: _type_row(t) for k, t in p["by_type"].items()}}
     return out
 
 
@@ -125,18 +130,19 @@ def schedules_markdown(doc: dict) -> str:
 
 
 def order(doc: dict) -> dict:
-    """Per preset, format, policy and window: the frame's figures and the policy's cost."""
+    """Per preset and frame size, format, policy and window: the frame's figures and the
+    policy's cost (index order once: it has no window)."""
     out: dict = {}
     for p in doc["points"]:
         dp = p["design_point"]
         key = "index" if dp["ray_order"] == "index" else f"{dp['ray_order']} W={dp['ray_window']}"
-        ref = _one(doc, rt_preset=dp["rt_preset"], bvh_format=dp["bvh_format"],
+        ref = _one(doc, rt_preset=dp["rt_preset"], size=dp["size"], bvh_format=dp["bvh_format"],
                    ray_order="index")
         row = frame_row(p, ref)
         cost = p["rtunit_memory"].get("ray_order_cost") or {}
         row["extra_state_bytes"] = cost.get("extra_state_bytes", 0)
         row["by_type"] = {k: _type_row(t) for k, t in p["by_type"].items()}
-        out.setdefault(dp["rt_preset"], {}).setdefault(dp["bvh_format"], {})[key] = row
+        out.setdefault(_group(p), {}).setdefault(dp["bvh_format"], {}).setdefault(key, row)
     return out
 
 
@@ -189,6 +195,8 @@ def plot_compressed(doc: dict, path) -> None:
         kinds = list(tab[preset][fmts[0]]["by_type"])
         x = np.arange(len(kinds))
         w = 0.8 / len(fmts)
+        top = max(tab[preset][f]["by_type"][k]["latency_mean"] for f in fmts for k in kinds)
+        ax.set_ylim(0, top * 1.35)                    # room for the legend above the bars
         for j, fmt in enumerate(fmts):
             lat = [tab[preset][fmt]["by_type"][k]["latency_mean"] for k in kinds]
             f = tab[preset][fmt]["frame"]
@@ -199,6 +207,7 @@ def plot_compressed(doc: dict, path) -> None:
         ax.set_xticklabels(kinds)
         ax.set_ylabel("mean latency per ray, trace call to done (cycles)")
         ax.set_title(f"{preset}, one-kernel frame", fontsize=9)
+        ax.tick_params(axis="x", labelsize=8)
         ax.grid(True, axis="y", alpha=0.3)
         ax.legend(fontsize=7, loc="upper left")
     fig.suptitle(f"{doc['scene']} {doc['workload']}: node formats on a GPU's RT units",
