@@ -79,8 +79,8 @@ def _bench_workload(scene, workload):
     stem = f"images/bench_{scene}_{workload}64"
     return Figure(f"bench_{scene}_{workload}64",
                   (*RAYFLEX, "bench", "--scene", scene, "--workload", workload, "--size", "64",
-                   "--spp", "2", "--bounces", "2", "--json", f"{stem}.json", "--plot",
-                   f"{stem}_sweep.png", "--no-progress"),
+                   "--spp", "2", "--bounces", "2", "--sweep-rays", "1,4,16,64,256,1024",
+                   "--json", f"{stem}.json", "--plot", f"{stem}_sweep.png", "--no-progress"),
                   (f"{stem}.json", f"{stem}_sweep.png"), 4.0,
                   f"datapath mix per ray type and the rays-in-flight sweep, {scene} {workload}")
 
@@ -111,14 +111,19 @@ def _power_q8_xf(level, minutes):
 
 
 FORMATS = IMAGE_FORMATS                   # node images (docs/compressed.md)
+# the compressed-node study as it was before one-kernel frames: each ray type on its own, cold
+# caches, both replays, utilization over rays in flight (docs/compressed.md's first table)
+WAVEFRONT_STUDY = ("--frame", "wavefront", "--flush-between", "--ideal-replay", "--sweep-rays",
+                   "1,2,4,8,16,32,64,128,256,1024")
 
 
 def _compressed(fmt):
     out = f"images/compressed_path64_{fmt}.json"
     return Figure(f"compressed_path64_{fmt}",
                   (*RAYFLEX, "bench", "--scene", "bunny_floor", "--workload", "path", "--size",
-                   "64", "--spp", "2", "--bounces", "2", "--bvh-format", fmt, "--json", out,
-                   "--plot", f"{TMP}/compressed_path64_{fmt}_sweep.png", "--no-progress"),
+                   "64", "--spp", "2", "--bounces", "2", "--bvh-format", fmt, *WAVEFRONT_STUDY,
+                   "--json", out, "--plot", f"{TMP}/compressed_path64_{fmt}_sweep.png",
+                   "--no-progress"),
                   (out,), 4.0, f"the bunny on a floor, path traced, on the {fmt} node image")
 
 
@@ -136,8 +141,8 @@ FIGURES = [
     _render("bunny_floor_ao", "bunny_floor", "--workload", "ao", "--spp", "4", "--ao-rays", "4",
             heatmap=False, minutes=8.0, about="the bunny on a floor, ambient occlusion"),
     Figure("bench_bunny256",
-           (*RAYFLEX, "bench", "--json", "images/bench_bunny256.json", "--plot",
-            "images/bench_bunny256_rtunit.png", "--no-progress"),
+           (*RAYFLEX, "bench", "--ideal-replay", "--json", "images/bench_bunny256.json",
+            "--plot", "images/bench_bunny256_rtunit.png", "--no-progress"),
            ("images/bench_bunny256.json", "images/bench_bunny256_rtunit.png"), 3.0,
            "the default bench frame: RT-unit replay, memory, simulation speeds, sweep"),
     *(_bench_workload(s, w) for s in ("cornell", "bunny_floor") for w in ("path", "ao")),
@@ -156,7 +161,8 @@ FIGURES = [
     Figure("compressed_latency",
            (*RAYFLEX, "sweep", "--scene", "bunny_floor", "--workload", "path", "--size", "64",
             "--spp", "2", "--bounces", "2", "--bvh-format", "box32,q8g", "--mem-latency",
-            "0,200", "--cache-ways", "4,512", "--json", "docs/compressed_latency.json",
+            "0,200", "--cache-ways", "4,512", "--frame", "wavefront", "--flush-between", "yes",
+            "--json", "docs/compressed_latency.json",
             "--results", f"{TMP}/compressed_latency.points.jsonl", "--no-progress"),
            ("docs/compressed_latency.json",), 1.0,
            "box32 vs q8g with the memory's latency on and off and a fully associative cache: "
@@ -199,6 +205,14 @@ FIGURES = [
            ("docs/rayorder_gpu.json",), 25.0,
            "ray-order policies in a one-kernel frame (64 x 64 and 128 x 128) on both presets, "
            "box32 and q8"),
+    Figure("rayorder_gpu_pool",
+           (*RAYFLEX, "sweep", *PATH, "--size", "128", "--bvh-format", "box32,q8",
+            "--rt-preset", "default,rtx2060-vulkan-sim", "--rays-in-flight", "256,1024",
+            "--json", "docs/rayorder_gpu_pool.json", "--results",
+            f"{TMP}/rayorder_gpu_pool.points.jsonl", "--no-progress"),
+           ("docs/rayorder_gpu_pool.json",), 6.0,
+           "index order with the ray pool as large as the schedulers' windows (128 x 128, both "
+           "presets): the rays held without the scheduler"),
     Figure("rayorder_gpu_plot",
            (sys.executable, "-m", "driver.rtunit.frame_study", "order",
             "docs/rayorder_gpu.json", "--plot", "images/rayorder_gpu.png"),

@@ -28,10 +28,10 @@ SIM_DIR = PACKAGE / "sim"
 TOP = "rayflex"
 SOURCE_LIST = RTL_DIR / "sources.txt"
 LINT_WAIVERS = "lint.vlt"
-HARNESS_SOURCES = ("rayflex_harness.cpp", "rtunit_scheduler.cpp", "rtunit_legacy.cpp")
+HARNESS_SOURCES = ("rayflex_harness.cpp", "rtunit_scheduler.cpp")
 # included by the harness sources from their own directory: their text is hashed into the name of
 # the generated header's directory, which is part of the build's cache key
-HARNESS_HEADERS = ("rf_sim.h", "rf_memory.h", "rf_memory_legacy.h")
+HARNESS_HEADERS = ("rf_sim.h", "rf_memory.h")
 MIN_LATENCY = LATENCY                 # input register, 9 compute stages, output register
 
 

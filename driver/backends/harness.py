@@ -3,7 +3,7 @@
 ``HarnessBackend.run`` streams ready-made request words (sim/rayflex_harness.cpp);
 ``HarnessBackend.run_nodes`` is the traversal fast path: the harness assembles QUADBOX/TRIANGLE
 requests from a packed ray table (``driver.layout.ray_words``) and the BVH4 image, so the host
-sends three numbers per request instead of 320 bytes. ``replay_chains`` runs the RT-unit scheduler
+sends three numbers per request instead of 320 bytes. ``replay_schedule`` runs the RT-unit replay
 (sim/rtunit_scheduler.cpp) for ``driver.rtunit``. ``harness_library(params)`` builds (cached; see
 ``driver.backends.build``) and loads the library once per process.
 """
@@ -87,12 +87,6 @@ def use_library(params: dict[str, int], path) -> ctypes.CDLL:
                               _U32P, _U32P, i64, _I64P, _I64P, _I64P, _I64P, _I32P, i64, _I64P,
                               _I64P, _I64P, _U32P, ctypes.POINTER(ReplayStats), _I64P, _I64P,
                               _I64P, _I64P, _I64P, _I64P, _I64P, _I64P, _I64P]
-    if hasattr(lib, "rf_replay_legacy"):
-        lib.rf_replay_legacy.restype = i64
-        lib.rf_replay_legacy.argtypes = [
-            i64, i64, i64, i64, _U32P, i64, _U32P, i64, _U32P, _U32P, _U32P, i64, _I64P, _I64P,
-            i64, _U32P, _U32P, _U32P, ctypes.POINTER(ReplayStats), _I64P, i64, i64, i64, i64,
-            i64, ctypes.c_double, _I64P, i64, _I64P, _I32P, i64, i64, _I64P, _I64P, _I64P, i64]
     lib.rf_memory_trace.restype = i64
     lib.rf_memory_trace.argtypes = [ctypes.POINTER(MemoryConfig), i64, i64, _I64P, _I64P, _I64P,
                                     _I64P, i64, _I64P, _I64P, _I64P]
@@ -133,7 +127,6 @@ def build_requests(params: dict[str, int], ray_words, image_words, ray, ptr, ext
     return out
 
 
-NO_MEMORY = (-1, 1, 64, 0, 1.0)      # legacy replay: cache_bytes < 0, every node fetch is free
 BAD_GEOMETRY = -4
 SCHED_STATS = ("parked", "resumed", "max_parked", "max_held", "picks", "max_queued",
                "borrowed")
@@ -232,42 +225,6 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, r
     st = {**stats.as_dict(), **dict(zip(SCHED_STATS, sched.tolist()))}
     out["series"] = out["series"][:st["series_bins"]]
     return rsp, st, per_pipe, out
-
-
-def replay_chains_legacy(params: dict[str, int], pipelines: int, slots: int, turnaround: int,
-                         skip_idle: bool, ray_words, image_words, ray, ptr, extent, chain_idx,
-                         chain_off, max_idle: int, memory=NO_MEMORY, order=None, window: int = 0,
-                         chain=None, before=None, treelets=None):
-    """DEVELOPMENT ONLY: the replay before warps and the memory hierarchy (rf_replay_legacy),
-    for differential tests."""
-    lib = harness_library(params)
-    rw, img, r, p, e = node_arrays(ray_words, image_words, ray, ptr, extent)
-    ci = np.ascontiguousarray(chain_idx, np.int64)
-    co = np.ascontiguousarray(chain_off, np.int64)
-    ch, bf = _check_chains(r, co, chain, before)
-    if order is not None:
-        order = np.ascontiguousarray(order, np.int64)
-    ids, n_tl, active, pre, flags = None, 0, 0, (None,) * 3, 0
-    if treelets is not None:
-        ids = np.ascontiguousarray(treelets.request_treelet, np.int32)
-        n_tl, active = int(treelets.n_treelets), int(treelets.active)
-        pre = treelets.prefetch_lists()
-        flags = int(treelets.park) | 2 * int(treelets.borrow)
-    rsp = np.zeros((len(r), RSP_WORDS), np.uint32)
-    stats = ReplayStats()
-    per_pipe = np.zeros(pipelines, np.int64)
-    sched = np.zeros(len(SCHED_STATS), np.int64)
-    rc = lib.rf_replay_legacy(pipelines, slots, turnaround, int(bool(skip_idle)), _u32p(rw),
-                              len(rw), _u32p(img), img.size, _u32p(r), _u32p(p), _u32p(e), len(r),
-                              _i64p(ci), _i64p(co), len(co) - 1, _u32p(ch), _u32p(bf),
-                              _u32p(rsp), ctypes.byref(stats), _i64p(per_pipe), max_idle,
-                              *memory, None if order is None else _i64p(order), int(window),
-                              _i64p(sched), None if ids is None else ids.ctypes.data_as(_I32P),
-                              n_tl, active, *(None if a is None else _i64p(a) for a in pre),
-                              flags)
-    if rc < 0:
-        raise RuntimeError(f"legacy replay failed ({rc})")
-    return rsp, {**stats.as_dict(), **dict(zip(SCHED_STATS, sched.tolist()))}, per_pipe
 
 
 MEMORY_TRACE_COUNTS = ("l1_accesses", "l1_hits", "l1_merged", "l1_misses", "l1_bytes",

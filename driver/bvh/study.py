@@ -4,7 +4,10 @@ from ``rayflex bench --workload ... --bvh-format FORMAT --json`` documents of th
     python -m driver.bvh.study BOX32.json Q8.json [Q8G.json] [--plot PNG]
 
 prints the per-ray-type comparison as a Markdown table and draws utilization with the node
-memory vs rays in flight, one colour per ray type, solid q8 and dashed box32.
+memory vs rays in flight, one colour per ray type, solid q8 and dashed box32. The documents are
+``rayflex bench --frame wavefront --flush-between --ideal-replay --sweep-rays LIST`` runs: each ray
+type replayed on its own with cold caches, so that it has its own cycles (the study as it was
+before one-kernel frames; the one-kernel study is ``driver.rtunit.frame_study``).
 """
 
 from __future__ import annotations
@@ -68,12 +71,18 @@ def plot(docs: dict, path, title: str) -> None:
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
     colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown"]
-    for i, kind in enumerate(docs["q8"]["sweep"]):
+    sweeps = {fmt: docs[fmt]["sweep"] for fmt in ("q8", "box32")}
+    if any(not sw for sw in sweeps.values()):
+        raise ValueError("the documents hold no rays-in-flight sweep (bench --sweep-rays)")
+    for i, kind in enumerate(sweeps["q8"][0]["by_type"]):
         c = colours[i % len(colours)]
         for fmt, style in (("q8", "o-"), ("box32", "s--")):
-            pts = docs[fmt]["sweep"][kind]
-            ax.plot([p["rays_in_flight"] for p in pts],
-                    [p["rtunit_memory"]["utilization"] for p in pts], style, color=c,
+            pts = sweeps[fmt]
+            ys = [p["by_type"][kind]["rtunit_memory"]["utilization"] for p in pts]
+            if None in ys:
+                raise ValueError("a ray type's utilization needs the wavefront schedule "
+                                 "(--frame wavefront)")
+            ax.plot([p["rays_in_flight"] for p in pts], ys, style, color=c,
                     ms=4, lw=1.5 if fmt == "q8" else 1, label=f"{kind} {fmt}")
     ax.set_xscale("log", base=2)
     ax.set_ylim(0, 1.05)

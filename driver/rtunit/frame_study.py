@@ -223,7 +223,7 @@ def plot_order(doc: dict, path) -> None:
     from matplotlib.figure import Figure
 
     tab = order(doc)
-    fig = Figure(figsize=(9.0, 4.4), dpi=110)
+    fig = Figure(figsize=(12.0, 4.8), dpi=110)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
     groups = [(pr, fmt) for pr in tab for fmt in tab[pr]]
@@ -235,12 +235,15 @@ def plot_order(doc: dict, path) -> None:
         ax.bar(x + (j - (len(keys) - 1) / 2) * w, ys, w, color=f"C{j}", label=key)
     ax.axhline(1.0, color="grey", lw=1, ls=":")
     ax.set_xticks(x)
-    ax.set_xticklabels([f"{pr}\n{fmt}" for pr, fmt in groups], fontsize=8)
-    ax.set_ylabel("frame cycles / index order's")
+    ax.set_xticklabels([pr.replace(", ", "\n") + f"\n{fmt}" for pr, fmt in groups],
+                       fontsize=7)
+    ax.set_ylabel("frame cycles / index order's (axis from 0.5)")
+    ax.set_ylim(0.5, 1.15)
     ax.set_title(f"{doc['scene']} {doc['workload']}, one-kernel frame: ray order in the RT "
                  "units", fontsize=9)
     ax.grid(True, axis="y", alpha=0.3)
-    ax.legend(fontsize=7, title="policy (W: rays held per unit)", title_fontsize=7)
+    ax.legend(fontsize=7, title="policy (W: rays held per unit)", title_fontsize=7,
+              loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()
     fig.savefig(str(path), format="png")
 
