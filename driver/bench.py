@@ -46,6 +46,8 @@ from . import rtunit
 from .design import DesignPoint
 from .progress import bar as _bar
 from .stats import machine, provenance, public
+from .rtunit.gpu import replay_point, waves_of
+from .rtunit.plan import Wave
 
 PYVERILATOR_REQUESTS = 2000
 REPEAT = 3
@@ -127,7 +129,6 @@ def _frame(scene, origins, dirs, rtl, point, label, progress, width, ideal=False
     """The frame on "rtl": BVH build, wavefront traversal (recorded), the RT-unit replay (and
     with ``ideal`` the one with free node fetches). Returns (frame statistics, trace result,
     BVH)."""
-    from .rtunit.gpu import Wave, replay_point
     from .bvh4 import warm_up
     from .tracer import trace
 
@@ -359,7 +360,6 @@ def bench_workload(point: DesignPoint, sweep_rays=(), plot=None, progress=True,
     sweep the plot shows the rays each RT unit holds over the frame)."""
     from . import workloads
     from .backends import backend
-    from .rtunit.gpu import replay_point, waves_of
     from .scenes.scene import load_scene
     from .tracer import trace
 

@@ -38,7 +38,7 @@ from .backends.build import MIN_LATENCY
 from .datapath import LATENCY, default_latency
 from .instances import DATAPATH, TRANSFORMS
 from .layout import IMAGE_FORMATS
-from .rtunit.gpu import FRAMES, MAX_RT_UNITS, MAX_WARP_SIZE
+from .rtunit.plan import FRAMES, MAX_RT_UNITS, MAX_WARP_SIZE, Schedule
 from .rtunit.order import DEFAULT_POLICY, DEFAULT_WINDOW, POLICIES
 from .rtunit.presets import DEFAULT_PRESET, PRESETS
 from .workloads import WORKLOADS
@@ -391,7 +391,6 @@ class DesignPoint:
 
     def schedule(self):
         """The frame schedule of the replay (``driver.rtunit.gpu.Schedule``)."""
-        from .rtunit.gpu import Schedule
         return Schedule(self.frame_schedule, self.warp_size, self.warps_per_unit,
                         self.shader_cycles,
                         self.flush_between, self.rt_units)

@@ -101,7 +101,8 @@ def _train_gpu_replay(opts: dict) -> int:
     the traversal's. Returns the requests replayed."""
     from . import workloads
     from .rtunit import MemoryModel
-    from .rtunit.gpu import Schedule, replay_frame, waves_of
+    from .rtunit.gpu import replay_frame, waves_of
+    from .rtunit.plan import Schedule
     scene = load_scene("room")
     be = HarnessBackend(**opts)
     res = workloads.run(workloads.setup_for(scene), build(scene.mesh), 32, 32,

@@ -29,6 +29,8 @@ from .outputs import save_image
 from .progress import bar as progress_bar
 from .progress import phase
 from .scenes.scene import Scene, load_scene
+from .rtunit.gpu import replay_point
+from .rtunit.plan import Wave
 
 # Peak resident memory of a frame, measured with /usr/bin/time -v (maximum RSS) on the sphere
 # scene at 256², 512² and 1024² (--check-embree makes no difference): golden 167 / 403 / 1,294 MB,
@@ -164,7 +166,6 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
 def _render_whole(scene, w, h, backend, progress, check_embree, point,
                   rtunit=False) -> RenderResult:
     """The primary frame as one wavefront of every pixel."""
-    from .rtunit.gpu import Wave, replay_point
     from .stats import public
     from .tracer import trace
 

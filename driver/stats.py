@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from .layout import BOX_BYTES, TRI_BYTES
+from .rtunit.gpu import derived
 
 STACK_CULLS = "stack_culls"     # box nodes a distance-culled stack dropped
 INSTANCE_OPS = "instance_ops"   # instances entered (two-level images; docs/instances.md)
@@ -160,7 +161,6 @@ def merge_rtunit(parts: list) -> dict | None:
     replayed one after another (tiles of a frame), taken together: counts and cycles add up,
     means are weighted by rays (or trace calls), ratios are recomputed; a per-ray percentile
     cannot be merged (null) and neither can the rays-in-flight series (left out)."""
-    from .rtunit.gpu import derived
     if not parts or any(p is None for p in parts):
         return None
     if len(parts) == 1:

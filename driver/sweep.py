@@ -43,6 +43,7 @@ from .design import DesignPoint
 from .progress import bar as progress_bar
 from .progress import phase
 from .stats import provenance, public
+from .rtunit.gpu import replay_point, waves_of
 
 ENERGY_LEVELS = ("signals", "gates")
 # the options that make the functional trace (everything else is replayed)
@@ -91,7 +92,6 @@ def trace_workload(point: DesignPoint, progress: bool = True) -> Trace:
     with phase(f"tracing {point.workload} {size}x{size} on {point.config}", progress):
         res = workloads.run(setup, bvh, size, size, tracer, point.workload,
                             **point.workload_options())
-    from .rtunit.gpu import waves_of
     by_type = public(res.stats)["by_type"]
     return Trace(by_type, waves_of(res.batches), point.config, point.latency, size,
                  time.perf_counter() - t0)
@@ -100,7 +100,6 @@ def trace_workload(point: DesignPoint, progress: bool = True) -> Trace:
 def measure_point(point: DesignPoint, waves: list, width: int, ideal: bool = False) -> dict:
     """The RT-unit figures of one design point (a task: pure in its inputs): the frame's and
     each ray type's (``driver.rtunit.gpu.replay_point``), and the point's wall time."""
-    from .rtunit.gpu import replay_point
     t0 = time.perf_counter()
     out = replay_point(waves, point, width, ideal)
     return {**out, "wall_s": time.perf_counter() - t0}
@@ -379,9 +378,9 @@ def _timing(e: dict) -> dict:
 
 
 def plot(doc: dict, path) -> None:
-    """Two panels: datapath utilization vs rays in flight, one line per (cache size, other
-    varied options); energy per ray (signals) vs RT-unit cycles per ray, one marker per point,
-    one colour per configuration."""
+    """Two panels: the frame's utilization vs rays in flight, one line per (cache size, other
+    varied options); the node fetches' energy per ray vs RT-unit cycles per ray, one marker per
+    point, one colour per configuration (its datapath energy per ray in the legend)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -404,21 +403,30 @@ def plot(doc: dict, path) -> None:
     ax1.set_ylim(0, 1.05)
     ax1.set_xlabel("rays in flight (ray pool size)")
     ax1.set_ylabel("datapath utilization, ops / (pipelines x cycles)")
-    ax1.set_title("RT-unit utilization with the node memory (dashed: cache 0, every node fetch "
-                  "from memory)",
-                  fontsize=8)
+    ax1.set_title("the frame's RT-unit utilization with the memory hierarchy (dashed: no node "
+                  "cache)", fontsize=8)
     ax1.grid(True, which="both", alpha=0.3)
     ax1.legend(fontsize=6)
     configs = sorted({e["design_point"]["config"] for e in pts})
     for i, cfg in enumerate(configs):
         sel = [e for e in pts if e["design_point"]["config"] == cfg
-               and e["energy_per_ray"]["signals"] is not None]
-        ax2.scatter([_timing(e)["cycles_per_ray"] for e in sel],
-                    [e["energy_per_ray"]["signals"] for e in sel], label=cfg, s=24,
-                    color=f"C{i}")
-    ax2.set_xlabel("RT-unit cycles per ray (with the node memory)")
-    ax2.set_ylabel("energy per ray (bit toggles, level signals)")
-    ax2.set_title("energy per ray vs time per ray, one marker per design point", fontsize=8)
+               and e["energy_per_ray"]["memory_pj"] is not None]
+        dp_energy = {e["energy_per_ray"]["signals"] for e in sel} - {None}
+        label = cfg + (f" (datapath {min(dp_energy):,.0f}" + (
+            f"-{max(dp_energy):,.0f}" if len(dp_energy) > 1 else "") + " toggles/ray)"
+                       if dp_energy else "")
+        for cached in (True, False):
+            part = [e for e in sel if bool(e["design_point"]["cache_kib"]) == cached]
+            ax2.scatter([_timing(e)["cycles_per_ray"] for e in part],
+                        [e["energy_per_ray"]["memory_pj"] for e in part], s=28, color=f"C{i}",
+                        marker="o" if cached else "s",
+                        label=label if cached or not any(
+                            bool(e["design_point"]["cache_kib"]) for e in sel) else None)
+    ax2.set_xlabel("RT-unit cycles per ray (with the memory hierarchy)")
+    ax2.set_ylabel("node fetches' energy per ray (pJ; docs/rtunit.md)")
+    ax2.set_title("memory-side energy per ray vs time per ray (squares: no node cache)",
+                  fontsize=8)
+    ax2.set_ylim(bottom=0)
     ax2.grid(True, alpha=0.3)
     ax2.legend(fontsize=7)
     fig.suptitle(f"{doc['scene']} {doc['workload']}: {len(pts)} design points", fontsize=10)

@@ -42,6 +42,7 @@ import numpy as np
 
 from .stats import merge
 from .workloads import FrameResult
+from .rtunit.gpu import replay_point, waves_of
 
 DEFAULT_TILE = 64
 CONNECT_TIMEOUT = "5s"          # how long to wait for a Dask scheduler to answer
@@ -128,7 +129,6 @@ def add_replays(res: FrameResult, point, width: int | None = None, ideal: bool =
     ``point`` (``driver.rtunit.gpu.replay_point``; threads are pixels of a ``width``-wide
     frame): ``rtunit_memory`` (and with ``ideal`` ``rtunit``) into the frame's statistics and
     each ``by_type`` entry."""
-    from .rtunit.gpu import replay_point, waves_of
     rp = replay_point(waves_of(res.batches), point, width, ideal)
     for kind, entry in res.stats["by_type"].items():
         entry.update(rp["by_type"][kind])

@@ -15,7 +15,8 @@ import pytest
 from driver import rtunit, workloads
 from driver.backends import backend
 from driver.design import DesignPoint
-from driver.rtunit.gpu import Schedule, Wave, replay_frame, waves_of
+from driver.rtunit.gpu import replay_frame, waves_of
+from driver.rtunit.plan import Schedule, Wave
 from driver.scenes.scene import load_scene
 from driver.tracer import trace
 

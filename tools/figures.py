@@ -302,22 +302,20 @@ README_NUMBERS = {
                                    "{:.0f}"),
     "bench_rtl_cycles_per_s": ("images/bench_bunny256.json", "rtl_cycles_per_s", "{:,.0f}"),
     "bench_speedup": ("images/bench_bunny256.json", "rtl_vs_pyverilator_speedup", "{:.0f}"),
-    "floor_path_bounce1_util_mem": ("images/bench_bunny_floor_path64.json",
-                                    "frame.by_type.bounce1.rtunit_memory.utilization", "{:.2f}"),
-    "floor_path_primary_util_mem": ("images/bench_bunny_floor_path64.json",
-                                    "frame.by_type.primary.rtunit_memory.utilization", "{:.2f}"),
+    "floor_path_util": ("images/bench_bunny_floor_path64.json", "frame.rtunit_memory.utilization",
+                        "{:.3f}"),
+    **{f"floor_path_{t}_latency": ("images/bench_bunny_floor_path64.json",
+                                   f"frame.by_type.{t}.rtunit_memory.latency_mean", "{:,.0f}")
+       for t in ("primary", "bounce1")},
     "floor_path_bounce1_bytes": ("images/bench_bunny_floor_path64.json",
                                  "frame.by_type.bounce1.rtunit_memory.bytes_per_ray", "{:.0f}"),
-    "cornell_path_shadow_util_mem": ("images/bench_cornell_path64.json",
-                                     "frame.by_type.shadow.rtunit_memory.utilization", "{:.2f}"),
-    "sweep_nocache_util": ("images/sweep_bunny_floor_ao32.json",
-                           "points.2.by_type.ao.rtunit_memory.utilization", "{:.2f}"),
-    "sweep_nocache_bytes": ("images/sweep_bunny_floor_ao32.json",
-                            "points.2.by_type.ao.rtunit_memory.bytes_per_ray", "{:.0f}"),
-    "sweep_cache_util": ("images/sweep_bunny_floor_ao32.json",
-                         "points.3.by_type.ao.rtunit_memory.utilization", "{:.2f}"),
-    "sweep_cache_bytes": ("images/sweep_bunny_floor_ao32.json",
-                          "points.3.by_type.ao.rtunit_memory.bytes_per_ray", "{:.0f}"),
+    "cornell_path_util": ("images/bench_cornell_path64.json", "frame.rtunit_memory.utilization",
+                          "{:.3f}"),
+    **{f"sweep_{name}_{key}": ("images/sweep_bunny_floor_ao32.json", f"points.{i}.{path}", fmt_)
+       for name, i in (("nocache", 2), ("cache", 3))
+       for key, path, fmt_ in (("util", "rtunit_memory.utilization", "{:.3f}"),
+                               ("bytes", "rtunit_memory.bytes_per_ray", "{:.0f}"),
+                               ("memory_pj", "energy_per_ray.memory_pj", "{:,.0f}"))},
     "sweep_energy_ao_unified": ("images/sweep_bunny_floor_ao32.json",
                                 "points.3.by_type.ao.energy_per_ray.signals", "{:,.0f}"),
     "sweep_energy_ao_disjoint": ("images/sweep_bunny_floor_ao32.json",
@@ -329,10 +327,6 @@ README_NUMBERS = {
                                f"formats.box32.scenes.bunny_floor.{t}.policies.{policy}.{window}"
                                ".utilization", "{:.2f}")
        for t in ("ao", "primary") for policy, window in (("index", 0), ("affinity", 256))},
-    **{f"order_q8_{t}_{policy}": ("docs/rayorder.json",
-                                  f"formats.q8.scenes.bunny_floor.{t}.policies.{policy}.{window}"
-                                  ".utilization", "{:.2f}")
-       for t in ("shadow", "bounce1") for policy, window in (("index", 0), ("affinity", 256))},
     "order_state_bytes": ("docs/rayorder.json", "formats.box32.scenes.bunny_floor.ao.policies"
                           ".affinity.256.ray_order_cost.extra_state_bytes", "{:,}"),
     "order_extra_rays": ("docs/rayorder.json", "formats.box32.scenes.bunny_floor.ao.policies"
@@ -340,14 +334,31 @@ README_NUMBERS = {
     **{f"compressed_{fmt}_bytes_per_triangle": (f"images/compressed_path64_{fmt}.json",
                                                 "frame.bvh.bytes_per_triangle", "{:.1f}")
        for fmt in ("box32", "q8", "q8g")},
-    **{f"compressed_q8g_{t}_utilization": ("images/compressed_path64_q8g.json",
-                                           f"frame.by_type.{t}.rtunit_memory.utilization",
-                                           "{:.2f}")
-       for t in ("primary", "bounce1")},
-    **{f"compressed_{fmt}_{t}_{key}": (f"images/compressed_path64_{fmt}.json",
-                                       f"frame.by_type.{t}.rtunit_memory.{key}", fmt_)
-       for fmt in ("box32", "q8") for t in ("primary", "bounce1")
-       for key, fmt_ in (("bytes_per_ray", "{:.0f}"), ("utilization", "{:.2f}"))},
+    # one-kernel frames (docs/compressed.md, docs/rayorder.md, docs/rtunit.md)
+    **{f"gpu_{fmt}_util": ("docs/compressed_gpu.json", f"points.{i}.rtunit_memory.utilization",
+                           "{:.3f}")
+       for fmt, i in (("box32", 0), ("q8", 4), ("q8g", 8))},
+    **{f"gpu_{fmt}_dram": ("docs/compressed_gpu.json", f"points.{i}.rtunit_memory.bytes_per_ray",
+                           "{:.0f}")
+       for fmt, i in (("box32", 0), ("q8", 4), ("q8g", 8))},
+    "gpu_rtx_box32_cycles": ("docs/compressed_gpu.json", "points.3.rtunit_memory.cycles", "{:,}"),
+    "gpu_rtx_q8g_cycles": ("docs/compressed_gpu.json", "points.11.rtunit_memory.cycles", "{:,}"),
+    "gpu_order_q8_index": ("docs/rayorder_gpu.json", "points.25.rtunit_memory.utilization",
+                           "{:.3f}"),
+    "gpu_order_q8_affinity": ("docs/rayorder_gpu.json", "points.29.rtunit_memory.utilization",
+                              "{:.3f}"),
+    "gpu_order_q8_pool": ("docs/rayorder_gpu_pool.json", "points.4.rtunit_memory.utilization",
+                          "{:.3f}"),
+    **{f"gpu_units{u}_{key}": ("docs/rtunit_units.json", f"points.{i}.{path}", fmt_)
+       for u, i in ((1, 0), (30, 1))
+       for key, path, fmt_ in (("cycles", "rtunit_memory.cycles", "{:,}"),
+                               ("util", "rtunit_memory.utilization", "{:.3f}"),
+                               ("wall", "wall_s", "{:.1f}"))},
+    "compressed_q8g_shadow_wavefront": ("images/compressed_path64_q8g.json",
+                                        "frame.by_type.shadow.rtunit_memory.utilization",
+                                        "{:.2f}"),
+    "gpu_units30_held": ("docs/rtunit_units.json", "points.1.rtunit_memory.simt.rays_held_mean",
+                         "{:.0f}"),
     "power_gates_ext_box": ("docs/power_gates.json",
                             "ratios.extended_vs_baseline.unified.box", "{:+.1%}"),
     "power_gates_ext_tri": ("docs/power_gates.json",

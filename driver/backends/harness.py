@@ -154,27 +154,28 @@ def _check_chains(r, co, chain, before):
     return ch, bf
 
 
-def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, ray_words,
-                    image_words, ray, ptr, extent, chain_idx, chain_off, chain, before,
-                    kernel_off, warp_call_off, call_ray_off, call_rays, treelets=None):
+def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, frame, chains,
+                    plan, treelets=None):
     """Run the RT-unit replay (sim/rtunit_scheduler.cpp, ``rf_replay``) of recorded request
     chains issued by warps of trace calls. ``config``: the ``REPLAY_CONFIG`` values
     (``series_capacity`` is filled in); ``memory``: the ``MEMORY_CONFIG`` values, or None (every
-    node fetch free). ``chain``/``before``: as in ``driver.rtunit.Record`` (None: the request's
-    ray; no node before). Kernels, warps and calls: ``kernel_off`` (over warps),
-    ``warp_call_off`` (over calls), ``call_ray_off`` / ``call_rays`` (chain indices). ``treelets``:
-    a ``driver.rtunit.order.TreeletSchedule`` (needs a window). Returns (responses (m, RSP_WORDS)
-    uint32 at the record index, ``ReplayStats`` dict plus ``SCHED_STATS``, requests per pipeline
-    (units, P) int64, per-ray and per-call arrays: ``ray_times`` (n, 3), ``ray_served`` (n, 4),
-    ``ray_wait`` (n,), ``call_times`` (calls, 3), ``call_unit`` (calls,), ``series``,
-    ``kernel_times`` (kernels, 3))."""
+    node fetch free). ``frame``: the requests (``ray_words``, ``image``, ``ray``, ``ptr``,
+    ``extent``, ``chain``, ``before`` as in ``driver.rtunit.Record``; ``driver.rtunit.plan.
+    Combined``); ``chains``: (chain_idx, chain_off) of its chains; ``plan``: kernels, warps and
+    calls (``kernel_off`` over warps, ``warp_call_off`` over calls, ``call_ray_off`` /
+    ``call_rays``: chain indices). ``treelets``: a ``driver.rtunit.order.TreeletSchedule`` (needs
+    a window). Returns (responses (m, RSP_WORDS) uint32 at the record index, ``ReplayStats``
+    dict plus ``SCHED_STATS``, requests per pipeline (units, P) int64, per-ray and per-call
+    arrays: ``ray_times`` (n, 3), ``ray_served`` (n, 4), ``ray_wait`` (n,), ``call_times``
+    (calls, 3), ``call_unit`` (calls,), ``series``, ``kernel_times`` (kernels, 3))."""
     lib = harness_library(params)
-    rw, img, r, p, e = node_arrays(ray_words, image_words, ray, ptr, extent)
-    ci = np.ascontiguousarray(chain_idx, np.int64)
-    co = np.ascontiguousarray(chain_off, np.int64)
-    ch, bf = _check_chains(r, co, chain, before)
+    rw, img, r, p, e = node_arrays(frame.ray_words, frame.image, frame.ray, frame.ptr,
+                                   frame.extent)
+    ci, co = (np.ascontiguousarray(a, np.int64) for a in chains)
+    ch, bf = _check_chains(r, co, frame.chain, frame.before)
     ko, wo, cro, crs = (np.ascontiguousarray(a, np.int64) for a in
-                        (kernel_off, warp_call_off, call_ray_off, call_rays))
+                        (plan.kernel_off, plan.warp_call_off, plan.call_ray_off,
+                         plan.call_rays))
     cfg = ReplayConfig(**{k: int(v) for k, v in {**config,
                                                  "series_capacity": SERIES_CAPACITY}.items()})
     ids, n_tl, pre = None, 0, (None,) * 3

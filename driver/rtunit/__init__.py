@@ -55,15 +55,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..layout import INSTANCE_TYPE, RAY_WORDS, REQ_WORDS, NodeRef, unpack_requests
+from .gpu import ReplayMismatch, replay_frame
+from .plan import PER_RAY_POOL, Wave
+
+__all__ = ["Record", "MemoryModel", "ReplayResult", "ReplayMismatch", "replay", "sweep",
+           "plot_sweep"]
 
 DEFAULT_RAYS_IN_FLIGHT = 64        # the default ray pool (see the module docstring)
 DEFAULT_TURNAROUND = 1
 SWEEP_RAYS_IN_FLIGHT = (1, 2, 4, 8, 16, 32, 64, 128, 256, 1024)
 SWEEP_PIPELINES = (1, 2, 4, 8)
-
-
-class ReplayMismatch(RuntimeError):
-    """The replayed RTL responses differ from the functional run's (must never happen)."""
 
 
 @dataclass
@@ -276,7 +277,6 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
     window of ``ray_window`` rays (default ``order.DEFAULT_WINDOW``; for a scheduling policy at
     least R); the result's ``order`` holds the policy and its cost. ``treelets``: the
     ``order.TreeletConfig`` of the "treelet" policy (default ``order.DEFAULT_TREELETS``)."""
-    from .gpu import PER_RAY_POOL, Wave, replay_frame
     fr = replay_frame([Wave(record)], rays_in_flight, pipelines, memory, PER_RAY_POOL,
                       ray_order=ray_order, ray_window=ray_window, treelets=treelets,
                       turnaround=turnaround, skip_idle=skip_idle, verify=verify)
