@@ -138,6 +138,14 @@ def combine(records: list) -> Combined:
     row_off = np.cumsum([0] + [len(r.ray_words) for r in records])
     chain_off0 = np.cumsum([0] + [r.rays for r in records]).astype(np.int64)
     request_off = np.cumsum([0] + [r.ops for r in records]).astype(np.int64)
+    if len(records) == 1:                      # one batch: its own arrays, nothing renumbered
+        return Combined(first.params, first.ray_words, first.image,
+                        np.asarray(first.ray, np.uint32), np.asarray(first.ptr, np.uint32),
+                        np.asarray(first.extent, np.float32),
+                        np.asarray(first.ray if first.chain is None else first.chain, np.uint32),
+                        (np.full(first.ops, NO_CHILD, np.uint32) if first.before is None
+                         else np.asarray(first.before, np.uint32)), first.responses,
+                        chain_off0, request_off)
 
     def cat(parts, dtype):
         return (np.concatenate(parts).astype(dtype, copy=False) if parts

@@ -25,8 +25,9 @@
 // Why the times are computed when a node is asked for (not simulated cycle by cycle): every
 // latency is fixed and the channel and the MSHRs serve requests in the order they are asked for,
 // so a request's arrival is known the moment it is made; the replay's rays then wait for it.
-// The caches are set-associative LRU with O(1) look-ups (a hash table from line to entry and a
-// recency list per set), so a fully associative 64 KiB L1 (512 ways) costs what a 4-way one does.
+// The caches are set-associative LRU with a recency list per set; a look-up scans a set of up to
+// 16 ways and uses a hash table from line to entry beyond, so a fully associative 64 KiB L1 (512
+// ways) costs what a 4-way one does.
 #pragma once
 
 #include <algorithm>
@@ -102,6 +103,8 @@ struct LevelCounts {
   int64_t accesses = 0, hits = 0, merged = 0, misses = 0, bytes = 0;
 };
 
+constexpr int64_t kScanWays = 16;   // up to this many ways a look-up scans the set's tags
+
 // One set-associative LRU cache of `sectors` transactions per line.
 struct Cache {
   bool on = false;
@@ -129,7 +132,7 @@ struct Cache {
     tail.assign(sets, -1);
     arrive.assign(entries * spl, kAbsent);
     src.assign(entries * spl, 0);
-    where.reset(entries);
+    if (ways > kScanWays) where.reset(entries);
     for (int64_t s = 0; s < sets; s++) {
       for (int64_t w = 0; w < ways; w++) {
         const int32_t e = static_cast<int32_t>(s * ways + w);
@@ -145,10 +148,17 @@ struct Cache {
     if (!on) return;
     std::fill(tag.begin(), tag.end(), -1);
     std::fill(arrive.begin(), arrive.end(), kAbsent);
-    where.clear();
+    if (ways > kScanWays) where.clear();
   }
 
-  int32_t find(int64_t line) const { return where.find(line); }
+  // The entry holding `line`, or -1: a scan of its set for a few ways, the hash table else.
+  int32_t find(int64_t line) const {
+    if (ways > kScanWays) return where.find(line);
+    const int64_t base = (line % sets) * ways;
+    for (int64_t w = 0; w < ways; w++)
+      if (tag[base + w] == line) return static_cast<int32_t>(base + w);
+    return -1;
+  }
 
   void make_recent(int32_t e) {
     const int64_t s = e / ways;
@@ -168,10 +178,10 @@ struct Cache {
   int32_t allocate(int64_t line) {
     const int64_t s = line % sets;
     const int32_t e = tail[s];
-    if (tag[e] >= 0) where.erase(tag[e]);
+    if (ways > kScanWays && tag[e] >= 0) where.erase(tag[e]);
     tag[e] = line;
     std::fill(arrive.begin() + e * spl, arrive.begin() + (e + 1) * spl, kAbsent);
-    where.put(line, e);
+    if (ways > kScanWays) where.put(line, e);
     make_recent(e);
     return e;
   }

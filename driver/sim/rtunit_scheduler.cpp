@@ -466,7 +466,7 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const uint32_
 
   int64_t taken = 0, k = 0, first = -1, last = -1, idle = 0, evals = 0, starved = 0;
   int64_t full_cycles = 0, bad_tags = 0, accepts = 0, span_cycles = 0;
-  int64_t kfirst = -1, klast = -1, kernel = -1, bin_cycles = 1;
+  int64_t kfirst = -1, klast = -1, kernel = -1, bin_cycles = 1, bin = 0, in_bin = 0;
   const int64_t cap = c.series_capacity;
   auto start_kernel = [&](int64_t q, int64_t t) {
     e.next_warp = kernel_off[q];
@@ -574,12 +574,16 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const uint32_
       if (!u.waiting.empty() && u.waiting.top().at > k) progress = true;  // warps shading
       held_now += u.held_rays;
     }
-    while (k / bin_cycles >= cap) {                   // halve the series' resolution
-      for (int64_t b = 0; b < cap / 2; b++) series[b] = series[2 * b] + series[2 * b + 1];
-      std::memset(series + cap / 2, 0, sizeof(int64_t) * (cap / 2));
-      bin_cycles *= 2;
+    series[bin] += held_now;                          // the rays-in-flight series
+    if (++in_bin == bin_cycles) {
+      in_bin = 0;
+      if (++bin == cap) {                             // full: halve its resolution
+        for (int64_t b = 0; b < cap / 2; b++) series[b] = series[2 * b] + series[2 * b + 1];
+        std::memset(series + cap / 2, 0, sizeof(int64_t) * (cap / 2));
+        bin = cap / 2;
+        bin_cycles *= 2;
+      }
     }
-    series[k / bin_cycles] += held_now;
     idle = progress ? 0 : idle + 1;
     if (idle > c.max_idle + c.turnaround + c.shader_cycles) return -1;
     k++;
@@ -627,7 +631,7 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const uint32_
   stats->mshr_stall_cycles = e.mem.mshr_stall_cycles;
   stats->frame_cycles = m ? last - first + 1 : 0;
   stats->max_rays_held = e.max_held;
-  stats->series_bins = k / bin_cycles + (k % bin_cycles ? 1 : 0);
+  stats->series_bins = bin + (in_bin ? 1 : 0);
   stats->series_bin_cycles = bin_cycles;
   sched[0] = e.n_parked;
   sched[1] = e.n_resumed;
