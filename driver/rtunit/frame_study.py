@@ -179,17 +179,19 @@ def units_markdown(doc: dict) -> str:
 
 
 def plot_compressed(doc: dict, path) -> None:
-    """PNG: per preset, the frame's cycles per node format (left) and each ray type's mean
-    latency per format (right)."""
+    """PNG: one panel per preset and frame size: each ray type's mean latency (trace call to its
+    last response) per node format, the frame's cycles and utilization in the legend."""
     import numpy as np
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     tab = compressed(doc)
     presets = list(tab)
-    fig = Figure(figsize=(11.0, 4.4), dpi=110)
+    cols = min(2, len(presets))
+    rows = -(-len(presets) // cols)
+    fig = Figure(figsize=(6.0 * cols, 4.2 * rows), dpi=110)
     FigureCanvasAgg(fig)
-    axes = [fig.add_subplot(1, len(presets), i + 1) for i in range(len(presets))]
+    axes = [fig.add_subplot(rows, cols, i + 1) for i in range(len(presets))]
     for ax, preset in zip(axes, presets):
         fmts = list(tab[preset])
         kinds = list(tab[preset][fmts[0]]["by_type"])
@@ -205,7 +207,7 @@ def plot_compressed(doc: dict, path) -> None:
                          f"{f['utilization']:.2f}")
         ax.set_xticks(x)
         ax.set_xticklabels(kinds)
-        ax.set_ylabel("mean latency per ray, trace call to done (cycles)")
+        ax.set_ylabel("mean latency per ray (cycles)", fontsize=8)
         ax.set_title(f"{preset}, one-kernel frame", fontsize=9)
         ax.tick_params(axis="x", labelsize=8)
         ax.grid(True, axis="y", alpha=0.3)

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..backends.harness import replay_schedule
+from ..backends import harness
 from ..datapath import LATENCY
 from ..layout import INSTANCE_TYPE, NodeRef
 from . import order as ray_orders
@@ -312,7 +312,7 @@ def replay_frame(waves: list[Wave], rays_in_flight: int, pipelines: int = 1, mem
               "max_idle": 100 * latency + 1000, "window": window if pol.schedule else 0,
               "flush": int(bool(s.flush_between)), "active_treelets": 0, "treelet_flags": 0}
     t0 = time.perf_counter()
-    rsp, counters, per_pipe, arrays = replay_schedule(
+    rsp, counters, per_pipe, arrays = harness.replay_schedule(
         comb.params, config, None if memory is None else memory.config(), comb, chains[:2],
         plan, tl)
     wall = time.perf_counter() - t0

@@ -502,7 +502,8 @@ def study_stats(replays: list) -> dict:
     costs = [r.order for r in replays if getattr(r, "order", None)]
     if costs:
         out["ray_order_cost"] = merge_costs(costs)
-    return _rt_derived(out)
+    from .gpu import derived            # (gpu imports this module: the study's part only)
+    return derived(out)
 
 
 def _wavefront_row(r) -> dict:
@@ -513,18 +514,6 @@ def _wavefront_row(r) -> dict:
     if r.memory:
         row["bytes_from_memory"] = r.memory["bytes_from_memory"]
     return row
-
-
-def _rt_derived(s: dict) -> dict:
-    cyc, n = s["cycles"], s["rays"]
-    s["utilization"] = s["ops"] / (s["pipelines"] * cyc) if cyc else 0.0
-    s["frame_us_at_1ghz"] = cyc / 1000
-    s["cycles_per_ray"] = cyc / n if n else 0.0
-    if "line_accesses" in s:
-        acc = s["line_accesses"]
-        s["hit_rate"] = s["line_hits"] / acc if acc else 0.0
-        s["bytes_per_ray"] = s["bytes_from_memory"] / n if n else 0.0
-    return s
 
 
 STUDY_SCENES = ("bunny_floor", "cornell")
