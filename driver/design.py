@@ -28,19 +28,20 @@ docs/statistics.md for what is measured):
 
 from __future__ import annotations
 
-import argparse
-import itertools
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from typing import Callable
 
-from .area import ALL_CONFIGS, CONFIGS, Q8_SUFFIX
-from .backends.build import MIN_LATENCY
-from .datapath import LATENCY, default_latency
+from .core.configs import ALL_CONFIGS, CONFIGS, Q8_SUFFIX
+from .backends.build import MIN_LATENCY, rtl_params
+from .bvh4 import build_scene
+from .core.datapath import LATENCY, default_latency
 from .instances import DATAPATH, TRANSFORMS
-from .layout import IMAGE_FORMATS
-from .rtunit.plan import FRAMES, MAX_RT_UNITS, MAX_WARP_SIZE, Schedule
+from .core.layout import IMAGE_FORMATS
+from .rtunit import MemoryModel
 from .rtunit.order import DEFAULT_POLICY, DEFAULT_WINDOW, POLICIES
+from .rtunit.plan import FRAMES, MAX_RT_UNITS, MAX_WARP_SIZE, Schedule
 from .rtunit.presets import DEFAULT_PRESET, PRESETS
+from .scenes.camera import MAX_SIZE
 from .workloads import WORKLOADS
 
 GROUPS = {
@@ -111,7 +112,6 @@ def _choice(choices) -> Callable:
 
 
 def _size(flag, v):
-    from .scenes.camera import MAX_SIZE
     if v is not None:
         _int_range(1, MAX_SIZE)(flag, v)
 
@@ -375,14 +375,12 @@ class DesignPoint:
     def rtl_params(self) -> dict:
         """RTL build parameters (EXTENDED, DISJOINT, LATENCY, COMPRESSED, TRANSFORM) of this
         datapath."""
-        from .backends.build import rtl_params
         return rtl_params(self.extended, self.disjoint, self.latency, self.compressed,
                           self.transform_op)
 
     def memory(self):
         """The RT units' ``driver.rtunit.MemoryModel`` (``cache_kib`` 0: no node cache;
         ``l2_kib`` 0: no L2)."""
-        from .rtunit import MemoryModel
         return MemoryModel(self.cache_kib * 1024, self.cache_ways, self.line_bytes,
                            self.mem_latency, float(self.mem_bytes_per_cycle),
                            hit_latency=self.cache_latency, sector_bytes=self.sector_bytes,
@@ -428,9 +426,8 @@ class DesignPoint:
         return scene.flattened() if self.flatten else scene
 
     def build(self, scene):
-        """The BVH of ``scene`` for this point (``driver.bvh.instances.build_scene``: a two-level
+        """The BVH of ``scene`` for this point (``driver.bvh4.build_scene``: a two-level
         image for an instanced scene)."""
-        from .bvh.instances import build_scene
         return build_scene(scene, fill=self.bvh_fill, format=self.bvh_format,
                            transform=self.transform)
 
@@ -445,131 +442,8 @@ class DesignPoint:
         return ",".join(f"{f.name}={getattr(self, f.name)}" for f in fields(self))
 
     def replace(self, **changes) -> "DesignPoint":
-        from dataclasses import replace
         return replace(self, **changes)
 
-
-# ---------------------------------------------------------------------------------------------
-# command line
-
-def _help(o: Option, listing: bool, default: str | None = None, own: str | None = None) -> str:
-    text = f"{own or o.help} (default: {default or o.describe_default()})"
-    if listing and not own:
-        text += "; a comma-separated list" + (", or all" if o.choices else "")
-    return text
-
-
-def add_options(p, groups=tuple(GROUPS), sweep: bool = False, positional_scene: bool = False,
-                notes: dict | None = None, lists=(), defaults: dict | None = None,
-                helps: dict | None = None) -> None:
-    """Add the design-point options of ``groups`` to parser ``p``, one argument group each.
-    Defaults are left as None (``from_args`` fills them in) so that a command can tell a value
-    given from a default. ``sweep``: listable options take comma-separated lists (``lists``:
-    those named take them). ``positional_scene``: SCENE may also be given as the first
-    positional argument. ``notes``: group name -> how this command uses the group (shown in the
-    group's title). ``defaults``: option name -> this command's default, as shown in the help
-    (the command applies it: ``power`` measures every configuration unless told). ``helps``:
-    option name -> this command's own help text for it (the default is still appended)."""
-    for g in groups:
-        ag = p.add_argument_group(GROUPS[g] + (f" ({notes[g]})" if notes and g in notes else ""))
-        if g == "workload" and positional_scene:
-            ag.add_argument("scene_arg", nargs="?", metavar="SCENE",
-                            help="the scene, as --scene")
-        for o in OPTIONS:
-            if o.group != g:
-                continue
-            listing = (sweep or o.name in lists) and o.listable
-            shown = (defaults or {}).get(o.name)
-            own = (helps or {}).get(o.name)
-            if o.type is _bool and not listing:
-                ag.add_argument(o.flag, dest=o.name, action="store_const", const=True,
-                                default=None, help=_help(o, listing, shown, own))
-                continue
-            ag.add_argument(o.flag, dest=o.name, default=None,
-                            metavar=("LIST" if listing else o.metavar),
-                            type=str if listing else _parser(o), help=_help(o, listing, shown, own))
-
-
-def _parser(o: Option) -> Callable:
-    def parse(text):
-        try:
-            return o.type(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a valid value: {text!r}") from None
-    parse.__name__ = o.type.__name__
-    return parse
-
-
-def given(args, groups=tuple(GROUPS)) -> list[str]:
-    """The flags of ``groups`` given on the command line (not left at their defaults)."""
-    return [o.flag for o in OPTIONS if o.group in groups and getattr(args, o.name, None)
-            is not None]
-
-
-def _scene_of(args):
-    pos = getattr(args, "scene_arg", None)
-    if pos is not None and getattr(args, "scene", None) is not None:
-        raise ValueError("give the scene once: SCENE or --scene")
-    return pos if pos is not None else getattr(args, "scene", None)
-
-
-def from_args(args, **overrides) -> DesignPoint:
-    """The checked ``DesignPoint`` of parsed arguments (options not added: their defaults, or
-    the ``--rt-preset``'s values; ``overrides``: values that replace those defaults, e.g. a
-    command's own scene default). Options given override the preset's values."""
-    preset = getattr(args, "rt_preset", None) or DEFAULT_PRESET
-    if preset not in PRESETS:
-        raise ValueError(f"--rt-preset: unknown value {preset!r}; choose from "
-                         f"{', '.join(PRESETS)}")
-    values = dict(PRESETS[preset].values)
-    for o in OPTIONS:
-        v = _scene_of(args) if o.name == "scene" else getattr(args, o.name, None)
-        if v is not None:
-            values[o.name] = v
-        elif o.name in overrides:
-            values[o.name] = overrides[o.name]
-    values["rt_preset"] = preset
-    return DesignPoint(**values)
-
-
-def parse_list(o: Option, text: str) -> list:
-    """A sweep's comma-separated values of option ``o`` (``all``: every choice), checked."""
-    items = [x.strip() for x in str(text).split(",") if x.strip()]
-    if o.choices and items == ["all"]:
-        items = list(o.choices)
-    if not items:
-        raise ValueError(f"{o.flag}: give at least one value")
-    out = []
-    for x in items:
-        try:
-            v = o.type(x)
-        except ValueError:
-            raise ValueError(f"{o.flag}: not a valid value: {x!r}") from None
-        o.check(o.flag, v)
-        if v not in out:
-            out.append(v)
-    return out
-
-
-def grid_from_args(args) -> list[DesignPoint]:
-    """Every design point of a sweep's lists (in the order of ``OPTIONS``, last varying
-    fastest), each checked; options not given take each point's ``--rt-preset`` values."""
-    axes, given = [], set()
-    for o in OPTIONS:
-        v = _scene_of(args) if o.name == "scene" else getattr(args, o.name, None)
-        if v is None:
-            axes.append([o.default])
-        else:
-            given.add(o.name)
-            axes.append(parse_list(o, v) if o.listable and isinstance(v, str) else [v])
-    names = [o.name for o in OPTIONS]
-    points = []
-    for combo in itertools.product(*axes):
-        values = dict(zip(names, combo))
-        preset = PRESETS[values["rt_preset"]].values
-        points.append(DesignPoint(**{**values, **{k: v for k, v in preset.items()
-                                                  if k not in given}}))
-    return points
 
 
 def varied(points: list[DesignPoint]) -> list[str]:

@@ -19,10 +19,10 @@ request (``driver.tracer.trace(record=True)``), and streams it to any of:
 - **hex** files for ``$readmemh`` test benches (``HexSink``, ``--dump-hex DIR``):
   ``DIR/requests.hex`` and ``DIR/responses.hex``, one request (response) per line, and
   ``DIR/format.txt``, the bit position of every field (``hex_format``, generated from
-  ``driver.layout``). A line is the packed ``rf_pkg::req_t`` (``rsp_t``) as one hexadecimal
+  ``driver.core.wire``). A line is the packed ``rf_pkg::req_t`` (``rsp_t``) as one hexadecimal
   number of ``8 * REQ_WORDS`` (``8 * RSP_WORDS``) digits, most significant digit first: bit ``b``
-  of that number is bit ``b`` of the struct, i.e. word ``w`` of ``driver.layout``'s little-endian
-  word array is bits ``32w + 31 .. 32w``. ``decode_hex`` reads a line back.
+  of that number is bit ``b`` of the struct, i.e. word ``w`` of ``driver.core.wire``'s
+  little-endian word array is bits ``32w + 31 .. 32w``. ``decode_hex`` reads a line back.
 
 - a **VCD** waveform (``write_vcd``, ``--vcd PATH --vcd-window FIRST:COUNT``): requests
   ``FIRST .. FIRST + COUNT - 1`` of the stream run back to back through the Verilated RTL on the
@@ -31,9 +31,10 @@ request (``driver.tracer.trace(record=True)``), and streams it to any of:
 
 Issue order: the frame is traced tile by tile (tiles row-major, as ``driver.tiles`` renders
 them), within a tile one wavefront per ray type and bounce (``driver.workloads``), within a
-wavefront traversal step by step with the rays in index order (``driver.issue``). Every ray's own
-requests (its chain) do not depend on this order (``driver.rtunit``). Memory stays bounded: one
-tile's record at a time; the NPZ is assembled from per-array temporary files at the end.
+wavefront traversal step by step with the rays in index order (``driver.tracing.issue``). Every
+ray's own requests (its chain) do not depend on this order (``driver.rtunit``). Memory stays
+bounded: one tile's record at a time; the NPZ is assembled from per-array temporary files at the
+end.
 """
 
 from __future__ import annotations
@@ -48,7 +49,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .layout import (REQUEST, REQUEST_DTYPE, RESPONSE, RESPONSE_DTYPE, Wire, unpack_responses)
+from . import backends
+from .backends import resolve
+from .bvh4 import build_scene
+from .core.wire import REQUEST, REQUEST_DTYPE, RESPONSE, RESPONSE_DTYPE, Wire, unpack_responses
+from .tiles import DEFAULT_TILE, plan
+from .tracer import trace
+from .workloads import run, setup_for
 
 FORMAT_VERSION = 1
 HEX_FILES = {"requests": "requests.hex", "responses": "responses.hex", "format": "format.txt"}
@@ -74,11 +81,6 @@ def stream(scene, width: int, height: int, workload: str = "primary", options: d
     on ``backend`` (default the golden model). ``tile``: the tile size (default
     ``driver.tiles.DEFAULT_TILE``); ``options``: spp, bounces, ao_rays, seed;
     ``progress(done_tiles, total_tiles)``."""
-    from .backends import resolve
-    from .bvh.instances import build_scene
-    from .tiles import DEFAULT_TILE, plan
-    from .tracer import trace
-    from .workloads import run, setup_for
 
     be = resolve(backend)[0]
     bvh = build_scene(scene, fill=fill, format=bvh_format)
@@ -204,7 +206,8 @@ def decode_hex(line: str, wire: Wire = REQUEST) -> np.ndarray:
 
 
 def hex_format() -> str:
-    """The text of ``format.txt``: the line format and every field's bits, from driver.layout."""
+    """The text of ``format.txt``: the line format and every field's bits, from the wire table
+    (``driver.core.wire``)."""
     out = [f"RayFlex request stream, format {FORMAT_VERSION}",
            "",
            "requests.hex / responses.hex: one request (response) per line, in issue order; the",
@@ -293,8 +296,7 @@ def write_vcd(path, requests: np.ndarray, golden: np.ndarray, backend_options: d
     """Run ``requests`` back to back through the RTL on the "pyverilator" backend, writing the
     waveform of every datapath signal to ``path``; the responses must equal ``golden`` bit for
     bit (RuntimeError otherwise). Returns the cycles of the run."""
-    from .backends import backend
-    be = backend("pyverilator", vcd=os.fspath(path), **(backend_options or {}))
+    be = backends.backend("pyverilator", vcd=os.fspath(path), **(backend_options or {}))
     rsp = be.run(requests)
     if not np.array_equal(RESPONSE.pack(rsp), RESPONSE.pack(golden)):
         bad = int(np.flatnonzero((RESPONSE.pack(rsp) != RESPONSE.pack(golden)).any(1))[0])

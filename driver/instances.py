@@ -1,5 +1,4 @@
-"""Instances: meshes placed by 3x4 transforms, the ray transform, and what the traversal does when
-a ray enters an instance (docs/instances.md).
+"""Instances: meshes placed by 3x4 transforms, and the ray transform (docs/instances.md).
 
 - ``Instances``: a scene's instanced geometry: a list of meshes ((m, 3, 3) float32 triangles each),
   the mesh of every instance and its ``object_to_world`` 3x4 transform; the flattened world-space
@@ -9,13 +8,12 @@ a ray enters an instance (docs/instances.md).
 - ``TRANSFORMS``: where the transform runs: "driver" (``transform_ray`` on the host) or
   "datapath" (a ``TRANSFORM`` request per instance entered, issued on the frame's backend with
   the step's other requests; the same bits).
-- ``InstanceStepper``: the traversal's hook (``driver.traversal.traverse(instances=...)``): a ray
-  whose next node is an instance node fetches it (128 bytes), transforms its world ray, prepares
-  it again (``driver.datapath.prepare_rays``: the transformed ray is a new row of the issuer's
-  ray table) and continues at the BLAS root in the same stack, with its nearest t as the extent;
-  when its stack falls back below the entry, the world ray is restored.
+- ``world_boxes``: the world boxes of instances from their object-space boxes;
+  ``InstancedTriangles``, ``PerInstance``: the flattened triangles and per-instance attributes
+  indexed like per-triangle arrays, without flattening.
 
-The two-level image itself is built by ``driver.bvh.instances.build_two_level``.
+What the traversal does when a ray enters an instance is ``driver.tracing.stepper``; the
+two-level image itself is built by ``driver.bvh.instances.build_two_level``.
 """
 
 from __future__ import annotations
@@ -23,9 +21,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from .layout import (INSTANCE_BYTES, INSTANCE_NODE, INSTANCE_TYPE, NO_CHILD, NodeRef,
-                     read_nodes)
 
 
 
@@ -153,88 +148,17 @@ class Instances:
         return self.world_triangles(np.arange(self.triangles_total))
 
 
-class InstanceStepper:
-    """Per-ray instance state of one traversal (see the module docstring).
-
-    rays : (n,) prepared world rays (``REQUEST_DTYPE``); issue : the traversal's issuer
-    (``driver.issue``): ``issue.add_rays(prepared, rays, instance node pointers)`` appends
-    transformed rays to its ray table and returns their rows (rows 0..n-1 are the world rays);
-    with ``transform`` "datapath", ``issue.transforms(rows, pointers, extents)`` runs the
-    TRANSFORM requests of world rays by instance nodes and returns their response words.
-    """
-
-    def __init__(self, bvh, rays: np.ndarray, issue, transform: str = "driver"):
-        self.on_datapath = check_transform(transform) == DATAPATH
-        self.image = bvh.image.view("<u4")
-        self.world = rays
-        self.issue = issue
-        n = len(rays)
-        self.row = np.arange(n, dtype=np.int64)         # the issuer's row of each ray's ray
-        self.base = np.zeros(n, np.int64)               # stack index of the BLAS root entry
-        self.inside = np.zeros(n, bool)
-        self.current = np.full(n, -1, np.int64)         # instance the ray is in
-        self.hit_instance = np.full(n, -1, np.int64)
-        self.instance_ops = np.zeros(n, np.int64)       # instances entered
-        self.transform_ops = np.zeros(n, np.int64)      # TRANSFORM requests (on the datapath)
-        self._calls: list[int] = []                     # TRANSFORM batches not yet reported
-        self.node_bytes = np.zeros(n, np.int64)         # instance node bytes fetched
-
-    def step(self, active, stack, sp, nearest) -> np.ndarray:
-        """Before a step's requests: restore the world ray of rays that left their instance and
-        enter the instance nodes on top of the stacks (``sp`` points at the top entry). Returns
-        the rays that still have a request to issue (a ray whose transformed direction is zero
-        or not finite skips that instance)."""
-        while True:
-            out = self.inside[active] & (sp[active] < self.base[active])
-            if out.any():
-                r = active[out]
-                self.inside[r] = False
-                self.row[r] = r
-                self.current[r] = -1
-            top = stack[active, sp[active]]
-            enter = NodeRef.type(top) == INSTANCE_TYPE
-            if not enter.any():
-                return active
-            r = active[enter]
-            ptr = top[enter]
-            node = read_nodes(self.image, ptr, INSTANCE_NODE)
-            self.instance_ops[r] += 1
-            self.node_bytes[r] += INSTANCE_BYTES
-            if self.on_datapath:      # one TRANSFORM request per ray, on its world row (= r)
-                from .issue import transformed
-                o2, d2 = transformed(self.issue.transforms(r, ptr, nearest[r]))
-                self.transform_ops[r] += 1
-                self._calls.append(len(r))
-            else:
-                o2, d2 = transform_ray(node["world_to_object"], self.world["origin"][r],
-                                       self.world["dir"][r])
-            ok = (np.isfinite(o2).all(1) & np.isfinite(d2).all(1) & (d2 != 0).any(1))
-            go, skip = r[ok], r[~ok]
-            if len(go):
-                from .datapath import prepare_rays
-                prepared = prepare_rays(o2[ok], d2[ok], nearest[go], self.world["flags"][go])
-                # the instance node is the TRANSFORM request's own on the datapath; in the
-                # driver it is fetched before the BLAS root (the record's ``before``)
-                via = np.full(len(go), NO_CHILD, np.uint32) if self.on_datapath else ptr[ok]
-                self.row[go] = self.issue.add_rays(prepared, go, via)
-                self.base[go] = sp[go]
-                self.inside[go] = True
-                self.current[go] = node["instance"][ok].astype(np.int64)
-                stack[go, sp[go]] = node["blas"][ok]
-            if len(skip):
-                sp[skip] -= 1
-                active = active[sp[active] >= 0]
-                sp[skip[sp[skip] < 0]] = 0
-
-    def transform_calls(self) -> list[int]:
-        """The sizes of the TRANSFORM batches issued since the last call (each one backend
-        call), in order."""
-        calls, self._calls = self._calls, []
-        return calls
-
-    def hit(self, rays) -> None:
-        """Rays ``rays`` accepted a triangle in their current instance."""
-        self.hit_instance[rays] = self.current[rays]
+def world_boxes(instances: Instances, local_boxes: np.ndarray) -> np.ndarray:
+    """(k, 2, 3) float32 world boxes of instances whose object-space boxes are ``local_boxes``
+    (k, 6): the 8 corners through ``object_to_world`` in float64, rounded outward."""
+    lo, hi = local_boxes[:, :3], local_boxes[:, 3:]
+    sel = (np.arange(8)[:, None] >> np.arange(3)) & 1                   # (8, 3) corner choice
+    corners = np.where(sel[None], hi[:, None, :], lo[:, None, :])       # (k, 8, 3)
+    m = instances.object_to_world.astype(np.float64)
+    w = np.einsum("krc,kvc->kvr", m[:, :, :3], corners) + m[:, None, :, 3]
+    wlo = np.nextafter(w.min(1).astype(np.float32), np.float32(-np.inf))
+    whi = np.nextafter(w.max(1).astype(np.float32), np.float32(np.inf))
+    return np.stack([wlo, whi], axis=1)
 
 
 class InstancedTriangles:
@@ -265,7 +189,6 @@ class InstancedTriangles:
         inst = self.instances
         lo = np.array([m.reshape(-1, 3).min(0) for m in inst.meshes], np.float64)
         hi = np.array([m.reshape(-1, 3).max(0) for m in inst.meshes], np.float64)
-        from .bvh.instances import world_boxes
         wb = world_boxes(inst, np.concatenate([lo, hi], 1)[inst.mesh]).astype(np.float64)
         return wb[:, 0].min(0), wb[:, 1].max(0)
 
@@ -282,72 +205,3 @@ class PerInstance:
 
     def __getitem__(self, prim) -> np.ndarray:
         return self.values[self.instances.locate(prim)[0]]
-
-
-EMBREE_SAMPLE_TRIANGLES = 2_000_000   # world triangles an Embree check of a large instanced
-EMBREE_SAMPLE_RAYS = 4096             # scene may flatten, and the rays it may take
-
-
-def embree_sample(instances: Instances, origins, dirs, extent, our_t, our_prim,
-                  budget: int = EMBREE_SAMPLE_TRIANGLES, max_rays: int = EMBREE_SAMPLE_RAYS):
-    """A sample of rays that an Embree check of a scene too large to flatten can take exactly:
-    (rows, triangles, prim). ``rows``: the rays taken, in a fixed pseudo-random order, each ray
-    whose instances still fit in ``budget`` flattened triangles, up to ``max_rays``; a ray's
-    instances are every instance whose world box (grown by 1e-5 of the scene's size, for the
-    float32 traversal's rounding) it crosses before its hit (or its extent, for a miss), and
-    the instance it hit. ``triangles``: those instances' world-space triangles; ``prim``: our
-    primitive ids of the rays taken, renumbered into them. An Embree hit nearer than ours lies
-    in such an instance, so on these rays the check is the full scene's."""
-    o = np.asarray(origins, np.float64).reshape(-1, 3)
-    d = np.asarray(dirs, np.float64).reshape(-1, 3)
-    n = len(o)
-    t = np.asarray(our_t, np.float64)
-    end = np.where(np.isfinite(t), t * (1 + 1e-4),
-                   np.broadcast_to(np.asarray(extent, np.float64), (n,)))
-    own = np.full(n, -1, np.int64)                      # the instance each ray hit (-1: none)
-    ours = np.asarray(our_prim, np.int64) >= 0
-    own[ours] = instances.locate(np.asarray(our_prim, np.int64)[ours])[0]
-    from .bvh.instances import world_boxes
-    lo_m = np.array([m.reshape(-1, 3).min(0) for m in instances.meshes], np.float64)
-    hi_m = np.array([m.reshape(-1, 3).max(0) for m in instances.meshes], np.float64)
-    wb = world_boxes(instances, np.concatenate([lo_m, hi_m], 1)[instances.mesh]).astype(np.float64)
-    pad = 1e-5 * max(float(np.abs(wb).max()), float(np.abs(o).max(initial=0.0)))
-    wb[:, 0] -= pad                                     # the float32 traversal's rounding
-    wb[:, 1] += pad
-    size = np.array([len(m) for m in instances.meshes], np.int64)[instances.mesh]
-    dn = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
-    order = np.random.default_rng(0).permutation(n)
-    taken, used = [], np.zeros(len(instances), bool)
-    total = 0
-    for start in range(0, n, 64):
-        rows = order[start:start + 64]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv = 1.0 / d[rows]
-            t0 = (wb[None, :, 0] - o[rows, None]) * inv[:, None]
-            t1 = (wb[None, :, 1] - o[rows, None]) * inv[:, None]
-        near = np.nan_to_num(np.minimum(t0, t1), nan=-np.inf).max(2)
-        far = np.nan_to_num(np.maximum(t0, t1), nan=np.inf).min(2)
-        cross = (near <= far) & (far >= 0) & (near <= end[rows, None] + pad / dn[rows, None])
-        for r, c in zip(rows, cross):
-            c = c.copy()
-            if own[r] >= 0:
-                c[own[r]] = True                        # its own hit, however it rounded
-            new = c & ~used
-            if total + int(size[new].sum()) > budget:
-                continue                        # this ray would flatten too much: not taken
-            used |= new
-            total += int(size[new].sum())
-            taken.append(r)
-        if len(taken) >= max_rays:
-            taken = taken[:max_rays]
-            break
-    rows = np.sort(np.array(taken, np.int64))
-    keep = np.flatnonzero(used)
-    base = np.concatenate(([0], np.cumsum(size[keep])[:-1])).astype(np.int64)
-    tris = (np.concatenate([instances.world_triangles(instances.prim_base[i] + np.arange(size[i]))
-                            for i in keep]) if len(keep) else np.zeros((0, 3, 3), np.float32))
-    prim = np.asarray(our_prim, np.int64)[rows]
-    hit = prim >= 0
-    inst, local = instances.locate(prim[hit])
-    prim[hit] = base[np.searchsorted(keep, inst)] + local
-    return rows, tris, prim

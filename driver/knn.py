@@ -36,8 +36,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .datapath import ANGULAR, EUCLIDEAN, REQUEST_DTYPE
-from .layout import ANG_LANES, EUC_LANES
+from . import backends
+from .core.datapath import ANGULAR, EUCLIDEAN, REQUEST_DTYPE
+from .core.wire import ANG_LANES, EUC_LANES
+from .core.progress import bar as progress_bar
 
 F32 = np.float32
 LANES = {EUCLIDEAN: EUC_LANES, ANGULAR: ANG_LANES}
@@ -220,7 +222,6 @@ def datapath_distances(dp, queries: np.ndarray, cands: np.ndarray, metric: str,
                        stats: RunStats | None = None, progress: bool = False):
     """(Q, M) distances with every sum on backend ``dp`` (an extended build): float32 squared
     Euclidean distances, or float64 cosine distances from float32 datapath dot/norms."""
-    from .progress import bar as progress_bar
     stats = stats if stats is not None else RunStats()
     nq, dim = queries.shape
     nc = len(cands)
@@ -262,7 +263,6 @@ def knn(queries, cands, k: int, metric: str = "euclidean", backend="rtl", disjoi
     """k nearest candidates of every query with all distance sums on the datapath, compared with
     the exact float64 search. ``backend``: a name (built with extended=True) or a backend object.
     ``query_ids`` / ``candidate_ids`` name the rows in the result (default 0..n-1)."""
-    from .backends import backend as make_backend
     if metric not in METRICS:
         raise ValueError(f"unknown metric {metric!r}; choose from {', '.join(METRICS)}")
     queries = check_matrix(queries, "queries")
@@ -272,7 +272,7 @@ def knn(queries, cands, k: int, metric: str = "euclidean", backend="rtl", disjoi
                          f"{cands.shape[1]}")
     if not 1 <= k <= len(cands):
         raise ValueError(f"-k must be in 1..{len(cands)} (the number of candidates), got {k}")
-    dp = make_backend(backend, extended=True, disjoint=disjoint) if isinstance(backend, str) \
+    dp = backends.backend(backend, extended=True, disjoint=disjoint) if isinstance(backend, str) \
         else backend
     if not getattr(dp, "extended", False):
         raise ValueError("kNN needs an extended datapath build (extended=True)")

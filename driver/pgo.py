@@ -1,6 +1,6 @@
 """Training workload for the profile-guided build of the "rtl" harness library.
 
-``driver.verilate.build_library(train=...)`` compiles the harness instrumented, runs
+``driver.backends.verilate.build_library(train=...)`` compiles the harness instrumented, runs
 
     python -m driver.pgo '{"DISJOINT": 0, "EXTENDED": 0, "LATENCY": 11}' /path/to/librayflex_....so
 
@@ -24,12 +24,16 @@ import time
 import numpy as np
 import trimesh
 
+from . import workloads
 from .backends.golden import GoldenBackend
 from .backends.harness import HarnessBackend, use_library
 from .bvh4 import build
 from .scenes.camera import frame, primary_rays
-from .datapath import ANGULAR, EUCLIDEAN
+from .core.datapath import ANGULAR, EUCLIDEAN
 from .knn import LANES, pad, run_jobs
+from .rtunit import MemoryModel
+from .rtunit.gpu import replay_frame, waves_of
+from .rtunit.plan import Schedule
 from .scenes.scene import load_scene
 from .tracer import trace
 
@@ -99,10 +103,6 @@ def _train_gpu_replay(opts: dict) -> int:
     room (camera rays and any-hit rays interleaved in one kernel) with the default node memory,
     and in warps of 8 on two units with MSHRs, sectors and an L2; every response checked against
     the traversal's. Returns the requests replayed."""
-    from . import workloads
-    from .rtunit import MemoryModel
-    from .rtunit.gpu import replay_frame, waves_of
-    from .rtunit.plan import Schedule
     scene = load_scene("room")
     be = HarnessBackend(**opts)
     res = workloads.run(workloads.setup_for(scene), build(scene.mesh), 32, 32,

@@ -21,16 +21,21 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .backends import resolve
-from .bvh.instances import build_label
+from .bvh4 import build_label
+from .check import check, embree_json, embree_sample
 from .scenes.camera import check_size, primary_rays
-from .tiles import DEFAULT_TILE
-from .errors import RayflexError
-from .outputs import save_image
-from .progress import bar as progress_bar
-from .progress import phase
+from .tiles import DEFAULT_TILE, _backend, plan, render_tiles
+from .core.errors import RayflexError
+from .core.outputs import save_image
+from .core.progress import bar as progress_bar
+from .core.progress import phase
+from .design import DesignPoint
 from .scenes.scene import Scene, load_scene
 from .rtunit.gpu import replay_point
 from .rtunit.plan import Wave
+from .stats import public
+from .tracer import trace
+from .workloads import headlight, setup_for, tone_map
 
 # Peak resident memory of a frame, measured with /usr/bin/time -v (maximum RSS) on the sphere
 # scene at 256², 512² and 1024² (--check-embree makes no difference): golden 167 / 403 / 1,294 MB,
@@ -79,32 +84,29 @@ class RenderResult:
 
 
 def render(scene, width=None, height=None, backend: str = "rtl", progress: bool = True,
-           check_embree: bool = False, workload: str = "primary", spp: int = 1, bounces: int = 1,
-           ao_rays: int = 4, seed: int = 0, tile: int | None = None, workers: int = 1,
-           scheduler: str | None = None, fill: int = 0, cull_stack: bool = False,
-           point=None, rtunit: bool | str = False) -> RenderResult:
+           check_embree: bool = False, point: DesignPoint | None = None,
+           rtunit: bool | str = False, tile: int | None = None, workers: int = 1,
+           scheduler: str | None = None) -> RenderResult:
     """Render ``scene`` (a Scene, or anything ``load_scene`` takes) at width x height (default:
     the scene's size) with every box/triangle test on ``backend``; optionally cross-check every
     ray against Embree.
 
-    The primary workload with one sample, untiled, is one wavefront of every pixel (the frame of
-    earlier versions, with ``trace`` the TraceResult). Any other ``workload``
-    (docs/workloads.md: shadow, ao, path with ``spp``, ``bounces``, ``ao_rays``, ``seed``), a
-    ``tile`` size, ``workers`` > 1 or a Dask ``scheduler`` renders through ``driver.tiles`` (``trace`` is None; statistics per
-    ray type in ``stats["by_type"]``); so does a frame too big for memory as one wavefront.
-    ``fill`` is the BVH build's (``driver.bvh4.build``), ``cull_stack`` the traversal's
-    (``driver.tracer.trace``).
+    ``point``: the ``driver.design.DesignPoint`` of the frame (default ``DesignPoint()``: the
+    primary workload, one sample): its workload (docs/workloads.md: primary, shadow, ao, path
+    with ``spp``, ``bounces``, ``ao_rays``, ``seed``), its BVH options (``bvh_fill``,
+    ``bvh_format``, ``flatten``, ``cull_stack``), and its datapath configuration and latency,
+    which make the backend (a backend name; a backend object is used as it is). ``rtunit``:
+    also replay the frame's requests on the point's RT units (statistics ``rtunit_memory``;
+    ``"ideal"``: and ``rtunit``, a second replay with free node fetches; docs/rtunit.md).
 
-    ``point``: a ``driver.design.DesignPoint``; its datapath configuration and latency make the
-    backend (a backend name; a backend object is used as it is), and its workload and BVH
-    options replace the keyword arguments above. ``rtunit``: also replay the frame's requests
-    on the point's RT units (statistics ``rtunit_memory``; ``"ideal"``: and ``rtunit``, a second
-    replay with free node fetches; docs/rtunit.md). The
-    statistics are in the published schema (``driver.stats.public``, docs/statistics.md)."""
-    from .design import DesignPoint
+    The primary workload with one sample, untiled, is one wavefront of every pixel (the frame of
+    earlier versions, with ``trace`` the TraceResult). Any other workload, a ``tile`` size,
+    ``workers`` > 1 or a Dask ``scheduler`` renders through ``driver.tiles`` (``trace`` is None;
+    statistics per ray type in ``stats["by_type"]``); so does a frame too big for memory as one
+    wavefront. The statistics are in the published schema (``driver.stats.public``,
+    docs/statistics.md)."""
     if point is None:
-        point = DesignPoint(workload=workload, spp=spp, bounces=bounces, ao_rays=ao_rays,
-                            seed=seed, bvh_fill=fill, cull_stack=cull_stack)
+        point = DesignPoint()
     scene = point.scene_of(load_scene(scene))
     w, h = check_size(width if width is not None else scene.size[0],
                       height if height is not None else scene.size[1])
@@ -132,14 +134,10 @@ def plan_tile(pixels: int, workload: str, spp: int, tile: int | None, workers: i
 
 def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, tile,
                   workers, scheduler) -> RenderResult:
-    from .stats import public
-    from .tiles import plan, render_tiles
-    from .workloads import setup_for, tone_map
     workload = point.workload
     name = backend if isinstance(backend, str) else getattr(backend, "name", "backend")
     spec = (backend, point.backend_options()) if isinstance(backend, str) else backend
     if workers == 1 and not scheduler:
-        from .tiles import _backend
         _backend(spec)                      # fail early, before a long BVH build
     with phase(f"building {build_label(scene)}", progress):
         bvh = point.build(scene)
@@ -166,8 +164,6 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
 def _render_whole(scene, w, h, backend, progress, check_embree, point,
                   rtunit=False) -> RenderResult:
     """The primary frame as one wavefront of every pixel."""
-    from .stats import public
-    from .tracer import trace
 
     origins, dirs = primary_rays(scene.camera, w, h)
     be = resolve(backend, **point.backend_options())[0]    # fail early, before a long BVH build
@@ -198,11 +194,9 @@ def _render_whole(scene, w, h, backend, progress, check_embree, point,
     stats = public(stats)
     emb = None
     if check_embree:
-        from .check import check, embree_json
         with phase(f"Embree check of {len(origins):,} rays", progress):
             rows, ctri, cprim = slice(None), tri, result.prim
             if hasattr(tri, "instances"):   # too large to flatten: a sample (driver.instances)
-                from .instances import embree_sample
                 rows, ctri, cprim = embree_sample(tri.instances, origins, dirs, np.inf,
                                                   result.t, result.prim)
             emb = check(ctri, origins[rows], dirs[rows], result.t[rows], cprim,
@@ -294,7 +288,6 @@ def shade(trace_result, triangles, dirs, width: int, height: int) -> np.ndarray:
 
     trace_result : has ``prim`` (n,) int (-1 = miss); triangles : (m, 3, 3); dirs : (n, 3)
     """
-    from .workloads import headlight, tone_map
     n = width * height
     prim = np.asarray(trace_result.prim, np.int64).reshape(-1)
     if len(prim) != n:

@@ -15,8 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .layout import BOX_BYTES, TRI_BYTES
+from .core.layout import BOX_BYTES, TRI_BYTES
 from .rtunit.gpu import derived
+from .rtunit.order import merge_costs
 
 STACK_CULLS = "stack_culls"     # box nodes a distance-culled stack dropped
 INSTANCE_OPS = "instance_ops"   # instances entered (two-level images; docs/instances.md)
@@ -129,6 +130,8 @@ WAVEFRONT, RTUNIT, RTUNIT_MEMORY = "wavefront", "rtunit", "rtunit_memory"
 WAVEFRONTS = "wavefronts"      # an RT-unit object's replayed wavefronts, in the order they ran
 # the wavefront's timing figures (flat in a TraceResult's statistics, an object when published)
 WAVEFRONT_KEYS = ("cycles", "utilization", "frame_us_at_1ghz", "sim_wall_s", "sim_cycles_per_s")
+
+
 def public(stats: dict) -> dict:
     """Flat traversal statistics (a ``TraceResult``'s or ``merge``'s, ``by_type`` included) in
     the published schema: the wavefront's timing moved under ``wavefront``; an RT-unit object
@@ -208,7 +211,6 @@ def merge_rtunit(parts: list) -> dict | None:
         out["unit_ops"] = [sum(v) for v in zip(*(p["unit_ops"] for p in parts))]
     costs = [p["ray_order_cost"] for p in parts if "ray_order_cost" in p]
     if costs:
-        from .rtunit.order import merge_costs
         out["ray_order_cost"] = merge_costs(costs)
     if "memory_energy" in first:
         e = {lvl: sum(p["memory_energy"][lvl] for p in parts) for lvl in ("l1", "l2", "dram",
@@ -218,61 +220,3 @@ def merge_rtunit(parts: list) -> dict | None:
     for k in first:                       # every key of the parts' objects, null if unmerged
         out.setdefault(k, None)
     return derived({k: out[k] for k in first} | {k: v for k, v in out.items() if k not in first})
-
-
-# ---------------------------------------------------------------------------------------------
-# provenance: what produced a JSON document
-
-def provenance(point=None) -> dict:
-    """The ``provenance`` object of every JSON the commands write: the rayflex version, the git
-    commit of the source tree when it is a git checkout (None for an installed wheel), the whole
-    design point (``driver.design.DesignPoint``; None when there is none) and the machine."""
-    return {"rayflex_version": rayflex_version(), "git_commit": git_commit(),
-            "design_point": point.as_dict() if point is not None else None,
-            "machine": machine()}
-
-
-def rayflex_version() -> str | None:
-    from importlib.metadata import PackageNotFoundError, version
-    try:
-        return version("rayflex-driver")
-    except PackageNotFoundError:
-        return None
-
-
-def git_commit() -> str | None:
-    """HEAD of the git checkout holding this package (None when it is not in one)."""
-    import subprocess
-    from pathlib import Path
-    root = Path(__file__).resolve().parent.parent
-    if not (root / ".git").exists():
-        return None
-    try:
-        out = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True,
-                             text=True, timeout=10)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    commit = out.stdout.strip()
-    return commit if out.returncode == 0 and len(commit) == 40 else None
-
-
-def machine() -> dict:
-    """CPU model (first ``model name`` of /proc/cpuinfo), logical cores (all / usable)."""
-    import os
-    import platform
-    from pathlib import Path
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.lower().startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        usable = os.cpu_count()
-    return {"cpu": cpu, "cores": os.cpu_count(), "cores_usable": usable,
-            "python": platform.python_version(), "numpy": np.__version__,
-            "platform": platform.platform()}

@@ -5,7 +5,7 @@ combination. What each point costs:
 
 1. The functional trace: the workload's hits and datapath requests do not depend on the RT unit,
    so the frame is traced once per distinct (BVH options, workload options) on the "rtl" backend
-   of the first configuration listed, every wavefront recorded (``driver.rtunit.Record``).
+   of the first configuration listed, every wavefront recorded (``driver.tracing.record.Record``).
 2. Per point, the frame's recorded batches are replayed on the point's RT units and memory
    hierarchy (``driver.rtunit.gpu.replay_point``: ``rtunit_memory``; with ``ideal`` also
    ``rtunit``, every node fetch free), on the RTL of the point's datapath configuration and
@@ -34,16 +34,24 @@ from __future__ import annotations
 import csv
 import json
 import os
+import sys
 import time
+import uuid
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-from . import design
+from . import backends, design, power, workloads
+from .core.outputs import jsonable
 from .design import DesignPoint
-from .progress import bar as progress_bar
-from .progress import phase
-from .stats import provenance, public
+from .core.progress import bar as progress_bar
+from .core.progress import phase
 from .rtunit.gpu import replay_point, waves_of
+from .stats import merge, public
+from .core.provenance import git_commit, provenance, rayflex_version
+from .power.report import UNITS
+from .power.stimulus import box_op
+from .tiles import _client
+from .tracer import trace
 
 ENERGY_LEVELS = ("signals", "gates")
 # the options that make the functional trace (everything else is replayed)
@@ -73,15 +81,12 @@ class Trace:
 def trace_workload(point: DesignPoint, progress: bool = True) -> Trace:
     """Trace ``point``'s workload on the "rtl" backend of its datapath, every wavefront
     recorded."""
-    from . import workloads
-    from .backends import backend
     from .scenes.scene import load_scene
-    from .tracer import trace
 
     t0 = time.perf_counter()
     scene = point.scene_of(load_scene(point.scene))
     size = point.size or scene.size[0]
-    rtl = backend("rtl", **point.backend_options())
+    rtl = backends.backend("rtl", **point.backend_options())
     with phase(f"building the BVH4 of {len(scene.triangles):,} triangles", progress):
         bvh = point.build(scene)
     setup = workloads.setup_for(scene)
@@ -113,8 +118,6 @@ def energy_tables(points, progress: bool = True) -> dict:
     image's box op: box_q8 or box_q8_host, ``_box_op``): {"CONFIG@LATENCY": {level: {"box": e,
     "triangle": e, ["box_q8" or "box_q8_host": e,] "unit": unit} or None}}; level ``gates``
     only for configurations whose gate netlist is cached (at the netlist's latency)."""
-    from . import power
-    from .power.report import UNITS
     out: dict = {}
     for cfg, lat in sorted({(p.config, p.latency) for p in points}):
         entry = out[energy_key(cfg, lat)] = {lvl: None for lvl in ENERGY_LEVELS}
@@ -137,7 +140,6 @@ def energy_key(config: str, latency: int) -> str:
 def _box_op(p: DesignPoint) -> str:
     """The operation a box node of point ``p``'s frame is (``stimulus.box_op``: box, or for a
     q8 image box_q8 / box_q8_host, decoded by the datapath / the host)."""
-    from .power.stimulus import box_op
     return box_op({"COMPRESSED": p.compressed}, p.bvh_format != "box32")
 
 
@@ -180,12 +182,10 @@ def load_results(path: Path) -> dict:
 
 
 def _source() -> list:
-    from .stats import git_commit, rayflex_version
     return [rayflex_version(), git_commit()]
 
 
 def _append(path: Path, key: str, result: dict) -> None:
-    from .outputs import jsonable
     with open(path, "a") as f:
         f.write(json.dumps({"key": key, "source": _source(), "result": jsonable(result)})
                 + "\n")
@@ -245,7 +245,6 @@ def sweep(points: list[DesignPoint], workers: int = 1, scheduler: str | None = N
 
 
 def _stderr():
-    import sys
     return sys.stderr
 
 
@@ -258,9 +257,6 @@ def _run(todo, traces, workers, scheduler, ideal=False):
             t = traces[functional_key(p)]
             yield p, measure_point(p, t.waves, t.width, ideal)
         return
-    import uuid
-
-    from .tiles import _client
     with _client(workers, scheduler) as client:
         recs = {k: client.scatter(t.waves, broadcast=True) for k, t in traces.items()}
         run_id = uuid.uuid4().hex[:12]
@@ -278,7 +274,6 @@ def _run(todo, traces, workers, scheduler, ideal=False):
 
 def _entry(p: DesignPoint, result: dict, trace: Trace, energies: dict) -> dict:
     """A point's frame statistics: the functional counts with its RT-unit replays and energy."""
-    from .stats import merge
     key = energy_key(p.config, p.latency)
     bop = _box_op(p)
     by_type = {}

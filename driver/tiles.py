@@ -4,9 +4,9 @@ A frame is a list of tiles (squares of ``tile`` x ``tile`` pixels, row-major); e
 by the same code as a whole frame (``driver.workloads.run`` with the tile's pixels: every ray type
 and bounce is one wavefront within the tile) and its pixels, per-pixel ops, statistics and Embree
 check are merged into the frame. Because every random number is a pure function of (seed, pixel,
-sample, bounce, purpose) (``driver.sampling``), a tile traced alone is exactly that tile of the
-whole frame: the image, hits, per-pixel ops, ray and op counts do not depend on the tile size or
-on where a tile runs.
+sample, bounce, purpose) (``driver.scenes.sampling``), a tile traced alone is exactly that tile of
+the whole frame: the image, hits, per-pixel ops, ray and op counts do not depend on the tile size
+or on where a tile runs.
 
 Timing: a tile is the unit of scheduling (its ray types and bounces are its wavefronts), so the
 datapath ``cycles`` of a frame are the sum of its tiles' wavefront cycles (each wavefront pays its
@@ -34,15 +34,19 @@ cluster given by ``--scheduler`` keep whatever their operator configured (docs/w
 
 from __future__ import annotations
 
+import logging
 import time
 import uuid
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .stats import merge
-from .workloads import FrameResult
+from .backends import resolve
+from .check import merge_checks
 from .rtunit.gpu import replay_point, waves_of
+from .stats import merge, merge_rtunit
+from .tracer import trace
+from .workloads import FrameResult, embree_check, run
 
 DEFAULT_TILE = 64
 CONNECT_TIMEOUT = "5s"          # how long to wait for a Dask scheduler to answer
@@ -82,7 +86,6 @@ class TileResult:
 def _backend(spec):
     """This process's backend for ``spec`` (a name, or (name, options)), made once; a backend
     object is used as it is (in this process only)."""
-    from .backends import resolve
     if not isinstance(spec, (str, tuple)):
         return spec
     name, options = (spec, {}) if isinstance(spec, str) else spec
@@ -97,8 +100,6 @@ def run_tile(setup, bvh, width: int, height: int, pixels, workload: str, options
     """Trace one tile (a task: pure in its inputs, the backend cached per process). ``options``:
     the workload's (``driver.workloads.run``), ``cull_stack``, and ``rtunit``: a design point
     whose RT unit replays the tile's wavefronts (``add_replays``), or None."""
-    from .tracer import trace
-    from .workloads import embree_check, run
 
     be = _backend(backend_spec)
     options = dict(options)
@@ -159,7 +160,6 @@ class Assembler:
             self.replays.append((tuple(t.pixels[:1].tolist()), t.replay))
 
     def frame(self) -> FrameResult:
-        from .check import merge_checks
         # merge in tile order, so that float sums (wall times) do not depend on arrival order
         by_type = {k: merge([s for _, s in sorted(v, key=lambda x: x[0])])
                    for k, v in self.parts.items()}
@@ -169,7 +169,6 @@ class Assembler:
         if self.checks:
             total["embree"] = merge_checks([e for v in self.checks.values() for _, e in v])
         if self.replays:                 # tiles are dispatches one after another
-            from .stats import merge_rtunit
             parts = [r for _, r in sorted(self.replays, key=lambda x: x[0])]
             for key in ("rtunit", "rtunit_memory"):
                 total[key] = merge_rtunit([p[key] for p in parts])
@@ -180,11 +179,11 @@ class Assembler:
 def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
                  options: dict | None = None, backend="rtl", tile: int = DEFAULT_TILE,
                  workers: int = 1, scheduler: str | None = None, check_embree: bool = False,
-                 progress=None, timings: dict | None = None) -> FrameResult:
+                 progress=None) -> FrameResult:
     """Trace a frame tile by tile: in this process (``workers=1`` and no ``scheduler``), or as
     Dask tasks on a new ``LocalCluster`` of ``workers`` processes or on the cluster at
-    ``scheduler``. ``progress(done_tiles, total_tiles)``. Returns the merged ``FrameResult``.
-    ``timings`` (a dict) receives the distributed run's wall-time phases in seconds:
+    ``scheduler``. ``progress(done_tiles, total_tiles)``. Returns the merged ``FrameResult``;
+    its ``timings`` hold a distributed run's wall-time phases in seconds:
     ``start_s`` (importing Dask, starting the cluster or connecting, sending the scene and
     BVH), ``first_tile_s`` (from then to the first tile's result: a worker's one-time set-up and
     one tile), ``tiles_s`` (from then to the last result) and ``close_s``."""
@@ -198,7 +197,7 @@ def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
             if progress:
                 progress(i + 1, len(tiles))
         return asm.frame()
-    clock = _Phases(timings)
+    clock = _Phases({})
     with _client(workers, scheduler) as client:
         setup_f, bvh_f = client.scatter([setup, bvh], broadcast=True)
         clock.mark("start_s")
@@ -218,7 +217,9 @@ def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
             client.cancel(futures)
         clock.mark("tiles_s")
     clock.mark("close_s")
-    return asm.frame()
+    frame = asm.frame()
+    frame.timings = clock.out
+    return frame
 
 
 class _Phases:
@@ -254,7 +255,6 @@ class _client:
             except (OSError, TimeoutError) as e:
                 raise OSError(f"no Dask scheduler answers at {self.scheduler} ({e})") from None
             return self.client
-        import logging
 
         import dask
         # silence_logs: the workers' own log lines (e.g. a heartbeat that races the scheduler's

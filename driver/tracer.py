@@ -1,25 +1,31 @@
 """``trace``: rays through a scene with every box and triangle test on a datapath backend.
 
 Composes the layers: the BVH4 (``driver.bvh4``), a backend (``driver.backends``), the issuer that
-feeds it each traversal step (``driver.issue``, optionally recording every request), the traversal
-loop (``driver.traversal``), the frame statistics (``driver.stats``) and, when asked, the RT-unit
-timing replay (``driver.rtunit``).
+feeds it each traversal step (``driver.tracing.issue``, optionally recording every request), the
+traversal loop (``driver.traversal``), the frame statistics (``driver.stats``) and, when asked, the
+RT-unit timing replay (``driver.rtunit``).
 """
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import rtunit
 from .backends import resolve
-from .bvh4 import BVH4, build
-from .datapath import prepare_rays
-from .layout import FLAG_NO_CULL
-from .instances import DATAPATH, InstanceStepper, check_transform
-from .issue import issuer
+from .backends.build import MIN_LATENCY, rtl_params
+from .bvh4 import BVH4, build, build_two_level
+from .core.datapath import prepare_rays
+from .core.wire import FLAG_NO_CULL
+from .instances import DATAPATH, Instances, check_transform
+from .tracing.stepper import InstanceStepper
+from .tracing.issue import issuer
 from .stats import frame_stats, with_replay
 from .traversal import traverse
+
+REPLAY_OPTIONS = inspect.signature(rtunit.replay)     # what ``trace(**rtunit_options)`` passes on
 
 
 @dataclass
@@ -40,7 +46,7 @@ class TraceResult:
         the flattened triangle list (``driver.instances.Instances.flatten``)
     stats : dict, docs/datapath.md#statistics names, plain Python ints/floats/str (plus the RT-unit
         keys of ``trace(rays_in_flight=...)``)
-    record : ``driver.rtunit.Record`` of every request, when asked for (else None)
+    record : ``driver.tracing.record.Record`` of every request, when asked for (else None)
     """
 
     t: np.ndarray
@@ -63,7 +69,7 @@ class TraceResult:
 
 
 def as_bvh(scene, bvh_format: str | None = None) -> BVH4:
-    """A BVH4 from a BVH4, a scene name/path (``driver.scene.load``), a trimesh mesh, an
+    """A BVH4 from a BVH4, a scene name/path (``driver.scenes.scene.load``), a trimesh mesh, an
     (n, 3, 3) triangle array, or an object with a ``bvh`` or ``mesh`` attribute; built in
     ``bvh_format`` (``driver.bvh4.build``'s ``format``; None: box32). A given BVH4 must be in
     ``bvh_format`` when that is not None (ValueError)."""
@@ -75,9 +81,7 @@ def as_bvh(scene, bvh_format: str | None = None) -> BVH4:
     if isinstance(scene, (str, bytes)) or hasattr(scene, "__fspath__"):
         from .scenes.scene import load_scene                      # the application layer; lazy
         scene = load_scene(scene)
-    from .instances import Instances
     if isinstance(scene, Instances) or getattr(scene, "instances", None) is not None:
-        from .bvh.instances import build_two_level
         return build_two_level(scene if isinstance(scene, Instances) else scene.instances,
                                format=bvh_format or "box32")
     if hasattr(scene, "mesh") and not hasattr(scene, "faces"):
@@ -86,9 +90,8 @@ def as_bvh(scene, bvh_format: str | None = None) -> BVH4:
 
 
 def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np.inf,
-          progress=None, rays_in_flight=None, pipelines=1, turnaround=None, record=False,
-          any_hit=False, double_sided=None, cull_stack=False, bvh_format=None,
-          transform=None) -> TraceResult:
+          progress=None, any_hit=False, double_sided=None, cull_stack=False, bvh_format=None,
+          transform=None, **rtunit_options) -> TraceResult:
     """Trace rays with every box and triangle test run on ``backend``.
 
     scene_or_mesh_or_bvh : BVH4, trimesh mesh, (n, 3, 3) triangles, or a scene name/path
@@ -100,7 +103,7 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
         (``hit``, ``prim``, ``t`` of that triangle); otherwise the closest hit
     double_sided : set ``NO_CULL`` on every ray (docs/datapath.md): triangles are hit from both
         sides. None (default): the scene's own setting when ``scene_or_mesh_or_bvh`` is a scene
-        (a name, a path or a ``driver.scene.Scene``), else False
+        (a name, a path or a ``driver.scenes.scene.Scene``), else False
     cull_stack : keep each stack entry's entry distance (the response's ``box_tmin``) and drop
         a popped box node that lies beyond the nearest hit without a request (beyond
         docs/datapath.md#traversal, off by default; ``driver.traversal``): the same hits with fewer
@@ -113,20 +116,26 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
         request per instance entered, on ``backend``, which must be built with the operation:
         a backend name is made with ``transform=True``, a backend object without it is a
         ValueError before any work); None: the image's own (``TwoLevelBVH.transform``, set by
-        ``driver.bvh.instances.build_scene``)
+        ``driver.bvh4.build_scene``)
     progress : optional callable(done_rays, total_rays), called once per step
-    rays_in_flight, pipelines, turnaround : RT-unit model (``driver.rtunit``). With
-        ``rays_in_flight=None`` (default) the statistics are the wavefront's: every ray in
-        flight, one pipeline, cycles as the backend counts them. With an int R, the recorded
-        requests are replayed through ``pipelines`` Verilated pipelines holding R rays in flight
+    rtunit_options : the RT-unit model: ``record=True`` keeps the
+        ``driver.tracing.record.Record`` of every request (for ``rtunit.replay`` and sweeps) in
+        ``TraceResult.record`` (always kept when ``rays_in_flight`` is given); the others are
+        ``driver.rtunit.replay``'s keywords (``rays_in_flight``, ``pipelines``,
+        ``turnaround``, ...). Without ``rays_in_flight`` (or
+        with None, the default) the statistics are the wavefront's: every ray in flight, one
+        pipeline, cycles as the backend counts them. With an int R, the recorded requests are
+        replayed through ``pipelines`` Verilated pipelines (default 1) holding R rays in flight
         (``turnaround`` cycles from a response to the ray's next request, default 1); the
         statistics' ``cycles``, ``utilization`` (= ops / (pipelines * cycles)),
         ``frame_us_at_1ghz``, ``sim_wall_s`` and ``sim_cycles_per_s`` are then the replay's,
         the wavefront's are kept as ``wavefront_*``, and the replayed responses are checked
-        against the functional run bit for bit. Hits never depend on these parameters.
-    record : keep the ``driver.rtunit.Record`` of every request (for ``rtunit.replay``/sweeps)
-        in ``TraceResult.record`` (always kept when ``rays_in_flight`` is given).
+        against the functional run bit for bit. Hits never depend on these options; an option
+        ``driver.rtunit.replay`` does not take is a TypeError before any work.
     """
+    record = bool(rtunit_options.pop("record", False))
+    REPLAY_OPTIONS.bind(None, **rtunit_options)   # an unknown option fails here (TypeError)
+    replay = {k: v for k, v in rtunit_options.items() if v is not None}
     if transform is not None:
         check_transform(transform)
     if isinstance(scene_or_mesh_or_bvh, (str, bytes)) or hasattr(scene_or_mesh_or_bvh,
@@ -145,7 +154,7 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
                          f"operation (backend({be_name!r}, transform=True))")
     rays = prepare_rays(origins, directions, extent,
                         **({"flags": FLAG_NO_CULL} if double_sided else {}))
-    timed = rays_in_flight is not None
+    timed = "rays_in_flight" in replay
     issue = issuer(be, rays, bvh, be_name, record=bool(record) or timed)
     cycles0 = int(be.cycles)
     inst = InstanceStepper(bvh, rays, issue, where) if instanced else None
@@ -165,9 +174,7 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
                         None if inst is None else inst.transform_ops)
     rec = issue.record(_replay_params(be)) if hasattr(issue, "record") else None
     if timed:
-        from . import rtunit
-        ta = rtunit.DEFAULT_TURNAROUND if turnaround is None else turnaround
-        stats = with_replay(stats, rtunit.replay(rec, rays_in_flight, pipelines, ta).stats())
+        stats = with_replay(stats, rtunit.replay(rec, **replay).stats())
     return TraceResult(t, trav.prim, hit, trav.box_ops, trav.tri_ops, trav.step_requests,
                        trav.step_box_requests, stats, rec, instance,
                        None if inst is None else inst.transform_ops)
@@ -180,7 +187,6 @@ def _replay_params(be) -> dict:
     params = getattr(be, "params", None)
     if isinstance(params, dict) and {"EXTENDED", "DISJOINT", "LATENCY"} <= set(params):
         return dict(params)
-    from .backends.build import MIN_LATENCY, rtl_params
     lat = getattr(be, "latency", MIN_LATENCY)
     compressed = bool(getattr(be, "compressed", False))
     return rtl_params(getattr(be, "extended", False), getattr(be, "disjoint", False),

@@ -27,8 +27,8 @@ nodes would have cost) disappear. Triangle nodes are never dropped: their ``t`` 
 by their box's rounded ``tmin``. The stack then holds a float32 per entry beside the pointer,
 which an RT unit would pay for in stack storage.
 
-All of a step's requests go to the datapath through one ``issue`` call (``driver.issue``: the
-"rtl" harness assembles them from the ray table and the BVH4 image; other backends get request
+All of a step's requests go to the datapath through one ``issue`` call (``driver.tracing.issue``:
+the "rtl" harness assembles them from the ray table and the BVH4 image; other backends get request
 arrays), so the datapath sees a full stream and Python does a handful of vectorised numpy
 operations per step, never work per request. The traversal knows nothing of backends, recording,
 timing or statistics: ``driver.tracer`` composes those around it.
@@ -41,8 +41,8 @@ from typing import Callable
 
 import numpy as np
 
-from .layout import (BOX_NODE, BOX_TYPE, NO_CHILD, NODE_BYTES, Q8_NODE, Q8_TYPE, TRI_TYPE, NodeRef,
-                     leaf_count, leaf_next, leaf_prim_word, leaf_request, node_word)
+from .core.layout import (BOX_NODE, BOX_TYPE, NO_CHILD, NODE_BYTES, Q8_NODE, Q8_TYPE, TRI_TYPE,
+                          NodeRef, leaf_count, leaf_next, leaf_prim_word, leaf_request, node_word)
 
 _LANES = np.arange(BOX_NODE["child"].shape[0])
 _CHILD_WORD = np.zeros(8, np.int64)           # per box-node type (a two-level image has both)
@@ -109,9 +109,10 @@ def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
     float32; ``issue`` runs each step's requests on a datapath (see ``Issue``). ``any_hit``: a ray
     ends at its first accepted triangle (occlusion). ``cull``: drop box nodes whose entry
     distance is not below the nearest hit (module docstring). ``progress(done_rays,
-    total_rays)`` is called once per step. ``instances``: a ``driver.instances.InstanceStepper``
-    (two-level images): it enters the instance nodes on top of the stacks before each step, and
-    the requests name each ray by its row in the issuer's ray table (``instances.row``)."""
+    total_rays)`` is called once per step. ``instances``: a
+    ``driver.tracing.stepper.InstanceStepper`` (two-level images): it enters the instance nodes on
+    top of the stacks before each step, and the requests name each ray by its row in the issuer's
+    ray table (``instances.row``)."""
     n = len(extent)
     nearest = np.array(extent, np.float32, copy=True)
     prim = np.full(n, -1, np.int64)

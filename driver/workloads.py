@@ -18,8 +18,8 @@ them:
   ray sees a light directly; after that light arrives only through the shadow rays (no double
   counting).
 
-Every random decision is ``driver.sampling.uniform`` of (seed, pixel, sample, bounce, purpose), so
-any subset of pixels (a tile) traced alone gives exactly its part of the whole frame.
+Every random decision is ``driver.scenes.sampling.uniform`` of (seed, pixel, sample, bounce,
+purpose), so any subset of pixels (a tile) traced alone gives exactly its part of the whole frame.
 Ray types and their statistics: ``by_type`` (``driver.stats.merge``; docs/statistics.md).
 """
 
@@ -29,64 +29,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .check import check_rays, embree_sample, merge_checks
 from .scenes import sampling
+from .scenes.camera import camera_rays
+from .scenes.materials import Materials, PointLight
 from .stats import merge
 
 WORKLOADS = ("primary", "shadow", "ao", "path")
 SHADOW_EXTENT = 1.0 - 1e-4     # shadow rays aim at the light sample with d = y - x: t in [0, 1)
-DEFAULT_ALBEDO = 0.75
 TONE_ROWS = 256                                # tone mapping works on this many rows at a time
 BASE_COLOUR = np.array([0.92, 0.86, 0.76])     # the primary workload's surface colour
 AMBIENT = 0.08
 BG_TOP = np.array([0.42, 0.52, 0.66])          # its background gradient
 BG_BOTTOM = np.array([0.10, 0.11, 0.14])
 AO_RADIUS_REL = 0.1            # default AO radius: 10 % of the scene's bounding-box diagonal
-
-
-@dataclass(frozen=True)
-class PointLight:
-    """A point light: ``position`` (3,), radiant ``intensity`` (3,) (W/sr per channel)."""
-
-    position: tuple
-    intensity: tuple = (1.0, 1.0, 1.0)
-
-    def sample(self, u1, u2):
-        """(points (k, 3), light normals or None, emitted radiance x area factor (k, 3))."""
-        k = len(u1)
-        p = np.broadcast_to(np.asarray(self.position, np.float64), (k, 3))
-        return p, None, np.broadcast_to(np.asarray(self.intensity, np.float64), (k, 3))
-
-
-@dataclass(frozen=True)
-class QuadLight:
-    """A parallelogram light ``corner + s*u + t*v`` (s, t in [0, 1]) emitting ``emission``
-    (radiance, 3) from the side of its normal ``u x v``."""
-
-    corner: tuple
-    u: tuple
-    v: tuple
-    emission: tuple = (1.0, 1.0, 1.0)
-
-    def sample(self, u1, u2):
-        c, u, v = (np.asarray(x, np.float64) for x in (self.corner, self.u, self.v))
-        nrm = np.cross(u, v)
-        area = float(np.linalg.norm(nrm))
-        p = c + u1[:, None] * u + u2[:, None] * v
-        k = len(u1)
-        return (p, np.broadcast_to(nrm / area, (k, 3)),
-                np.broadcast_to(np.asarray(self.emission, np.float64) * area, (k, 3)))
-
-
-@dataclass
-class Materials:
-    """Per-triangle diffuse ``albedo`` (m, 3) and ``emission`` (m, 3) (radiance)."""
-
-    albedo: np.ndarray
-    emission: np.ndarray
-
-    @classmethod
-    def plain(cls, m: int) -> "Materials":
-        return cls(np.full((m, 3), DEFAULT_ALBEDO), np.zeros((m, 3)))
 
 
 @dataclass
@@ -158,12 +114,14 @@ class Batch:
 @dataclass
 class FrameResult:
     """radiance (npix, 3) float64 (linear; AO: the unoccluded fraction); ops[type] (npix,) int64
-    datapath ops per pixel; stats: totals + ``by_type``; batches: every traced batch."""
+    datapath ops per pixel; stats: totals + ``by_type``; batches: every traced batch; timings:
+    the wall-time phases of a frame traced on Dask (``driver.tiles.render_tiles``), in seconds."""
 
     radiance: np.ndarray
     ops: dict
     stats: dict
     batches: list = field(default_factory=list)
+    timings: dict = field(default_factory=dict)
 
 
 class Frame:
@@ -198,7 +156,6 @@ class Frame:
         pix = np.repeat(self.pixels, self.spp)
         smp = np.tile(np.arange(self.spp), len(self.pixels))
         jx, jy = sampling.jitter(self.seed, pix, smp, self.spp)
-        from .scenes.camera import camera_rays
         o, d = camera_rays(self.setup.camera, self.w, self.h, pix, jx, jy)
         return self._run(Batch("primary", pix, smp, o, d, np.full(len(pix), np.inf), False,
                                slot=self.slot(smp, 0)))
@@ -410,13 +367,11 @@ def tone_map(radiance: np.ndarray, width: int, height: int, exposure: float | No
 def embree_check(result: FrameResult, setup: Setup) -> dict:
     """Check every traced batch against Embree (``driver.check.check_rays``); puts the
     ``embree`` object into the frame's statistics and into each ray type's; returns the total."""
-    from .check import check_rays, merge_checks
     per_kind: dict = {}
     for b in result.batches:
         r = b.result
         tri, rows, prim = setup.triangles, slice(None), r.prim
         if hasattr(tri, "instances"):       # too large to flatten: a sample (driver.instances)
-            from .instances import embree_sample
             rows, tri, prim = embree_sample(tri.instances, b.origins, b.dirs, b.extent, r.t,
                                             r.prim)
         ext = np.broadcast_to(np.asarray(b.extent, np.float64), (len(r.t),))
@@ -431,8 +386,8 @@ def embree_check(result: FrameResult, setup: Setup) -> dict:
 
 
 def setup_for(scene) -> Setup:
-    """The ``Setup`` of a loaded scene (``driver.scene.Scene``): its triangles and camera, and its
-    materials, lights, double-sidedness and AO radius where the scene defines them."""
+    """The ``Setup`` of a loaded scene (``driver.scenes.scene.Scene``): its triangles and camera,
+    and its materials, lights, double-sidedness and AO radius where the scene defines them."""
     tri = scene.triangles
     mats = getattr(scene, "materials", None) or Materials.plain(len(tri))
     return Setup(tri, scene.camera, mats, list(getattr(scene, "lights", None) or []),

@@ -101,6 +101,38 @@ def test_snapshot_of_a_revision_reads_that_revision_s_source_list(tmp_path, monk
         area.snapshot("no-such-revision-xyz")
 
 
+def test_snapshot_of_a_revision_from_before_the_top_level_rtl_folder(tmp_path, monkeypatch):
+    """``--rev`` of a revision that kept the RTL inside the package (driver/rtl/) reads it from
+    there; a later revision's from the top-level rtl/ (a repository of its own: the old layout,
+    then the move)."""
+    import subprocess
+    from driver.backends import build as build_mod
+
+    def git(*args):
+        subprocess.run(["git", "-C", str(tmp_path), "-c", "user.name=t", "-c", "user.email=t@t",
+                        *args], capture_output=True, check=True)
+
+    git("init", "-q")
+    old = tmp_path / "driver" / "rtl"
+    old.mkdir(parents=True)
+    (old / "a.sv").write_text("// a.sv inside the package\n")
+    (old / "sources.txt").write_text("a.sv\n")
+    git("add", "-A")
+    git("commit", "-q", "-m", "the old layout")
+    git("mv", "driver/rtl", "rtl")
+    rtl = tmp_path / "rtl"
+    (rtl / "a.sv").write_text("// a.sv at the top level\n")
+    git("add", "-A")
+    git("commit", "-q", "-m", "the RTL at the top level")
+    monkeypatch.setattr(area, "ROOT", tmp_path)
+    monkeypatch.setattr(area, "RTL_DIR", rtl)
+    monkeypatch.setattr(build_mod, "SOURCE_LIST", rtl / "sources.txt")
+    assert area.snapshot("HEAD~1") == [("a.sv", b"// a.sv inside the package\n")]
+    assert area.snapshot("HEAD") == [("a.sv", b"// a.sv at the top level\n")]
+    with pytest.raises(area.AreaError, match="git show no-such-revision-xyz:rtl/sources.txt"):
+        area.snapshot("no-such-revision-xyz")
+
+
 def test_report_refuses_results_of_different_rtl_versions():
     a = {"cells": 1, "sequential": 1, "inverter": 0, "buffer": 0, "logic": 0, "ge": 1.0}
     with pytest.raises(area.AreaError, match="different RTL versions"):

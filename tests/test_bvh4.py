@@ -8,6 +8,8 @@ from support import meshes
 from driver import QUADBOX, TRIANGLE, backend, prepare_rays
 from driver import bvh4
 from driver.bvh import build as bvh_build
+from driver.bvh import collapse as bvh_collapse
+from driver.bvh import image, reference
 from driver.bvh4 import BOX_BYTES, BOX_TYPE, NO_CHILD, TRI_BYTES, TRI_TYPE, build
 
 
@@ -214,7 +216,7 @@ def test_fast_binary_tree_is_the_numpy_tree(monkeypatch):
     for tris in random_meshes() + [dup]:
         tris = np.asarray(tris, np.float32)
         fast = bvh_build.build_binary(tris, 16)
-        ref = bvh4._build_binary(*bvh4._prim_boxes(tris), 16)
+        ref = reference._build_binary(*reference._prim_boxes(tris), 16)
         assert _subtrees(*fast) == _subtrees(*ref)
 
 
@@ -241,7 +243,7 @@ def test_sah_collapse_is_optimal(n, seed):
     tris = meshes.soup(n, seed=seed)
     left, right, _, lo, hi = bvh_build.build_binary(tris, 16)
     area = bvh_build.grow_boxes(lo, hi, 1e-3)
-    levels = bvh_build.collapse_sah(left, right, area)
+    levels = bvh_collapse.collapse_sah(left, right, area)
     slots = np.concatenate(levels)
     dp = area[slots[slots >= 0]].sum()
     assert dp == pytest.approx(_brute_force_collapse(left, right, area), rel=1e-12)
@@ -361,7 +363,7 @@ def test_stored_boxes_are_the_grown_float32_bounds():
             want_lo = np.nextafter((lo32 - pad).astype(np.float32), np.float32(-np.inf))
             want_hi = np.nextafter((hi32 + pad).astype(np.float32), np.float32(np.inf))
         with np.errstate(invalid="ignore", over="ignore"):
-            want_area = bvh4._half_area(want_lo.astype(np.float64), want_hi)
+            want_area = image._half_area(want_lo.astype(np.float64), want_hi)
         for dtype in (np.float32, np.float64):
             glo, ghi = lo32.astype(dtype), hi32.astype(dtype)
             area = bvh_build.grow_boxes(glo, ghi, pad)
@@ -426,7 +428,7 @@ def test_boxes_conservative_on_the_datapath(name, dist):
 # ---- benchmark helpers -----------------------------------------------------------------------
 
 def test_instanced_bunnies():
-    from driver.bvh.bench import BUNNY_TRIANGLES, instanced_bunnies
+    from driver.studies.bvh import BUNNY_TRIANGLES, instanced_bunnies
     x = instanced_bunnies(2, seed=1)
     assert x.shape == (2 * BUNNY_TRIANGLES, 3, 3) and x.dtype == np.float32
     assert np.array_equal(x, instanced_bunnies(2, seed=1))
@@ -439,7 +441,10 @@ def test_instanced_bunnies():
 
 
 def test_bvh_bench_command_checks_before_building(tmp_path, capsys):
-    from driver.bvh.bench import main
+    from driver.cli import main as cli_main
+
+    def main(argv):                          # the study's command: rayflex study bvh
+        return cli_main(["study", "bvh", *argv])
     assert main(["--counts", "-1"]) == 2
     assert main(["--counts", "0", "--json", str(tmp_path / "none" / "b.json")]) == 2
     err = capsys.readouterr().err.splitlines()
@@ -448,7 +453,7 @@ def test_bvh_bench_command_checks_before_building(tmp_path, capsys):
 
 
 def test_bvh_bench_dict(tmp_path):
-    from driver.bvh.bench import BUNNY_TRIANGLES, FORMATS, build_table, bvh_bench
+    from driver.studies.bvh import BUNNY_TRIANGLES, FORMATS, build_table, bvh_bench
     r = bvh_bench(counts=(0,), size=32, progress=False, fills=(0, 1 << 30),
                   plot=tmp_path / "fills.png")
     assert [b["format"] for b in r["builds"]] == list(FORMATS)

@@ -13,10 +13,12 @@ import trimesh
 from trimesh.visual.material import PBRMaterial
 
 from driver.cli import main
+from driver.design import DesignPoint
 from driver.render import render
 from driver.scenes import scene as sc
 from driver.scenes.camera import Camera
-from driver.workloads import DEFAULT_ALBEDO, setup_for
+from driver.scenes.materials import DEFAULT_ALBEDO
+from driver.workloads import setup_for
 
 DOCS = Path(__file__).resolve().parent.parent / "docs" / "scenes.md"
 
@@ -130,7 +132,8 @@ def test_gltf_base_colour_is_the_albedo(in_tmp, ext):
         np.round(np.array([0.9, 0.1, 0.1]) * 255) / 255, (int((abs(centre_x) < 1).sum()), 3)))
     assert (alb[centre_x < -1.5] == DEFAULT_ALBEDO).all()
     assert setup_for(s).materials is s.materials                 # what the workloads shade with
-    res = render(s, 24, 16, backend="golden", progress=False, workload="shadow")
+    res = render(s, 24, 16, backend="golden", progress=False,
+                 point=DesignPoint(workload="shadow"))
     assert res.stats["hits"] > 0
 
 

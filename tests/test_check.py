@@ -10,7 +10,7 @@ import driver
 from driver.scenes.camera import primary_rays
 from driver.check import (EMBREE_KEYS, compare, embree_closest_front, embree_json,
                           point_triangle_distance)
-from driver.datapath import TRIANGLE, prepare_rays
+from driver.core.datapath import TRIANGLE, prepare_rays
 from driver.scenes.scene import load_scene
 
 F32 = np.float32

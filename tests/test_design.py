@@ -9,10 +9,10 @@ import json
 import pytest
 
 from driver import design, rtunit
-from driver.area import ALL_CONFIGS, CONFIGS, Q8_SUFFIX
-from driver.cli import build_parser, main
+from driver.core.configs import ALL_CONFIGS, CONFIGS, Q8_SUFFIX
+from driver.cli import build_parser, main, options
 from driver.design import OPTIONS, DesignPoint
-from driver.power import config_help
+from driver.cli.power import config_help
 
 COMMANDS = ("render", "bench", "power", "sweep")
 
@@ -66,7 +66,7 @@ def test_from_args_and_grid():
     p = _subparser("sweep")
     args = p.parse_args(["--config", "all", "--rays-in-flight", "16,64", "--cache-kib", "0,16",
                          "--scene", "sphere", "--size", "8"])
-    grid = design.grid_from_args(args)
+    grid = options.grid_from_args(args)
     assert len(grid) == len(ALL_CONFIGS) * 2 * 2
     assert {g.config for g in grid} == set(ALL_CONFIGS)
     assert {(g.rays_in_flight, g.cache_kib) for g in grid} == {(16, 0), (16, 16), (64, 0),
@@ -76,9 +76,9 @@ def test_from_args_and_grid():
     assert design.varied(grid) == ["config", "latency", "rays_in_flight", "cache_kib"]
     assert len({g.key() for g in grid}) == len(grid)
     args = _subparser("render").parse_args(["sphere", "--cull-stack", "--latency", "12"])
-    pt = design.from_args(args)
+    pt = options.from_args(args)
     assert pt.scene == "sphere" and pt.cull_stack is True and pt.latency == 12
-    assert design.given(args) == ["--latency", "--cull-stack"]
+    assert options.given(args) == ["--latency", "--cull-stack"]
 
 
 @pytest.mark.parametrize("argv", [
@@ -153,21 +153,21 @@ def test_presets_and_overrides():
     """--rt-preset sets a whole RT-unit configuration; options given with it override its
     values; the preset is in the design point (the JSON provenance)."""
     from driver.rtunit.presets import PRESETS
-    p = design.from_args(_parse(["bench", "--rt-preset", "rtx2060-vulkan-sim"]))
+    p = options.from_args(_parse(["bench", "--rt-preset", "rtx2060-vulkan-sim"]))
     assert p.rt_preset == "rtx2060-vulkan-sim"
     for name, value in PRESETS["rtx2060-vulkan-sim"].values.items():
         assert getattr(p, name) == value, name
-    q = design.from_args(_parse(["bench", "--rt-preset", "rtx2060-vulkan-sim", "--rt-units",
+    q = options.from_args(_parse(["bench", "--rt-preset", "rtx2060-vulkan-sim", "--rt-units",
                                  "2", "--l2-kib", "0"]))
     assert (q.rt_units, q.l2_kib, q.cache_kib) == (2, 0, 64)
-    d = design.from_args(_parse(["bench"]))
+    d = options.from_args(_parse(["bench"]))
     assert d.rt_preset == "default" and d == DesignPoint()
     for name, value in PRESETS["default"].values.items():
         assert getattr(DesignPoint(), name) == value, name          # the defaults are the preset
     assert DesignPoint.preset("rtx2060-vulkan-sim", rt_units=4).rt_units == 4
     assert p.as_dict()["rt_preset"] == "rtx2060-vulkan-sim"
     # sweep: a list of presets, each point its preset's values unless an option is given
-    pts = design.grid_from_args(_parse(["sweep", "--rt-preset", "default,rtx2060-vulkan-sim",
+    pts = options.grid_from_args(_parse(["sweep", "--rt-preset", "default,rtx2060-vulkan-sim",
                                         "--mshrs", "8"]))
     assert [(x.rt_preset, x.rt_units, x.mshrs) for x in pts] == [
         ("default", 1, 8), ("rtx2060-vulkan-sim", 30, 8)]

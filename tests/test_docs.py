@@ -1,6 +1,6 @@
 """The documentation as a reference that cannot drift.
 
-- docs/datapath.md's field tables equal the one layout table (``driver.layout``): a width or a
+- docs/datapath.md's field tables equal the one layout table (``driver.core.layout``): a width or a
   bit position is defined once;
 - README and docs speak about the product: no development words, no "SPEC n";
 - every ``docs/...`` link and ``#section`` reference in README, docs and the driver's and tests'
@@ -21,11 +21,11 @@ from pathlib import Path
 
 import pytest
 
-from driver import layout
+from driver.core import layout, wire
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
-COMMANDS = ("render", "bench", "power", "knn", "sweep")      # rayflex COMMAND --help
+COMMANDS = ("render", "bench", "power", "knn", "sweep", "study")      # rayflex COMMAND --help
 
 
 def _pages() -> list[Path]:
@@ -61,11 +61,11 @@ def _table(text: str, heading: str) -> list[list[str]]:
 
 
 # ------------------------------------------------------------------------------------------------
-# docs/datapath.md against driver.layout
+# docs/datapath.md against driver.core.layout
 
 
-@pytest.mark.parametrize("wire,heading", [(layout.REQUEST, "### Request fields"),
-                                          (layout.RESPONSE, "### Response fields")])
+@pytest.mark.parametrize("wire,heading", [(wire.REQUEST, "### Request fields"),
+                                          (wire.RESPONSE, "### Response fields")])
 def test_datapath_field_tables_equal_the_layout(wire, heading):
     rows = _table((DOCS / "datapath.md").read_text(), heading)
     doc = {}
@@ -80,16 +80,16 @@ def test_datapath_field_tables_equal_the_layout(wire, heading):
 
 def test_datapath_words_and_node_tables_equal_the_layout():
     text = (DOCS / "datapath.md").read_text()
-    assert f"A request is {layout.REQ_WORDS} little-endian 32-bit words and a response " \
-           f"{layout.RSP_WORDS}" in " ".join(text.split())
-    assert f"The first {layout.RAY_WORDS} words" in text
+    assert f"A request is {wire.REQ_WORDS} little-endian 32-bit words and a response " \
+           f"{wire.RSP_WORDS}" in " ".join(text.split())
+    assert f"The first {wire.RAY_WORDS} words" in text
     for node, heading in ((layout.BOX_NODE, "**Box node**"),
                           (layout.TRI_NODE, "**Triangle node**")):
         rows = _table(text, heading)
         doc = [(r[0].strip("`"), int(r[1]), int(r[2])) for r in rows]
         assert doc == [(n, node.fields[n][1], node.fields[n][0].itemsize) for n in node.names]
         assert f"{heading}, {node.itemsize} bytes" in text
-    for name, code in layout.OPCODES.items():
+    for name, code in wire.OPCODES.items():
         assert f"`{name}` = {code}" in text
 
 

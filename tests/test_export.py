@@ -16,8 +16,9 @@ import pytest
 import driver
 from driver import export as ex
 from driver.cli import main
-from driver.layout import (REQUEST, REQUEST_DTYPE, RESPONSE, RESPONSE_DTYPE, pack_requests,
-                           pack_responses)
+from driver.design import DesignPoint
+from driver.core.wire import (REQUEST, REQUEST_DTYPE, RESPONSE, RESPONSE_DTYPE, pack_requests,
+                              pack_responses)
 from driver.render import render
 from driver.scenes.scene import load_scene
 
@@ -36,7 +37,8 @@ def test_dump_round_trip_golden_and_rtl(tmp_path, scene, workload):
     assert len(req) == len(rsp) == len(d["ray"]) == len(d["pixel"]) == len(d["ray_type"]) == n
     assert int(d["format_version"]) == ex.FORMAT_VERSION
     # the frame's stream: the same ops per ray type as the render of that frame
-    frame = render(scene, 24, 20, backend="golden", progress=False, workload=workload, tile=16)
+    frame = render(scene, 24, 20, backend="golden", progress=False,
+                   point=DesignPoint(workload=workload), tile=16)
     by_type = frame.stats["by_type"] if "by_type" in frame.stats else {"primary": frame.stats}
     for kind, s in by_type.items():
         assert int((d["ray_type"] == kind).sum()) == s["ops"], kind
@@ -63,7 +65,7 @@ def test_hex_lines_decode_to_their_requests(tmp_path):
                               pack_requests(d["requests"][i:i + 1]))
         assert ex.decode_hex(rsp_lines[i], RESPONSE).tobytes() == d["responses"][i:i + 1].tobytes()
     # bit b of the number is bit b of the struct: the tag is the low 32 bits, the opcode the
-    # low bits of word 1, as driver.layout places them
+    # low bits of word 1, as driver.core.layout places them
     line = int(req_lines[n - 1], 16)
     for name in ("tag", "opcode"):
         f = REQUEST.field[name]

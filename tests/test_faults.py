@@ -99,7 +99,7 @@ def test_sigterm_during_a_build_kills_the_compilers_and_leaves_nothing(tmp_path)
 
 
 _SLEEPING_BUILD = textwrap.dedent("""
-    from driver import verilate
+    from driver.backends import verilate
     def build(work):
         with open(work / "build.log", "w") as log:
             verilate._run(["sleep", "600"], work, log, "sleeping", work / "build.log", {})
@@ -129,7 +129,7 @@ def test_sigterm_during_a_build_in_a_library_user_cleans_up_then_dies_by_sigterm
 def test_next_build_kills_what_a_sigkilled_build_left(tmp_path):
     """SIGKILL cannot be handled: the next build of the entry (holding its lock) kills processes
     still working inside the stale temporary directory and removes it."""
-    from driver import verilate
+    from driver.backends import verilate
     cache = tmp_path / "cache"
     stale = cache / ".tmp-model-abc-x1y2"
     (stale / "obj").mkdir(parents=True)
@@ -173,7 +173,7 @@ def test_sigkill_during_a_build_then_rebuild(tmp_path):
 _BUILD = textwrap.dedent("""
     import sys, time
     from pathlib import Path
-    from driver.verilate import cached_build
+    from driver.backends.verilate import cached_build
     def build(work):
         time.sleep(1.0)
         with open(sys.argv[1], "a") as f:
@@ -271,7 +271,7 @@ def test_read_only_output_dir_fails_before_any_work(tmp_path):
 def test_full_disk_on_an_output_write_leaves_nothing(capsys, tmp_path, monkeypatch):
     """A full disk (a write raising ENOSPC) on the last output: exit 2, one line, no file (an
     existing image untouched). Before: a failing --stats-json left the PNGs behind."""
-    import driver.outputs
+    from driver.core import outputs
     monkeypatch.chdir(tmp_path)
     (tmp_path / "img.png").write_bytes(b"old image")
 
@@ -279,7 +279,7 @@ def test_full_disk_on_an_output_write_leaves_nothing(capsys, tmp_path, monkeypat
         with open(path, "w") as f:
             f.write("{")
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
-    monkeypatch.setattr(driver.outputs, "write_json", full)
+    monkeypatch.setattr(outputs, "write_json", full)
     assert main(["render", "sphere", "--size", "8", "--backend", "golden", "--no-progress",
                  "--out", "img.png", "--json", "s.json"]) == EXIT_USAGE
     err = capsys.readouterr().err.strip()

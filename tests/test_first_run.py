@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from driver import progress, verilate
+from driver.core import progress
+from driver.backends import verilate
 from driver.cli import main
 
 

@@ -1,5 +1,5 @@
 """Bit-exact tests of the binary32 units (rtl/rf_fp_*.sv) against numpy float32, plus the
-Verilator build system (driver/verilate.py) they run on.
+Verilator build system (driver/backends/verilate.py) they run on.
 
 Every unit sees the same operand mix (tests/support/fpu.py: random bits, subnormals, specials,
 rounding ties and near-ties, overflow, underflow, cancellation, exponent differences 20..29,
@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from driver import verilate
-from driver.verilate import BuildError, build_library, find_cxx, lint
+from driver.backends import verilate
+from driver.backends.verilate import BuildError, build_library, find_cxx, lint
 from support.fpu import (FPU_HARNESS, FPU_TB_SOURCES, OUTPUTS, UNIT_SOURCES, FpuModel,
                         exact_tie_fraction, gen_add_ties, gen_mul_ties, operand_mix, reference)
 
@@ -173,7 +173,7 @@ def test_build_is_cached_and_locked(tmp_path, monkeypatch, capfd):
     cpp.write_text(TINY_CPP)
     cache = tmp_path / "cache"
     monkeypatch.setenv("RAYFLEX_CACHE", str(cache))
-    script = ("import sys; from pathlib import Path; from driver.verilate import build_library;"
+    script = ("import sys; from pathlib import Path; from driver.backends.verilate import build_library;"
               f"print(build_library('tiny', [Path({str(sv)!r})], [Path({str(cpp)!r})], "
               "params={'K': 5}))")
     procs = [subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,

@@ -14,7 +14,7 @@ from driver import rtunit
 from driver.backends.build import rtl_params
 from driver.backends.harness import memory_trace
 from driver.bvh4 import build
-from driver.layout import NO_CHILD
+from driver.core.layout import NO_CHILD
 from driver.rtunit.gpu import replay_frame
 from driver.rtunit.plan import Schedule, Wave, one_kernel_plan, tile_shape, wavefront_plan
 from driver.scenes.camera import primary_rays

@@ -5,12 +5,14 @@ import pytest
 import trimesh
 from PIL import Image
 
-from driver.bvh.instances import _box_node, build_two_level, tlas_format, world_boxes
+from driver.bvh.instances import _box_node, build_two_level, tlas_format
+from driver.instances import world_boxes
 from driver.bvh4 import box_operands
 from driver.instances import Instances, affine, transform_ray
-from driver.layout import (FLAG_DECODE_Q8, IMAGE_FORMATS, INSTANCE_BYTES, INSTANCE_NODE, INSTANCE_TYPE,
-                           NO_CHILD, NODE_BYTES, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE,
-                           NodeRef, read_nodes)
+from driver.core.wire import FLAG_DECODE_Q8
+from driver.core.layout import (IMAGE_FORMATS, INSTANCE_BYTES, INSTANCE_NODE, INSTANCE_TYPE,
+                                NO_CHILD, NODE_BYTES, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE,
+                                NodeRef, read_nodes)
 from driver.tracer import trace
 from support.meshes import reuse_glb
 
@@ -543,7 +545,7 @@ def test_datapath_transform_in_the_record_and_the_replay():
     cycles are those measured before the datapath transform existed."""
     from driver import rtunit
     from driver.backends.harness import build_requests
-    from driver.layout import pack_requests
+    from driver.core.wire import pack_requests
     inst = random_instances(2, k=8)
     o, d = random_rays(300, 6)
     # (rtunit cycles R=16, with the default node memory): driver mode, measured on the code
@@ -686,7 +688,7 @@ def _small_city(side=5):
     from driver.scenes.camera import Camera
     from driver.scenes.city import city
     from driver.scenes.scene import Scene
-    from driver.workloads import Materials
+    from driver.scenes.materials import Materials
     b = city(lambda: trimesh.creation.icosphere(2).triangles, side)
     return Scene(None, Camera(**b.camera).validate(), (24, 24), "city",
                  Materials(b.albedo, b.emission), list(b.lights), False, instances=b.instances)
@@ -718,14 +720,16 @@ def test_city_defaults_reach_game_scale():
 
 
 def test_small_city_renders_every_workload_and_checks_against_embree():
+    from driver.design import DesignPoint
     from driver.instances import InstancedTriangles
     from driver.render import render
     scene = _small_city()
     assert isinstance(scene.triangles, InstancedTriangles)
     assert scene.counts()["instances"] == 26
     for workload in ("primary", "shadow", "ao", "path"):
-        res = render(scene, 24, 24, backend="golden", workload=workload, progress=False,
-                     check_embree=True, tile=None if workload == "primary" else 16)
+        res = render(scene, 24, 24, backend="golden", point=DesignPoint(workload=workload),
+                     progress=False, check_embree=True,
+                     tile=None if workload == "primary" else 16)
         s = res.stats
         assert s["instances"] == 26 and s["instanced_triangles"] == len(scene.triangles)
         assert s["hits"] > 0 and s["instance_ops"] > 0
@@ -737,7 +741,7 @@ def test_small_city_renders_every_workload_and_checks_against_embree():
 
 def test_embree_sample_is_the_full_check_on_its_rays():
     from driver.check import check
-    from driver.instances import embree_sample
+    from driver.check import embree_sample
     inst = random_instances(4)
     bvh = build_two_level(inst)
     o, d = random_rays(600, 8)
@@ -783,7 +787,7 @@ def test_flatten_refuses_a_scene_too_large(error_line):
 
 
 def test_instances_study_hits_on_a_small_scene(tmp_path):
-    from driver.bvh.instances_study import hits
+    from driver.studies.instances import hits
     doc = hits(str(reuse_glb(tmp_path / "reuse.glb")), size=24)
     img = doc["images"]["box32"]
     assert img["instanced_bytes"] < img["flattened_bytes"] and img["ratio"] < 1
@@ -801,7 +805,10 @@ def test_instances_study_transform_on_a_small_scene(in_tmp, capsys):
     Markdown table; a scene without instances refused before any work."""
     import json
 
-    from driver.bvh.instances_study import main
+    from driver.cli import main as cli_main
+
+    def main(argv):                          # the study's command: rayflex study instances
+        return cli_main(["study", "instances", *argv])
     glb = str(reuse_glb(in_tmp / "reuse.glb"))
     assert main(["transform", "--scene", glb, "--size", "8", "--spp", "1", "--bounces", "1",
                  "--json", "t.json", "--no-progress"]) == 0
@@ -847,7 +854,7 @@ def test_bunny_grid_is_21_instances_of_one_bunny():
 def test_bunny_grid_instanced_image_and_hits_against_flattened():
     """The instanced bunny grid: at most 1/15 of the flattened image's bytes, the same hits
     (t within the transform's rounding; another triangle only across a shared edge)."""
-    from driver.bvh.instances_study import hits
+    from driver.studies.instances import hits
     doc = hits("bunny_grid", size=96)
     assert doc["images"]["box32"]["ratio"] <= 1 / 15 and doc["images"]["q8"]["ratio"] <= 1 / 15
     p = doc["rays"]["primary"]

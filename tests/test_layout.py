@@ -1,4 +1,4 @@
-"""driver/layout.py against the RTL: every wire field's bit position and width, the structs' $bits,
+"""driver/core/wire.py and driver/core/layout.py against the RTL: every wire field's bit position and width, the structs' $bits,
 the opcodes and lane counts, as Verilator elaborates rtl/rf_pkg.sv; and the Python side of the
 table (pack/unpack round trips, node dtypes, NodeRef, the generated C header)."""
 
@@ -9,7 +9,9 @@ import sys
 import numpy as np
 import pytest
 
-from driver import layout, verilate
+from driver.core import layout
+from driver.core import wire as wires
+from driver.backends import verilate
 from driver.backends.build import RTL_DIR
 
 PKG = RTL_DIR / "rf_pkg.sv"
@@ -20,7 +22,7 @@ def _check_module() -> str:
     """A SystemVerilog test bench that prints, for every field of the table, the lowest bit and
     the number of bits it sets when the field alone is all ones."""
     lines = ["module rf_layout_check;", "  import rf_pkg::*;"]
-    for wire in (layout.REQUEST, layout.RESPONSE):
+    for wire in (wires.REQUEST, wires.RESPONSE):
         t = wire.sv_type
         lines += [f"  function automatic int lowest_{t}(input {t} v);",
                   f"    for (int i = 0; i < $bits({t}); i++) if (v[i]) return i;",
@@ -31,7 +33,7 @@ def _check_module() -> str:
     lines += ["  req_t r;", "  rsp_t s;", "  initial begin",
               '    $display("bits req_t %0d", $bits(req_t));',
               '    $display("bits rsp_t %0d", $bits(rsp_t));']
-    for wire, var in ((layout.REQUEST, "r"), (layout.RESPONSE, "s")):
+    for wire, var in ((wires.REQUEST, "r"), (wires.RESPONSE, "s")):
         for f in wire.fields:
             member = f.sv or f.name
             if f.overlays is not None:        # a view of the overlaid member's low bits
@@ -48,7 +50,7 @@ def _check_module() -> str:
     for member in Q8_MEMBERS:
         lines += ["    n = '0;", f"    n.{member} = '1;",
                   f'    $display("q8 {member} %0d %0d", lowest_q8(n), $countones(n));']
-    for name in layout.OPCODES:
+    for name in wires.OPCODES:
         lines.append(f'    $display("opcode {name} %0d", OP_{name});')
     lines += ['    $display("lanes EUC %0d", EUC_LANES);', '    $display("lanes ANG %0d", ANG_LANES);',
               "    $finish;", "  end", "endmodule", ""]
@@ -80,11 +82,11 @@ def rtl_layout(tmp_path_factory):
 
 
 def test_struct_widths_match_the_table(rtl_layout):
-    assert rtl_layout[("bits", "req_t")] == 32 * layout.REQ_WORDS
-    assert rtl_layout[("bits", "rsp_t")] == 32 * layout.RSP_WORDS
+    assert rtl_layout[("bits", "req_t")] == 32 * wires.REQ_WORDS
+    assert rtl_layout[("bits", "rsp_t")] == 32 * wires.RSP_WORDS
 
 
-@pytest.mark.parametrize("wire", [layout.REQUEST, layout.RESPONSE], ids=lambda w: w.sv_type)
+@pytest.mark.parametrize("wire", [wires.REQUEST, wires.RESPONSE], ids=lambda w: w.sv_type)
 def test_every_field_sits_where_the_table_says(rtl_layout, wire):
     for f in wire.fields:
         assert rtl_layout[("field", f"{wire.sv_type}.{f.name}")] == (f.first_bit, f.total_bits), f
@@ -102,28 +104,28 @@ def test_q8_node_struct_matches_the_table(rtl_layout):
     want["count"] = (exp_off + layout.Q8_COUNT_LSB, 3)
     for name in Q8_MEMBERS:
         assert rtl_layout[("q8", name)] == want[name], name
-    assert layout.REQUEST.field["qnode"].total_bits == 8 * layout.Q8_NODE.itemsize
+    assert wires.REQUEST.field["qnode"].total_bits == 8 * layout.Q8_NODE.itemsize
 
 
 def test_opcodes_and_lanes_match_the_package(rtl_layout):
-    for name, code in layout.OPCODES.items():
+    for name, code in wires.OPCODES.items():
         assert rtl_layout[("opcode", name)] == code
-    assert rtl_layout[("lanes", "EUC")] == layout.EUC_LANES
-    assert rtl_layout[("lanes", "ANG")] == layout.ANG_LANES
+    assert rtl_layout[("lanes", "EUC")] == wires.EUC_LANES
+    assert rtl_layout[("lanes", "ANG")] == wires.ANG_LANES
 
 
 def test_the_fields_cover_the_struct_but_its_reserved_bits():
     """Every bit of req_t/rsp_t is a field of the table except the ``rsvd`` members."""
     structs = {name: body for body, name in
                re.findall(r"typedef struct packed \{([^{}]*)\}\s*(\w+);", PKG.read_text())}
-    for wire in (layout.REQUEST, layout.RESPONSE):
+    for wire in (wires.REQUEST, wires.RESPONSE):
         body = structs[wire.sv_type]
         rsvd = sum(int(m.group(1)) + 1 for m in re.finditer(r"logic\s*\[(\d+):0\]\s*rsvd", body))
         own = [f for f in wire.fields if f.overlays is None]
         assert sum(f.total_bits for f in own) + rsvd == 32 * wire.words
 
 
-@pytest.mark.parametrize("wire", [layout.REQUEST, layout.RESPONSE], ids=lambda w: w.sv_type)
+@pytest.mark.parametrize("wire", [wires.REQUEST, wires.RESPONSE], ids=lambda w: w.sv_type)
 def test_pack_unpack_round_trip(wire):
     rng = np.random.default_rng(3)
     rows = rng.integers(0, 256, (500, wire.dtype.itemsize), dtype=np.uint8).view(wire.dtype)[:, 0]
@@ -131,8 +133,8 @@ def test_pack_unpack_round_trip(wire):
         if f.kind != "f32":
             rows[f.name] &= (1 << f.bits) - 1
     if "opcode" in wire.field and wire.overlay_rows:
-        rows["opcode"][::3] = layout.QUADBOX      # some rows that carry an overlay
-        rows["opcode"][1::3] = layout.TRANSFORM
+        rows["opcode"][::3] = wires.QUADBOX      # some rows that carry an overlay
+        rows["opcode"][1::3] = wires.TRANSFORM
     words = wire.pack(rows)
     assert words.shape == (500, wire.words)
     back = wire.unpack(words)
@@ -161,13 +163,13 @@ def test_pack_unpack_round_trip(wire):
 
 def test_ray_words_are_the_leading_request_words():
     rng = np.random.default_rng(4)
-    rows = rng.integers(0, 256, (50, layout.REQUEST_DTYPE.itemsize), dtype=np.uint8)
-    req = rows.view(layout.REQUEST_DTYPE)[:, 0]
-    for f in layout.REQUEST.fields:
+    rows = rng.integers(0, 256, (50, wires.REQUEST_DTYPE.itemsize), dtype=np.uint8)
+    req = rows.view(wires.REQUEST_DTYPE)[:, 0]
+    for f in wires.REQUEST.fields:
         if f.kind != "f32":
             req[f.name] &= (1 << f.bits) - 1
-    assert np.array_equal(layout.ray_words(req), layout.pack_requests(req)[:, :layout.RAY_WORDS])
-    assert layout.RAY_WORDS <= layout.REQUEST.field["box"].word      # operands follow the ray
+    assert np.array_equal(wires.ray_words(req), wires.pack_requests(req)[:, :wires.RAY_WORDS])
+    assert wires.RAY_WORDS <= wires.REQUEST.field["box"].word      # operands follow the ray
 
 
 def test_node_ref_and_node_dtypes():
@@ -206,7 +208,7 @@ def test_c_header_has_every_constant_the_harness_uses():
 def test_q8_node_words_and_decode():
     """The q8 box node's words (origin 0-2, exponents + count in word 3, children 4-7, planes at
     byte 32 + 6i + j, parent 14) and its decode: exact product, one float32 add, unused = +inf."""
-    from driver.layout import Q8_NODE, decode_q8
+    from driver.core.layout import Q8_NODE, decode_q8
     n = np.zeros(1, Q8_NODE)
     n["origin"] = [1.0, 2.0, 3.0]
     n["exp"][0, :3] = np.array([-2, 0, 3], np.int8).view(np.uint8)

@@ -21,8 +21,9 @@ import driver
 from driver import FLAG_NO_CULL, QUADBOX, TRIANGLE, DatapathError
 from driver.backends.build import RTL_DIR, rtl_params
 from driver.backends.harness import build_requests
-from driver.layout import (CONTROL_WORD, RAY_FIELDS, RAY_WORDS, REQUEST, TRI_NODE, TRI_TYPE,
-                           NodeRef, ray_words, unpack_requests)
+from driver.core.wire import (CONTROL_WORD, RAY_FIELDS, RAY_WORDS, REQUEST, ray_words,
+                              unpack_requests)
+from driver.core.layout import TRI_NODE, TRI_TYPE, NodeRef
 from support.cases import CASES, FRONT, expect_tri, t_of, tri_request
 from support.streams import mixed_stream
 from support.testbench import PRESSURE_IDS, PRESSURES, Testbench, run_isolated

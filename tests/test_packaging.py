@@ -1,15 +1,18 @@
 """The wheel carries everything the tool reads at run time.
 
 Builds the wheel of this checkout into a temporary directory (``pip wheel``, about 10 s) and
-checks its contents against the source tree: every file of the package (RTL, source list, lint
-waivers, C++ harness, TOML scenes, Python), the files the RTL build names, the license files and
-the console script. Installing the wheel and rendering from outside the checkout is ``.ci/run``'s
-last step (it builds a Verilated model, minutes on a cold cache).
+checks its contents against the source tree: every file of the package (Python) and of the
+top-level folders it reads at run time (``rtl/``: RTL, source list, lint waivers; ``sim/``: C++
+harness; ``scenes/``: TOML scenes), each where ``driver.core.resources.data_dir`` finds it in an
+installed wheel; the files the RTL build names, the license files and the console script.
+Installing the wheel and rendering from outside the checkout is ``.ci/run``'s last step (it
+builds a Verilated model, minutes on a cold cache).
 """
 
 from __future__ import annotations
 
 import configparser
+import json
 import shutil
 import subprocess
 import sys
@@ -20,6 +23,7 @@ import pytest
 import yaml
 
 from driver.backends import build
+from driver.core import resources
 
 try:
     import tomllib
@@ -36,7 +40,8 @@ def wheel(tmp_path_factory) -> zipfile.ZipFile:
     checkout is left untouched."""
     src = tmp_path_factory.mktemp("src")
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
-    files = {"pyproject.toml", project["readme"], *project["license-files"], *_tracked("driver")}
+    files = {"pyproject.toml", project["readme"], *project["license-files"], *_tracked("driver"),
+             *(f for d in resources.IN_PACKAGE for f in _tracked(d))}
     for rel in files:
         (src / rel).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(ROOT / rel, src / rel)
@@ -66,8 +71,18 @@ def _tracked(where: str) -> set[str]:
             and ".egg-info" not in p.as_posix()}
 
 
+def _in_package(rel: str) -> str:
+    """The wheel's name of a source-tree file: a file of a top-level data folder (``rtl/``,
+    ``sim/``, ``scenes/``) inside the package, where ``data_dir`` finds it installed."""
+    top, _, rest = rel.partition("/")
+    if top in resources.IN_PACKAGE:
+        return f"driver/{resources.IN_PACKAGE[top]}/{rest}"
+    return rel
+
+
 def test_wheel_holds_exactly_the_files_of_the_package(wheel):
-    tracked = _tracked("driver")
+    tracked = {_in_package(f) for f in
+               _tracked("driver") | {f for d in resources.IN_PACKAGE for f in _tracked(d)}}
     assert any(f.endswith(".sv") for f in tracked) and any(f.endswith(".toml") for f in tracked)
     in_wheel = {n for n in _names(wheel) if n.startswith("driver/")}
     assert in_wheel == tracked, (f"missing: {sorted(tracked - in_wheel)}; "
@@ -76,12 +91,11 @@ def test_wheel_holds_exactly_the_files_of_the_package(wheel):
 
 def test_wheel_holds_what_the_rtl_build_reads(wheel):
     names = _names(wheel)
-    pkg = build.PACKAGE.relative_to(ROOT).as_posix()
     needed = [build.SOURCE_LIST, build.RTL_DIR / build.LINT_WAIVERS,
               *(build.RTL_DIR / f for f in build.source_names()),
               *(build.SIM_DIR / f for f in build.HARNESS_SOURCES + build.HARNESS_HEADERS)]
     for path in needed:
-        rel = f"{pkg}/{path.relative_to(build.PACKAGE).as_posix()}"
+        rel = _in_package(path.relative_to(ROOT).as_posix())
         assert rel in names, f"{rel} (read by the RTL build) is not in the wheel"
         assert wheel.read(rel) == path.read_bytes()
 
@@ -93,8 +107,53 @@ def test_wheel_holds_the_scenes_and_the_generated_header_code(wheel):
     assert scenes
     for s in scenes:
         assert f"driver/scenes/data/{s.name}" in names
-    assert "driver/layout.py" in names               # generates the harness's rf_layout.h
+    assert "driver/core/layout.py" in names          # generates the harness's rf_layout.h
     assert not any(n.startswith(("tests/", "tools/", "bench/", "docs/", "images/")) for n in names)
+
+
+def test_the_design_card_s_top_level_folders():
+    """rtl/ (the SystemVerilog), sim/ (the C++ harness and test benches) and scenes/ (the scene
+    files) at the repository's top level, and none of their files left inside the package."""
+    assert (ROOT / "rtl" / "sources.txt").is_file() and list((ROOT / "rtl").glob("*.sv"))
+    assert list((ROOT / "sim").glob("*.cpp")) and list((ROOT / "sim").glob("*.h"))
+    assert list((ROOT / "scenes").glob("*.toml"))
+    assert {name: resources.data_dir(name) for name in resources.IN_PACKAGE} == \
+        {name: ROOT / name for name in resources.IN_PACKAGE}
+    left = [f for f in _tracked("driver") if not f.endswith(".py")]
+    assert not left, f"data files inside the package's source: {left}"
+
+
+def test_pyproject_maps_the_folders_and_lists_every_package():
+    """pyproject.toml's package list is the source tree's Python packages plus the mapped data
+    folders, each mapped from the folder ``resources.IN_PACKAGE`` names."""
+    st = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    mapped = {"driver." + inside.replace("/", "."): top
+              for top, inside in resources.IN_PACKAGE.items()}
+    assert st["package-dir"] == mapped
+    assert {k: v for k, v in st["package-data"].items()} == {k: ["*"] for k in mapped}
+    python = {Path(f).parent.as_posix().replace("/", ".") for f in _tracked("driver")
+              if f.endswith("/__init__.py")}
+    assert sorted(st["packages"]) == sorted(python | set(mapped))
+
+
+def test_installed_wheel_finds_its_folders_inside_the_package(wheel, tmp_path):
+    """Unpacked outside the checkout, the package's ``data_dir`` names its own directories, and
+    they hold the checkout's files."""
+    site = tmp_path / "site"
+    wheel.extractall(site)
+    code = ("import json, driver; from driver.core.resources import checkout, data_dir; "
+            "print(json.dumps([driver.__file__, str(checkout()), "
+            "{n: str(data_dir(n)) for n in ('rtl', 'sim', 'scenes')}]))")
+    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True,
+                       env={"PYTHONPATH": str(site), "PATH": "/usr/bin:/bin"})
+    assert r.returncode == 0, r.stderr[-2000:]
+    init, root, dirs = json.loads(r.stdout)
+    assert Path(init) == site / "driver" / "__init__.py" and root == "None"
+    for name, inside in resources.IN_PACKAGE.items():
+        d = Path(dirs[name])
+        assert d == site / "driver" / inside
+        assert sorted(p.name for p in d.iterdir()) == \
+            sorted(Path(f).name for f in _tracked(name))
 
 
 def test_wheel_metadata_license_and_script(wheel):

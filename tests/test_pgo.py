@@ -11,7 +11,7 @@ from driver import pgo
 from driver.backends import build, harness
 from driver.backends import BackendError
 from driver.rtunit import ReplayMismatch
-from driver.verilate import BuildError, build_library
+from driver.backends.verilate import BuildError, build_library
 from support.fpu import FPU_HARNESS, FPU_TB_SOURCES
 
 BASELINE = {"EXTENDED": 0, "DISJOINT": 0, "LATENCY": 11}
@@ -104,7 +104,7 @@ def test_profile_guided_library_is_bit_exact(monkeypatch):
 def test_compiler_other_than_gcc_builds_without_profile(tmp_path, monkeypatch):
     """clang keeps its profiles in another format: the build then runs no training (this
     command would fail) and gives a working library."""
-    from driver import verilate
+    from driver.backends import verilate
     monkeypatch.setenv("RAYFLEX_CACHE", str(tmp_path))
     monkeypatch.setattr(verilate, "is_gcc", lambda cxx: False)
     lib = build_library("fpu_tb_top", FPU_TB_SOURCES, FPU_HARNESS,
@@ -114,7 +114,7 @@ def test_compiler_other_than_gcc_builds_without_profile(tmp_path, monkeypatch):
 
 def test_is_gcc():
     import shutil
-    from driver.verilate import is_gcc
+    from driver.backends.verilate import is_gcc
     assert is_gcc("/nonexistent/c++") is False
     found = [(cxx, gcc) for cxx, gcc in (("g++", True), ("clang++", False)) if shutil.which(cxx)]
     assert found, "neither g++ nor clang++ on PATH (the RTL backends need one)"

@@ -16,7 +16,7 @@ import pytest
 from driver import FLAG_NO_CULL, backend
 from driver.cli import main
 from driver.power import activity, gatesim, liberty, measure, netlist, report, stimulus
-from driver.layout import pack_requests
+from driver.core.wire import pack_requests
 
 BASE = {"EXTENDED": 0, "DISJOINT": 0, "LATENCY": 11}
 

@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 
 from driver import backend
-from driver.area import Q8_SUFFIX, XF_SUFFIX
+from driver.core.configs import Q8_SUFFIX, XF_SUFFIX
 from driver.cli import main
-from driver.datapath import QUADBOX, TRANSFORM, transform_results
+from driver.core.datapath import QUADBOX, TRANSFORM, transform_results
 from driver.instances import transform_ray
-from driver.layout import (FLAG_DECODE_Q8, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, decode_q8,
-                           pack_requests, q8_count)
+from driver.core.wire import FLAG_DECODE_Q8, pack_requests
+from driver.core.layout import Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, decode_q8, q8_count
 from driver.power import activity, measure, netlist, report, stimulus
 
 import driver.power as power

@@ -21,10 +21,10 @@ import pytest
 import driver
 from driver import QUADBOX, TRIANGLE, DatapathError
 from driver.backends import BackendError
-from driver.datapath import default_latency
-from driver.layout import (FLAG_DECODE_Q8, FLAG_NO_CULL, FLAGS_DEFINED, Q8_EXP_MAX, Q8_EXP_MIN,
-                           Q8_NODE, QNODE_WORDS, REQUEST, REQUEST_DTYPE, c_header,
-                           carries_qnode, decode_q8, pack_requests, unpack_requests)
+from driver.core.datapath import default_latency
+from driver.core.wire import (FLAG_DECODE_Q8, FLAG_NO_CULL, FLAGS_DEFINED, QNODE_WORDS, REQUEST,
+                              REQUEST_DTYPE, carries_qnode, pack_requests, unpack_requests)
+from driver.core.layout import Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, c_header, decode_q8
 from support.scalar_ref import ScalarState, q8_boxes, scalar_run
 from support.scoreboard import assert_bit_equal, bits
 from support.streams import extended_stream, interleave, q8_requests, q8_stream

@@ -1,5 +1,5 @@
 """The q8 decode stage on its own (rtl/rf_s00_q8_decode.sv through sim/q8_decode_tb_top.sv):
-every decoded bound equals the golden decode (``driver.layout.decode_q8``: one numpy float32 add
+every decoded bound equals the golden decode (``driver.core.layout.decode_q8``: one numpy float32 add
 ``origin + q * 2^exp``) bit for bit, NaN as the canonical quiet NaN, on nodes built to reach every
 case of the decode adder (docs/q8_datapath.md, "The decode adder"): every distance between the
 origin and the scale 2^exp (both paths and the boundary between them), cancellation to zero and
@@ -15,8 +15,9 @@ import numpy as np
 import pytest
 
 from driver.backends.build import RTL_DIR, SIM_DIR, source_names
-from driver.layout import Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, QNODE_WORDS, decode_q8
-from driver.verilate import build_library
+from driver.core.layout import Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, decode_q8
+from driver.core.wire import QNODE_WORDS
+from driver.backends.verilate import build_library
 
 F32 = np.float32
 CANONICAL_NAN = np.uint32(0x7FC00000)

@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 
 from driver.bvh4 import PAD_REL, build, request_operands
-from driver.layout import (GROUP_BYTES, GROUP_MAX_TRIS, GROUP_NODE, GROUP_TYPE, LEAF_NEXT_TYPE,
-                           NO_CHILD, NODE_BYTES, PAIR_BYTES, PAIR_NODE, PAIR_TYPE, Q8_BYTES,
-                           Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE, REQUEST_DTYPE, NodeRef,
-                           decode_q8, leaf_count, leaf_next, leaf_triangles, pack_requests,
-                           q8_count, ray_words)
+from driver.core.layout import (GROUP_BYTES, GROUP_MAX_TRIS, GROUP_NODE, GROUP_TYPE,
+                                LEAF_NEXT_TYPE, NO_CHILD, NODE_BYTES, PAIR_BYTES, PAIR_NODE,
+                                PAIR_TYPE, Q8_BYTES, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE,
+                                NodeRef, decode_q8, leaf_count, leaf_next, leaf_triangles,
+                                q8_count)
+from driver.core.wire import REQUEST_DTYPE, pack_requests, ray_words
 from driver.tracer import trace
 from support import meshes
 
@@ -490,11 +491,15 @@ def test_quantization_slack_lies_behind_flat_leaves():
 
 
 def test_study_table_and_plot(tmp_path, capsys):
-    """driver.bvh.study on the committed bench documents: ratios against box32, one row per ray
+    """rayflex study compressed on the committed bench documents: ratios against box32, one row per ray
     type and image, the plot written; bad input is a one-line error."""
     import json
     from pathlib import Path
-    from driver.bvh import study
+    from driver.cli import main as cli_main
+    from driver.studies import compressed as study
+
+    def study_main(argv):                    # the study's command: rayflex study compressed
+        return cli_main(["study", "compressed", *argv])
     images = Path(__file__).resolve().parent.parent / "images"
     paths = [str(images / f"compressed_path64_{f}.json") for f in ("box32", "q8", "q8g")]
     docs = study.load(paths)
@@ -507,12 +512,12 @@ def test_study_table_and_plot(tmp_path, capsys):
         if r["format"] == "box32":
             assert r["ops_ratio"] == r["memory_bytes_ratio"] == r["cycles_ratio"] == 1.0
     png = tmp_path / "sweep.png"
-    assert study.main(paths[:2] + ["--plot", str(png)]) == 0
+    assert study_main(paths[:2] + ["--plot", str(png)]) == 0
     out = capsys.readouterr().out
     assert len(out.splitlines()) == 2 + 2 * len(kinds) and png.stat().st_size > 1000
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"bvh_format": "q8"}))
-    assert study.main([paths[0], str(bad)]) == 2
+    assert study_main([paths[0], str(bad)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("rayflex: error: ") and "\n" not in err
 
@@ -524,7 +529,8 @@ def test_a_datapath_with_the_decode_gets_the_nodes_as_stored(backend_name):
     the same hits, bit for bit, as the host's decode on a datapath without it; the replay on the
     RT unit of such a configuration checks every response against the trace's."""
     from driver import backend, rtunit
-    from driver.layout import FLAG_DECODE_Q8, Q8_TYPE, NodeRef
+    from driver.core.wire import FLAG_DECODE_Q8
+    from driver.core.layout import Q8_TYPE, NodeRef
     from driver.scenes.camera import primary_rays
     from driver.scenes.scene import load_scene
     scene = load_scene("bunny_floor")
@@ -548,7 +554,7 @@ def test_a_datapath_with_the_decode_gets_the_nodes_as_stored(backend_name):
 def test_leaf_next_pointers_round_trip():
     """LEAF_NEXT_TYPE pointers carry the leaf (bits 28:3) and the triangle index - 1 (bits
     31:29); a leaf beyond the first 4 GiB has no such pointer."""
-    from driver.layout import LEAF_OFFSET_LIMIT, leaf_request
+    from driver.core.layout import LEAF_OFFSET_LIMIT, leaf_request
     leaf = NodeRef.encode([0, 64, LEAF_OFFSET_LIMIT - 128], GROUP_TYPE)
     for k in range(1, GROUP_MAX_TRIS):
         p = leaf_next(leaf, k)
@@ -565,7 +571,7 @@ def test_group_trade_off(monkeypatch):
     """GROUP_LAMBDA weighs bytes against ops: on this sphere each larger value gives an image no
     larger, lambda = 0 groups nothing and a large lambda groups most triangles; every image
     keeps the containment and the leaves."""
-    import driver.bvh.q8 as q8mod
+    import driver.bvh.q8g as q8mod
     tris = meshes.icosphere(4)
     seen = []
     for lam in (0.0, 1.0, q8mod.GROUP_LAMBDA, 16.0):

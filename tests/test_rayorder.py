@@ -16,7 +16,8 @@ from driver import prepare_rays, rtunit
 from driver.backends.build import rtl_params
 from driver.bvh4 import build
 from driver.cli import main as cli_main
-from driver.layout import BOX_BYTES, BOX_TYPE, REQUEST, NodeRef, leaf_request, ray_words
+from driver.core.layout import BOX_BYTES, BOX_TYPE, NodeRef, leaf_request
+from driver.core.wire import REQUEST, ray_words
 from driver.rtunit import order
 from driver.tracer import trace
 from support import meshes
@@ -251,10 +252,10 @@ def test_bench_cli_ray_order(in_tmp, error_line):
 
 
 def test_the_study_runs_on_the_published_replay_schema(tmp_path):
-    """python -m driver.rtunit.order (docs/rayorder.md) on a tiny frame: every policy's point is
+    """rayflex study rayorder (docs/rayorder.md) on a tiny frame: every policy's point is
     an ``rtunit_memory`` object (docs/statistics.md), sorting policies carry their cost, index
     order is one point, the plot is written."""
-    from driver.rtunit import order
+    from driver.studies import rayorder as order
     doc = order.study(scenes=("cornell",), size=8, windows=(64, order.ALL_RAYS), progress=False,
                       formats=("box32", "q8"), variants=True)
     for fmt in ("box32", "q8"):
@@ -280,13 +281,13 @@ def test_the_study_runs_on_the_published_replay_schema(tmp_path):
 
 
 def test_study_command_rejects_bad_arguments(tmp_path, capsys):
-    """python -m driver.rtunit.order: a bad option is one error line and exit 2 before any
-    replay, and no output file."""
+    """rayflex study rayorder: a bad option is one error line and exit 2 before any replay, and
+    no output file."""
     for argv, what in ((["--policies", "index,sorted"], "--policies"),
                        (["--windows", "64,0"], "--windows"),
                        (["--variants-window", "x"], "--variants-window"),
                        (["--bvh-formats", "q9"], "--bvh-formats")):
-        assert order.main(["--json", str(tmp_path / "x.json"), *argv]) == 2
+        assert cli_main(["study", "rayorder", "--json", str(tmp_path / "x.json"), *argv]) == 2
         err = capsys.readouterr().err
         assert err.startswith(f"rayflex: error: {what}") and err.count("\n") == 1
     assert not list(tmp_path.iterdir())

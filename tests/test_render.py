@@ -10,7 +10,7 @@ import pytest
 from PIL import Image
 
 from driver.scenes.camera import primary_rays
-from driver.outputs import save_image
+from driver.core.outputs import save_image
 from driver.workloads import BG_BOTTOM, BG_TOP
 from driver.render import (PEAK_BYTES_PER_RAY, RenderResult, check_memory, check_memory_tiled,
                            estimate_bytes, heatmap, render, shade)

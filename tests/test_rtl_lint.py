@@ -7,10 +7,10 @@ import re
 
 import pytest
 
-from driver import verilate
+from driver.backends import verilate
 from driver.backends import BackendError
 from driver.backends import build as rtl
-from driver.verilate import BuildError
+from driver.backends.verilate import BuildError
 
 
 @pytest.mark.parametrize("extended,disjoint,latency,compressed", [

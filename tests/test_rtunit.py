@@ -12,7 +12,8 @@ import driver
 from driver import backend, prepare_rays
 from driver.bvh4 import build
 from driver.backends.harness import build_requests
-from driver.layout import pack_requests, pack_responses, ray_words, unpack_requests, unpack_responses
+from driver.core.wire import (pack_requests, pack_responses, ray_words, unpack_requests,
+                              unpack_responses)
 from driver.tracer import trace
 from driver import rtunit
 from support import meshes

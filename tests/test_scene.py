@@ -9,7 +9,7 @@ import pytest
 import trimesh
 
 from driver.scenes.camera import Camera, check_size, primary_rays
-from driver.errors import CameraError, SceneError
+from driver.core.errors import CameraError, SceneError
 from driver.scenes.scene import (BUILTINS, SCENES_DIR, Scene, available, load, load_scene, resolve,
                           scene_name)
 

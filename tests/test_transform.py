@@ -3,7 +3,7 @@ out, every product and sum rounded to float32 in the one order
 ``o'[r] = ((m[r][0]*o[0] + m[r][1]*o[1]) + m[r][2]*o[2]) + m[r][3]``,
 ``d'[r] = (m[r][0]*d[0] + m[r][1]*d[1]) + m[r][2]*d[2]``.
 
-Golden model (``driver.golden.transform``), the fast RTL harness ("rtl"), pyverilator and the
+Golden model (``driver.core.golden.transform``), the fast RTL harness ("rtl"), pyverilator and the
 scalar reference, bit for bit, through the testbench (driver, monitor, golden scoreboard):
 directed matrices (identity, pure translation, rotation, mirror, zero), random matrices and rays
 (huge and tiny scales, negative determinants, zero and rank-2 matrices, +-0, subnormals, NaN,
@@ -20,10 +20,10 @@ import pytest
 
 import driver
 from driver import QUADBOX, TRIANGLE, DatapathError
-from driver import golden
-from driver.datapath import run_transform, transform_requests, transform_results
-from driver.layout import (MATRIX_SHAPE, OPCODES, REQUEST, REQUEST_DTYPE, TRANSFORM,
-                           carries_matrix, pack_requests, unpack_requests)
+from driver.core import golden
+from driver.core.datapath import run_transform, transform_requests, transform_results
+from driver.core.wire import (MATRIX_SHAPE, OPCODES, REQUEST, REQUEST_DTYPE, TRANSFORM,
+                              carries_matrix, pack_requests, unpack_requests)
 from support.scalar_ref import ScalarState, scalar_run
 from support.scoreboard import assert_bit_equal, bits
 from support.streams import (extended_stream, interleave, q8_requests, random_matrices,

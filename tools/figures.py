@@ -7,9 +7,9 @@
     python tools/figures.py                       # rebuild all (tens of minutes on 2 cores)
     python tools/figures.py --numbers             # the numbers the README quotes, from the JSON
 
-Each figure is one command of the tool (``rayflex render|bench|sweep|power`` or ``python -m``
-``driver.area``, ``driver.bvh.study``, ``driver.rtunit.order``) run from the checkout on its own
-code (``PYTHONPATH`` = the checkout). After a
+Each figure is one command of the tool (``rayflex render|bench|sweep|power|study`` or
+``python -m driver.area``) run from the checkout on its own code (``PYTHONPATH`` = the
+checkout). After a
 figure is rebuilt, ``docs/figures.json`` records its command, the commit it ran on and the
 machine (CPU model, cores), which is what the docs cite for a measurement.
 
@@ -35,7 +35,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
-from driver.layout import IMAGE_FORMATS  # noqa: E402  (the checkout's, not an installed one)
+from driver.core.layout import IMAGE_FORMATS  # noqa: E402  (the checkout's, not an installed one)
 
 MANIFEST = ROOT / "docs" / "figures.json"
 RAYFLEX = [sys.executable, "-m", "driver.cli"]
@@ -153,7 +153,7 @@ FIGURES = [
            "BVH build times (1, 20 and 50 bunnies) and the --bvh-fill x --cull-stack trade-off"),
     *(_compressed(fmt) for fmt in FORMATS),
     Figure("compressed_path64_sweep",
-           (sys.executable, "-m", "driver.bvh.study",
+           (*RAYFLEX, "study", "compressed",
             *(f"images/compressed_path64_{fmt}.json" for fmt in FORMATS),
             "--plot", "images/compressed_path64_sweep.png"),
            ("images/compressed_path64_sweep.png",), 0.1,
@@ -168,12 +168,12 @@ FIGURES = [
            "box32 vs q8g with the memory's latency on and off and a fully associative cache: "
            "per ray type and wavefront"),
     Figure("compressed_build",
-           (sys.executable, "-m", "driver.bvh.bench", "--counts", "0", "50", "--json",
+           (*RAYFLEX, "study", "bvh", "--counts", "0", "50", "--json",
             "docs/compressed_build.json", "--no-progress"),
            ("docs/compressed_build.json",), 4.0,
            "build times of box32, q8 and q8g on the bunny and 5 M triangles (CPU and wall)"),
     Figure("rayorder",
-           (sys.executable, "-m", "driver.rtunit.order", "--json", "docs/rayorder.json",
+           (*RAYFLEX, "study", "rayorder", "--json", "docs/rayorder.json",
             "--plot", "images/rayorder.png", "--no-progress"),
            ("docs/rayorder.json", "images/rayorder.png"), 20.0,
            "ray-order policies of the RT unit per scene and ray type, with their state cost"),
@@ -185,7 +185,7 @@ FIGURES = [
            "box32 vs q8 vs q8g in a one-kernel frame (64 x 64 and 128 x 128) on the default and "
            "rtx2060-vulkan-sim presets: frame cycles, bytes per level and latency per ray type"),
     Figure("compressed_gpu_plot",
-           (sys.executable, "-m", "driver.rtunit.frame_study", "compressed",
+           (*RAYFLEX, "study", "gpu", "compressed",
             "docs/compressed_gpu.json", "--plot", "images/compressed_gpu.png"),
            ("images/compressed_gpu.png",), 0.1,
            "latency per ray type and node format on both presets (from compressed_gpu)"),
@@ -214,7 +214,7 @@ FIGURES = [
            "index order with the ray pool as large as the schedulers' windows (128 x 128, both "
            "presets): the rays held without the scheduler"),
     Figure("rayorder_gpu_plot",
-           (sys.executable, "-m", "driver.rtunit.frame_study", "order",
+           (*RAYFLEX, "study", "gpu", "order",
             "docs/rayorder_gpu.json", "--plot", "images/rayorder_gpu.png"),
            ("images/rayorder_gpu.png",), 0.1,
            "frame cycles per ray-order policy relative to index order (from rayorder_gpu)"),
@@ -254,17 +254,17 @@ FIGURES = [
     *(_power_q8_xf(level, minutes) for level, minutes in
       (("signals", 1.0), ("gates", 12.0), ("liberty", 12.0))),
     Figure("instances_hits",
-           (sys.executable, "-m", "driver.bvh.instances_study", "hits", "--scene", "bunny_grid",
+           (*RAYFLEX, "study", "instances", "hits", "--scene", "bunny_grid",
             "--size", "256", "--json", "docs/instances_hits.json"),
            ("docs/instances_hits.json",), 6.0,
            "bunny_grid instanced vs flattened: image bytes (every format) and the hits of both"),
     Figure("instances_images",
-           (sys.executable, "-m", "driver.bvh.instances_study", "images", "--scene", "bunny_grid",
+           (*RAYFLEX, "study", "instances", "images", "--scene", "bunny_grid",
             "--scene", "city", "--json", "docs/instances_images.json"),
            ("docs/instances_images.json",), 1.0,
            "two-level image bytes of bunny_grid and the city per format: TLAS, instances, BLASes"),
     Figure("instances_transform",
-           (sys.executable, "-m", "driver.bvh.instances_study", "transform", "--scene",
+           (*RAYFLEX, "study", "instances", "transform", "--scene",
             "bunny_grid", "--workload", "path", "--size", "64", "--spp", "2", "--bounces", "2",
             "--json", "docs/instances_transform.json", "--no-progress"),
            ("docs/instances_transform.json",), 5.0,

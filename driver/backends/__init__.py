@@ -1,7 +1,7 @@
 """One interface for every datapath model: ``backend(name, **options)``.
 
-Layers: ``driver.datapath`` (dtypes, ray preparation) and ``driver.layout`` (wire words, node
-image) are the core; this package holds the models behind one ``Backend`` protocol, one module
+Layers: ``driver.core.datapath`` (dtypes, ray preparation) and ``driver.core.layout`` (wire words,
+node image) are the core; this package holds the models behind one ``Backend`` protocol, one module
 each (``golden``: numpy model; ``harness``: the "rtl" fast C++ harness over the Verilated RTL;
 ``pyverilator``: the same RTL cycle by cycle), and ``build`` (RTL sources, parameters, the
 Verilator build with its profile-guided policy). Nothing here imports the traversal or the
@@ -11,6 +11,9 @@ application; the PGO training workload (``driver.pgo``) runs in a separate proce
 from __future__ import annotations
 
 from .base import BACKENDS, Backend, BackendError, NodeBackend
+from .golden import GoldenBackend
+from .harness import HarnessBackend
+from .pyverilator import PyverilatorBackend
 
 __all__ = ["BACKENDS", "Backend", "BackendError", "NodeBackend", "backend", "resolve"]
 
@@ -23,12 +26,9 @@ def backend(name: str, **options) -> Backend:
         raise BackendError(f"unknown backend {name!r}; available: {', '.join(BACKENDS)}")
     try:
         if name == "golden":
-            from .golden import GoldenBackend
             return GoldenBackend(**options)
         if name == "rtl":
-            from .harness import HarnessBackend       # builds the Verilated model on first use
-            return HarnessBackend(**options)
-        from .pyverilator import PyverilatorBackend
+            return HarnessBackend(**options)          # builds the Verilated model on first use
         return PyverilatorBackend(**options)
     except ImportError as e:
         raise BackendError(f"backend {name!r} is not available: {e}") from None

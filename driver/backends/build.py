@@ -1,10 +1,10 @@
 """Building the RTL backends: the source list, the parameters, lint, and the harness library
-(Verilator through ``driver.verilate``, with the generated layout header and the profile-guided
-policy).
+(Verilator through ``driver.backends.verilate``, with the generated layout header and the
+profile-guided policy).
 
 The harness library is ``sim/rayflex_harness.cpp`` (streaming) + ``sim/rtunit_scheduler.cpp``
 (the RT-unit replay) over the Verilated model, compiled with ``rf_layout.h``, which
-``driver.layout.c_header()`` generates into the build cache (a directory named by the header's
+``driver.core.layout.c_header()`` generates into the build cache (a directory named by the header's
 hash, so a layout change is a new cache entry). Profile-guided optimisation is on unless
 ``RAYFLEX_PGO=0``: the training workload (``driver.pgo``) runs in a separate Python process on
 the instrumented library, so this module does not import the application.
@@ -17,14 +17,14 @@ import json
 import os
 from pathlib import Path
 
-from .. import layout, verilate
-from ..datapath import LATENCY, default_latency
+from ..core import layout
+from . import verilate
+from ..core.resources import ROOT, data_dir
+from ..core.datapath import LATENCY, default_latency
 from .base import BackendError
 
-PACKAGE = Path(__file__).resolve().parent.parent       # the driver package
-ROOT = PACKAGE.parent                                    # the directory that holds it
-RTL_DIR = PACKAGE / "rtl"
-SIM_DIR = PACKAGE / "sim"
+RTL_DIR = data_dir("rtl")
+SIM_DIR = data_dir("sim")
 TOP = "rayflex"
 SOURCE_LIST = RTL_DIR / "sources.txt"
 LINT_WAIVERS = "lint.vlt"
@@ -63,7 +63,7 @@ def rtl_sources() -> list[Path]:
 def rtl_params(extended: bool, disjoint: bool, latency: int | None = None,
                compressed: bool = False, transform: bool = False) -> dict[str, int]:
     """The top-level parameters of a configuration (``-G`` overrides); ``latency`` None: the
-    configuration's least (``driver.datapath.default_latency``)."""
+    configuration's least (``driver.core.datapath.default_latency``)."""
     least = default_latency(compressed)
     latency = least if latency is None else latency
     if int(latency) < least:
@@ -91,8 +91,8 @@ def pgo_enabled() -> bool:
 
 
 def layout_header_dir() -> Path:
-    """A cache directory holding ``rf_layout.h`` as ``driver.layout`` generates it now (named by
-    the header's hash; written atomically, so concurrent processes may race safely)."""
+    """A cache directory holding ``rf_layout.h`` as ``driver.core.layout`` generates it now (named
+    by the header's hash; written atomically, so concurrent processes may race safely)."""
     text = layout.c_header()
     for name in HARNESS_HEADERS:
         text += (SIM_DIR / name).read_text()     # the shared harness header travels along

@@ -1,13 +1,14 @@
-"""The "golden" backend: the numpy model of ``driver.golden`` behind the ``Backend`` protocol."""
+"""The "golden" backend: the numpy model of ``driver.core.golden`` behind the ``Backend``
+protocol."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..datapath import (ANGULAR, EUCLIDEAN, FLAG_NO_CULL, QUADBOX, RESPONSE_DTYPE, TRANSFORM,
-                        TRIANGLE, check_requests, default_latency)
-from ..golden import (F32, accumulate, angular_beat, canonical, euclid_beat, quadbox,
-                      request_boxes, sort4, transform, triangle)
+from ..core.datapath import (ANGULAR, EUCLIDEAN, FLAG_NO_CULL, QUADBOX, RESPONSE_DTYPE, TRANSFORM,
+                             TRIANGLE, check_requests, default_latency)
+from ..core.golden import (F32, accumulate, angular_beat, canonical, euclid_beat, quadbox,
+                           request_boxes, sort4, transform, triangle)
 
 
 def _fields(req, rows, names):

@@ -2,7 +2,7 @@
 
 ``HarnessBackend.run`` streams ready-made request words (sim/rayflex_harness.cpp);
 ``HarnessBackend.run_nodes`` is the traversal fast path: the harness assembles QUADBOX/TRIANGLE
-requests from a packed ray table (``driver.layout.ray_words``) and the BVH4 image, so the host
+requests from a packed ray table (``driver.core.wire.ray_words``) and the BVH4 image, so the host
 sends three numbers per request instead of 320 bytes. ``replay_schedule`` runs the RT-unit replay
 (sim/rtunit_scheduler.cpp) for ``driver.rtunit``. ``harness_library(params)`` builds (cached; see
 ``driver.backends.build``) and loads the library once per process.
@@ -14,8 +14,8 @@ import ctypes
 
 import numpy as np
 
-from ..layout import (MEMORY_CONFIG, NO_CHILD, RAY_WORDS, REPLAY_CONFIG, REPLAY_STATS, REQ_WORDS,
-                      RSP_WORDS, pack_requests, unpack_responses)
+from ..core.layout import MEMORY_CONFIG, NO_CHILD, REPLAY_CONFIG, REPLAY_STATS
+from ..core.wire import RAY_WORDS, REQ_WORDS, RSP_WORDS, pack_requests, unpack_responses
 from .build import build_harness
 from .rtlbase import PATTERN_LEN, RtlBackendBase
 
@@ -28,7 +28,7 @@ BAD_NODE = -2             # return code of the harness calls: a pointer that nam
 
 
 class ReplayStats(ctypes.Structure):
-    """rf_layout::ReplayStats (fields: ``driver.layout.REPLAY_STATS``)."""
+    """rf_layout::ReplayStats (fields: ``driver.core.layout.REPLAY_STATS``)."""
 
     _fields_ = [(name, ctypes.c_int64) for name in REPLAY_STATS]
 
@@ -37,13 +37,13 @@ class ReplayStats(ctypes.Structure):
 
 
 class ReplayConfig(ctypes.Structure):
-    """rf_layout::ReplayConfig (fields: ``driver.layout.REPLAY_CONFIG``)."""
+    """rf_layout::ReplayConfig (fields: ``driver.core.layout.REPLAY_CONFIG``)."""
 
     _fields_ = [(name, ctypes.c_int64) for name in REPLAY_CONFIG]
 
 
 class MemoryConfig(ctypes.Structure):
-    """rf_layout::MemoryConfig (fields: ``driver.layout.MEMORY_CONFIG``)."""
+    """rf_layout::MemoryConfig (fields: ``driver.core.layout.MEMORY_CONFIG``)."""
 
     _fields_ = [(name, ctypes.c_double if ctype == "double" else ctypes.c_int64)
                 for name, ctype in MEMORY_CONFIG]
@@ -116,7 +116,7 @@ def _bad_node() -> ValueError:
 
 
 def build_requests(params: dict[str, int], ray_words, image_words, ray, ptr, extent) -> np.ndarray:
-    """The (n, REQ_WORDS) request words ``run_nodes``/``replay_chains`` assemble for these
+    """The (n, REQ_WORDS) request words ``run_nodes``/``replay_schedule`` assemble for these
     triples."""
     lib = harness_library(params)
     rw, img, r, p, e = node_arrays(ray_words, image_words, ray, ptr, extent)
@@ -160,7 +160,7 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
     chains issued by warps of trace calls. ``config``: the ``REPLAY_CONFIG`` values
     (``series_capacity`` is filled in); ``memory``: the ``MEMORY_CONFIG`` values, or None (every
     node fetch free). ``frame``: the requests (``ray_words``, ``image``, ``ray``, ``ptr``,
-    ``extent``, ``chain``, ``before`` as in ``driver.rtunit.Record``; ``driver.rtunit.plan.
+    ``extent``, ``chain``, ``before`` as in ``driver.tracing.record.Record``; ``driver.rtunit.plan.
     Combined``); ``chains``: (chain_idx, chain_off) of its chains; ``plan``: kernels, warps and
     calls (``kernel_off`` over warps, ``warp_call_off`` over calls, ``call_ray_off`` /
     ``call_rays``: chain indices). ``treelets``: a ``driver.rtunit.order.TreeletSchedule`` (needs
@@ -277,7 +277,7 @@ class HarnessBackend(RtlBackendBase):
     def run_nodes(self, ray_words: np.ndarray, image_words: np.ndarray, ray: np.ndarray,
                   ptr: np.ndarray, extent: np.ndarray) -> np.ndarray:
         """Stream traversal requests: request i is ray ``ray[i]`` (a row of ``ray_words``, see
-        ``driver.layout.ray_words``; tag = the ray index) against the node at pointer ``ptr[i]``
+        ``driver.core.wire.ray_words``; tag = the ray index) against the node at pointer ``ptr[i]``
         of the BVH4 image ``image_words`` (QUADBOX for a box node, TRIANGLE for a triangle node),
         with extent ``extent[i]``. Returns the (n, RSP_WORDS) uint32 response words, in request
         order. Bit-identical to ``run()`` on the same requests built in Python (tests check)."""

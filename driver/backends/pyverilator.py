@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import verilate
-from ..layout import RSP_WORDS, pack_requests, unpack_responses
+from . import verilate
+from ..core.wire import RSP_WORDS, pack_requests, unpack_responses
 from .base import BackendError
 from .build import RTL_DIR, TOP, rtl_sources
 from .rtlbase import PATTERN_LEN, RtlBackendBase
@@ -108,7 +108,7 @@ def _pyverilator_model(params: dict[str, int]):
 
 
 def _build_pyverilator(params: dict[str, int]) -> Path:
-    """The cached pyverilator shared object (driver.verilate.build_pyverilator)."""
+    """The cached pyverilator shared object (driver.backends.verilate.build_pyverilator)."""
     try:
         return verilate.build_pyverilator(
             TOP, RTL_DIR / f"{TOP}.sv", rtl_sources(), [RTL_DIR / "rf_pkg.sv"], [RTL_DIR], params,

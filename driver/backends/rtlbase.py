@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..datapath import check_requests
+from ..core.datapath import check_requests
 from .build import rtl_params
 
 PATTERN_LEN = 4099        # length of the repeating gap/stall patterns (prime: no beat with stages)

@@ -1,14 +1,15 @@
-"""Fast binary BVH builder and SAH-optimal 4-wide collapse (numba kernels for ``driver.bvh4``).
+"""Fast binary BVH builder and the stored (grown) boxes of its nodes (numba kernels, the first
+stage of ``driver.bvh.pipeline``).
 
 Why hand-written kernels: no maintained Python package builds a BVH from boxes and centroids and
 hands back the binary tree (Embree's builders are not exposed by embreex; trimesh/rtree build
-R-trees of another shape), and the numpy builder in ``driver.bvh4`` (``builder="numpy"``), which
-is kept as the reference, spends its time in ``reduceat``/``ufunc.at`` passes over every level
-(30 s for 2 M triangles). numba rather than C++ beside the harness (see docs/bvh.md): it is a
-pip dependency, compiles once per machine into its on-disk cache, and with it the whole build is
-an order of magnitude faster than with the vectorised numpy builder (docs/bvh.md). The image
-writer's kernels (``stored_boxes``, ``fill_image``) are here for the same reason: as numpy
-passes they took a third of the 2 M-triangle build.
+R-trees of another shape), and the numpy builder (``driver.bvh.reference``, ``builder="numpy"``),
+which is kept as the reference, spends its time in ``reduceat``/``ufunc.at`` passes over every
+level (30 s for 2 M triangles). numba rather than C++ beside the harness (see docs/bvh.md): it is
+a pip dependency, compiles once per machine into its on-disk cache, and with it the whole build
+is an order of magnitude faster than with the vectorised numpy builder (docs/bvh.md). The image
+writers' kernels (``driver.bvh.box32``, ``driver.bvh.q8_image``) are numba for the same reason:
+as numpy passes they took a third of the 2 M-triangle build.
 
 Binary build (``build_binary``): exactly the numpy builder's rules, so the trees are the same
 (tests/test_bvh4.py compares them node by node): nodes of more than ``SWEEP_MAX`` primitives are
@@ -35,20 +36,6 @@ primitives nearest its boundary across it (a node of 0 mod 3 triangles, e.g. the
 into 1 and 2 mod 3 and costs one non-full node). The collapse still minimises SAH, so it may
 leave a node non-full where that is cheaper. Fuller nodes shrink the tree and its memory but
 raise SAH and primary-ray ops a little (docs/bvh.md measures the trade-off).
-
-Collapse (``collapse_sah``): the dynamic programme of Ylitie, Karras and Laine 2017 ("Efficient
-incoherent ray traversal on GPUs through compressed wide BVHs"), specialised to one triangle per
-leaf: the SAH cost of a wide tree is the sum of the areas of its used child slots (box and
-triangle nodes), so with ``D(n, k)`` = least cost of representing binary subtree ``n`` by at most
-``k`` slots of its wide parent::
-
-    leaf:       D(n, k) = A(n)
-    interior:   D(n, 1) = A(n) + min_{a=1..3} D(l, a) + D(r, 4 - a)     (n becomes a box node)
-                D(n, k) = min(D(n, k - 1), min_{a=1..k-1} D(l, a) + D(r, k - a))
-
-The root is always a box node; its slots come from the ``D(n, 1)`` choice. The wide nodes are
-emitted breadth first (root first; a node's box children in slot order), which is the order the
-image writer numbers them in.
 """
 
 from __future__ import annotations
@@ -61,7 +48,6 @@ from numba import njit
 
 from .params import SWEEP_MAX
 
-WIDTH = 4              # children per wide node
 PARALLEL_MIN = 50_000   # from this many triangles, subtrees are built on several threads
 _STACK = 72            # > log2(2**63) + 2: the depth-first stack never holds more
 
@@ -459,108 +445,14 @@ def build_binary(tris, bins: int, progress=None, fill: int = 0, threads: int | N
     return left, right, prim, node_box[:, :3], node_box[:, 3:]
 
 
-@njit(cache=True)
-def _dp(left, right, area):
-    """Bottom-up D(n, k) table (see module docstring) and the choices: choice[n, k-1] = slots
-    given to the left child (0: D(n, k) = D(n, k - 1)). k runs to WIDTH - 1 only: a child of a
-    split gets at most WIDTH - 1 slots (its sibling needs one)."""
-    return dp_table(left, right, area, area, np.full(len(left), np.inf))[0]
-
-
-@njit(cache=True)
-def dp_table(left, right, leaf_cost, node_cost, alt_cost):
-    """``_dp``'s table with costs per node: a leaf n costs ``leaf_cost[n]``, an interior node
-    made a wide node ``node_cost[n]`` plus its children's, or, in one slot, ``alt_cost[n]``
-    instead if less (``driver.bvh.q8``'s group leaves; inf: never). Returns (choice, alt (m,)
-    bool: where the alternative is the least D(n, 1))."""
-    m = len(left)
-    d = np.empty((m, WIDTH - 1))
-    choice = np.zeros((m, WIDTH - 1), np.int8)
-    alt = np.zeros(m, np.bool_)
-    for n in range(m - 1, -1, -1):                         # children are numbered after parents
-        l, r = left[n], right[n]
-        if l < 0:
-            d[n, :] = leaf_cost[n]
-            continue
-        best, ba = np.inf, 0
-        for a in range(1, WIDTH):
-            c = d[l, a - 1] + d[r, WIDTH - a - 1]
-            if c < best:
-                best, ba = c, a
-        d[n, 0] = node_cost[n] + best
-        choice[n, 0] = ba
-        if alt_cost[n] < d[n, 0]:
-            d[n, 0], alt[n] = alt_cost[n], True
-        for k in range(2, WIDTH):
-            best, ba = d[n, k - 2], 0
-            for a in range(1, k):
-                c = d[l, a - 1] + d[r, k - a - 1]
-                if c < best:
-                    best, ba = c, a
-            d[n, k - 1] = best
-            choice[n, k - 1] = ba
-    return choice, alt
-
-
-@njit(cache=True)
-def _emit(left, right, choice):
-    """Wide nodes breadth first: (slots (k, 4) binary ids, -1 = unused, used first; depth of
-    each wide node)."""
-    m = len(left)
-    cap = max(1, (m + 1) // 2)                             # wide nodes <= interior nodes + 1
-    slots = np.full((cap, WIDTH), -1, np.int64)
-    depth = np.zeros(cap, np.int64)
-    queue = np.empty(cap, np.int64)
-    queue[0] = 0
-    head, tail = 0, 1
-    work = np.empty((2 * WIDTH + 2, 2), np.int64)         # (binary node, slots) to expand
-    while head < tail:
-        n = queue[head]
-        row = head
-        head += 1
-        used = 0
-        if left[n] < 0:                                    # single-triangle tree
-            slots[row, 0] = n
-            continue
-        a = choice[n, 0]
-        work[0, 0], work[0, 1] = right[n], WIDTH - a        # stack: right pushed first
-        work[1, 0], work[1, 1] = left[n], a
-        wp = 2
-        while wp > 0:
-            wp -= 1
-            x, k = work[wp, 0], work[wp, 1]
-            while k > 1 and choice[x, k - 1] == 0:
-                k -= 1
-            if k == 1:
-                slots[row, used] = x
-                used += 1
-                if left[x] >= 0:
-                    queue[tail] = x
-                    depth[tail] = depth[row] + 1
-                    tail += 1
-            else:
-                c = choice[x, k - 1]
-                work[wp, 0], work[wp, 1] = right[x], k - c
-                work[wp + 1, 0], work[wp + 1, 1] = left[x], c
-                wp += 2
-    return slots[:tail], depth[:tail]
-
-
-def collapse_sah(left, right, area):
-    """SAH-optimal 4-wide levels from the binary tree: a list, root level first, of (k, 4) arrays
-    of binary node ids per wide box node (-1 = unused slot; used slots first)."""
-    slots, depth = _emit(left, right, _dp(left, right, area))
-    return np.split(slots, np.flatnonzero(np.diff(depth)) + 1)
-
-
 # ----------------------------------------------------------------------------------------------
-# memory image kernels (``driver.bvh4`` owns the layout; these only number nodes and copy rows)
+# the stored boxes of the binary nodes (``driver.bvh.pipeline`` says why they are grown)
 
 @njit(cache=True)
 def grow_boxes(lo, hi, pad):
     """Grow the (m, 3) node bounds in place into the stored boxes, ``nextafter(float32(min -
-    pad), -inf)`` and ``nextafter(float32(max + pad), +inf)`` (``driver.bvh4`` says why; float32
-    values, exact in either array dtype), and return their half areas (m,) float64."""
+    pad), -inf)`` and ``nextafter(float32(max + pad), +inf)`` (``driver.bvh.pipeline`` says why;
+    float32 values, exact in either array dtype), and return their half areas (m,) float64."""
     m = lo.shape[0]
     area = np.empty(m)
     down, up = np.float32(-np.inf), np.float32(np.inf)
@@ -574,49 +466,3 @@ def grow_boxes(lo, hi, pad):
         area[i] = _half_area(dx, dy, dz)
     return area
 
-
-@njit(cache=True)
-def fill_image(slots, left, prim, node_lo, node_hi, node_area, tris, child, box, parent, count,
-               tri, tri_prim, box_ptr, tri_ptr, no_child):
-    """Number the wide tree's nodes and write them into the image's node fields; returns the
-    sum of the used slots' areas (the SAH numerator).
-
-    slots (k, 4): binary node ids per box node, breadth first (used slots first, -1 unused);
-    box node i's children that are box nodes are numbered in row-major slot order over all
-    rows (breadth first), triangle nodes in the order they are referenced. child/box/parent/
-    count: the box nodes' fields, tri/tri_prim the triangle nodes' (views into a zeroed image,
-    ``driver.layout``'s structs). Pointers are affine in the node index (``driver.bvh4`` derives
-    them from ``NodeRef``): box node i is ``box_ptr[0] + i * box_ptr[1]``, triangle node j
-    ``tri_ptr[0] + j * tri_ptr[1]``; an unused slot is ``no_child`` with a +inf box."""
-    k = slots.shape[0]
-    nb, nt = 0, 0
-    area = 0.0
-    parent[0] = no_child
-    for r in range(k):
-        used = 0
-        for j in range(WIDTH):
-            x = slots[r, j]
-            if x < 0:
-                child[r, j] = no_child
-                for c in range(6):
-                    box[r, j, c] = np.inf
-                continue
-            used += 1
-            area += node_area[x]
-            for c in range(3):
-                box[r, j, c] = node_lo[x, c]
-                box[r, j, 3 + c] = node_hi[x, c]
-            if left[x] >= 0:
-                nb += 1
-                child[r, j] = box_ptr[0] + nb * box_ptr[1]
-                parent[nb] = box_ptr[0] + r * box_ptr[1]
-            else:
-                child[r, j] = tri_ptr[0] + nt * tri_ptr[1]
-                p = prim[x]
-                tri_prim[nt] = p
-                for v in range(3):
-                    for c in range(3):
-                        tri[nt, v, c] = tris[p, v, c]
-                nt += 1
-        count[r] = used
-    return area

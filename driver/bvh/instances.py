@@ -6,8 +6,9 @@ Image layout (one contiguous little-endian buffer, every node 64-byte aligned)::
 
     [0, B * tlas_box_nodes)            TLAS box nodes, breadth-first, root at offset 0: box32
                                        (B = 128) under box32 BLASes, q8 (B = 64) under q8 or q8g
-    [.., + 128 * instances)            instance nodes (driver.layout.INSTANCE_NODE), in order
-    [.., ...)                          the BLASes, one after another, each as ``driver.bvh4.build``
+    [.., + 128 * instances)            instance nodes (driver.core.layout.INSTANCE_NODE), in order
+    [.., ...)                          the BLASes, one after another, each as
+                                       ``driver.bvh.pipeline.build``
                                        writes it (box32, q8 or q8g), its pointers moved by its
                                        offset
 
@@ -34,11 +35,12 @@ import time
 
 import numpy as np
 
-from ..bvh4 import BVH4, build
-from ..instances import Instances, check_transform
-from ..layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, INSTANCE_BYTES, INSTANCE_NODE,
-                      INSTANCE_TYPE, NO_CHILD, PAIR_NODE, PAIR_TYPE, Q8_BYTES, Q8_NODE, Q8_TYPE,
-                      TRI_NODE, TRI_TYPE, NodeRef, read_nodes)
+from ..instances import Instances, world_boxes
+from .image import BVH4, box_operands
+from .pipeline import build
+from ..core.layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, INSTANCE_BYTES, INSTANCE_NODE,
+                           INSTANCE_TYPE, NO_CHILD, PAIR_NODE, PAIR_TYPE, Q8_BYTES, Q8_NODE,
+                           Q8_TYPE, TRI_NODE, TRI_TYPE, NodeRef, read_nodes)
 
 
 def tlas_format(format: str) -> str:
@@ -86,7 +88,6 @@ class TwoLevelBVH(BVH4):
                 f"{s['bytes']} bytes)")
 
     def box_nodes(self, ptrs):
-        from ..bvh4 import box_operands
         return box_operands(self._words, np.asarray(ptrs, np.uint32))
 
 
@@ -107,24 +108,11 @@ def _root_box(bvh: BVH4) -> np.ndarray:
     return np.concatenate([used[:, :3].min(0), used[:, 3:].max(0)])
 
 
-def world_boxes(instances: Instances, local_boxes: np.ndarray) -> np.ndarray:
-    """(k, 2, 3) float32 world boxes of instances whose object-space boxes are ``local_boxes``
-    (k, 6): the 8 corners through ``object_to_world`` in float64, rounded outward."""
-    lo, hi = local_boxes[:, :3], local_boxes[:, 3:]
-    sel = (np.arange(8)[:, None] >> np.arange(3)) & 1                   # (8, 3) corner choice
-    corners = np.where(sel[None], hi[:, None, :], lo[:, None, :])       # (k, 8, 3)
-    m = instances.object_to_world.astype(np.float64)
-    w = np.einsum("krc,kvc->kvr", m[:, :, :3], corners) + m[:, None, :, 3]
-    wlo = np.nextafter(w.min(1).astype(np.float32), np.float32(-np.inf))
-    whi = np.nextafter(w.max(1).astype(np.float32), np.float32(np.inf))
-    return np.stack([wlo, whi], axis=1)
-
-
 def build_two_level(instances: Instances, format: str = "box32", progress=None,
                     **build_kw) -> TwoLevelBVH:
     """The two-level image of ``instances`` (module docstring): BLASes in ``format`` ("box32",
     "q8" or "q8g"), the TLAS in ``tlas_format(format)``; ``build_kw`` go to every
-    ``driver.bvh4.build``."""
+    ``driver.bvh.pipeline.build``."""
     t0 = time.perf_counter()
     mirrored = instances.mirrored
     keys = sorted({(int(j), bool(mi)) for j, mi in zip(instances.mesh, mirrored)})
@@ -196,26 +184,3 @@ def build_two_level(instances: Instances, format: str = "box32", progress=None,
              "pair_ratio": 0.0, "avg_children": tlas.stats["avg_children"],
              "child_histogram": tlas.stats["child_histogram"]}
     return TwoLevelBVH(image, instances, stats, format, roots, blas_info)
-
-
-def build_scene(scene, fill: int = 0, format: str = "box32", transform: str = "driver"):
-    """The BVH of a ``driver.scenes.scene.Scene``: the two-level image of its ``instances``
-    (``fill`` applies to the BLASes; ``transform``: where its traversals run the instance
-    transform, ``driver.instances.TRANSFORMS``) or, for a one-mesh scene, ``driver.bvh4.build``
-    of its mesh."""
-    check_transform(transform)
-    if getattr(scene, "instances", None) is not None:
-        bvh = build_two_level(scene.instances, format=format, fill=fill)
-        bvh.transform = transform
-        return bvh
-    from .. import bvh4                     # looked up at call time (tests may wrap it)
-    return bvh4.build(scene.mesh, fill=fill, format=format)
-
-
-def build_label(scene) -> str:
-    """What ``build_scene`` builds, for progress messages."""
-    c = scene.counts()
-    if getattr(scene, "instances", None) is None:
-        return f"the BVH4 of {c['instanced_triangles']:,} triangles"
-    return (f"the two-level BVH4 of {c['instances']:,} instances ({c['blas_triangles']:,} "
-            f"triangles in {len(scene.instances.meshes)} meshes)")

@@ -12,10 +12,12 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import signal
 import sys
+from importlib.metadata import PackageNotFoundError, version as dist_version
 
-from ..errors import Terminated
+from ..core.errors import Terminated
 from .common import (EXIT_CHECK, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED,
                      EXIT_USAGE, PROG, one_line)
 
@@ -25,7 +27,8 @@ COMMANDS = {
     "knn": "driver.cli.knn",
     "bench": "driver.cli.bench",
     "sweep": "driver.cli.sweep",
-    "power": "driver.power",
+    "power": "driver.cli.power",
+    "study": "driver.cli.study",
 }
 
 EXIT_CODES = {
@@ -47,8 +50,6 @@ ENVIRONMENT = {
 
 
 def version() -> str:
-    from importlib.metadata import PackageNotFoundError
-    from importlib.metadata import version as dist_version
     try:
         return dist_version("rayflex-driver")
     except PackageNotFoundError:
@@ -65,6 +66,7 @@ def main(argv=None) -> int:
     """Entry point of the ``rayflex`` console script; returns the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = list(argv) if argv is not None else sys.argv[1:]   # what a JSON may record
     if not getattr(args, "command", None):
         parser.print_help(sys.stderr)
         return EXIT_USAGE
@@ -84,7 +86,6 @@ def main(argv=None) -> int:
         print(f"{PROG}: error: out of memory (try a smaller --size)", file=sys.stderr)
         return EXIT_USAGE
     except Exception as e:  # noqa: BLE001  (a bug: one line unless asked for the traceback)
-        import os
         if os.environ.get("RAYFLEX_TRACEBACK") == "1":
             raise
         print(f"{PROG}: internal error: {type(e).__name__}: {one_line(e)} "

@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
-from .. import design
-from .common import add_json, add_progress, check_positive, provenance, wrote
+from .. import bench, design
+from ..core import outputs
+from ..core.outputs import JSON, PNG, Outputs
+from ..core.provenance import provenance
+from ..rtunit import SWEEP_RAYS_IN_FLIGHT
+from ..studies.bvh import bvh_bench
+from . import options
+from .common import check_positive, wrote
 
 
 def add_parser(subparsers):
-    from .. import rtunit
-    from ..bench import PYVERILATOR_REQUESTS, REPEAT, SWEEP_SIZE
     p = subparsers.add_parser(
         "bench", help="datapath utilization and simulation speed on a real frame",
         description="Run a design point's frame (default: the bunny, primary rays) through the "
@@ -21,46 +26,7 @@ def add_parser(subparsers):
                     "golden and Embree ray rates, the BVH build time, and a sweep of rays in "
                     "flight x pipelines (PNG plot); any other workload, with --sweep-rays, "
                     "utilization over rays in flight (PNG plot).")
-    add_json(p, "write the results as JSON")
-    p.add_argument("--sweep-size", type=int, default=SWEEP_SIZE, metavar="N",
-                   help=f"frame size of the rays-in-flight x pipelines sweep (default "
-                        f"{SWEEP_SIZE}, at most --size; 0: no sweep)")
-    p.add_argument("--sweep-rays", default=None, metavar="LIST",
-                   help="rays in flight of the sweep (comma-separated; default for the primary "
-                        "frame: " + ",".join(map(str, rtunit.SWEEP_RAYS_IN_FLIGHT)) + "; a "
-                        "--workload frame is replayed again at each only when given, and "
-                        "--plot draws it; without it, --plot draws the rays each RT unit "
-                        "holds over the frame)")
-    p.add_argument("--ideal-replay", action="store_true",
-                   help="also replay the frame with every node fetch free (the rtunit object): "
-                        "a second timing replay; by default each request is simulated twice, "
-                        "the functional pass and the design point's replay (rtunit_memory)")
-    p.add_argument("--sweep-pipelines", default=",".join(map(str, rtunit.SWEEP_PIPELINES)),
-                   metavar="LIST", help="pipeline counts of the sweep (comma-separated)")
-    p.add_argument("--plot", metavar="PATH",
-                   help="PNG: the sweep (the primary frame; a --workload frame with "
-                        "--sweep-rays), or the rays each RT unit holds over a --workload frame "
-                        "(default: beside --json as JSONSTEM_rtunit.png, else "
-                        "rayflex_bench_rtunit.png; with --bvh, the BVH shape plot "
-                        "JSONSTEM_bvh.png or rayflex_bench_bvh.png)")
-    p.add_argument("--pyverilator-requests", type=int, default=PYVERILATOR_REQUESTS,
-                   metavar="N", help=f"requests streamed through pyverilator (default "
-                                     f"{PYVERILATOR_REQUESTS}; 0: skip)")
-    p.add_argument("--repeat", type=int, default=REPEAT, metavar="N",
-                   help=f"timed passes of the rtl and pyverilator streams; the best counts "
-                        f"(default {REPEAT})")
-    p.add_argument("--workers", type=int, default=1, metavar="N",
-                   help="instead, time the frame tiled on a local Dask cluster of N processes "
-                        "against one process: the speed-up")
-    p.add_argument("--tile", type=int, default=64, metavar="N",
-                   help="tile size of the --workers comparison (default 64)")
-    p.add_argument("--bvh", action="store_true",
-                   help="the BVH builder instead: build time and peak memory for the bunny and "
-                        "2 M / 5 M instanced bunnies, tree quality of the SAH vs greedy collapse, "
-                        "box nodes vs ops per ray for each --bvh-fill with and without "
-                        "--cull-stack (PNG plot)")
-    design.add_options(p)
-    add_progress(p)
+    options.add(p, "bench")
     return p
 
 
@@ -75,25 +41,20 @@ def _int_list(text: str, flag: str) -> list[int]:
 
 
 def run(args) -> int:
-    from pathlib import Path
-
-    from .. import rtunit
-    from ..bench import bench, bench_workers, bench_workload, table
-    from ..outputs import JSON, PNG, Outputs, write_json
     from ..render import check_memory
 
-    point = design.from_args(args)
+    point = options.from_args(args)
     check_positive("--sweep-size", args.sweep_size, 0)
     check_positive("--pyverilator-requests", args.pyverilator_requests, 0)
     check_positive("--repeat", args.repeat)
     check_positive("--workers", args.workers)
     check_positive("--tile", args.tile)
-    if args.bvh and design.given(args):
+    if args.bvh and options.given(args):
         raise ValueError(f"--bvh measures its own scenes, BVH fills and culled stacks; drop "
-                         f"{design.given(args)[0]}")
+                         f"{options.given(args)[0]}")
     default_frame = point.workload == "primary" and point.spp == 1
     if args.sweep_rays is None:
-        sweep_rays = list(rtunit.SWEEP_RAYS_IN_FLIGHT) if default_frame else []
+        sweep_rays = list(SWEEP_RAYS_IN_FLIGHT) if default_frame else []
     else:
         sweep_rays = _int_list(args.sweep_rays, "--sweep-rays")
     sweep_pipes = _int_list(args.sweep_pipelines, "--sweep-pipelines")
@@ -113,42 +74,41 @@ def run(args) -> int:
 
     with outs.commit():
         if args.bvh:
-            from ..bvh.bench import bvh_bench
             doc = {"provenance": provenance(None),
                    **bvh_bench(progress=not args.no_progress, plot=outs.temp(plot))}
             doc["quality"]["fills"]["plot"] = str(plot)
             if js:
-                write_json(doc, outs.temp(js))
+                outputs.write_json(doc, outs.temp(js))
             print(json.dumps(doc, indent=1))
             wrote(outs.paths())
             return 0
         if args.workers > 1:
-            doc = bench_workers(point, args.workers, args.tile, not args.no_progress)
+            doc = bench.bench_workers(point, args.workers, args.tile, not args.no_progress)
             if js:
-                write_json(doc, outs.temp(js))
+                outputs.write_json(doc, outs.temp(js))
             print("\n".join(f"{k:<18} {v}" for k, v in doc.items() if k != "provenance"))
             wrote(outs.paths())
             return 0 if doc["identical"] else 1
         if not default_frame:
-            doc = bench_workload(point, sweep_rays=sweep_rays,
-                                 plot=outs.temp(plot) if plot else None,
-                                 progress=not args.no_progress, ideal=args.ideal_replay)
+            doc = bench.bench_workload(point, sweep_rays=sweep_rays,
+                                       plot=outs.temp(plot) if plot else None,
+                                       progress=not args.no_progress, ideal=args.ideal_replay)
             if plot:
                 doc["plot"] = str(plot)
             if js:
-                write_json(doc, outs.temp(js))
+                outputs.write_json(doc, outs.temp(js))
             print(workload_table(doc))
             wrote(outs.paths())
             return 0
-        doc = bench(point, sweep_size=args.sweep_size, sweep_rays=sweep_rays,
-                    sweep_pipelines=sweep_pipes, plot=outs.temp(plot) if plot else None,
-                    pyverilator_requests=args.pyverilator_requests, repeat=args.repeat,
-                    progress=not args.no_progress, ideal=args.ideal_replay)
+        doc = bench.bench(point, sweep_size=args.sweep_size, sweep_rays=sweep_rays,
+                          sweep_pipelines=sweep_pipes, plot=outs.temp(plot) if plot else None,
+                          pyverilator_requests=args.pyverilator_requests, repeat=args.repeat,
+                          progress=not args.no_progress, ideal=args.ideal_replay)
         if plot and doc.get("rtunit_sweep"):
             doc["rtunit_sweep"]["plot"] = str(plot)     # the target, not the temporary file
         if js:
-            write_json(doc, outs.temp(js))
-    print(table(doc))
+            outputs.write_json(doc, outs.temp(js))
+    print(bench.table(doc))
     wrote(outs.paths())
     return 0
 
@@ -157,12 +117,11 @@ def workload_table(doc: dict) -> str:
     """The per-ray-type mix of a ``bench --workload`` run, one row per ray type: its rays, ops,
     latency (issue to done) and bytes from each memory level per ray in the design point's
     replay (``rtunit_memory``), and the frame's timing."""
-    from ..bench import timing_rows
     pt = doc["provenance"]["design_point"]
     f = doc["frame"]
     head = (f"{doc['scene']} {doc['width']}x{doc['height']} {doc['workload']} (spp {pt['spp']}, "
             f"bounces {pt['bounces']}): {f['rays']} rays, {f['ops']} ops")
-    rows = [head] + [f"{a}: {b}" for a, b in timing_rows(f)]
+    rows = [head] + [f"{a}: {b}" for a, b in bench.timing_rows(f)]
     rows.append(f"{'type':>8} {'rays':>8} {'box/ray':>8} {'tri/ray':>8} {'xf/ray':>7} "
                 f"{'util':>6} {'lat':>7} {'p95':>7} {'L1 B/ray':>9} {'L2 B/ray':>9} "
                 f"{'DRAM B/ray':>10} {'anyhit/closest':>14}")

@@ -3,33 +3,15 @@ other outputs before any work, written inside the command's all-or-nothing commi
 
 from __future__ import annotations
 
+import importlib.util
 from pathlib import Path
 
+from ..core.outputs import HEX, NPZ, TEXT, VCD, OutputError
+from ..core.progress import bar as progress_bar
+from ..export import HEX_FILES, HexSink, NpzSink, WindowSink, export, parse_window, write_vcd
+from ..tiles import DEFAULT_TILE, plan
+
 DEFAULT_VCD_WINDOW = "0:100"
-
-
-def add_export(p) -> None:
-    from ..export import HEX_FILES, MAX_VCD_REQUESTS
-    g = p.add_argument_group(
-        "request-stream export",
-        "the frame's datapath requests in issue order with the golden model's responses, to "
-        "test another datapath on the same work (the frame is traced once more, on the golden "
-        "model, tile by tile)")
-    g.add_argument("--dump-requests", metavar="PATH.npz",
-                   help="write the requests as an NPZ: requests (REQUEST_DTYPE), responses "
-                        "(RESPONSE_DTYPE), ray, pixel, ray_type, format_version")
-    g.add_argument("--dump-hex", metavar="DIR",
-                   help=f"write {', '.join(HEX_FILES.values())} into the existing directory DIR "
-                        "for $readmemh test benches: one request (response) per line, the packed "
-                        "struct as one hex number, most significant digit first (format.txt "
-                        "lists every field's bits)")
-    g.add_argument("--vcd", metavar="PATH.vcd",
-                   help="write the waveform of a window of the requests run through the RTL "
-                        "(cycle by cycle, pyverilator), responses checked against the golden "
-                        "model")
-    g.add_argument("--vcd-window", metavar="FIRST:COUNT",
-                   help=f"the requests of --vcd: COUNT (1..{MAX_VCD_REQUESTS:,}) from position "
-                        f"FIRST of the stream (default {DEFAULT_VCD_WINDOW})")
 
 
 class Export:
@@ -38,14 +20,11 @@ class Export:
     ``outs.commit()``). False when nothing was asked for."""
 
     def __init__(self, args, outs):
-        from ..export import HEX_FILES, parse_window
-        from ..outputs import HEX, NPZ, TEXT, VCD, OutputError
         self.outs, self.npz, self.hex, self.vcd, self.window = outs, None, None, None, None
         if args.vcd_window is not None and not args.vcd:
             raise ValueError("--vcd-window needs --vcd PATH")
         if args.vcd:
             self.window = parse_window(args.vcd_window or DEFAULT_VCD_WINDOW)
-            import importlib.util
             if importlib.util.find_spec("pyverilator") is None:
                 raise ValueError("--vcd needs the pyverilator backend (pip install "
                                  "pyverilator-mm)")
@@ -67,9 +46,6 @@ class Export:
               tree: dict, progress: bool, backend_options: dict | None = None) -> int:
         """Trace the frame's request stream into the outputs' temporary files; returns the
         number of requests."""
-        from ..export import HexSink, NpzSink, WindowSink, export, write_vcd
-        from ..progress import bar as progress_bar
-        from ..tiles import DEFAULT_TILE, plan
         t = self.outs.temp
         sinks = []
         if self.npz:

@@ -4,54 +4,35 @@ from __future__ import annotations
 
 import sys
 
-from .common import (EXIT_CHECK, PROG, add_backend, add_json, add_progress, check_backend,
-                     wrote)
+import numpy as np
+
+from .. import knn
+from ..core import outputs
+from ..core.outputs import JSON, TABLE, Outputs
+from . import options
+from .common import EXIT_CHECK, PROG, check_backend, wrote
 
 
 def add_parser(subparsers):
-    from ..knn import DEFAULT_K, DEFAULT_QUERIES, METRICS
     p = subparsers.add_parser(
         "knn", help="exact k-nearest-neighbour search on the datapath",
         description="Exact k-nearest-neighbour search (Euclidean or cosine) with every distance "
                     "computed on the datapath's EUCLIDEAN/ANGULAR operations, checked against an "
                     "exact float64 search.")
-    p.add_argument("dataset", nargs="?", default="digits", metavar="DATASET",
-                   help="'digits' (scikit-learn's bundled 1797 x 64 digits; default) or a .npy "
-                        "file with a 2-D float array (rows are vectors)")
-    p.add_argument("--metric", default="euclidean", choices=METRICS,
-                   help="distance (default: euclidean)")
-    p.add_argument("-k", type=int, default=DEFAULT_K, metavar="K",
-                   help=f"neighbours per query (default: {DEFAULT_K})")
-    p.add_argument("--queries", type=int, metavar="N",
-                   help="use the first N dataset rows as queries against the other rows "
-                        f"(default: {DEFAULT_QUERIES}, or fewer for a small dataset)")
-    p.add_argument("--query-file", metavar="PATH",
-                   help=".npy file of query vectors, searched against the whole dataset")
-    add_backend(p)
-    p.add_argument("--disjoint", action="store_true",
-                   help="the DISJOINT build (private functional units per operation)")
-    p.add_argument("--out", metavar="PATH",
-                   help="write neighbours and distances per query (.json or .csv)")
-    add_json(p, "write statistics as JSON", "--json-stats")
-    add_progress(p)
+    options.add(p, "knn")
     return p
 
 
 def run(args) -> int:
-    import numpy as np
-
-    from ..knn import DEFAULT_QUERIES, knn, load_dataset, load_npy, summary, write_neighbors
-    from ..outputs import JSON, TABLE, Outputs, write_json
-
     check_backend(args.backend)
     outs = Outputs(inputs=[args.dataset, args.query_file])
     out = outs.add("--out", args.out, TABLE) if args.out else None
     js = outs.add("--json", args.json, JSON) if args.json else None
-    name, data = load_dataset(args.dataset)
+    name, data = knn.load_dataset(args.dataset)
     if args.query_file:
         if args.queries is not None:
             raise ValueError("give either --queries or --query-file, not both")
-        queries = load_npy(args.query_file, "query file")
+        queries = knn.load_npy(args.query_file, "query file")
         if queries.shape[1] != data.shape[1]:
             raise ValueError(f"query file has {queries.shape[1]} dimensions, the dataset "
                              f"{data.shape[1]}")
@@ -60,7 +41,7 @@ def run(args) -> int:
         if len(data) < 2:
             raise ValueError(f"dataset {name} has {len(data)} row: need at least 2 "
                              "(queries + candidates) or --query-file")
-        n = args.queries if args.queries is not None else min(DEFAULT_QUERIES, len(data) // 2)
+        n = args.queries if args.queries is not None else min(knn.DEFAULT_QUERIES, len(data) // 2)
         if not 1 <= n < len(data):
             raise ValueError(f"--queries must be in 1..{len(data) - 1}, got {n}")
         queries, cands = data[:n], data[n:]
@@ -68,17 +49,17 @@ def run(args) -> int:
     if not 1 <= args.k <= len(cands):
         raise ValueError(f"-k must be in 1..{len(cands)} (the number of candidates), "
                          f"got {args.k}")
-    res = knn(queries, cands, args.k, args.metric, backend=args.backend,
-              disjoint=args.disjoint, progress=not args.no_progress, query_ids=qid,
-              candidate_ids=cid)
+    res = knn.knn(queries, cands, args.k, args.metric, backend=args.backend,
+                  disjoint=args.disjoint, progress=not args.no_progress, query_ids=qid,
+                  candidate_ids=cid)
     res.stats["dataset"] = name
     with outs.commit():
         if out:
-            write_neighbors(res, outs.temp(out))
+            knn.write_neighbors(res, outs.temp(out))
         if js:
-            write_json({**res.stats, "disagreements": res.disagreements}, outs.temp(js))
+            outputs.write_json({**res.stats, "disagreements": res.disagreements}, outs.temp(js))
     print(f"dataset {name}: {len(data)} x {data.shape[1]}")
-    print(summary(res))
+    print(knn.summary(res))
     wrote(outs.paths())
     if res.stats["unexplained_queries"]:
         print(f"{PROG}: knn: {res.stats['unexplained_queries']} queries disagree with the "

@@ -1,19 +1,24 @@
 """``rayflex render SCENE``: render through the datapath, write the image, heat map and stats.
 
 Every check is made before any work: sizes, backend name, camera flags, memory for the frame, and
-every output path, the request-stream exports' too (``driver.outputs``, ``driver.cli.export``);
-the files are written all or nothing once the frame is done.
+every output path, the request-stream exports' too (``driver.core.outputs``,
+``driver.cli.export``); the files are written all or nothing once the frame is done.
 """
 
 from __future__ import annotations
 
 import sys
 
-from .. import design
-from .common import (EXIT_CHECK, PROG, add_backend, add_json, add_progress, add_view, add_workers,
-                     check_backend, check_flag_size, check_positive, provenance, view_options,
-                     wrote)
-from .export import Export, add_export
+from ..backends import resolve as resolve_backend
+from ..core import outputs
+from ..core.outputs import IMAGE, JSON, Outputs
+from ..core.progress import phase
+from ..core.provenance import provenance
+from ..scenes.camera import check_size
+from . import options
+from .common import (EXIT_CHECK, PROG, check_backend, check_flag_size, check_positive,
+                     view_options, wrote)
+from .export import Export
 
 
 def add_parser(subparsers):
@@ -21,47 +26,20 @@ def add_parser(subparsers):
         "render", help="render a scene through the datapath",
         description="Render SCENE with every box/triangle test run on the datapath model; write "
                     "the image, an operations-per-pixel heat map and statistics.")
-    p.add_argument("--width", type=int, metavar="W", help="image width (1..8192)")
-    p.add_argument("--height", type=int, metavar="H", help="image height (1..8192)")
-    add_backend(p)
-    p.add_argument("--check-embree", action="store_true",
-                   help="cross-check every ray against Embree (closest hits, and occlusion for "
-                        "shadow and AO rays)")
-    add_json(p, "write frame statistics as JSON", "--stats-json")
-    p.add_argument("--out", metavar="PATH",
-                   help="image file; the format follows the extension (.png, .jpg, .tif, .webp, "
-                        "...; default: SCENE.png)")
-    p.add_argument("--heatmap", metavar="PATH",
-                   help="ops-per-pixel heat map (default: beside --out, OUT_heatmap.png)")
-    p.add_argument("--rtunit", action="store_true",
-                   help="also replay the frame's requests on the RT units of the design point "
-                        "(docs/rtunit.md; a tile is a dispatch of its own): the statistics' "
-                        "rtunit_memory (docs/statistics.md)")
-    p.add_argument("--ideal-replay", action="store_true",
-                   help="with --rtunit, also replay with every node fetch free (rtunit): a "
-                        "second timing replay")
-    add_view(p)
-    design.add_options(p, positional_scene=True, notes={"rtunit": "with --rtunit"})
-    add_workers(p)
-    add_progress(p)
-    add_export(p)
+    options.add(p, "render", positional_scene=True, notes={"rtunit": "with --rtunit"})
     return p
 
 
 def run(args) -> int:
-    from ..scenes.camera import check_size
-    from ..outputs import IMAGE, JSON, Outputs, write_json
-    from ..progress import phase
-    from ..backends import resolve as resolve_backend
     from ..render import check_frame_memory, plan_tile, render
     from ..scenes.scene import load_scene, resolve, scene_name, with_camera
 
-    point = design.from_args(args)
+    point = options.from_args(args)
     if point.size is not None and (args.width is not None or args.height is not None):
         raise ValueError("give either --size or --width/--height, not both")
     for flag in ("width", "height"):
         check_flag_size(f"--{flag}", getattr(args, flag))
-    rt = design.given(args, ("rtunit",))
+    rt = options.given(args, ("rtunit",))
     if rt and not args.rtunit:
         raise ValueError(f"{rt[0]} sets the RT unit, which render models with --rtunit only")
     if args.ideal_replay and not args.rtunit:
@@ -103,7 +81,7 @@ def run(args) -> int:
         res.save(outs.temp(out))
         res.save_heatmap(outs.temp(hm))
         if js:
-            write_json({"provenance": provenance(point), "scene": scene.name, "width": w,
+            outputs.write_json({"provenance": provenance(point), "scene": scene.name, "width": w,
                         "height": h, **res.stats}, outs.temp(js))
         if dump:
             dump.write(scene, w, h, point.workload, point.workload_options(), res.stats.get("tile"),

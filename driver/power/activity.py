@@ -5,7 +5,7 @@ request streams run through them.
   (sim/power_harness.cpp); a run writes a VCD and the harness counts bit toggles per VCD
   identifier, in C++ (a 300-request run: ~25 MB, ~0.1 s). Verilator gives each net one
   identifier however many scopes it appears in (ports, continuous assignments), so each net
-  counts once. Built once per configuration and cached by ``driver.verilate``.
+  counts once. Built once per configuration and cached by ``driver.backends.verilate``.
 * ``GateModel`` (level ``gates``): the generic-gate netlist (``netlist.py``) on the 64-lane
   simulator ``gatesim``; toggles counted per net with ``np.bitwise_count``.
 
@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import verilate
+from ..backends import verilate
 from ..backends.build import LINT_WAIVERS, RTL_DIR, SIM_DIR, rtl_sources
-from ..layout import REQ_WORDS
+from ..core.wire import REQ_WORDS
 from . import gatesim
 from .netlist import STAGE_LABELS, Netlist
 

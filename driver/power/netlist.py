@@ -33,6 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import area
+
 RECIPE = 2                # bump when the synthesis script or the writer below changes meaning
 
 # Yosys internal gate -> (gatesim code, input pins in the order A, B, S)
@@ -52,7 +54,6 @@ STAGE_LABELS = ["registers", *[f"S{k}" for k in range(0, 10)], "out", "control"]
 
 def _area():
     """``driver.area`` (the open area flow whose snapshot and Yosys runner we reuse)."""
-    from .. import area
     return area
 
 

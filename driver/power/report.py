@@ -12,7 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..area import config_params
+from ..core.configs import Q8_SUFFIX, XF_SUFFIX
+from ..core.provenance import provenance
 from . import stimulus
+from .netlist import STAGE_LABELS
 
 PAPER = {
     "source": "RayFlex paper, Power Consumption (Genus, VCD of 100 random tests, 1 GHz)",
@@ -35,7 +39,6 @@ def _rel(a, b):
 
 def base_of(cfg: str) -> str:
     """The base configuration of ``cfg`` (without the q8 decode and TRANSFORM suffixes)."""
-    from ..area import Q8_SUFFIX, XF_SUFFIX
     return cfg.removesuffix(XF_SUFFIX).removesuffix(Q8_SUFFIX)
 
 
@@ -104,7 +107,6 @@ def mix_of(stats: dict) -> dict:
 def per_ray(mix: dict, cfgs: dict, q8_image: bool = False) -> dict:
     """Energy per ray and per frame for each ray type and configuration (box/triangle energy;
     ``q8_image``: the frame's BVH is a q8 image, its box ops are ``stimulus.box_op``'s)."""
-    from ..area import config_params
     out = {}
     for rtype, m in mix.items():
         row = {"rays": m["rays"], "box_ops_per_ray": m["box_ops"] / m["rays"] if m["rays"] else 0,
@@ -132,7 +134,6 @@ def build(level: str, res: dict, n: int, seed: int, mix: dict, point, cfgs,
           liberty=None) -> dict:
     """The report: energy per op of every configuration, the paper's ratios, and the energy per
     ray of every ray type of ``point``'s workload (``mix``, ``frame_mix``)."""
-    from ..stats import provenance
     cfg_results = res["configs"]
     prov = provenance(point)
     prov["design_point"]["config"] = list(cfgs)        # power measures every one listed
@@ -244,7 +245,6 @@ def markdown(rep: dict) -> str:
 def stage_columns(stages: list[dict]) -> list[str]:
     """The stage labels (``netlist.STAGE_LABELS`` order) with a share in some of ``stages``
     (the decode stage S0 only when a configuration has it)."""
-    from .netlist import STAGE_LABELS
     return [s for s in STAGE_LABELS if any(st.get(s) for st in stages)]
 
 

@@ -24,10 +24,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..datapath import ANGULAR, EUCLIDEAN, QUADBOX, TRANSFORM, TRIANGLE, prepare_rays, \
-    transform_requests
+from ..core.datapath import (ANGULAR, EUCLIDEAN, QUADBOX, TRANSFORM, TRIANGLE, prepare_rays,
+                             transform_requests)
 from ..bvh4 import q8_request
-from ..layout import FLAG_DECODE_Q8, FLAG_NO_CULL, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE
+from ..core.wire import FLAG_DECODE_Q8, FLAG_NO_CULL
+from ..core.layout import Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE
 
 
 class Op(NamedTuple):
@@ -93,7 +94,7 @@ def q8_nodes(boxes: np.ndarray, count: np.ndarray) -> np.ndarray:
     ``qlo`` = floor, ``qhi`` = ceil; then every bound the decode (a round-to-nearest add) puts
     inside its box moves out by one step (``verify_containment``), so each decoded box contains
     its box."""
-    from ..bvh.q8 import verify_containment
+    from ..bvh.q8_image import verify_containment
     n = len(boxes)
     used = np.arange(4)[None, :] < count[:, None]                      # (n, 4)
     ref = np.where(used[..., None], boxes, np.float32(np.inf)).astype(np.float32)

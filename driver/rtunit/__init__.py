@@ -6,7 +6,7 @@ and where does latency stop being hidden?
 
 Design: functional traversal first, timing by replay.
 
-1. ``driver.traversal.trace`` runs the wavefront closest-hit traversal (all rays in flight, one
+1. ``driver.tracer.trace`` runs the wavefront closest-hit traversal (all rays in flight, one
    ``backend.run()`` per step) and, when asked, records every datapath request as (ray index,
    node pointer, extent) in issue order, plus the response words (``Record``). A ray's requests
    depend only on that ray's own earlier responses (its stack and its nearest t), never on other
@@ -50,11 +50,12 @@ identical responses and cycles (tests check).
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..layout import INSTANCE_TYPE, RAY_WORDS, REQ_WORDS, NodeRef, unpack_requests
+from ..tracing.record import Record
 from .gpu import ReplayMismatch, replay_frame
 from .plan import PER_RAY_POOL, Wave
 
@@ -67,77 +68,6 @@ SWEEP_RAYS_IN_FLIGHT = (1, 2, 4, 8, 16, 32, 64, 128, 256, 1024)
 SWEEP_PIPELINES = (1, 2, 4, 8)
 
 
-@dataclass
-class Record:
-    """Every datapath request of a traversal, in issue order (wavefront step by step, rays in
-    index order within a step).
-
-    ray_words : (n, RAY_WORDS) uint32, the packed prepared rays (``driver.layout.ray_words``)
-    image : (k,) uint32, the BVH4 memory image as little-endian words
-    ray, ptr : (m,) uint32, ray index and node pointer of request i (an instance node's
-        pointer is a TRANSFORM request: the instance transform on the datapath)
-    extent : (m,) float32, the ray's nearest t when request i was issued
-    responses : (m, RSP_WORDS) uint32 response words of the functional run, or None
-    params : RTL build parameters for the replay (EXTENDED, DISJOINT, LATENCY)
-    chain : (m,) uint32, the ray (request chain) of request i when requests name rows of a
-        ray table that has more rows than rays (a two-level image: a ray that enters an
-        instance continues on its object-space row; ``driver.instances``); None: ``ray``
-    before : (m,) uint32, a node fetched before request i's own node (the instance node a ray
-        reads on entering an instance; ``NO_CHILD``: none), or None
-    world_rays : the number of rays (chains) when ``chain`` is given
-    """
-
-    ray_words: np.ndarray
-    image: np.ndarray
-    ray: np.ndarray
-    ptr: np.ndarray
-    extent: np.ndarray
-    responses: np.ndarray | None
-    params: dict
-    chain: np.ndarray | None = None
-    before: np.ndarray | None = None
-    world_rays: int | None = None
-
-    @property
-    def rays(self) -> int:
-        return len(self.ray_words) if self.world_rays is None else int(self.world_rays)
-
-    @property
-    def ops(self) -> int:
-        return len(self.ray)
-
-    @property
-    def box_ops(self) -> int:
-        return int(NodeRef.is_box(self.ptr).sum())
-
-    @property
-    def transform_ops(self) -> int:
-        """TRANSFORM requests (an instance node's pointer: the transform on the datapath)."""
-        return int((NodeRef.type(self.ptr) == INSTANCE_TYPE).sum())
-
-    def chains(self):
-        """(chain_idx (m,) int64, chain_off (n + 1,) int64): ray r's requests, in issue order,
-        are record indices chain_idx[chain_off[r]:chain_off[r + 1]]."""
-        key = self.ray if self.chain is None else self.chain
-        order = np.argsort(key, kind="stable").astype(np.int64)
-        count = np.bincount(key.astype(np.int64), minlength=self.rays)
-        off = np.zeros(self.rays + 1, np.int64)
-        np.cumsum(count, out=off[1:])
-        return order, off
-
-    def requests(self, index=None) -> np.ndarray:
-        """The recorded requests as a ``REQUEST_DTYPE`` array (all, or ``index``), built in
-        Python from the rays and the image, as ``driver.traversal`` builds them for generic
-        backends (for the cycle-by-cycle backend and for tests)."""
-        index = np.arange(self.ops) if index is None else np.asarray(index)
-        words = np.zeros((len(index), REQ_WORDS), np.uint32)
-        words[:, :RAY_WORDS] = self.ray_words[self.ray[index]]
-        req = unpack_requests(words)
-        req["tag"] = self.ray[index]
-        req["extent"] = self.extent[index]
-        from ..bvh4 import request_operands
-        request_operands(req, self.image, self.ptr[index], bool(self.params.get("COMPRESSED")))
-        return req
 
 
 @dataclass(frozen=True)
@@ -150,7 +80,7 @@ class MemoryModel:
     transaction arriving ``latency_cycles`` after its transfer, transfers serialised at
     ``bytes_per_cycle``. Bytes move in ``sector_bytes`` sectors of a line (0: whole lines).
     ``cache_bytes`` 0: no L1, every node fetch goes to the next level. A request waits until its
-    node's bytes are present (``driver.layout.NODE_BYTES``: box32 box node 128 B; q8 box node,
+    node's bytes are present (``driver.core.layout.NODE_BYTES``: box32 box node 128 B; q8 box node,
     triangle node and pair leaf 64 B; a pair's second triangle none more); the memory changes
     timing only, never a response."""
 
@@ -192,7 +122,7 @@ class MemoryModel:
         return int(self.sector_bytes or self.line_bytes)
 
     def config(self) -> dict:
-        """The ``driver.layout.MEMORY_CONFIG`` values of ``rf_replay``."""
+        """The ``driver.core.layout.MEMORY_CONFIG`` values of ``rf_replay``."""
         return {"l1_bytes": int(self.cache_bytes), "l1_ways": int(self.ways),
                 "line_bytes": int(self.line_bytes), "sector_bytes": int(self.sector_bytes),
                 "l1_latency": int(self.hit_latency), "mshrs": int(self.mshrs),
@@ -315,7 +245,6 @@ def sweep(record: Record, rays_in_flight=SWEEP_RAYS_IN_FLIGHT, pipelines=SWEEP_P
             if progress is not None:
                 progress(k + 1, len(pairs), points[k])
         return points
-    from concurrent.futures import ThreadPoolExecutor, as_completed
     with ThreadPoolExecutor(max_workers=int(workers)) as pool:
         # the slowest points (few rays in flight) first, so the pool ends evenly
         order = sorted(range(len(pairs)), key=lambda k: pairs[k][1])

@@ -15,8 +15,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..backends import harness
-from ..datapath import LATENCY
-from ..layout import INSTANCE_TYPE, NodeRef
+from ..core.datapath import LATENCY
+from ..core.layout import INSTANCE_TYPE, NodeRef
 from . import order as ray_orders
 from .energy import memory_energy
 from .plan import PER_RAY_POOL, Combined, Plan, Schedule, Wave, build_plan, combine

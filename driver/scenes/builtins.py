@@ -13,9 +13,13 @@ Its triangles are double-sided (NO_CULL), as the data's walls are single quads s
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import numpy as np
+
+from ..instances import Instances
+from .camera import frame
+from .city import city
+from .materials import Built, QuadLight
 
 WHITE = (0.73, 0.73, 0.73)
 RED = (0.63, 0.065, 0.05)
@@ -30,36 +34,19 @@ _CORNELL = (
     ("back", WHITE, [[(549.6, 0, 559.2), (0, 0, 559.2), (0, 548.8, 559.2), (556, 548.8, 559.2)]]),
     ("right", GREEN, [[(0, 0, 559.2), (0, 0, 0), (0, 548.8, 0), (0, 548.8, 559.2)]]),
     ("left", RED, [[(552.8, 0, 0), (549.6, 0, 559.2), (556, 548.8, 559.2), (556, 548.8, 0)]]),
-    ("short block", WHITE, [
-        [(130, 165, 65), (82, 165, 225), (240, 165, 272), (290, 165, 114)],
-        [(290, 0, 114), (290, 165, 114), (240, 165, 272), (240, 0, 272)],
-        [(130, 0, 65), (130, 165, 65), (290, 165, 114), (290, 0, 114)],
-        [(82, 0, 225), (82, 165, 225), (130, 165, 65), (130, 0, 65)],
-        [(240, 0, 272), (240, 165, 272), (82, 165, 225), (82, 0, 225)]]),
-    ("tall block", WHITE, [
-        [(423, 330, 247), (265, 330, 296), (314, 330, 456), (472, 330, 406)],
-        [(423, 0, 247), (423, 330, 247), (472, 330, 406), (472, 0, 406)],
-        [(472, 0, 406), (472, 330, 406), (314, 330, 456), (314, 0, 456)],
-        [(314, 0, 456), (314, 330, 456), (265, 330, 296), (265, 0, 296)],
-        [(265, 0, 296), (265, 330, 296), (423, 330, 247), (423, 0, 247)]]),
+    ("short block", WHITE, [[(130, 165, 65), (82, 165, 225), (240, 165, 272), (290, 165, 114)],
+                            [(290, 0, 114), (290, 165, 114), (240, 165, 272), (240, 0, 272)],
+                            [(130, 0, 65), (130, 165, 65), (290, 165, 114), (290, 0, 114)],
+                            [(82, 0, 225), (82, 165, 225), (130, 165, 65), (130, 0, 65)],
+                            [(240, 0, 272), (240, 165, 272), (82, 165, 225), (82, 0, 225)]]),
+    ("tall block", WHITE, [[(423, 330, 247), (265, 330, 296), (314, 330, 456), (472, 330, 406)],
+                           [(423, 0, 247), (423, 330, 247), (472, 330, 406), (472, 0, 406)],
+                           [(472, 0, 406), (472, 330, 406), (314, 330, 456), (314, 0, 456)],
+                           [(314, 0, 456), (314, 330, 456), (265, 330, 296), (265, 0, 296)],
+                           [(265, 0, 296), (265, 330, 296), (423, 330, 247), (423, 0, 247)]]),
 )
 _LIGHT_Y = 548.7
 _LIGHT = ((343.0, _LIGHT_Y, 227.0), (0.0, 0.0, 105.0), (-130.0, 0.0, 0.0))  # corner, u, v: u x v = -y
-
-
-@dataclass
-class Built:
-    """A built-in scene: triangles (m, 3, 3) float32 (None: an instanced scene too large to
-    flatten, ``instances`` only), per-triangle albedo and emission (m, 3),
-    lights (``driver.workloads`` lights), camera (position, look_at, up, fov_deg), double-sided."""
-
-    triangles: np.ndarray
-    albedo: np.ndarray
-    emission: np.ndarray
-    lights: list
-    camera: dict
-    double_sided: bool
-    instances: object = None        # driver.instances.Instances whose flattening is triangles
 
 
 def _quads(quads) -> np.ndarray:
@@ -70,7 +57,6 @@ def _quads(quads) -> np.ndarray:
 def cornell(bunny=None) -> Built:
     """The Cornell box (see the module docstring); ``bunny`` is not used (the ``BUILT``
     signature)."""
-    from ..workloads import QuadLight
     tris, albedo = [], []
     for _, refl, quads in _CORNELL:
         t = _quads(quads)
@@ -92,7 +78,6 @@ def cornell(bunny=None) -> Built:
 def floor_under(triangles: np.ndarray, margin: float = 1.5):
     """Two triangles of a floor (normal +z) just under z-up ``triangles``, ``margin`` times their
     footprint on each side, and a quad light above them (emitting downwards)."""
-    from ..workloads import QuadLight
     pts = triangles.reshape(-1, 3).astype(np.float64)
     lo, hi = pts.min(0), pts.max(0)
     size = hi - lo
@@ -148,7 +133,6 @@ def bunny_placements(bunny: np.ndarray, count: int, seed: int = 0) -> np.ndarray
 def instanced_bunnies(bunny: np.ndarray, count: int, seed: int = 0):
     """``driver.instances.Instances``: ``count`` instances of the ``bunny`` triangles placed by
     ``bunny_placements``."""
-    from ..instances import Instances
     return Instances([np.asarray(bunny, np.float32)], np.zeros(int(count), np.int64),
                      bunny_placements(bunny, count, seed))
 
@@ -156,7 +140,6 @@ def instanced_bunnies(bunny: np.ndarray, count: int, seed: int = 0):
 def bunny_grid(bunny, count: int = 21) -> Built:
     """``instanced_bunnies`` of ``bunny()`` on one floor (an instance of its own, identity
     transform) with one quad light; single-sided."""
-    from ..instances import Instances
     grid = instanced_bunnies(bunny(), count)
     bunnies = grid.flatten()
     floor, light = floor_under(bunnies, margin=0.6)
@@ -171,14 +154,12 @@ def bunny_grid(bunny, count: int = 21) -> Built:
 
 
 def _framing(tris: np.ndarray) -> dict:
-    from .camera import frame
     cam = frame(tris.reshape(-1, 3), up=(0.0, 0.0, 1.0), fill=0.7)
     return {"position": cam.position, "look_at": cam.look_at, "up": cam.up,
             "fov_deg": cam.fov_deg}
 
 
 def _city(bunny) -> Built:
-    from .city import city
     return city(bunny)
 
 

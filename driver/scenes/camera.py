@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import CameraError
+from ..core.errors import CameraError
 
 MAX_SIZE = 8192
 F32_MAX = float(np.finfo(np.float32).max)

@@ -21,6 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..instances import Instances, PerInstance
+from .materials import Built, QuadLight
+
 PITCH = 10.0            # cell size (scene units)
 SIDE = 110              # cells per side
 _MUL = (0x9E3779B97F4A7C15, 0xBF58476D1CE4E5B9, 0x94D049BB133111EB)
@@ -67,7 +70,6 @@ def _rot_z(angle: np.ndarray) -> np.ndarray:
 def city_instances(bunny: np.ndarray, side: int = SIDE, seed: int = 0):
     """(``driver.instances.Instances``, per-instance albedo (k, 3)): the city of the module
     docstring; ``bunny`` (m, 3, 3) z-up triangles."""
-    from ..instances import Instances
     bunny = np.asarray(bunny, np.float64)
     pts = bunny.reshape(-1, 3)
     lo, hi = pts.min(0), pts.max(0)
@@ -113,9 +115,6 @@ def city_instances(bunny: np.ndarray, side: int = SIDE, seed: int = 0):
 def city(bunny, side: int = SIDE):
     """The ``Built`` of the city (``driver.scenes.builtins``): ``triangles`` is None (the
     scene is never flattened), materials per instance."""
-    from ..instances import PerInstance
-    from ..workloads import QuadLight
-    from .builtins import Built
     inst, albedo = city_instances(bunny(), side)
     extent = side * PITCH
     h = 0.6 * extent

@@ -27,10 +27,23 @@ from typing import NamedTuple
 import numpy as np
 import trimesh
 
-from .camera import Camera, check_size, fmt_vec, frame
-from ..errors import CameraError, SceneError
+if sys.version_info >= (3, 11):
+    import tomllib
+else:                                               # pragma: no cover
+    try:
+        import tomli as tomllib
+    except ImportError:
+        tomllib = None
 
-SCENES_DIR = Path(__file__).resolve().parent / "data"
+from .camera import Camera, check_size, fmt_vec, frame
+from ..core.resources import data_dir
+from ..core.errors import CameraError, SceneError
+from ..instances import InstancedTriangles, Instances
+from . import meshes
+from .builtins import BUILT
+from .materials import DEFAULT_ALBEDO, Materials, PointLight, QuadLight
+
+SCENES_DIR = data_dir("scenes")
 BUILTINS = ("bunny", "room", "soup", "sphere")
 RENDER_BUILTINS = ("cornell", "bunny_floor", "bunny_grid", "city")   # with materials and lights
 DEFAULT_SIZE = 256
@@ -67,7 +80,6 @@ class Scene:
         of instances too large to flatten (``mesh`` None) gives an
         ``driver.instances.InstancedTriangles``, computed row by row when indexed."""
         if self.mesh is None:
-            from ..instances import InstancedTriangles
             return InstancedTriangles(self.instances)
         return triangles(self.mesh)
 
@@ -128,8 +140,6 @@ def load_scene(name_or_path, up_axis: str | None = None) -> Scene:
 
 
 def _rendering_builtin(name: str) -> Scene:
-    from .builtins import BUILT
-    from ..workloads import Materials
     b = BUILT[name](lambda: triangles(builtin("bunny")))
     mesh = None if b.triangles is None else _mesh(
         b.triangles.reshape(-1, 3), np.arange(3 * len(b.triangles)).reshape(-1, 3), name)
@@ -201,7 +211,7 @@ def scene_name(name_or_path) -> str:
 
 
 def available() -> list[str]:
-    """Names accepted besides paths: TOML scenes in driver/scenes/data/ and built-in meshes."""
+    """Names accepted besides paths: TOML scenes in scenes/ and built-in meshes."""
     tomls = sorted(p.stem for p in SCENES_DIR.glob("*.toml")) if SCENES_DIR.is_dir() else []
     return sorted(set(tomls) | set(BUILTINS) | set(RENDER_BUILTINS))
 
@@ -221,59 +231,10 @@ def builtin(name: str) -> trimesh.Trimesh:
         m = trimesh.creation.icosphere(subdivisions=3, radius=1.0)
         return _mesh(m.vertices, m.faces, "sphere")
     if name == "room":
-        return _room()
+        return _mesh(*meshes.room(), "room")
     if name == "soup":
-        return _soup()
+        return _mesh(*meshes.soup(), "soup")
     raise SceneError(f"unknown built-in mesh {name!r}; built-ins: {', '.join(BUILTINS)}")
-
-
-def _grid_box(lo, hi, n: int, inward: bool):
-    """Axis-aligned box surface, each face split into n x n quads (2 triangles each); faces wound
-    outward (trimesh convention), or inward if ``inward``. Returns (vertices, faces)."""
-    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-    verts, faces = [], []
-    s = np.linspace(0.0, 1.0, n + 1)
-    for axis in range(3):
-        a, b = (axis + 1) % 3, (axis + 2) % 3
-        for side in (0, 1):
-            uu, vv = np.meshgrid(s, s, indexing="ij")
-            p = np.empty(uu.shape + (3,))
-            p[..., axis] = hi[axis] if side else lo[axis]
-            p[..., a] = lo[a] + uu * (hi[a] - lo[a])
-            p[..., b] = lo[b] + vv * (hi[b] - lo[b])
-            base = sum(len(v) for v in verts)
-            verts.append(p.reshape(-1, 3))
-            idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1) + base
-            q0, q1, q2, q3 = idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]
-            f = np.concatenate([np.stack([q0, q1, q2], -1).reshape(-1, 3),
-                                np.stack([q0, q2, q3], -1).reshape(-1, 3)])
-            # (a, b, axis) is right-handed, so q0 q1 q2 faces +axis: flip on the low side
-            if (side == 0) != inward:
-                f = f[:, ::-1]
-            faces.append(f)
-    return np.concatenate(verts), np.concatenate(faces)
-
-
-def _room() -> trimesh.Trimesh:
-    """A closed 8 x 8 x 3 room (walls face inward) with a box and a sphere standing in it."""
-    parts = [_grid_box((-4, -4, 0), (4, 4, 3), 4, inward=True),
-             _grid_box((0.5, 0.5, 0), (2, 2, 1.5), 1, inward=False)]
-    s = trimesh.creation.icosphere(subdivisions=2, radius=0.8)
-    parts.append((s.vertices + [-1.5, 1.0, 0.8], s.faces))
-    verts, faces, base = [], [], 0
-    for v, f in parts:
-        verts.append(v)
-        faces.append(f + base)
-        base += len(v)
-    return _mesh(np.concatenate(verts), np.concatenate(faces), "room")
-
-
-def _soup(n: int = 256, seed: int = 7) -> trimesh.Trimesh:
-    """n random triangles (seeded) in about [-1, 1]^3; random winding, so about half face away."""
-    rng = np.random.default_rng(seed)
-    centres = rng.uniform(-1, 1, (n, 1, 3))
-    tri = centres + rng.normal(0, 0.2, (n, 3, 3))
-    return _mesh(tri.reshape(-1, 3), np.arange(3 * n).reshape(n, 3), "soup")
 
 
 def _frame(mesh, up, what) -> Camera:
@@ -323,7 +284,6 @@ def _gltf_instances(path: Path):
     used = [g for _, _, g in nodes]
     if len(set(used)) == len(used):
         return None
-    from ..instances import Instances
     names = sorted(set(used), key=used.index)
     meshes = [triangles(_validated(loaded.geometry[g], f"{path}: mesh {g!r}")) for g in names]
     try:
@@ -348,7 +308,6 @@ def _gltf_materials(path: Path, faces: int):
     ``doubleSided``; a part's ``baseColorFactor`` (RGB, linear as glTF defines it) is the albedo
     of its triangles, ``DEFAULT_ALBEDO`` where a part has none; materials None (the default grey
     everywhere) when no part has one, or for any other file type."""
-    from ..workloads import DEFAULT_ALBEDO, Materials
     if path.suffix.lower() not in (".gltf", ".glb"):
         return False, None
     try:
@@ -372,7 +331,6 @@ def _unit_rgb(colour) -> np.ndarray:
     """RGB in [0, 1] of a colour trimesh keeps as uint8 RGBA (or as floats in [0, 1])."""
     c = np.asarray(colour)
     return c[:3] / 255.0 if c.dtype.kind in "ui" else c[:3].astype(np.float64)
-
 
 
 def _read_mesh_file(path: Path) -> trimesh.Trimesh:
@@ -464,7 +422,6 @@ def _from_toml(path: Path) -> Scene:
 
 def _lights(path: Path, specs) -> list:
     """Workload lights from the TOML's [[lights]] tables."""
-    from ..workloads import PointLight, QuadLight
     if not isinstance(specs, list):
         raise SceneError(f"{path}: lights must be an array of tables ([[lights]])")
     out = []
@@ -498,14 +455,9 @@ def _vec3(v, what) -> tuple:
 
 
 def _read_toml(path: Path) -> dict:
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:                                               # pragma: no cover
-        try:
-            import tomli as tomllib
-        except ImportError:
-            raise SceneError(f"{path}: reading .toml scenes needs Python >= 3.11 "
-                             "or the tomli package") from None
+    if tomllib is None:                                 # pragma: no cover
+        raise SceneError(f"{path}: reading .toml scenes needs Python >= 3.11 or the tomli "
+                         "package")
     try:
         with open(path, "rb") as f:
             return tomllib.load(f)

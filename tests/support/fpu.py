@@ -13,7 +13,7 @@ import ctypes
 import numpy as np
 
 from driver.backends.build import RTL_DIR, SIM_DIR, source_names
-from driver.verilate import build_library
+from driver.backends.verilate import build_library
 
 CANONICAL_NAN = np.uint32(0x7FC00000)
 

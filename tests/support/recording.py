@@ -1,7 +1,7 @@
 """A backend wrapper that records every ``run()`` call (a generic backend: no ``run_nodes``, so the
 tracer issues plain request arrays through it).
 
-Named ``RecordingBackend`` rather than ``Recorder``: ``driver.issue.Recorder`` is the tracer's
+Named ``RecordingBackend`` rather than ``Recorder``: ``driver.tracing.issue.Recorder`` is the tracer's
 issue recorder, a different thing.
 """
 

@@ -4,7 +4,7 @@ docs/datapath.md#ray-preparation, #quadbox, #triangle, #euclidean-and-angular.
 This is deliberately the slow, obvious version: one request at a time, one ``np.float32`` scalar
 operation per step of docs/datapath.md (every add, subtract, multiply and divide is rounded to
 binary32 on its own, nearest-even, subnormals kept), comparisons as plain IEEE compares, the box
-sort as five explicit compare-and-swap comparators. It shares nothing with ``driver/golden.py``
+sort as five explicit compare-and-swap comparators. It shares nothing with ``driver/core/golden.py``
 except the request and response dtypes, so the golden model and the RTL can both be checked against
 it bit for bit.
 
@@ -36,9 +36,9 @@ import struct
 
 import numpy as np
 
-from driver.datapath import (ANGULAR, EUCLIDEAN, LATENCY, QUADBOX, RESPONSE_DTYPE, TRANSFORM,
-                             TRIANGLE, DatapathError)
-from driver.layout import FLAG_DECODE_Q8, FLAG_NO_CULL
+from driver.core.datapath import (ANGULAR, EUCLIDEAN, LATENCY, QUADBOX, RESPONSE_DTYPE, TRANSFORM,
+                                  TRIANGLE, DatapathError)
+from driver.core.wire import FLAG_DECODE_Q8, FLAG_NO_CULL
 
 F32 = np.float32
 ZERO = F32(0.0)          # +0
@@ -392,7 +392,7 @@ def scalar_run(requests: np.ndarray, state: ScalarState | None = None) -> np.nda
 
 def prepare_rays(origins, directions, extent=np.inf) -> np.ndarray:
     """Scalar counterpart of driver.prepare_rays (no input validation): a REQUEST_DTYPE array."""
-    from driver.datapath import REQUEST_DTYPE
+    from driver.core.datapath import REQUEST_DTYPE
     o = np.asarray(origins, np.float32).reshape(-1, 3)
     d = np.asarray(directions, np.float32).reshape(-1, 3)
     ext = np.broadcast_to(np.asarray(extent, np.float32), (len(o),))

@@ -39,9 +39,9 @@ import numpy as np
 
 import driver
 from driver import QUADBOX, REQUEST_DTYPE, TRIANGLE
-from driver.datapath import transform_requests
-from driver.layout import (FLAG_DECODE_Q8, FLAG_NO_CULL, Q8_COUNT_LSB, Q8_EXP_MAX, Q8_EXP_MIN,
-                           Q8_NODE, decode_q8, q8_count)
+from driver.core.datapath import transform_requests
+from driver.core.wire import FLAG_DECODE_Q8, FLAG_NO_CULL
+from driver.core.layout import Q8_COUNT_LSB, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, decode_q8, q8_count
 
 F32 = np.float32
 INF = np.inf

@@ -31,6 +31,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 from .errors import RayflexError
 
@@ -42,7 +43,6 @@ class OutputError(RayflexError):
 def image_extensions() -> dict[str, str]:
     """Extension (lower case, with dot) -> Pillow format name, for every format Pillow can write
     an RGB image in (PNG, JPEG, TIFF, WebP, BMP, ...)."""
-    from PIL import Image
     Image.init()
     rgb_ok = {"PNG", "JPEG", "TIFF", "WEBP", "BMP", "PPM", "TGA", "QOI", "SGI", "PCX", "AVIF",
               "JPEG2000"}
@@ -160,7 +160,6 @@ def _umask() -> int:
 
 def save_image(image: np.ndarray, path) -> None:
     """Write an (h, w, 3) or (h, w, 4) uint8 image in the format its extension names."""
-    from PIL import Image
     path = Path(path)
     fmt = image_extensions().get(path.suffix.lower())
     if fmt is None:

@@ -21,6 +21,8 @@ import sys
 import threading
 import time
 
+from tqdm import tqdm
+
 
 class _NoBar:
     """The bar interface: ``hook(done, total)`` (absolute), ``update(n)`` (relative, as tqdm),
@@ -48,7 +50,6 @@ class _NoBar:
 
 class _Bar(_NoBar):
     def __init__(self, total, desc, unit, leave):
-        from tqdm import tqdm
         self.bar = tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, leave=leave,
                         dynamic_ncols=True, mininterval=0.2)
 
@@ -129,7 +130,6 @@ def phase(desc: str, enabled: bool = True, delay: float = 1.0, interval: float =
     def tick():
         if stop.wait(delay):
             return
-        from tqdm import tqdm
         t = tqdm(total=None, desc=desc, file=sys.stderr, bar_format="{desc}: {elapsed}",
                  dynamic_ncols=True, leave=True, initial=0)
         shown.append(t)

@@ -12,7 +12,7 @@ in ``FILLS``, with the docs/datapath.md#traversal traversal and with the distanc
 (``cull_stack``), against the reference point ``REFERENCE`` (box nodes, ops per ray), optionally
 plotted.
 
-    python -m driver.bvh.bench --counts 0 50 --json builds.json
+    rayflex study bvh --counts 0 50 --json builds.json
 
 times the builds only (no tree quality) and prints them as the Markdown table of
 docs/compressed.md: process CPU and wall seconds per format, their ratios to box32, and the
@@ -21,14 +21,19 @@ machine's load average while they ran.
 
 from __future__ import annotations
 
-import argparse
 import os
 import multiprocessing
-import sys
 import resource
 import time
 
 import numpy as np
+
+from ..bvh4 import build
+from ..core.markdown import table as markdown_table
+from ..core.progress import iterate
+from ..scenes.builtins import instanced_bunnies as grid
+from ..scenes.camera import primary_rays
+from ..tracer import trace
 
 BUNNY_TRIANGLES = 99_785
 FORMATS = ("box32", "q8", "q8g")    # image formats whose builds are timed
@@ -38,9 +43,8 @@ REFERENCE = {"box_nodes": 36_000, "ops_per_ray": 0.95 * 6.29}
 
 
 def instanced_bunnies(count: int, seed: int = 0) -> np.ndarray:
-    """``count`` copies of the Stanford bunny (``driver.builtins.instanced_bunnies``), flattened:
-    (count * bunny triangles, 3, 3) float32 world-space triangles."""
-    from ..scenes.builtins import instanced_bunnies as grid
+    """``count`` copies of the Stanford bunny (``driver.scenes.builtins.instanced_bunnies``),
+    flattened: (count * bunny triangles, 3, 3) float32 world-space triangles."""
     from ..scenes.scene import load
     return grid(load("bunny").triangles, count, seed).flatten()
 
@@ -48,7 +52,6 @@ def instanced_bunnies(count: int, seed: int = 0) -> np.ndarray:
 def _build_child(count, fmt, conn):
     """In a fresh process: build ``count`` bunnies (0 = the bunny itself) in image format
     ``fmt`` and send the numbers."""
-    from ..bvh4 import build
     from ..scenes.scene import load
     tris = instanced_bunnies(count) if count else load("bunny")
     build(load("bunny"), progress=False, format=fmt)    # load the compiled kernels before timing
@@ -101,9 +104,6 @@ def _fills(scene, o, d, ref, fills, progress) -> dict:
     """The BVH shape trade-off: for each ``--bvh-fill``, the tree, the ops per ray of the
     docs/datapath.md#traversal traversal and of the distance-culled stack, and whether the hits
     equal ``ref``'s."""
-    from ..bvh4 import build
-    from ..progress import iterate
-    from ..tracer import trace
     rows = []
     for fill in iterate(fills, "BVH fills", "fill", progress):
         bvh = build(scene.mesh, fill=fill)
@@ -155,10 +155,7 @@ def plot_fills(fills: dict, path, title: str) -> None:
 def _quality(size: int = 256, fills=FILLS, plot=None, progress: bool = False) -> dict:
     """Greedy vs SAH collapse on the bunny frame (golden model): tree and ops per ray; then the
     ``fills`` trade-off (``_fills``), plotted to ``plot`` (a PNG path) if given."""
-    from ..bvh4 import build
-    from ..scenes.camera import primary_rays
     from ..scenes.scene import load_scene
-    from ..tracer import trace
     scene = load_scene("bunny")
     o, d = primary_rays(scene.camera, size, size)
     out, traces = {}, {}
@@ -190,7 +187,6 @@ def bvh_bench(counts=(0, 20, 50), quality: bool = True, size: int = 256,
     0 = the bunny, k = k instanced bunnies, i.e. ~2 M for 20 and ~5 M for 50; each format's
     build time also as a ratio to box32's, ``vs_box32_build_s``) and ``quality`` (``_quality`` on the bunny's
     size x size primary frame, with the ``fills`` trade-off plotted to ``plot``)."""
-    from ..progress import iterate
     result = {"machine_cpus": multiprocessing.cpu_count(), "builds": []}
     runs = [(count, fmt) for count in counts for fmt in formats]
     for count, fmt in iterate(runs, "BVH bench", "build", progress):
@@ -217,7 +213,7 @@ def build_table(doc: dict) -> str:
     head = ["mesh", *(f"{f} CPU s (wall)" for f in fmts),
             *(f"{f} / box32 CPU (wall)" for f in fmts if f != "box32"),
             "q8g bytes / triangle", "load average"]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    rows = []
     for count, row in by.items():
         any_row = next(iter(row.values()))
         mesh = (f"bunny, {any_row['triangles']:,} triangles" if count == 1
@@ -233,38 +229,5 @@ def build_table(doc: dict) -> str:
         cells.append(f"{row['q8g']['bytes_per_triangle']:.1f}" if "q8g" in row else "–")
         loads = [b["load_average"] for b in row.values()]
         cells.append(f"{min(loads):.1f}–{max(loads):.1f}")
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
-
-
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m driver.bvh.bench",
-                                description="Time BVH builds per image format, each in a fresh "
-                                            "process, and print the table.")
-    p.add_argument("--counts", type=int, nargs="+", default=[0, 50], metavar="N",
-                   help="meshes: 0 = the bunny, N = N instanced bunnies (default: 0 50)")
-    p.add_argument("--formats", nargs="+", default=list(FORMATS), choices=FORMATS,
-                   help="image formats to build (default: all)")
-    p.add_argument("--json", metavar="PATH", help="write the builds here")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
-    args = p.parse_args(argv)
-    from ..outputs import JSON, Outputs, OutputError, write_json
-    try:
-        if any(c < 0 for c in args.counts):
-            raise ValueError(f"--counts must be >= 0, got {args.counts}")
-        outs = Outputs()
-        js = outs.add("--json", args.json, JSON) if args.json else None
-        doc = bvh_bench(counts=tuple(args.counts), quality=False, progress=not args.no_progress,
-                        formats=tuple(args.formats))
-        if js:
-            with outs.commit():
-                write_json(doc, outs.temp(js))
-    except (ValueError, OSError, OutputError) as e:
-        print(f"rayflex: error: {e}", file=sys.stderr)
-        return 2
-    print(build_table(doc))
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+        rows.append(cells)
+    return markdown_table(head, rows)

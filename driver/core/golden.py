@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from .datapath import CANONICAL_NAN
-from .layout import ANG_LANES, EUC_LANES, Q8_NODE, carries_qnode, decode_q8
+from .wire import ANG_LANES, EUC_LANES, carries_qnode
+from .layout import Q8_NODE, decode_q8
 
 F32 = np.float32
 _INF = F32(np.inf)
@@ -52,8 +53,8 @@ def quadbox(origin, inv, dirs, boxes, extent):
 
 def request_boxes(req):
     """The (n, 4, 6) boxes the QUADBOX requests ``req`` test: their ``box``, except on the rows
-    that carry a q8 node (``driver.layout.carries_qnode``), where they are its decode
-    (``driver.layout.decode_q8``)."""
+    that carry a q8 node (``driver.core.wire.carries_qnode``), where they are its decode
+    (``driver.core.layout.decode_q8``)."""
     boxes, qnode = req["box"], req["qnode"]
     rows = np.flatnonzero(carries_qnode(req))
     if not len(rows):

@@ -1,9 +1,9 @@
 """Instanced vs flattened: the figures of docs/instances.md.
 
-    python -m driver.bvh.instances_study hits [--scene bunny_grid] [--size 256] [--json OUT]
-    python -m driver.bvh.instances_study images [--scene NAME ...] [--json OUT]
-    python -m driver.bvh.instances_study table DOC.json [DOC.json ...]
-    python -m driver.bvh.instances_study transform [--scene bunny_grid] [--workload path]
+    rayflex study instances hits [--scene bunny_grid] [--size 256] [--json OUT]
+    rayflex study instances images [--scene NAME ...] [--json OUT]
+    rayflex study instances table DOC.json [DOC.json ...]
+    rayflex study instances transform [--scene bunny_grid] [--workload path]
         [--size 64] [--spp 2] [--bounces 2] [--json OUT]
 
 ``hits`` builds a scene's image both ways (two-level and flattened, in every image format),
@@ -28,22 +28,23 @@ a JSON document and a Markdown table.
 
 from __future__ import annotations
 
-import argparse
-import json
-import sys
-
 import numpy as np
 
-from ..layout import IMAGE_FORMATS
+from ..bench import bench_workload
+from ..bvh4 import build, build_two_level
+from ..core.layout import IMAGE_FORMATS
+from ..core.markdown import table as markdown_table
+from ..core.provenance import provenance
+from ..design import DesignPoint
+from ..instances import DATAPATH, TRANSFORMS
+from ..scenes.camera import primary_rays
+from ..tracer import trace
+from ..workloads import setup_for
 
 
 def hits(scene_name: str = "bunny_grid", size: int = 256, backend: str = "golden") -> dict:
     """The image sizes and the hit comparison of the module docstring, as a JSON-ready dict."""
-    from ..bvh4 import build
-    from ..scenes.camera import primary_rays
     from ..scenes.scene import load_scene
-    from ..tracer import trace
-    from .instances import build_two_level
 
     scene = load_scene(scene_name)
     if scene.instances is None:
@@ -72,7 +73,6 @@ def hits(scene_name: str = "bunny_grid", size: int = 256, backend: str = "golden
                                for fmt in IMAGE_FORMATS if fmt != "box32"}
     rows = np.flatnonzero(a.hit & b.hit)
     p = o[rows].astype(np.float64) + b.t[rows, None].astype(np.float64) * d[rows]
-    from ..workloads import setup_for
     light = setup_for(scene).lights[0]                  # the scene's first (or default) light
     centre = (np.asarray(light.corner) + 0.5 * np.asarray(light.u) + 0.5 * np.asarray(light.v)
               if hasattr(light, "corner") else np.asarray(light.position))
@@ -122,7 +122,6 @@ def images(scene_names=("bunny_grid", "city")) -> dict:
     """The two-level image of each scene in every format (``IMAGE_FORMATS``): its bytes (TLAS,
     instance nodes, BLASes, total), bytes per instanced triangle and build time."""
     from ..scenes.scene import load_scene
-    from .instances import build_two_level
     out = {"scenes": {}}
     for name in scene_names:
         scene = load_scene(name)
@@ -142,16 +141,14 @@ def images(scene_names=("bunny_grid", "city")) -> dict:
 
 def images_markdown(doc: dict) -> str:
     """The ``images`` document as a Markdown table."""
-    lines = ["| scene | format | TLAS | TLAS bytes | instance node bytes | BLAS bytes "
-             "| image bytes | bytes / instanced triangle | image / box32 |", "|" + "---|" * 9]
-    for name, sc in doc["scenes"].items():
-        base = sc["images"]["box32"]["bytes"]
-        for fmt, r in sc["images"].items():
-            lines.append(f"| {name} | {fmt} | {r['tlas_format']} ({r['tlas_box_nodes']:,} "
-                         f"nodes) | {r['tlas_bytes']:,} | {r['instance_bytes']:,} "
-                         f"| {r['blas_bytes']:,} | {r['bytes']:,} "
-                         f"| {r['bytes_per_instanced_triangle']:.3f} | {r['bytes'] / base:.3f} |")
-    return "\n".join(lines)
+    return markdown_table(
+        ["scene", "format", "TLAS", "TLAS bytes", "instance node bytes", "BLAS bytes",
+         "image bytes", "bytes / instanced triangle", "image / box32"],
+        ([name, fmt, f"{r['tlas_format']} ({r['tlas_box_nodes']:,} nodes)",
+          f"{r['tlas_bytes']:,}", f"{r['instance_bytes']:,}", f"{r['blas_bytes']:,}",
+          f"{r['bytes']:,}", f"{r['bytes_per_instanced_triangle']:.3f}",
+          f"{r['bytes'] / sc['images']['box32']['bytes']:.3f}"]
+         for name, sc in doc["scenes"].items() for fmt, r in sc["images"].items()))
 
 
 def _compare(a, b, triangles) -> dict:
@@ -192,21 +189,21 @@ def rows(doc: dict) -> list[dict]:
 
 
 def markdown(docs: list[dict]) -> str:
-    lines = ["| scene | image | image bytes | ray type | rays | box ops/ray | tri ops/ray "
-             "| instance ops/ray | node B/ray | B from memory/ray | cache hit rate "
-             "| utilization with memory |", "|" + "---|" * 12]
-    for doc in docs:
-        image = "instanced" if doc.get("instances", 1) > 1 and "tlas_bytes" in doc["bvh"] \
-            else "flattened"
-        for r in rows(doc):
-            def f(v, fmt):
-                return "—" if v is None else format(v, fmt)
-            lines.append(f"| {doc['scene']} | {image} {doc['bvh']['format']} "
-                         f"| {doc['bvh']['bytes']:,} | {r['type']} | {r['rays']:,} "
-                         f"| {r['box']:.2f} | {r['tri']:.2f} | {r['instance']:.2f} "
-                         f"| {r['node_bytes']:.0f} | {f(r['memory_bytes'], '.0f')} "
-                         f"| {f(r['hit_rate'], '.3f')} | {f(r['utilization'], '.3f')} |")
-    return "\n".join(lines)
+    def f(v, fmt):
+        return "—" if v is None else format(v, fmt)
+
+    def image(doc):
+        kind = ("instanced" if doc.get("instances", 1) > 1 and "tlas_bytes" in doc["bvh"]
+                else "flattened")
+        return f"{kind} {doc['bvh']['format']}"
+    return markdown_table(
+        ["scene", "image", "image bytes", "ray type", "rays", "box ops/ray", "tri ops/ray",
+         "instance ops/ray", "node B/ray", "B from memory/ray", "cache hit rate",
+         "utilization with memory"],
+        ([doc["scene"], image(doc), f"{doc['bvh']['bytes']:,}", r["type"], f"{r['rays']:,}",
+          f"{r['box']:.2f}", f"{r['tri']:.2f}", f"{r['instance']:.2f}", f"{r['node_bytes']:.0f}",
+          f(r["memory_bytes"], ".0f"), f(r["hit_rate"], ".3f"), f(r["utilization"], ".3f")]
+         for doc in docs for r in rows(doc)))
 
 
 def transform_cost(scene: str = "bunny_grid", workload: str = "path", size: int = 64,
@@ -214,10 +211,6 @@ def transform_cost(scene: str = "bunny_grid", workload: str = "path", size: int 
     """The ``transform`` study of the module docstring: ``driver.bench.bench_workload`` of the
     same design point with each ``--transform`` (no rays-in-flight sweep), as a JSON-ready
     dict."""
-    from ..bench import bench_workload
-    from ..design import DesignPoint
-    from ..instances import DATAPATH, TRANSFORMS
-    from ..stats import provenance
     out: dict = {}
     # datapath first: a scene without instances is refused before any work
     for where in sorted(TRANSFORMS, key=lambda w: w != DATAPATH):
@@ -292,74 +285,3 @@ def transform_markdown(doc: dict) -> str:
                 f"| {c['rtunit_memory']['cycles']:,} | {c['rtunit_memory']['utilization']:.3f} "
                 f"| {'' if where == 'driver' else pct(rel)} |")
     return "\n".join(lines)
-
-
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m driver.bvh.instances_study",
-                                description=__doc__.split("\n\n")[0])
-    sub = p.add_subparsers(dest="cmd", required=True)
-    h = sub.add_parser("hits", help="image bytes and hits, instanced vs flattened")
-    h.add_argument("--scene", default="bunny_grid")
-    h.add_argument("--size", type=int, default=256)
-    h.add_argument("--json", metavar="OUT")
-    g = sub.add_parser("images", help="two-level image bytes per format (TLAS, instance "
-                                      "nodes, BLASes)")
-    g.add_argument("--scene", action="append", metavar="NAME",
-                   help="an instanced scene (repeatable; default: bunny_grid and city)")
-    g.add_argument("--json", metavar="OUT")
-    t = sub.add_parser("table", help="Markdown table of bench --workload documents")
-    t.add_argument("docs", nargs="+", metavar="DOC.json")
-    x = sub.add_parser("transform", help="the instance transform in the driver vs on the "
-                                         "datapath: ops, RT-unit cycles, utilization")
-    x.add_argument("--scene", default="bunny_grid")
-    x.add_argument("--workload", default="path")
-    x.add_argument("--size", type=int, default=64)
-    x.add_argument("--spp", type=int, default=2)
-    x.add_argument("--bounces", type=int, default=2)
-    x.add_argument("--json", metavar="OUT")
-    x.add_argument("--no-progress", action="store_true")
-    args = p.parse_args(argv)
-    try:
-        if args.cmd == "transform":
-            from ..design import DesignPoint
-            from ..outputs import JSON, Outputs, write_json
-            DesignPoint(scene=args.scene, workload=args.workload, size=args.size,
-                        spp=args.spp, bounces=args.bounces)         # bad values fail now
-            outs = Outputs()
-            js = outs.add("--json", args.json, JSON) if args.json else None
-            doc = transform_cost(args.scene, args.workload, args.size, args.spp, args.bounces,
-                                 progress=not args.no_progress)
-            with outs.commit():
-                if js:
-                    write_json(doc, outs.temp(js))
-            print(transform_markdown(doc))
-        elif args.cmd == "images":
-            from ..outputs import JSON, Outputs, write_json
-            outs = Outputs()
-            js = outs.add("--json", args.json, JSON) if args.json else None
-            doc = images(tuple(args.scene or ("bunny_grid", "city")))
-            with outs.commit():
-                if js:
-                    write_json(doc, outs.temp(js))
-            print(images_markdown(doc))
-        elif args.cmd == "hits":
-            doc = hits(args.scene, args.size)
-            text = json.dumps(doc, indent=1)
-            if args.json:
-                from ..outputs import write_json
-                write_json(doc, args.json)
-            print(text)
-        else:
-            docs = []
-            for path in args.docs:
-                with open(path) as f:
-                    docs.append(json.load(f))
-            print(markdown(docs))
-    except (OSError, ValueError, KeyError) as e:
-        print(f"instances_study: error: {e}", file=sys.stderr)
-        return 2
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,20 +1,20 @@
 """box32 vs q8 (and q8g) on one workload frame: the table and the plot of docs/compressed.md,
 from ``rayflex bench --workload ... --bvh-format FORMAT --json`` documents of the same frame.
 
-    python -m driver.bvh.study BOX32.json Q8.json [Q8G.json] [--plot PNG]
+    rayflex study compressed BOX32.json Q8.json [Q8G.json] [--plot PNG]
 
 prints the per-ray-type comparison as a Markdown table and draws utilization with the node
 memory vs rays in flight, one colour per ray type, solid q8 and dashed box32. The documents are
 ``rayflex bench --frame wavefront --flush-between --ideal-replay --sweep-rays LIST`` runs: each ray
 type replayed on its own with cold caches, so that it has its own cycles (the study as it was
-before one-kernel frames; the one-kernel study is ``driver.rtunit.frame_study``).
+before one-kernel frames; the one-kernel study is ``rayflex study gpu``, ``driver.studies.gpu``).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
-import sys
+
+from ..core.markdown import table as markdown_table
 
 FORMATS = ("box32", "q8", "q8g")
 
@@ -47,18 +47,16 @@ def rows(docs: dict) -> list[dict]:
 
 
 def markdown(table: list[dict]) -> str:
-    lines = ["| ray type | image | B/triangle | ops/ray (box + tri) | ops vs box32 | node B/ray "
-             "| B from memory/ray | vs box32 | cache hit rate | utilization with memory "
-             "| cycles/ray with memory | vs box32 |", "|" + "---|" * 12]
-    for r in table:
-        lines.append(
-            f"| {r['type']} | {r['format']} | {r['bytes_per_triangle']:.1f} "
-            f"| {r['ops_per_ray']:.2f} ({r['box_ops_per_ray']:.2f} + {r['tri_ops_per_ray']:.2f}) "
-            f"| {r['ops_ratio']:.3f} | {r['node_bytes_per_ray']:.0f} "
-            f"| {r['memory_bytes_per_ray']:.0f} | {r['memory_bytes_ratio']:.3f} "
-            f"| {r['hit_rate']:.3f} | {r['utilization_memory']:.3f} "
-            f"| {r['cycles_per_ray_memory']:.1f} | {r['cycles_ratio']:.3f} |")
-    return "\n".join(lines)
+    return markdown_table(
+        ["ray type", "image", "B/triangle", "ops/ray (box + tri)", "ops vs box32", "node B/ray",
+         "B from memory/ray", "vs box32", "cache hit rate", "utilization with memory",
+         "cycles/ray with memory", "vs box32"],
+        ([r["type"], r["format"], f"{r['bytes_per_triangle']:.1f}",
+          f"{r['ops_per_ray']:.2f} ({r['box_ops_per_ray']:.2f} + {r['tri_ops_per_ray']:.2f})",
+          f"{r['ops_ratio']:.3f}", f"{r['node_bytes_per_ray']:.0f}",
+          f"{r['memory_bytes_per_ray']:.0f}", f"{r['memory_bytes_ratio']:.3f}",
+          f"{r['hit_rate']:.3f}", f"{r['utilization_memory']:.3f}",
+          f"{r['cycles_per_ray_memory']:.1f}", f"{r['cycles_ratio']:.3f}"] for r in table))
 
 
 def plot(docs: dict, path, title: str) -> None:
@@ -121,32 +119,3 @@ def load(paths) -> dict:
            for doc in docs.values()):
         raise ValueError("the documents hold different ray types")
     return {f: docs[f] for f in FORMATS if f in docs}
-
-
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m driver.bvh.study", description=__doc__.split(
-        "\n\n")[0])
-    p.add_argument("json", nargs="+", help="one bench JSON per image format (box32, q8 and "
-                                           "optionally q8g)")
-    p.add_argument("--plot", metavar="PNG", help="draw the utilization sweep here")
-    args = p.parse_args(argv)
-    try:
-        docs = load(args.json)
-        table = rows(docs)
-        if args.plot:
-            from ..outputs import Outputs, PNG
-            outs = Outputs()
-            png = outs.add("--plot", args.plot, PNG)
-            d = docs["q8"]
-            with outs.commit():
-                plot(docs, outs.temp(png), f"{d['scene']} {d['width']}x{d['height']} "
-                     f"{d['workload']}, {d['spp']} spp: box32 vs q8 node images")
-    except (ValueError, OSError) as e:
-        print(f"rayflex: error: {e}", file=sys.stderr)
-        return 2
-    print(markdown(table))
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -6,7 +6,8 @@
   image (no per-request Python work); the host decodes only the response bits it needs.
 - ``RequestIssue``: any other backend gets a ``REQUEST_DTYPE`` array built in numpy from the
   prepared rays and the decoded nodes, by the same rules (tests check the words are identical).
-- ``Recorder``: wraps either and keeps every request and response as a ``driver.rtunit.Record``.
+- ``Recorder``: wraps either and keeps every request and response as a
+  ``driver.tracing.record.Record``.
 
 Both check that the responses come back in order with the ray index in their ``tag``. The ray
 table grows when a traversal enters instances (``add_rays``: each transformed ray is a new row,
@@ -22,11 +23,13 @@ import time
 
 import numpy as np
 
-from .backends.base import NodeBackend
-from .bvh4 import request_operands
-from .datapath import DatapathError
-from .layout import NO_CHILD, RESPONSE, RSP_WORDS, pack_responses, ray_words
-from .traversal import StepResponses
+from ..backends.base import NodeBackend
+from ..bvh4 import request_operands
+from ..core.datapath import DatapathError
+from ..core.layout import NO_CHILD
+from ..core.wire import RESPONSE, RSP_WORDS, pack_responses, ray_words
+from ..traversal import StepResponses
+from .record import Record
 
 
 def _bits(words: np.ndarray, name: str) -> np.ndarray:
@@ -169,7 +172,8 @@ class RequestIssue:
 
 class Recorder:
     """Wraps an issuer and keeps every request (ray, node pointer, extent) and its response
-    words, in issue order; ``record(params)`` returns them as a ``driver.rtunit.Record``."""
+    words, in issue order; ``record(params)`` returns them as a
+    ``driver.tracing.record.Record``."""
 
     def __init__(self, inner, rays: np.ndarray, bvh):
         self.inner = inner
@@ -212,8 +216,6 @@ class Recorder:
                            np.asarray(ext, np.float32), words))
 
     def record(self, params: dict):
-        from .rtunit import Record
-
         def cat(k, dtype, shape=(0,)):
             return (np.concatenate([p[k] for p in self.parts]) if self.parts
                     else np.zeros(shape, dtype))

@@ -1,10 +1,10 @@
 """Tables and plots of the one-kernel studies (docs/compressed.md, docs/rayorder.md,
 docs/rtunit.md) from ``rayflex sweep --json`` documents:
 
-    python -m driver.rtunit.frame_study compressed docs/compressed_gpu.json [--plot PNG]
-    python -m driver.rtunit.frame_study schedules docs/compressed_schedules.json
-    python -m driver.rtunit.frame_study order docs/rayorder_gpu.json [--plot PNG]
-    python -m driver.rtunit.frame_study units docs/rtunit_units.json
+    rayflex study gpu compressed docs/compressed_gpu.json [--plot PNG]
+    rayflex study gpu schedules docs/compressed_schedules.json
+    rayflex study gpu order docs/rayorder_gpu.json [--plot PNG]
+    rayflex study gpu units docs/rtunit_units.json
 
 In a one-kernel frame the ray types share the pipelines, so a frame is compared by its cycles and
 utilization, and each ray type by its ops, the node bytes each memory level supplied per ray and
@@ -13,9 +13,7 @@ its latency (trace call to last response, mean and 95th percentile).
 
 from __future__ import annotations
 
-import argparse
-import json
-import sys
+import numpy as np
 
 LEVELS = ("l1", "l2", "dram")
 
@@ -181,7 +179,6 @@ def units_markdown(doc: dict) -> str:
 def plot_compressed(doc: dict, path) -> None:
     """PNG: one panel per preset and frame size: each ray type's mean latency (trace call to its
     last response) per node format, the frame's cycles and utilization in the legend."""
-    import numpy as np
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -220,7 +217,6 @@ def plot_compressed(doc: dict, path) -> None:
 
 def plot_order(doc: dict, path) -> None:
     """PNG: per preset and format, the frame's cycles relative to index order per policy."""
-    import numpy as np
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -254,28 +250,3 @@ TABLES = {"compressed": (compressed_markdown, plot_compressed),
           "schedules": (schedules_markdown, None),
           "order": (order_markdown, plot_order),
           "units": (units_markdown, None)}
-
-
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m driver.rtunit.frame_study",
-                                description=__doc__.split("\n\n")[0])
-    p.add_argument("table", choices=tuple(TABLES))
-    p.add_argument("sweep", metavar="SWEEP.json", help="a rayflex sweep --json document")
-    p.add_argument("--plot", metavar="PNG", help="draw the study's plot here")
-    args = p.parse_args(argv)
-    try:
-        doc = json.loads(open(args.sweep).read())
-        text, draw = TABLES[args.table]
-        if args.plot and draw is None:
-            raise ValueError(f"the {args.table} table has no plot")
-        print(text(doc))
-        if args.plot:
-            draw(doc, args.plot)
-    except (OSError, ValueError, KeyError) as e:
-        print(f"rayflex: error: {e}", file=sys.stderr)
-        return 2
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -1,10 +1,10 @@
 """Datapath IO: request checks and host-side ray preparation (docs/datapath.md#ray-preparation,
 #requests-and-responses).
 
-The opcodes and the request/response dtypes are derived from the wire table in ``driver.layout``
-and re-exported here. Every tracer (golden numpy model, RTL through the fast harness, RTL through
-pyverilator) consumes a ``REQUEST_DTYPE`` array and returns a ``RESPONSE_DTYPE`` array of the same
-length and order.
+The opcodes and the request/response dtypes are derived from the wire table in
+``driver.core.wire`` and re-exported here. Every tracer (golden numpy model, RTL through the fast
+harness, RTL through pyverilator) consumes a ``REQUEST_DTYPE`` array and returns a
+``RESPONSE_DTYPE`` array of the same length and order.
 
 Fields a request's opcode does not use are ignored; response fields an opcode does not produce are
 zero (this is what the RTL's output stage drives, and what the golden model returns).
@@ -14,10 +14,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .layout import (ANGULAR, EUCLIDEAN, FLAG_DECODE_Q8, FLAG_NAMES,  # noqa: F401
-                     FLAG_NO_CULL, FLAGS_DEFINED, MATRIX_SHAPE, OPCODES, Q8_EXP_MAX, Q8_EXP_MIN,
-                     Q8_NODE, QUADBOX, RAY_FLAGS, REQUEST_DTYPE, RESPONSE_DTYPE, TRANSFORM,
-                     TRIANGLE, carries_qnode, node_word)
+from .wire import (ANGULAR, EUCLIDEAN, FLAG_DECODE_Q8, FLAG_NAMES, FLAG_NO_CULL,  # noqa: F401
+                   FLAGS_DEFINED, MATRIX_SHAPE, OPCODES, QUADBOX, RAY_FLAGS, REQUEST_DTYPE,
+                   RESPONSE_DTYPE, TRANSFORM, TRIANGLE, carries_qnode)
+from .layout import Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, node_word
 
 LATENCY = 11
 DECODE_STAGES = 1         # pipeline stages the q8 decode adds in a COMPRESSED build
@@ -38,7 +38,7 @@ def default_latency(compressed: bool = False) -> int:
 def check_requests(req: np.ndarray, extended: bool, compressed: bool = False,
                    transform: bool = False) -> None:
     """Reject what no backend simulates (the same check for every backend): an opcode that is not
-    one (``driver.layout.OPCODES``), an extended opcode on a baseline build, a TRANSFORM on a
+    one (``driver.core.wire.OPCODES``), an extended opcode on a baseline build, a TRANSFORM on a
     build without it (``transform``), a TRIANGLE whose kx/ky/kz is not 0, 1 or 2, a reserved flag
     bit set (any opcode: the flags are part of the ray), ``FLAG_DECODE_Q8`` on a build without
     the decode (``compressed``), and a QUADBOX to decode whose node has an exponent outside
