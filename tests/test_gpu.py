@@ -356,3 +356,33 @@ def test_docs_preset_table_is_the_presets():
     start = "<!-- presets table: driver.rtunit.presets -->\n"
     table = doc[doc.index(start) + len(start):doc.index("<!-- end presets table -->")]
     assert table.strip() == markdown().strip()
+
+
+def test_study_gpu_tables_and_plot_from_a_sweep(tmp_path, capsys):
+    """``rayflex study gpu``: the one-kernel studies' tables (and plots) from a real ``rayflex
+    sweep`` document; a table without a plot or a document of another kind is a one-line error
+    before anything is written."""
+    from driver.cli import main as cli_main
+    sweep_json, png = tmp_path / "s.json", tmp_path / "c.png"
+    assert cli_main(["sweep", "--scene", "sphere", "--workload", "shadow", "--size", "8",
+                     "--bvh-format", "box32,q8", "--frame", "wavefront,one-kernel",
+                     "--flush-between", "yes,no", "--json", str(sweep_json),
+                     "--no-progress"]) == 0
+    capsys.readouterr()
+    assert cli_main(["study", "gpu", "compressed", str(sweep_json), "--plot", str(png)]) == 0
+    out = capsys.readouterr().out
+    assert "| box32 |" in out and "| q8 |" in out and "| shadow | q8 |" in out
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert cli_main(["study", "gpu", "schedules", str(sweep_json)]) == 0
+    out = capsys.readouterr().out
+    assert "wavefront, cold caches" in out and "one kernel" in out
+    assert cli_main(["study", "gpu", "units", str(sweep_json), "--plot",
+                     str(tmp_path / "u.png")]) == 2
+    assert "has no plot" in capsys.readouterr().err and not (tmp_path / "u.png").exists()
+    other = tmp_path / "other.json"
+    other.write_text('{"points": [{"design_point": {}}]}')
+    assert cli_main(["study", "gpu", "compressed", str(other), "--plot",
+                     str(tmp_path / "o.png")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "not a rayflex sweep" in err
+    assert not (tmp_path / "o.png").exists()

@@ -118,7 +118,8 @@ def summary(res) -> str:
         r = s.get(key)
         if r:
             lines.append(f"RT units {r['rt_units']} x R={r['rays_in_flight']} "
-                         f"P={r['pipelines']}, warp {r['warp_size']}, {r['frame_schedule']} ({what}): "
+                         f"P={r['pipelines']}, warp {r['warp_size']}, "
+                         f"{r['frame_schedule']} ({what}): "
                          f"{r['cycles']} cycles, utilization {r['utilization']:.3f}"
                          + (f", L1 hit rate {r['hit_rate']:.3f}, {r['bytes_per_ray']:.0f} B/ray "
                             "from DRAM" if "hit_rate" in r else ""))

@@ -1,8 +1,8 @@
 """How a frame's rays reach the RT units (docs/rtunit.md): the frame schedule, threads grouped
 into warps of screen tiles, warps' trace calls, and the frame's recorded batches as one record.
 
-What a frame's replay needs beyond the recorded request chains (``driver.tracing.record.Record``): for
-every ray, its thread and its place in the thread's program (``Wave.thread``, ``Wave.slot``; the
+What a frame's replay needs beyond the recorded request chains
+(``driver.tracing.record.Record``): for every ray, its thread and its place in the thread's program (``Wave.thread``, ``Wave.slot``; the
 workloads set them, ``driver.workloads.Batch``). From them and a ``Schedule`` this module builds
 the kernels, warps and trace calls (``Plan``) that ``rf_replay`` (sim/rtunit_scheduler.cpp)
 issues:

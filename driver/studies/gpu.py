@@ -80,7 +80,8 @@ def compressed_markdown(doc: dict) -> str:
     for preset, fmts in tab.items():
         lines += [f"**{preset}**: the frame", "",
                   "| image | cycles | vs box32 | utilization | DRAM B/ray | L1 hit rate "
-                  "| latency mean / p95 | memory pJ/ray |", "|---|---:|---:|---:|---:|---:|---:|---:|"]
+                  "| latency mean / p95 | memory pJ/ray |",
+                  "|---|---:|---:|---:|---:|---:|---:|---:|"]
         for fmt, r in fmts.items():
             f = r["frame"]
             lines.append(f"| {fmt} | {f['cycles']:,} | {f['cycles_vs_ref']:.3f} "
