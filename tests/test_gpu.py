@@ -386,3 +386,16 @@ def test_study_gpu_tables_and_plot_from_a_sweep(tmp_path, capsys):
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "not a rayflex sweep" in err
     assert not (tmp_path / "o.png").exists()
+
+
+def test_memory_levels_are_the_replays_numbering():
+    """``driver.core.layout.MEMORY_LEVELS`` (the columns of a ray's bytes per level) numbers the
+    levels as sim/rf_memory.h's ``enum Level`` does."""
+    import re
+
+    from driver.backends.build import SIM_DIR
+    from driver.core.layout import MEMORY_LEVELS
+    text = (SIM_DIR / "rf_memory.h").read_text()
+    enum = re.search(r"enum Level : int \{([^}]*)\}", text).group(1)
+    levels = {int(v): name for name, v in re.findall(r"kLevel(\w+) = (\d+)", enum)}
+    assert [levels[i].lower() for i in range(len(levels))] == list(MEMORY_LEVELS)

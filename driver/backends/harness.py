@@ -14,7 +14,7 @@ import ctypes
 
 import numpy as np
 
-from ..core.layout import MEMORY_CONFIG, NO_CHILD, REPLAY_CONFIG, REPLAY_STATS
+from ..core.layout import MEMORY_CONFIG, MEMORY_LEVELS, NO_CHILD, REPLAY_CONFIG, REPLAY_STATS
 from ..core.wire import RAY_WORDS, REQ_WORDS, RSP_WORDS, pack_requests, unpack_responses
 from .build import build_harness
 from .rtlbase import PATTERN_LEN, RtlBackendBase
@@ -166,8 +166,9 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
     ``call_rays``: chain indices). ``treelets``: a ``driver.rtunit.order.TreeletSchedule`` (needs
     a window). Returns (responses (m, RSP_WORDS) uint32 at the record index, ``ReplayStats``
     dict plus ``SCHED_STATS``, requests per pipeline (units, P) int64, per-ray and per-call
-    arrays: ``ray_times`` (n, 3), ``ray_served`` (n, 4), ``ray_wait`` (n,), ``call_times``
-    (calls, 3), ``call_unit`` (calls,), ``series``, ``kernel_times`` (kernels, 3))."""
+    arrays: ``ray_times`` (n, 3), ``ray_served`` (n, one column per ``MEMORY_LEVELS``),
+    ``ray_wait`` (n,), ``call_times`` (calls, 3), ``call_unit`` (calls,), ``series``,
+    ``kernel_times`` (kernels, 3))."""
     lib = harness_library(params)
     rw, img, r, p, e = node_arrays(frame.ray_words, frame.image, frame.ray, frame.ptr,
                                    frame.extent)
@@ -195,7 +196,7 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
     per_pipe = np.zeros((cfg.units, cfg.pipelines), np.int64)
     sched = np.zeros(len(SCHED_STATS), np.int64)
     out = {"ray_times": np.zeros((n_chains, 3), np.int64),
-           "ray_served": np.zeros((n_chains, 4), np.int64),
+           "ray_served": np.zeros((n_chains, len(MEMORY_LEVELS)), np.int64),
            "ray_wait": np.zeros(n_chains, np.int64),
            "call_times": np.zeros((max(n_calls, 0), 3), np.int64),
            "call_unit": np.zeros(max(n_calls, 0), np.int64),

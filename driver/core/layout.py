@@ -395,6 +395,10 @@ MEMORY_CONFIG = (
     ("l2_bytes", "int64_t"), ("l2_ways", "int64_t"), ("l2_latency", "int64_t"),
     ("mem_latency", "int64_t"), ("bytes_per_cycle", "double"),
 )
+# the memory levels as the replay numbers them (rf_memory.h's enum Level, checked by
+# tests/test_gpu.py): the level a node fetch waited on or was served by (none: it was free);
+# rf_replay's ray_served has one column per level
+MEMORY_LEVELS = ("none", "l1", "l2", "dram")
 
 
 def replay_stats_c() -> str:

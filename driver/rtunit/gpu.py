@@ -16,13 +16,14 @@ import numpy as np
 
 from ..backends import harness
 from ..core.datapath import LATENCY
-from ..core.layout import INSTANCE_TYPE, NodeRef
+from ..core.layout import INSTANCE_TYPE, MEMORY_LEVELS, NodeRef
 from . import order as ray_orders
 from .energy import memory_energy
 from .plan import PER_RAY_POOL, Combined, Plan, Schedule, Wave, build_plan, combine
 
 SERIES_POINTS = 64          # points of the published rays-in-flight series
-LEVELS = ("l1", "l2", "dram")
+LEVELS = MEMORY_LEVELS[1:]          # the levels that supply node bytes
+_L1, _L2, _DRAM = (MEMORY_LEVELS.index(lvl) for lvl in LEVELS)
 
 
 class ReplayMismatch(RuntimeError):
@@ -96,16 +97,17 @@ class FrameReplay:
             s = served.sum(axis=0)
             n = len(chains)
             out.update({
-                "line_accesses": int(s[1:].sum() // tx), "line_hits": int(s[1] // tx),
-                "line_misses": int((s[2] + s[3]) // tx), "bytes_from_memory": int(s[3]),
+                "line_accesses": int(s[_L1:].sum() // tx), "line_hits": int(s[_L1] // tx),
+                "line_misses": int((s[_L2] + s[_DRAM]) // tx),
+                "bytes_from_memory": int(s[_DRAM]),
                 "node_wait_cycles": int(self.arrays["ray_wait"][chains].sum()),
-                "bytes_served": {lvl: int(s[i + 1]) for i, lvl in enumerate(LEVELS)},
-                "bytes_served_per_ray": {lvl: (float(s[i + 1]) / n if n else 0.0)
-                                         for i, lvl in enumerate(LEVELS)},
+                "bytes_served": {lvl: int(s[MEMORY_LEVELS.index(lvl)]) for lvl in LEVELS},
+                "bytes_served_per_ray": {lvl: (float(s[MEMORY_LEVELS.index(lvl)]) / n
+                                               if n else 0.0) for lvl in LEVELS},
             })
-            l2_acc = int((s[2] + s[3]) // tx) if self.memory.l2_bytes else 0
+            l2_acc = int((s[_L2] + s[_DRAM]) // tx) if self.memory.l2_bytes else 0
             out["memory_energy"] = memory_energy(self.memory, out["line_accesses"], l2_acc,
-                                                 int(s[3]), n)
+                                                 int(s[_DRAM]), n)
         return out
 
     def _kernel_rows(self, kernels) -> list[dict]:
