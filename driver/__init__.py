@@ -1,17 +1,37 @@
-"""RayFlex driver: BVH4, traversal, rendering and checks around the RayFlex datapath RTL."""
+"""RayFlex driver: BVH4, traversal, rendering and checks around the RayFlex datapath RTL.
 
-from .backends import BACKENDS, BackendError, backend
+The Python API (docs/api.md) is the names below: load a scene (``load_scene``), make its camera
+rays (``primary_rays``), build its node image (``build_scene``, ``build``), trace rays with every
+box and triangle test on a backend (``trace``, ``record=True`` keeps every request), replay the
+record on an RT unit with a node memory (``replay``, ``MemoryModel``) and read the statistics
+(``TraceResult.stats``, ``ReplayResult.stats()``). Whole workload frames (shadow, AO and
+path rays, per ray type): ``driver.render.render`` of a ``driver.design.DesignPoint``.
+"""
+
+from .backends import BACKENDS, DEFAULT_BACKEND, BackendError, backend
+from .bvh4 import BVH4, build, build_scene
 from .core.datapath import (ANGULAR, EUCLIDEAN, LATENCY, QUADBOX, REQUEST_DTYPE, RESPONSE_DTYPE,
                             TRIANGLE, DatapathError, FLAG_NO_CULL, prepare_rays)
-from .tracer import trace as _trace
+from .rtunit import MemoryModel, ReplayResult, replay
+from .scenes.camera import Camera, primary_rays
+from .tracer import TraceResult, trace
+from .tracing.record import Record
 
-__all__ = ["ANGULAR", "BACKENDS", "BackendError", "DatapathError", "EUCLIDEAN", "FLAG_NO_CULL",
-           "LATENCY", "QUADBOX", "REQUEST_DTYPE", "RESPONSE_DTYPE", "TRIANGLE", "backend",
-           "prepare_rays", "trace"]
+__all__ = ["ANGULAR", "BACKENDS", "BVH4", "BackendError", "Camera", "DEFAULT_BACKEND",
+           "DatapathError", "EUCLIDEAN", "FLAG_NO_CULL", "LATENCY",
+           "MemoryModel", "QUADBOX", "REQUEST_DTYPE", "RESPONSE_DTYPE", "Record", "ReplayResult",
+           "Scene", "TRIANGLE", "TraceResult", "backend", "build", "build_scene", "load_scene",
+           "prepare_rays", "primary_rays", "replay", "trace"]
+
+_SCENE_NAMES = ("Scene", "load_scene")      # their module loads trimesh: imported on first use
 
 
-def trace(scene, origins, directions, backend="rtl", **options):
-    """Trace rays through a scene (name, path, trimesh mesh or built BVH4) with every box and
-    triangle test run on ``backend``: closest hit, or ``any_hit=True`` (occlusion), with
-    ``double_sided=True`` for NO_CULL; see ``driver.tracer.trace``."""
-    return _trace(scene, origins, directions, backend=backend, **options)
+def __getattr__(name):
+    if name in _SCENE_NAMES:
+        from .scenes import scene
+        return getattr(scene, name)
+    raise AttributeError(f"module 'driver' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_SCENE_NAMES))

@@ -38,6 +38,7 @@ from importlib.metadata import version
 from pathlib import Path
 
 from .backends import build as rtl_build
+from .backends.cache import cache_root as tool_cache
 from .backends.build import source_names
 from .core import resources
 from .core.configs import (ALL_CONFIGS, BASELINE, CONFIGS, Q8_SUFFIX, XF_CONFIGS, XF_SUFFIX,
@@ -174,8 +175,7 @@ def yosys_version() -> str:
 
 
 def cache_root() -> Path:
-    env = os.environ.get("RAYFLEX_CACHE")
-    return (Path(env).expanduser() if env else Path.home() / ".cache" / "rayflex") / "area"
+    return tool_cache() / "area"
 
 
 # ------------------------------------------------------------------------------------------------

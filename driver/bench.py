@@ -44,17 +44,18 @@ import numpy as np
 
 from . import backends, rtunit, tiles, workloads
 from .backends import build as rtl_build
+from .bench_plots import plot_rays_held, plot_workload_sweep
 from .bvh4 import warm_up
-from .check import compare, embree_closest, embree_json
+from .check import compare, embree_closest, embree_json, summary
 from .core.progress import bar as _bar
 from .core.provenance import machine, provenance
 from .core.wire import pack_responses
 from .design import DesignPoint
+from .plotting import describe
 from .rtunit.gpu import replay_point, waves_of
 from .rtunit.plan import Wave
-from .rtunit.plots import plot_rays_held, plot_workload_sweep
 from .scenes.camera import check_size, primary_rays
-from .stats import public
+from .stats import order_cost_line, public
 from .tracer import trace
 
 PYVERILATOR_REQUESTS = 2000
@@ -196,9 +197,12 @@ def _sweep(scene, bvh, rtl, ss, sweep_rays, sweep_pipelines, plot, progress, poi
     keep = ("pipelines", "rays_in_flight", "cycles", "utilization", "frame_us_at_1ghz",
             "starved_cycles", "responses_verified")
     if plot:
-        rtunit.plot_sweep(points, plot, f"{scene.name} {ss}x{ss}: {srec.ops} datapath ops, "
-                                        f"latency {point.latency} + turnaround "
-                                        f"{rtunit.DEFAULT_TURNAROUND} cycles")
+        rtunit.plot_sweep(points, plot, "RT-unit cycles vs rays in flight and pipelines, free "
+                          "node fetches: " + describe(
+                              {**point.as_dict(), "size": ss, "scene": scene.name},
+                              omit=("rays_in_flight", "pipelines", "cache_kib", "mem_latency"))
+                          + f"\n{srec.ops:,} datapath ops, turnaround "
+                          f"{rtunit.DEFAULT_TURNAROUND} cycle")
     return {"width": ss, "height": ss, "rays": srec.rays, "ops": srec.ops,
             "latency_cycles": point.latency, "turnaround_cycles": rtunit.DEFAULT_TURNAROUND,
             "wall_s": t_sweep, "plot": str(plot) if plot else None,
@@ -287,11 +291,11 @@ def _pyverilator_stream(rec, k: int, progress, repeat: int, point) -> dict:
 def table(doc: dict) -> str:
     """The short human-readable summary printed by ``rayflex bench``."""
     f, pv = doc["frame"], doc.get("pyverilator")
-    e = f.get("embree") or {}
     rows = [
         ("frame", f"{doc['scene']} {doc['width']}x{doc['height']}: {f['rays']} rays, "
-                  f"{f['hits']} hits, Embree: {e.get('hit_mismatch', '?')} hit/miss + "
-                  f"{e.get('prim_mismatch', '?')} prim mismatches"),
+                  f"{f['hits']} hits"),
+        ("Embree", summary(f["embree"]).removeprefix("embree: ") if f.get("embree")
+         else "not checked"),
         ("datapath ops", f"{f['ops']} ({f['box_ops']} box + {f['tri_ops']} tri"
                          + (f" + {f['transform_ops']} transform" if f.get("transform_ops")
                             else "")
@@ -341,6 +345,28 @@ def timing_rows(f: dict) -> list[tuple[str, str]]:
                          f"({what}"
                          + (f"; L1 hit rate {r['hit_rate']:.3f}, {r['bytes_per_ray']:.0f} B/ray "
                             "from DRAM)" if "hit_rate" in r else ")")))
+    m = f.get("rtunit_memory") or {}
+    w = m.get("simt")
+    if w and m.get("warp_size", 1) > 1:
+        rows.append(("warps", f"{w['warps']} warps, {w['trace_calls']} trace calls, SIMT "
+                              f"efficiency {w['simt_efficiency']:.3f}; a call waits "
+                              f"{w['slowest_ray_wait_per_call']:.0f} cycles for its slowest ray "
+                              f"after its first; {w['rays_held_mean']:.1f} rays held per RT unit "
+                              f"on average (at most {w['max_rays_held']})"))
+    if m.get("levels"):
+        lv = m["levels"]
+        text = "; ".join(
+            f"{name} {lv[k]['line_accesses']:,} accesses, {lv[k]['line_hits']:,} hits "
+            f"({lv[k]['merged_misses']:,} merged misses), {lv[k]['fill_bytes']:,} bytes filled, "
+            f"{lv[k]['wait_cycles']:,} cycles waited" for k, name in (("l1", "L1"), ("l2", "L2"))
+            if lv[k]["line_accesses"])
+        d = lv["dram"]
+        rows.append(("memory", (text + "; " if text else "")
+                     + f"DRAM {d['transfer_bytes']:,} bytes in {d['transfers']:,} transfers, "
+                     f"{d['wait_cycles']:,} cycles waited; {m['mshr_stalls']:,} MSHR stalls"))
+    cost = (f.get("rtunit_memory") or f.get("rtunit") or {}).get("ray_order_cost")
+    if cost:
+        rows.append(("ray order", order_cost_line(cost)))
     return rows
 
 
@@ -408,21 +434,18 @@ def bench_workload(point: DesignPoint, sweep_rays=(), plot=None, progress=True,
         bar.hook(i + 2, steps)
     bar.close()
     if plot and sweep:
-        plot_workload_sweep(sweep, plot, f"{scene.name} {size}x{size} {point.workload}, "
-                                         f"{point.frame_schedule} frame: utilization vs rays "
-                                         "in flight")
+        plot_workload_sweep(sweep, plot, "utilization vs rays in flight: " + describe(
+            {**point.as_dict(), "size": size, "scene": scene.name},
+            omit=("rays_in_flight", "ray_window")))
     elif plot:
-        plot_rays_held(frame, plot, f"{scene.name} {size}x{size} {point.workload}, "
-                                    f"{point.frame_schedule} frame, {point.rt_units} RT unit(s): "
-                                    "rays held over time")
+        plot_rays_held(frame, plot, "rays held per RT unit over the frame: " + describe(
+            {**point.as_dict(), "size": size, "scene": scene.name}))
     frame["wall_parts_s"] = {"bvh_build": t_bvh, "traversal": t_trace, "replay": t_replay}
     frame["bvh"] = dict(bvh.stats)
     frame.update(scene.counts())
     return {"provenance": provenance(point), "scene": scene.name, "workload": point.workload,
             "width": size, "height": size, "frame": frame, "sweep": sweep or None,
             "plot": str(plot) if plot else None}
-
-
 def bench_workers(point: DesignPoint, workers=2, tile=64, progress=True) -> dict:
     """The same tiled frame of design point ``point`` on "rtl" in this process and on a
     LocalCluster of ``workers`` processes: wall times (scheduler start-up and the once-per-worker

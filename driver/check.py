@@ -308,6 +308,14 @@ def merge_checks(parts: list[dict]) -> dict:
     return out
 
 
+def summary(e: dict) -> str:
+    """The one line the commands print for an ``embree`` object: rays compared, each kind of
+    mismatch, the largest t difference."""
+    return (f"embree: {e['rays_compared']} rays compared, {e['hit_mismatch']} hit/miss "
+            f"mismatches, {e['prim_mismatch']} primitive mismatches, {e['edge_ties']} edge ties, "
+            f"max t rel err {e['max_t_rel_err']:.2g}")
+
+
 EMBREE_SAMPLE_TRIANGLES = 2_000_000   # world triangles an Embree check of a large instanced
 EMBREE_SAMPLE_RAYS = 4096             # scene may flatten, and the rays it may take
 

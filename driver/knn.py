@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from . import backends
+from .backends import DEFAULT_BACKEND
 from .core.datapath import ANGULAR, EUCLIDEAN, REQUEST_DTYPE
 from .core.wire import ANG_LANES, EUC_LANES
 from .core.progress import bar as progress_bar
@@ -258,8 +259,8 @@ class KnnResult:
     stats: dict = field(default_factory=dict)
 
 
-def knn(queries, cands, k: int, metric: str = "euclidean", backend="rtl", disjoint=False,
-        progress=False, query_ids=None, candidate_ids=None) -> KnnResult:
+def knn(queries, cands, k: int, metric: str = "euclidean", backend=DEFAULT_BACKEND,
+        disjoint=False, progress=False, query_ids=None, candidate_ids=None) -> KnnResult:
     """k nearest candidates of every query with all distance sums on the datapath, compared with
     the exact float64 search. ``backend``: a name (built with extended=True) or a backend object.
     ``query_ids`` / ``candidate_ids`` name the rows in the result (default 0..n-1)."""

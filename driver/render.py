@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .backends import resolve
+from .backends import DEFAULT_BACKEND, resolve
 from .bvh4 import build_label
 from .check import check, embree_json, embree_sample
 from .scenes.camera import check_size, primary_rays
@@ -83,8 +83,8 @@ class RenderResult:
         save_image(self.heatmap_image(title), path)
 
 
-def render(scene, width=None, height=None, backend: str = "rtl", progress: bool = True,
-           check_embree: bool = False, point: DesignPoint | None = None,
+def render(scene, width=None, height=None, backend: str = DEFAULT_BACKEND,
+           progress: bool = True, check_embree: bool = False, point: DesignPoint | None = None,
            rtunit: bool | str = False, tile: int | None = None, workers: int = 1,
            scheduler: str | None = None) -> RenderResult:
     """Render ``scene`` (a Scene, or anything ``load_scene`` takes) at width x height (default:

@@ -209,9 +209,8 @@ def merge_rtunit(parts: list) -> dict | None:
         out[WAVEFRONTS] = [w for p in parts for w in p[WAVEFRONTS]]
     if "unit_ops" in first:
         out["unit_ops"] = [sum(v) for v in zip(*(p["unit_ops"] for p in parts))]
-    costs = [p["ray_order_cost"] for p in parts if "ray_order_cost" in p]
-    if costs:
-        out["ray_order_cost"] = merge_costs(costs)
+    if all("ray_order_cost" in p for p in parts):
+        out["ray_order_cost"] = merge_costs([p["ray_order_cost"] for p in parts])
     if "memory_energy" in first:
         e = {lvl: sum(p["memory_energy"][lvl] for p in parts) for lvl in ("l1", "l2", "dram",
                                                                             "total")}
@@ -220,3 +219,21 @@ def merge_rtunit(parts: list) -> dict | None:
     for k in first:                       # every key of the parts' objects, null if unmerged
         out.setdefault(k, None)
     return derived({k: out[k] for k in first} | {k: v for k, v in out.items() if k not in first})
+
+
+def order_cost_line(c: dict) -> str:
+    """What a ray-order policy costs in hardware (``ray_order_cost``, docs/rayorder.md), in
+    the terms of docs/statistics.md."""
+    parts = [f"{c['ray_order']}, window {c['ray_window']}"]
+    if "sort_buffer_entries" in c:
+        parts.append(f"sort buffer of {c['sort_buffer_entries']} rays, "
+                     f"{c['sort_buffer_bytes']:,} bytes, {c['compare_exchanges_per_ray']:.1f} "
+                     "compare-exchanges per ray")
+    if "held_rays" in c:
+        parts.append(f"{c['held_rays']} rays held ({c['extra_rays_held']} beyond the pool), "
+                     f"{c['extra_state_bytes']:,} bytes of traversal state "
+                     f"({c['traversal_state_bytes']} per ray)")
+    if "queue_bytes" in c:
+        parts.append(f"treelet queues {c['queue_bytes']:,} bytes, treelet table "
+                     f"{c['treelet_table_bytes']:,} bytes")
+    return "; ".join(parts)

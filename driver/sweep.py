@@ -43,6 +43,7 @@ from pathlib import Path
 from . import backends, design, power, workloads
 from .core.outputs import jsonable
 from .design import DesignPoint
+from .plotting import describe, wrap
 from .core.progress import bar as progress_bar
 from .core.progress import phase
 from .rtunit.gpu import replay_point, waves_of
@@ -130,6 +131,19 @@ def energy_tables(points, progress: bool = True) -> dict:
             with phase(f"energy per op of {cfg} (gates)", progress):
                 r = power.run_level("gates", [cfg], ops=ops)
             entry["gates"] = _per_op(r["configs"][cfg], UNITS["gates"])
+    return out
+
+
+def models(points) -> list[tuple[str, dict]]:
+    """The RTL models a sweep of ``points`` runs, as ``driver.power.uncached_models`` takes
+    them: each point's rtl harness (its datapath's ``rtl_params``) and the traced model of
+    each (configuration, latency) that ``energy_tables`` measures (``power.params_of``, the
+    parameters ``run_level`` builds it with)."""
+    out = []
+    for p in points:
+        for model in (("rtl", p.rtl_params()), ("signals", power.params_of(p.config, p.latency))):
+            if model not in out:
+                out.append(model)
     return out
 
 
@@ -374,14 +388,17 @@ def _timing(e: dict) -> dict:
 
 def plot(doc: dict, path) -> None:
     """Two panels: the frame's utilization vs rays in flight, one line per (cache size, other
-    varied options); the node fetches' energy per ray vs RT-unit cycles per ray, one marker per
-    point, one colour per configuration (its datapath energy per ray in the legend)."""
+    varied options), lines with the same values merged into one whose label says so (two
+    configurations with the same timing coincide); the node fetches' energy per ray vs RT-unit
+    cycles per ray, one marker per point, one colour per configuration (its datapath energy per
+    ray in the legend), both axes from zero. Legends below the data; the title names the frame
+    and the options every point shares."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     pts = doc["points"]
     others = [k for k in doc["grid"] if k not in ("rays_in_flight",)]
-    fig = Figure(figsize=(11.0, 4.6), dpi=110)
+    fig = Figure(figsize=(12.0, 5.6), dpi=110)
     FigureCanvasAgg(fig)
     ax1, ax2 = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
     lines: dict = {}
@@ -390,10 +407,14 @@ def plot(doc: dict, path) -> None:
         label = ", ".join(f"{k} {dp[k]}" for k in others) or "this point"
         lines.setdefault(label, []).append((dp["rays_in_flight"], _timing(e)["utilization"],
                                             dp["cache_kib"]))
+    merged: dict = {}                                  # identical series: one line, both named
     for label, xs in lines.items():
-        xs.sort()
-        style = "o-" if xs[0][2] else "s--"
-        ax1.plot([x[0] for x in xs], [x[1] for x in xs], style, label=label)
+        merged.setdefault(tuple(sorted(xs)), []).append(label)
+    markers = ("o", "s", "^", "D", "v", "P", "X", "*")
+    for i, (xs, labels) in enumerate(merged.items()):
+        ax1.plot([x[0] for x in xs], [x[1] for x in xs], marker=markers[i % len(markers)],
+                 ls="-" if xs[0][2] else "--", color=f"C{i}",
+                 label=" = ".join(labels) + (" (identical)" if len(labels) > 1 else ""))
     ax1.set_xscale("log", base=2)
     ax1.set_ylim(0, 1.05)
     ax1.set_xlabel("rays in flight (ray pool size)")
@@ -401,7 +422,8 @@ def plot(doc: dict, path) -> None:
     ax1.set_title("the frame's RT-unit utilization with the memory hierarchy (dashed: no node "
                   "cache)", fontsize=8)
     ax1.grid(True, which="both", alpha=0.3)
-    ax1.legend(fontsize=6)
+    ax1.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=1,
+               frameon=False)
     configs = sorted({e["design_point"]["config"] for e in pts})
     for i, cfg in enumerate(configs):
         sel = [e for e in pts if e["design_point"]["config"] == cfg
@@ -422,35 +444,44 @@ def plot(doc: dict, path) -> None:
     ax2.set_title("memory-side energy per ray vs time per ray (squares: no node cache)",
                   fontsize=8)
     ax2.set_ylim(bottom=0)
+    ax2.set_xlim(0, 1.1 * max(_timing(e)["cycles_per_ray"] for e in pts))
     ax2.grid(True, alpha=0.3)
-    ax2.legend(fontsize=7)
-    fig.suptitle(f"{doc['scene']} {doc['workload']}: {len(pts)} design points", fontsize=10)
+    ax2.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), frameon=False,
+               ncol=max(1, len(configs)))
+    varied_keys = set(doc["grid"]) | {"rays_in_flight"}
+    point = dict(pts[0]["design_point"])
+    fig.suptitle(wrap(f"{len(pts)} design points: " + describe(point, omit=varied_keys), 150),
+                 fontsize=9)
     fig.tight_layout()
     fig.savefig(str(path), format="png")
 
 
 def table(doc: dict) -> str:
-    """One line per point: the varied options, the frame's utilization with the memory
-    hierarchy (and with free fetches when replayed), L1 hit rate, cycles and energy per ray."""
+    """One line per point and ray type, then the point's frame (all rays): the varied options,
+    rays, ops per ray, utilization with the memory hierarchy (a ray type's only in a wavefront
+    frame; with free node fetches when replayed, ``--ideal-replay``), mean latency, bytes from
+    DRAM per ray, the datapath's energy and the node fetches' energy per ray."""
     keys = list(doc["grid"])
-    head = " ".join(f"{k:>18}" for k in keys) + f" {'ideal':>6} {'util':>6} " \
-        f"{'hit rate':>8} {'cyc/ray':>8} {'E/ray':>9} {'mem pJ/ray':>10}"
-    out = [head]
     nan = float("nan")
+    head = " ".join(f"{k:>18}" for k in keys) + \
+        f" {'type':>8} {'rays':>6} {'ops/ray':>7} {'util':>6} {'ideal':>6} {'latency':>8} " \
+        f"{'B/ray':>6} {'E/ray':>9} {'mem pJ/ray':>10}"
+    out = [head]
     for e in doc["points"]:
-        m = e["rtunit_memory"] or {}
-        ideal = (e["rtunit"] or {}).get("utilization")
         cells = " ".join(f"{str(e['design_point'][k]):>18}" for k in keys)
-        energy = e["energy_per_ray"]["signals"]
-        mem = e["energy_per_ray"]["memory_pj"]
-        out.append(f"{cells} {nan if ideal is None else ideal:>6.3f} "
-                   f"{m.get('utilization', nan):>6.3f} "
-                   f"{m.get('hit_rate', nan):>8.3f} "
-                   f"{_timing(e)['cycles_per_ray']:>8.1f} "
-                   f"{nan if energy is None else energy:>9.0f} "
-                   f"{nan if mem is None else mem:>10.0f}")
-    out.append("(ideal / util: the frame's utilization with free node fetches (--ideal-replay) / "
-               "with the memory hierarchy; cyc/ray: RT-unit cycles per ray; E/ray: datapath "
-               "energy per ray in bit toggles; mem pJ/ray: node fetches, docs/rtunit.md; "
-               "docs/statistics.md)")
+        for kind, t in [*e["by_type"].items(), ("all", e)]:
+            m = t["rtunit_memory"] or {}
+            util, ideal = m.get("utilization"), (t["rtunit"] or {}).get("utilization")
+            energy, mem = t["energy_per_ray"]["signals"], t["energy_per_ray"]["memory_pj"]
+            out.append(f"{cells} {kind:>8} {t['rays']:>6} {t['ops'] / max(t['rays'], 1):>7.2f} "
+                       f"{nan if util is None else util:>6.3f} "
+                       f"{nan if ideal is None else ideal:>6.3f} "
+                       f"{m.get('latency_mean', nan):>8.0f} {m.get('bytes_per_ray', nan):>6.0f} "
+                       f"{nan if energy is None else energy:>9.0f} "
+                       f"{nan if mem is None else mem:>10.0f}")
+    out.append("(per ray type, then all rays of the point; util / ideal: utilization with the "
+               "memory hierarchy / with free node fetches (--ideal-replay), a ray type's only "
+               "in a wavefront frame; latency: mean cycles from the trace call to the ray's "
+               "last response; B/ray: bytes from DRAM per ray; E/ray: datapath energy per ray "
+               "in bit toggles; mem pJ/ray: node fetches, docs/rtunit.md; docs/statistics.md)")
     return "\n".join(out)

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .backends import resolve
+from .backends import DEFAULT_BACKEND, resolve
 from .check import merge_checks
 from .rtunit.gpu import replay_point, waves_of
 from .stats import merge, merge_rtunit
@@ -177,9 +177,9 @@ class Assembler:
 
 
 def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
-                 options: dict | None = None, backend="rtl", tile: int = DEFAULT_TILE,
-                 workers: int = 1, scheduler: str | None = None, check_embree: bool = False,
-                 progress=None) -> FrameResult:
+                 options: dict | None = None, backend=DEFAULT_BACKEND,
+                 tile: int = DEFAULT_TILE, workers: int = 1, scheduler: str | None = None,
+                 check_embree: bool = False, progress=None) -> FrameResult:
     """Trace a frame tile by tile: in this process (``workers=1`` and no ``scheduler``), or as
     Dask tasks on a new ``LocalCluster`` of ``workers`` processes or on the cluster at
     ``scheduler``. ``progress(done_tiles, total_tiles)``. Returns the merged ``FrameResult``;

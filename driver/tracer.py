@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import rtunit
-from .backends import resolve
+from .backends import DEFAULT_BACKEND, resolve
 from .backends.build import MIN_LATENCY, rtl_params
 from .bvh4 import BVH4, build, build_two_level
 from .core.datapath import prepare_rays
@@ -89,7 +89,7 @@ def as_bvh(scene, bvh_format: str | None = None) -> BVH4:
     return build(scene, format=bvh_format or "box32")
 
 
-def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np.inf,
+def trace(scene_or_mesh_or_bvh, origins, directions, backend=DEFAULT_BACKEND, extent=np.inf,
           progress=None, any_hit=False, double_sided=None, cull_stack=False, bvh_format=None,
           transform=None, **rtunit_options) -> TraceResult:
     """Trace rays with every box and triangle test run on ``backend``.
@@ -97,7 +97,8 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend="golden", extent=np
     scene_or_mesh_or_bvh : BVH4, trimesh mesh, (n, 3, 3) triangles, or a scene name/path
     origins, directions : (n, 3) array-like (float32 after conversion; see ``prepare_rays``,
         which raises ValueError for non-finite values or a zero direction)
-    backend : backend name ("golden", "rtl", ...) or a ``driver.backends.Backend``
+    backend : backend name ("golden", "rtl", "pyverilator"; default ``DEFAULT_BACKEND``, "rtl",
+        as on the command line) or a ``driver.backends.Backend``
     extent : scalar or (n,): only hits with t < extent are reported
     any_hit : occlusion rays (docs/datapath.md#traversal): a ray ends at its first accepted triangle
         (``hit``, ``prim``, ``t`` of that triangle); otherwise the closest hit

@@ -240,6 +240,25 @@ def test_workload_bench_one_timing_replay_by_default(tmp_path, monkeypatch):
     assert d["frame"]["rtunit_memory"]["responses_verified"]
 
 
+@pytest.mark.parametrize("workload", ["primary", "ao"])
+def test_sweep_size_zero_means_no_sweep_in_every_mode(workload, tmp_path, monkeypatch):
+    """--sweep-size 0 ran the workload bench's rays-in-flight sweep anyway (44 replays)."""
+    import driver.rtunit.gpu as gpu
+    replays = []
+    real = gpu.replay_frame
+    monkeypatch.setattr(gpu, "replay_frame", lambda *a, **k: replays.append(1) or real(*a, **k))
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "w.json"
+    assert main(["bench", "--scene", "sphere", "--workload", workload, "--size", "8",
+                 "--sweep-size", "0", "--sweep-rays", "4,8", "--plot", "p.png",
+                 "--pyverilator-requests", "0", "--repeat", "1",
+                 "--json", str(out), "--no-progress"]) == 0
+    d = json.loads(out.read_text())
+    assert not d.get("sweep") and not d.get("rtunit_sweep") and not d.get("plot")
+    assert len(replays) == 1                          # the frame's replay, no sweep
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["w.json"]      # no plot
+
+
 def test_workers_bench_builds_the_model_before_timing(monkeypatch):
     """A cold build cache must not land in the one-process time (it did: 54 s vs 1.2 s)."""
     import driver.backends.build as build

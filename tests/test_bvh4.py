@@ -5,94 +5,14 @@ import numpy as np
 import pytest
 
 from support import meshes
+from support.images import check_bvh
 from driver import QUADBOX, TRIANGLE, backend, prepare_rays
 from driver import bvh4
 from driver.bvh import build as bvh_build
 from driver.bvh import collapse as bvh_collapse
 from driver.bvh import image, reference
-from driver.bvh4 import BOX_BYTES, BOX_TYPE, NO_CHILD, TRI_BYTES, TRI_TYPE, build
+from driver.bvh4 import NO_CHILD, TRI_TYPE, build
 
-
-def half_area(b):
-    d = b[..., 3:].astype(np.float64) - b[..., :3]
-    return d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0]
-
-
-def check_bvh(bvh):
-    """Walk the image breadth-first with the decoders and check every docs/datapath.md#bvh4-image
-    invariant.
-
-    Returns {prim id: the float32 box its parent stores for its triangle node}."""
-    img, n = bvh.image, len(bvh.triangles)
-    words = img.view("<u4")
-    assert img.dtype == np.uint8 and img.ndim == 1
-    assert bvh.root == BOX_TYPE and bvh.node_offset([bvh.root])[0] == 0
-    seen_box, seen_tri, leaf_box = [np.array([bvh.root], np.uint32)], [], {}
-    level, level_box, parents = seen_box[0], None, np.array([NO_CHILD], np.uint32)
-    area_sum, depth, counts = 0.0, 0, []
-    while len(level):
-        depth += 1
-        children, boxes = bvh.box_nodes(level)
-        parent, count = bvh.node_extras(level)
-        used = children != NO_CHILD
-        assert (used.sum(1) == count).all() and (count >= 1).all()
-        counts.append(count)
-        assert (np.sort(~used, axis=1) == ~used).all(), "used slots first"
-        assert (parent == parents).all()
-        off = bvh.node_offset(level)
-        assert (words[(off >> 2)[:, None] + np.array([30, 31])] == 0).all(), "reserved words"
-        assert np.isposinf(boxes[~used]).all(), "unused slot box is +inf"
-        b = boxes[used]
-        assert (b[:, 3:] > b[:, :3]).all(), "every box has positive thickness"
-        if level_box is not None:                           # child box inside the parent's box
-            pb = np.broadcast_to(level_box[:, None, :], boxes.shape)[used]
-            assert (b[:, :3] >= pb[:, :3]).all() and (b[:, 3:] <= pb[:, 3:]).all()
-        else:
-            root_box = np.concatenate([b[:, :3].min(0), b[:, 3:].max(0)])
-        area_sum += half_area(b).sum()
-        ptr = children[used]
-        typ = bvh.node_type(ptr)
-        assert np.isin(typ, [BOX_TYPE, TRI_TYPE]).all()
-        coff = bvh.node_offset(ptr)
-        assert (coff % 64 == 0).all() and (coff > 0).all()
-        assert (coff + np.where(typ == BOX_TYPE, BOX_BYTES, TRI_BYTES) <= len(img)).all()
-        tri = typ == TRI_TYPE
-        if tri.any():
-            tris, prim = bvh.tri_nodes(ptr[tri])
-            assert ((prim >= 0) & (prim < n)).all()
-            assert (tris.view(np.uint32) == bvh.triangles[prim].view(np.uint32)).all()
-            tb = b[tri]
-            assert (tb[:, :3] < tris.min(1)).all() and (tb[:, 3:] > tris.max(1)).all(), \
-                "triangle strictly inside its box"
-            toff = bvh.node_offset(ptr[tri])
-            assert (words[(toff >> 2)[:, None] + np.arange(10, 16)] == 0).all(), "tri node tail"
-            seen_tri.append(ptr[tri])
-            leaf_box.update(zip(prim.tolist(), tb))
-        box = typ == BOX_TYPE
-        parents = np.repeat(level, used.sum(1))[box]
-        level, level_box = ptr[box], b[box]
-        seen_box.append(level)
-    boxes_p = np.concatenate(seen_box)
-    tris_p = np.concatenate(seen_tri)
-    everything = np.concatenate([boxes_p, tris_p])
-    assert len(np.unique(everything)) == len(everything), "no node referenced twice"
-    # the nodes tile the image exactly: all bytes belong to a reachable node, no overlaps
-    off = bvh.node_offset(everything)
-    size = np.where(bvh.node_type(everything) == BOX_TYPE, BOX_BYTES, TRI_BYTES)
-    o = np.argsort(off)
-    assert off[o][0] == 0 and (off[o][1:] == (off[o] + size[o])[:-1]).all()
-    assert off[o][-1] + size[o][-1] == len(img)
-    assert sorted(leaf_box) == list(range(n)), "every triangle in exactly one leaf"
-    s = bvh.stats
-    assert s["box_nodes"] == len(boxes_p) and s["tri_nodes"] == len(tris_p) == n
-    assert s["bytes"] == len(img) == BOX_BYTES * s["box_nodes"] + TRI_BYTES * n
-    assert s["depth"] == depth
-    assert s["sah_cost"] == pytest.approx(1 + area_sum / half_area(root_box), rel=1e-9)
-    assert s["build_s"] >= 0
-    hist = np.bincount(np.concatenate(counts), minlength=5)[1:]
-    assert s["child_histogram"] == hist.tolist()
-    assert s["avg_children"] == pytest.approx(np.concatenate(counts).mean(), rel=1e-12)
-    return leaf_box
 
 
 MESHES = {
@@ -488,3 +408,16 @@ def test_bvh_bench_dict(tmp_path):
         for cull, key in ((False, "ops_per_ray"), (True, "culled_ops_per_ray"))
         if r["box_nodes"] <= 36_000 and r[key] <= 5.9755]
     assert (tmp_path / "fills.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_malformed_binary_tree_is_an_error_not_a_walk_without_end():
+    """``check_tree`` (run on every build): the walks down the tree end because children are
+    numbered after their parent, each node has one parent; a cycle or a shared child is
+    refused."""
+    left, right = np.array([1, -1, -1]), np.array([2, -1, -1])
+    bvh_build.check_tree(left, right)
+    for l, r in (([1, 0, -1], [2, 0, -1]),          # a cycle back to the root
+                 ([1, -1, -1], [1, -1, -1]),        # one child twice, node 2 unreached
+                 ([1, -1, -1], [-1, -1, -1])):      # an interior node with one child
+        with pytest.raises(RuntimeError, match="malformed"):
+            bvh_build.check_tree(np.array(l), np.array(r))

@@ -102,6 +102,8 @@ def test_render_mesh_file_and_toml(in_tmp):
     (["render", "sphere", "--backend", "nope"], "unknown backend"),
     (["render", "sphere", "--out", "no/such/dir/x.png"], "directory"),
     (["render", "sphere", "--bvh-fill", "-1"], "--bvh-fill must be an integer >= 0"),
+    (["render", "sphere", "--workers", "2", "--scheduler", "tcp://127.0.0.1:9"],
+     "give one of them"),
 ])
 def test_user_mistakes_exit_2_with_one_line(error_line, args, words):
     assert main(args + ["--backend", "golden"] * ("--backend" not in args)) == 2
@@ -179,7 +181,7 @@ def test_help_names_exit_codes_and_environment(capsys):
         with pytest.raises(SystemExit):
             main(args)
         out = capsys.readouterr().out
-        assert "RAYFLEX_CACHE" in out and "RAYFLEX_PGO" in out and "~/.cache/rayflex/verilator" in out
+        assert "RAYFLEX_CACHE" in out and "RAYFLEX_PGO" in out and "~/.cache/rayflex" in out
         for code in EXIT_CODES:
             assert f"  {code} " in out, (args, code)
     assert set(EXIT_CODES) >= {0, 1, 2, 130, 143} and set(ENVIRONMENT) >= {"RAYFLEX_CACHE",
@@ -263,3 +265,37 @@ def test_console_script():
     assert r.returncode == 2
     assert r.stderr.strip().startswith("rayflex: error: unknown scene")
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_one_name_for_the_cache_in_readme_help_and_code(capsys):
+    """The README and --help named the cache differently (~/.cache/rayflex vs
+    ~/.cache/rayflex/verilator); now RAYFLEX_CACHE is one folder holding every cache."""
+    import re
+    from pathlib import Path
+
+    from driver import area
+    from driver.backends import cache as verilate
+    from driver.cli import ENVIRONMENT
+    from driver.power import netlist
+    default = re.search(r"\(default (\S+?)\)", ENVIRONMENT["RAYFLEX_CACHE"]).group(1)
+    assert default == verilate.DEFAULT_CACHE == "~/.cache/rayflex"
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    assert f"`{default}` (`RAYFLEX_CACHE`" in readme
+    root = verilate.cache_root()
+    assert [verilate.cache_dir(), area.cache_root(), netlist.cache_root()] == \
+        [root / "verilator", root / "area", root / "power"]
+
+
+def test_one_default_backend_for_the_api_and_the_command_line():
+    """driver.trace defaulted to the rtl backend and driver.tracer.trace to golden."""
+    import inspect
+
+    import driver
+    from driver import knn, render, tiles, tracer
+    from driver.backends import DEFAULT_BACKEND
+    from driver.cli import build_parser
+    defaults = {f.__module__ + "." + f.__name__: inspect.signature(f).parameters["backend"].default
+                for f in (driver.trace, tracer.trace, render.render, knn.knn, tiles.render_tiles)}
+    assert set(defaults.values()) == {DEFAULT_BACKEND}, defaults
+    for argv in (["render", "sphere"], ["knn"]):
+        assert build_parser().parse_args(argv).backend == DEFAULT_BACKEND

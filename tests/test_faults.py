@@ -21,6 +21,7 @@ import textwrap
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from driver.cli import EXIT_CODES, main
@@ -39,6 +40,12 @@ def env_for(cache: Path, **extra) -> dict:
 def rayflex(*args, cwd, env, **kw) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "driver.cli", *args], cwd=cwd, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
+
+
+def build_dirs(cache: Path) -> list[Path]:
+    """The temporary build directories in the Verilator cache under ``cache``
+    (RAYFLEX_CACHE)."""
+    return list((cache / "verilator").glob(".tmp-*"))
 
 
 def last_line(stderr: str) -> str:
@@ -85,7 +92,7 @@ def test_sigterm_during_a_build_kills_the_compilers_and_leaves_nothing(tmp_path)
     p = rayflex("render", "sphere", "--size", "4", "--backend", "rtl", "--no-progress",
                 cwd=work, env=env_for(cache))
     try:
-        tmp = wait_for(lambda: next(cache.glob(".tmp-*"), None), 60, "the build to start")
+        tmp = wait_for(lambda: next(iter(build_dirs(cache)), None), 60, "the build to start")
         wait_for(lambda: processes_inside(tmp), 60, "a build tool to run")
         time.sleep(0.5)
         p.send_signal(signal.SIGTERM)
@@ -94,7 +101,7 @@ def test_sigterm_during_a_build_kills_the_compilers_and_leaves_nothing(tmp_path)
         p.kill()
     assert p.returncode == EXIT_TERMINATED
     assert last_line(err) == "rayflex: terminated"
-    assert not list(cache.glob(".tmp-*")) and not processes_inside(cache)
+    assert not build_dirs(cache) and not processes_inside(cache)
     assert not list(work.iterdir())
 
 
@@ -114,14 +121,14 @@ def test_sigterm_during_a_build_in_a_library_user_cleans_up_then_dies_by_sigterm
     p = subprocess.Popen([sys.executable, "-c", _SLEEPING_BUILD], env=env_for(cache),
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        tmp = wait_for(lambda: next(cache.glob(".tmp-*"), None), 60, "the build to start")
+        tmp = wait_for(lambda: next(iter(build_dirs(cache)), None), 60, "the build to start")
         sleeper = wait_for(lambda: processes_inside(tmp), 60, "the tool to run")
         p.send_signal(signal.SIGTERM)
         p.communicate(timeout=60)
     finally:
         p.kill()
     assert p.returncode == -signal.SIGTERM
-    assert not list(cache.glob(".tmp-*")) and not processes_inside(cache)
+    assert not build_dirs(cache) and not processes_inside(cache)
     assert not Path(f"/proc/{sleeper[0]}").exists() or \
         Path(f"/proc/{sleeper[0]}/status").read_text().find("State:\tZ") >= 0
 
@@ -131,7 +138,7 @@ def test_next_build_kills_what_a_sigkilled_build_left(tmp_path):
     still working inside the stale temporary directory and removes it."""
     from driver.backends import verilate
     cache = tmp_path / "cache"
-    stale = cache / ".tmp-model-abc-x1y2"
+    stale = cache / "verilator" / ".tmp-model-abc-x1y2"
     (stale / "obj").mkdir(parents=True)
     orphan = subprocess.Popen(["sleep", "600"], cwd=stale / "obj", start_new_session=True)
     other = subprocess.Popen(["sleep", "600"], cwd=tmp_path)      # not inside: must survive
@@ -154,7 +161,7 @@ def test_sigkill_during_a_build_then_rebuild(tmp_path):
     work.mkdir()
     p = rayflex("render", "sphere", "--size", "4", "--backend", "rtl", "--no-progress",
                 cwd=work, env=env_for(cache))
-    tmp = wait_for(lambda: next(cache.glob(".tmp-*"), None), 60, "the build to start")
+    tmp = wait_for(lambda: next(iter(build_dirs(cache)), None), 60, "the build to start")
     wait_for(lambda: processes_inside(tmp), 60, "a build tool to run")
     time.sleep(2)
     p.kill()
@@ -163,8 +170,88 @@ def test_sigkill_during_a_build_then_rebuild(tmp_path):
                 cwd=work, env=env_for(cache))
     out, err = q.communicate(timeout=900)
     assert q.returncode == EXIT_OK, err
-    assert not tmp.exists() and not list(cache.glob(".tmp-*")) and not processes_inside(cache)
+    assert not tmp.exists() and not build_dirs(cache) and not processes_inside(cache)
     assert (work / "sphere.png").is_file()
+
+
+# ---------------------------------------------------------------------------------------------
+# Ctrl-C and SIGTERM inside native code
+
+_NATIVE_SPIN = textwrap.dedent("""
+    from numba import njit
+    from driver.cli.interrupt import watch
+
+    @njit(nogil=True)
+    def spin(n):
+        x = 0.0
+        for i in range(n):
+            x += (i % 7) * 1e-9
+        return x
+
+    class Stop(BaseException):
+        pass
+
+    spin(10)
+    print("ready", flush=True)
+    with watch("spinner", {2: ("interrupted", 130), 15: ("terminated", 143)}, Stop):
+        spin(10 ** 13)                           # hours of native code
+""")
+
+
+@pytest.mark.parametrize("sig, code, word", [(signal.SIGINT, 130, "interrupted"),
+                                             (signal.SIGTERM, 143, "terminated")])
+def test_a_signal_ends_a_native_kernel_within_a_second(tmp_path, sig, code, word):
+    """Python's handler cannot run while the main thread is inside a numba kernel (the q8
+    encoder's matching once looped there and only SIGKILL ended it): ``driver.cli.interrupt``
+    ends the process from its own thread."""
+    p = subprocess.Popen([sys.executable, "-c", _NATIVE_SPIN], env=env_for(tmp_path),
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert p.stdout.readline().strip() == "ready"
+        time.sleep(0.5)
+        t0 = time.monotonic()
+        p.send_signal(sig)
+        _, err = p.communicate(timeout=30)
+        latency = time.monotonic() - t0
+    finally:
+        p.kill()
+    assert p.returncode == code
+    assert last_line(err) == f"spinner: {word}"
+    assert latency < 3.0                      # 0.5 s grace, then the exit (~0.6 s measured)
+
+
+def test_sigint_during_a_large_q8_build_ends_the_command_at_once(tmp_path):
+    """``rayflex render`` of a 600,000-triangle mesh in q8: Ctrl-C during the build (native
+    kernels) ends it within about a second, exit 130, nothing written."""
+    import trimesh
+    rng = np.random.default_rng(0)
+    n = 600_000
+    c = rng.uniform(-1, 1, (n, 1, 3))
+    tris = (c + 0.01 * rng.normal(size=(n, 3, 3))).astype(np.float32).reshape(-1, 3)
+    trimesh.Trimesh(tris, np.arange(3 * n).reshape(-1, 3), process=False).export(
+        tmp_path / "big.ply")
+    work = tmp_path / "work"
+    work.mkdir()
+    p = rayflex("render", str(tmp_path / "big.ply"), "--bvh-format", "q8", "--backend",
+                "golden", "--size", "8", "--out", "x.png", cwd=work, env=env_for(tmp_path))
+    try:
+        wait_for(lambda: _cpu_seconds(p.pid) > 4.0, 120, "the command to load and build")
+        t0 = time.monotonic()
+        p.send_signal(signal.SIGINT)
+        _, err = p.communicate(timeout=30)
+        latency = time.monotonic() - t0
+    finally:
+        p.kill()
+    assert p.returncode == 130, err
+    assert last_line(err) == "rayflex: interrupted"
+    assert latency < 3.0
+    assert not list(work.iterdir())
+
+
+def _cpu_seconds(pid: int) -> float:
+    """User + system CPU time of a process (Linux /proc)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -187,9 +274,9 @@ def test_lock_wait_is_announced_and_concurrent_builds_build_once(tmp_path):
     """Issue 11 #4: a wait on another process's build lock printed nothing; issue 11 #2: two
     concurrent builds both built (pyverilator had no lock). All builds share cached_build."""
     cache = tmp_path / "cache"
-    cache.mkdir()
+    (cache / "verilator").mkdir(parents=True)
     log = tmp_path / "builds.txt"
-    with open(cache / ".model-k.lock", "w") as held:
+    with open(cache / "verilator" / ".model-k.lock", "w") as held:
         fcntl.flock(held, fcntl.LOCK_EX)             # another process holds the lock
         procs = [subprocess.Popen([sys.executable, "-c", _BUILD, str(log)], env=env_for(cache),
                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -200,7 +287,7 @@ def test_lock_wait_is_announced_and_concurrent_builds_build_once(tmp_path):
     assert all(p.returncode == 0 and out.strip() == "ok" for p, (out, _) in zip(procs, results))
     assert log.read_text() == "built\n"              # built once
     assert all("(another process holds the lock)" in err for _, err in results)
-    assert not list(cache.glob(".tmp-*"))
+    assert not build_dirs(cache)
 
 
 @pytest.mark.slow
@@ -222,7 +309,7 @@ def test_concurrent_cold_cache_renders_with_both_backends(tmp_path):
     text = "".join(errs)
     assert text.count("building Verilator model rayflex") == 1
     assert text.count("building pyverilator model rayflex") == 1
-    assert not list(cache.glob(".tmp-*")) and not processes_inside(cache)
+    assert not build_dirs(cache) and not processes_inside(cache)
 
 
 # ---------------------------------------------------------------------------------------------

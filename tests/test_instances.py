@@ -13,8 +13,14 @@ from driver.core.wire import FLAG_DECODE_Q8
 from driver.core.layout import (IMAGE_FORMATS, INSTANCE_BYTES, INSTANCE_NODE, INSTANCE_TYPE,
                                 NO_CHILD, NODE_BYTES, Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, Q8_TYPE,
                                 NodeRef, read_nodes)
-from driver.tracer import trace
+from driver.tracer import trace as _trace
 from support.meshes import reuse_glb
+
+
+def trace(*args, backend="golden", **options):
+    """``driver.tracer.trace`` on the golden model unless a test names a backend: these tests
+    check the traversal, and every backend gives the same responses (tests/test_rtl.py)."""
+    return _trace(*args, backend=backend, **options)
 
 T_REL = 1e-5        # the transform's rounding: largest relative t difference allowed
 

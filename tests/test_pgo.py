@@ -51,10 +51,12 @@ def test_failed_training_is_a_build_error(tmp_path, monkeypatch):
         build_library("fpu_tb_top", FPU_TB_SOURCES, FPU_HARNESS,
                       train=[sys.executable, "-c", "import sys; sys.exit(3)"])
     assert "\n" not in str(e.value)
-    cached = [p for p in tmp_path.glob("fpu_tb_top-*/*.so") if p.parent.suffix != ".failed"]
+    cached = [p for p in tmp_path.glob("verilator/fpu_tb_top-*/*.so")
+              if p.parent.suffix != ".failed"]
     assert not cached
 
 
+@pytest.mark.slow                      # an instrumented build of its own (~50 s)
 def test_training_that_runs_nothing_is_a_build_error(tmp_path, monkeypatch):
     monkeypatch.setenv("RAYFLEX_CACHE", str(tmp_path))
     with pytest.raises(BuildError, match="wrote no profile"):

@@ -17,100 +17,7 @@ from driver.core.layout import (GROUP_BYTES, GROUP_MAX_TRIS, GROUP_NODE, GROUP_T
 from driver.core.wire import REQUEST_DTYPE, pack_requests, ray_words
 from driver.tracer import trace
 from support import meshes
-
-
-def _grown(lo, hi, pad):
-    """The box32 stored box of exact float32 bounds (driver.bvh4's growth rule)."""
-    glo = np.nextafter(np.float32(lo.astype(np.float64) - pad), np.float32(-np.inf))
-    ghi = np.nextafter(np.float32(hi.astype(np.float64) + pad), np.float32(np.inf))
-    return glo.astype(np.float32), ghi.astype(np.float32)
-
-
-def image_leaves(bvh):
-    """Every leaf the box nodes reference: (pointers (l,) uint32, triangle count (l,),
-    triangles (l, GROUP_MAX_TRIS, 3, 3) float32 and prims (l, GROUP_MAX_TRIS) int64 (-1
-    padded)), read through the request pointers the traversal issues (``leaf_next``)."""
-    nb = bvh.stats["box_nodes"]
-    nodes = bvh.image[:Q8_BYTES * nb].view(Q8_NODE)
-    ptr = nodes["child"][np.arange(4)[None, :] < q8_count(nodes)[:, None]]
-    ptr = ptr[NodeRef.type(ptr) != Q8_TYPE]
-    count = leaf_count(bvh.image, ptr)
-    tris = np.zeros((len(ptr), GROUP_MAX_TRIS, 3, 3), np.float32)
-    prim = np.full((len(ptr), GROUP_MAX_TRIS), -1, np.int64)
-    for k in range(GROUP_MAX_TRIS):
-        has = np.flatnonzero(count > k)
-        req = ptr[has] if k == 0 else leaf_next(ptr[has], k)
-        tris[has, k], prim[has, k] = leaf_triangles(bvh.image, req)
-    return ptr, count, tris, prim
-
-
-def check_image(bvh, tris) -> None:
-    """Every triangle in exactly one leaf, bit for bit in its input vertex order; every used
-    child slot's decoded box contains the box32 stored box of that child, recomputed here from
-    the triangles below it; unused slots decode to +inf; exponents and counts in range; group
-    leaves hold 3 to 6 triangles and 128 bytes, pair leaves 1 or 2 and 64."""
-    tris = np.asarray(tris, np.float32)
-    nb = bvh.stats["box_nodes"]
-    nodes = bvh.image[:Q8_BYTES * nb].view(Q8_NODE)
-    assert bvh.format in ("q8", "q8g") and bvh.root == Q8_TYPE
-    lptr, lcount, ltris, lprim = image_leaves(bvh)
-    group = NodeRef.type(lptr) == GROUP_TYPE
-    assert np.isin(NodeRef.type(lptr), (PAIR_TYPE, GROUP_TYPE)).all()
-    assert bvh.format == "q8g" or not group.any()
-    assert ((lcount[group] >= 3) & (lcount[group] <= GROUP_MAX_TRIS)).all()
-    assert ((lcount[~group] >= 1) & (lcount[~group] <= 2)).all()
-    assert group.sum() == bvh.stats["group_leaves"] and len(lptr) == bvh.stats["leaf_nodes"]
-    assert lcount[group].sum() == bvh.stats["grouped_triangles"]
-    assert bvh.stats["bytes"] == bvh.image.nbytes == 64 * nb + 64 * (~group).sum() + \
-        GROUP_BYTES * group.sum()
-    # leaves follow the box nodes back to back, each in its own 64-byte slots
-    off = np.sort(NodeRef.offset(lptr))
-    size = np.where(group, GROUP_BYTES, PAIR_BYTES)[np.argsort(NodeRef.offset(lptr))]
-    assert off[0] == 64 * nb and np.array_equal(off[1:], (off + size)[:-1])
-
-    used = lprim >= 0
-    assert np.array_equal(np.sort(lprim[used]), np.arange(len(tris)))
-    assert np.array_equal(ltris[used].view(np.uint32), tris[lprim[used]].view(np.uint32))
-    if bvh.format == "q8":
-        assert np.isclose(bvh.stats["pair_ratio"], 2 * (lcount == 2).sum() / len(tris))
-
-    exp = nodes["exp"][:, :3].view(np.int8)
-    assert ((exp >= Q8_EXP_MIN) & (exp <= Q8_EXP_MAX)).all()
-    count = q8_count(nodes)
-    assert ((count >= 1) & (count <= 4)).all()
-    assert not (nodes["exp"][:, 3] & ~np.uint8(7)).any()
-
-    # exact bounds of every leaf and, bottom up (children follow their parent), of every node
-    big = np.float32(np.inf)
-    leaf_lo = np.where(used[..., None, None], ltris, big).min(axis=(1, 2))
-    leaf_hi = np.where(used[..., None, None], ltris, -big).max(axis=(1, 2))
-    leaf_at = {int(p): i for i, p in enumerate(lptr)}
-    node_lo = np.full((nb, 3), np.inf, np.float32)
-    node_hi = np.full((nb, 3), -np.inf, np.float32)
-    child_lo = np.zeros((nb, 4, 3), np.float32)
-    child_hi = np.zeros((nb, 4, 3), np.float32)
-    ptr = nodes["child"]
-    typ, off = NodeRef.type(ptr), NodeRef.offset(ptr)
-    used = np.arange(4)[None, :] < count[:, None]
-    assert (ptr[~used] == NO_CHILD).all()
-    for i in range(nb - 1, -1, -1):
-        for j in range(count[i]):
-            if typ[i, j] == Q8_TYPE:
-                k = off[i, j] // Q8_BYTES
-                assert k > i
-                lo, hi = node_lo[k], node_hi[k]
-            else:
-                k = leaf_at[int(ptr[i, j])]
-                lo, hi = leaf_lo[k], leaf_hi[k]
-            child_lo[i, j], child_hi[i, j] = lo, hi
-            node_lo[i] = np.minimum(node_lo[i], lo)
-            node_hi[i] = np.maximum(node_hi[i], hi)
-    pad = PAD_REL * float(max(-tris.min(), tris.max()))
-    ref_lo, ref_hi = _grown(child_lo, child_hi, pad)
-    dec = decode_q8(nodes)
-    assert (dec[..., :3][used] <= ref_lo[used]).all()
-    assert (dec[..., 3:][used] >= ref_hi[used]).all()
-    assert (dec[~used] == np.inf).all()
+from support.images import check_image, image_leaves
 
 
 def _grid(k: int, scale: float = 1.0, offset=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -164,7 +71,7 @@ def test_pairs_share_edges_and_cover_a_mesh():
 def test_vertex_ids_number_bit_identical_points_by_first_use_on_any_shards():
     """The sharded hash tables (one per thread) give the first-use numbering of the exact
     float32 bits, whatever the number of shards: numpy's unique rows as the reference."""
-    from driver.bvh.q8 import _vertex_ids
+    from driver.bvh.q8 import _vertex_ids_one, _vertex_ids_par
     rng = np.random.default_rng(3)
     pts = rng.integers(-6, 7, (6000, 3)).astype(np.float32)
     pts[::7, 1] = -0.0                                      # -0.0 and 0.0 are different bits
@@ -176,30 +83,98 @@ def test_vertex_ids_number_bit_identical_points_by_first_use_on_any_shards():
     want = rank[inverse.reshape(-1)]
     assert len(first) < len(pts) / 2                         # many repeats
     for shards in (1, 2, 3, 4):
-        got = _vertex_ids(bits, np.full((shards, 1 << 14), -1, np.int32))
-        assert np.array_equal(got, want), shards
+        for kernel in (_vertex_ids_par, _vertex_ids_one):
+            got = kernel(bits, np.full((shards, 1 << 14), -1, np.int32))
+            assert np.array_equal(got, want), shards
+        assert len(_vertex_ids_one(bits, np.full((shards, 1 << 8), -1, np.int32))) == 0  # full
+
+
+def _scan_neighbours(ids):
+    """The edge neighbours ``_neighbours`` promises, by a plain scan: per edge in order, the
+    other triangles that share it in index order, all of them if they are at most three
+    triangles with t, else only the one before and the one after t; each once."""
+    rows = []
+    for t in range(len(ids)):
+        want = []
+        for e in range(3):
+            a, b = ids[t, e], ids[t, (e + 1) % 3]
+            if a == b:
+                continue
+            share = [u for u in range(len(ids)) if a in ids[u] and b in ids[u]]
+            if len(share) > 3:
+                i = share.index(t)
+                share = share[max(0, i - 1):i + 2]
+            want += [u for u in share if u != t and u not in want]
+        rows.append(want)
+    return rows
 
 
 def test_edge_neighbours_equal_a_plain_scan():
-    """The parallel adjacency (``_neighbours``) lists, per triangle, the triangles sharing each
-    of its edges in edge order and index order, each once, as a plain scan over all triangles,
-    whichever number of workers fills the per-vertex lists."""
-    from driver.bvh.q8 import _neighbours, vertex_ids
-    tris = np.concatenate([_grid(5), _grid(5)[:9], meshes.soup(4, seed=2)])   # doubled edges
+    """The parallel adjacency (``_neighbours``) equals a plain scan whichever number of workers
+    fills the per-vertex lists, on a grid with doubled edges, a degenerate triangle and an edge
+    shared by 40 triangles, and is symmetric."""
+    from driver.bvh.q8 import _neighbours_one, _neighbours_par, vertex_ids
+    rng = np.random.default_rng(4)
+    fan = np.zeros((40, 3, 3), np.float32)                   # 40 triangles on one edge
+    fan[:, 1, 2] = 1.0
+    fan[:, 2] = rng.normal(size=(40, 3))
+    fan[17, 2] = fan[3, 2]                                   # and a duplicate among them
+    tris = np.concatenate([_grid(5), _grid(5)[:9], meshes.soup(4, seed=2), fan, fan[:3]])
     tris[3, 2] = tris[3, 1]                                  # a degenerate triangle
+    tris[60, 2] = tris[60, 0]                                # and one with an edge twice
     ids = vertex_ids(tris)
-    for shards in (1, 2, 3, 7):                              # the vertex lists' owners
-        adj, deg = _neighbours(ids, int(ids.max()) + 1, shards)
+    want = _scan_neighbours(ids)
+    for shards, kernel in ((1, _neighbours_one), (1, _neighbours_par), (2, _neighbours_par),
+                           (3, _neighbours_par), (7, _neighbours_one)):   # the lists' owners
+        adj, deg = kernel(ids, int(ids.max()) + 1, shards)
         for t in range(len(ids)):
-            want = []
-            for e in range(3):
-                a, b = ids[t, e], ids[t, (e + 1) % 3]
-                if a != b:
-                    want += [u for u in range(len(ids)) if u != t and a in ids[u]
-                             and b in ids[u] and u not in want]
-            assert list(adj[t, :deg[t]]) == want[:len(adj[t])], (shards, t)
+            assert list(adj[t, :deg[t]]) == want[t], (shards, t)
             assert (adj[t, deg[t]:] == -1).all()
-        assert deg.max() >= 3
+            assert all(t in adj[u, :deg[u]] for u in adj[t, :deg[t]])
+        assert deg.max() == 6
+
+
+def test_matching_ends_on_the_mesh_that_looped():
+    """Nine triangles on five vertices, every edge shared by 3 to 5 of them: the adjacency cut
+    at six per triangle was asymmetric, a triangle's count of unmatched neighbours stayed
+    above zero with none left, and the matching picked it forever. Now every triangle but one
+    is paired with an edge neighbour, and the step cap holds."""
+    from driver.bvh.q8 import _match, match_limit, neighbours, pair_triangles, vertex_ids
+    v = np.array([(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 1)], np.float32)
+    f = [[0, 1, 2], [3, 1, 0], [3, 0, 4], [2, 0, 3], [4, 0, 1], [1, 2, 4], [0, 2, 3],
+         [3, 1, 0], [1, 3, 2]]
+    tris = v[np.array(f)]
+    first, second = pair_triangles(tris)[:2]
+    assert (second >= 0).sum() == 4
+    ids = vertex_ids(tris)
+    for a, b in zip(first[second >= 0], second[second >= 0]):
+        assert len(set(ids[a]) & set(ids[b])) >= 2
+    check_image(build(tris, format="q8"), tris)
+    adj, deg = neighbours(ids)
+    partner, steps = _match(adj, deg, tris, match_limit(len(tris)))
+    assert steps < match_limit(len(tris))
+
+
+def test_matching_falls_back_at_its_cap_and_on_an_inconsistent_adjacency():
+    """The step cap is reachable: at the cap the matching stops with the rest unpaired; an
+    adjacency whose rows disagree (u lists t, t does not list u) ends too, the triangle whose
+    count was wrong left alone."""
+    from driver.bvh.q8 import _match, neighbours, vertex_ids
+    tris = _grid(6)
+    ids = vertex_ids(tris)
+    adj, deg = neighbours(ids)
+    full, _ = _match(adj, deg, tris, 10 ** 6)
+    part, steps = _match(adj, deg, tris, 3)
+    assert steps == 3 and (part >= 0).sum() <= 6 < (full >= 0).sum()
+    assert all(part[part[t]] == t for t in np.flatnonzero(part >= 0))
+    # t = 0 counts a neighbour that does not list it back: the old loop never ended here
+    bad_adj = np.full((3, 6), -1, np.int32)
+    bad_adj[0, :2] = 1, 2
+    bad_adj[1, 0] = 2
+    bad_adj[2, 0] = 1
+    bad_deg = np.array([2, 1, 1], np.int8)
+    partner, steps = _match(bad_adj, bad_deg, tris[:3], 100)
+    assert list(partner) == [-1, 2, 1] and steps < 100
 
 
 @pytest.mark.parametrize("fmt", ["q8", "q8g"])
@@ -239,7 +214,7 @@ def test_bad_format():
     with pytest.raises(ValueError, match="format"):
         build(meshes.soup(4), format="q16")
     with pytest.raises(ValueError, match="box32"):
-        trace(build(meshes.soup(4)), [[0, 0, 0]], [[0, 0, 1]], bvh_format="q8")
+        trace(build(meshes.soup(4)), [[0, 0, 0]], [[0, 0, 1]], bvh_format="q8", backend="golden")
 
 
 # ----------------------------------------------------------------------------------------------

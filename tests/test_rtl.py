@@ -196,7 +196,7 @@ def test_missing_compiler_names_it(tmp_path):
         msg = ast.literal_eval(lines[name].split(" ", 1)[1])
         assert "\n" not in msg and "compiler" in msg, msg
     assert missing in ast.literal_eval(lines["rtl"].split(" ", 1)[1])
-    assert not (tmp_path / "cache").exists() or not any((tmp_path / "cache").glob("rayflex*"))
+    assert not (tmp_path / "cache").exists() or not any((tmp_path / "cache").rglob("rayflex*"))
 
 
 # ----------------------------------------------------------------------------------------------

@@ -138,11 +138,25 @@ def test_points_on_dask_workers_equal_one_process(tmp_path):
     ["--cache-kib", "1", "--cache-ways", "64"],
     ["--workers", "0"],
     ["--size", "0"],
+    ["--workers", "2", "--scheduler", "tcp://127.0.0.1:9"],   # was accepted, failed 5 s later
 ])
 def test_errors_before_any_work(argv, tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(sweep_mod, "trace_workload", lambda *a: pytest.fail("traced"))
+    monkeypatch.setattr(sweep_mod, "sweep", lambda *a, **k: pytest.fail("started the sweep"))
     assert main(["sweep", "--scene", "sphere", "--no-progress", *argv]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("rayflex: error: "), err
     assert not list(tmp_path.iterdir())
+
+
+def test_the_build_notice_counts_only_models_really_missing(swept):
+    """Once the sweep has run, every model it uses is cached: the notice named the traced models
+    by the harness's parameters (rayflex_power_e0_d0_c0_t0_l11, cached as
+    rayflex_power_e0_d0_l11) and announced "2 of 4 models to build first" on every sweep."""
+    from driver.cli import build_parser, options
+    from driver.power import uncached_models
+    points = options.grid_from_args(build_parser().parse_args(["sweep", *GRID]))
+    models = sweep_mod.models(points)
+    assert sorted(kind for kind, _ in models) == ["rtl", "rtl", "signals", "signals"]
+    assert uncached_models(models) == []

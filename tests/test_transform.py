@@ -37,6 +37,12 @@ CONFIGS = [(e, d, c) for c in (False, True) for e in (False, True) for d in (Fal
 CONFIG_IDS = [f"{'extended' if e else 'baseline'}-{'disjoint' if d else 'unified'}"
               f"{'-q8' if c else ''}-xf" for e, d, c in CONFIGS]
 FAST_PRESSURES = [(0.0, 0.0), (0.5, 0.5)]
+# The default suite streams through the two builds that bound the others (no option, every
+# option); each build is a Verilator model of its own, compiled on first use (~1 min), so the
+# other six run with -m slow (test_random_stream_rtl_all_pressures runs all eight).
+DEFAULT_CONFIGS = [(False, False, False), (True, True, True)]
+CONFIG_PARAMS = [pytest.param(*c, id=i, marks=() if c in DEFAULT_CONFIGS else pytest.mark.slow)
+                 for c, i in zip(CONFIGS, CONFIG_IDS)]
 
 
 def reference_transform(m, o, d):
@@ -214,7 +220,7 @@ def _stream(seed, compressed, extended, n_xf=1500, n_box=500, n_tri=500):
 
 
 @pytest.mark.parametrize("gaps,stalls", FAST_PRESSURES, ids=["steady", "gaps0.5-stalls0.5"])
-@pytest.mark.parametrize("extended,disjoint,compressed", CONFIGS, ids=CONFIG_IDS)
+@pytest.mark.parametrize("extended,disjoint,compressed", CONFIG_PARAMS)
 def test_random_stream_rtl(extended, disjoint, compressed, gaps, stalls):
     tb = Testbench("rtl", extended=extended, disjoint=disjoint, compressed=compressed,
                    transform=True, gaps=gaps, stalls=stalls, seed=41)

@@ -10,12 +10,13 @@ application; the PGO training workload (``driver.pgo``) runs in a separate proce
 
 from __future__ import annotations
 
-from .base import BACKENDS, Backend, BackendError, NodeBackend
+from .base import BACKENDS, DEFAULT_BACKEND, Backend, BackendError, NodeBackend
 from .golden import GoldenBackend
 from .harness import HarnessBackend
 from .pyverilator import PyverilatorBackend
 
-__all__ = ["BACKENDS", "Backend", "BackendError", "NodeBackend", "backend", "resolve"]
+__all__ = ["BACKENDS", "DEFAULT_BACKEND", "Backend", "BackendError", "NodeBackend", "backend",
+           "resolve"]
 
 
 def backend(name: str, **options) -> Backend:

@@ -8,6 +8,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 BACKENDS = ("golden", "rtl", "pyverilator")
+DEFAULT_BACKEND = "rtl"     # of the command line and of every API call that takes a backend
 
 
 class BackendError(ValueError):

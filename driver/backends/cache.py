@@ -1,5 +1,6 @@
-"""The build cache of the Verilated models: one directory per entry under ``$RAYFLEX_CACHE`` (or
-``DEFAULT_CACHE``), built once under an ``fcntl`` lock and renamed into place atomically.
+"""The build cache of the Verilated models: one directory per entry under
+``$RAYFLEX_CACHE/verilator`` (``RAYFLEX_CACHE`` defaults to ``~/.cache/rayflex``), built once
+under an ``fcntl`` lock and renamed into place atomically.
 
 ``cached_build(entry, artifact, build, what)`` returns ``cache_dir()/entry/artifact``, building it
 on a miss: ``build`` fills a fresh temporary directory inside the cache under the entry's lock
@@ -33,13 +34,19 @@ class BuildError(RuntimeError):
     """A Verilator/C++ build or lint failed; the message is one line meant for the user."""
 
 
-DEFAULT_CACHE = "~/.cache/rayflex/verilator"
+DEFAULT_CACHE = "~/.cache/rayflex"     # RAYFLEX_CACHE: every cache of the tool, one folder each
+
+
+def cache_root() -> Path:
+    """The tool's cache (``$RAYFLEX_CACHE`` or ``DEFAULT_CACHE``): Verilator models in
+    ``verilator/`` (``cache_dir``), synthesized netlists in ``area/`` and ``power/``."""
+    env = os.environ.get("RAYFLEX_CACHE")
+    return Path(env or DEFAULT_CACHE).expanduser()
 
 
 def cache_dir() -> Path:
-    """Root of the build cache (``$RAYFLEX_CACHE`` or ``DEFAULT_CACHE``)."""
-    env = os.environ.get("RAYFLEX_CACHE")
-    return Path(env or DEFAULT_CACHE).expanduser()
+    """The Verilator build cache: ``cache_root() / "verilator"``."""
+    return cache_root() / "verilator"
 
 
 def _estimate(root: Path, top: str) -> float | None:

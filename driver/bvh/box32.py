@@ -41,7 +41,7 @@ def place_slots(r, slots, left, child, box, parent, node_lo, node_hi, nb, box_pt
     return used, nb
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def fill_image(slots, left, prim, node_lo, node_hi, node_area, tris, child, box, parent, count,
                tri, tri_prim, box_ptr, tri_ptr, no_child):
     """Number the wide tree's nodes and write them into the image's node fields; returns the

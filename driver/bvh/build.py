@@ -36,6 +36,14 @@ primitives nearest its boundary across it (a node of 0 mod 3 triangles, e.g. the
 into 1 and 2 mod 3 and costs one non-full node). The collapse still minimises SAH, so it may
 leave a node non-full where that is cheaper. Fuller nodes shrink the tree and its memory but
 raise SAH and primary-ray ops a little (docs/bvh.md measures the trade-off).
+
+Termination (every loop has a bound): a split always puts between 1 and n - 1 primitives on
+each side (``_fillable_count``, the middle split when no axis splits, and the fill moves stop
+when no primitive is left to move), so the binary build makes exactly 2 n - 1 nodes; the
+depth-first stacks are bounded (``_STACK``, ``SWEEP_MAX`` entries) and each pop makes one node;
+``check_tree`` then checks that the tree is a pre-order tree (children numbered after their
+parent, one parent each), so every walk down it (``driver.bvh.collapse``, the q8 group choice)
+visits each node at most once.
 """
 
 from __future__ import annotations
@@ -57,7 +65,7 @@ def _half_area(dx, dy, dz):
     return dx * dy + dy * dz + dz * dx
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _prim_boxes(tris):
     """Primitive boxes (float32, exact) of (n, 3, 3) triangles. Their centroids are not stored
     (``_cent``): the kernels move and read less memory without them."""
@@ -96,7 +104,7 @@ def _bin(c, c0, scale, bins):
     return min(max(int((c - c0) * scale), 0), bins - 1)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _bounds(s, e, lo, hi, box, cbox):
     """Node box (float32) into box[0:6] = (min xyz, max xyz), the centroid bounds (float64) of
     primitives s:e into cbox[0:6]."""
@@ -129,7 +137,7 @@ def _fills(nl, cnt, fill):
     return nl % 3 != 0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _small(nid, s, e, lo, hi, fill, order, left, right, prim, node_box, lists, stk, a_r):
     """Build the whole subtree of node ``nid``, of at most SWEEP_MAX primitives (s:e), boxes
     included. Nodes of 3 or more primitives take the exact SAH split: every split of the centroid
@@ -214,7 +222,7 @@ def _small(nid, s, e, lo, hi, fill, order, left, right, prim, node_box, lists, s
         sp += 2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _binned(s, e, lo, hi, cbox, bins, fill, go_right, count, tab, cost, a_r, n_r):
     """Binned SAH over the centroid bounds cbox; fills go_right[s:e] and returns True, or
     returns False if no axis can split. A split that does not ``_fills`` moves the one or two
@@ -279,6 +287,8 @@ def _binned(s, e, lo, hi, cbox, bins, fill, go_right, count, tab, cost, a_r, n_r
         for j in range(s, e):
             if go_right[j] and _cent(lo, hi, j, ba) < bv:
                 bj, bv = j, _cent(lo, hi, j, ba)
+        if bj < 0:                                         # none right (cannot: nl < want < e - s)
+            break
         go_right[bj] = False
         nl += 1
     while nl > want:                                       # nearest left primitive goes right
@@ -286,12 +296,14 @@ def _binned(s, e, lo, hi, cbox, bins, fill, go_right, count, tab, cost, a_r, n_r
         for j in range(s, e):
             if not go_right[j] and _cent(lo, hi, j, ba) >= bv:
                 bj, bv = j, _cent(lo, hi, j, ba)
+        if bj < 0:                                         # none left (cannot: nl > want >= 1)
+            break
         go_right[bj] = True
         nl -= 1
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _fillable_count(nl, cnt, fill):
     """The left count nearest ``nl`` (within 2; the smaller on a tie) that ``_fills``."""
     for dd in (0, -1, 1, -2, 2):
@@ -306,7 +318,7 @@ def _move(dst, i, src, j):
         dst[i, a] = src[j, a]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _partition(s, e, go_right, order, lo, hi, t_order, t_lo, t_hi):
     """Stable partition of the primitives s:e (ids and their boxes move
     together, so that every pass reads memory in order), lefts first; the t_* arrays are
@@ -332,7 +344,7 @@ def _partition(s, e, go_right, order, lo, hi, t_order, t_lo, t_hi):
     return nl
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _scratch(bins):
     """Per-thread scratch arrays of ``_binned`` and ``_small`` (allocated once per task)."""
     return (np.zeros((3, bins), np.int64), np.empty((3, bins, 6), np.float32),
@@ -341,7 +353,7 @@ def _scratch(bins):
             np.empty(SWEEP_MAX))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _split(nid, s, e, cbox, lo, hi, bins, fill, order, tmp, go_right, left, right,
            scratch):
     """Split node ``nid`` (primitives s:e, more than SWEEP_MAX; centroid bounds cbox) by binned
@@ -445,10 +457,25 @@ def build_binary(tris, bins: int, progress=None, fill: int = 0, threads: int | N
     return left, right, prim, node_box[:, :3], node_box[:, 3:]
 
 
+def check_tree(left, right) -> None:
+    """Raise RuntimeError unless (left, right) (m,) is a binary tree in pre-order rooted at 0:
+    a leaf has both -1, an interior node two children numbered after it, and every node but
+    the root exactly one parent (so any walk down the tree ends within m steps)."""
+    m = len(left)
+    inner = left >= 0
+    kids = np.concatenate([left[inner], right[inner]])
+    i = np.flatnonzero(inner)
+    ok = (np.array_equal(inner, right >= 0) and (left[inner] > i).all()
+          and (right[inner] > i).all() and (kids < m).all()
+          and np.array_equal(np.bincount(kids, minlength=m), np.r_[0, np.ones(m - 1, np.int64)]))
+    if not ok:
+        raise RuntimeError("BVH build: the binary tree is malformed (a builder bug)")
+
+
 # ----------------------------------------------------------------------------------------------
 # the stored boxes of the binary nodes (``driver.bvh.pipeline`` says why they are grown)
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def grow_boxes(lo, hi, pad):
     """Grow the (m, 3) node bounds in place into the stored boxes, ``nextafter(float32(min -
     pad), -inf)`` and ``nextafter(float32(max + pad), +inf)`` (``driver.bvh.pipeline`` says why;

@@ -28,7 +28,7 @@ from numba import njit
 from .params import WIDTH
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _dp(left, right, area):
     """Bottom-up D(n, k) table (see module docstring) and the choices: choice[n, k-1] = slots
     given to the left child (0: D(n, k) = D(n, k - 1)). k runs to WIDTH - 1 only: a child of a
@@ -36,7 +36,7 @@ def _dp(left, right, area):
     return dp_table(left, right, area, area, np.full(len(left), np.inf))[0]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def dp_table(left, right, leaf_cost, node_cost, alt_cost):
     """``_dp``'s table with costs per node: a leaf n costs ``leaf_cost[n]``, an interior node
     made a wide node ``node_cost[n]`` plus its children's, or, in one slot, ``alt_cost[n]``
@@ -93,7 +93,7 @@ def push_children(work, wp, x, k, c, left, right):
     return wp + 2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _emit(left, right, choice):
     """Wide nodes breadth first: (slots (k, 4) binary ids, -1 = unused, used first; depth of
     each wide node)."""

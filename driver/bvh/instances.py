@@ -170,17 +170,26 @@ def build_two_level(instances: Instances, format: str = "box32", progress=None,
     inodes["instance"] = np.arange(k, dtype=np.uint32)
     blas_bytes = sum(b["bytes"] for b in blas_info)
     depth = tlas.stats["depth"] + max(b.stats["depth"] for b in blases.values())
+    phase_s: dict[str, float] = {}
+    phase_cpu_s: dict[str, float] = {}
+    for b in (tlas, *blases.values()):
+        for total, key in ((phase_s, "phase_s"), (phase_cpu_s, "phase_cpu_s")):
+            for name, seconds in b.stats[key].items():
+                total[name] = total.get(name, 0.0) + seconds
+    tri = sum(b.stats["tri_nodes"] for b in blases.values())
+    paired = sum(b.stats["pair_ratio"] * b.stats["tri_nodes"] for b in blases.values())
     stats = {"format": format, "tlas_format": t_fmt, "instances": k,
              "instanced_triangles": instances.triangles_total,
              "blas_triangles": instances.blas_triangles, "blas": len(keys),
              "tlas_box_nodes": nb_t, "tlas_bytes": inst_off, "instance_bytes": INSTANCE_BYTES * k,
              "blas_bytes": blas_bytes,
              "box_nodes": nb_t + sum(b.stats["box_nodes"] for b in blases.values()),
-             "tri_nodes": sum(b.stats["tri_nodes"] for b in blases.values()),
+             "tri_nodes": tri,
              "leaf_nodes": sum(b.stats["leaf_nodes"] for b in blases.values()),
              "depth": depth, "sah_cost": tlas.stats["sah_cost"], "fill": 0,
              "build_s": time.perf_counter() - t0, "bytes": int(image.nbytes),
              "bytes_per_triangle": image.nbytes / instances.triangles_total,
-             "pair_ratio": 0.0, "avg_children": tlas.stats["avg_children"],
-             "child_histogram": tlas.stats["child_histogram"]}
+             "pair_ratio": paired / tri, "avg_children": tlas.stats["avg_children"],
+             "child_histogram": tlas.stats["child_histogram"], "phase_s": phase_s,
+             "phase_cpu_s": phase_cpu_s}
     return TwoLevelBVH(image, instances, stats, format, roots, blas_info)

@@ -56,6 +56,7 @@ import numpy as np
 from ..core.layout import IMAGE_FORMATS
 from ..core.progress import bar as progress_bar
 from .image import BVH4, _half_area
+from .phases import Phases
 from .reference import _build_binary, _prim_boxes
 
 PAD_REL = 2.0 ** -16
@@ -98,7 +99,8 @@ PROGRESS_MIN = 1_000_000        # progress=None shows a bar from this many trian
 
 
 def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collapse: str = "sah",
-          fill: int = 0, progress=None, format: str = "box32", pair: bool = True) -> BVH4:
+          fill: int = 0, progress=None, format: str = "box32", pair: bool = True,
+          on_phase=None) -> BVH4:
     """Build a BVH4 (binned SAH, one triangle per leaf) and its memory image
     (docs/datapath.md#bvh4-image, docs/compressed.md).
 
@@ -119,6 +121,8 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
         vertices)
     pair : q8 formats: pair triangles that share an edge (default); False: one triangle per
         pair leaf, e.g. the instance boxes of a q8 TLAS (``driver.bvh.instances``)
+    on_phase : called with each phase's name as it starts (``driver.bvh.phases``); the
+        phases' wall and CPU times are ``stats["phase_s"]`` and ``stats["phase_cpu_s"]``
     Degenerate (zero-area) triangles are kept (the datapath never hits them).
     Raises ValueError for an empty input, a wrong shape, non-finite coordinates or a bad option."""
     # the stages' numba kernels: loaded (compiled once per machine) when a BVH is first built,
@@ -143,43 +147,52 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
     if fill and builder != "fast":
         raise ValueError("fill needs the fast builder (the numpy reference has plain SAH splits)")
     tris = as_triangles(triangles_or_trimesh)
+    phases = Phases(on_phase)
     pairs, prims = None, tris
     if format != "box32":
         if pair:
             faces = getattr(triangles_or_trimesh, "faces", None)
-            pairs = pair_triangles(tris, None if faces is None else np.asarray(faces))
+            pairs = pair_triangles(tris, None if faces is None else np.asarray(faces), phases)
         else:                           # no partner: every leaf holds one triangle
-            ids = vertex_ids(tris)
-            pairs = (*_pairs(ids, np.full(len(tris), -1, np.int64), tris), ids)
+            with phases("pairs"):
+                ids = vertex_ids(tris)
+                pairs = (*_pairs(ids, np.full(len(tris), -1, np.int64), tris), ids)
         prims = pairs[4]                # one box-shaped triangle per leaf: the builder's input
 
     show = None if progress is None and len(tris) >= PROGRESS_MIN else bool(progress)
     with progress_bar(len(tris), "BVH build", "tri", show, leave=False) as bar:
-        if builder == "fast":
-            left, right, prim, node_lo, node_hi = bvh_build.build_binary(prims, int(bins), bar,
-                                                                         int(fill))
-        else:
-            left, right, prim, node_lo, node_hi = _build_binary(*_prim_boxes(prims), int(bins))
-            bar.update(len(prims))
+        with phases("binary build"):
+            if builder == "fast":
+                left, right, prim, node_lo, node_hi = bvh_build.build_binary(
+                    prims, int(bins), bar, int(fill))
+            else:
+                left, right, prim, node_lo, node_hi = _build_binary(*_prim_boxes(prims),
+                                                                    int(bins))
+                bar.update(len(prims))
+            bvh_build.check_tree(left, right)
         bar.set_postfix_str("collapse")
-        pad = PAD_REL * float(max(-tris.min(), tris.max()))
-        if collapse == "greedy":                            # from the exact boxes
-            greedy_area = _half_area(node_lo.astype(np.float64), node_hi)
-        node_area = bvh_build.grow_boxes(node_lo, node_hi, pad)      # in place: stored boxes
+        with phases("stored boxes"):
+            pad = PAD_REL * float(max(-tris.min(), tris.max()))
+            if collapse == "greedy":                            # from the exact boxes
+                greedy_area = _half_area(node_lo.astype(np.float64), node_hi)
+            node_area = bvh_build.grow_boxes(node_lo, node_hi, pad)   # in place: stored boxes
         groups = None
         if format != "box32":
-            groups = group_leaves(left, right, prim, node_area, pairs, format == "q8g")
-        if collapse == "sah":
-            levels = collapse_sah(left, right, node_area)
-        else:
-            levels = _collapse(left, right, greedy_area)
+            with phases("group leaves"):
+                groups = group_leaves(left, right, prim, node_area, pairs, format == "q8g")
+        with phases("collapse"):
+            if collapse == "sah":
+                levels = collapse_sah(left, right, node_area)
+            else:
+                levels = _collapse(left, right, greedy_area)
         bar.set_postfix_str("image")
-        if pairs is None:
-            image, depth, sah, hist = _write_image(levels, left, prim, node_lo, node_hi,
-                                                   node_area, tris)
-        else:
-            image, depth, sah, hist = _write_q8_image(levels, left, prim, node_lo, node_hi,
-                                                      pairs, groups, tris)
+        with phases("image"):
+            if pairs is None:
+                image, depth, sah, hist = _write_image(levels, left, prim, node_lo, node_hi,
+                                                       node_area, tris)
+            else:
+                image, depth, sah, hist = _write_q8_image(levels, left, prim, node_lo, node_hi,
+                                                          pairs, groups, tris)
     n_box = sum(len(s) for s in levels)
     paired = 0 if pairs is None else 2 * int((pairs[1] >= 0).sum())
     n_groups = 0 if groups is None else len(groups[0])
@@ -191,7 +204,8 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
              "build_s": time.perf_counter() - t0, "bytes": int(image.nbytes),
              "bytes_per_triangle": image.nbytes / len(tris), "pair_ratio": paired / len(tris),
              "avg_children": float((hist * np.arange(1, 5)).sum() / n_box),
-             "child_histogram": hist.tolist()}
+             "child_histogram": hist.tolist(), "phase_s": phases.seconds,
+             "phase_cpu_s": phases.cpu_seconds}
     return BVH4(image, tris, stats, format)
 
 

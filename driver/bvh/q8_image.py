@@ -29,7 +29,7 @@ from . import q8
 from .box32 import place_slots
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _origin(r, a, o, top, s, used, slots, left, prim, ref, facing):
     """The origin of node r on axis a: ``o`` (the children's lowest bound), or, when a leaf
     child is thinner than one step ``s`` on this axis, a grid that puts that leaf's bound on its
@@ -69,7 +69,7 @@ _PV, _PPRIM, _PIDX = (node_word(PAIR_NODE, f) for f in ("v", "prim", "idx"))
 _GV2, _GPRIM2 = (node_word(GROUP_NODE, f) - PAIR_BYTES // 4 for f in ("v2", "prim2"))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _write_pair(p, slot, first, second, idx, v3, tris, lw, lf, no_child):
     """Pair leaf ``p`` (``_pairs``'s arrays) into 64-byte leaf slot ``slot`` (``lw``/``lf``:
     the leaf slots as (slots, 16) uint32 and float32 views of the same bytes)."""
@@ -87,7 +87,7 @@ def _write_pair(p, slot, first, second, idx, v3, tris, lw, lf, no_child):
         lw[slot, _PPRIM + 1] = no_child
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _write_group(g, slot, gtri, gvert, gidx, tris, lw, lf, no_child):
     """Group leaf ``g`` (``group_leaves``'s arrays) into the leaf slots ``slot`` and ``slot +
     1``."""
@@ -105,7 +105,7 @@ def _write_group(g, slot, gtri, gvert, gidx, tris, lw, lf, no_child):
     lw[slot, _PIDX + 1] = np.uint32(gidx[g] >> np.uint64(32))
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, gtri, gvert, gidx,
               tris, facing, origin, exp, child, q, parent, ref, lw, lf, box_ptr, leaf_base, types,
               no_child):
@@ -185,14 +185,15 @@ def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, gtri,
     return 0
 
 
-def verify_containment(nodes: np.ndarray, ref: np.ndarray):
+def verify_containment(nodes: np.ndarray, ref: np.ndarray, rounds: int = 256):
     """Decode every q8 node with ``decode_q8`` and widen, in place, each quantized bound whose
     decode lies inside the stored box ``ref`` (k, 4, 6) by one step, until every decoded child
     box contains its stored box. Returns (the number of bounds moved, the final decoded boxes).
-    Raises ValueError if a bound cannot move (a plane at 0 or 255 that still does not contain
-    it)."""
+    A bound moves at most 255 times, so ``rounds`` (256) passes always suffice. Raises
+    ValueError if a bound cannot move (a plane at 0 or 255 that still does not contain it) or
+    the rounds run out."""
     moved = 0
-    while True:
+    for _ in range(rounds + 1):
         dec = decode_q8(nodes)
         low = dec[..., :3] > ref[..., :3]                  # unused slots: inf > inf is False
         high = dec[..., 3:] < ref[..., 3:]
@@ -204,6 +205,7 @@ def verify_containment(nodes: np.ndarray, ref: np.ndarray):
         q[..., :3][low] -= 1
         q[..., 3:][high] += 1
         moved += int(low.sum() + high.sum())
+    raise ValueError(f"q8 encoding: child boxes still not contained after {rounds} widenings")
 
 
 def _write_q8_image(levels, left, prim, node_lo, node_hi, pairs, groups, tris):

@@ -22,7 +22,7 @@ from .params import WIDTH
 _CHUNKS_PER_THREAD = 8    # work items of a parallel loop with scratch: a few per thread
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _group_order(members, first, second, ids, gtri, gvert):
     """Lay out one group leaf of the pair leaves ``members`` (-1 padded): the triangles in
     ``gtri`` (GROUP_MAX_TRIS,) (-1 padded; pairs first, each first triangle first, so that
@@ -72,7 +72,7 @@ def _group_order(members, first, second, ids, gtri, gvert):
     return sel | (np.int64(nt) << np.int64(GROUP_COUNT_LSB))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _members(x, left, right, prim, members, stack):
     """The pair leaves of binary node x's subtree, left to right, into ``members`` (-1
     padded); returns their number (at most ``len(members)``: callers pass small subtrees)."""
@@ -92,7 +92,7 @@ def _members(x, left, right, prim, members, stack):
     return nm
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _group_fits(left, right, prim, first, second, ids, chunks):
     """(tri (m,) int64, ok (m,) bool): per binary node its triangles, and whether its subtree
     of 3 to GROUP_MAX_TRIS triangles fits a group leaf (``_group_order``; never the root). The
@@ -116,7 +116,7 @@ def _group_fits(left, right, prim, first, second, ids, chunks):
     return tri, ok
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _group_dp(left, right, prim, area, tri, ok, lam):
     """Choose the group leaves together with the 4-wide collapse (``driver.bvh.collapse.dp_table``,
     the collapse's table with leaf costs and bytes): D(n, k) is the least ``cost + lam *
@@ -180,7 +180,7 @@ def group_leaves(left, right, prim, area, pairs, enabled: bool = True, lam: floa
     return _apply_groups(merge, left, right, prim, first, second, ids, len(first), chunks)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _apply_groups(merge, left, right, prim, first, second, ids, n_pairs, chunks):
     """Group i is merged node ``nodes[i]`` (in node order); the groups are independent (each
     writes its own rows and its own node) and are laid out on all cores."""

@@ -20,6 +20,7 @@ from importlib.metadata import PackageNotFoundError, version as dist_version
 from ..core.errors import Terminated
 from .common import (EXIT_CHECK, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED,
                      EXIT_USAGE, PROG, one_line)
+from .interrupt import watch
 
 # name -> "module" or "module:attribute"; each provides add_parser(subparsers) and run(args)
 COMMANDS = {
@@ -42,7 +43,8 @@ EXIT_CODES = {
 }
 
 ENVIRONMENT = {
-    "RAYFLEX_CACHE": "Verilator build cache (default ~/.cache/rayflex/verilator)",
+    "RAYFLEX_CACHE": "the tool's cache (default ~/.cache/rayflex): Verilator models in "
+                     "verilator/, synthesized netlists in area/ and power/",
     "RAYFLEX_PGO": "0: build RTL models in one pass, without profile-guided optimisation",
     "CXX": "C++ compiler for the RTL builds (default g++, else clang++)",
     "RAYFLEX_TRACEBACK": "1: print the traceback of an internal error",
@@ -70,41 +72,31 @@ def main(argv=None) -> int:
     if not getattr(args, "command", None):
         parser.print_help(sys.stderr)
         return EXIT_USAGE
-    previous = _on_sigterm_raise()
-    try:
-        return int(args.handler.run(args) or 0)
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except Terminated:
-        print(f"{PROG}: terminated", file=sys.stderr)
-        return EXIT_TERMINATED
-    except (ValueError, OSError) as e:
-        print(f"{PROG}: error: {one_line(e)}", file=sys.stderr)
-        return EXIT_USAGE
-    except MemoryError:
-        print(f"{PROG}: error: out of memory (try a smaller --size)", file=sys.stderr)
-        return EXIT_USAGE
-    except Exception as e:  # noqa: BLE001  (a bug: one line unless asked for the traceback)
-        if os.environ.get("RAYFLEX_TRACEBACK") == "1":
-            raise
-        print(f"{PROG}: internal error: {type(e).__name__}: {one_line(e)} "
-              "(RAYFLEX_TRACEBACK=1 shows the traceback)", file=sys.stderr)
-        return EXIT_INTERNAL
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
-
-
-def _on_sigterm_raise():
-    """SIGTERM raises ``Terminated`` so builds and output writes clean up; returns the previous
-    handler (None if it could not be set: not the main thread)."""
-    def handler(signum, frame):
-        raise Terminated()
-    try:
-        return signal.signal(signal.SIGTERM, handler)
-    except ValueError:
-        return None
+    codes = {signal.SIGINT: ("interrupted", EXIT_INTERRUPTED),
+             signal.SIGTERM: ("terminated", EXIT_TERMINATED)}
+    # SIGTERM raises Terminated so builds and output writes clean up; both signals end the
+    # process within about a second even inside a native kernel (driver.cli.interrupt)
+    with watch(PROG, codes, Terminated):
+        try:
+            return int(args.handler.run(args) or 0)
+        except KeyboardInterrupt:
+            print(f"{PROG}: interrupted", file=sys.stderr)
+            return EXIT_INTERRUPTED
+        except Terminated:
+            print(f"{PROG}: terminated", file=sys.stderr)
+            return EXIT_TERMINATED
+        except (ValueError, OSError) as e:
+            print(f"{PROG}: error: {one_line(e)}", file=sys.stderr)
+            return EXIT_USAGE
+        except MemoryError:
+            print(f"{PROG}: error: out of memory (try a smaller --size)", file=sys.stderr)
+            return EXIT_USAGE
+        except Exception as e:  # noqa: BLE001  (a bug: one line unless asked for the traceback)
+            if os.environ.get("RAYFLEX_TRACEBACK") == "1":
+                raise
+            print(f"{PROG}: internal error: {type(e).__name__}: {one_line(e)} "
+                  "(RAYFLEX_TRACEBACK=1 shows the traceback)", file=sys.stderr)
+            return EXIT_INTERNAL
 
 
 def build_parser() -> argparse.ArgumentParser:

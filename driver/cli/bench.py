@@ -8,6 +8,7 @@ from pathlib import Path
 from .. import bench, design
 from ..core import outputs
 from ..core.outputs import JSON, PNG, Outputs
+from ..check import summary as check_summary
 from ..core.provenance import provenance
 from ..rtunit import SWEEP_RAYS_IN_FLIGHT
 from ..studies.bvh import bvh_bench
@@ -65,8 +66,8 @@ def run(args) -> int:
     outs = Outputs()
     js = outs.add("--json", args.json, JSON) if args.json else None
     plot = None
-    if args.bvh or (args.workers == 1 and (args.sweep_size if default_frame
-                                           else sweep_rays or args.plot)):
+    if args.bvh or (args.workers == 1 and args.sweep_size
+                    and (default_frame or sweep_rays or args.plot)):
         kind = "bvh" if args.bvh else "rtunit"
         plot = outs.add("--plot", args.plot or (
             Path(args.json).with_name(f"{Path(args.json).stem}_{kind}.png") if args.json
@@ -90,7 +91,7 @@ def run(args) -> int:
             wrote(outs.paths())
             return 0 if doc["identical"] else 1
         if not default_frame:
-            doc = bench.bench_workload(point, sweep_rays=sweep_rays,
+            doc = bench.bench_workload(point, sweep_rays=sweep_rays if args.sweep_size else (),
                                        plot=outs.temp(plot) if plot else None,
                                        progress=not args.no_progress, ideal=args.ideal_replay)
             if plot:
@@ -119,9 +120,15 @@ def workload_table(doc: dict) -> str:
     replay (``rtunit_memory``), and the frame's timing."""
     pt = doc["provenance"]["design_point"]
     f = doc["frame"]
+    b = f["bvh"]
     head = (f"{doc['scene']} {doc['width']}x{doc['height']} {doc['workload']} (spp {pt['spp']}, "
             f"bounces {pt['bounces']}): {f['rays']} rays, {f['ops']} ops")
-    rows = [head] + [f"{a}: {b}" for a, b in bench.timing_rows(f)]
+    rows = [head, f"BVH4 {b['format']}: {b['bytes']:,} bytes, {b['bytes_per_triangle']:.1f} bytes "
+                  f"per triangle" + (f", {b['pair_ratio']:.1%} of the triangles paired"
+                                     if b["format"] != "box32" else "")]
+    rows += [f"{a}: {v}" for a, v in bench.timing_rows(f)]
+    if f.get("embree"):
+        rows.append(check_summary(f["embree"]))
     rows.append(f"{'type':>8} {'rays':>8} {'box/ray':>8} {'tri/ray':>8} {'xf/ray':>7} "
                 f"{'util':>6} {'lat':>7} {'p95':>7} {'L1 B/ray':>9} {'L2 B/ray':>9} "
                 f"{'DRAM B/ray':>10} {'anyhit/closest':>14}")

@@ -43,6 +43,14 @@ def check_backend(name: str) -> str:
     return name
 
 
+def check_workers(args) -> None:
+    """--workers (>= 1) and --scheduler: one place to run tiles or points, not both."""
+    check_positive("--workers", args.workers)
+    if args.workers > 1 and getattr(args, "scheduler", None):
+        raise ValueError(f"--workers {args.workers} starts a local cluster and --scheduler "
+                         f"{args.scheduler} names another: give one of them")
+
+
 def check_flag_size(flag: str, value) -> None:
     """A --size/--width/--height value: None (not given) or 1..MAX_SIZE."""
     if value is not None and not 1 <= value <= MAX_SIZE:

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from .. import bench, knn, render
-from ..backends import BACKENDS
+from ..backends import BACKENDS, DEFAULT_BACKEND
 from ..design import GROUPS, OPTIONS, DesignPoint, Option, _bool
 from ..export import HEX_FILES, MAX_VCD_REQUESTS
 from ..power import DEFAULT_OPS, LEVELS, stimulus
@@ -73,7 +73,7 @@ def _scheduler(what: str) -> Flag:
                 help=f"{what} on the Dask cluster at ADDRESS (e.g. tcp://host:8786)")
 
 
-def _backend(default: str = "rtl") -> Flag:
+def _backend(default: str = DEFAULT_BACKEND) -> Flag:
     return flag("--backend", default=default, metavar="NAME",
                 help=f"datapath model: {', '.join(BACKENDS)} (default: {default})")
 
@@ -178,8 +178,9 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
     "bench": ((None, (
         _json("write the results as JSON"),
         flag("--sweep-size", type=int, default=bench.SWEEP_SIZE, metavar="N",
-             help=f"frame size of the rays-in-flight x pipelines sweep (default "
-                  f"{bench.SWEEP_SIZE}, at most --size; 0: no sweep)"),
+             help=f"frame size of the rays-in-flight x pipelines sweep of the primary frame "
+                  f"(default {bench.SWEEP_SIZE}, at most --size; other workloads sweep rays in "
+                  f"flight on their own frame, with --sweep-rays); 0: no sweep, no plot"),
         flag("--sweep-rays", default=None, metavar="LIST",
              help="rays in flight of the sweep (comma-separated; default for the primary "
                   "frame: " + ",".join(map(str, SWEEP_RAYS_IN_FLIGHT)) + "; a --workload "
@@ -273,6 +274,10 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
              help="meshes: 0 = the bunny, N = N instanced bunnies (default: 0 50)"),
         flag("--formats", nargs="+", default=list(bvh_study.FORMATS), choices=bvh_study.FORMATS,
              help="image formats to build (default: all)"),
+        flag("--meshes", nargs="+", metavar="PATH",
+             help="instead: build these mesh files, and each folder's mesh files alone and "
+                  "whole, in every format, under a time bound; print the worst pairing time "
+                  "per triangle and any hang"),
         flag("--json", metavar="PATH", help="write the builds here"),
         SHARED["progress"],
     )),),

@@ -10,6 +10,7 @@ from __future__ import annotations
 import sys
 
 from ..backends import resolve as resolve_backend
+from ..check import summary as check_summary
 from ..core import outputs
 from ..core.outputs import IMAGE, JSON, Outputs
 from ..core.progress import phase
@@ -17,7 +18,7 @@ from ..core.provenance import provenance
 from ..scenes.camera import check_size
 from . import options
 from .common import (EXIT_CHECK, PROG, check_backend, check_flag_size, check_positive,
-                     view_options, wrote)
+                     check_workers, view_options, wrote)
 from .export import Export
 
 
@@ -45,7 +46,7 @@ def run(args) -> int:
     if args.ideal_replay and not args.rtunit:
         raise ValueError("--ideal-replay is a second RT-unit replay: give --rtunit")
     check_backend(args.backend)
-    check_positive("--workers", args.workers)
+    check_workers(args)
     if args.tile is not None:
         check_positive("--tile", args.tile)
     source = resolve(point.scene)
@@ -133,9 +134,6 @@ def summary(res) -> str:
                      f"{t['box_ops_per_ray']:.1f} box + {t['tri_ops_per_ray']:.1f} tri"
                      + (f" + {t['transform_ops_per_ray']:.2f} transform" if t.get("transform_ops")
                         else "") + f" ops per ray, {t['ops']} ops")
-    e = s.get("embree")
-    if e:
-        lines.append(f"embree: {e['rays_compared']} rays compared, {e['hit_mismatch']} hit/miss "
-                     f"mismatches, {e['prim_mismatch']} primitive mismatches, {e['edge_ties']} "
-                     f"edge ties, max t rel err {e['max_t_rel_err']:.2g}")
+    if s.get("embree"):
+        lines.append(check_summary(s["embree"]))
     return "\n".join(lines)

@@ -27,6 +27,7 @@ from ..core.layout import IMAGE_FORMATS
 from ..core.outputs import JSON, PNG, Outputs
 from ..core.provenance import provenance
 from ..design import DesignPoint
+from ..plotting import describe
 from ..rtunit.order import POLICIES, check_window
 from ..studies import bvh, compressed, gpu, instances, rayorder
 from . import options
@@ -124,13 +125,19 @@ def _bvh(args) -> int:
         raise ValueError(f"--counts must be >= 0, got {args.counts}")
     outs = Outputs()
     js = outs.add("--json", args.json, JSON) if args.json else None
-    doc = {"provenance": provenance(None),
-           **bvh.bvh_bench(counts=tuple(args.counts), quality=False,
-                           progress=not args.no_progress, formats=tuple(args.formats))}
+    if args.meshes:
+        bvh.mesh_items(args.meshes)                         # bad paths: before any work
+        doc = {"provenance": provenance(None),
+               **bvh.mesh_bench(args.meshes, formats=tuple(args.formats),
+                                progress=not args.no_progress)}
+    else:
+        doc = {"provenance": provenance(None),
+               **bvh.bvh_bench(counts=tuple(args.counts), quality=False,
+                               progress=not args.no_progress, formats=tuple(args.formats))}
     with outs.commit():
         if js:
             outputs.write_json(doc, outs.temp(js))
-    print(bvh.build_table(doc))
+    print(bvh.mesh_table(doc) if args.meshes else bvh.build_table(doc))
     return 0
 
 
@@ -142,8 +149,9 @@ def _compressed(args) -> int:
     with outs.commit():
         if png:
             d = docs["q8"]
-            compressed.plot(docs, outs.temp(png), f"{d['scene']} {d['width']}x{d['height']} "
-                            f"{d['workload']}, {d['spp']} spp: box32 vs q8 node images")
+            point = {**d["provenance"]["design_point"], "size": d["width"]}
+            compressed.plot(docs, outs.temp(png), f"{' vs '.join(docs)} node images: " + describe(
+                point, omit=("bvh_format", "rays_in_flight", "pipelines")))
     print(compressed.markdown(table))
     return 0
 

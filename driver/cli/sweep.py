@@ -9,9 +9,9 @@ from .. import design
 from ..core import outputs
 from ..core.outputs import JSON, PNG, TABLE, Outputs
 from ..power import announce_builds
-from ..sweep import plot, sweep, table, write_csv
+from ..sweep import models, plot, sweep, table, write_csv
 from . import options
-from .common import check_positive, note, wrote
+from .common import check_workers, note, wrote
 
 
 def add_parser(subparsers):
@@ -45,7 +45,7 @@ def run(args) -> int:
     from ..render import check_memory
 
     points = options.grid_from_args(args)
-    check_positive("--workers", args.workers)
+    check_workers(args)
     for size in {p.size for p in points if p.size}:
         check_memory(size * size)
     outs = Outputs()
@@ -68,12 +68,7 @@ def run(args) -> int:
         note(f"sweep: {len(points)} design points "
              f"({', '.join(design.varied(points)) or 'one point'} varied) on "
              f"{points[0].scene} {points[0].workload}")
-    models = []
-    for p in points:
-        for kind in ("rtl", "signals"):
-            if (kind, p.rtl_params()) not in models:
-                models.append((kind, p.rtl_params()))
-    announce_builds("sweep", models)
+    announce_builds("sweep", models(points))
     doc = sweep(points, args.workers, args.scheduler, res, progress, args.ideal_replay)
     with outs.commit():
         if csv_path:

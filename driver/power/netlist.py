@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import area
+from ..backends.cache import cache_root as tool_cache
 
 RECIPE = 2                # bump when the synthesis script or the writer below changes meaning
 
@@ -58,8 +59,7 @@ def _area():
 
 
 def cache_root() -> Path:
-    env = os.environ.get("RAYFLEX_CACHE")
-    return (Path(env).expanduser() if env else Path.home() / ".cache" / "rayflex") / "power"
+    return tool_cache() / "power"
 
 
 def synth_script(params: dict[str, int], files: list[str]) -> str:

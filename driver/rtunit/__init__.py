@@ -50,6 +50,7 @@ identical responses and cycles (tests check).
 
 from __future__ import annotations
 
+import textwrap
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
 
@@ -262,19 +263,20 @@ def plot_sweep(points: list[dict], path, title: str = "") -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(7.5, 5.0), dpi=110)
+    fig = Figure(figsize=(9.0, 5.0), dpi=110)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
     pipes = sorted({pt["pipelines"] for pt in points})
-    colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown"]
     ops = max(pt["ops"] for pt in points) if points else 0
     rs = sorted({pt["rays_in_flight"] for pt in points})
-    for i, p in enumerate(pipes):
-        pts = sorted((pt for pt in points if pt["pipelines"] == p),
+    markers = ("o", "s", "^", "D", "v", "P")
+    for i, p in enumerate(pipes):        # the curves coincide on the latency bound at small R:
+        pts = sorted((pt for pt in points if pt["pipelines"] == p),    # markers tell them apart
                      key=lambda pt: pt["rays_in_flight"])
-        c = colours[i % len(colours)]
-        ax.plot([pt["rays_in_flight"] for pt in pts], [pt["cycles"] for pt in pts], "o-",
-                color=c, label=f"{p} pipeline{'s' if p > 1 else ''}")
+        c = f"C{i}"
+        ax.plot([pt["rays_in_flight"] for pt in pts], [pt["cycles"] for pt in pts],
+                marker=markers[i % len(markers)], ms=9 - 1.5 * i, color=c,
+                mfc="none" if i % 2 else c, label=f"{p} pipeline{'s' if p > 1 else ''}")
         ax.axhline(ops / p, color=c, ls=":", lw=1)
     if points and rs:
         per_req = points[0]["latency_cycles"] + points[0]["turnaround_cycles"]
@@ -290,7 +292,9 @@ def plot_sweep(points: list[dict], path, title: str = "") -> None:
     ax.set_xlabel("rays in flight (ray pool size R)")
     ax.set_ylabel("cycles per frame (= ns at 1 GHz)")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(title="dotted: ops / P", fontsize=8)
-    ax.set_title(title or "RT-unit sweep", fontsize=10)
+    ax.legend(title="dotted: throughput\nbound ops / P", fontsize=8, loc="upper left",
+              bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)      # beside the data
+    ax.set_title("\n".join(textwrap.fill(t, 100) for t in (title or "RT-unit sweep").split("\n")),
+                 fontsize=9)
     fig.tight_layout()
     fig.savefig(str(path), format="png")

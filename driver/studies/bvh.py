@@ -25,10 +25,12 @@ import os
 import multiprocessing
 import resource
 import time
+from pathlib import Path
 
 import numpy as np
 
 from ..bvh4 import build
+from ..core.errors import SceneError
 from ..core.markdown import table as markdown_table
 from ..core.progress import iterate
 from ..scenes.builtins import instanced_bunnies as grid
@@ -129,7 +131,7 @@ def plot_fills(fills: dict, path, title: str) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(7.0, 4.6), dpi=110)
+    fig = Figure(figsize=(9.4, 4.6), dpi=110)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     rows = fills["rows"]
@@ -141,12 +143,14 @@ def plot_fills(fills: dict, path, title: str) -> None:
             ax.annotate("inf" if r["fill"] >= 1 << 30 else str(r["fill"]), (r["box_nodes"], r[key]),
                         textcoords="offset points", xytext=(4, 4), fontsize=7)
     t = fills["reference"]
-    ax.axvline(t["box_nodes"], color="grey", ls=":", lw=1)
-    ax.axhline(t["ops_per_ray"], color="grey", ls=":", lw=1)
+    ax.axvline(t["box_nodes"], color="grey", ls=":", lw=1,
+               label=f"reference: {t['box_nodes']:,} box nodes")
+    ax.axhline(t["ops_per_ray"], color="grey", ls="-.", lw=1,
+               label=f"reference: {t['ops_per_ray']:.2f} ops per ray")
     ax.set_xlabel("box nodes (labels: --bvh-fill)")
-    ax.set_ylabel("datapath ops per primary ray")
+    ax.set_ylabel("datapath ops per primary ray\n(zoomed: the axis does not start at 0)")
     ax.set_title(title, fontsize=9)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, format="png")
@@ -176,7 +180,8 @@ def _quality(size: int = 256, fills=FILLS, plot=None, progress: bool = False) ->
     if fills:
         out["fills"] = _fills(scene, o, d, b, fills, progress)
         if plot:
-            plot_fills(out["fills"], plot, f"bunny {size}x{size} primary rays: BVH4 size vs "
+            plot_fills(out["fills"], plot, f"bunny {size}x{size} primary rays, box32 BVH "
+                                           "(fill varied), golden model: BVH4 size vs "
                                            "datapath ops")
     return out
 
@@ -201,6 +206,145 @@ def bvh_bench(counts=(0, 20, 50), quality: bool = True, size: int = 256,
     if quality:
         result["quality"] = _quality(size, fills, plot, progress)
     return result
+
+
+PAIRING = ("vertex ids", "adjacency", "matching", "pairs")    # build phases of the q8 pairing
+WORST_MIN = 1000      # triangles: below, a build's fixed costs (calls, allocations) dominate
+
+
+def mesh_items(paths) -> list[tuple[str, list]]:
+    """(name, mesh files) to build: each mesh file alone, and each folder's files (not its
+    subfolders') alone and then together as one mesh (``folder/*``)."""
+
+    from ..scenes.scene import MESH_TYPES
+    items = []
+    for path in map(Path, paths):
+        if path.is_dir():
+            files = sorted(p for p in path.iterdir()
+                           if p.is_file() and p.suffix.lower().lstrip(".") in MESH_TYPES)
+            if not files:
+                raise ValueError(f"{path}: no mesh files in this folder")
+            items += [(str(f), [f]) for f in files]
+            items.append((f"{path}/*", files))
+        elif path.is_file():
+            items.append((str(path), [path]))
+        else:
+            raise ValueError(f"{path}: no such file or folder")
+    return items
+
+
+def _mesh_child(conn, phase, formats) -> None:
+    """In a fresh process: load and build each item the parent sends, in every format; send
+    per format the build time, its phases and the pairing's microseconds per triangle."""
+    from ..scenes.scene import load_scene
+
+    def on_phase(name):
+        phase.value = name.encode()[:99]
+
+    on_phase("loading the kernels")
+    warm = np.random.default_rng(0).random((64, 3, 3)).astype(np.float32)
+    for fmt in formats:                      # each kernel's first call loads it: not timed
+        build(warm, format=fmt, progress=False)
+    while True:
+        try:
+            name, files = conn.recv()
+        except (EOFError, OSError):
+            return
+        try:
+            on_phase("load")
+            meshes = []
+            for f in files:
+                try:
+                    meshes.append(load_scene(f).mesh)
+                except SceneError as e:
+                    if "no triangles" not in str(e):
+                        raise
+            if not meshes:                  # e.g. an OBJ of a rig's empty helper object
+                conn.send({"mesh": name, "files": len(files), "triangles": 0})
+                continue
+            tris = np.concatenate([np.asarray(m.triangles, np.float32) for m in meshes])
+            mesh = meshes[0] if len(files) == 1 else tris
+            row = {"mesh": name, "files": len(files), "triangles": len(tris)}
+            for fmt in formats:
+                on_phase(f"{fmt}: start")
+                bvh = build(mesh, format=fmt, progress=False,
+                            on_phase=lambda p, fmt=fmt: on_phase(f"{fmt}: {p}"))
+                st = bvh.stats
+                r = {"build_s": round(st["build_s"], 4),
+                     "phase_s": {k: round(v, 5) for k, v in st["phase_s"].items()},
+                     "bytes_per_triangle": round(st["bytes_per_triangle"], 2),
+                     "pair_ratio": round(st["pair_ratio"], 4)}
+                if fmt != "box32":
+                    n = len(tris)
+                    for what, keys in (("matching", ("matching",)), ("pairing", PAIRING)):
+                        for clock, key in (("", "phase_s"), ("_cpu", "phase_cpu_s")):
+                            r[f"{what}{clock}_us_per_triangle"] = round(
+                                1e6 * sum(st[key][k] for k in keys) / n, 4)
+                row[fmt] = r
+            row["load_average"] = round(os.getloadavg()[0], 2)
+            conn.send(row)
+        except Exception as e:  # noqa: BLE001  (a file that does not load is a row, not a stop)
+            conn.send({"mesh": name, "files": len(files), "error": f"{type(e).__name__}: {e}"})
+
+
+def mesh_bench(paths, formats=FORMATS, bound_s: float = 60.0, bound_per_tri_s: float = 1e-4,
+               progress: bool = True) -> dict:
+    """Build every mesh of ``paths`` (``mesh_items``: files alone, folders' files alone and
+    whole) in ``formats``, in a worker process that is killed and replaced when an item runs
+    longer than ``bound_s + bound_per_tri_s`` per triangle (a ``hang`` row naming the phase).
+    Returns {"meshes": rows, "worst": the largest pairing and matching microseconds per
+    triangle of q8 and q8g, "hangs", "errors"}."""
+    items = mesh_items(paths)
+    ctx = multiprocessing.get_context("spawn")
+
+    def start():
+        phase = ctx.Array("c", 100, lock=False)
+        conn, child = ctx.Pipe()
+        proc = ctx.Process(target=_mesh_child, args=(child, phase, tuple(formats)), daemon=True)
+        proc.start()
+        child.close()
+        return proc, conn, phase
+
+    proc, conn, phase = start()
+    rows = []
+    try:
+        for name, files in iterate(items, "BVH mesh bench", "mesh", progress):
+            size = sum(f.stat().st_size for f in files)           # ~40 bytes a triangle (OBJ)
+            limit = bound_s + 2 * bound_per_tri_s * size / 40 * len(formats)
+            conn.send((name, files))
+            if conn.poll(limit + (120 if not rows else 0)):          # + loading the kernels
+                try:
+                    rows.append(conn.recv())
+                    continue
+                except EOFError:
+                    rows.append({"mesh": name, "error": f"the worker died in "
+                                 f"{phase.value.decode()!r} (exit {proc.exitcode})"})
+            else:
+                rows.append({"mesh": name, "hang": phase.value.decode(),
+                             "bound_s": round(limit, 1)})
+            proc.kill()
+            proc.join()
+            proc, conn, phase = start()
+    finally:
+        conn.close()
+        proc.kill()
+        proc.join()
+    worst = {}
+    for fmt in formats:
+        for key in ("pairing_us_per_triangle", "matching_us_per_triangle",
+                    "pairing_cpu_us_per_triangle", "matching_cpu_us_per_triangle"):
+            for big, what in ((True, f"{fmt} {key}"),
+                              (False, f"{fmt} {key} below {WORST_MIN:,} triangles")):
+                done = [r for r in rows if fmt in r and key in r[fmt]
+                        and (r["triangles"] >= WORST_MIN) == big]
+                if done:
+                    top = max(done, key=lambda r: r[fmt][key])
+                    worst[what] = {"value": top[fmt][key], "mesh": top["mesh"],
+                                   "triangles": top["triangles"]}
+    return {"meshes": rows, "worst": worst, "hangs": sum("hang" in r for r in rows),
+            "errors": sum("error" in r for r in rows),
+            "empty": sum(r.get("triangles") == 0 for r in rows),
+            "machine_cpus": multiprocessing.cpu_count()}
 
 
 def build_table(doc: dict) -> str:
@@ -231,3 +375,18 @@ def build_table(doc: dict) -> str:
         cells.append(f"{min(loads):.1f}–{max(loads):.1f}")
         rows.append(cells)
     return markdown_table(head, rows)
+
+
+def mesh_table(doc: dict) -> str:
+    """Plain lines: meshes, triangles, hangs and errors, then the worst pairing and matching
+    microseconds per triangle per format."""
+    rows = doc["meshes"]
+    tri = sum(r.get("triangles", 0) for r in rows)
+    lines = [f"{len(rows)} meshes, {tri:,} triangles: {doc['hangs']} hangs, "
+             f"{doc['errors']} errors, {doc['empty']} without triangles"]
+    for key, w in doc["worst"].items():
+        lines.append(f"worst {key}: {w['value']:.3f} ({w['mesh']}, {w['triangles']:,} "
+                     "triangles)")
+    lines += [f"hang: {r['mesh']} in {r['hang']!r}" for r in rows if "hang" in r]
+    lines += [f"error: {r['mesh']}: {r['error']}" for r in rows if "error" in r]
+    return "\n".join(lines)

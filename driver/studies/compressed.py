@@ -4,10 +4,11 @@ from ``rayflex bench --workload ... --bvh-format FORMAT --json`` documents of th
     rayflex study compressed BOX32.json Q8.json [Q8G.json] [--plot PNG]
 
 prints the per-ray-type comparison as a Markdown table and draws utilization with the node
-memory vs rays in flight, one colour per ray type, solid q8 and dashed box32. The documents are
-``rayflex bench --frame wavefront --flush-between --ideal-replay --sweep-rays LIST`` runs: each ray
-type replayed on its own with cold caches, so that it has its own cycles (the study as it was
-before one-kernel frames; the one-kernel study is ``rayflex study gpu``, ``driver.studies.gpu``).
+memory vs rays in flight, one panel per ray type, one line per format. The documents are
+``rayflex bench --frame wavefront --flush-between --ideal-replay --sweep-rays LIST`` runs:
+each ray type replayed on its own with cold caches, so that it has its own cycles (the study as
+it was before one-kernel frames; the one-kernel study is ``rayflex study gpu``,
+``driver.studies.gpu``).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from __future__ import annotations
 import json
 
 from ..core.markdown import table as markdown_table
+from ..plotting import wrap
 
 FORMATS = ("box32", "q8", "q8g")
 
@@ -60,36 +62,45 @@ def markdown(table: list[dict]) -> str:
 
 
 def plot(docs: dict, path, title: str) -> None:
-    """PNG: utilization with the node memory vs rays in flight (log x), per ray type, box32
-    (dashed) and q8 (solid)."""
+    """PNG: utilization with the node memory vs rays in flight (log x), one panel per ray type,
+    one line per image format (box32 dashed, q8 solid, q8g dotted, each its own marker), the
+    legend below the panels."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(7.0, 4.6), dpi=110)
-    FigureCanvasAgg(fig)
-    ax = fig.add_subplot(1, 1, 1)
-    colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown"]
-    sweeps = {fmt: docs[fmt]["sweep"] for fmt in ("q8", "box32")}
-    if any(not sw for sw in sweeps.values()):
+    if any(not d.get("sweep") for d in docs.values()):
         raise ValueError("the documents hold no rays-in-flight sweep (bench --sweep-rays)")
-    for i, kind in enumerate(sweeps["q8"][0]["by_type"]):
-        c = colours[i % len(colours)]
-        for fmt, style in (("q8", "o-"), ("box32", "s--")):
-            pts = sweeps[fmt]
+    kinds = list(docs["box32"]["sweep"][0]["by_type"])
+    cols = min(len(kinds), 4)
+    rows_ = -(-len(kinds) // cols)
+    fig = Figure(figsize=(3.2 * cols + 0.6, 3.0 * rows_ + 1.3), dpi=110)
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(rows_, cols, sharex=True, sharey=True, squeeze=False).ravel()
+    style = {"box32": ("s", "--"), "q8": ("o", "-"), "q8g": ("^", ":")}
+    for ax, kind in zip(axes, kinds):
+        for i, (fmt, doc) in enumerate(docs.items()):
+            pts = doc["sweep"]
             ys = [p["by_type"][kind]["rtunit_memory"]["utilization"] for p in pts]
             if None in ys:
                 raise ValueError("a ray type's utilization needs the wavefront schedule "
-                                 "(--frame wavefront)")
-            ax.plot([p["rays_in_flight"] for p in pts], ys, style, color=c,
-                    ms=4, lw=1.5 if fmt == "q8" else 1, label=f"{kind} {fmt}")
-    ax.set_xscale("log", base=2)
-    ax.set_ylim(0, 1.05)
-    ax.set_xlabel("rays in flight (ray pool size R)")
-    ax.set_ylabel("datapath utilization with node cache + memory")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=2, loc="lower right")
-    ax.set_title(title, fontsize=9)
-    fig.tight_layout()
+                                 "(bench --frame wavefront)")
+            ax.plot([p["rays_in_flight"] for p in pts], ys, marker=style[fmt][0],
+                    ls=style[fmt][1], color=f"C{i}", ms=4, lw=1.3, label=fmt)
+        ax.set_title(kind, fontsize=9)
+        ax.set_xscale("log", base=2)
+        ax.set_ylim(0, 1.05)
+        ax.grid(True, which="both", alpha=0.3)
+    for ax in axes[len(kinds):]:
+        ax.set_visible(False)
+    for ax in axes[-cols:]:
+        ax.set_xlabel("rays in flight (R)")
+    for ax in axes[::cols]:
+        ax.set_ylabel("utilization with the\nnode cache + memory")
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), frameon=False,
+               fontsize=8)
+    fig.suptitle(wrap(title, 150), fontsize=9)
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
     fig.savefig(str(path), format="png")
 
 

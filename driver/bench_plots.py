@@ -3,6 +3,10 @@ the rays each RT unit holds over the frame, and utilization over rays in flight.
 
 from __future__ import annotations
 
+from .plotting import legend_right, wrap
+
+MARKERS = ("o", "s", "^", "D", "v", "P")     # one per ray type: coinciding curves stay apart
+
 
 def plot_rays_held(frame: dict, path, title: str) -> None:
     """PNG: rays held per RT unit (admitted, not done) over the frame's cycles, for each replay
@@ -11,7 +15,7 @@ def plot_rays_held(frame: dict, path, title: str) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(7.0, 4.2), dpi=110)
+    fig = Figure(figsize=(9.4, 4.2), dpi=110)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
     pool = frame["rtunit_memory"]["rays_in_flight"]
@@ -31,8 +35,8 @@ def plot_rays_held(frame: dict, path, title: str) -> None:
     ax.set_xlabel("cycle")
     ax.set_ylabel("rays held per RT unit (mean over the units)")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7, loc="upper right")
-    ax.set_title(title, fontsize=9)
+    legend_right(ax, fontsize=7)
+    ax.set_title(wrap(title, 90), fontsize=8)
     fig.tight_layout()
     fig.savefig(str(path), format="png")
 
@@ -44,10 +48,9 @@ def plot_workload_sweep(sweep: list, path, title: str) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(7.0, 4.6), dpi=110)
+    fig = Figure(figsize=(10.0, 4.6), dpi=110)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
-    colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown"]
     x = [p["rays_in_flight"] for p in sweep]
     ax.plot(x, [p["rtunit_memory"]["utilization"] for p in sweep], "o-", color="black", lw=2,
             label="frame")
@@ -55,13 +58,14 @@ def plot_workload_sweep(sweep: list, path, title: str) -> None:
     typed = sweep[0]["by_type"][kinds[0]]["rtunit_memory"]["utilization"] is not None
     ax2 = None if typed else ax.twinx()
     for i, kind in enumerate(kinds):
-        c = colours[i % len(colours)]
+        style = {"marker": MARKERS[i % len(MARKERS)], "ms": 7 - i % 4, "color": f"C{i}",
+                 "mfc": "none" if i % 2 else f"C{i}"}
         ys = [p["by_type"][kind]["rtunit_memory"] for p in sweep]
         if typed:
-            ax.plot(x, [y["utilization"] for y in ys], "o--", color=c, label=kind)
+            ax.plot(x, [y["utilization"] for y in ys], ls="--", label=kind, **style)
         else:
-            ax2.plot(x, [y["latency_mean"] for y in ys], "s:", color=c,
-                     label=f"{kind}: latency")
+            ax2.plot(x, [y["latency_mean"] for y in ys], ls=":", label=f"{kind}: latency",
+                     **style)
     ax.set_xscale("log", base=2)
     ax.set_xticks(x)
     ax.set_xticklabels([str(v) for v in x])
@@ -75,9 +79,10 @@ def plot_workload_sweep(sweep: list, path, title: str) -> None:
         ax2.set_ylim(bottom=0)
         h1, l1 = ax.get_legend_handles_labels()
         h2, l2 = ax2.get_legend_handles_labels()
-        ax.legend(h1 + h2, l1 + l2, fontsize=7, loc="upper left")
+        ax.legend(h1 + h2, l1 + l2, fontsize=7, loc="upper left", bbox_to_anchor=(1.12, 1.0),
+                  borderaxespad=0.0)
     else:
-        ax.legend(title="utilization", fontsize=7, loc="lower right")
-    ax.set_title(title, fontsize=9)
+        legend_right(ax, title="utilization", fontsize=7)
+    ax.set_title(wrap(title, 90), fontsize=8)
     fig.tight_layout()
     fig.savefig(str(path), format="png")
