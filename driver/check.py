@@ -133,19 +133,42 @@ def compare(our_t, our_prim, emb_t, emb_prim, triangles, origins, dirs) -> dict:
 
 
 def embree_json(result: dict) -> dict:
-    """The docs/datapath.md#statistics ``embree`` object (plus ``agree``) from a ``compare``
-    result."""
-    return {k: result[k] for k in EMBREE_KEYS + ("agree",)}
+    """The docs/datapath.md#statistics ``embree`` object (plus ``agree`` and, when the check
+    adjudicated, ``adjudicated``) from a ``compare`` or ``check`` result."""
+    out = {k: result[k] for k in EMBREE_KEYS + ("agree",)}
+    if "adjudicated" in result:
+        out["adjudicated"] = result["adjudicated"]
+    return out
 
 
 def check(triangles, origins, dirs, our_t, our_prim, double_sided: bool = False) -> dict:
     """Run Embree on the same rays (any face when ``double_sided``, as the frame was traced with
-    NO_CULL; else front faces only) and ``compare``; the result also holds Embree's own
-    ``embree_t`` and ``embree_prim`` arrays for debugging."""
+    NO_CULL; else front faces only), ``compare`` and adjudicate every disagreement
+    (``driver.adjudicate``); the result also holds Embree's own ``embree_t`` and ``embree_prim``
+    arrays for debugging."""
+    from .adjudicate import adjudicate  # numba: loaded when a check runs
     emb_t, emb_prim = embree_closest(triangles, origins, dirs, double_sided)
     result = compare(our_t, our_prim, emb_t, emb_prim, triangles, origins, dirs)
     result.update(embree_t=emb_t, embree_prim=emb_prim)
+    result["adjudicated"] = _adjudicated(adjudicate(
+        triangles, origins, dirs, np.inf, our_t, our_prim, emb_t, emb_prim, False,
+        double_sided, _scale(triangles, origins)))
     return result
+
+
+def _adjudicated(verdicts) -> dict:
+    from .adjudicate import EXPLAIN     # numba: loaded when a check runs
+    return {"classes": verdicts.counts(), "explain": dict(EXPLAIN), "rays": verdicts.records}
+
+
+def failed(embree: dict | None) -> bool:
+    """Whether an ``embree`` object fails the check: rays classified ``datapath_wrong`` when
+    it was adjudicated, else any hit/miss or primitive mismatch."""
+    if not embree:
+        return False
+    if "adjudicated" in embree:
+        return embree["adjudicated"]["classes"]["datapath_wrong"] > 0
+    return bool(embree["hit_mismatch"] or embree["prim_mismatch"])
 
 
 def point_triangle_distance(p, tri):
@@ -252,27 +275,45 @@ def check_rays(triangles, origins, dirs, extent, our_t, our_prim, any_hit: bool,
     rays: hit/miss against Embree's occlusion query; a hit whose point is not on its triangle or not
     within the extent counts as a primitive mismatch (any triangle in the extent is a correct
     answer)."""
+    from .adjudicate import adjudicate  # numba: loaded when a check runs
     tri = np.asarray(triangles)
     prim = np.asarray(our_prim, np.int64)
     ext = np.broadcast_to(np.asarray(extent, np.float64), prim.shape)
     ours = prim >= 0
+    scale = _scale(tri, origins)
     if not any_hit:
         emb_t, emb_prim = embree_closest(tri, origins, dirs, double_sided)
         out = emb_t >= ext
         emb_t, emb_prim = np.where(out, np.inf, emb_t), np.where(out, -1, emb_prim)
         result = compare(our_t, prim, emb_t, emb_prim, tri, origins, dirs)
+        verdicts = adjudicate(tri, origins, dirs, ext, our_t, prim, emb_t, emb_prim, False,
+                              double_sided, scale)
     else:
         theirs = embree_occluded(tri, origins, dirs, ext, double_sided)
         o, d = np.asarray(origins, np.float64), np.asarray(dirs, np.float64)
         rows = np.flatnonzero(ours)
         p = o[rows] + np.asarray(our_t, np.float64)[rows, None] * d[rows]
         off = (point_triangle_distance(p, tri[prim[rows]].astype(np.float64))
-               > POINT_REL * _scale(tri, o))
+               > POINT_REL * scale)
         bad = rows[off | (np.asarray(our_t)[rows] >= ext[rows])]
         result = {"rays_compared": int(len(prim)),
                   "hit_mismatch": int((ours != theirs).sum()), "prim_mismatch": int(len(bad)),
                   "edge_ties": 0, "hit_mismatch_rays": np.flatnonzero(ours != theirs),
                   "prim_mismatch_rays": bad}
+        # Embree's occluder of the rays it occludes and we do not: its closest valid hit
+        emb_t = np.full(len(prim), np.inf, np.float32)
+        emb_prim = np.full(len(prim), -1, np.int64)
+        only = np.flatnonzero(theirs & ~ours)
+        if len(only):
+            et, ep = embree_closest(tri, np.asarray(origins)[only], np.asarray(dirs)[only],
+                                    double_sided)
+            inside = et < ext[only]
+            emb_t[only[inside]], emb_prim[only[inside]] = et[inside], ep[inside]
+        verdicts = adjudicate(tri, origins, dirs, ext, our_t, prim, emb_t, emb_prim, True,
+                              double_sided, scale,
+                              rays=np.union1d(np.flatnonzero(ours != theirs), bad),
+                              emb_occluded=theirs)
+    result["adjudicated"] = _adjudicated(verdicts)
     rows = np.flatnonzero(ours)
     d = np.asarray(dirs, np.float64)[rows]
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -305,15 +346,22 @@ def merge_checks(parts: list[dict]) -> dict:
             out[k] += int(p[k])
     for k in ("max_t_rel_err", "max_t_rel_err_exact"):
         out[k] = max((float(p.get(k, 0.0)) for p in parts), default=0.0)
+    if parts and all("adjudicated" in p for p in parts):
+        from .adjudicate import merge as merge_adjudicated
+        out["adjudicated"] = merge_adjudicated([p["adjudicated"] for p in parts])
     return out
 
 
 def summary(e: dict) -> str:
     """The one line the commands print for an ``embree`` object: rays compared, each kind of
-    mismatch, the largest t difference."""
-    return (f"embree: {e['rays_compared']} rays compared, {e['hit_mismatch']} hit/miss "
+    mismatch, the largest t difference and, when it was adjudicated, the count of each class."""
+    text = (f"embree: {e['rays_compared']} rays compared, {e['hit_mismatch']} hit/miss "
             f"mismatches, {e['prim_mismatch']} primitive mismatches, {e['edge_ties']} edge ties, "
             f"max t rel err {e['max_t_rel_err']:.2g}")
+    if "adjudicated" in e:
+        text += "; decided exactly: " + ", ".join(
+            f"{v} {k.replace('_', ' ')}" for k, v in e["adjudicated"]["classes"].items())
+    return text
 
 
 EMBREE_SAMPLE_TRIANGLES = 2_000_000   # world triangles an Embree check of a large instanced

@@ -256,7 +256,9 @@ OPTIONS: tuple[Option, ...] = (
     Option("workload", "--workload", str, "primary",
            "rays of the frame: primary (camera rays), shadow (+ one shadow ray per hit), ao "
            "(+ --ao-rays ambient-occlusion rays per hit), path (diffuse path tracing with "
-           "next-event estimation and --bounces bounces)", _choice(WORKLOADS), "workload",
+           "next-event estimation and --bounces bounces); lumibench-pt, lumibench-sh, "
+           "lumibench-ao: LumiBench's path tracing (16 bounces), shadow (2 rays per hit) and "
+           "AO (--ao-rays per hit) shaders (docs/lumibench.md)", _choice(WORKLOADS), "workload",
            "NAME", WORKLOADS, listable=False),
     Option("size", "--size", int, None, "square frame N x N", _size, "workload"),
     Option("spp", "--spp", int, 1, "samples per pixel, 1..4096", _int_range(1, 4096),
@@ -427,7 +429,11 @@ class DesignPoint:
 
     def build(self, scene):
         """The BVH of ``scene`` for this point (``driver.bvh4.build_scene``: a two-level
-        image for an instanced scene)."""
+        image for an instanced scene; a scene with its own ``build_bvh``, a LumiBench scene,
+        may take it from its cache)."""
+        own = getattr(scene, "build_bvh", None)
+        if own is not None:
+            return own(fill=self.bvh_fill, format=self.bvh_format, transform=self.transform)
         return build_scene(scene, fill=self.bvh_fill, format=self.bvh_format,
                            transform=self.transform)
 

@@ -16,6 +16,7 @@ exceeds the memory available.
 from __future__ import annotations
 
 import os
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -35,7 +36,7 @@ from .rtunit.gpu import replay_point
 from .rtunit.plan import Wave
 from .stats import public
 from .tracer import trace
-from .workloads import headlight, setup_for, tone_map
+from .workloads import LINEAR, headlight, setup_for, tone_map
 
 # Peak resident memory of a frame, measured with /usr/bin/time -v (maximum RSS) on the sphere
 # scene at 256², 512² and 1024² (--check-embree makes no difference): golden 167 / 403 / 1,294 MB,
@@ -93,18 +94,20 @@ def render(scene, width=None, height=None, backend: str = DEFAULT_BACKEND,
 
     ``point``: the ``driver.design.DesignPoint`` of the frame (default ``DesignPoint()``: the
     primary workload, one sample): its workload (docs/workloads.md: primary, shadow, ao, path
-    with ``spp``, ``bounces``, ``ao_rays``, ``seed``), its BVH options (``bvh_fill``,
-    ``bvh_format``, ``flatten``, ``cull_stack``), and its datapath configuration and latency,
-    which make the backend (a backend name; a backend object is used as it is). ``rtunit``:
-    also replay the frame's requests on the point's RT units (statistics ``rtunit_memory``;
-    ``"ideal"``: and ``rtunit``, a second replay with free node fetches; docs/rtunit.md).
+    with ``spp``, ``bounces``, ``ao_rays``, ``seed``; docs/lumibench.md: lumibench-pt,
+    lumibench-sh, lumibench-ao), its BVH options (``bvh_fill``, ``bvh_format``, ``flatten``,
+    ``cull_stack``), and its datapath configuration and latency, which make the backend (a
+    backend name; a backend object is used as it is). ``rtunit``: also replay the frame's
+    requests on the point's RT units (statistics ``rtunit_memory``, each request simulated twice
+    in all; ``"ideal"``: and ``rtunit``, a second replay with free node fetches; docs/rtunit.md).
 
     The primary workload with one sample, untiled, is one wavefront of every pixel (the frame of
     earlier versions, with ``trace`` the TraceResult). Any other workload, a ``tile`` size,
     ``workers`` > 1 or a Dask ``scheduler`` renders through ``driver.tiles`` (``trace`` is None;
     statistics per ray type in ``stats["by_type"]``); so does a frame too big for memory as one
     wavefront. The statistics are in the published schema (``driver.stats.public``,
-    docs/statistics.md)."""
+    docs/statistics.md); ``stats["wall_s"]`` is the render's wall time (BVH build, tracing,
+    replays and check)."""
     if point is None:
         point = DesignPoint()
     scene = point.scene_of(load_scene(scene))
@@ -112,10 +115,14 @@ def render(scene, width=None, height=None, backend: str = DEFAULT_BACKEND,
                       height if height is not None else scene.size[1])
     tile = plan_tile(w * h, point.workload, point.spp, tile, workers, scheduler)
     check_frame_memory(w * h, point.spp, tile)
+    t0 = time.perf_counter()
     if tile is None:
-        return _render_whole(scene, w, h, backend, progress, check_embree, point, rtunit)
-    return _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, tile,
-                         workers, scheduler)
+        res = _render_whole(scene, w, h, backend, progress, check_embree, point, rtunit)
+    else:
+        res = _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, tile,
+                            workers, scheduler)
+    res.stats["wall_s"] = time.perf_counter() - t0     # BVH build, tracing, replays, check
+    return res
 
 
 def plan_tile(pixels: int, workload: str, spp: int, tile: int | None, workers: int,
@@ -152,7 +159,7 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
                            check_embree, bar.hook)
     finally:
         bar.close()
-    image = tone_map(res.radiance, w, h, linear=workload in ("primary", "ao"))
+    image = tone_map(res.radiance, w, h, linear=workload in LINEAR)
     by_type = {k: v.reshape(h, w) for k, v in res.ops.items()}
     total = sum(by_type.values())                   # int32: ops per pixel stay far below 2**31
     stats = public(res.stats)

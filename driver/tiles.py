@@ -35,6 +35,7 @@ cluster given by ``--scheduler`` keep whatever their operator configured (docs/w
 from __future__ import annotations
 
 import logging
+import resource
 import time
 import uuid
 from dataclasses import dataclass, field
@@ -216,10 +217,20 @@ def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
         finally:
             client.cancel(futures)
         clock.mark("tiles_s")
+        peaks = sorted(client.run(peak_rss).values())
     clock.mark("close_s")
     frame = asm.frame()
     frame.timings = clock.out
+    frame.stats[WORKER_PEAKS] = peaks
     return frame
+
+
+WORKER_PEAKS = "workers_peak_rss_bytes"     # peak resident memory of each Dask worker
+
+
+def peak_rss() -> int:
+    """This process's peak resident memory in bytes (``ru_maxrss``)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
 class _Phases:

@@ -29,13 +29,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import lumibench_shaders
 from .check import check_rays, embree_sample, merge_checks
 from .scenes import sampling
 from .scenes.camera import camera_rays
 from .scenes.materials import Materials, PointLight
 from .stats import merge
 
-WORKLOADS = ("primary", "shadow", "ao", "path")
+WORKLOADS = ("primary", "shadow", "ao", "path") + lumibench_shaders.WORKLOADS
+LINEAR = ("primary", "ao") + lumibench_shaders.WORKLOADS   # images shown linear (no exposure)
 SHADOW_EXTENT = 1.0 - 1e-4     # shadow rays aim at the light sample with d = y - x: t in [0, 1)
 TONE_ROWS = 256                                # tone mapping works on this many rows at a time
 BASE_COLOUR = np.array([0.92, 0.86, 0.76])     # the primary workload's surface colour
@@ -139,12 +141,22 @@ class Frame:
         self.calls = calls    # trace calls per sample in the thread's program (``slot``)
         self.batches: list[Batch] = []
 
-    def slot(self, sample, call: int) -> np.ndarray:
-        """Program slot of trace call ``call`` (0: the camera ray) of ``sample``: one thread per
-        pixel runs its samples in order, each sample ``calls`` trace call sites."""
-        if not 0 <= call < self.calls:
-            raise ValueError(f"trace call {call} outside the program's {self.calls} per sample")
+    def slot(self, sample, call) -> np.ndarray:
+        """Program slot of trace call ``call`` (0: the camera ray; a number or one per ray) of
+        ``sample``: one thread per pixel runs its samples in order, each sample ``calls`` trace
+        call sites."""
+        call = np.asarray(call, np.int64)
+        if call.size and (int(call.min()) < 0 or int(call.max()) >= self.calls):
+            raise ValueError(f"trace call {int(call.max())} outside the program's {self.calls} "
+                             "per sample")
         return np.asarray(sample, np.int64) * self.calls + call
+
+    def trace_rays(self, kind, pixel, sample, origins, dirs, extent, any_hit, call) -> Batch:
+        """Trace one wavefront of ray type ``kind`` (a ``Batch``'s fields) and keep it.
+        ``call``: each ray's trace call in its pixel sample's program (``slot``; the thread is
+        the pixel), its place in its thread's program (the RT unit's one-kernel replay)."""
+        return self._run(Batch(kind, pixel, sample, origins, dirs, extent, any_hit,
+                               slot=self.slot(sample, call)))
 
     def _run(self, batch: Batch) -> Batch:
         batch.result = self.trace(self.bvh, batch.origins, batch.dirs, extent=batch.extent,
@@ -244,6 +256,8 @@ def run(setup: Setup, bvh, width: int, height: int, tracer, workload: str = "pri
         raise ValueError(f"unknown workload {workload!r}; available: {', '.join(WORKLOADS)}")
     fr = Frame(setup, bvh, width, height, tracer, calls=calls_per_sample(workload, **{
         k: options[k] for k in ("bounces", "ao_rays") if k in options}), **options)
+    if workload in lumibench_shaders.WORKLOADS:             # docs/lumibench.md
+        return _finish(fr, lumibench_shaders.run(fr, workload))
     npix = len(fr.pixels)
     radiance = np.zeros((npix * fr.spp, 3))
     prim = fr.primary()
@@ -263,7 +277,9 @@ def run(setup: Setup, bvh, width: int, height: int, tracer, workload: str = "pri
 def calls_per_sample(workload: str, bounces: int = 1, ao_rays: int = 4) -> int:
     """Trace call sites per sample of a workload's thread program (docs/rtunit.md): the camera
     ray; shadow: one shadow ray; ao: ``ao_rays`` AO rays, one call each; path: per vertex a
-    shadow ray and (but the last) a continuation ray."""
+    shadow ray and (but the last) a continuation ray; LumiBench's shaders: docs/lumibench.md."""
+    if workload in lumibench_shaders.WORKLOADS:
+        return lumibench_shaders.calls(workload, ao_rays)
     return {"primary": 1, "shadow": 2, "ao": 1 + ao_rays, "path": 2 + 2 * bounces}[workload]
 
 
@@ -375,9 +391,12 @@ def embree_check(result: FrameResult, setup: Setup) -> dict:
             rows, tri, prim = embree_sample(tri.instances, b.origins, b.dirs, b.extent, r.t,
                                             r.prim)
         ext = np.broadcast_to(np.asarray(b.extent, np.float64), (len(r.t),))
-        per_kind.setdefault(b.kind, []).append(check_rays(
-            tri, b.origins[rows], b.dirs[rows], ext[rows], r.t[rows], prim, b.any_hit,
-            setup.double_sided))
+        part = check_rays(tri, b.origins[rows], b.dirs[rows], ext[rows], r.t[rows], prim,
+                          b.any_hit, setup.double_sided)
+        for rec in part["adjudicated"]["rays"]:         # which ray: its type, pixel, sample
+            at = np.arange(len(r.t))[rows][rec.pop("ray")]
+            rec.update(ray_type=b.kind, pixel=int(b.pixel[at]), sample=int(b.sample[at]))
+        per_kind.setdefault(b.kind, []).append(part)
     for kind, parts in per_kind.items():
         result.stats["by_type"][kind]["embree"] = merge_checks(parts)
     total = merge_checks([p for parts in per_kind.values() for p in parts])

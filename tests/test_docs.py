@@ -267,6 +267,7 @@ def test_readme_number_check_catches_drift(tmp_path):
     changed.mkdir()
     (tmp_path / "docs").mkdir()
     for file in {f for f, _, _ in figures.README_NUMBERS.values()}:
+        (tmp_path / file).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / file).write_text((ROOT / file).read_text())
     stats = json.loads((tmp_path / "images/bunny_stats.json").read_text())
     stats["hits"] += 1

@@ -125,7 +125,12 @@ def test_each_workload_makes_an_image_and_per_type_stats(floor_scene, workload):
                         ao_rays=2)
     assert res.radiance.shape == (1600, 3) and res.radiance.std() > 0   # not flat
     kinds = {"primary": {"primary"}, "shadow": {"primary", "shadow"}, "ao": {"primary", "ao"},
-             "path": {"primary", "shadow", "bounce1", "bounce2"}}[workload]
+             "path": {"primary", "shadow", "bounce1", "bounce2"},
+             "lumibench-sh": {"primary", "shadow"}, "lumibench-ao": {"primary", "ao"},
+             "lumibench-pt": {"primary"} | {f"bounce{k}" for k in range(1, 16)}}[workload]
+    if workload == "lumibench-pt":      # paths end where they miss: as many bounces as they take
+        assert {"primary", "bounce1"} <= set(res.stats["by_type"]) <= kinds
+        kinds = set(res.stats["by_type"])
     assert set(res.stats["by_type"]) == kinds == set(res.ops)
     total = res.stats
     for k in ("rays", "hits", "box_ops", "tri_ops", "ops", "cycles"):

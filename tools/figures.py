@@ -269,6 +269,30 @@ FIGURES = [
             "--json", "docs/instances_transform.json", "--no-progress"),
            ("docs/instances_transform.json",), 5.0,
            "the instance transform in the driver vs on the datapath: ops, RT-unit cycles"),
+    # LumiBench: these read a clone of the benchmark's repository at $LUMIBENCH_ROOT
+    Figure("lumibench",
+           (*RAYFLEX, "suite", "lumibench", "--out", "images/lumibench", "--workers", "2",
+            "--no-progress"),
+           tuple(f"images/lumibench/{f}" for f in ("summary.json", "summary.csv", "summary.png",
+                                                   "images.png")), 3.0,
+           "every LumiBench run the clone at LUMIBENCH_ROOT allows, 128 x 128, 2 spp, on the RTL, "
+           "checked and replayed"),
+    Figure("lumibench_bath_ao512",
+           (*RAYFLEX, "suite", "lumibench", "--scenes", "BATH", "--workloads", "ao", "--size",
+            "512", "--out", "images/lumibench_512", "--workers", "2", "--no-progress"),
+           ("images/lumibench_512/summary.json", "images/lumibench_512/BATH_AO.json",
+            "images/lumibench_512/BATH_AO.png"), 4.0,
+           "the bathroom's AO frame at 512 x 512 (16 x the benchmark's pixels) on 2 Dask workers"),
+    Figure("lumibench_load_bath",
+           (*RAYFLEX, "bench", "--scene-load", "--scene", "lumibench:BATH", "--json",
+            "docs/lumibench_load_bath.json", "--no-progress"),
+           ("docs/lumibench_load_bath.json",), 0.3,
+           "the bathroom's load and BVH build, first and from the scene cache"),
+    Figure("lumibench_load_1000",
+           (*RAYFLEX, "bench", "--scene-load", "--synthetic", "1000,3000000", "--json",
+            "docs/lumibench_load_1000.json", "--no-progress"),
+           ("docs/lumibench_load_1000.json",), 2.0,
+           "a LumiBench-format folder of 1,000 OBJ files, 3 M triangles: load and build"),
     Figure("area", (sys.executable, "-m", "driver.area", "--jobs", "2", "--json",
                     "docs/area.json"),
            ("docs/area.json",), 60.0, "Yosys cell counts of the four configurations"),
@@ -394,9 +418,151 @@ README_NUMBERS = {
                                        f"transforms.{where}.frame.rtunit_memory.utilization",
                                        "{:.2f}")
        for where in ("driver", "datapath")},
+    "lumibench_runs": ("images/lumibench/summary.json", "totals.runs", "{:d}"),
+    "lumibench_size": ("images/lumibench/summary.json", "runs.0.size", "{:d}"),
+    "lumibench_rays": ("images/lumibench/summary.json", "totals.rays", "{:,}"),
+    "lumibench_datapath_wrong": ("images/lumibench/summary.json", "totals.datapath_wrong",
+                                 "{:d}"),
+    "lumibench_edge_ties": ("images/lumibench/summary.json", "totals.edge_tie", "{:,}"),
+    "lumibench_bath_pt_util": ("images/lumibench/summary.json", "runs.9.utilization_memory",
+                               "{:.2f}"),
+    "lumibench_bath_pt_bytes": ("images/lumibench/summary.json", "runs.9.bytes_per_ray",
+                                "{:.0f}"),
+    "lumibench_lands_ao_util": ("images/lumibench/summary.json", "runs.8.utilization_memory",
+                                "{:.2f}"),
+    "lumibench_wall": ("images/lumibench/summary.json", "wall_s", "{:.0f}"),
     "bvh_build_bunny": ("docs/bvh_bench.json", "builds.0.build_s", "{:.2f}"),
     "bvh_build_5m": ("docs/bvh_bench.json", "builds.2.build_s", "{:.1f}"),
 }
+
+
+MIB = 2 ** 20
+# The numbers docs/lumibench.md quotes (the same form; tests/test_suite.py checks the page)
+LUMIBENCH_NUMBERS = {
+    "lb_runs": ("images/lumibench/summary.json", "totals.runs", "{:d}"),
+    "lb_rays": ("images/lumibench/summary.json", "totals.rays", "{:,}"),
+    "lb_edge_ties": ("images/lumibench/summary.json", "totals.edge_tie", "{:,}"),
+    "lb_wall": ("images/lumibench/summary.json", "wall_s", "{:.0f}"),
+    "lb_bath_ao_rays_per_s": ("images/lumibench/BATH_AO.json", "timing.rays_per_s", "{:,.0f}"),
+    "lb_bath_ao_trace": ("images/lumibench/BATH_AO.json", "timing.trace_s", "{:.1f}"),
+    "lb_bath_ao_functional": ("images/lumibench/BATH_AO.json", "wavefront.sim_wall_s",
+                              "{:.1f}"),
+    "lb_bath_ao_replay": ("images/lumibench/BATH_AO.json", "rtunit_memory.sim_wall_s",
+                          "{:.1f}"),
+    "lb512_rays": ("images/lumibench_512/BATH_AO.json", "rays", "{:,}"),
+    "lb512_wall": ("images/lumibench_512/BATH_AO.json", "timing.wall_s", "{:.0f}"),
+    "lb512_rays_per_s": ("images/lumibench_512/BATH_AO.json", "timing.rays_per_s", "{:,.0f}"),
+    **{f"lb512_peak{i}": ("images/lumibench_512/BATH_AO.json", f"workers_peak_rss_bytes.{i}",
+                          lambda v: f"{v / MIB:,.0f}") for i in (0, 1)},
+    **{f"load_bath_{p}": ("docs/lumibench_load_bath.json", f"{p}.to_tracing_s", "{:.1f}")
+       for p in ("cold", "warm")},
+    **{f"load_1000_{p}": ("docs/lumibench_load_1000.json", f"{p}.to_tracing_s", "{:.1f}")
+       for p in ("cold", "warm")},
+    "load_1000_cold_peak": ("docs/lumibench_load_1000.json", "cold.peak_rss_bytes",
+                            lambda v: f"{v / MIB:,.0f}"),
+    "load_1000_triangles": ("docs/lumibench_load_1000.json", "cold.triangles", "{:,}"),
+    **{f"lb_bath_{t}_util": ("images/lumibench/BATH_PT.json",
+                             f"by_type.{t}.rtunit_memory.utilization", "{:.2f}")
+       for t in ("primary", "bounce2")},
+    **{f"lb_bath_{t}_bytes": ("images/lumibench/BATH_PT.json",
+                              f"by_type.{t}.rtunit_memory.bytes_per_ray", "{:,.0f}")
+       for t in ("primary", "bounce2")},
+    "lb_sprng_bounce2_bytes": ("images/lumibench/SPRNG_PT.json",
+                               "by_type.bounce2.rtunit_memory.bytes_per_ray", "{:,.0f}"),
+    "lb_sprng_bounce2_util": ("images/lumibench/SPRNG_PT.json",
+                              "by_type.bounce2.rtunit_memory.utilization", "{:.2f}"),
+    **{f"lb_{n}_util": ("images/lumibench/summary.json", f"runs.{i}.utilization_memory",
+                        "{:.2f}") for n, i in (("ship_sh", 1), ("ship_ao", 2), ("lands_ao", 8),
+                                               ("bath_ao", 11))},
+    **{f"lb_{n}_ops": ("images/lumibench/summary.json", f"runs.{i}.ops_per_ray", "{:.1f}")
+       for n, i in (("ship_sh", 1), ("ship_ao", 2), ("lands_sh", 7), ("lands_ao", 8))},
+    "lb_ship_ao_ties": ("images/lumibench/summary.json", "runs.2.edge_tie", "{:,}"),
+}
+
+
+LUMIBENCH_PAGE = ROOT / "docs" / "lumibench.md"
+LUMIBENCH_FIGURES = ("lumibench", "lumibench_bath_ao512", "lumibench_load_bath",
+                     "lumibench_load_1000")
+
+
+def lumibench_sections(root: Path = ROOT) -> dict[str, str]:
+    """The generated sections of docs/lumibench.md (between ``<!-- generated: NAME -->`` and
+    ``<!-- end: NAME -->``): the table of runs and the text that quotes the JSON."""
+    from driver.suite_report import markdown_table
+    n = readme_numbers(root, LUMIBENCH_NUMBERS)
+    summary = json.loads((root / "images" / "lumibench" / "summary.json").read_text())
+    table = markdown_table(summary) + f"""
+
+Each run's wall time is its own, in one Dask worker process while the other worker made other
+runs; the last line's is the whole suite's. `edge tie`: mostly the ship's, whose sails are
+duplicated coplanar triangles (two triangles at the same t on every ray that meets them; the
+ship's AO run alone has {n['lb_ship_ao_ties']})."""
+    reading = f"""What the runs say about an RT unit of this design point:
+
+- **Camera rays and the short shadow and AO rays keep the datapath busy** where the scene is
+  small or the rays coherent: the ship's shadow and AO runs issue an op in {n['lb_ship_sh_util']}
+  and {n['lb_ship_ao_util']} of the cycles, the landscape's AO run in {n['lb_lands_ao_util']}; the
+  bathroom's camera rays in {n['lb_bath_primary_util']}, fetching {n['lb_bath_primary_bytes']}
+  bytes of nodes per ray from memory: the 32 KiB node cache holds most of what neighbouring rays
+  share.
+- **Path-traced bounces on the large scenes are memory-bound**: from the second bounce on, the
+  bathroom's rays keep the datapath busy in only {n['lb_bath_bounce2_util']} of the cycles and
+  fetch {n['lb_bath_bounce2_bytes']} bytes per ray; Spring's fetch {n['lb_sprng_bounce2_bytes']}
+  bytes per ray at {n['lb_sprng_bounce2_util']}. On these frames the memory side (node cache,
+  bandwidth, latency, ray order, compressed nodes) decides what path tracing costs, which the
+  bunny frames could not show.
+- **Ops per ray depend on the scene more than on the shader**: the ship costs
+  {n['lb_ship_ao_ops']} (AO) to {n['lb_ship_sh_ops']} (SH) ops per ray (duplicated sails, long
+  thin rigging in overlapping boxes), the landscape {n['lb_lands_ao_ops']} to
+  {n['lb_lands_sh_ops']} (most rays see the sky). Energy per ray follows ops per ray: a
+  configuration's energy per op does not depend on the scene.
+- **The bathroom's shadows are all dark**: it is lit by the sky from (0, 1, 0) and the room is
+  closed, so every shadow ray that faces the sky meets the ceiling, as it does in the benchmark.
+- Each ray type here is replayed as a wavefront that starts with an empty ray pool and a cold
+  node cache (`rtunit_memory`, docs/workloads.md#the-node-memory-of-the-rt-unit-model); a
+  path's later bounces are small wavefronts, which a cold cache penalises."""
+    times = f"""Measured on the reference machine (AMD EPYC, 2 cores) while other jobs shared it (a load of
+4 to 10 on its 2 cores): the wall times here are upper bounds; the parts of one run share the
+same conditions, so their ratios hold.
+
+- **The suite**: the {n['lb_runs']} runs, {n['lb_rays']} rays, in {n['lb_wall']} s on 2 Dask
+  workers (`images/lumibench/summary.json`), every ray traced on the RTL, checked against Embree
+  and replayed on the RT unit with its node memory: each request is simulated twice, once by
+  the functional trace and once by the timing replay.
+- **The bathroom's AO frame** (128 × 128, 2 spp, 163,840 rays): {n['lb_bath_ao_rays_per_s']}
+  rays per second end to end outside loading and BVH build ({n['lb_bath_ao_trace']} s, of which
+  the functional RTL pass {n['lb_bath_ao_functional']} s and the RT-unit replay
+  {n['lb_bath_ao_replay']} s; the rest is the traversal's own work between the datapath's
+  steps, the Embree check, shading).
+- **The bathroom's AO frame at 512 × 512** (16 × the benchmark's pixels, {n['lb512_rays']} rays;
+  `rayflex suite lumibench --scenes BATH --workloads ao --size 512 --workers 2`: a suite of one
+  run spreads its tiles over the workers): {n['lb512_wall']} s, {n['lb512_rays_per_s']} rays
+  per second; the two workers' peak memory {n['lb512_peak0']} MiB and {n['lb512_peak1']} MiB
+  (`images/lumibench_512/BATH_AO.json`).
+- **Loading** (`rayflex bench --scene-load`, each phase a fresh process,
+  `docs/lumibench_load_bath.json`): the bathroom starts tracing {n['load_bath_cold']} s after
+  its process starts the first time (reading its 46 OBJ files, building its two-level BVH) and
+  {n['load_bath_warm']} s the second time (the scene and its BVH from the cache; most of it is
+  importing the tool).
+- **A large folder**: 1,000 OBJ files of {n['load_1000_triangles']} triangles
+  (`rayflex bench --scene-load --synthetic 1000,3000000`, `docs/lumibench_load_1000.json`) load
+  and build in {n['load_1000_cold']} s the first time, peak memory
+  {n['load_1000_cold_peak']} MiB, and start tracing {n['load_1000_warm']} s after the start the
+  second time."""
+    return {"table": table, "reading": reading, "times": times}
+
+
+def lumibench_page(root: Path = ROOT) -> str:
+    """docs/lumibench.md with its generated sections made from the JSON files."""
+    import re
+    text = (root / "docs" / "lumibench.md").read_text()
+    for name, body in lumibench_sections(root).items():
+        pattern = re.compile(rf"(<!-- generated: {name}\b[^>]*-->\n).*?(<!-- end: {name} -->)",
+                             re.S)
+        if not pattern.search(text):
+            raise SystemExit(f"figures: error: docs/lumibench.md has no section {name!r}")
+        text = pattern.sub(lambda m: m.group(1) + body + "\n" + m.group(2), text)
+    return text
 
 
 def lookup(data, path: str):
@@ -406,15 +572,17 @@ def lookup(data, path: str):
     return data
 
 
-def readme_numbers(root: Path = ROOT) -> dict[str, str]:
-    """Every quoted README number, formatted from its JSON file."""
+def readme_numbers(root: Path = ROOT, table: dict | None = None) -> dict[str, str]:
+    """Every quoted README number (or of ``table``, e.g. ``LUMIBENCH_NUMBERS``), formatted
+    from its JSON file."""
     cache: dict[str, object] = {}
     out = {}
-    for name, (file, path, fmt) in README_NUMBERS.items():
+    for name, (file, path, fmt) in (README_NUMBERS if table is None else table).items():
         if file not in cache:
             cache[file] = json.loads((root / file).read_text())
         value = lookup(cache[file], path)
-        out[name] = fmt.format(value).replace("%", " %")
+        text = fmt(value) if callable(fmt) else fmt.format(value)
+        out[name] = text.replace("%", " %")
     return out
 
 
@@ -496,6 +664,9 @@ def main(argv=None) -> int:
                    help="rebuild only this figure (repeatable)")
     p.add_argument("--light", action="store_true",
                    help=f"rebuild the figures of at most {LIGHT_MINUTES} min")
+    p.add_argument("--lumibench-page", action="store_true",
+                   help="rewrite docs/lumibench.md's generated sections from the JSON files "
+                        "(done after any LumiBench figure is rebuilt)")
     p.add_argument("--numbers", action="store_true",
                    help="print the README's numbers as their JSON files give them")
     p.add_argument("--record-existing", action="store_true",
@@ -509,8 +680,12 @@ def main(argv=None) -> int:
                   f"{'':24} {fig.shown()}\n{'':24} -> {', '.join(fig.outputs)}"
                   f"  (last: commit {made.get('commit', '?')})")
         return 0
+    if args.lumibench_page:
+        LUMIBENCH_PAGE.write_text(lumibench_page())
+        return 0
     if args.numbers:
-        for name, value in readme_numbers().items():
+        quoted = {**readme_numbers(), **readme_numbers(table=LUMIBENCH_NUMBERS)}
+        for name, value in quoted.items():
             print(f"{name:32} {value}")
         return 0
     if args.record_existing:
@@ -520,6 +695,8 @@ def main(argv=None) -> int:
               [f for f in FIGURES if f.minutes <= LIGHT_MINUTES] if args.light else FIGURES)
     for fig in chosen:
         rebuild(fig)
+    if any(f.name in LUMIBENCH_FIGURES for f in chosen):
+        LUMIBENCH_PAGE.write_text(lumibench_page())
     return 0
 
 

@@ -39,7 +39,8 @@ DEFAULT_CACHE = "~/.cache/rayflex"     # RAYFLEX_CACHE: every cache of the tool,
 
 def cache_root() -> Path:
     """The tool's cache (``$RAYFLEX_CACHE`` or ``DEFAULT_CACHE``): Verilator models in
-    ``verilator/`` (``cache_dir``), synthesized netlists in ``area/`` and ``power/``."""
+    ``verilator/`` (``cache_dir``), synthesized netlists in ``area/`` and ``power/``, LumiBench
+    scenes and their BVHs in ``scenes/`` (``driver.scenes.lumibench``)."""
     env = os.environ.get("RAYFLEX_CACHE")
     return Path(env or DEFAULT_CACHE).expanduser()
 

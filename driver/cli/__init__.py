@@ -18,6 +18,7 @@ import sys
 from importlib.metadata import PackageNotFoundError, version as dist_version
 
 from ..core.errors import Terminated
+from ..scenes.lumibench import using_root
 from .common import (EXIT_CHECK, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED,
                      EXIT_USAGE, PROG, one_line)
 from .interrupt import watch
@@ -28,14 +29,16 @@ COMMANDS = {
     "knn": "driver.cli.knn",
     "bench": "driver.cli.bench",
     "sweep": "driver.cli.sweep",
+    "suite": "driver.cli.suite",
     "power": "driver.cli.power",
     "study": "driver.cli.study",
 }
 
 EXIT_CODES = {
     EXIT_OK: "success",
-    EXIT_CHECK: "a result check failed (render --check-embree: unexplained Embree mismatches; "
-                "knn: neighbours differ beyond float32 rounding)",
+    EXIT_CHECK: "a result check failed (render --check-embree, suite: rays where exact "
+                "arithmetic finds the datapath wrong; knn: neighbours differ beyond float32 "
+                "rounding)",
     EXIT_USAGE: "bad input, usage or environment error (one line on stderr; nothing written)",
     EXIT_INTERNAL: "internal error, a bug (one line; RAYFLEX_TRACEBACK=1 shows the traceback)",
     EXIT_INTERRUPTED: "interrupted (SIGINT, Ctrl-C); nothing written, builds cleaned up",
@@ -44,10 +47,14 @@ EXIT_CODES = {
 
 ENVIRONMENT = {
     "RAYFLEX_CACHE": "the tool's cache (default ~/.cache/rayflex): Verilator models in "
-                     "verilator/, synthesized netlists in area/ and power/",
+                     "verilator/, synthesized netlists in area/ and power/, LumiBench scenes "
+                     "in scenes/",
     "RAYFLEX_PGO": "0: build RTL models in one pass, without profile-guided optimisation",
     "CXX": "C++ compiler for the RTL builds (default g++, else clang++)",
     "RAYFLEX_TRACEBACK": "1: print the traceback of an internal error",
+    "LUMIBENCH_ROOT": "a clone of LumiBench's repository, for scenes lumibench:ID",
+    "RAYFLEX_SCENE_CACHE": "LumiBench scene cache: a folder (default: RAYFLEX_CACHE/scenes), "
+                           "or 0: read the OBJ files every time",
 }
 
 
@@ -78,7 +85,8 @@ def main(argv=None) -> int:
     # process within about a second even inside a native kernel (driver.cli.interrupt)
     with watch(PROG, codes, Terminated):
         try:
-            return int(args.handler.run(args) or 0)
+            with using_root(args.lumibench_root):
+                return int(args.handler.run(args) or 0)
         except KeyboardInterrupt:
             print(f"{PROG}: interrupted", file=sys.stderr)
             return EXIT_INTERRUPTED
@@ -104,10 +112,12 @@ def build_parser() -> argparse.ArgumentParser:
         prog=PROG, description="Workload driver for the RayFlex ray-tracing datapath.",
         epilog=epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
+    from .options import SHARED     # trimesh, embreex: every command's options need them
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for target in COMMANDS.values():
         handler = _load(target)
         p = handler.add_parser(sub)
+        SHARED["lumibench_root"].add(p)
         p.formatter_class = argparse.RawDescriptionHelpFormatter
         if p.epilog is None:
             p.epilog = epilog()

@@ -10,7 +10,9 @@ from ..core import outputs
 from ..core.outputs import JSON, PNG, Outputs
 from ..check import summary as check_summary
 from ..core.provenance import provenance
+from ..load_bench import load_bench
 from ..rtunit import SWEEP_RAYS_IN_FLIGHT
+from ..scenes.lumibench import is_lumibench, root
 from ..studies.bvh import bvh_bench
 from . import options
 from .common import check_positive, wrote
@@ -31,6 +33,37 @@ def add_parser(subparsers):
     return p
 
 
+def scene_load(args, point) -> int:
+    """``--scene-load``: ``driver.load_bench``."""
+    synthetic = None
+    if args.synthetic:
+        _int_list(args.synthetic, "--synthetic")
+        if len(args.synthetic.split(",")) != 2:
+            raise ValueError(f"--synthetic is FILES,TRIANGLES, got {args.synthetic!r}")
+        synthetic = tuple(int(x) for x in args.synthetic.split(","))
+        if not 1 <= synthetic[0] <= synthetic[1] or synthetic[1] > 50_000_000:
+            raise ValueError("--synthetic: 1 <= FILES <= TRIANGLES <= 50,000,000")
+    elif not is_lumibench(point.scene):
+        raise ValueError("--scene-load measures a LumiBench scene: give --scene lumibench:ID "
+                         "(or --synthetic FILES,TRIANGLES)")
+    outs = Outputs()
+    js = outs.add("--json", args.json, JSON) if args.json else None
+    lroot = None if synthetic else root()
+    doc = {"provenance": provenance(point),
+           **load_bench(point.scene, lroot, synthetic, point.bvh_format, not args.no_progress)}
+    with outs.commit():
+        if js:
+            outputs.write_json(doc, outs.temp(js))
+    for name in ("cold", "warm"):
+        r = doc[name]
+        print(f"{name:>4}: {r['triangles']:,} triangles in {r['models']:,} models: start "
+              f"{r['start_s']:.2f} s + imports {r['import_s']:.2f} s + load {r['load_s']:.2f} s "
+              f"+ BVH {r['build_s']:.2f} s = tracing after {r['to_tracing_s']:.2f} s; peak "
+              f"{r['peak_rss_bytes'] / 2**20:,.0f} MiB")
+    wrote(outs.paths())
+    return 0
+
+
 def _int_list(text: str, flag: str) -> list[int]:
     try:
         vals = [int(x) for x in str(text).split(",") if x.strip()]
@@ -45,6 +78,10 @@ def run(args) -> int:
     from ..render import check_memory
 
     point = options.from_args(args)
+    if args.synthetic and not args.scene_load:
+        raise ValueError("--synthetic goes with --scene-load")
+    if args.scene_load:
+        return scene_load(args, point)
     check_positive("--sweep-size", args.sweep_size, 0)
     check_positive("--pyverilator-requests", args.pyverilator_requests, 0)
     check_positive("--repeat", args.repeat)

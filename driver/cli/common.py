@@ -43,6 +43,14 @@ def check_backend(name: str) -> str:
     return name
 
 
+def scene_info(scene) -> dict:
+    """What a JSON says about where its scene came from: ``lumibench`` (docs/lumibench.md:
+    the scene's ID, models, whether it is ``partial`` and the files missing) for a LumiBench
+    scene, else nothing."""
+    info = getattr(scene, "info", None)
+    return {"lumibench": info()} if callable(info) else {}
+
+
 def check_workers(args) -> None:
     """--workers (>= 1) and --scheduler: one place to run tiles or points, not both."""
     check_positive("--workers", args.workers)

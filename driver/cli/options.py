@@ -31,6 +31,7 @@ from ..scenes.scene import UP_AXES
 from ..studies import bvh as bvh_study
 from ..studies import gpu as gpu_study
 from ..studies import rayorder
+from ..suite import SUITES
 from ..tiles import DEFAULT_TILE
 from .export import DEFAULT_VCD_WINDOW
 
@@ -87,6 +88,9 @@ SHARED = {
                  help="tile size in pixels (default: a primary frame traced by one worker is "
                       f"one wavefront up to {render.WHOLE_FRAME_PIXELS:,} pixels, tiles of "
                       f"{render.MEMORY_TILE} above; else {DEFAULT_TILE})"),
+    "lumibench_root": flag("--lumibench-root", metavar="DIR",
+                           help="a clone of LumiBench's repository, for scenes lumibench:ID "
+                                "(default: $LUMIBENCH_ROOT; docs/lumibench.md)"),
 }
 
 # argument groups: name -> (title, description)
@@ -211,6 +215,13 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
                   "2 M / 5 M instanced bunnies, tree quality of the SAH vs greedy collapse, "
                   "box nodes vs ops per ray for each --bvh-fill with and without "
                   "--cull-stack (PNG plot)"),
+        flag("--scene-load", action="store_true", help=(
+            "the scene loader instead: load a LumiBench scene (--scene lumibench:ID) in a fresh "
+            "process with an empty scene cache and again from the cache, each with its BVH "
+            "build: times to tracing and peak memory (docs/lumibench.md)")),
+        flag("--synthetic", metavar="FILES,TRIANGLES", help=(
+            "with --scene-load: measure a LumiBench-format folder of FILES OBJ files of "
+            "TRIANGLES triangles in all, written to a temporary folder")),
     )), (DESIGN, ()), (None, (SHARED["progress"],))),
     "sweep": ((None, (
         flag("--csv", metavar="PATH", help="one row per design point x ray type"),
@@ -246,6 +257,28 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
                   "an extended one)"),
         _json("write the report as JSON"),
         _plot("PNG of energy per operation (default: none)"),
+    )), (DESIGN, ()), (None, (SHARED["progress"],))),
+    "suite": ((None, (
+        flag("suite_name", nargs="?", choices=SUITES, metavar="NAME",
+             help="a built-in suite: lumibench (every run of LumiBench that --lumibench-root "
+                  "can make: its scenes x pt, sh, ao)"),
+        flag("--suite", metavar="FILE",
+             help="a TOML list of runs instead ([[runs]] with scene, workload and optionally "
+                  "name, size, spp, bounces, ao_rays, seed; docs/lumibench.md)"),
+        flag("--scenes", metavar="LIST", help="lumibench: these scene IDs only (e.g. BATH,SHIP)"),
+        flag("--workloads", metavar="LIST", help="lumibench: these shaders only (pt, sh, ao)"),
+        flag("--size", type=int, metavar="N",
+             help="every run's frame N x N (default: the suite's; LumiBench 128)"),
+        flag("--spp", type=int, metavar="N",
+             help="every run's samples per pixel (default: the suite's; LumiBench 2)"),
+        flag("--out", metavar="DIR", help="output folder (default: suite-NAME)"),
+        flag("--ideal-replay", action="store_true",
+             help="also replay every run with free node fetches (rtunit): a second timing "
+                  "replay of every request"),
+        _workers("make runs on a local Dask cluster of N one-thread processes (default 1: this "
+                 "process)"),
+        _scheduler("make runs"),
+        _backend(),
     )), (DESIGN, ()), (None, (SHARED["progress"],))),
     "study rayorder": ((None, (
         flag("--json", required=True, metavar="PATH", help="results (JSON)"),

@@ -10,6 +10,7 @@ from __future__ import annotations
 import sys
 
 from ..backends import resolve as resolve_backend
+from ..check import failed
 from ..check import summary as check_summary
 from ..core import outputs
 from ..core.outputs import IMAGE, JSON, Outputs
@@ -18,7 +19,7 @@ from ..core.provenance import provenance
 from ..scenes.camera import check_size
 from . import options
 from .common import (EXIT_CHECK, PROG, check_backend, check_flag_size, check_positive,
-                     check_workers, view_options, wrote)
+                     check_workers, scene_info, view_options, wrote)
 from .export import Export
 
 
@@ -82,17 +83,21 @@ def run(args) -> int:
         res.save(outs.temp(out))
         res.save_heatmap(outs.temp(hm))
         if js:
-            outputs.write_json({"provenance": provenance(point), "scene": scene.name, "width": w,
-                        "height": h, **res.stats}, outs.temp(js))
+            outputs.write_json({"provenance": provenance(point), "scene": scene.name,
+                                "width": w, "height": h, **scene_info(scene), **res.stats},
+                               outs.temp(js))
         if dump:
             dump.write(scene, w, h, point.workload, point.workload_options(), res.stats.get("tile"),
                        point.tree_options(), not args.no_progress, point.backend_options())
     print(summary(res))
     wrote(outs.paths())
     emb = res.stats.get("embree")
-    if emb and (emb["hit_mismatch"] or emb["prim_mismatch"]):
+    if failed(emb):
+        wrong = (emb.get("adjudicated") or {}).get("classes", {}).get("datapath_wrong")
         print(f"{PROG}: Embree check: {emb['hit_mismatch']} hit/miss and "
-              f"{emb['prim_mismatch']} primitive mismatches", file=sys.stderr)
+              f"{emb['prim_mismatch']} primitive mismatches"
+              + (f", {wrong} rays where the datapath is wrong" if wrong is not None else ""),
+              file=sys.stderr)
         return EXIT_CHECK
     return 0
 

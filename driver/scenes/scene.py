@@ -17,10 +17,9 @@ face indices in the file. Degenerate (zero-area) triangles are kept. Invalid inp
 
 from __future__ import annotations
 
-import dataclasses
 import importlib.resources
 import sys
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import NamedTuple
 
@@ -38,15 +37,16 @@ else:                                               # pragma: no cover
 from .camera import Camera, check_size, fmt_vec, frame
 from ..core.resources import data_dir
 from ..core.errors import CameraError, SceneError
-from ..instances import InstancedTriangles, Instances
+from ..instances import Instances
 from . import meshes
 from .builtins import BUILT
+from . import lumibench
 from .materials import DEFAULT_ALBEDO, Materials, PointLight, QuadLight
+from .model import DEFAULT_SIZE, Scene, triangles
 
 SCENES_DIR = data_dir("scenes")
 BUILTINS = ("bunny", "room", "soup", "sphere")
 RENDER_BUILTINS = ("cornell", "bunny_floor", "bunny_grid", "city")   # with materials and lights
-DEFAULT_SIZE = 256
 _UP = {"bunny": (0.0, 0.0, 1.0), "sphere": (0.0, 0.0, 1.0), "room": (0.0, 0.0, 1.0),
        "soup": (0.0, 0.0, 1.0)}
 UP_AXES = {"y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}     # --up-axis of mesh files
@@ -57,56 +57,6 @@ _NOT_MESH_FILES = {"stl_ascii", "xyz"}
 MESH_TYPES = tuple(sorted(set(trimesh.exchange.load.mesh_formats()) - _NOT_MESH_FILES))
 
 
-@dataclass
-class Scene:
-    """mesh : trimesh.Trimesh (process=False; None for a scene of instances too large to
-    flatten: ``city``); camera : Camera; size : default (width, height);
-    materials : ``driver.workloads.Materials`` or None (uniform grey); lights : workload lights
-    (empty: a default light); double_sided : trace with NO_CULL; ao_radius : None = default."""
-
-    mesh: trimesh.Trimesh
-    camera: Camera
-    size: tuple = (DEFAULT_SIZE, DEFAULT_SIZE)
-    name: str = "scene"
-    materials: object = None
-    lights: list = field(default_factory=list)
-    double_sided: bool = False
-    ao_radius: float | None = None
-    instances: object = None        # driver.instances.Instances, or None: one mesh
-
-    @property
-    def triangles(self) -> np.ndarray:
-        """(n, 3, 3) float32 vertex positions of every face; row i is primitive id i. A scene
-        of instances too large to flatten (``mesh`` None) gives an
-        ``driver.instances.InstancedTriangles``, computed row by row when indexed."""
-        if self.mesh is None:
-            return InstancedTriangles(self.instances)
-        return triangles(self.mesh)
-
-    def flattened(self) -> "Scene":
-        """This scene traced as one mesh: its flattened triangles in one BVH (the same
-        primitive ids); SceneError for a scene too large to flatten (``mesh`` None)."""
-        if self.mesh is None:
-            raise SceneError(f"scene {self.name!r} is too large to flatten "
-                             f"({self.instances.triangles_total:,} instanced triangles)")
-        return dataclasses.replace(self, instances=None)
-
-    def counts(self) -> dict:
-        """``instances``, ``instanced_triangles`` (triangles of the flattened scene) and
-        ``blas_triangles`` (triangles stored once per mesh); a one-mesh scene is one instance."""
-        if self.instances is None:
-            n = len(self.mesh.faces)
-            return {"instances": 1, "instanced_triangles": n, "blas_triangles": n}
-        i = self.instances
-        return {"instances": len(i), "instanced_triangles": i.triangles_total,
-                "blas_triangles": i.blas_triangles}
-
-
-def triangles(mesh: trimesh.Trimesh) -> np.ndarray:
-    """(n, 3, 3) float32 vertex positions A, B, C of every face, in face order."""
-    return np.asarray(mesh.vertices, np.float32)[np.asarray(mesh.faces)]
-
-
 def load(name_or_path) -> trimesh.Trimesh:
     """The mesh of a scene name, built-in, scene TOML or mesh file (see module docstring)."""
     if isinstance(name_or_path, trimesh.Trimesh):
@@ -115,7 +65,8 @@ def load(name_or_path) -> trimesh.Trimesh:
 
 
 class Source(NamedTuple):
-    """Where a scene comes from: kind "toml" or "mesh" with a Path, or "builtin" with a name."""
+    """Where a scene comes from: kind "toml" or "mesh" with a Path, "builtin" with a name, or
+    "lumibench" with ``lumibench:ID`` (``driver.scenes.lumibench``)."""
 
     kind: str
     ref: object
@@ -129,6 +80,8 @@ def load_scene(name_or_path, up_axis: str | None = None) -> Scene:
         return name_or_path
     kind, ref = name_or_path if isinstance(name_or_path, Source) else resolve(name_or_path)
     check_up_axis(up_axis, kind)
+    if kind == "lumibench":
+        return lumibench.load(ref, progress=True)
     if kind == "toml":
         return _from_toml(ref)
     if kind == "mesh":
@@ -178,6 +131,8 @@ def resolve(name_or_path) -> Source:
     text = str(name_or_path)
     if not text.strip():
         raise SceneError("empty scene name")
+    if lumibench.is_lumibench(text):           # lumibench:ID (docs/lumibench.md)
+        return Source("lumibench", f"{lumibench.PREFIX}{lumibench.check(text).id}")
     path = Path(text).expanduser()
     bare = isinstance(name_or_path, str) and path.name == text and not path.suffix
     named = SCENES_DIR / f"{text}.toml"
@@ -207,6 +162,8 @@ def scene_name(name_or_path) -> str:
     if kind == "toml":
         name = _read_toml(ref).get("name", ref.stem)
         return name if isinstance(name, str) and name else ref.stem
+    if kind == "lumibench":
+        return ref.split(":", 1)[1]
     return ref.stem if kind == "mesh" else ref
 
 
