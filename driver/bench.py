@@ -44,17 +44,19 @@ import numpy as np
 
 from . import backends, rtunit, tiles, workloads
 from .backends import build as rtl_build
+from .bench_plots import plot_rays_held, plot_workload_sweep
 from .bvh4 import warm_up
 from .check import compare, embree_closest, embree_json, summary
-from .core.wire import pack_responses
-from .design import DesignPoint
-from .plotting import describe, legend_right, wrap
 from .core.progress import bar as _bar
 from .core.provenance import machine, provenance
+from .core.wire import pack_responses
+from .design import DesignPoint
+from .plotting import describe
+from .rtunit.gpu import replay_point, waves_of
+from .rtunit.plan import Wave
 from .scenes.camera import check_size, primary_rays
-from .stats import merge_rtunit, order_cost_line, public, replay_stats
+from .stats import order_cost_line, public
 from .tracer import trace
-from .workloads import setup_for
 
 PYVERILATOR_REQUESTS = 2000
 REPEAT = 3
@@ -64,7 +66,7 @@ SWEEP_SIZE = 64
 def bench(point: DesignPoint = DesignPoint(), sweep_size=SWEEP_SIZE,
           sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, sweep_pipelines=rtunit.SWEEP_PIPELINES,
           plot=None, pyverilator_requests=PYVERILATOR_REQUESTS, repeat=REPEAT,
-          progress=True, scene=None) -> dict:
+          progress=True, scene=None, ideal: bool = False) -> dict:
     """Run the benchmark of design point ``point`` (its primary frame); returns the JSON
     document (see the module docstring). ``scene``: a loaded scene instead of
     ``point.scene``."""
@@ -80,7 +82,7 @@ def bench(point: DesignPoint = DesignPoint(), sweep_size=SWEEP_SIZE,
     n = len(origins)
     rtl = backends.backend("rtl", **point.backend_options())  # build (or load) first: fail early
 
-    frame, res, bvh = _frame(scene, origins, dirs, rtl, point, f"{w}x{h}", progress)
+    frame, res, bvh = _frame(scene, origins, dirs, rtl, point, f"{w}x{h}", progress, w, ideal)
     sided = scene.double_sided
     rec = res.record
     rtl_runs = [res.stats["sim_cycles_per_s"]]
@@ -129,9 +131,10 @@ def bench(point: DesignPoint = DesignPoint(), sweep_size=SWEEP_SIZE,
     }
 
 
-def _frame(scene, origins, dirs, rtl, point, label, progress):
-    """The frame on "rtl": BVH build, wavefront traversal (recorded), RT-unit replays. Returns
-    (frame statistics, trace result, BVH)."""
+def _frame(scene, origins, dirs, rtl, point, label, progress, width, ideal=False):
+    """The frame on "rtl": BVH build, wavefront traversal (recorded), the RT-unit replay (and
+    with ``ideal`` the one with free node fetches). Returns (frame statistics, trace result,
+    BVH)."""
 
     t_kernels = warm_up()                           # the builder's JIT, like the model's build
     t0 = time.perf_counter()
@@ -143,15 +146,18 @@ def _frame(scene, origins, dirs, rtl, point, label, progress):
                 cull_stack=point.cull_stack, double_sided=scene.double_sided)
     t_trace = time.perf_counter() - t1
     bar.close()
-    bar = _bar(1, f"RT-unit replays R={point.rays_in_flight} P={point.pipelines}", "run",
+    bar = _bar(1, f"RT-unit replay R={point.rays_in_flight} P={point.pipelines}", "run",
                progress)
     t2 = time.perf_counter()
     frame = public(res.stats)
-    frame["rtunit"], frame["rtunit_memory"] = replay_stats([res.record], point)
+    n = res.record.rays
+    rp = replay_point([Wave(res.record, "primary", np.arange(n), np.zeros(n, np.int64))], point,
+                      width, ideal)
+    frame["rtunit"], frame["rtunit_memory"] = rp["rtunit"], rp["rtunit_memory"]
     t_replay = time.perf_counter() - t2
     bar.hook(1, 1)
     bar.close()
-    frame["by_type"] = {"primary": dict(frame)}
+    frame["by_type"] = {"primary": {**frame, **rp["by_type"]["primary"]}}
     frame["wall_s"] = time.perf_counter() - t0
     frame["wall_parts_s"] = {"bvh_build": t_bvh, "traversal": t_trace, "replay": t_replay}
     frame["bvh_kernels_s"] = t_kernels              # not in wall_s (see bvh4.warm_up)
@@ -328,14 +334,36 @@ def timing_rows(f: dict) -> list[tuple[str, str]]:
     wf = f["wavefront"]
     rows = [("wavefront", f"{wf['cycles']} cycles, utilization {wf['utilization']:.4f} (every "
                           "ray in flight, one pipeline)")]
-    for key, what in (("rtunit", "node fetches free"), ("rtunit_memory", "node cache + memory")):
+    for key, what in (("rtunit", "node fetches free"), ("rtunit_memory", "memory hierarchy")):
         r = f.get(key)
         if r:
-            rows.append((f"RT unit R={r['rays_in_flight']} P={r['pipelines']}",
+            rows.append((f"RT units {r['rt_units']} x R={r['rays_in_flight']} "
+                         f"P={r['pipelines']} warp {r['warp_size']}, {r['frame_schedule']}",
                          f"{r['cycles']} cycles, utilization {r['utilization']:.4f}, "
-                         f"{r['frame_us_at_1ghz']:.1f} us at 1 GHz ({what}"
-                         + (f"; hit rate {r['hit_rate']:.3f}, {r['bytes_per_ray']:.0f} B/ray)"
-                            if "hit_rate" in r else ")")))
+                         f"{r['frame_us_at_1ghz']:.1f} us at 1 GHz, latency "
+                         f"{r['latency_mean']:.0f} (p95 {r['latency_p95']:.0f}) cycles per ray "
+                         f"({what}"
+                         + (f"; L1 hit rate {r['hit_rate']:.3f}, {r['bytes_per_ray']:.0f} B/ray "
+                            "from DRAM)" if "hit_rate" in r else ")")))
+    m = f.get("rtunit_memory") or {}
+    w = m.get("simt")
+    if w and m.get("warp_size", 1) > 1:
+        rows.append(("warps", f"{w['warps']} warps, {w['trace_calls']} trace calls, SIMT "
+                              f"efficiency {w['simt_efficiency']:.3f}; a call waits "
+                              f"{w['slowest_ray_wait_per_call']:.0f} cycles for its slowest ray "
+                              f"after its first; {w['rays_held_mean']:.1f} rays held per RT unit "
+                              f"on average (at most {w['max_rays_held']})"))
+    if m.get("levels"):
+        lv = m["levels"]
+        text = "; ".join(
+            f"{name} {lv[k]['line_accesses']:,} accesses, {lv[k]['line_hits']:,} hits "
+            f"({lv[k]['merged_misses']:,} merged misses), {lv[k]['fill_bytes']:,} bytes filled, "
+            f"{lv[k]['wait_cycles']:,} cycles waited" for k, name in (("l1", "L1"), ("l2", "L2"))
+            if lv[k]["line_accesses"])
+        d = lv["dram"]
+        rows.append(("memory", (text + "; " if text else "")
+                     + f"DRAM {d['transfer_bytes']:,} bytes in {d['transfers']:,} transfers, "
+                     f"{d['wait_cycles']:,} cycles waited; {m['mshr_stalls']:,} MSHR stalls"))
     cost = (f.get("rtunit_memory") or f.get("rtunit") or {}).get("ray_order_cost")
     if cost:
         rows.append(("ray order", order_cost_line(cost)))
@@ -345,13 +373,14 @@ def timing_rows(f: dict) -> list[tuple[str, str]]:
 # ----------------------------------------------------------------------------------------------
 # rayflex bench --workload: the datapath mix and the RT-unit timing per ray type
 
-def bench_workload(point: DesignPoint, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, plot=None,
-                   progress=True) -> dict:
+def bench_workload(point: DesignPoint, sweep_rays=(), plot=None, progress=True,
+                   ideal: bool = False) -> dict:
     """One workload frame of design point ``point`` on "rtl" (every batch recorded), checked
-    against Embree; per ray type: the op mix, the RT-unit replays (``rtunit``,
-    ``rtunit_memory``), any-hit vs closest-hit ops of the same rays, and a sweep of utilization
-    over ``sweep_rays`` rays in flight (one pipeline, the point's node memory; empty: no sweep),
-    plotted per ray type to ``plot``."""
+    against Embree; the frame's RT-unit replay (``rtunit_memory``; with ``ideal`` also
+    ``rtunit``, free node fetches), per ray type its op mix, latency and bytes from each memory
+    level, any-hit vs closest-hit ops of the same rays; with ``sweep_rays`` (rays in flight per
+    unit, multiples of the warp size) the replay again at each, plotted (``plot``; without a
+    sweep the plot shows the rays each RT unit holds over the frame)."""
     from .scenes.scene import load_scene
 
     scene = point.scene_of(load_scene(point.scene))
@@ -359,6 +388,10 @@ def bench_workload(point: DesignPoint, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, p
     setup = workloads.setup_for(scene)
     rtl = backends.backend("rtl", **point.backend_options())
     golden = backends.backend("golden", **point.backend_options())
+    bad = [r for r in sweep_rays if r % point.warp_size]
+    if bad:
+        raise ValueError(f"--sweep-rays {bad[0]} is not a multiple of --warp-size "
+                         f"{point.warp_size}")
     t0 = time.perf_counter()
     bvh = point.build(scene)
     t_bvh = time.perf_counter() - t0
@@ -373,80 +406,46 @@ def bench_workload(point: DesignPoint, sweep_rays=rtunit.SWEEP_RAYS_IN_FLIGHT, p
     workloads.embree_check(res, setup)
     frame = public(res.stats)
     kinds = list(frame["by_type"])
-    steps = len(kinds) * (1 + len(sweep_rays))
-    bar = _bar(steps, f"{point.workload}: RT-unit replays", "replay", progress)
-    sweep, done = {}, 0
+    waves = waves_of(res.batches)
+    steps = 1 + len(sweep_rays)
+    bar = _bar(steps, f"{point.workload}: RT-unit replay", "replay", progress)
     t2 = time.perf_counter()
+    rp = replay_point(waves, point, size, ideal)
+    for key in ("rtunit", "rtunit_memory"):
+        frame[key] = rp[key]
     for kind in kinds:
-        batches = [b for b in res.batches if b.kind == kind]
         entry = frame["by_type"][kind]
-        records = [b.result.record for b in batches]
-        entry["rtunit"], entry["rtunit_memory"] = replay_stats(records, point)
+        entry.update(rp["by_type"][kind])
+        batches = [b for b in res.batches if b.kind == kind]
         if batches[0].any_hit:
             closest = sum(trace(bvh, b.origins, b.dirs, backend=golden, extent=b.extent,
                                 double_sided=setup.double_sided).stats["ops"] for b in batches)
             entry["closest_hit_ops"] = closest
             entry["any_hit_vs_closest_ops"] = entry["ops"] / closest if closest else None
-        done += 1
-        bar.hook(done, steps)
-        if sweep_rays:
-            sweep[kind] = []
-        for r in sweep_rays:
-            plain, mem = replay_stats(records, point.replace(
-                rays_in_flight=r, pipelines=1, ray_window=max(point.ray_window, r)))
-            sweep[kind].append({"rays_in_flight": r, "rtunit": plain, "rtunit_memory": mem})
-            done += 1
-            bar.hook(done, steps)
     t_replay = time.perf_counter() - t2
+    bar.hook(1, steps)
+    sweep = []
+    for i, r in enumerate(sweep_rays):
+        sp = replay_point(waves, point.replace(rays_in_flight=r,
+                                               ray_window=max(point.ray_window, r)), size)
+        sweep.append({"rays_in_flight": r, "rtunit_memory": sp["rtunit_memory"],
+                      "by_type": {k: {"rtunit_memory": v["rtunit_memory"]}
+                                  for k, v in sp["by_type"].items()}})
+        bar.hook(i + 2, steps)
     bar.close()
-    if plot and sweep_rays:
+    if plot and sweep:
         plot_workload_sweep(sweep, plot, "utilization vs rays in flight: " + describe(
             {**point.as_dict(), "size": size, "scene": scene.name},
-            omit=("rays_in_flight", "pipelines", "ray_window")))
-    for key in ("rtunit", "rtunit_memory"):
-        frame[key] = merge_rtunit([t[key] for t in frame["by_type"].values()])
+            omit=("rays_in_flight", "ray_window")))
+    elif plot:
+        plot_rays_held(frame, plot, "rays held per RT unit over the frame: " + describe(
+            {**point.as_dict(), "size": size, "scene": scene.name}))
     frame["wall_parts_s"] = {"bvh_build": t_bvh, "traversal": t_trace, "replay": t_replay}
     frame["bvh"] = dict(bvh.stats)
     frame.update(scene.counts())
     return {"provenance": provenance(point), "scene": scene.name, "workload": point.workload,
-            "width": size, "height": size, "frame": frame, "sweep": sweep,
-            "plot": str(plot) if plot and sweep_rays else None}
-
-
-MARKERS = ("o", "s", "^", "D", "v", "P")     # one per ray type: coinciding curves stay apart
-
-
-def plot_workload_sweep(sweep: dict, path, title: str) -> None:
-    """PNG: datapath utilization vs rays in flight (log x), one line per ray type (colour and
-    marker), with the node cache and memory (left) and with free node fetches (right, where the
-    ray types' curves often coincide near 1: the markers tell them apart); legend to the
-    right of the data."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    with_memory = all(pts[0]["rtunit_memory"] for pts in sweep.values())
-    fig = Figure(figsize=(10.0, 4.4) if with_memory else (7.4, 4.4), dpi=110)
-    FigureCanvasAgg(fig)
-    panels = [("rtunit_memory", "with the node cache and memory")] if with_memory else []
-    panels.append(("rtunit", "with free node fetches"))
-    axes = fig.subplots(1, len(panels), sharey=True, squeeze=False)[0]
-    for ax, (key, what) in zip(axes, panels):
-        for i, (kind, pts) in enumerate(sweep.items()):
-            ax.plot([p["rays_in_flight"] for p in pts], [p[key]["utilization"] for p in pts],
-                    marker=MARKERS[i % len(MARKERS)], ms=7 - i, color=f"C{i}", lw=1.5,
-                    mfc="none" if i % 2 else f"C{i}", label=kind)
-        ax.set_xscale("log", base=2)
-        ax.set_ylim(0, 1.05)
-        ax.set_xlabel("rays in flight (ray pool size R)")
-        ax.set_title(what, fontsize=9)
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].set_ylabel("datapath utilization, ops / cycles (one pipeline)")
-    legend_right(axes[-1], title="ray type", fontsize=8)
-    fig.suptitle(wrap(title, 130), fontsize=9)
-    fig.tight_layout()
-    fig.savefig(str(path), format="png")
-
-
+            "width": size, "height": size, "frame": frame, "sweep": sweep or None,
+            "plot": str(plot) if plot else None}
 def bench_workers(point: DesignPoint, workers=2, tile=64, progress=True) -> dict:
     """The same tiled frame of design point ``point`` on "rtl" in this process and on a
     LocalCluster of ``workers`` processes: wall times (scheduler start-up and the once-per-worker
@@ -459,7 +458,7 @@ def bench_workers(point: DesignPoint, workers=2, tile=64, progress=True) -> dict
 
     scene = point.scene_of(load_scene(point.scene))
     size = point.size or scene.size[0]
-    setup, bvh = setup_for(scene), point.build(scene)
+    setup, bvh = workloads.setup_for(scene), point.build(scene)
     n_tiles = len(tiles.plan(size, size, tile))
     # a first use on this machine builds the Verilated model (minutes): build it before either
     # clock starts, so that both runs pay only what every run pays, loading it from the cache

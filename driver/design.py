@@ -15,9 +15,13 @@ docs/statistics.md for what is measured):
   ``--latency`` (pipeline stages), ``--transform`` (an instanced scene's ray transform in the
   driver, or on the datapath: build parameter TRANSFORM);
 - bvh: ``--bvh-fill``, ``--cull-stack``;
-- rtunit: ``--rays-in-flight``, ``--pipelines``, and the node memory ``--cache-kib`` (0: no node
-  cache, every node fetch from memory), ``--cache-ways``, ``--line-bytes``,
-  ``--mem-latency``, ``--mem-bytes-per-cycle``;
+- rtunit (docs/rtunit.md): ``--rt-preset`` (a whole RT-unit configuration; options given with
+  it override its fields), the frame schedule ``--frame``, ``--shader-cycles``,
+  ``--flush-between``, warps ``--warp-size``, ``--warps-per-unit``, ``--rt-units``, each unit's
+  ``--rays-in-flight``, ``--pipelines``, node cache ``--cache-kib`` (0: none), ``--cache-ways``,
+  ``--cache-latency``, ``--mshrs``, the shared ``--l2-kib``, ``--l2-ways``, ``--l2-latency``,
+  ``--line-bytes``, ``--sector-bytes``, DRAM ``--mem-latency``, ``--mem-bytes-per-cycle``, and
+  the ray order ``--ray-order``, ``--ray-window``;
 - workload: ``--scene`` (``render``: also the positional SCENE), ``--workload``, ``--size``,
   ``--spp``, ``--bounces``, ``--ao-rays``, ``--seed``.
 """
@@ -35,13 +39,16 @@ from .instances import DATAPATH, TRANSFORMS
 from .core.layout import IMAGE_FORMATS
 from .rtunit import MemoryModel
 from .rtunit.order import DEFAULT_POLICY, DEFAULT_WINDOW, POLICIES
+from .rtunit.plan import FRAMES, MAX_RT_UNITS, MAX_WARP_SIZE, Schedule
+from .rtunit.presets import DEFAULT_PRESET, PRESETS
 from .scenes.camera import MAX_SIZE
 from .workloads import WORKLOADS
 
 GROUPS = {
     "datapath": "datapath (docs/datapath.md)",
     "bvh": "BVH and traversal (docs/bvh.md)",
-    "rtunit": "RT unit: ray pool, pipelines, node cache and memory",
+    "rtunit": "RT units in a GPU: frame schedule, warps, ray pool, pipelines, memory hierarchy "
+              "(docs/rtunit.md)",
     "workload": "workload (docs/workloads.md)",
 }
 MAX_LATENCY = 64
@@ -85,6 +92,16 @@ def _positive_float(flag, v):
 def _power_of_two(flag, v):
     if isinstance(v, bool) or not isinstance(v, int) or v < 4 or v & (v - 1):
         raise ValueError(f"{flag} must be a power of two >= 4, got {v!r}")
+
+
+def _warp_size(flag, v):
+    if isinstance(v, bool) or not isinstance(v, int) or v < 1 or v > MAX_WARP_SIZE or v & (v - 1):
+        raise ValueError(f"{flag} must be a power of two in 1..{MAX_WARP_SIZE}, got {v!r}")
+
+
+def _sector(flag, v):
+    if v != 0:
+        _power_of_two(flag, v)
 
 
 def _choice(choices) -> Callable:
@@ -169,25 +186,64 @@ OPTIONS: tuple[Option, ...] = (
            "leaves of 3 to 6 triangles sharing vertices where they cost few ops) "
            "(docs/compressed.md)", _choice(IMAGE_FORMATS), "bvh", "FORMAT",
            IMAGE_FORMATS),
-    Option("rays_in_flight", "--rays-in-flight", int, 64,
-           "ray pool of the RT unit: rays with a request chain in progress", _int_range(1),
+    Option("rt_preset", "--rt-preset", str, DEFAULT_PRESET,
+           "a whole RT-unit configuration at once (" + "; ".join(
+               f"{k}: {v.help}" for k, v in PRESETS.items()) + "); every RT-unit option given "
+           "with it overrides its value (docs/rtunit.md)", _choice(tuple(PRESETS)), "rtunit",
+           "NAME", tuple(PRESETS)),
+    Option("frame_schedule", "--frame", str, "one-kernel",
+           "frame schedule: one-kernel (every thread's rays in program order in one kernel, as "
+           "a DXR/Vulkan dispatch) or wavefront (one ray type at a time, a barrier between)",
+           _choice(FRAMES), "rtunit", "SCHEDULE", FRAMES),
+    Option("shader_cycles", "--shader-cycles", int, 0,
+           "cycles of shader work between a trace call's last response and the warp's next "
+           "trace call", _int_range(0), "rtunit"),
+    Option("flush_between", "--flush-between", _bool, False,
+           "wavefront frames: drop every cache at each barrier (the replay before one-kernel "
+           "frames did)", lambda flag, v: None, "rtunit", "yes|no"),
+    Option("warp_size", "--warp-size", int, 1,
+           f"threads per warp, a power of two up to {MAX_WARP_SIZE} (1: every ray issued on "
+           "its own); warps are screen tiles (8 x 4 pixels for 32)", _warp_size, "rtunit"),
+    Option("warps_per_unit", "--warps-per-unit", int, 0,
+           "warps resident per RT unit (0: twice the warps its ray pool holds)", _int_range(0),
+           "rtunit", "W"),
+    Option("rt_units", "--rt-units", int, 1,
+           f"RT units (one per SM), 1..{MAX_RT_UNITS}: warps assigned round robin over screen "
+           "tiles, all units in front of the shared L2 and DRAM", _int_range(1, MAX_RT_UNITS),
            "rtunit"),
+    Option("rays_in_flight", "--rays-in-flight", int, 64,
+           "ray pool of each RT unit: rays with a request chain in progress (whole warps: a "
+           "multiple of --warp-size)", _int_range(1), "rtunit"),
     Option("pipelines", "--pipelines", int, 1,
            f"datapath pipelines of the RT unit, 1..{MAX_PIPELINES}",
            _int_range(1, MAX_PIPELINES), "rtunit"),
     Option("cache_kib", "--cache-kib", int, 32,
-           "node cache of the RT unit in KiB, set-associative LRU (0: no node cache, every "
-           "node fetch reads its lines from memory)", _int_range(0), "rtunit"),
+           "node cache (L1) of each RT unit in KiB, set-associative LRU (0: none, every node "
+           "fetch goes to the L2 or DRAM)", _int_range(0), "rtunit"),
     Option("cache_ways", "--cache-ways", int, 4, "ways of the node cache", _int_range(1),
            "rtunit"),
-    Option("line_bytes", "--line-bytes", int, 64, "cache line and memory transfer size in bytes",
+    Option("cache_latency", "--cache-latency", int, 0,
+           "cycles from a node cache hit to the node being present", _int_range(0), "rtunit"),
+    Option("mshrs", "--mshrs", int, 0,
+           "miss registers per RT unit (0: unlimited); misses to a line or sector already in "
+           "flight merge, a full file holds further misses", _int_range(0), "rtunit"),
+    Option("l2_kib", "--l2-kib", int, 0,
+           "L2 in KiB shared by all RT units, set-associative LRU (0: no L2)", _int_range(0),
+           "rtunit"),
+    Option("l2_ways", "--l2-ways", int, 16, "ways of the L2", _int_range(1), "rtunit"),
+    Option("l2_latency", "--l2-latency", int, 0,
+           "cycles an L1 miss takes to the L2 and back on an L2 hit", _int_range(0), "rtunit"),
+    Option("line_bytes", "--line-bytes", int, 64, "cache line size in bytes (L1 and L2)",
            _power_of_two, "rtunit"),
+    Option("sector_bytes", "--sector-bytes", int, 0,
+           "bytes per memory transaction: sectors of a line (a power of two >= 4 dividing "
+           "the line), or 0: whole lines", _sector, "rtunit"),
     Option("mem_latency", "--mem-latency", int, 200,
-           "cycles from a line's transfer to its arrival in the node cache", _int_range(0),
+           "cycles from a transaction's DRAM transfer to its arrival", _int_range(0),
            "rtunit"),
     Option("mem_bytes_per_cycle", "--mem-bytes-per-cycle", float, 32.0,
-           "memory bandwidth: bytes transferred per cycle (transfers are serialised)",
-           _positive_float, "rtunit", "B"),
+           "DRAM bandwidth shared by all RT units: bytes transferred per cycle (transfers are "
+           "serialised)", _positive_float, "rtunit", "B"),
     Option("ray_order", "--ray-order", str, DEFAULT_POLICY,
            "order in which rays enter the RT unit's ray pool: "
            + "; ".join(f"{k}: {v.help}" for k, v in POLICIES.items()) + " (docs/rayorder.md)",
@@ -229,11 +285,24 @@ class DesignPoint:
     flatten: bool = BY_NAME["flatten"].default
     cull_stack: bool = BY_NAME["cull_stack"].default
     bvh_format: str = BY_NAME["bvh_format"].default
+    rt_preset: str = BY_NAME["rt_preset"].default
+    frame_schedule: str = BY_NAME["frame_schedule"].default
+    shader_cycles: int = BY_NAME["shader_cycles"].default
+    flush_between: bool = BY_NAME["flush_between"].default
+    warp_size: int = BY_NAME["warp_size"].default
+    warps_per_unit: int = BY_NAME["warps_per_unit"].default
+    rt_units: int = BY_NAME["rt_units"].default
     rays_in_flight: int = BY_NAME["rays_in_flight"].default
     pipelines: int = BY_NAME["pipelines"].default
     cache_kib: int = BY_NAME["cache_kib"].default
     cache_ways: int = BY_NAME["cache_ways"].default
+    cache_latency: int = BY_NAME["cache_latency"].default
+    mshrs: int = BY_NAME["mshrs"].default
+    l2_kib: int = BY_NAME["l2_kib"].default
+    l2_ways: int = BY_NAME["l2_ways"].default
+    l2_latency: int = BY_NAME["l2_latency"].default
     line_bytes: int = BY_NAME["line_bytes"].default
+    sector_bytes: int = BY_NAME["sector_bytes"].default
     mem_latency: int = BY_NAME["mem_latency"].default
     mem_bytes_per_cycle: float = BY_NAME["mem_bytes_per_cycle"].default
     ray_order: str = BY_NAME["ray_order"].default
@@ -264,6 +333,22 @@ class DesignPoint:
         if self.cache_kib and (self.cache_kib * 1024) % (self.cache_ways * self.line_bytes):
             raise ValueError(f"--cache-kib {self.cache_kib} is not a whole number of sets of "
                              f"--cache-ways {self.cache_ways} x --line-bytes {self.line_bytes}")
+        if self.l2_kib and (self.l2_kib * 1024) % (self.l2_ways * self.line_bytes):
+            raise ValueError(f"--l2-kib {self.l2_kib} is not a whole number of sets of "
+                             f"--l2-ways {self.l2_ways} x --line-bytes {self.line_bytes}")
+        if self.sector_bytes > self.line_bytes:
+            raise ValueError(f"--sector-bytes {self.sector_bytes} is larger than --line-bytes "
+                             f"{self.line_bytes}")
+        if self.rays_in_flight % self.warp_size:
+            raise ValueError(f"--rays-in-flight {self.rays_in_flight} must be a multiple of "
+                             f"--warp-size {self.warp_size}: the RT unit holds whole warps")
+        if POLICIES[self.ray_order].schedule and self.ray_window % self.warp_size:
+            raise ValueError(f"--ray-window {self.ray_window} must be a multiple of "
+                             f"--warp-size {self.warp_size}")
+        if POLICIES[self.ray_order].key is not None and self.frame_schedule == "one-kernel":
+            raise ValueError(f"--ray-order {self.ray_order} sorts a wavefront's ray queue: use "
+                             "it with --frame wavefront (in a one-kernel frame threads issue "
+                             "their rays; affinity and treelet scheduling work there)")
 
     # what the parts of the driver take
     @property
@@ -296,10 +381,28 @@ class DesignPoint:
                           self.transform_op)
 
     def memory(self):
-        """The RT unit's ``driver.rtunit.MemoryModel`` (``cache_kib`` 0: no node cache, every
-        node fetch from memory)."""
+        """The RT units' ``driver.rtunit.MemoryModel`` (``cache_kib`` 0: no node cache;
+        ``l2_kib`` 0: no L2)."""
         return MemoryModel(self.cache_kib * 1024, self.cache_ways, self.line_bytes,
-                           self.mem_latency, float(self.mem_bytes_per_cycle))
+                           self.mem_latency, float(self.mem_bytes_per_cycle),
+                           hit_latency=self.cache_latency, sector_bytes=self.sector_bytes,
+                           mshrs=self.mshrs, l2_bytes=self.l2_kib * 1024, l2_ways=self.l2_ways,
+                           l2_latency=self.l2_latency)
+
+    def schedule(self):
+        """The frame schedule of the replay (``driver.rtunit.gpu.Schedule``)."""
+        return Schedule(self.frame_schedule, self.warp_size, self.warps_per_unit,
+                        self.shader_cycles,
+                        self.flush_between, self.rt_units)
+
+    @classmethod
+    def preset(cls, name: str = DEFAULT_PRESET, **changes) -> "DesignPoint":
+        """The design point of RT-unit preset ``name`` (``driver.rtunit.presets``) with
+        ``changes`` (any option) over it."""
+        if name not in PRESETS:
+            raise ValueError(f"--rt-preset: unknown value {name!r}; choose from "
+                             f"{', '.join(PRESETS)}")
+        return cls(**{**PRESETS[name].values, **changes, "rt_preset": name})
 
     def order_options(self) -> dict:
         """``driver.rtunit.replay``'s ``ray_order`` and ``ray_window`` (index order: no window)."""

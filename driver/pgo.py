@@ -7,7 +7,9 @@
 and recompiles with the profile this run wrote. The workload is what the library is for, on scenes
 other than the benchmark's: primary rays of an icosphere seen from outside and of the built-in room
 seen from inside, traversed through the library (the wavefront fast path ``run_nodes`` and the
-RT-unit replay ``rf_replay``), a slice of the same requests through ``run``, and, for an EXTENDED
+RT-unit replay ``rf_replay``), a slice of the same requests through ``run``, an ambient-occlusion
+frame of the room replayed in one kernel (camera and any-hit rays interleaved, with the node memory,
+and in warps on two RT units with an L2), and, for an EXTENDED
 build, Euclidean and cosine distance jobs. Every result is checked against the golden model; the
 build runs this on the instrumented library and again on the optimised one, so a library that
 computes anything wrong fails the build instead of being cached. Deterministic; a few seconds.
@@ -22,12 +24,16 @@ import time
 import numpy as np
 import trimesh
 
+from . import workloads
 from .backends.golden import GoldenBackend
 from .backends.harness import HarnessBackend, use_library
 from .bvh4 import build
 from .scenes.camera import frame, primary_rays
 from .core.datapath import ANGULAR, EUCLIDEAN
 from .knn import LANES, pad, run_jobs
+from .rtunit import MemoryModel
+from .rtunit.gpu import replay_frame, waves_of
+from .rtunit.plan import Schedule
 from .scenes.scene import load_scene
 from .tracer import trace
 
@@ -76,6 +82,7 @@ def train(params: dict[str, int]) -> dict:
             rsp = HarnessBackend(**opts).run(req)
             _check("run()", rsp.tobytes() == GoldenBackend(**opts).run(req).tobytes())
             counts["run"] += len(req)
+    counts["replay"] = _train_gpu_replay(opts)
     if opts["extended"]:
         rng = np.random.default_rng(1)
         nq, nc, dim = KNN_SHAPE
@@ -89,6 +96,26 @@ def train(params: dict[str, int]) -> dict:
             _check(f"knn opcode {op}", got.tobytes() == ref.tobytes())
             counts["knn"] += len(qi) * (a.shape[1] // LANES[op])
     return counts
+
+
+def _train_gpu_replay(opts: dict) -> int:
+    """The replay as commands run it (``driver.rtunit.gpu``): an ambient-occlusion frame of the
+    room (camera rays and any-hit rays interleaved in one kernel) with the default node memory,
+    and in warps of 8 on two units with MSHRs, sectors and an L2; every response checked against
+    the traversal's. Returns the requests replayed."""
+    scene = load_scene("room")
+    be = HarnessBackend(**opts)
+    res = workloads.run(workloads.setup_for(scene), build(scene.mesh), 32, 32,
+                        lambda b, o, d, **k: trace(b, o, d, backend=be, record=True, **k), "ao",
+                        ao_rays=2)
+    waves = waves_of(res.batches)
+    gpu = MemoryModel(cache_bytes=16384, ways=8, line_bytes=128, sector_bytes=32, hit_latency=4,
+                      mshrs=16, l2_bytes=262144, l2_latency=40)
+    for memory, schedule in ((MemoryModel(), Schedule("one-kernel")),
+                             (gpu, Schedule("one-kernel", warp_size=8, rt_units=2))):
+        fr = replay_frame(waves, 64, 1, memory, schedule, width=32)
+        _check("RT-unit replay of a one-kernel frame", fr.verified)
+    return 2 * sum(w.record.ops for w in waves)
 
 
 def main(argv=None) -> int:

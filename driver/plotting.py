@@ -11,7 +11,8 @@ def describe(point: dict, omit=(), parts=("frame", "datapath", "bvh", "rtunit"))
     """The design point ``point`` (``DesignPoint.as_dict()``, or a JSON's
     ``provenance.design_point``) in words, the options named in ``omit`` left out (e.g. those a
     plot varies): e.g. "bunny_floor 64x64 path (spp 2, bounces 2); baseline-unified, latency 11;
-    box32 BVH; R=64, 1 pipeline, 32 KiB 4-way node cache, 200-cycle 32 B/cycle memory"."""
+    box32 BVH; one-kernel frame, R=64, 1 pipeline, 32 KiB 4-way node cache, 200-cycle 32 B/cycle
+    memory"."""
     p, skip, out = point, set(omit), []
     if "frame" in parts:
         size = "" if p.get("size") is None or "size" in skip else f" {p['size']}x{p['size']}"
@@ -41,6 +42,14 @@ def describe(point: dict, omit=(), parts=("frame", "datapath", "bvh", "rtunit"))
             out.append(", ".join(b))
     if "rtunit" in parts:
         r = []
+        if p.get("rt_preset", "default") != "default" and "rt_preset" not in skip:
+            r.append(f"{p['rt_preset']} preset")
+        if p.get("frame_schedule") and "frame_schedule" not in skip:
+            r.append(f"{p['frame_schedule']} frame")
+        if p.get("rt_units", 1) != 1 and "rt_units" not in skip:
+            r.append(f"{p['rt_units']} RT units")
+        if p.get("warp_size", 1) != 1 and "warp_size" not in skip:
+            r.append(f"warps of {p['warp_size']}")
         if "rays_in_flight" not in skip:
             r.append(f"R={p['rays_in_flight']}")
         if "pipelines" not in skip:
@@ -48,6 +57,8 @@ def describe(point: dict, omit=(), parts=("frame", "datapath", "bvh", "rtunit"))
         if not {"cache_kib", "cache_ways", "line_bytes"} & skip:
             r.append(f"{p['cache_kib']} KiB {p['cache_ways']}-way node cache"
                      if p["cache_kib"] else "no node cache")
+        if p.get("l2_kib") and "l2_kib" not in skip:
+            r.append(f"{p['l2_kib']} KiB L2")
         if not {"mem_latency", "mem_bytes_per_cycle"} & skip:
             r.append(f"{p['mem_latency']}-cycle {p['mem_bytes_per_cycle']:g} B/cycle memory")
         if p.get("ray_order", "index") != "index" and "ray_order" not in skip:

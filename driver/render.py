@@ -32,7 +32,9 @@ from .core.progress import bar as progress_bar
 from .core.progress import phase
 from .design import DesignPoint
 from .scenes.scene import Scene, load_scene
-from .stats import public, replay_stats
+from .rtunit.gpu import replay_point
+from .rtunit.plan import Wave
+from .stats import public
 from .tracer import trace
 from .workloads import LINEAR, headlight, setup_for, tone_map
 
@@ -84,8 +86,8 @@ class RenderResult:
 
 def render(scene, width=None, height=None, backend: str = DEFAULT_BACKEND,
            progress: bool = True, check_embree: bool = False, point: DesignPoint | None = None,
-           rtunit: bool = False, tile: int | None = None, workers: int = 1,
-           scheduler: str | None = None, replay_plain: bool = True) -> RenderResult:
+           rtunit: bool | str = False, tile: int | None = None, workers: int = 1,
+           scheduler: str | None = None) -> RenderResult:
     """Render ``scene`` (a Scene, or anything ``load_scene`` takes) at width x height (default:
     the scene's size) with every box/triangle test on ``backend``; optionally cross-check every
     ray against Embree.
@@ -95,9 +97,9 @@ def render(scene, width=None, height=None, backend: str = DEFAULT_BACKEND,
     with ``spp``, ``bounces``, ``ao_rays``, ``seed``; docs/lumibench.md: lumibench-pt,
     lumibench-sh, lumibench-ao), its BVH options (``bvh_fill``, ``bvh_format``, ``flatten``,
     ``cull_stack``), and its datapath configuration and latency, which make the backend (a
-    backend name; a backend object is used as it is). ``rtunit``: also replay every
-    wavefront's requests on the point's RT unit (statistics ``rtunit`` and ``rtunit_memory``;
-    ``replay_plain`` False: only ``rtunit_memory``, each request simulated twice in all).
+    backend name; a backend object is used as it is). ``rtunit``: also replay the frame's
+    requests on the point's RT units (statistics ``rtunit_memory``, each request simulated twice
+    in all; ``"ideal"``: and ``rtunit``, a second replay with free node fetches; docs/rtunit.md).
 
     The primary workload with one sample, untiled, is one wavefront of every pixel (the frame of
     earlier versions, with ``trace`` the TraceResult). Any other workload, a ``tile`` size,
@@ -113,7 +115,6 @@ def render(scene, width=None, height=None, backend: str = DEFAULT_BACKEND,
                       height if height is not None else scene.size[1])
     tile = plan_tile(w * h, point.workload, point.spp, tile, workers, scheduler)
     check_frame_memory(w * h, point.spp, tile)
-    rtunit = "plain" if rtunit and replay_plain else ("memory" if rtunit else None)
     t0 = time.perf_counter()
     if tile is None:
         res = _render_whole(scene, w, h, backend, progress, check_embree, point, rtunit)
@@ -152,7 +153,7 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
     bar = progress_bar(len(tiles), f"{scene.name} {w}x{h} {workload} {name}", "tile", progress)
     options = point.workload_options() | {"cull_stack": point.cull_stack,
                                           "rtunit": point if rtunit else None,
-                                          "rtunit_plain": rtunit == "plain"}
+                                          "ideal": rtunit == "ideal", "width": w}
     try:
         res = render_tiles(setup, bvh, w, h, workload, options, spec, tile, workers, scheduler,
                            check_embree, bar.hook)
@@ -168,7 +169,7 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
 
 
 def _render_whole(scene, w, h, backend, progress, check_embree, point,
-                  rtunit=None) -> RenderResult:
+                  rtunit=False) -> RenderResult:
     """The primary frame as one wavefront of every pixel."""
 
     origins, dirs = primary_rays(scene.camera, w, h)
@@ -182,7 +183,7 @@ def _render_whole(scene, w, h, backend, progress, check_embree, point,
     try:
         result = trace(bvh, origins, dirs, backend=be, progress=bar.hook,
                        cull_stack=point.cull_stack, double_sided=scene.double_sided,
-                       record=rtunit is not None)
+                       record=bool(rtunit))
     finally:
         bar.close()
 
@@ -190,10 +191,13 @@ def _render_whole(scene, w, h, backend, progress, check_embree, point,
     image = shade(result, tri, dirs, w, h)
     ops = result.ops
     stats = dict(result.stats)
+    rp = None
     if rtunit:
         with phase(f"RT-unit replay of {result.record.ops:,} requests", progress):
-            stats["rtunit"], stats["rtunit_memory"] = replay_stats([result.record], point,
-                                                                   rtunit == "plain")
+            n = result.record.rays
+            rp = replay_point([Wave(result.record, "primary", np.arange(n),
+                                    np.zeros(n, np.int64))], point, w, rtunit == "ideal")
+            stats["rtunit"], stats["rtunit_memory"] = rp["rtunit"], rp["rtunit_memory"]
     stats = public(stats)
     emb = None
     if check_embree:
@@ -205,7 +209,7 @@ def _render_whole(scene, w, h, backend, progress, check_embree, point,
             emb = check(ctri, origins[rows], dirs[rows], result.t[rows], cprim,
                         scene.double_sided)
         stats["embree"] = embree_json(emb)
-    stats["by_type"] = {"primary": dict(stats)}
+    stats["by_type"] = {"primary": {**stats, **(rp["by_type"]["primary"] if rp else {})}}
     stats["bvh"] = bvh_stats
     stats.update(scene.counts())
     return RenderResult(scene, w, h, image, ops.reshape(h, w), result, stats, emb, bvh_stats)

@@ -13,12 +13,10 @@ node cache and memory; null without one), each ray type's the same under ``by_ty
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
-from . import rtunit
 from .core.layout import BOX_BYTES, TRI_BYTES
+from .rtunit.gpu import derived
 from .rtunit.order import merge_costs
 
 STACK_CULLS = "stack_culls"     # box nodes a distance-culled stack dropped
@@ -132,10 +130,6 @@ WAVEFRONT, RTUNIT, RTUNIT_MEMORY = "wavefront", "rtunit", "rtunit_memory"
 WAVEFRONTS = "wavefronts"      # an RT-unit object's replayed wavefronts, in the order they ran
 # the wavefront's timing figures (flat in a TraceResult's statistics, an object when published)
 WAVEFRONT_KEYS = ("cycles", "utilization", "frame_us_at_1ghz", "sim_wall_s", "sim_cycles_per_s")
-# RT-unit figures added up over replays run one after another
-_RT_SUMMED = ("rays", "ops", "cycles", "starved_cycles", "sim_wall_s")
-_MEM_SUMMED = ("line_accesses", "line_hits", "line_misses", "bytes_from_memory",
-               "node_wait_cycles")
 
 
 def public(stats: dict) -> dict:
@@ -151,83 +145,80 @@ def public(stats: dict) -> dict:
     return out
 
 
-def rtunit_stats(replays: list) -> dict:
-    """The ``rtunit`` (or, replays with a memory model, ``rtunit_memory``) object of replays
-    (``driver.rtunit.ReplayResult``) of wavefronts that run one after another: cycles add up
-    (each wavefront starts with an empty ray pool and a cold node cache)."""
-    if not replays:
-        raise ValueError("no replay")
-    first = replays[0]
-    out = {"rays_in_flight": first.rays_in_flight, "pipelines": first.pipelines,
-           "turnaround_cycles": first.turnaround, "rays": sum(r.rays for r in replays),
-           "ops": sum(r.ops for r in replays), "cycles": sum(r.cycles for r in replays),
-           "starved_cycles": sum(r.starved_cycles for r in replays),
-           "sim_wall_s": sum(r.wall_s for r in replays),
-           "responses_verified": all(r.verified for r in replays)}
-    if first.memory:
-        for k in _MEM_SUMMED:
-            out[k] = sum(r.memory[k] for r in replays)
-    out[WAVEFRONTS] = [_wavefront_row(r) for r in replays]
-    costs = [r.order for r in replays if getattr(r, "order", None)]
-    if costs:
-        out["ray_order_cost"] = merge_costs(costs)
-    return _rt_derived(out)
+# an RT-unit object's settings (the same in every part of a frame)
+_RT_CONFIG = ("rays_in_flight", "pipelines", "turnaround_cycles", "frame_schedule", "rt_units",
+              "warp_size", "warps_per_unit", "shader_cycles", "flush_between")
+# RT-unit figures added up over parts run one after another (tiles); null stays null
+_RT_SUMMED = ("rays", "ops", "cycles", "frame_cycles", "kernels", "starved_cycles",
+              "sim_wall_s", "line_accesses", "line_hits", "line_misses", "bytes_from_memory",
+              "node_wait_cycles", "mshr_stalls", "mshr_stall_cycles")
 
 
-def _wavefront_row(r) -> dict:
-    """One replayed wavefront of an RT-unit object's ``wavefronts``: its size and timing, and
-    with a node memory its bytes from memory (each wavefront starts with an empty ray pool and
-    a cold node cache, so a small one is bound by the memory's latency)."""
-    row = {"rays": r.rays, "ops": r.ops, "cycles": r.cycles, "utilization": r.utilization}
-    if r.memory:
-        row["bytes_from_memory"] = r.memory["bytes_from_memory"]
-    return row
-
-
-def _rt_derived(s: dict) -> dict:
-    cyc, n = s["cycles"], s["rays"]
-    s["utilization"] = s["ops"] / (s["pipelines"] * cyc) if cyc else 0.0
-    s["frame_us_at_1ghz"] = cyc / 1000
-    s["cycles_per_ray"] = cyc / n if n else 0.0
-    if "line_accesses" in s:
-        acc = s["line_accesses"]
-        s["hit_rate"] = s["line_hits"] / acc if acc else 0.0
-        s["bytes_per_ray"] = s["bytes_from_memory"] / n if n else 0.0
-    return s
+def _sum(values):
+    values = list(values)
+    return None if any(v is None for v in values) else sum(values)
 
 
 def merge_rtunit(parts: list) -> dict | None:
-    """RT-unit objects of parts run one after another (ray types, tiles), taken together."""
+    """RT-unit objects (``driver.rtunit.gpu.FrameReplay.summary``/``type_summary``) of parts
+    replayed one after another (tiles of a frame), taken together: counts and cycles add up,
+    means are weighted by rays (or trace calls), ratios are recomputed; a per-ray percentile
+    cannot be merged (null) and neither can the rays-in-flight series (left out)."""
     if not parts or any(p is None for p in parts):
         return None
-    out = {k: parts[0][k] for k in ("rays_in_flight", "pipelines", "turnaround_cycles")}
-    keys = _RT_SUMMED + (_MEM_SUMMED if "line_accesses" in parts[0] else ())
-    out.update({k: sum(p[k] for p in parts) for k in keys})
+    if len(parts) == 1:
+        return parts[0]
+    first = parts[0]
+    out = {k: first[k] for k in _RT_CONFIG if k in first}
+    out.update({k: _sum(p[k] for p in parts) for k in _RT_SUMMED if k in first})
     out["responses_verified"] = all(p["responses_verified"] for p in parts)
+    rays = out["rays"]
+    for k in ("latency_mean", "queue_mean"):
+        if k in first:
+            out[k] = (sum(p[k] * p["rays"] for p in parts) / rays) if rays else 0.0
+    if "latency_p95" in first:
+        out["latency_p95"] = None
+    if "bytes_served" in first:
+        out["bytes_served"] = {lvl: sum(p["bytes_served"][lvl] for p in parts)
+                               for lvl in first["bytes_served"]}
+        out["bytes_served_per_ray"] = {lvl: v / rays if rays else 0.0
+                                       for lvl, v in out["bytes_served"].items()}
+    if "levels" in first:
+        out["levels"] = {}
+        for lvl, d in first["levels"].items():
+            merged = {k: sum(p["levels"][lvl][k] for p in parts) for k in d if k != "hit_rate"}
+            if "hit_rate" in d:
+                acc = merged["line_accesses"]
+                merged["hit_rate"] = merged["line_hits"] / acc if acc else 0.0
+            out["levels"][lvl] = merged
+    if "simt" in first:
+        ws = [p["simt"] for p in parts]
+        calls = sum(w["trace_calls"] for w in ws)
+        w = {"warps": sum(x["warps"] for x in ws), "trace_calls": calls,
+             "simt_efficiency": (sum(x["simt_efficiency"] * x["trace_calls"] for x in ws)
+                                 / calls) if calls else 0.0,
+             "slowest_ray_wait_cycles": sum(x["slowest_ray_wait_cycles"] for x in ws),
+             "max_rays_held": max(x["max_rays_held"] for x in ws)}
+        w["slowest_ray_wait_per_call"] = w["slowest_ray_wait_cycles"] / calls if calls else 0.0
+        span = sum(p.get("frame_cycles") or 0 for p in parts)
+        w["rays_held_mean"] = (sum(x["rays_held_mean"] * (p.get("frame_cycles") or 0)
+                                   for x, p in zip(ws, parts)) / span) if span else 0.0
+        w["rays_held_series"] = None         # series of several dispatches are not one series
+        out["simt"] = {k: w[k] for k in first["simt"]}
     if all(WAVEFRONTS in p for p in parts):
         out[WAVEFRONTS] = [w for p in parts for w in p[WAVEFRONTS]]
+    if "unit_ops" in first:
+        out["unit_ops"] = [sum(v) for v in zip(*(p["unit_ops"] for p in parts))]
     if all("ray_order_cost" in p for p in parts):
         out["ray_order_cost"] = merge_costs([p["ray_order_cost"] for p in parts])
-    return _rt_derived(out)
-
-
-def replay_stats(records: list, point, plain: bool = True) -> tuple[dict | None, dict | None]:
-    """(``rtunit``, ``rtunit_memory``) of recorded wavefronts (``driver.tracing.record.Record``)
-    replayed one after another on the RT unit of design point ``point``
-    (``driver.design.DesignPoint``), without and with its node memory (``point.cache_kib`` 0: no
-    cache). The records replay on the point's datapath configuration and latency; every response
-    is checked against the recorded one bit for bit. ``plain`` False: no replay without the
-    memory (``rtunit`` None), so that each request is simulated once more only."""
-    params = point.rtl_params()
-    recs = [r if r.params == params else replace(r, params=params) for r in records]
-    order = point.order_options()
-    plain = rtunit_stats([rtunit.replay(r, point.rays_in_flight, point.pipelines, **order)
-                          for r in recs]) if plain else None
-    memory = point.memory()
-    mem = None if memory is None else rtunit_stats(
-        [rtunit.replay(r, point.rays_in_flight, point.pipelines, memory=memory, **order)
-         for r in recs])
-    return plain, mem
+    if "memory_energy" in first:
+        e = {lvl: sum(p["memory_energy"][lvl] for p in parts) for lvl in ("l1", "l2", "dram",
+                                                                            "total")}
+        out["memory_energy"] = {**e, "per_ray": e["total"] / rays if rays else 0.0,
+                                "unit": first["memory_energy"]["unit"]}
+    for k in first:                       # every key of the parts' objects, null if unmerged
+        out.setdefault(k, None)
+    return derived({k: out[k] for k in first} | {k: v for k, v in out.items() if k not in first})
 
 
 def order_cost_line(c: dict) -> str:

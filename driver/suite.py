@@ -8,9 +8,9 @@ benchmark's logs (``BATH_AO``); ``read_suite`` reads any other list from a TOML 
 
 Every run (``execute``) loads its scene (a LumiBench scene from its cache after the first
 time), builds its BVH, traces the frame on the backend with the design point's datapath, checks
-every ray against Embree (adjudicated, ``driver.adjudicate``) and replays every wavefront on
-the point's RT unit (``rtunit_memory``; with ``plain`` also without the node memory,
-``rtunit``). Runs are independent tasks: in this process, or on Dask workers (``--workers``,
+every ray against Embree (adjudicated, ``driver.adjudicate``) and replays the frame on
+the point's RT units (``rtunit_memory``; with ``ideal`` also with free node fetches,
+``rtunit``; docs/rtunit.md). Runs are independent tasks: in this process, or on Dask workers (``--workers``,
 ``--scheduler``, the cluster code of ``driver.tiles``), scene by scene, the most expensive
 first (a worker keeps its last scene and BVH for its next run of that scene); a suite of one run
 spreads that run's tiles over the workers instead. Each finished run is
@@ -183,7 +183,7 @@ def key(run: Run, point, backend: str) -> str:
 SPLIT_TILE = 128       # the tile of a run whose tiles are spread over the workers
 
 
-def execute(run: Run, point, backend: str = "rtl", root=None, plain: bool = False,
+def execute(run: Run, point, backend: str = "rtl", root=None, ideal: bool = False,
             energy: dict | None = None, workers: int = 1,
             scheduler: str | None = None) -> tuple[dict, bytes]:
     """Trace, check and replay one run (a task: pure in its inputs); returns its JSON document
@@ -197,8 +197,8 @@ def execute(run: Run, point, backend: str = "rtl", root=None, plain: bool = Fals
     t_load = time.perf_counter() - t0
     split = workers > 1 or bool(scheduler)
     res = render(scene, point.size, point.size, backend=backend, progress=False,
-                 check_embree=True, point=point, rtunit=True,
-                 tile=SPLIT_TILE if split else max(point.size, 1), replay_plain=plain,
+                 check_embree=True, point=point, rtunit="ideal" if ideal else True,
+                 tile=SPLIT_TILE if split else max(point.size, 1),
                  workers=workers, scheduler=scheduler)
     stats = res.stats
     if energy:
@@ -275,16 +275,16 @@ def done_runs(out: Path, runs: list[Run], points: list, backend: str) -> dict:
 
 
 def run_suite(name: str, runs: list[Run], base, out, backend: str = "rtl", root=None,
-              workers: int = 1, scheduler: str | None = None, plain: bool = False,
+              workers: int = 1, scheduler: str | None = None, ideal: bool = False,
               skipped: dict | None = None, progress: bool = True) -> dict:
     """Make every run not already in ``out`` (module docstring); returns the summary.
     ``root``: the LumiBench repository (default: ``driver.scenes.lumibench.root()``)."""
     with lb.using_root(root):
-        return _run_suite(name, runs, base, out, backend, root, workers, scheduler, plain,
+        return _run_suite(name, runs, base, out, backend, root, workers, scheduler, ideal,
                           skipped, progress)
 
 
-def _run_suite(name, runs, base, out, backend, root, workers, scheduler, plain, skipped,
+def _run_suite(name, runs, base, out, backend, root, workers, scheduler, ideal, skipped,
                progress) -> dict:
     t0 = time.perf_counter()
     out = Path(out)
@@ -306,7 +306,7 @@ def _run_suite(name, runs, base, out, backend, root, workers, scheduler, plain, 
         energy = _energy(base)
     bar = progress_bar(len(todo), f"suite {name}", "run", progress)
     bar.hook(0, len(todo))
-    for n, (r, doc, png) in enumerate(_execute_all(todo, backend, root, plain, energy,
+    for n, (r, doc, png) in enumerate(_execute_all(todo, backend, root, ideal, energy,
                                                    workers, scheduler), 1):
         _write_run(out, r.name, doc, png)
         done[r.name] = doc
@@ -344,18 +344,18 @@ def _energy(base) -> dict:
             "box_op": _box_op(base)}
 
 
-def _execute_all(todo, backend, root, plain, energy, workers, scheduler):
+def _execute_all(todo, backend, root, ideal, energy, workers, scheduler):
     """(run, document, png) of every run to make, in this process or on Dask."""
     if not todo:
         return
     if len(todo) == 1 or (workers == 1 and not scheduler):     # one run: its tiles spread
         for r, p in todo:
-            doc, png = execute(r, p, backend, root, plain, energy, workers, scheduler)
+            doc, png = execute(r, p, backend, root, ideal, energy, workers, scheduler)
             yield r, doc, png
         return
     with _client(workers, scheduler) as client:
         sid = uuid.uuid4().hex[:12]
-        futures = {client.submit(execute, r, p, backend, str(root) if root else None, plain,
+        futures = {client.submit(execute, r, p, backend, str(root) if root else None, ideal,
                                  energy, key=f"rayflex-suite-{sid}-{i}", retries=2): r
                    for i, (r, p) in enumerate(todo)}
         from distributed import as_completed

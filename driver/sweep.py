@@ -6,14 +6,15 @@ combination. What each point costs:
 1. The functional trace: the workload's hits and datapath requests do not depend on the RT unit,
    so the frame is traced once per distinct (BVH options, workload options) on the "rtl" backend
    of the first configuration listed, every wavefront recorded (``driver.tracing.record.Record``).
-2. Per point, each ray type's recorded wavefronts are replayed on the point's RT unit
-   (``driver.stats.replay_stats``): without the node memory (``rtunit``) and with it
-   (``rtunit_memory``), on the RTL of the point's datapath configuration and latency. Every
-   replayed response is compared bit for bit with the functional trace's, so each
+2. Per point, the frame's recorded batches are replayed on the point's RT units and memory
+   hierarchy (``driver.rtunit.gpu.replay_point``: ``rtunit_memory``; with ``ideal`` also
+   ``rtunit``, every node fetch free), on the RTL of the point's datapath configuration and
+   latency. Every replayed response is compared bit for bit with the functional trace's, so each
    configuration is checked against the one that traced the frame, on the frame's requests.
 3. Energy per ray: each ray type's box and triangle ops times the configuration's energy per op
    as ``rayflex power`` measures it (``driver.power``): level ``signals`` always, level
-   ``gates`` when that configuration's gate netlist is in the cache (a synthesis takes minutes).
+   ``gates`` when that configuration's gate netlist is in the cache (a synthesis takes minutes);
+   and the node fetches' energy per memory level (``memory_pj``, ``driver.rtunit.energy``).
 
 Points are independent tasks: with ``workers`` > 1 or a Dask ``scheduler`` they run on the
 cluster code of ``driver.tiles`` (records scattered once). Each finished point is appended to a
@@ -45,7 +46,8 @@ from .design import DesignPoint
 from .plotting import describe, wrap
 from .core.progress import bar as progress_bar
 from .core.progress import phase
-from .stats import merge, merge_rtunit, public, replay_stats
+from .rtunit.gpu import replay_point, waves_of
+from .stats import merge, public
 from .core.provenance import git_commit, provenance, rayflex_version
 from .power.report import UNITS
 from .power.stimulus import box_op
@@ -65,11 +67,12 @@ def functional_key(point: DesignPoint) -> tuple:
 @dataclass
 class Trace:
     """The functional trace of one workload: per ray type its statistics (counts and the
-    wavefront, docs/statistics.md) and its recorded wavefronts; the configuration and latency
-    it was traced on, and its wall time."""
+    wavefront, docs/statistics.md), its recorded batches in trace order (``waves``, each ray's
+    thread and program slot with them), the configuration and latency it was traced on, and
+    its wall time."""
 
     by_type: dict
-    records: dict
+    waves: list
     config: str
     latency: int
     width: int
@@ -96,21 +99,16 @@ def trace_workload(point: DesignPoint, progress: bool = True) -> Trace:
         res = workloads.run(setup, bvh, size, size, tracer, point.workload,
                             **point.workload_options())
     by_type = public(res.stats)["by_type"]
-    records = {k: [b.result.record for b in res.batches if b.kind == k] for k in by_type}
-    return Trace(by_type, records, point.config, point.latency, size, time.perf_counter() - t0)
+    return Trace(by_type, waves_of(res.batches), point.config, point.latency, size,
+                 time.perf_counter() - t0)
 
 
-def measure_point(point: DesignPoint, records: dict) -> dict:
-    """The RT-unit figures of one design point (a task: pure in its inputs): per ray type and
-    for the frame (ray types one after another), and the point's wall time."""
+def measure_point(point: DesignPoint, waves: list, width: int, ideal: bool = False) -> dict:
+    """The RT-unit figures of one design point (a task: pure in its inputs): the frame's and
+    each ray type's (``driver.rtunit.gpu.replay_point``), and the point's wall time."""
     t0 = time.perf_counter()
-    by_type = {}
-    for kind, recs in records.items():
-        plain, mem = replay_stats(recs, point)
-        by_type[kind] = {"rtunit": plain, "rtunit_memory": mem}
-    return {"rtunit": merge_rtunit([t["rtunit"] for t in by_type.values()]),
-            "rtunit_memory": merge_rtunit([t["rtunit_memory"] for t in by_type.values()]),
-            "by_type": by_type, "wall_s": time.perf_counter() - t0}
+    out = replay_point(waves, point, width, ideal)
+    return {**out, "wall_s": time.perf_counter() - t0}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -213,7 +211,7 @@ def _append(path: Path, key: str, result: dict) -> None:
 # the sweep
 
 def sweep(points: list[DesignPoint], workers: int = 1, scheduler: str | None = None,
-          results: Path | None = None, progress: bool = True) -> dict:
+          results: Path | None = None, progress: bool = True, ideal: bool = False) -> dict:
     """Measure every design point (see the module docstring); returns the document."""
     t0 = time.perf_counter()
     results = Path(results) if results else None
@@ -231,7 +229,7 @@ def sweep(points: list[DesignPoint], workers: int = 1, scheduler: str | None = N
     energies = energy_tables(points, progress)
     bar = progress_bar(len(todo), f"sweep: {len(points)} design points", "point", progress)
     bar.hook(0, len(todo))
-    for n, (p, result) in enumerate(_run(todo, traces, workers, scheduler), 1):
+    for n, (p, result) in enumerate(_run(todo, traces, workers, scheduler, ideal), 1):
         done[p.key()] = result
         if results:
             _append(results, p.key(), result)
@@ -250,8 +248,9 @@ def sweep(points: list[DesignPoint], workers: int = 1, scheduler: str | None = N
                         "height": t.width, "wall_s": t.wall_s, "by_type": t.by_type}
                        for key, t in traces.items()],
         "energy_per_op": energies,
-        "bit_exact": {c: all(e["rtunit"]["responses_verified"] for e in entries
-                             if e["design_point"]["config"] == c)
+        "bit_exact": {c: all(e["rtunit_memory"]["responses_verified"]
+                             and (e["rtunit"] is None or e["rtunit"]["responses_verified"])
+                             for e in entries if e["design_point"]["config"] == c)
                       for c in sorted({p.config for p in points})},
         "traced_on": first.config,
         "points": entries,
@@ -263,18 +262,20 @@ def _stderr():
     return sys.stderr
 
 
-def _run(todo, traces, workers, scheduler):
+def _run(todo, traces, workers, scheduler, ideal=False):
     """(point, result) of every point to measure, in this process or on Dask."""
     if not todo:
         return
     if workers == 1 and not scheduler:
         for p in todo:
-            yield p, measure_point(p, traces[functional_key(p)].records)
+            t = traces[functional_key(p)]
+            yield p, measure_point(p, t.waves, t.width, ideal)
         return
     with _client(workers, scheduler) as client:
-        recs = {k: client.scatter(t.records, broadcast=True) for k, t in traces.items()}
+        recs = {k: client.scatter(t.waves, broadcast=True) for k, t in traces.items()}
         run_id = uuid.uuid4().hex[:12]
         futures = {client.submit(measure_point, p, recs[functional_key(p)],
+                                 traces[functional_key(p)].width, ideal,
                                  key=f"rayflex-sweep-{run_id}-{i}", retries=3): p
                    for i, p in enumerate(todo)}
         from distributed import as_completed
@@ -296,12 +297,19 @@ def _entry(p: DesignPoint, result: dict, trace: Trace, energies: dict) -> dict:
         e["rtunit_memory"] = result["by_type"][kind]["rtunit_memory"]
         e["energy_per_ray"] = {lvl: energy_per_ray(counts, energies[key][lvl], bop)
                                for lvl in ENERGY_LEVELS}
+        e["energy_per_ray"]["memory_pj"] = _memory_pj(e["rtunit_memory"])
         by_type[kind] = e
     total = _totals(trace.by_type, merge)
     total["rtunit"], total["rtunit_memory"] = result["rtunit"], result["rtunit_memory"]
     total["energy_per_ray"] = {lvl: energy_per_ray(total, energies[key][lvl], bop)
                                for lvl in ENERGY_LEVELS}
+    total["energy_per_ray"]["memory_pj"] = _memory_pj(total["rtunit_memory"])
     return {"design_point": p.as_dict(), **total, "by_type": by_type, "wall_s": result["wall_s"]}
+
+
+def _memory_pj(obj: dict | None):
+    """Energy of the node fetches per ray (pJ; ``driver.rtunit.energy``), or None."""
+    return obj["memory_energy"]["per_ray"] if obj and "memory_energy" in obj else None
 
 
 def _totals(by_type: dict, merge) -> dict:
@@ -321,29 +329,44 @@ ROW_FIELDS = ("ray_type", "rays", "hits", "box_ops", "tri_ops", "transform_ops",
               "box_ops_per_ray",
               "tri_ops_per_ray", "rtunit_cycles", "rtunit_utilization", "rtunit_cycles_per_ray",
               "rtunit_memory_cycles", "rtunit_memory_utilization", "rtunit_memory_cycles_per_ray",
-              "hit_rate", "bytes_per_ray", "energy_per_ray_signals", "energy_per_ray_gates",
-              "responses_verified", "wall_s")
+              "frame_cycles", "frame_utilization", "latency_mean", "latency_p95",
+              "hit_rate", "bytes_per_ray", "l1_bytes_per_ray", "l2_bytes_per_ray",
+              "dram_bytes_per_ray", "energy_per_ray_signals", "energy_per_ray_gates",
+              "energy_per_ray_memory_pj", "responses_verified", "wall_s")
 
 
 def rows(doc: dict) -> list[dict]:
-    """One row per point x ray type: the design point's options, then ``ROW_FIELDS``."""
+    """One row per point x ray type: the design point's options, then ``ROW_FIELDS`` (the
+    ray type's ``rtunit``/``rtunit_memory`` keys; ``frame_*``: the frame's replay with the
+    memory hierarchy, the same in each row of a point)."""
     out = []
     for e in doc["points"]:
+        fm = e["rtunit_memory"] or {}
         for kind, t in e["by_type"].items():
-            r, m = t["rtunit"], t["rtunit_memory"] or {}
+            r, m = t["rtunit"] or {}, t["rtunit_memory"] or {}
+            served = m.get("bytes_served_per_ray", {})
             out.append({**e["design_point"], "ray_type": kind,
                         **{k: t[k] for k in ("rays", "hits", "box_ops", "tri_ops", "ops",
                                              "box_ops_per_ray", "tri_ops_per_ray")},
                         "transform_ops": t.get("transform_ops"),      # instanced scenes
-                        "rtunit_cycles": r["cycles"], "rtunit_utilization": r["utilization"],
-                        "rtunit_cycles_per_ray": r["cycles_per_ray"],
+                        "rtunit_cycles": r.get("cycles"),
+                        "rtunit_utilization": r.get("utilization"),
+                        "rtunit_cycles_per_ray": r.get("cycles_per_ray"),
                         "rtunit_memory_cycles": m.get("cycles"),
                         "rtunit_memory_utilization": m.get("utilization"),
                         "rtunit_memory_cycles_per_ray": m.get("cycles_per_ray"),
+                        "frame_cycles": fm.get("cycles"),
+                        "frame_utilization": fm.get("utilization"),
+                        "latency_mean": m.get("latency_mean"),
+                        "latency_p95": m.get("latency_p95"),
                         "hit_rate": m.get("hit_rate"), "bytes_per_ray": m.get("bytes_per_ray"),
+                        "l1_bytes_per_ray": served.get("l1"),
+                        "l2_bytes_per_ray": served.get("l2"),
+                        "dram_bytes_per_ray": served.get("dram"),
                         "energy_per_ray_signals": t["energy_per_ray"]["signals"],
                         "energy_per_ray_gates": t["energy_per_ray"]["gates"],
-                        "responses_verified": r["responses_verified"]
+                        "energy_per_ray_memory_pj": t["energy_per_ray"]["memory_pj"],
+                        "responses_verified": (not r or r["responses_verified"])
                         and (not m or m["responses_verified"]),
                         "wall_s": e["wall_s"]})
     return out
@@ -364,14 +387,14 @@ def _timing(e: dict) -> dict:
 
 
 def plot(doc: dict, path) -> None:
-    """Two panels: datapath utilization vs rays in flight, one line per (cache size, other
+    """Two panels: the frame's utilization vs rays in flight, one line per (cache size, other
     varied options), lines with the same values merged into one whose label says so (two
-    configurations with the same timing coincide); energy per ray (signals) vs RT-unit cycles
-    per ray, one marker per point, one colour per configuration, its axis from zero. Legends
-    below the data; the title names the frame and the options every point shares."""
+    configurations with the same timing coincide); the node fetches' energy per ray vs RT-unit
+    cycles per ray, one marker per point, one colour per configuration (its datapath energy per
+    ray in the legend), both axes from zero. Legends below the data; the title names the frame
+    and the options every point shares."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
-
 
     pts = doc["points"]
     others = [k for k in doc["grid"] if k not in ("rays_in_flight",)]
@@ -396,24 +419,32 @@ def plot(doc: dict, path) -> None:
     ax1.set_ylim(0, 1.05)
     ax1.set_xlabel("rays in flight (ray pool size)")
     ax1.set_ylabel("datapath utilization, ops / (pipelines x cycles)")
-    ax1.set_title("RT-unit utilization with the node memory (dashed: cache 0, every node fetch "
-                  "from memory)", fontsize=8)
+    ax1.set_title("the frame's RT-unit utilization with the memory hierarchy (dashed: no node "
+                  "cache)", fontsize=8)
     ax1.grid(True, which="both", alpha=0.3)
     ax1.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=1,
                frameon=False)
     configs = sorted({e["design_point"]["config"] for e in pts})
     for i, cfg in enumerate(configs):
         sel = [e for e in pts if e["design_point"]["config"] == cfg
-               and e["energy_per_ray"]["signals"] is not None]
-        ax2.scatter([_timing(e)["cycles_per_ray"] for e in sel],
-                    [e["energy_per_ray"]["signals"] for e in sel], label=cfg, s=30,
-                    marker=markers[i % len(markers)], color=f"C{i}")
-    top = max((e["energy_per_ray"]["signals"] or 0 for e in pts), default=0)
-    ax2.set_ylim(0, 1.1 * top or 1)                   # from zero: differences at their size
+               and e["energy_per_ray"]["memory_pj"] is not None]
+        dp_energy = {e["energy_per_ray"]["signals"] for e in sel} - {None}
+        label = cfg + (f" (datapath {min(dp_energy):,.0f}" + (
+            f"-{max(dp_energy):,.0f}" if len(dp_energy) > 1 else "") + " toggles/ray)"
+                       if dp_energy else "")
+        for cached in (True, False):
+            part = [e for e in sel if bool(e["design_point"]["cache_kib"]) == cached]
+            ax2.scatter([_timing(e)["cycles_per_ray"] for e in part],
+                        [e["energy_per_ray"]["memory_pj"] for e in part], s=28, color=f"C{i}",
+                        marker="o" if cached else "s",
+                        label=label if cached or not any(
+                            bool(e["design_point"]["cache_kib"]) for e in sel) else None)
+    ax2.set_xlabel("RT-unit cycles per ray (with the memory hierarchy)")
+    ax2.set_ylabel("node fetches' energy per ray (pJ; docs/rtunit.md)")
+    ax2.set_title("memory-side energy per ray vs time per ray (squares: no node cache)",
+                  fontsize=8)
+    ax2.set_ylim(bottom=0)
     ax2.set_xlim(0, 1.1 * max(_timing(e)["cycles_per_ray"] for e in pts))
-    ax2.set_xlabel("RT-unit cycles per ray (with the node memory)")
-    ax2.set_ylabel("energy per ray (bit toggles, level signals)")
-    ax2.set_title("energy per ray vs time per ray, one marker per design point", fontsize=8)
     ax2.grid(True, alpha=0.3)
     ax2.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), frameon=False,
                ncol=max(1, len(configs)))
@@ -427,25 +458,30 @@ def plot(doc: dict, path) -> None:
 
 def table(doc: dict) -> str:
     """One line per point and ray type, then the point's frame (all rays): the varied options,
-    rays, ops per ray, RT-unit cycles and utilization without and with the node memory, hit
-    rate, bytes from memory and energy per ray."""
+    rays, ops per ray, utilization with the memory hierarchy (a ray type's only in a wavefront
+    frame; with free node fetches when replayed, ``--ideal-replay``), mean latency, bytes from
+    DRAM per ray, the datapath's energy and the node fetches' energy per ray."""
     keys = list(doc["grid"])
     nan = float("nan")
     head = " ".join(f"{k:>18}" for k in keys) + \
-        f" {'type':>8} {'rays':>6} {'ops/ray':>7} {'cycles':>9} {'rtunit':>6} {'cycles':>9} " \
-        f"{'+memory':>7} {'hit rate':>8} {'B/ray':>6} {'E/ray':>9}"
+        f" {'type':>8} {'rays':>6} {'ops/ray':>7} {'util':>6} {'ideal':>6} {'latency':>8} " \
+        f"{'B/ray':>6} {'E/ray':>9} {'mem pJ/ray':>10}"
     out = [head]
     for e in doc["points"]:
         cells = " ".join(f"{str(e['design_point'][k]):>18}" for k in keys)
         for kind, t in [*e["by_type"].items(), ("all", e)]:
-            r, m = t["rtunit"], t["rtunit_memory"] or {}
-            energy = t["energy_per_ray"]["signals"]
+            m = t["rtunit_memory"] or {}
+            util, ideal = m.get("utilization"), (t["rtunit"] or {}).get("utilization")
+            energy, mem = t["energy_per_ray"]["signals"], t["energy_per_ray"]["memory_pj"]
             out.append(f"{cells} {kind:>8} {t['rays']:>6} {t['ops'] / max(t['rays'], 1):>7.2f} "
-                       f"{r['cycles']:>9} {r['utilization']:>6.3f} {m.get('cycles', ''):>9} "
-                       f"{m.get('utilization', nan):>7.3f} {m.get('hit_rate', nan):>8.3f} "
-                       f"{m.get('bytes_per_ray', nan):>6.0f} "
-                       f"{nan if energy is None else energy:>9.0f}")
-    out.append("(per ray type, then all rays of the point; cycles / rtunit and cycles / +memory: "
-               "RT-unit cycles and utilization without and with the node memory; B/ray: bytes "
-               "from memory per ray; E/ray: energy per ray in bit toggles; docs/statistics.md)")
+                       f"{nan if util is None else util:>6.3f} "
+                       f"{nan if ideal is None else ideal:>6.3f} "
+                       f"{m.get('latency_mean', nan):>8.0f} {m.get('bytes_per_ray', nan):>6.0f} "
+                       f"{nan if energy is None else energy:>9.0f} "
+                       f"{nan if mem is None else mem:>10.0f}")
+    out.append("(per ray type, then all rays of the point; util / ideal: utilization with the "
+               "memory hierarchy / with free node fetches (--ideal-replay), a ray type's only "
+               "in a wavefront frame; latency: mean cycles from the trace call to the ray's "
+               "last response; B/ray: bytes from DRAM per ray; E/ray: datapath energy per ray "
+               "in bit toggles; mem pJ/ray: node fetches, docs/rtunit.md; docs/statistics.md)")
     return "\n".join(out)

@@ -44,7 +44,8 @@ import numpy as np
 
 from .backends import DEFAULT_BACKEND, resolve
 from .check import merge_checks
-from .stats import merge, merge_rtunit, replay_stats
+from .rtunit.gpu import replay_point, waves_of
+from .stats import merge, merge_rtunit
 from .tracer import trace
 from .workloads import FrameResult, embree_check, run
 
@@ -80,6 +81,7 @@ class TileResult:
     ops: dict
     stats: dict
     embree: dict = field(default_factory=dict)
+    replay: dict = field(default_factory=dict)    # the tile's frame-level RT-unit objects
 
 
 def _backend(spec):
@@ -104,34 +106,36 @@ def run_tile(setup, bvh, width: int, height: int, pixels, workload: str, options
     options = dict(options)
     cull = bool(options.pop("cull_stack", False))
     point = options.pop("rtunit", None)
-    plain = bool(options.pop("rtunit_plain", True))
+    ideal = bool(options.pop("ideal", False))
+    frame_width = options.pop("width", width)
 
     def tracer(bvh_, o, d, **kw):
         return trace(bvh_, o, d, backend=be, cull_stack=cull, record=point is not None, **kw)
 
     res = run(setup, bvh, width, height, tracer, workload, pixels=pixels, **options)
     if point is not None:
-        add_replays(res, point, plain)
+        add_replays(res, point, frame_width, ideal)
     embree = {}
     if check_embree:
         embree_check(res, setup)
         embree = {k: v["embree"] for k, v in res.stats["by_type"].items()}
     return TileResult(np.asarray(pixels, np.int64), res.radiance.astype(np.float32),
                       {k: v.astype(np.int32) for k, v in res.ops.items()},
-                      res.stats["by_type"], embree)
+                      res.stats["by_type"], embree,
+                      {k: res.stats[k] for k in ("rtunit", "rtunit_memory")}
+                      if point is not None else {})
 
 
-def add_replays(res: FrameResult, point, plain: bool = True) -> None:
-    """Replay each ray type's recorded wavefronts of a traced frame on the RT unit of design
-    point ``point``: ``rtunit`` (unless not ``plain``) and ``rtunit_memory`` into each
-    ``by_type`` entry and, added up, into the frame's statistics
-    (``driver.stats.replay_stats``)."""
-    by_type = res.stats["by_type"]
-    for kind, entry in by_type.items():
-        records = [b.result.record for b in res.batches if b.kind == kind]
-        entry["rtunit"], entry["rtunit_memory"] = replay_stats(records, point, plain)
+def add_replays(res: FrameResult, point, width: int | None = None, ideal: bool = False) -> None:
+    """Replay a traced frame (or tile: a dispatch of its own) on the RT units of design point
+    ``point`` (``driver.rtunit.gpu.replay_point``; threads are pixels of a ``width``-wide
+    frame): ``rtunit_memory`` (and with ``ideal`` ``rtunit``) into the frame's statistics and
+    each ``by_type`` entry."""
+    rp = replay_point(waves_of(res.batches), point, width, ideal)
+    for kind, entry in res.stats["by_type"].items():
+        entry.update(rp["by_type"][kind])
     for key in ("rtunit", "rtunit_memory"):
-        res.stats[key] = merge_rtunit([e[key] for e in by_type.values()])
+        res.stats[key] = rp[key]
 
 
 class Assembler:
@@ -143,6 +147,7 @@ class Assembler:
         self.ops: dict = {}
         self.parts: dict = {}
         self.checks: dict = {}
+        self.replays: list = []
 
     def add(self, t: TileResult) -> None:
         self.radiance[t.pixels] = t.radiance
@@ -152,6 +157,8 @@ class Assembler:
             self.parts.setdefault(kind, []).append((tuple(t.pixels[:1].tolist()), s))
         for kind, e in t.embree.items():
             self.checks.setdefault(kind, []).append((tuple(t.pixels[:1].tolist()), e))
+        if t.replay:
+            self.replays.append((tuple(t.pixels[:1].tolist()), t.replay))
 
     def frame(self) -> FrameResult:
         # merge in tile order, so that float sums (wall times) do not depend on arrival order
@@ -162,6 +169,10 @@ class Assembler:
             by_type[kind]["embree"] = merge_checks([e for _, e in parts])
         if self.checks:
             total["embree"] = merge_checks([e for v in self.checks.values() for _, e in v])
+        if self.replays:                 # tiles are dispatches one after another
+            parts = [r for _, r in sorted(self.replays, key=lambda x: x[0])]
+            for key in ("rtunit", "rtunit_memory"):
+                total[key] = merge_rtunit([p[key] for p in parts])
         total["by_type"] = by_type
         return FrameResult(self.radiance, self.ops, total, [])
 

@@ -88,7 +88,11 @@ def default_light(camera, lo, hi) -> PointLight:
 @dataclass
 class Batch:
     """One wavefront of one ray type: which pixel and sample each ray belongs to, its rays, and
-    (after tracing) its hits."""
+    (after tracing) its hits. For the RT-unit replay (docs/rtunit.md) every ray also names its
+    ``thread`` (the pixel: one thread per pixel runs its samples in order; default ``pixel``)
+    and its ``slot``: the trace call site in the thread's program, a number that grows along
+    the program (``Frame.slot``; two rays of one thread never share a slot, rays of several
+    threads at one slot are one trace call of their warp)."""
 
     kind: str                      # ray type (its by_type name, docs/statistics.md)
     pixel: np.ndarray              # (k,) pixel index of each ray
@@ -98,6 +102,15 @@ class Batch:
     extent: np.ndarray
     any_hit: bool
     result: object = None
+    slot: np.ndarray | None = None     # (k,) int64 program slot of each ray
+    thread: np.ndarray | None = None   # (k,) int64 thread of each ray (None: ``pixel``)
+
+    def __post_init__(self):
+        if self.thread is None:
+            self.thread = np.asarray(self.pixel, np.int64)
+        if self.slot is None:
+            raise ValueError(f"batch {self.kind!r}: every ray needs its program slot")
+        self.slot = np.broadcast_to(np.asarray(self.slot, np.int64), (len(self.pixel),))
 
 
 @dataclass
@@ -117,26 +130,33 @@ class Frame:
     """Trace one workload over ``pixels`` (indices into the width x height image)."""
 
     def __init__(self, setup: Setup, bvh, width: int, height: int, tracer, spp: int = 1,
-                 bounces: int = 1, ao_rays: int = 4, seed: int = 0, pixels=None):
+                 bounces: int = 1, ao_rays: int = 4, seed: int = 0, pixels=None,
+                 calls: int = 1):
         check_arguments(spp, bounces, ao_rays, seed)
         self.setup, self.bvh, self.w, self.h = setup, bvh, width, height
         self.trace = tracer   # trace(bvh, origins, dirs, extent=, any_hit=, double_sided=)
         self.spp, self.bounces, self.ao_rays, self.seed = spp, bounces, ao_rays, seed
         self.pixels = (np.arange(width * height) if pixels is None
                        else np.asarray(pixels, np.int64))
+        self.calls = calls    # trace calls per sample in the thread's program (``slot``)
         self.batches: list[Batch] = []
 
-    def trace_rays(self, kind, pixel, sample, origins, dirs, extent, any_hit,
-                   call=None) -> Batch:
+    def slot(self, sample, call) -> np.ndarray:
+        """Program slot of trace call ``call`` (0: the camera ray; a number or one per ray) of
+        ``sample``: one thread per pixel runs its samples in order, each sample ``calls`` trace
+        call sites."""
+        call = np.asarray(call, np.int64)
+        if call.size and (int(call.min()) < 0 or int(call.max()) >= self.calls):
+            raise ValueError(f"trace call {int(call.max())} outside the program's {self.calls} "
+                             "per sample")
+        return np.asarray(sample, np.int64) * self.calls + call
+
+    def trace_rays(self, kind, pixel, sample, origins, dirs, extent, any_hit, call) -> Batch:
         """Trace one wavefront of ray type ``kind`` (a ``Batch``'s fields) and keep it.
-        ``call``: each ray's trace call in its pixel sample's program (``self.calls`` per
-        sample): the batch's ``thread`` (the pixel) and ``slot`` (``sample * calls + call``),
-        its rays' places in their threads' programs (the RT unit's one-kernel replay)."""
-        b = Batch(kind, pixel, sample, origins, dirs, extent, any_hit)
-        if call is not None:
-            b.thread = np.asarray(pixel, np.int64)
-            b.slot = np.asarray(sample, np.int64) * self.calls + np.asarray(call, np.int64)
-        return self._run(b)
+        ``call``: each ray's trace call in its pixel sample's program (``slot``; the thread is
+        the pixel), its place in its thread's program (the RT unit's one-kernel replay)."""
+        return self._run(Batch(kind, pixel, sample, origins, dirs, extent, any_hit,
+                               slot=self.slot(sample, call)))
 
     def _run(self, batch: Batch) -> Batch:
         batch.result = self.trace(self.bvh, batch.origins, batch.dirs, extent=batch.extent,
@@ -149,7 +169,8 @@ class Frame:
         smp = np.tile(np.arange(self.spp), len(self.pixels))
         jx, jy = sampling.jitter(self.seed, pix, smp, self.spp)
         o, d = camera_rays(self.setup.camera, self.w, self.h, pix, jx, jy)
-        return self._run(Batch("primary", pix, smp, o, d, np.full(len(pix), np.inf), False))
+        return self._run(Batch("primary", pix, smp, o, d, np.full(len(pix), np.inf), False,
+                               slot=self.slot(smp, 0)))
 
     def surface(self, b: Batch):
         """Hit rows, hit points (float64), unit geometric normals facing the incoming ray, prim."""
@@ -165,7 +186,7 @@ class Frame:
         p -= np.einsum("ij,ij->i", p - tri[:, 0], n)[:, None] * n      # back onto the plane
         return rows, p, n, prim
 
-    def shadow(self, b: Batch, depth: int, rows, p, n):
+    def shadow(self, b: Batch, depth: int, rows, p, n, call: int = 1):
         """Shadow rays to light samples from the hits ``rows`` of batch ``b``: only where the
         sample faces the surface and the light faces the point (elsewhere the light adds nothing
         and no ray is traced). Returns (batch, the rows it serves (index into ``rows``), their
@@ -194,11 +215,13 @@ class Frame:
         go = np.flatnonzero((cos_x > 0) & (cos_y > 0))
         factor = le[go] * (len(lights) * cos_x[go] * cos_y[go] / r2[go] / np.pi)[:, None]
         batch = Batch("shadow", pix[go], smp[go], o[go], d[go].astype(np.float32),
-                      np.full(len(go), SHADOW_EXTENT, np.float32), True)
+                      np.full(len(go), SHADOW_EXTENT, np.float32), True,
+                      slot=self.slot(smp[go], call))
         return self._run(batch), go, factor
 
-    def hemisphere(self, kind, b, rows, n, p, depth, purpose, count):
-        """``count`` cosine-distributed rays per hit (pixel-major), from the offset hit points."""
+    def hemisphere(self, kind, b, rows, n, p, depth, purpose, count, call: int = 1):
+        """``count`` cosine-distributed rays per hit (pixel-major), from the offset hit points;
+        ray j of a hit is trace call ``call + j`` of its sample."""
         pix = np.repeat(b.pixel[rows], count)
         smp = np.repeat(b.sample[rows], count)
         j = np.tile(np.arange(count), len(rows))
@@ -209,7 +232,8 @@ class Frame:
         o = sampling.offset_origin(np.repeat(p, count, axis=0), nn)
         ext = self.setup.ao_radius if kind == "ao" else np.inf
         return self._run(Batch(kind, pix, smp, o, d.astype(np.float32),
-                               np.full(len(pix), ext, np.float32), kind == "ao"))
+                               np.full(len(pix), ext, np.float32), kind == "ao",
+                               slot=self.slot(smp, call) + j))
 
 
 def check_arguments(spp, bounces, ao_rays, seed) -> None:
@@ -230,7 +254,8 @@ def run(setup: Setup, bvh, width: int, height: int, tracer, workload: str = "pri
     pixels."""
     if workload not in WORKLOADS:
         raise ValueError(f"unknown workload {workload!r}; available: {', '.join(WORKLOADS)}")
-    fr = Frame(setup, bvh, width, height, tracer, **options)
+    fr = Frame(setup, bvh, width, height, tracer, calls=calls_per_sample(workload, **{
+        k: options[k] for k in ("bounces", "ao_rays") if k in options}), **options)
     if workload in lumibench_shaders.WORKLOADS:             # docs/lumibench.md
         return _finish(fr, lumibench_shaders.run(fr, workload))
     npix = len(fr.pixels)
@@ -247,6 +272,28 @@ def run(setup: Setup, bvh, width: int, height: int, tracer, workload: str = "pri
     else:
         _paths(fr, prim, radiance, fr.bounces if workload == "path" else 0)
     return _finish(fr, radiance)
+
+
+def calls_per_sample(workload: str, bounces: int = 1, ao_rays: int = 4) -> int:
+    """Trace call sites per sample of a workload's thread program (docs/rtunit.md): the camera
+    ray; shadow: one shadow ray; ao: ``ao_rays`` AO rays, one call each; path: per vertex a
+    shadow ray and (but the last) a continuation ray; LumiBench's shaders: docs/lumibench.md."""
+    if workload in lumibench_shaders.WORKLOADS:
+        return lumibench_shaders.calls(workload, ao_rays)
+    return {"primary": 1, "shadow": 2, "ao": 1 + ao_rays, "path": 2 + 2 * bounces}[workload]
+
+
+def check_program(batches) -> None:
+    """One-line ValueError when a thread has two rays at one slot of its program (the replay
+    needs every ray's place in its thread's program; ``Batch``)."""
+    if not batches:
+        return
+    t = np.concatenate([b.thread for b in batches])
+    s = np.concatenate([b.slot for b in batches])
+    key = np.unique(np.stack([t, s]), axis=1) if len(t) else np.zeros((2, 0))
+    if key.shape[1] != len(t):
+        raise ValueError("a thread has two rays at one slot of its program: each trace call "
+                         "site of a thread needs its own slot (driver.workloads.Batch)")
 
 
 def headlight(prim, triangles, dirs, pixels, width: int, height: int) -> np.ndarray:
@@ -284,12 +331,13 @@ def _paths(fr: Frame, b: Batch, radiance: np.ndarray, bounces: int) -> None:
         if not len(rows):
             break
         alb = mats.albedo[prim] * throughput[rows]
-        sh, go, factor = fr.shadow(b, depth, rows, p, n)
+        sh, go, factor = fr.shadow(b, depth, rows, p, n, call=1 + 2 * depth)
         lit = ~sh.result.hit
         np.add.at(radiance, ray[rows[go[lit]]], alb[go[lit]] * factor[lit])
         if depth == bounces:
             break
-        b = fr.hemisphere(f"bounce{depth + 1}", b, rows, n, p, depth + 1, sampling.BOUNCE, 1)
+        b = fr.hemisphere(f"bounce{depth + 1}", b, rows, n, p, depth + 1, sampling.BOUNCE, 1,
+                          call=2 + 2 * depth)
         ray, throughput = ray[rows], alb
 
 

@@ -1,11 +1,13 @@
-// RT-unit scheduler of driver/rtunit.py: P fresh model instances clocked together, a pool of R
-// ray slots, each ray's recorded request chain issued one request at a time. The requests are
-// assembled by the same NodeSource as the streaming fast path (rf_sim.h).
+// RT-unit replay of driver/rtunit (docs/rtunit.md): warps of threads issue their recorded rays
+// as trace calls to N RT units, each unit P fresh model instances clocked together with a pool of
+// ray slots, all units in front of one memory hierarchy (rf_memory.h). The requests are assembled
+// by the same NodeSource as the streaming fast path (rf_sim.h).
 #include <cstdint>
 #include <cstring>
 #include <deque>
 #include <memory>
 #include <queue>
+#include <utility>
 #include <vector>
 
 #include "rf_memory.h"
@@ -13,319 +15,581 @@
 
 using namespace rf;
 
+namespace {
+
+// A ray (or a trace call) waiting, earliest first, ties in the order they started waiting.
+struct Ready {
+  int64_t id, at, seq;
+  bool operator>(const Ready& o) const { return at != o.at ? at > o.at : seq > o.seq; }
+};
+using MinQueue = std::priority_queue<Ready, std::vector<Ready>, std::greater<Ready>>;
+
+struct Unit {
+  std::vector<std::unique_ptr<Sim>> sims;
+  std::vector<std::deque<int64_t>> inflight;   // per pipeline: record indices, in request order
+  std::vector<char> busy;
+  MinQueue ready;      // rays whose next request is known, by the cycle its node is present
+  MinQueue parked;     // affinity: rays without a slot, by the cycle their node arrives
+  MinQueue waiting;    // trace calls issued by their warp, not yet admitted (id = call)
+  std::deque<int64_t> fresh;                  // affinity: rays of admitted calls with no slot yet
+  int64_t active = 0;                         // rays holding an issue slot
+  int64_t held_calls = 0, held_rays = 0;      // admitted calls (and their rays) not done
+  int64_t resident = 0;                       // warps resident
+  // treelet scheduling: per treelet its queue (ray, cycle its next request is known), members
+  // (rays in slots or parked), whether it is active; the active treelets in activation order
+  std::vector<std::deque<std::pair<int64_t, int64_t>>> tq;
+  std::vector<int64_t> tl_members;
+  std::vector<char> tl_active;
+  std::vector<int64_t> act;
+  int64_t queued = 0;
+};
+
+struct Engine {
+  // inputs
+  const ReplayConfig& cfg;
+  const uint32_t* ray;
+  const uint32_t* ptr;
+  const int64_t* chain_idx;
+  const int64_t* chain_off;
+  int64_t n_chains;
+  const uint32_t* chain;
+  const uint32_t* before;
+  const int64_t* kernel_off;
+  const int64_t* warp_call_off;
+  const int64_t* call_ray_off;
+  const int64_t* call_rays;
+  const int32_t* treelet;
+  int64_t n_treelets;
+  const int64_t* tl_off;
+  const int64_t* tl_node_off;
+  const int64_t* tl_node_bytes;
+  // outputs
+  int64_t* ray_times;    // (n_chains, 3): call issued, call admitted, last response
+  int64_t* ray_served;   // (n_chains, 4): node bytes supplied by each memory level
+  int64_t* ray_wait;     // (n_chains,): cycles waited for nodes
+  int64_t* call_times;   // (n_calls, 3): issued, admitted, done
+  int64_t* call_unit;    // (n_calls,)
+  // state
+  NodeSource src;
+  MemorySystem mem;
+  std::vector<Unit> units;
+  std::vector<int64_t> pos, call_of, warp_of, remaining, cur_tl;
+  bool treelets = false, affinity = false, parking = false;
+  int64_t calls_per_unit = 0, window_calls = 0, seq = 0, next_warp = 0, kernel_end = 0;
+  int64_t kernel_calls_left = 0;
+  int64_t node_wait = 0, level_wait[4] = {0, 0, 0, 0};
+  int64_t n_parked = 0, n_resumed = 0, max_parked = 0, max_held = 0;
+  int64_t picks = 0, max_queued = 0, n_borrowed = 0;
+
+  Engine(const ReplayConfig& c, NodeSource s) : cfg(c), src(s) {}
+
+  int64_t index_of(int64_t r) const { return chain_idx[chain_off[r] + pos[r]]; }
+
+  int64_t node_of(int64_t r, int64_t* off) const {     // ray r's next node: bytes, *off
+    const uint32_t p = ptr[index_of(r)];
+    *off = NodeSource::node_word(p) * 4;
+    return static_cast<int64_t>(kNodeBytes[p & kTypeMask]);  // 0: the node the ray holds
+  }
+
+  // Ray r's next request is known at cycle `at`: its node is fetched (and, first, the instance
+  // node it reads on entering an instance); it becomes ready when the node is present, or parks.
+  void wait(Unit& u, int64_t uid, int64_t r, int64_t at) {
+    const uint32_t b = before[index_of(r)];
+    int64_t* served = ray_served + r * 4;
+    Access ab{at, kLevelNone, kLevelNone};
+    if (b != kNoChild)
+      ab = mem.fetch(uid, NodeSource::node_word(b) * 4, kNodeBytes[b & kTypeMask], at, served);
+    const int64_t after = ab.ready;
+    int64_t off;
+    const int64_t bytes = node_of(r, &off);
+    const bool park = parking && bytes && !mem.present(uid, off, bytes, after);
+    const Access an = bytes ? mem.fetch(uid, off, bytes, after, served)
+                            : Access{after, kLevelNone, kLevelNone};
+    const int64_t when = an.ready;
+    const int level = when > after ? an.level : ab.level;
+    node_wait += when - at;
+    level_wait[level] += when - at;
+    ray_wait[r] += when - at;
+    if (!park) {
+      u.ready.push({r, when, seq++});
+      return;
+    }
+    u.parked.push({r, when, seq++});
+    u.active--;
+    n_parked++;
+    if (static_cast<int64_t>(u.parked.size()) > max_parked) max_parked = u.parked.size();
+  }
+
+  // ------------------------------------------------------------------ warps and trace calls
+  void issue_call(Unit& u, int64_t c, int64_t at) {       // the warp issues call c at `at`
+    call_times[c * 3] = at;
+    u.waiting.push({c, at, seq++});
+  }
+
+  void make_resident(Unit& u, int64_t uid, int64_t w, int64_t at) {
+    u.resident++;
+    for (int64_t c = warp_call_off[w]; c < warp_call_off[w + 1]; c++) call_unit[c] = uid;
+    issue_call(u, warp_call_off[w], at);
+  }
+
+  void tl_enqueue(Unit& u, int64_t r, int64_t at) {
+    u.tq[treelet[index_of(r)]].push_back({r, at});
+    if (++u.queued > max_queued) max_queued = u.queued;
+  }
+
+  void admit(Unit& u, int64_t uid, int64_t c, int64_t now) {
+    call_times[c * 3 + 1] = now;
+    u.held_calls++;
+    for (int64_t j = call_ray_off[c]; j < call_ray_off[c + 1]; j++) {
+      const int64_t r = call_rays[j];
+      ray_times[r * 3] = call_times[c * 3];
+      ray_times[r * 3 + 1] = now;
+      if (++u.held_rays > max_held) max_held = u.held_rays;
+      if (treelets) {
+        tl_enqueue(u, r, now);
+      } else if (affinity) {
+        u.fresh.push_back(r);
+      } else {
+        u.active++;
+        wait(u, uid, r, now);
+      }
+    }
+  }
+
+  // Calls whose warp has issued them by `now` enter while the unit has room for their warp.
+  void admit_waiting(Unit& u, int64_t uid, int64_t now) {
+    while (u.held_calls < calls_per_unit && !u.waiting.empty() && u.waiting.top().at <= now) {
+      const int64_t c = u.waiting.top().id;
+      u.waiting.pop();
+      admit(u, uid, c, now);
+    }
+  }
+
+  void call_done(Unit& u, int64_t uid, int64_t c, int64_t k) {
+    call_times[c * 3 + 2] = k;
+    u.held_calls--;
+    kernel_calls_left--;
+    const int64_t w = warp_of[c];
+    if (c + 1 < warp_call_off[w + 1]) {
+      issue_call(u, c + 1, k + cfg.turnaround + cfg.shader_cycles);
+      return;
+    }
+    u.resident--;                                     // the warp retires: the next one comes
+    if (next_warp < kernel_end) make_resident(u, uid, next_warp++, k + cfg.turnaround);
+  }
+
+  void ray_done(Unit& u, int64_t uid, int64_t r, int64_t k) {
+    ray_times[r * 3 + 2] = k;
+    u.held_rays--;
+    const int64_t c = call_of[r];
+    if (--remaining[c] == 0) call_done(u, uid, c, k);
+  }
+
+  // ------------------------------------------------------------------ schedulers
+  bool resume(Unit& u, int64_t uid, int64_t k) {          // a parked ray whose node arrived
+    if (u.parked.empty() || u.parked.top().at > k) return false;
+    const int64_t r = u.parked.top().id;
+    u.parked.pop();
+    n_resumed++;
+    u.active++;
+    int64_t off;
+    const int64_t bytes = node_of(r, &off);
+    if (bytes) mem.touch(uid, off, bytes);
+    u.ready.push({r, k, seq++});
+    return true;
+  }
+
+  // Affinity: free slots go to parked rays whose node has arrived, then to new rays.
+  void fill(Unit& u, int64_t uid, int64_t k, int64_t new_at) {
+    while (u.active < cfg.slots) {
+      if (resume(u, uid, k)) continue;
+      if (!u.fresh.empty()) {
+        const int64_t r = u.fresh.front();
+        u.fresh.pop_front();
+        u.active++;
+        wait(u, uid, r, new_at);
+        continue;
+      }
+      if (u.held_calls >= window_calls || u.waiting.empty() || u.waiting.top().at > new_at)
+        break;
+      const int64_t c = u.waiting.top().id;
+      u.waiting.pop();
+      admit(u, uid, c, new_at);
+    }
+  }
+
+  // Treelets: new rays join their queues; retired treelets leave the active set; free slots go
+  // to rays queued on active treelets, activating the treelet with the most queued rays when no
+  // active treelet has one.
+  void fill_treelets(Unit& u, int64_t uid, int64_t k, int64_t new_at) {
+    while (u.held_calls < window_calls && !u.waiting.empty() && u.waiting.top().at <= new_at) {
+      const int64_t c = u.waiting.top().id;
+      u.waiting.pop();
+      admit(u, uid, c, new_at);
+    }
+    size_t j = 0;
+    for (size_t a = 0; a < u.act.size(); a++) {
+      const int64_t t = u.act[a];
+      if (u.tq[t].empty() && u.tl_members[t] == 0) u.tl_active[t] = 0;
+      else u.act[j++] = t;
+    }
+    u.act.resize(j);
+    while (u.active < cfg.slots) {
+      if (resume(u, uid, k)) continue;
+      int64_t from = -1;
+      for (const int64_t t : u.act)
+        if (!u.tq[t].empty()) { from = t; break; }
+      if (from < 0) {
+        if (u.queued == 0) break;
+        int64_t best = -1;
+        for (int64_t t = 0; t < n_treelets; t++)
+          if (!u.tl_active[t] && (best < 0 || u.tq[t].size() > u.tq[best].size())) best = t;
+        if (best < 0 || u.tq[best].empty()) break;
+        if (static_cast<int64_t>(u.act.size()) >= cfg.active_treelets) {
+          if (!(cfg.treelet_flags & 2)) break;
+          n_borrowed++;                         // a free slot serves the longest queue
+        } else {
+          u.tl_active[best] = 1;
+          u.act.push_back(best);
+          picks++;
+          if (tl_off)
+            for (int64_t e = tl_off[best]; e < tl_off[best + 1]; e++)
+              mem.fetch(uid, tl_node_off[e], tl_node_bytes[e], k, nullptr);
+        }
+        from = best;
+      }
+      const auto [r, at] = u.tq[from].front();
+      u.tq[from].pop_front();
+      u.queued--;
+      u.active++;
+      u.tl_members[from]++;
+      cur_tl[r] = from;
+      wait(u, uid, r, at > k ? at : k);
+    }
+  }
+
+  void start(Unit& u, int64_t uid, int64_t t) {           // a kernel's first admissions
+    if (treelets) fill_treelets(u, uid, t, t);
+    else if (affinity) fill(u, uid, t, t);
+    else admit_waiting(u, uid, t);
+  }
+};
+
+}  // namespace
+
 #pragma GCC visibility push(default)
 extern "C" {
 
-// RT-unit replay (driver/rtunit.py). The m recorded requests (ray[i], ptr[i], ext[i]) form one
-// chain per ray; chain_idx lists the record indices of ray r's chain, in issue order, at
-// chain_idx[chain_off[r] .. chain_off[r + 1]). Chains (world rays) enter a pool of `slots` ray
-// slots in the order `order` (n_chains chain indices, a permutation; null: index order; chains
-// that are empty are skipped) and leave it when their chain is done.
-// chain[i] is the chain (world ray) of request i: a ray that enters an instance continues its
-// chain with requests on another ray-table row (its object-space ray), so ray[i] names the row
-// (and the tag), chain[i] the ray slot. before[i] (kNoChild: none) is a node fetched before
-// request i's own node: the instance node a ray reads on entering the instance.
+// RT-unit replay (driver/rtunit, docs/rtunit.md).
 //
-// Every cycle, first each pipeline's response (if out_valid) is taken: its ray becomes ready
-// `turnaround` cycles later (or leaves the pool, and the next ray enters, ready `turnaround`
-// cycles later). Then each pipeline, in order 0..P-1, whose input is ready accepts the next
-// request of the ray that has been ready longest (rays ordered by ready time, then by the order in
-// which they became waiting; a new ray ready at cycle 0 initially). Then all pipelines are
-// clocked. A ray has at most one request in flight.
+// Requests and chains. The m recorded requests (ray[i], ptr[i], ext[i]) form one chain per world
+// ray; chain_idx lists the record indices of chain r, in issue order, at
+// chain_idx[chain_off[r] .. chain_off[r + 1]). chain[i] is the chain of request i (a ray that
+// enters an instance continues its chain on another ray-table row, which ray[i] names and which
+// is the response's tag); before[i] (kNoChild: none) is a node fetched before request i's own
+// node: the instance node a ray reads on entering the instance.
 //
-// Node memory (rf_memory.h; off when cache_bytes < 0, no cache when 0): when a ray's next request becomes known
-// (the cycle it would be ready), its node is fetched through the node cache; the ray is ready when
-// its node's lines are present (at once on a hit, later on a miss), while other rays keep the
-// pipelines busy. Returns -4 for a cache geometry it cannot model.
+// Warps and trace calls. The frame is n_kernels kernels run one after another (a barrier
+// between them; cfg.flush: the caches are dropped there); kernel q's warps are
+// [kernel_off[q], kernel_off[q + 1]), in launch order. Warp w's trace calls, in program order,
+// are [warp_call_off[w], warp_call_off[w + 1]); call c's rays (chain indices, each non-empty and
+// in exactly one call) are call_rays[call_ray_off[c] .. call_ray_off[c + 1]).
+// At a kernel's start, warps become resident round robin over the units (unit 0, 1, .., N-1,
+// then each unit's second warp, ..) up to cfg.resident per unit (0: every warp); a unit whose
+// warp retires takes the next warp of the kernel, `turnaround` cycles later. A resident warp
+// issues its first call at once and each next call `turnaround + shader_cycles` cycles after the
+// previous call's last response; it retires after its last call.
+// A call is admitted into its unit when the unit holds fewer than slots / warp_size calls
+// (affinity and treelet scheduling: window / warp_size), earliest issued first; each of its rays
+// then holds an issue slot (affinity: waits for one) and issues its chain one request at a time:
 //
-// Node-affinity scheduling (window > 0; window >= slots): the RT unit holds `window` rays (a ray
-// buffer filled in `order`), of which at most `slots` hold an issue slot. A ray whose next node is
-// not present in the node cache (a look at the tags, NodeMemory::present) does not wait in its
-// slot: its fetch is started and the ray is parked; its slot goes to a waiting ray whose node is
-// in the cache: first the parked rays whose node has arrived (earliest arrival first), then a
-// new ray from the buffer while fewer than `window` rays are held. A resumed ray takes the node
-// its fetch delivered (as a ray waiting in its slot does) without a second cache access; its
-// lines become the most recently used. sched (int64[4]): rays parked, resumed, most rays
-// parked at once, most rays held.
-// window == 0: no parking, every ray waits in its slot (the behaviour above, cycle for cycle).
+// Every cycle, for each unit in order: calls issued by then are admitted; each pipeline's
+// response (if out_valid) is taken: its ray's next request becomes known `turnaround` cycles
+// later (or the ray is done; when its call is done, the call's slots free, and waiting calls are
+// admitted at once, at that cycle + turnaround). Then each pipeline, in order 0..P-1, whose input
+// is ready accepts the next request of the ray that has been ready longest (rays ordered by
+// ready time, then by the order in which they became waiting). Then all pipelines are clocked. A
+// ray has at most one request in flight.
 //
-// Treelet scheduling (window > 0 and treelet != null; Aila & Karras, HPG 2010): the BVH is cut
+// Node memory (rf_memory.h; mc->l1_bytes < 0: off): when a ray's next request becomes known its
+// node is fetched through its unit's L1, the shared L2 and DRAM; the ray is ready when the node is
+// present. Returns -4 for a memory geometry it cannot model.
+//
+// Node-affinity scheduling (cfg.window > 0, >= slots, no treelets): a unit holds `window` rays
+// (of admitted calls), of which at most `slots` hold an issue slot. A ray whose next node is not
+// present in its L1 (a look at the tags, MemorySystem::present) does not wait in its slot: its
+// fetch is started and the ray is parked; its slot goes to a held ray: first the parked rays whose
+// node has arrived (earliest arrival first), then a ray of an admitted call (calls are admitted
+// while the unit holds fewer than window / warp_size). A resumed ray takes the node its fetch
+// delivered without a second cache access; its lines become the most recently used.
+//
+// Treelet scheduling (cfg.window > 0 and treelet != null; Aila & Karras, HPG 2010): the BVH is cut
 // into n_treelets treelets; treelet[i] is the treelet of request i's node. Every held ray that
-// holds no issue slot waits in the queue (FIFO) of the treelet of its next node; new rays (up to
-// `window` held) join the queue of their first node's treelet. At most `active_treelets`
-// treelets are active at once. Free slots go to the parked rays whose node has arrived, then to
-// the rays queued on active treelets (the earliest activated treelet first); when no active
-// treelet has a queued ray and fewer than `active_treelets` are active, the unit picks the
+// holds no issue slot waits in the queue (FIFO) of the treelet of its next node; the rays of an
+// admitted call join the queues of their first nodes' treelets. At most cfg.active_treelets
+// treelets are active at once per unit. Free slots go to the parked rays whose node has arrived,
+// then to the rays queued on active treelets (the earliest activated treelet first); when no
+// active treelet has a queued ray and fewer than active_treelets are active, the unit picks the
 // treelet with the most queued rays (ties: the lowest index) and activates it. A ray's node is
 // fetched when it takes a slot. A ray in a slot keeps it while its next node is in an active
-// treelet; a ray whose next node is in an inactive treelet gives up its slot and joins that
-// treelet's queue; a treelet with no ray queued, parked or in a slot is retired.
-// treelet_flags bit 0 (park): a ray whose node misses parks as with node affinity (above) and
-// stays a member of its treelet; else it waits in its slot. Bit 1 (borrow): when no further
-// treelet may be activated, a free slot takes the first ray of the longest queue without
-// activating its treelet (for one request, unless its next node is in an active treelet).
-// Prefetch (tl_off != null): when a treelet is activated, every node of it (tl_node_off /
-// tl_node_bytes; treelet t's nodes at [tl_off[t], tl_off[t + 1])) is fetched through the node
-// cache at once. sched[4]: picks (treelet activations); sched[5]: most rays queued at once;
-// sched[6]: rays given a slot by borrowing.
+// treelet; otherwise it gives up its slot and joins that treelet's queue; a treelet with no ray
+// queued, parked or in a slot is retired. treelet_flags bit 0 (park): a ray whose node misses
+// parks as with node affinity and stays a member of its treelet; else it waits in its slot.
+// Bit 1 (borrow): when no further treelet may be activated, a free slot takes the first ray of
+// the longest queue without activating its treelet. Prefetch (tl_off != null): when a treelet is
+// activated, every node of it (tl_node_off / tl_node_bytes; treelet t's nodes at [tl_off[t],
+// tl_off[t + 1])) is fetched through the unit's L1 at once.
 //
 // skip_idle: a pipeline that holds no request at the start of a cycle and gets none is not
 // evaluated in that cycle (clock gating: with nothing valid inside, a clock edge changes no state
 // of the RayFlex pipeline, whose registers load only on a handshake); cycles still count.
 //
-// rsp: (m, kRspWords), written at the record index. stats: the ReplayStats of rf_layout.h (its
-// fields are documented in driver/layout.py). per_pipe (int64[P]): requests per pipeline.
+// Outputs: rsp (m, kRspWords) at the record index; stats (ReplayStats: `cycles` is the sum over
+// kernels of first accept to last response, `frame_cycles` the frame's); per_pipe (units * P):
+// requests per pipeline; sched (int64[7]): rays parked, resumed, most parked at once (one unit),
+// most rays held at once (one unit), treelet picks, most rays queued at once, borrowed requests;
+// ray_times (n_chains, 3), ray_served (n_chains, 4), ray_wait (n_chains), call_times (n_calls, 3),
+// call_unit (n_calls) as named in Engine; series (cfg.series_capacity): rays held by all units,
+// summed per bin of stats->series_bin_cycles cycles; kernel_times (n_kernels, 3): each kernel's
+// first accept, last response (-1: none) and starved unit-cycles.
 // Returns 0, -1 on a deadlock, -2 on a bad node pointer, -3 on bad arguments.
-int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t skip_idle,
-                  const uint32_t* rays, int64_t n_rays, const uint32_t* image,
-                  int64_t image_words, const uint32_t* ray, const uint32_t* ptr,
-                  const uint32_t* ext, int64_t m, const int64_t* chain_idx,
+int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const uint32_t* rays,
+                  int64_t n_rays, const uint32_t* image, int64_t image_words, const uint32_t* ray,
+                  const uint32_t* ptr, const uint32_t* ext, int64_t m, const int64_t* chain_idx,
                   const int64_t* chain_off, int64_t n_chains, const uint32_t* chain,
-                  const uint32_t* before, uint32_t* rsp, ReplayStats* stats, int64_t* per_pipe,
-                  int64_t max_idle, int64_t cache_bytes, int64_t ways, int64_t line_bytes,
-                  int64_t mem_latency, double bytes_per_cycle, const int64_t* order,
-                  int64_t window, int64_t* sched, const int32_t* treelet, int64_t n_treelets,
-                  int64_t active_treelets, const int64_t* tl_off, const int64_t* tl_node_off,
-                  const int64_t* tl_node_bytes, int64_t treelet_flags) {
-  if (pipelines < 1 || slots < 1 || turnaround < 0 || n_rays < 0 || n_chains < 0 || m < 0)
+                  const uint32_t* before, int64_t n_kernels, const int64_t* kernel_off,
+                  const int64_t* warp_call_off, const int64_t* call_ray_off,
+                  const int64_t* call_rays, const int32_t* treelet, int64_t n_treelets,
+                  const int64_t* tl_off, const int64_t* tl_node_off, const int64_t* tl_node_bytes,
+                  uint32_t* rsp, ReplayStats* stats, int64_t* per_pipe, int64_t* sched,
+                  int64_t* ray_times, int64_t* ray_served, int64_t* ray_wait, int64_t* call_times,
+                  int64_t* call_unit, int64_t* series, int64_t* kernel_times) {
+  const ReplayConfig& c = *cfg;
+  const int64_t P = c.pipelines, N = c.units;
+  if (P < 1 || N < 1 || c.slots < 1 || c.warp_size < 1 || c.slots % c.warp_size ||
+      c.turnaround < 0 || c.shader_cycles < 0 || c.resident < 0 || n_rays < 0 ||
+      n_chains < 0 || m < 0 || n_kernels < 0 || c.series_capacity < 2 || c.series_capacity % 2)
     return -3;
-  if (window < 0 || (window > 0 && window < slots)) return -3;
-  if (treelet && (window == 0 || n_treelets < 1 || active_treelets < 1)) return -3;
+  if (c.window < 0 || (c.window > 0 && (c.window < c.slots || c.window % c.warp_size)))
+    return -3;
+  if (treelet && (c.window == 0 || n_treelets < 1 || c.active_treelets < 1)) return -3;
   for (int64_t i = 0; treelet && i < m; i++)
     if (treelet[i] < 0 || treelet[i] >= n_treelets) return -3;
-  const bool treelets = treelet != nullptr;
-  const bool affinity = window > 0 && !treelets;
-  const bool parking = affinity || (treelets && (treelet_flags & 1));
-  NodeMemory mem;
-  if (!mem.configure(cache_bytes, ways, line_bytes, mem_latency, bytes_per_cycle)) return -4;
-  const NodeSource src{rays, image, image_words, ray, ptr, ext};
-  std::vector<std::unique_ptr<Sim>> sims;
-  for (int64_t p = 0; p < pipelines; p++) {
-    sims.emplace_back(new_sim());
-    src.begin(sims.back()->top.req_i.data());
-  }
-  std::vector<std::deque<int64_t>> inflight(pipelines);   // record indices, in request order
-  std::vector<int64_t> pos(n_chains, 0);                   // next chain position of each ray
-  // Rays waiting to issue, earliest ready first, ties in the order they started waiting (without
-  // a node memory, ready times grow with that order and this is a FIFO).
-  struct Ready {
-    int64_t ray, at, seq;
-    bool operator>(const Ready& o) const { return at != o.at ? at > o.at : seq > o.seq; }
-  };
-  std::priority_queue<Ready, std::vector<Ready>, std::greater<Ready>> ready;
-  std::priority_queue<Ready, std::vector<Ready>, std::greater<Ready>> parked;  // by arrival
-  int64_t seq = 0, node_wait = 0;
-  int64_t active = 0, held = 0;             // rays holding a slot; rays held (affinity)
-  int64_t n_parked = 0, n_resumed = 0, max_parked = 0, max_held = 0;
-  auto node_of = [&](int64_t r, int64_t* off) {          // ray r's next node: bytes, *off
-    const uint32_t p = ptr[chain_idx[chain_off[r] + pos[r]]];
-    *off = NodeSource::node_word(p) * 4;
-    return static_cast<int64_t>(kNodeBytes[p & kTypeMask]);  // 0: the node the ray already holds
-  };
-  auto wait = [&](int64_t r, int64_t at) {                // ray r's next request, known at `at`
-    const uint32_t b = before[chain_idx[chain_off[r] + pos[r]]];
-    const int64_t after =
-        b == kNoChild ? at : mem.fetch(NodeSource::node_word(b) * 4, kNodeBytes[b & kTypeMask], at);
-    int64_t off;
-    const int64_t bytes = node_of(r, &off);
-    const bool park = parking && bytes && !mem.present(off, bytes, after);
-    const int64_t when = bytes ? mem.fetch(off, bytes, after) : after;
-    node_wait += when - at;
-    if (!park) {
-      ready.push({r, when, seq++});
-      return;
-    }
-    parked.push({r, when, seq++});
-    active--;
-    n_parked++;
-    if (static_cast<int64_t>(parked.size()) > max_parked) max_parked = parked.size();
-  };
-  int64_t next_ray = 0;
-  auto next_in_order = [&]() -> int64_t {                  // next ray with a non-empty chain
-    while (next_ray < n_chains) {
-      const int64_t r = order ? order[next_ray] : next_ray;
-      next_ray++;
-      if (chain_off[r + 1] != chain_off[r]) return r;
-    }
-    return -1;
-  };
-  // Treelet scheduling state: per treelet its queue (ray, cycle its next request is known), its
-  // members (rays in slots or parked), whether it is active; the active treelets in activation
-  // order; the treelet of each ray holding a slot or parked.
-  std::vector<std::deque<std::pair<int64_t, int64_t>>> tq(treelets ? n_treelets : 0);
-  std::vector<int64_t> tl_members(tq.size(), 0), cur_tl(treelets ? n_chains : 0, -1);
-  std::vector<char> tl_active(tq.size(), 0);
-  std::vector<int64_t> act;
-  int64_t queued = 0, max_queued = 0, picks = 0, n_borrowed = 0;
-  auto tl_of = [&](int64_t r) {                          // the treelet of ray r's next node
-    return static_cast<int64_t>(treelet[chain_idx[chain_off[r] + pos[r]]]);
-  };
-  auto enqueue = [&](int64_t r, int64_t at) {
-    tq[tl_of(r)].push_back({r, at});
-    if (++queued > max_queued) max_queued = queued;
-  };
-  auto enter = [&](int64_t at) {
-    const int64_t r = next_in_order();
-    if (r < 0) return;
-    if (++held > max_held) max_held = held;
-    if (treelets) {
-      enqueue(r, at);
-      return;
-    }
-    active++;
-    wait(r, at);
-  };
-  // Affinity: give free slots to parked rays whose node has arrived, then to new rays.
-  auto resume = [&](int64_t k) {                         // a parked ray whose node arrived
-    if (parked.empty() || parked.top().at > k) return false;
-    const int64_t r = parked.top().ray;
-    parked.pop();
-    n_resumed++;
-    active++;
-    int64_t off;
-    const int64_t bytes = node_of(r, &off);
-    if (bytes) mem.touch(off, bytes);
-    ready.push({r, k, seq++});
-    return true;
-  };
-  auto fill = [&](int64_t k, int64_t new_at) {
-    while (active < slots) {
-      if (resume(k)) continue;
-      if (held >= window || next_ray >= n_chains) break;
-      enter(new_at);
-    }
-  };
-  // Treelets: new rays join their queues; retired treelets leave the active set; free slots go
-  // to rays queued on active treelets, activating the treelet with the most queued rays when no
-  // active treelet has one.
-  auto fill_treelets = [&](int64_t k, int64_t new_at) {
-    while (held < window && next_ray < n_chains) enter(new_at);
-    size_t j = 0;
-    for (size_t a = 0; a < act.size(); a++) {
-      const int64_t t = act[a];
-      if (tq[t].empty() && tl_members[t] == 0) tl_active[t] = 0;
-      else act[j++] = t;
-    }
-    act.resize(j);
-    while (active < slots) {
-      if (resume(k)) continue;
-      int64_t from = -1;
-      for (const int64_t t : act)
-        if (!tq[t].empty()) { from = t; break; }
-      if (from < 0) {
-        if (queued == 0) break;
-        int64_t best = -1;
-        for (int64_t t = 0; t < n_treelets; t++)
-          if (!tl_active[t] && (best < 0 || tq[t].size() > tq[best].size())) best = t;
-        if (best < 0 || tq[best].empty()) break;
-        if (static_cast<int64_t>(act.size()) >= active_treelets) {
-          if (!(treelet_flags & 2)) break;
-          n_borrowed++;                         // a free slot serves the longest queue
-        } else {
-          tl_active[best] = 1;
-          act.push_back(best);
-          picks++;
-          if (tl_off)
-            for (int64_t e = tl_off[best]; e < tl_off[best + 1]; e++)
-              mem.fetch(tl_node_off[e], tl_node_bytes[e], k);
-        }
-        from = best;
+  const int64_t n_warps = n_kernels ? kernel_off[n_kernels] : 0;
+  const int64_t n_calls = n_warps ? warp_call_off[n_warps] : 0;
+  Engine e(c, NodeSource{rays, image, image_words, ray, ptr, ext});
+  e.ray = ray;
+  e.ptr = ptr;
+  e.chain_idx = chain_idx;
+  e.chain_off = chain_off;
+  e.n_chains = n_chains;
+  e.chain = chain;
+  e.before = before;
+  e.kernel_off = kernel_off;
+  e.warp_call_off = warp_call_off;
+  e.call_ray_off = call_ray_off;
+  e.call_rays = call_rays;
+  e.treelet = treelet;
+  e.n_treelets = n_treelets;
+  e.tl_off = tl_off;
+  e.tl_node_off = tl_node_off;
+  e.tl_node_bytes = tl_node_bytes;
+  e.ray_times = ray_times;
+  e.ray_served = ray_served;
+  e.ray_wait = ray_wait;
+  e.call_times = call_times;
+  e.call_unit = call_unit;
+  e.treelets = treelet != nullptr;
+  e.affinity = c.window > 0 && !e.treelets;
+  e.parking = e.affinity || (e.treelets && (c.treelet_flags & 1));
+  e.calls_per_unit = c.slots / c.warp_size;
+  e.window_calls = c.window / c.warp_size;
+  if (!e.mem.configure(*mc, N)) return -4;
+
+  // every request belongs to a chain of exactly one call
+  e.call_of.assign(n_chains, -1);
+  e.remaining.assign(n_calls, 0);
+  e.warp_of.assign(n_calls, 0);
+  int64_t called = 0;
+  for (int64_t q = 0; q < n_kernels; q++)
+    if (kernel_off[q + 1] < kernel_off[q]) return -3;
+  for (int64_t w = 0; w < n_warps; w++) {
+    if (warp_call_off[w + 1] <= warp_call_off[w]) return -3;
+    for (int64_t k = warp_call_off[w]; k < warp_call_off[w + 1]; k++) {
+      e.warp_of[k] = w;
+      if (call_ray_off[k + 1] <= call_ray_off[k]) return -3;
+      for (int64_t j = call_ray_off[k]; j < call_ray_off[k + 1]; j++) {
+        const int64_t r = call_rays[j];
+        if (r < 0 || r >= n_chains || e.call_of[r] >= 0 || chain_off[r + 1] == chain_off[r])
+          return -3;
+        e.call_of[r] = k;
+        e.remaining[k]++;
+        called += chain_off[r + 1] - chain_off[r];
       }
-      const auto [r, at] = tq[from].front();
-      tq[from].pop_front();
-      queued--;
-      active++;
-      tl_members[from]++;
-      cur_tl[r] = from;
-      wait(r, at > k ? at : k);
     }
-  };
-  if (treelets) {
-    fill_treelets(0, 0);
-  } else if (affinity) {
-    fill(0, 0);
-  } else {
-    for (int64_t s = 0; s < slots && next_ray < n_chains; s++) enter(0);
   }
+  if (called != m || (n_calls && call_ray_off[n_calls] > n_chains)) return -3;
+  for (int64_t i = 0; i < m; i++)
+    if (chain[i] >= static_cast<uint32_t>(n_chains)) return -3;
+  for (int64_t r = 0; r < n_chains; r++)
+    for (int64_t j = 0; j < 3; j++) ray_times[r * 3 + j] = -1;
+  for (int64_t k = 0; k < n_calls; k++) {
+    for (int64_t j = 0; j < 3; j++) call_times[k * 3 + j] = -1;
+    call_unit[k] = -1;
+  }
+  std::memset(ray_served, 0, sizeof(int64_t) * 4 * n_chains);
+  std::memset(ray_wait, 0, sizeof(int64_t) * n_chains);
+  std::memset(series, 0, sizeof(int64_t) * c.series_capacity);
+  for (int64_t q = 0; q < n_kernels; q++) {
+    kernel_times[q * 3] = kernel_times[q * 3 + 1] = -1;
+    kernel_times[q * 3 + 2] = 0;
+  }
+  e.pos.assign(n_chains, 0);
+  if (e.treelets) e.cur_tl.assign(n_chains, -1);
+
+  e.units = std::vector<Unit>(N);      // built in place: a Unit is not copyable
+  for (int64_t uid = 0; uid < N; uid++) {
+    Unit& u = e.units[uid];
+    for (int64_t p = 0; p < P; p++) {
+      u.sims.emplace_back(new_sim());
+      e.src.begin(u.sims.back()->top.req_i.data());
+    }
+    u.inflight.resize(P);
+    u.busy.assign(P, 0);
+    if (e.treelets) {
+      u.tq.resize(n_treelets);
+      u.tl_members.assign(n_treelets, 0);
+      u.tl_active.assign(n_treelets, 0);
+    }
+  }
+  for (int64_t i = 0; i < N * P; i++) per_pipe[i] = 0;
 
   int64_t taken = 0, k = 0, first = -1, last = -1, idle = 0, evals = 0, starved = 0;
-  int64_t full_cycles = 0, bad_tags = 0, accepts = 0;
-  std::vector<char> busy(pipelines);
-  for (int64_t p = 0; p < pipelines; p++) per_pipe[p] = 0;
-  while (taken < m) {
+  int64_t full_cycles = 0, bad_tags = 0, accepts = 0, span_cycles = 0;
+  int64_t kfirst = -1, klast = -1, kernel = -1, bin_cycles = 1, bin = 0, in_bin = 0;
+  const int64_t cap = c.series_capacity;
+  auto start_kernel = [&](int64_t q, int64_t t) {
+    e.next_warp = kernel_off[q];
+    e.kernel_end = kernel_off[q + 1];
+    e.kernel_calls_left = (e.kernel_end > e.next_warp)
+                              ? warp_call_off[e.kernel_end] - warp_call_off[e.next_warp] : 0;
+    const int64_t per_unit = c.resident ? c.resident : (e.kernel_end - e.next_warp + N - 1) / N;
+    for (int64_t s = 0; s < per_unit; s++)
+      for (int64_t uid = 0; uid < N && e.next_warp < e.kernel_end; uid++)
+        e.make_resident(e.units[uid], uid, e.next_warp++, t);
+    for (int64_t uid = 0; uid < N; uid++) e.start(e.units[uid], uid, t);
+  };
+  while (true) {
     bool progress = false;
-    for (int64_t p = 0; p < pipelines; p++) {
-      Vrayflex& t = sims[p]->top;
-      busy[p] = !inflight[p].empty();
-      t.out_ready_i = 1;
-      if (!(busy[p] && t.out_valid_o)) continue;
-      const int64_t i = inflight[p].front();
-      inflight[p].pop_front();
-      std::memcpy(rsp + i * kRspWords, t.rsp_o.data(), kRspWords * 4);
-      if (rsp[i * kRspWords] != ray[i]) bad_tags++;
-      taken++;
-      last = k;
+    if (kernel < 0 || e.kernel_calls_left == 0) {        // a kernel boundary
+      if (kernel >= 0 && kfirst >= 0) {
+        span_cycles += klast - kfirst + 1;
+        kernel_times[kernel * 3] = kfirst;
+        kernel_times[kernel * 3 + 1] = klast;
+      }
+      kfirst = klast = -1;
+      do {                                                // (kernels without calls: none)
+        if (++kernel >= n_kernels) break;
+        if (kernel > 0 && c.flush) e.mem.flush();
+        start_kernel(kernel, k);
+      } while (e.kernel_calls_left == 0);
+      if (kernel >= n_kernels) break;
       progress = true;
-      const int64_t r = chain[i];
-      const bool more = ++pos[r] < chain_off[r + 1] - chain_off[r];
-      if (treelets) {
-        tl_members[cur_tl[r]]--;
-        if (more && tl_active[tl_of(r)]) {          // stays in its slot
-          cur_tl[r] = tl_of(r);
-          tl_members[cur_tl[r]]++;
-          wait(r, k + turnaround);
+    }
+    int64_t held_now = 0;
+    for (int64_t uid = 0; uid < N; uid++) {
+      Unit& u = e.units[uid];
+      if (!c.window) e.admit_waiting(u, uid, k);
+      for (int64_t p = 0; p < P; p++) {
+        Vrayflex& t = u.sims[p]->top;
+        u.busy[p] = !u.inflight[p].empty();
+        t.out_ready_i = 1;
+        if (!(u.busy[p] && t.out_valid_o)) continue;
+        const int64_t i = u.inflight[p].front();
+        u.inflight[p].pop_front();
+        std::memcpy(rsp + i * kRspWords, t.rsp_o.data(), kRspWords * 4);
+        if (rsp[i * kRspWords] != ray[i]) bad_tags++;
+        taken++;
+        last = klast = k;
+        progress = true;
+        const int64_t r = chain[i];
+        const bool more = ++e.pos[r] < chain_off[r + 1] - chain_off[r];
+        if (e.treelets) {
+          u.tl_members[e.cur_tl[r]]--;
+          const int64_t nt = more ? treelet[e.index_of(r)] : -1;
+          if (more && u.tl_active[nt]) {              // stays in its slot
+            e.cur_tl[r] = nt;
+            u.tl_members[nt]++;
+            e.wait(u, uid, r, k + c.turnaround);
+          } else {
+            u.active--;
+            if (more) e.tl_enqueue(u, r, k + c.turnaround);
+            else e.ray_done(u, uid, r, k);
+          }
+        } else if (more) {
+          e.wait(u, uid, r, k + c.turnaround);
         } else {
-          active--;
-          if (more) enqueue(r, k + turnaround);
-          else held--;
+          u.active--;
+          e.ray_done(u, uid, r, k);
+          if (!c.window) e.admit_waiting(u, uid, k + c.turnaround);
         }
-      } else if (more) {
-        wait(r, k + turnaround);
-      } else {
-        active--;
-        held--;
-        if (!affinity) enter(k + turnaround);
+      }
+      if (e.treelets) e.fill_treelets(u, uid, k, k + c.turnaround);
+      else if (e.affinity) e.fill(u, uid, k, k + c.turnaround);
+      int64_t issued = 0;
+      for (int64_t p = 0; p < P; p++) {
+        Vrayflex& t = u.sims[p]->top;
+        t.in_valid_i = 0;
+        if (u.ready.empty() || u.ready.top().at > k || !t.in_ready_o) continue;
+        const int64_t r = u.ready.top().id;
+        u.ready.pop();
+        const int64_t i = e.index_of(r);
+        if (!e.src.fill(i, t.req_i.data())) return -2;
+        if (!u.ready.empty()) {                     // the next ray to issue, if it is known
+          const int64_t nx = u.ready.top().id;
+          if (e.pos[nx] < chain_off[nx + 1] - chain_off[nx]) e.src.prefetch(e.index_of(nx));
+        }
+        t.in_valid_i = 1;
+        u.inflight[p].push_back(i);
+        per_pipe[uid * P + p]++;
+        issued++;
+        if (first < 0) first = k;
+        if (kfirst < 0) kfirst = k;
+        progress = true;
+      }
+      accepts += issued;
+      if (issued == P) full_cycles++;
+      if (issued < P && (u.ready.empty() || u.ready.top().at > k)) {
+        starved++;
+        kernel_times[kernel * 3 + 2]++;
+      }
+      for (int64_t p = 0; p < P; p++) {
+        if (c.skip_idle && !u.busy[p] && !u.sims[p]->top.in_valid_i) continue;
+        tick(u.sims[p].get());
+        evals++;
+      }
+      if (!u.ready.empty() && u.ready.top().at > k) progress = true;   // waiting on a fetch
+      if (!u.parked.empty() && u.parked.top().at > k) progress = true;
+      if (u.queued && u.active) progress = true;     // queued rays wait for their treelet
+      if (!u.waiting.empty() && u.waiting.top().at > k) progress = true;  // warps shading
+      held_now += u.held_rays;
+    }
+    series[bin] += held_now;                          // the rays-in-flight series
+    if (++in_bin == bin_cycles) {
+      in_bin = 0;
+      if (++bin == cap) {                             // full: halve its resolution
+        for (int64_t b = 0; b < cap / 2; b++) series[b] = series[2 * b] + series[2 * b + 1];
+        std::memset(series + cap / 2, 0, sizeof(int64_t) * (cap / 2));
+        bin = cap / 2;
+        bin_cycles *= 2;
       }
     }
-    if (treelets) fill_treelets(k, k + turnaround);
-    else if (affinity) fill(k, k + turnaround);
-    int64_t issued = 0;
-    for (int64_t p = 0; p < pipelines; p++) {
-      Vrayflex& t = sims[p]->top;
-      t.in_valid_i = 0;
-      if (ready.empty() || ready.top().at > k || !t.in_ready_o) continue;
-      const int64_t r = ready.top().ray;
-      ready.pop();
-      const int64_t i = chain_idx[chain_off[r] + pos[r]];
-      if (!src.fill(i, t.req_i.data())) return -2;
-      if (!ready.empty()) {                       // the next ray to issue, if it is known
-        const Ready& nx = ready.top();
-        if (pos[nx.ray] < chain_off[nx.ray + 1] - chain_off[nx.ray])
-          src.prefetch(chain_idx[chain_off[nx.ray] + pos[nx.ray]]);
-      }
-      t.in_valid_i = 1;
-      inflight[p].push_back(i);
-      per_pipe[p]++;
-      issued++;
-      if (first < 0) first = k;
-      progress = true;
-    }
-    accepts += issued;
-    if (issued == pipelines) full_cycles++;
-    if (issued < pipelines && (ready.empty() || ready.top().at > k)) starved++;
-    for (int64_t p = 0; p < pipelines; p++) {
-      if (skip_idle && !busy[p] && !sims[p]->top.in_valid_i) continue;
-      tick(sims[p].get());
-      evals++;
-    }
-    if (!ready.empty() && ready.top().at > k) progress = true;   // waiting on a node fetch
-    if (!parked.empty() && parked.top().at > k) progress = true;
-    if (queued && active) progress = true;             // queued rays wait for their treelet
     idle = progress ? 0 : idle + 1;
-    if (idle > max_idle + turnaround) return -1;
+    if (idle > c.max_idle + c.turnaround + c.shader_cycles) return -1;
     k++;
   }
-  stats->cycles = m ? last - first + 1 : 0;
+  if (taken != m) return -1;
+  stats->cycles = span_cycles;
   stats->model_evals = evals;
   stats->starved_cycles = starved;
   stats->full_cycles = full_cycles;
@@ -333,43 +597,83 @@ int64_t rf_replay(int64_t pipelines, int64_t slots, int64_t turnaround, int64_t 
   stats->last_response = last;
   stats->bad_tags = bad_tags;
   stats->accepts = accepts;
-  stats->line_accesses = mem.line_accesses;
-  stats->line_hits = mem.line_hits;
-  stats->line_misses = mem.line_misses;
-  stats->bytes_from_memory = mem.bytes_from_memory;
-  stats->node_wait_cycles = node_wait;
-  if (sched) {
-    sched[0] = n_parked;
-    sched[1] = n_resumed;
-    sched[2] = max_parked;
-    sched[3] = max_held;
-    sched[4] = picks;
-    sched[5] = max_queued;
-    sched[6] = n_borrowed;
+  const Cache* l1 = e.mem.l1.empty() ? nullptr : e.mem.l1.data();
+  LevelCounts a1;
+  for (int64_t uid = 0; l1 && uid < N; uid++) {
+    a1.accesses += l1[uid].n.accesses;
+    a1.hits += l1[uid].n.hits;
+    a1.merged += l1[uid].n.merged;
+    a1.misses += l1[uid].n.misses;
+    a1.bytes += l1[uid].n.bytes;
   }
+  stats->line_accesses = a1.accesses;
+  stats->line_hits = a1.hits + a1.merged;
+  stats->line_misses = a1.misses;
+  stats->bytes_from_memory = e.mem.dram.bytes;
+  stats->node_wait_cycles = e.node_wait;
+  stats->l1_accesses = a1.accesses;
+  stats->l1_hits = a1.hits;
+  stats->l1_merged = a1.merged;
+  stats->l1_misses = a1.misses;
+  stats->l1_bytes = a1.bytes;
+  const LevelCounts& a2 = e.mem.l2.n;
+  stats->l2_accesses = a2.accesses;
+  stats->l2_hits = a2.hits;
+  stats->l2_merged = a2.merged;
+  stats->l2_misses = a2.misses;
+  stats->l2_bytes = a2.bytes;
+  stats->dram_transfers = e.mem.dram.accesses;
+  stats->dram_bytes = e.mem.dram.bytes;
+  stats->l1_wait_cycles = e.level_wait[kLevelL1];
+  stats->l2_wait_cycles = e.level_wait[kLevelL2];
+  stats->dram_wait_cycles = e.level_wait[kLevelDram];
+  stats->mshr_stalls = e.mem.mshr_stalls;
+  stats->mshr_stall_cycles = e.mem.mshr_stall_cycles;
+  stats->frame_cycles = m ? last - first + 1 : 0;
+  stats->max_rays_held = e.max_held;
+  stats->series_bins = bin + (in_bin ? 1 : 0);
+  stats->series_bin_cycles = bin_cycles;
+  sched[0] = e.n_parked;
+  sched[1] = e.n_resumed;
+  sched[2] = e.max_parked;
+  sched[3] = e.max_held;
+  sched[4] = e.picks;
+  sched[5] = e.max_queued;
+  sched[6] = e.n_borrowed;
   return 0;
 }
 
-}  // extern "C"
-#pragma GCC visibility pop
-
-#pragma GCC visibility push(default)
-extern "C" {
-
-// The node memory alone, for tests: n node fetches (byte offset, bytes, cycle) in order; writes
-// the cycle each node is present and returns 0 (-4 for a geometry it cannot model). counts
-// (int64[4]): line accesses, hits, misses, bytes from memory.
-int64_t rf_memory_trace(int64_t cache_bytes, int64_t ways, int64_t line_bytes, int64_t latency,
-                        double bytes_per_cycle, int64_t n, const int64_t* offset,
-                        const int64_t* bytes, const int64_t* now, int64_t* ready,
-                        int64_t* counts) {
-  NodeMemory mem;
-  if (!mem.configure(cache_bytes, ways, line_bytes, latency, bytes_per_cycle)) return -4;
-  for (int64_t i = 0; i < n; i++) ready[i] = mem.fetch(offset[i], bytes[i], now[i]);
-  counts[0] = mem.line_accesses;
-  counts[1] = mem.line_hits;
-  counts[2] = mem.line_misses;
-  counts[3] = mem.bytes_from_memory;
+// The memory hierarchy alone, for tests: n transactions-worth of node fetches (unit, byte
+// offset, bytes, cycle) in order; writes the cycle each node is present and the level it waited
+// on, and returns 0 (-4 for a geometry it cannot model). counts (int64[14]): L1 accesses, hits,
+// merged, misses, bytes (all units); L2 the same; DRAM transfers, bytes; MSHR stalls, stall
+// cycles. flush_at >= 0: the caches are dropped before fetch number flush_at.
+int64_t rf_memory_trace(const MemoryConfig* mc, int64_t units, int64_t n, const int64_t* unit,
+                        const int64_t* offset, const int64_t* bytes, const int64_t* now,
+                        int64_t flush_at, int64_t* ready, int64_t* level, int64_t* counts) {
+  MemorySystem mem;
+  if (!mem.configure(*mc, units)) return -4;
+  for (int64_t i = 0; i < n; i++) {
+    if (unit[i] < 0 || unit[i] >= units) return -3;
+    if (i == flush_at) mem.flush();
+    const Access a = mem.fetch(unit[i], offset[i], bytes[i], now[i], nullptr);
+    ready[i] = a.ready;
+    level[i] = a.level;
+  }
+  LevelCounts a1;
+  for (const Cache& cache : mem.l1) {
+    a1.accesses += cache.n.accesses;
+    a1.hits += cache.n.hits;
+    a1.merged += cache.n.merged;
+    a1.misses += cache.n.misses;
+    a1.bytes += cache.n.bytes;
+  }
+  const LevelCounts& a2 = mem.l2.n;
+  const int64_t out[14] = {a1.accesses, a1.hits, a1.merged, a1.misses, a1.bytes,
+                           a2.accesses, a2.hits, a2.merged, a2.misses, a2.bytes,
+                           mem.dram.accesses, mem.dram.bytes, mem.mshr_stalls,
+                           mem.mshr_stall_cycles};
+  std::memcpy(counts, out, sizeof out);
   return 0;
 }
 

@@ -24,7 +24,7 @@ def doc(tmp_path_factory):
     d = tmp_path_factory.mktemp("bench")
     out = d / "bench.json"
     assert main(["bench", "--size", "16", "--json", str(out), "--pyverilator-requests", "300",
-                 "--sweep-rays", "1,4,16,64", "--sweep-pipelines", "1,2",
+                 "--sweep-rays", "1,4,16,64", "--sweep-pipelines", "1,2", "--ideal-replay",
                  "--no-progress"]) == 0
     data = json.loads(out.read_text())
     data["_dir"] = d
@@ -37,9 +37,15 @@ def test_all_keys(doc):
     assert set(COUNTS) <= set(f) and set(TIMING) <= set(f)
     for k in ("embree", "wall_s", "wall_parts_s", "bvh", "by_type"):
         assert k in f, k
-    # the default frame and its one ray type carry the same schema
+    # the default frame and its one ray type carry the same counts; the ray type's RT-unit
+    # objects hold its own rays' figures (the frame's: schedule, warps, memory levels too)
     prim = f["by_type"]["primary"]
-    assert {k: prim[k] for k in COUNTS + TIMING} == {k: f[k] for k in COUNTS + TIMING}
+    assert {k: prim[k] for k in COUNTS + ("wavefront",)} == \
+        {k: f[k] for k in COUNTS + ("wavefront",)}
+    for key in ("rtunit", "rtunit_memory"):
+        same = set(prim[key]) & set(f[key]) - {"sim_wall_s"}
+        assert {"cycles", "latency_p95", "rays", "ops"} <= same
+        assert {k: prim[key][k] for k in same} == {k: f[key][k] for k in same}
     assert set(f["embree"]) >= {"rays_compared", "hit_mismatch", "prim_mismatch", "edge_ties",
                                 "max_t_rel_err"}
     assert set(doc["pyverilator"]) >= {"requests", "cycles", "wall_s", "cycles_per_s"}
@@ -65,6 +71,7 @@ def test_frame_statistics_consistent(doc):
         assert t["frame_us_at_1ghz"] == pytest.approx(t["cycles"] / 1000)
     r = f["rtunit"]
     assert r["pipelines"] == 1 and r["rays_in_flight"] == 64 and r["responses_verified"]
+    assert (r["rt_units"], r["warp_size"], r["frame_schedule"]) == (1, 1, "one-kernel")
     assert f["embree"]["hit_mismatch"] == 0 and f["embree"]["rays_compared"] == 256
     assert doc["golden_matches_rtl"] is True
     runs = doc["rtl_cycles_per_s_runs"]
@@ -160,7 +167,7 @@ def test_no_cache_reads_every_node_from_memory(tmp_path):
     for kib, path in out.items():
         assert main(["bench", "--size", "8", "--json", str(path), "--pyverilator-requests", "0",
                      "--sweep-size", "0", "--repeat", "1", "--cache-kib", str(kib),
-                     "--no-progress"]) == 0
+                     "--ideal-replay", "--no-progress"]) == 0
     f0, f32 = (json.loads(out[k].read_text())["frame"] for k in (0, 32))
     m = f0["rtunit_memory"]
     assert m["responses_verified"] and m["line_hits"] == 0 and m["hit_rate"] == 0
@@ -193,40 +200,62 @@ def test_workload_bench_per_ray_type(tmp_path, capsys):
     out = tmp_path / "w.json"
     assert main(["bench", "--scene", "bunny_floor", "--workload", "path", "--size", "12",
                  "--bounces", "1", "--sweep-rays", "1,16", "--json", str(out),
-                 "--no-progress"]) == 0
+                 "--ideal-replay", "--no-progress"]) == 0
     d = json.loads(out.read_text())
     f = d["frame"]
     assert d["provenance"]["design_point"]["workload"] == "path"
-    assert set(f["by_type"]) == {"primary", "shadow", "bounce1"} == set(d["sweep"])
+    assert set(f["by_type"]) == {"primary", "shadow", "bounce1"}
+    assert [p["rays_in_flight"] for p in d["sweep"]] == [1, 16]
+    assert all(set(p["by_type"]) == set(f["by_type"]) for p in d["sweep"])
     assert f["ops"] == sum(t["ops"] for t in f["by_type"].values())
     sh = f["by_type"]["shadow"]
     assert 0 < sh["any_hit_vs_closest_ops"] <= 1                 # any hit never issues more
     for t in f["by_type"].values():
         assert set(COUNTS + TIMING) <= set(t)
         assert t["rtunit"]["responses_verified"]
-        assert t["rtunit_memory"]["cycles"] >= t["rtunit"]["cycles"]
-    for key in TIMING:                           # the frame's timing: its ray types' added up
-        assert f[key]["cycles"] == sum(t[key]["cycles"] for t in f["by_type"].values())
+        # one kernel: a ray type's rays share the pipelines, so it has latency, not cycles
+        assert t["rtunit_memory"]["cycles"] is None
+        assert t["rtunit_memory"]["latency_mean"] >= t["rtunit"]["latency_mean"] > 0
+    for key in ("rtunit", "rtunit_memory"):
+        assert f[key]["ops"] == f["ops"] and f[key]["cycles"] >= f["ops"]
+    assert f["rtunit_memory"]["cycles"] > f["rtunit"]["cycles"]
     assert f["embree"]["hit_mismatch"] == 0
     assert (tmp_path / "w_rtunit.png").stat().st_size > 1000
     assert "anyhit/closest" in capsys.readouterr().out
 
 
+def test_workload_bench_one_timing_replay_by_default(tmp_path, monkeypatch):
+    """Each request is simulated twice by default: the functional pass and one replay of the
+    design point (the free-fetch replay and the rays-in-flight sweep are opt-in)."""
+    import driver.rtunit.gpu as gpu
+    calls = []
+    real = gpu.replay_frame
+    monkeypatch.setattr(gpu, "replay_frame", lambda *a, **k: calls.append(a[3]) or real(*a, **k))
+    out = tmp_path / "w.json"
+    assert main(["bench", "--scene", "sphere", "--workload", "shadow", "--size", "8",
+                 "--json", str(out), "--no-progress"]) == 0
+    d = json.loads(out.read_text())
+    assert len(calls) == 1 and calls[0] is not None          # one replay, with its memory
+    assert d["frame"]["rtunit"] is None and d["sweep"] is None
+    assert d["frame"]["rtunit_memory"]["responses_verified"]
+
+
 @pytest.mark.parametrize("workload", ["primary", "ao"])
 def test_sweep_size_zero_means_no_sweep_in_every_mode(workload, tmp_path, monkeypatch):
     """--sweep-size 0 ran the workload bench's rays-in-flight sweep anyway (44 replays)."""
-    from driver import bench
+    import driver.rtunit.gpu as gpu
     replays = []
-    real = bench.replay_stats
-    monkeypatch.setattr(bench, "replay_stats", lambda *a: replays.append(1) or real(*a))
+    real = gpu.replay_frame
+    monkeypatch.setattr(gpu, "replay_frame", lambda *a, **k: replays.append(1) or real(*a, **k))
     monkeypatch.chdir(tmp_path)
     out = tmp_path / "w.json"
     assert main(["bench", "--scene", "sphere", "--workload", workload, "--size", "8",
-                 "--sweep-size", "0", "--pyverilator-requests", "0", "--repeat", "1",
+                 "--sweep-size", "0", "--sweep-rays", "4,8", "--plot", "p.png",
+                 "--pyverilator-requests", "0", "--repeat", "1",
                  "--json", str(out), "--no-progress"]) == 0
     d = json.loads(out.read_text())
     assert not d.get("sweep") and not d.get("rtunit_sweep") and not d.get("plot")
-    assert len(replays) == (1 if workload == "primary" else len(d["frame"]["by_type"]))
+    assert len(replays) == 1                          # the frame's replay, no sweep
     assert sorted(p.name for p in tmp_path.iterdir()) == ["w.json"]      # no plot
 
 

@@ -96,6 +96,17 @@ def test_from_args_and_grid():
     ["sweep", "--rays-in-flight", "16,x"],
     ["sweep", "--cull-stack", "maybe"],
     ["power", "--latency", "100"],
+    ["bench", "--warp-size", "3"],
+    ["bench", "--warp-size", "32", "--rays-in-flight", "48"],
+    ["bench", "--rt-preset", "rtx3090"],
+    ["bench", "--frame", "megakernel"],
+    ["bench", "--sector-bytes", "128"],                       # larger than a 64-byte line
+    ["bench", "--l2-kib", "1", "--l2-ways", "64"],
+    ["bench", "--rt-units", "0"],
+    ["bench", "--workload", "path", "--ray-order", "hash"],   # sorting needs --frame wavefront
+    ["sweep", "--rt-preset", "default,nope"],
+    ["render", "sphere", "--rtunit", "--warp-size", "2", "--rays-in-flight", "3"],
+    ["render", "sphere", "--ideal-replay"],                   # a second replay needs --rtunit
 ])
 def test_bad_design_options_fail_in_one_line(argv, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
@@ -123,15 +134,45 @@ def test_datapath_reaches_the_backend(tmp_path, tile):
 def test_render_rtunit_on_the_configuration(monkeypatch):
     """The whole frame's replay runs on the point's configuration (its RTL build parameters)."""
     from driver import stats
+    from driver.backends import harness
     from driver.render import render
     seen = []
-    real = rtunit.replay
-    monkeypatch.setattr(rtunit, "replay", lambda rec, *a, **k: seen.append(rec.params)
-                        or real(rec, *a, **k))
+    real = harness.replay_schedule
+    monkeypatch.setattr(harness, "replay_schedule", lambda params, *a, **k: seen.append(params)
+                        or real(params, *a, **k))
     pt = DesignPoint(config="baseline-disjoint", size=8, rays_in_flight=4, cache_kib=16)
-    res = render("sphere", 8, 8, backend="rtl", progress=False, point=pt, rtunit=True)
-    assert seen and all(p == {"EXTENDED": 0, "DISJOINT": 1, "COMPRESSED": 0, "TRANSFORM": 0,
-                              "LATENCY": 11} for p in seen)
+    res = render("sphere", 8, 8, backend="rtl", progress=False, point=pt, rtunit="ideal")
+    assert len(seen) == 2 and all(p == {"EXTENDED": 0, "DISJOINT": 1, "COMPRESSED": 0,
+                                        "TRANSFORM": 0, "LATENCY": 11} for p in seen)
     assert res.stats["rtunit"]["rays_in_flight"] == 4 and res.stats["rtunit"]["responses_verified"]
     assert res.stats["rtunit_memory"]["cycles"] > res.stats["rtunit"]["cycles"]
     assert stats.WAVEFRONT in res.stats and res.stats["by_type"]["primary"]["rtunit"]
+
+
+def test_presets_and_overrides():
+    """--rt-preset sets a whole RT-unit configuration; options given with it override its
+    values; the preset is in the design point (the JSON provenance)."""
+    from driver.rtunit.presets import PRESETS
+    p = options.from_args(_parse(["bench", "--rt-preset", "rtx2060-vulkan-sim"]))
+    assert p.rt_preset == "rtx2060-vulkan-sim"
+    for name, value in PRESETS["rtx2060-vulkan-sim"].values.items():
+        assert getattr(p, name) == value, name
+    q = options.from_args(_parse(["bench", "--rt-preset", "rtx2060-vulkan-sim", "--rt-units",
+                                 "2", "--l2-kib", "0"]))
+    assert (q.rt_units, q.l2_kib, q.cache_kib) == (2, 0, 64)
+    d = options.from_args(_parse(["bench"]))
+    assert d.rt_preset == "default" and d == DesignPoint()
+    for name, value in PRESETS["default"].values.items():
+        assert getattr(DesignPoint(), name) == value, name          # the defaults are the preset
+    assert DesignPoint.preset("rtx2060-vulkan-sim", rt_units=4).rt_units == 4
+    assert p.as_dict()["rt_preset"] == "rtx2060-vulkan-sim"
+    # sweep: a list of presets, each point its preset's values unless an option is given
+    pts = options.grid_from_args(_parse(["sweep", "--rt-preset", "default,rtx2060-vulkan-sim",
+                                        "--mshrs", "8"]))
+    assert [(x.rt_preset, x.rt_units, x.mshrs) for x in pts] == [
+        ("default", 1, 8), ("rtx2060-vulkan-sim", 30, 8)]
+
+
+def _parse(argv):
+    from driver.cli import build_parser
+    return build_parser().parse_args(argv)

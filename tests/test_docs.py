@@ -230,7 +230,8 @@ def _figures():
 
 
 # Numbers in the README that are parameters of a command or a design, not measurements.
-PARAMETERS = {"2", "4", "5", "11", "16", "32", "64", "200", "256", "3.10",   # sizes, cores, ...
+PARAMETERS = {"2", "3", "4", "5", "11", "16", "30", "32", "64", "128", "200", "256",  # sizes, ...
+              "3.10",
               "2025", "2409.06000"}                                          # the paper
 
 

@@ -650,7 +650,7 @@ def test_sweep_over_the_transform(in_tmp):
     glb = str(reuse_glb(in_tmp / "reuse.glb"))
     assert main(["sweep", "--scene", glb, "--size", "8", "--transform", "driver,datapath",
                  "--rays-in-flight", "4", "--cache-kib", "0,16", "--json", "s.json", "--csv",
-                 "s.csv", "--no-progress"]) == 0
+                 "s.csv", "--ideal-replay", "--no-progress"]) == 0
     doc = json.loads((in_tmp / "s.json").read_text())
     assert len(doc["functional"]) == 2 and doc["grid"]["transform"] == ["driver", "datapath"]
     pts = {(e["design_point"]["transform"], e["design_point"]["cache_kib"]): e

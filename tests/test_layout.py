@@ -196,9 +196,12 @@ def test_node_ref_and_node_dtypes():
 def test_c_header_has_every_constant_the_harness_uses():
     header = layout.c_header()
     names = set(re.findall(r"constexpr \w+ (k\w+)(?:\[\d*\])? =", header))
-    src = "".join(p.read_text() for p in (RTL_DIR.parent / "sim").glob("r*.cpp"))
-    src += (RTL_DIR.parent / "sim" / "rf_sim.h").read_text()
-    used = set(re.findall(r"\bk[A-Z]\w+", src)) - {"kPrefetchAhead", "kOpcodeMask"}
+    sim = RTL_DIR.parent / "sim"
+    src = "".join(p.read_text() for p in sorted(sim.glob("r*.cpp")) + sorted(sim.glob("rf_*.h")))
+    # constants the harness defines for itself (kPrefetchAhead, kOpcodeMask, the memory levels)
+    own = set(re.findall(r"\b(k[A-Z]\w+)(?:\[\d*\])?\s*=", src))
+    assert {"kPrefetchAhead", "kOpcodeMask", "kLevelDram"} <= own
+    used = set(re.findall(r"\bk[A-Z]\w+", src)) - own
     assert used and used <= names, used - names
     assert "struct ReplayStats" in header
     for name in layout.REPLAY_STATS:

@@ -19,10 +19,13 @@ PARAMS = rtl_params(False, False, 11)
 
 
 def fetch(memory, trace_):
-    """trace_: [(byte offset, bytes, cycle)] -> (ready cycles list, counts)."""
+    """memory: MemoryModel arguments (cache bytes, ways, line bytes, latency, bytes per cycle);
+    trace_: [(byte offset, bytes, cycle)] -> (ready cycles list, the L1's counts)."""
     off, nb, now = zip(*trace_)
-    ready, counts = memory_trace(PARAMS, memory, off, nb, now)
-    return ready.tolist(), counts
+    ready, _, c = memory_trace(PARAMS, rtunit.MemoryModel(*memory).config(), off, nb, now)
+    return ready.tolist(), {"line_accesses": c["l1_accesses"],
+                            "line_hits": c["l1_hits"] + c["l1_merged"],
+                            "line_misses": c["l1_misses"], "bytes_from_memory": c["dram_bytes"]}
 
 
 def test_cache_hits_misses_and_lru_evictions():

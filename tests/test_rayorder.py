@@ -231,14 +231,19 @@ def test_floor_bounds_every_order(record):
 def test_bench_cli_ray_order(in_tmp, error_line):
     assert cli_main(["bench", "--scene", "room", "--workload", "shadow", "--size", "12",
                      "--sweep-rays", "4", "--ray-order", "hash", "--ray-window", "64",
-                     "--json", "b.json", "--no-progress"]) == 0
+                     "--frame", "wavefront", "--json", "b.json", "--no-progress"]) == 0
     doc = json.loads((in_tmp / "b.json").read_text())
     pt = doc["provenance"]["design_point"]
     assert pt["ray_order"] == "hash" and pt["ray_window"] == 64
-    for t in doc["frame"]["by_type"].values():
-        rt, mem = t["rtunit"], t["rtunit_memory"]
-        assert rt["responses_verified"] and rt["ray_order_cost"]["ray_order"] == "hash"
-        assert mem["ray_order_cost"]["keys_computed"] == t["rays"]
+    mem = doc["frame"]["rtunit_memory"]
+    assert mem["responses_verified"] and mem["ray_order_cost"]["ray_order"] == "hash"
+    assert mem["ray_order_cost"]["keys_computed"] == doc["frame"]["rays"]
+    # a one-kernel frame: threads issue their rays, only the schedulers reorder them
+    assert cli_main(["bench", "--scene", "room", "--workload", "shadow", "--size", "8",
+                     "--ray-order", "affinity", "--ray-window", "128", "--json", "a.json",
+                     "--no-progress"]) == 0
+    mem = json.loads((in_tmp / "a.json").read_text())["frame"]["rtunit_memory"]
+    assert mem["frame_schedule"] == "one-kernel" and mem["ray_order_cost"]["held_rays"] == 128
     assert cli_main(["bench", "--workload", "path", "--ray-order", "affinity",
                      "--ray-window", "16"]) == 2
     assert "--ray-window (16) must be at least --rays-in-flight (64)" in error_line()

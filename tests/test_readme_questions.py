@@ -24,7 +24,10 @@ from test_lumibench_scenes import suite_root
 ROOT = Path(__file__).resolve().parent.parent
 SMALL = "8"
 
-TYPE_ROW = r"^\s*{t}\s+\d+\s+[\d.]+\s+[\d.]+\s+[\d.]+\s+\d+\s+[\d.]+\s+\d+\s+[\d.]+\s+[\d.]+\s+\d+"
+# bench --workload's row of a ray type: rays, box/ray, tri/ray, xf/ray, [util], latency, p95, and
+# the bytes per ray from L1, L2 and DRAM
+TYPE_ROW = (r"^\s*{t}\s+\d+\s+[\d.]+\s+[\d.]+\s+[\d.]+\s+(?:[\d.]+\s+)?\d+\s+\d+\s+\d+\s+\d+"
+            r"\s+\d+")
 EXPECT = {
     "Does my RTL change still trace correctly?": [
         ("rays", r"\b\d+ rays\b"), ("hits", r"\b\d+ hits\b"),
@@ -39,19 +42,30 @@ EXPECT = {
         ("ops, utilization with the node memory, bytes, hit rate and energy per ray",
          r"ops/ray\s+util mem\s+B/ray\s+hit rate\s+energy/ray"),
         ("a table and a figure", r"wrote .*summary\.csv, .*summary\.png")],
-    "Is the memory side the bottleneck?": [
-        ("per ray type", TYPE_ROW.format(t="primary")),
-        ("utilization with free node fetches (`rtunit`)", r"rtunit"),
-        ("with the node cache and memory (`rtunit_memory`)", r"\+memory"),
-        ("hit rate", r"hit rate"), ("bytes from memory per ray", r"B/ray: bytes from memory"),
+    "Is the memory side the bottleneck, on one RT unit or a GPU's thirty?": [
+        ("warps of 32 threads to 30 RT units", r"RT units 30 x R=128 P=1 warp 32, one-kernel"),
+        ("its cycles and utilization with the memory hierarchy (`rtunit_memory`)",
+         r"\d+ cycles, utilization [\d.]+, .*\(memory hierarchy"),
+        ("with free node fetches (`rtunit`)",
+         r"\d+ cycles, utilization [\d.]+, .*\(node fetches free"),
+        ("SIMT efficiency", r"SIMT efficiency [\d.]+"),
+        ("rays held per unit over time", r"[\d.]+ rays held per RT unit"),
+        ("each level's hits, merged misses, bytes and waits",
+         r"L1 [\d,]+ accesses, [\d,]+ hits \([\d,]+ merged misses\), [\d,]+ bytes filled, "
+         r"[\d,]+ cycles waited; L2 [\d,]+ accesses"),
+        ("MSHR stalls", r"[\d,]+ MSHR stalls"),
+        ("per ray type its latency and the bytes each memory level supplied",
+         TYPE_ROW.format(t="ao")),
         ("every ray checked against Embree", r"embree: \d+ rays compared")],
     "Where is the design's sweet spot?": [
-        ("every combination, per ray type",       # 2 configurations x 2 ray pools x 2 caches
+        ("every combination, per ray type and for the frame",  # 2 configs x 2 pools x 2 caches
          r"^\s*baseline-(unified|disjoint)\s+\d+\s+\d+\s+ao\s+\d+", 8),
-        ("ops", r"ops/ray"),
-        ("cycles and utilization without and with the node memory",
-         r"cycles\s+rtunit\s+cycles\s+\+memory"),
-        ("bytes and energy per ray", r"B/ray\s+E/ray")],
+        ("every combination, per ray type and for the frame",
+         r"^\s*baseline-(unified|disjoint)\s+\d+\s+\d+\s+all\s+\d+", 8),
+        ("ops, utilization with the memory hierarchy, latency",
+         r"ops/ray\s+util\s+ideal\s+latency"),
+        ("bytes from DRAM, datapath energy and node-fetch energy per ray",
+         r"B/ray\s+E/ray\s+mem pJ/ray")],
     "What does each ray type cost in energy?": [
         ("energy per box, triangle", r"\| configuration \| box \|.*\| triangle \|"),
         ("of each configuration", r"\| baseline-unified \| [\d,]+ \|"),
@@ -59,10 +73,11 @@ EXPECT = {
     "Do compressed nodes pay off?": [
         ("64-byte quantized nodes and triangle-pair leaves", r"BVH4 q8: "),
         ("bytes per triangle", r"BVH4 q8: [\d,]+ bytes, [\d.]+ bytes per triangle"),
-        ("bytes from memory and utilization per ray type", TYPE_ROW.format(t="shadow"))],
+        ("the frame's cycles and utilization", r"\d+ cycles, utilization [\d.]+"),
+        ("bytes and latency per ray type", TYPE_ROW.format(t="shadow"))],
     "In which order should rays enter the RT unit?": [
         ("the replay under a ray-order policy", TYPE_ROW.format(t="ao")),
-        ("sort buffer or rays held, state bytes",
+        ("rays held, state bytes",
          r"ray order: affinity, window 256; \d+ rays held \(\d+ beyond the pool\), [\d,]+ bytes "
          r"of traversal state")],
     "Can my own datapath RTL run the same work?": [
@@ -76,7 +91,7 @@ EXPECT = {
     "Should the instance transform run on the datapath?": [
         ("TRANSFORM ops per ray beside box and triangle ops", r"box/ray\s+tri/ray\s+xf/ray"),
         ("per ray type", TYPE_ROW.format(t="primary")),
-        ("RT-unit cycles and utilization", r"cycles\s+rtunit\s+cycles\s+\+memory")],
+        ("RT-unit cycles and utilization", r"RT units 1 x .*: \d+ cycles, utilization [\d.]+")],
     "How big is each configuration?": [
         ("Yosys cell counts", r"cells"),
         ("of the four configurations", r"extended-disjoint"),

@@ -20,11 +20,14 @@ RUNS = {
     "render_tiled": ["render", "cornell", "--size", "8", "--workload", "path", "--tile", "4",
                      "--check-embree", "--rtunit", "--out", "t.png"],
     "bench": ["bench", "--size", "8", "--pyverilator-requests", "50", "--sweep-rays", "1,4",
-              "--sweep-pipelines", "1", "--repeat", "1", "--cull-stack"],
+              "--sweep-pipelines", "1", "--repeat", "1", "--cull-stack", "--ideal-replay"],
     "render_instanced": ["render", "./reuse.glb", "--size", "8", "--transform", "datapath",
                          "--rtunit", "--check-embree", "--out", "i.png"],
     "bench_workload": ["bench", "--scene", "sphere", "--workload", "shadow", "--size", "8",
-                       "--sweep-rays", "1,4"],
+                       "--sweep-rays", "1,4", "--ideal-replay"],
+    "bench_gpu": ["bench", "--scene", "sphere", "--workload", "ao", "--size", "8",
+                  "--rt-preset", "rtx2060-vulkan-sim", "--rt-units", "2", "--frame", "wavefront",
+                  "--ray-order", "affinity", "--ray-window", "256"],
     "bench_workers": ["bench", "--scene", "sphere", "--workload", "ao", "--size", "8",
                       "--workers", "2", "--tile", "4"],
     "sweep": ["sweep", "--scene", "sphere", "--workload", "ao", "--size", "8",
@@ -104,15 +107,24 @@ def test_every_json_carries_provenance(documents):
 
 
 def test_one_schema_for_every_frame_and_ray_type(documents):
-    """The timing objects have the same keys in every command, frame and ray type."""
+    """The timing objects have the same keys in every command and frame (tiles merged or not),
+    and in every ray type; a wavefront frame adds ``wavefronts``, a ray order its cost."""
     shapes: dict = {}
     frames = [documents["render"], documents["render_tiled"], documents["render_instanced"],
               documents["bench"]["frame"], documents["bench_workload"]["frame"],
-              *documents["sweep"]["points"]]
+              documents["bench_gpu"]["frame"], *documents["sweep"]["points"]]
     for f in frames:
-        for t in [f, *f["by_type"].values()]:
-            for key in ("wavefront", "rtunit", "rtunit_memory"):
-                if t.get(key):
-                    shapes.setdefault(key, set()).add(tuple(sorted(t[key])))
-    assert {k: len(v) for k, v in shapes.items()} == {"wavefront": 1, "rtunit": 1,
-                                                      "rtunit_memory": 1}
+        for level, objs in (("frame", [f]), ("type", list(f["by_type"].values()))):
+            for t in objs:
+                for key in ("wavefront", "rtunit", "rtunit_memory"):
+                    if t.get(key):
+                        keys = set(t[key]) - {"wavefronts", "ray_order_cost"}
+                        shapes.setdefault((key, level), set()).add(tuple(sorted(keys)))
+    assert {k: len(v) for k, v in shapes.items()} == {
+        (k, level): 1 for k in ("wavefront", "rtunit", "rtunit_memory")
+        for level in ("frame", "type")}
+    gpu = documents["bench_gpu"]["frame"]["rtunit_memory"]
+    assert gpu["rt_units"] == 2 and gpu["warp_size"] == 32 and gpu["wavefronts"]
+    assert gpu["ray_order_cost"]["ray_order"] == "affinity"
+    assert documents["bench_gpu"]["provenance"]["design_point"]["rt_preset"] == \
+        "rtx2060-vulkan-sim"

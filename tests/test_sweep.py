@@ -23,7 +23,7 @@ GRID = ["--scene", "sphere", "--workload", "ao", "--size", "10",
 def swept(tmp_path_factory):
     d = tmp_path_factory.mktemp("sweep")
     assert main(["sweep", *GRID, "--csv", str(d / "s.csv"), "--json", str(d / "s.json"),
-                 "--plot", str(d / "s.png"), "--no-progress"]) == 0
+                 "--plot", str(d / "s.png"), "--ideal-replay", "--no-progress"]) == 0
     return d, json.loads((d / "s.json").read_text())
 
 
@@ -44,9 +44,13 @@ def test_grid_rows_and_outputs(swept):
             for k in ("0", "16") for t in kinds}
     for e in doc["points"]:
         dp = e["design_point"]
-        assert e["rtunit"]["responses_verified"]
+        assert e["rtunit"]["responses_verified"] and e["rtunit_memory"]["responses_verified"]
         assert e["ops"] == sum(t["ops"] for t in e["by_type"].values())
-        assert e["rtunit"]["cycles"] == sum(t["rtunit"]["cycles"] for t in e["by_type"].values())
+        assert e["rtunit"]["ops"] == e["ops"] == e["rtunit_memory"]["ops"]
+        # a one-kernel frame: the ray types share the pipelines, so only the frame has cycles
+        assert dp["frame_schedule"] == "one-kernel"
+        assert all(t["rtunit"]["cycles"] is None and t["rtunit_memory"]["latency_mean"] > 0
+                   for t in e["by_type"].values())
         if dp["cache_kib"]:
             assert e["rtunit_memory"]["cycles"] > e["rtunit"]["cycles"]
             assert 0 < e["rtunit_memory"]["hit_rate"] < 1
@@ -55,7 +59,7 @@ def test_grid_rows_and_outputs(swept):
             assert m["hit_rate"] == 0 and m["line_misses"] == m["line_accesses"] > 0
             assert m["cycles"] > e["rtunit"]["cycles"]
         for t in e["by_type"].values():
-            assert t["energy_per_ray"]["signals"] > 0
+            assert t["energy_per_ray"]["signals"] > 0 and t["energy_per_ray"]["memory_pj"] > 0
     # the same ops and cycles on both configurations (their responses were checked bit for bit)
     by = {(e["design_point"]["config"], e["design_point"]["rays_in_flight"],
            e["design_point"]["cache_kib"]): e for e in doc["points"]}
@@ -63,6 +67,10 @@ def test_grid_rows_and_outputs(swept):
         for k in (0, 16):
             a, b = by["baseline-unified", r, k], by["baseline-disjoint", r, k]
             assert a["rtunit"]["cycles"] == b["rtunit"]["cycles"]
+            assert a["rtunit_memory"]["cycles"] == b["rtunit_memory"]["cycles"]
+        # node fetches cost energy: no cache moves every node from DRAM
+        assert by["baseline-unified", r, 0]["energy_per_ray"]["memory_pj"] > \
+            by["baseline-unified", r, 16]["energy_per_ray"]["memory_pj"]
     with Image.open(d / "s.png") as im:
         assert im.format == "PNG" and im.size[0] > 600
     assert (d / "s.points.jsonl").is_file()
@@ -74,13 +82,14 @@ def test_rows_equal_single_point_benches(swept, which):
     _, doc = swept
     e = doc["points"][which]
     point = DesignPoint(**e["design_point"])
-    b = bench_workload(point, sweep_rays=(), progress=False)
+    b = bench_workload(point, sweep_rays=(), progress=False, ideal=True)
+    assert e["rtunit"]["cycles"] == b["frame"]["rtunit"]["cycles"]
+    assert e["rtunit_memory"]["cycles"] == b["frame"]["rtunit_memory"]["cycles"]
     for kind, t in e["by_type"].items():
         ref = b["frame"]["by_type"][kind]
         assert t["ops"] == ref["ops"]
-        assert t["rtunit"]["cycles"] == ref["rtunit"]["cycles"]
-        assert (t["rtunit_memory"] or {}).get("cycles") == (ref["rtunit_memory"] or {}).get(
-            "cycles")
+        for key in ("rtunit", "rtunit_memory"):
+            assert t[key]["latency_mean"] == ref[key]["latency_mean"]
 
 
 def test_interrupted_sweep_resumes(tmp_path, monkeypatch):
@@ -90,31 +99,32 @@ def test_interrupted_sweep_resumes(tmp_path, monkeypatch):
     real = sweep_mod.measure_point
     calls = []
 
-    def interrupted(p, recs):
+    def interrupted(p, *args):
         if len(calls) == 2:
             raise KeyboardInterrupt
         calls.append(p)
-        return real(p, recs)
+        return real(p, *args)
 
     monkeypatch.setattr(sweep_mod, "measure_point", interrupted)
     with pytest.raises(KeyboardInterrupt):
         sweep_mod.sweep(points, results=results, progress=False)
     assert len(results.read_text().splitlines()) == 2
     calls.clear()
-    monkeypatch.setattr(sweep_mod, "measure_point", lambda p, recs: calls.append(p)
-                        or real(p, recs))
+    monkeypatch.setattr(sweep_mod, "measure_point", lambda p, *args: calls.append(p)
+                        or real(p, *args))
     doc = sweep_mod.sweep(points, results=results, progress=False)
     assert calls == points[2:]                          # only the points not done before
     fresh = sweep_mod.sweep(points, progress=False)
-    assert [e["rtunit"]["cycles"] for e in doc["points"]] == \
-        [e["rtunit"]["cycles"] for e in fresh["points"]]
+    assert [e["rtunit_memory"]["cycles"] for e in doc["points"]] == \
+        [e["rtunit_memory"]["cycles"] for e in fresh["points"]]
+    assert all(e["rtunit"] is None for e in doc["points"])    # one timing replay by default
 
 
 def test_points_on_dask_workers_equal_one_process(tmp_path):
     points = [DesignPoint(scene="sphere", workload="shadow", size=8, rays_in_flight=r)
               for r in (2, 16)]
-    one = sweep_mod.sweep(points, progress=False)
-    two = sweep_mod.sweep(points, workers=2, progress=False)
+    one = sweep_mod.sweep(points, progress=False, ideal=True)
+    two = sweep_mod.sweep(points, workers=2, progress=False, ideal=True)
     for a, b in zip(one["points"], two["points"]):
         assert a["design_point"] == b["design_point"]
         for key in ("rtunit", "rtunit_memory"):

@@ -80,8 +80,8 @@ def _bench_workload(scene, workload):
     stem = f"images/bench_{scene}_{workload}64"
     return Figure(f"bench_{scene}_{workload}64",
                   (*RAYFLEX, "bench", "--scene", scene, "--workload", workload, "--size", "64",
-                   "--spp", "2", "--bounces", "2", "--json", f"{stem}.json", "--plot",
-                   f"{stem}_sweep.png", "--no-progress"),
+                   "--spp", "2", "--bounces", "2", "--sweep-rays", "1,4,16,64,256,1024",
+                   "--json", f"{stem}.json", "--plot", f"{stem}_sweep.png", "--no-progress"),
                   (f"{stem}.json", f"{stem}_sweep.png"), 4.0,
                   f"datapath mix per ray type and the rays-in-flight sweep, {scene} {workload}")
 
@@ -112,16 +112,23 @@ def _power_q8_xf(level, minutes):
 
 
 FORMATS = IMAGE_FORMATS                   # node images (docs/compressed.md)
+# the compressed-node study as it was before one-kernel frames: each ray type on its own, cold
+# caches, both replays, utilization over rays in flight (docs/compressed.md's first table)
+WAVEFRONT_STUDY = ("--frame", "wavefront", "--flush-between", "--ideal-replay", "--sweep-rays",
+                   "1,2,4,8,16,32,64,128,256,1024")
 
 
 def _compressed(fmt):
     out = f"images/compressed_path64_{fmt}.json"
     return Figure(f"compressed_path64_{fmt}",
                   (*RAYFLEX, "bench", "--scene", "bunny_floor", "--workload", "path", "--size",
-                   "64", "--spp", "2", "--bounces", "2", "--bvh-format", fmt, "--json", out,
-                   "--plot", f"{TMP}/compressed_path64_{fmt}_sweep.png", "--no-progress"),
+                   "64", "--spp", "2", "--bounces", "2", "--bvh-format", fmt, *WAVEFRONT_STUDY,
+                   "--json", out, "--plot", f"{TMP}/compressed_path64_{fmt}_sweep.png",
+                   "--no-progress"),
                   (out,), 4.0, f"the bunny on a floor, path traced, on the {fmt} node image")
 
+
+PATH = ("--scene", "bunny_floor", "--workload", "path", "--spp", "2", "--bounces", "2")
 
 FIGURES = [
     _render("bunny", "bunny", json_out="images/bunny_stats.json", minutes=1.0,
@@ -135,8 +142,8 @@ FIGURES = [
     _render("bunny_floor_ao", "bunny_floor", "--workload", "ao", "--spp", "4", "--ao-rays", "4",
             heatmap=False, minutes=8.0, about="the bunny on a floor, ambient occlusion"),
     Figure("bench_bunny256",
-           (*RAYFLEX, "bench", "--json", "images/bench_bunny256.json", "--plot",
-            "images/bench_bunny256_rtunit.png", "--no-progress"),
+           (*RAYFLEX, "bench", "--ideal-replay", "--json", "images/bench_bunny256.json",
+            "--plot", "images/bench_bunny256_rtunit.png", "--no-progress"),
            ("images/bench_bunny256.json", "images/bench_bunny256_rtunit.png"), 3.0,
            "the default bench frame: RT-unit replay, memory, simulation speeds, sweep"),
     *(_bench_workload(s, w) for s in ("cornell", "bunny_floor") for w in ("path", "ao")),
@@ -155,7 +162,8 @@ FIGURES = [
     Figure("compressed_latency",
            (*RAYFLEX, "sweep", "--scene", "bunny_floor", "--workload", "path", "--size", "64",
             "--spp", "2", "--bounces", "2", "--bvh-format", "box32,q8g", "--mem-latency",
-            "0,200", "--cache-ways", "4,512", "--json", "docs/compressed_latency.json",
+            "0,200", "--cache-ways", "4,512", "--frame", "wavefront", "--flush-between", "yes",
+            "--json", "docs/compressed_latency.json",
             "--results", f"{TMP}/compressed_latency.points.jsonl", "--no-progress"),
            ("docs/compressed_latency.json",), 1.0,
            "box32 vs q8g with the memory's latency on and off and a fully associative cache: "
@@ -170,6 +178,64 @@ FIGURES = [
             "--plot", "images/rayorder.png", "--no-progress"),
            ("docs/rayorder.json", "images/rayorder.png"), 20.0,
            "ray-order policies of the RT unit per scene and ray type, with their state cost"),
+    Figure("compressed_gpu",
+           (*RAYFLEX, "sweep", *PATH, "--size", "64,128", "--bvh-format", "box32,q8,q8g",
+            "--rt-preset", "default,rtx2060-vulkan-sim", "--json", "docs/compressed_gpu.json",
+            "--results", f"{TMP}/compressed_gpu.points.jsonl", "--no-progress"),
+           ("docs/compressed_gpu.json",), 8.0,
+           "box32 vs q8 vs q8g in a one-kernel frame (64 x 64 and 128 x 128) on the default and "
+           "rtx2060-vulkan-sim presets: frame cycles, bytes per level and latency per ray type"),
+    Figure("compressed_gpu_plot",
+           (*RAYFLEX, "study", "gpu", "compressed",
+            "docs/compressed_gpu.json", "--plot", "images/compressed_gpu.png"),
+           ("images/compressed_gpu.png",), 0.1,
+           "latency per ray type and node format on both presets (from compressed_gpu)"),
+    Figure("compressed_schedules",
+           (*RAYFLEX, "sweep", *PATH, "--size", "64", "--bvh-format", "box32,q8g", "--frame",
+            "wavefront,one-kernel", "--flush-between", "yes,no", "--json",
+            "docs/compressed_schedules.json", "--results",
+            f"{TMP}/compressed_schedules.points.jsonl", "--no-progress"),
+           ("docs/compressed_schedules.json",), 2.0,
+           "box32 and q8g under the wavefront schedule with cold and warm caches and in one "
+           "kernel (default preset): what the cold wavefronts hid"),
+    Figure("rayorder_gpu",
+           (*RAYFLEX, "sweep", *PATH, "--size", "64,128", "--bvh-format", "box32,q8",
+            "--rt-preset", "default,rtx2060-vulkan-sim", "--ray-order", "index,affinity,treelet",
+            "--ray-window", "256,1024", "--json", "docs/rayorder_gpu.json", "--results",
+            f"{TMP}/rayorder_gpu.points.jsonl", "--no-progress"),
+           ("docs/rayorder_gpu.json",), 25.0,
+           "ray-order policies in a one-kernel frame (64 x 64 and 128 x 128) on both presets, "
+           "box32 and q8"),
+    Figure("rayorder_gpu_pool",
+           (*RAYFLEX, "sweep", *PATH, "--size", "128", "--bvh-format", "box32,q8",
+            "--rt-preset", "default,rtx2060-vulkan-sim", "--rays-in-flight", "256,1024",
+            "--json", "docs/rayorder_gpu_pool.json", "--results",
+            f"{TMP}/rayorder_gpu_pool.points.jsonl", "--no-progress"),
+           ("docs/rayorder_gpu_pool.json",), 6.0,
+           "index order with the ray pool as large as the schedulers' windows (128 x 128, both "
+           "presets): the rays held without the scheduler"),
+    Figure("rayorder_gpu_plot",
+           (*RAYFLEX, "study", "gpu", "order",
+            "docs/rayorder_gpu.json", "--plot", "images/rayorder_gpu.png"),
+           ("images/rayorder_gpu.png",), 0.1,
+           "frame cycles per ray-order policy relative to index order (from rayorder_gpu)"),
+    Figure("rtunit_units",
+           (*RAYFLEX, "sweep", "--scene", "bunny_floor", "--workload", "ao", "--size", "128",
+            "--spp", "2", "--rt-preset", "rtx2060-vulkan-sim", "--rt-units", "1,30", "--json",
+            "docs/rtunit_units.json", "--results", f"{TMP}/rtunit_units.points.jsonl",
+            "--no-progress"),
+           ("docs/rtunit_units.json",), 3.0,
+           "a GPU-sized frame (128 x 128 AO, 2 spp) on one and on 30 RT units of the "
+           "rtx2060-vulkan-sim preset: cycles and the replay's wall time"),
+    Figure("bench_bunny_floor_ao128_rtx2060",
+           (*RAYFLEX, "bench", "--scene", "bunny_floor", "--workload", "ao", "--size", "128",
+            "--spp", "2", "--rt-preset", "rtx2060-vulkan-sim", "--json",
+            "images/bench_bunny_floor_ao128_rtx2060.json", "--plot",
+            "images/bench_bunny_floor_ao128_rtx2060_held.png", "--no-progress"),
+           ("images/bench_bunny_floor_ao128_rtx2060.json",
+            "images/bench_bunny_floor_ao128_rtx2060_held.png"), 2.0,
+           "the GPU-sized AO frame on the rtx2060-vulkan-sim preset: rays held per RT unit over "
+           "the frame, SIMT efficiency, memory levels"),
     Figure("sweep_bunny_floor_ao32",
            (*RAYFLEX, "sweep", "--scene", "bunny_floor", "--workload", "ao", "--size", "32",
             "--config", "baseline-unified,baseline-disjoint", "--rays-in-flight", "16,64",
@@ -261,22 +327,20 @@ README_NUMBERS = {
                                    "{:.0f}"),
     "bench_rtl_cycles_per_s": ("images/bench_bunny256.json", "rtl_cycles_per_s", "{:,.0f}"),
     "bench_speedup": ("images/bench_bunny256.json", "rtl_vs_pyverilator_speedup", "{:.0f}"),
-    "floor_path_bounce1_util_mem": ("images/bench_bunny_floor_path64.json",
-                                    "frame.by_type.bounce1.rtunit_memory.utilization", "{:.2f}"),
-    "floor_path_primary_util_mem": ("images/bench_bunny_floor_path64.json",
-                                    "frame.by_type.primary.rtunit_memory.utilization", "{:.2f}"),
+    "floor_path_util": ("images/bench_bunny_floor_path64.json", "frame.rtunit_memory.utilization",
+                        "{:.3f}"),
+    **{f"floor_path_{t}_latency": ("images/bench_bunny_floor_path64.json",
+                                   f"frame.by_type.{t}.rtunit_memory.latency_mean", "{:,.0f}")
+       for t in ("primary", "bounce1")},
     "floor_path_bounce1_bytes": ("images/bench_bunny_floor_path64.json",
                                  "frame.by_type.bounce1.rtunit_memory.bytes_per_ray", "{:.0f}"),
-    "cornell_path_shadow_util_mem": ("images/bench_cornell_path64.json",
-                                     "frame.by_type.shadow.rtunit_memory.utilization", "{:.2f}"),
-    "sweep_nocache_util": ("images/sweep_bunny_floor_ao32.json",
-                           "points.2.by_type.ao.rtunit_memory.utilization", "{:.2f}"),
-    "sweep_nocache_bytes": ("images/sweep_bunny_floor_ao32.json",
-                            "points.2.by_type.ao.rtunit_memory.bytes_per_ray", "{:.0f}"),
-    "sweep_cache_util": ("images/sweep_bunny_floor_ao32.json",
-                         "points.3.by_type.ao.rtunit_memory.utilization", "{:.2f}"),
-    "sweep_cache_bytes": ("images/sweep_bunny_floor_ao32.json",
-                          "points.3.by_type.ao.rtunit_memory.bytes_per_ray", "{:.0f}"),
+    "cornell_path_util": ("images/bench_cornell_path64.json", "frame.rtunit_memory.utilization",
+                          "{:.3f}"),
+    **{f"sweep_{name}_{key}": ("images/sweep_bunny_floor_ao32.json", f"points.{i}.{path}", fmt_)
+       for name, i in (("nocache", 2), ("cache", 3))
+       for key, path, fmt_ in (("util", "rtunit_memory.utilization", "{:.3f}"),
+                               ("bytes", "rtunit_memory.bytes_per_ray", "{:.0f}"),
+                               ("memory_pj", "energy_per_ray.memory_pj", "{:,.0f}"))},
     "sweep_energy_ao_unified": ("images/sweep_bunny_floor_ao32.json",
                                 "points.3.by_type.ao.energy_per_ray.signals", "{:,.0f}"),
     "sweep_energy_ao_disjoint": ("images/sweep_bunny_floor_ao32.json",
@@ -288,10 +352,6 @@ README_NUMBERS = {
                                f"formats.box32.scenes.bunny_floor.{t}.policies.{policy}.{window}"
                                ".utilization", "{:.2f}")
        for t in ("ao", "primary") for policy, window in (("index", 0), ("affinity", 256))},
-    **{f"order_q8_{t}_{policy}": ("docs/rayorder.json",
-                                  f"formats.q8.scenes.bunny_floor.{t}.policies.{policy}.{window}"
-                                  ".utilization", "{:.2f}")
-       for t in ("shadow", "bounce1") for policy, window in (("index", 0), ("affinity", 256))},
     "order_state_bytes": ("docs/rayorder.json", "formats.box32.scenes.bunny_floor.ao.policies"
                           ".affinity.256.ray_order_cost.extra_state_bytes", "{:,}"),
     "order_extra_rays": ("docs/rayorder.json", "formats.box32.scenes.bunny_floor.ao.policies"
@@ -299,14 +359,31 @@ README_NUMBERS = {
     **{f"compressed_{fmt}_bytes_per_triangle": (f"images/compressed_path64_{fmt}.json",
                                                 "frame.bvh.bytes_per_triangle", "{:.1f}")
        for fmt in ("box32", "q8", "q8g")},
-    **{f"compressed_q8g_{t}_utilization": ("images/compressed_path64_q8g.json",
-                                           f"frame.by_type.{t}.rtunit_memory.utilization",
-                                           "{:.2f}")
-       for t in ("primary", "bounce1")},
-    **{f"compressed_{fmt}_{t}_{key}": (f"images/compressed_path64_{fmt}.json",
-                                       f"frame.by_type.{t}.rtunit_memory.{key}", fmt_)
-       for fmt in ("box32", "q8") for t in ("primary", "bounce1")
-       for key, fmt_ in (("bytes_per_ray", "{:.0f}"), ("utilization", "{:.2f}"))},
+    # one-kernel frames (docs/compressed.md, docs/rayorder.md, docs/rtunit.md)
+    **{f"gpu_{fmt}_util": ("docs/compressed_gpu.json", f"points.{i}.rtunit_memory.utilization",
+                           "{:.3f}")
+       for fmt, i in (("box32", 0), ("q8", 4), ("q8g", 8))},
+    **{f"gpu_{fmt}_dram": ("docs/compressed_gpu.json", f"points.{i}.rtunit_memory.bytes_per_ray",
+                           "{:.0f}")
+       for fmt, i in (("box32", 0), ("q8", 4), ("q8g", 8))},
+    "gpu_rtx_box32_cycles": ("docs/compressed_gpu.json", "points.3.rtunit_memory.cycles", "{:,}"),
+    "gpu_rtx_q8g_cycles": ("docs/compressed_gpu.json", "points.11.rtunit_memory.cycles", "{:,}"),
+    "gpu_order_q8_index": ("docs/rayorder_gpu.json", "points.25.rtunit_memory.utilization",
+                           "{:.3f}"),
+    "gpu_order_q8_affinity": ("docs/rayorder_gpu.json", "points.29.rtunit_memory.utilization",
+                              "{:.3f}"),
+    "gpu_order_q8_pool": ("docs/rayorder_gpu_pool.json", "points.4.rtunit_memory.utilization",
+                          "{:.3f}"),
+    **{f"gpu_units{u}_{key}": ("docs/rtunit_units.json", f"points.{i}.{path}", fmt_)
+       for u, i in ((1, 0), (30, 1))
+       for key, path, fmt_ in (("cycles", "rtunit_memory.cycles", "{:,}"),
+                               ("util", "rtunit_memory.utilization", "{:.3f}"),
+                               ("wall", "wall_s", "{:.1f}"))},
+    "compressed_q8g_shadow_wavefront": ("images/compressed_path64_q8g.json",
+                                        "frame.by_type.shadow.rtunit_memory.utilization",
+                                        "{:.2f}"),
+    "gpu_units30_held": ("docs/rtunit_units.json", "points.1.rtunit_memory.simt.rays_held_mean",
+                         "{:.0f}"),
     "power_gates_ext_box": ("docs/power_gates.json",
                             "ratios.extended_vs_baseline.unified.box", "{:+.1%}"),
     "power_gates_ext_tri": ("docs/power_gates.json",

@@ -3,7 +3,7 @@
 ``HarnessBackend.run`` streams ready-made request words (sim/rayflex_harness.cpp);
 ``HarnessBackend.run_nodes`` is the traversal fast path: the harness assembles QUADBOX/TRIANGLE
 requests from a packed ray table (``driver.core.wire.ray_words``) and the BVH4 image, so the host
-sends three numbers per request instead of 320 bytes. ``replay_chains`` runs the RT-unit scheduler
+sends three numbers per request instead of 320 bytes. ``replay_schedule`` runs the RT-unit replay
 (sim/rtunit_scheduler.cpp) for ``driver.rtunit``. ``harness_library(params)`` builds (cached; see
 ``driver.backends.build``) and loads the library once per process.
 """
@@ -14,7 +14,7 @@ import ctypes
 
 import numpy as np
 
-from ..core.layout import NO_CHILD, REPLAY_STATS
+from ..core.layout import MEMORY_CONFIG, MEMORY_LEVELS, NO_CHILD, REPLAY_CONFIG, REPLAY_STATS
 from ..core.wire import RAY_WORDS, REQ_WORDS, RSP_WORDS, pack_requests, unpack_responses
 from .build import build_harness
 from .rtlbase import PATTERN_LEN, RtlBackendBase
@@ -34,6 +34,19 @@ class ReplayStats(ctypes.Structure):
 
     def as_dict(self) -> dict:
         return {name: int(getattr(self, name)) for name in REPLAY_STATS}
+
+
+class ReplayConfig(ctypes.Structure):
+    """rf_layout::ReplayConfig (fields: ``driver.core.layout.REPLAY_CONFIG``)."""
+
+    _fields_ = [(name, ctypes.c_int64) for name in REPLAY_CONFIG]
+
+
+class MemoryConfig(ctypes.Structure):
+    """rf_layout::MemoryConfig (fields: ``driver.core.layout.MEMORY_CONFIG``)."""
+
+    _fields_ = [(name, ctypes.c_double if ctype == "double" else ctypes.c_int64)
+                for name, ctype in MEMORY_CONFIG]
 
 
 def _u32p(a: np.ndarray):
@@ -69,14 +82,14 @@ def use_library(params: dict[str, int], path) -> ctypes.CDLL:
     lib.rf_build_requests.restype = i64
     lib.rf_build_requests.argtypes = [_U32P, _U32P, i64, _U32P, _U32P, _U32P, _U32P, i64]
     lib.rf_replay.restype = i64
-    lib.rf_replay.argtypes = [i64, i64, i64, i64, _U32P, i64, _U32P, i64, _U32P, _U32P, _U32P,
-                              i64, _I64P, _I64P, i64, _U32P, _U32P, _U32P,
-                              ctypes.POINTER(ReplayStats), _I64P, i64, i64, i64, i64, i64,
-                              ctypes.c_double, _I64P, i64, _I64P,
-                              _I32P, i64, i64, _I64P, _I64P, _I64P, i64]
+    lib.rf_replay.argtypes = [ctypes.POINTER(ReplayConfig), ctypes.POINTER(MemoryConfig), _U32P,
+                              i64, _U32P, i64, _U32P, _U32P, _U32P, i64, _I64P, _I64P, i64,
+                              _U32P, _U32P, i64, _I64P, _I64P, _I64P, _I64P, _I32P, i64, _I64P,
+                              _I64P, _I64P, _U32P, ctypes.POINTER(ReplayStats), _I64P, _I64P,
+                              _I64P, _I64P, _I64P, _I64P, _I64P, _I64P, _I64P]
     lib.rf_memory_trace.restype = i64
-    lib.rf_memory_trace.argtypes = [i64, i64, i64, i64, ctypes.c_double, i64, _I64P, _I64P,
-                                    _I64P, _I64P, _I64P]
+    lib.rf_memory_trace.argtypes = [ctypes.POINTER(MemoryConfig), i64, i64, _I64P, _I64P, _I64P,
+                                    _I64P, i64, _I64P, _I64P, _I64P]
     _LIBS[tuple(sorted(params.items()))] = lib
     return lib
 
@@ -103,7 +116,7 @@ def _bad_node() -> ValueError:
 
 
 def build_requests(params: dict[str, int], ray_words, image_words, ray, ptr, extent) -> np.ndarray:
-    """The (n, REQ_WORDS) request words ``run_nodes``/``replay_chains`` assemble for these
+    """The (n, REQ_WORDS) request words ``run_nodes``/``replay_schedule`` assemble for these
     triples."""
     lib = harness_library(params)
     rw, img, r, p, e = node_arrays(ray_words, image_words, ray, ptr, extent)
@@ -114,81 +127,111 @@ def build_requests(params: dict[str, int], ray_words, image_words, ray, ptr, ext
     return out
 
 
-NO_MEMORY = (-1, 1, 64, 0, 1.0)      # cache_bytes < 0: no memory model, every node fetch is free
 BAD_GEOMETRY = -4
-
-
 SCHED_STATS = ("parked", "resumed", "max_parked", "max_held", "picks", "max_queued",
                "borrowed")
+SERIES_CAPACITY = 1024               # bins of the rays-in-flight series (rf_replay halves them)
 
 
-def replay_chains(params: dict[str, int], record, chains, pipelines: int, slots: int,
-                  turnaround: int, skip_idle: bool, max_idle: int, memory=NO_MEMORY, order=None,
-                  window: int = 0, treelets=None):
-    """Run the RT-unit scheduler (sim/rtunit_scheduler.cpp) over recorded request chains.
-    ``record``: the requests (a ``driver.tracing.record.Record``: ``ray_words``, ``image``,
-    ``ray``, ``ptr``, ``extent``, ``chain``, ``before``); ``chains``: (chain_idx, chain_off), its
-    requests in chain order (``Record.chains``).
-    ``memory``: (cache_bytes, ways, line_bytes, latency_cycles, bytes_per_cycle) of the node
-    memory (sim/rf_memory.h; cache_bytes = 0: no cache, every line from memory; < 0: no memory
-    model). ``order``: the order in which chains (world rays) enter (a permutation of the chain
-    indices; None: index order). ``window``: rays held by the node-affinity scheduler (0: none;
-    else >= slots). ``chain``: the chain (world ray) of each request (default: its ray), when a
-    ray's requests use several rows of the ray table (instances); ``before``: per request a node
-    fetched before its own (an instance node; ``NO_CHILD``: none, the default). ``treelets``:
-    treelet scheduling (needs a window) as a ``driver.rtunit.order.TreeletSchedule`` (the
-    treelet of each request, the treelets active at once, the prefetch lists). Returns
-    (responses (m, RSP_WORDS) uint32 at the record index, ``ReplayStats`` dict plus the
-    scheduler's ``SCHED_STATS`` counts, requests per pipeline (P,) int64)."""
-    lib = harness_library(params)
-    rw, img, r, p, e = node_arrays(record.ray_words, record.image, record.ray, record.ptr,
-                                   record.extent)
-    chain, before = record.chain, record.before
-    ci = np.ascontiguousarray(chains[0], np.int64)
-    co = np.ascontiguousarray(chains[1], np.int64)
+def memory_config(memory: dict | None) -> MemoryConfig:
+    """The ``MemoryConfig`` of a memory hierarchy given as a dict of ``MEMORY_CONFIG`` names
+    (``driver.rtunit.MemoryModel.config()``); None: no memory model (every fetch free)."""
+    mc = MemoryConfig()
+    if memory is None:
+        mc.l1_bytes, mc.l1_ways, mc.line_bytes, mc.bytes_per_cycle = -1, 1, 64, 1.0
+        return mc
+    for name, _ in MEMORY_CONFIG:
+        setattr(mc, name, memory[name])
+    return mc
+
+
+def _check_chains(r, co, chain, before):
     ch = r if chain is None else np.ascontiguousarray(chain, np.uint32).reshape(-1)
     bf = (np.full(len(r), NO_CHILD, np.uint32) if before is None
           else np.ascontiguousarray(before, np.uint32).reshape(-1))
     if len(ch) != len(r) or len(bf) != len(r) or (len(r) and int(ch.max()) >= len(co) - 1):
         raise ValueError("chain and before need one entry per request, chains within chain_off")
-    if order is not None:
-        order = np.ascontiguousarray(order, np.int64)
-        n_chains = len(co) - 1
-        if order.shape != (n_chains,) or not np.array_equal(np.sort(order), np.arange(n_chains)):
-            raise ValueError("the ray order must be a permutation of the chain (world ray) "
-                             "indices")
-    if window and not int(window) >= slots:
-        raise ValueError(f"the scheduler's window ({window} rays) must hold at least the "
-                         f"{slots} rays in flight")
-    ids, n_tl, active, pre, flags = None, 0, 0, (None,) * 3, 0
+    return ch, bf
+
+
+def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, frame, chains,
+                    plan, treelets=None):
+    """Run the RT-unit replay (sim/rtunit_scheduler.cpp, ``rf_replay``) of recorded request
+    chains issued by warps of trace calls. ``config``: the ``REPLAY_CONFIG`` values
+    (``series_capacity`` is filled in); ``memory``: the ``MEMORY_CONFIG`` values, or None (every
+    node fetch free). ``frame``: the requests (``ray_words``, ``image``, ``ray``, ``ptr``,
+    ``extent``, ``chain``, ``before`` as in ``driver.tracing.record.Record``; ``driver.rtunit.plan.
+    Combined``); ``chains``: (chain_idx, chain_off) of its chains; ``plan``: kernels, warps and
+    calls (``kernel_off`` over warps, ``warp_call_off`` over calls, ``call_ray_off`` /
+    ``call_rays``: chain indices). ``treelets``: a ``driver.rtunit.order.TreeletSchedule`` (needs
+    a window). Returns (responses (m, RSP_WORDS) uint32 at the record index, ``ReplayStats``
+    dict plus ``SCHED_STATS``, requests per pipeline (units, P) int64, per-ray and per-call
+    arrays: ``ray_times`` (n, 3), ``ray_served`` (n, one column per ``MEMORY_LEVELS``),
+    ``ray_wait`` (n,), ``call_times`` (calls, 3), ``call_unit`` (calls,), ``series``,
+    ``kernel_times`` (kernels, 3))."""
+    lib = harness_library(params)
+    rw, img, r, p, e = node_arrays(frame.ray_words, frame.image, frame.ray, frame.ptr,
+                                   frame.extent)
+    ci, co = (np.ascontiguousarray(a, np.int64) for a in chains)
+    ch, bf = _check_chains(r, co, frame.chain, frame.before)
+    ko, wo, cro, crs = (np.ascontiguousarray(a, np.int64) for a in
+                        (plan.kernel_off, plan.warp_call_off, plan.call_ray_off,
+                         plan.call_rays))
+    cfg = ReplayConfig(**{k: int(v) for k, v in {**config,
+                                                 "series_capacity": SERIES_CAPACITY}.items()})
+    ids, n_tl, pre = None, 0, (None,) * 3
     if treelets is not None:
-        if not window:
+        if not cfg.window:
             raise ValueError("treelet scheduling needs a window")
         ids = np.ascontiguousarray(treelets.request_treelet, np.int32)
         if ids.shape != (len(r),):
             raise ValueError("treelet scheduling needs one treelet per request")
-        n_tl, active = int(treelets.n_treelets), int(treelets.active)
+        n_tl = int(treelets.n_treelets)
+        cfg.active_treelets = int(treelets.active)
+        cfg.treelet_flags = int(treelets.park) | 2 * int(treelets.borrow)
         pre = treelets.prefetch_lists()
-        flags = int(treelets.park) | 2 * int(treelets.borrow)     # rf_replay's treelet_flags
+    n_chains, n_calls = len(co) - 1, len(cro) - 1
     rsp = np.zeros((len(r), RSP_WORDS), np.uint32)
     stats = ReplayStats()
-    per_pipe = np.zeros(pipelines, np.int64)
+    per_pipe = np.zeros((cfg.units, cfg.pipelines), np.int64)
     sched = np.zeros(len(SCHED_STATS), np.int64)
-    rc = lib.rf_replay(pipelines, slots, turnaround, int(bool(skip_idle)), _u32p(rw), len(rw),
-                       _u32p(img), img.size, _u32p(r), _u32p(p), _u32p(e), len(r), _i64p(ci),
-                       _i64p(co), len(co) - 1, _u32p(ch), _u32p(bf), _u32p(rsp),
-                       ctypes.byref(stats), _i64p(per_pipe), max_idle, *memory,
-                       None if order is None else _i64p(order), int(window), _i64p(sched),
-                       None if ids is None else ids.ctypes.data_as(_I32P), n_tl, active,
-                       *(None if a is None else _i64p(a) for a in pre), flags)
+    out = {"ray_times": np.zeros((n_chains, 3), np.int64),
+           "ray_served": np.zeros((n_chains, len(MEMORY_LEVELS)), np.int64),
+           "ray_wait": np.zeros(n_chains, np.int64),
+           "call_times": np.zeros((max(n_calls, 0), 3), np.int64),
+           "call_unit": np.zeros(max(n_calls, 0), np.int64),
+           "series": np.zeros(SERIES_CAPACITY, np.int64),
+           "kernel_times": np.zeros((len(ko) - 1, 3), np.int64)}
+    mc = memory_config(memory)
+    rc = lib.rf_replay(ctypes.byref(cfg), ctypes.byref(mc), _u32p(rw), len(rw), _u32p(img),
+                       img.size, _u32p(r), _u32p(p), _u32p(e), len(r), _i64p(ci), _i64p(co),
+                       n_chains, _u32p(ch), _u32p(bf), len(ko) - 1, _i64p(ko), _i64p(wo),
+                       _i64p(cro), _i64p(crs),
+                       None if ids is None else ids.ctypes.data_as(_I32P), n_tl,
+                       *(None if a is None else _i64p(a) for a in pre), _u32p(rsp),
+                       ctypes.byref(stats), _i64p(per_pipe), _i64p(sched),
+                       *(_i64p(out[k]) for k in ("ray_times", "ray_served", "ray_wait",
+                                                 "call_times", "call_unit", "series",
+                                                 "kernel_times")))
     if rc == BAD_GEOMETRY:
-        raise ValueError(f"node cache geometry {memory[:3]} cannot be modelled: the cache size must "
-                         "be a multiple of ways x line size, the line a power of two >= 4 bytes")
+        raise ValueError("memory geometry cannot be modelled: each cache a multiple of ways x "
+                         "line size, the line a power of two >= 4 bytes, sectors a power of two "
+                         "dividing the line")
     if rc == BAD_NODE:
         raise ValueError("a recorded request names a node pointer outside the BVH image")
+    if rc == -3:
+        raise ValueError("RT-unit replay: inconsistent arguments (warps, calls and chains must "
+                         "cover every request once; slots a multiple of the warp size)")
     if rc < 0:
         raise RuntimeError(f"RT-unit replay failed ({'deadlock' if rc == -1 else rc})")
-    return rsp, {**stats.as_dict(), **dict(zip(SCHED_STATS, sched.tolist()))}, per_pipe
+    st = {**stats.as_dict(), **dict(zip(SCHED_STATS, sched.tolist()))}
+    out["series"] = out["series"][:st["series_bins"]]
+    return rsp, st, per_pipe, out
+
+
+MEMORY_TRACE_COUNTS = ("l1_accesses", "l1_hits", "l1_merged", "l1_misses", "l1_bytes",
+                       "l2_accesses", "l2_hits", "l2_merged", "l2_misses", "l2_bytes",
+                       "dram_transfers", "dram_bytes", "mshr_stalls", "mshr_stall_cycles")
 
 
 class HarnessBackend(RtlBackendBase):
@@ -248,16 +291,25 @@ class HarnessBackend(RtlBackendBase):
         return out
 
 
-def memory_trace(params: dict[str, int], memory, offset, nbytes, now):
-    """The node memory alone (tests): fetch nodes (byte offset, bytes, cycle) in order. Returns
-    (cycle each node is present (n,) int64, {line_accesses, line_hits, line_misses,
-    bytes_from_memory})."""
+def memory_trace(params: dict[str, int], memory: dict, offset, nbytes, now, unit=None,
+                 units: int = 1, flush_at: int = -1):
+    """The memory hierarchy alone (tests): node fetches (byte offset, bytes, cycle; ``unit``
+    each, default unit 0 of ``units``) in order; ``memory``: ``MEMORY_CONFIG`` values;
+    ``flush_at``: drop the caches before that fetch. Returns (cycle each node is present (n,)
+    int64, level it waited on (n,) int64 (1 L1, 2 L2, 3 DRAM), {``MEMORY_TRACE_COUNTS``})."""
     lib = harness_library(params)
     off, nb, t = (np.ascontiguousarray(x, np.int64) for x in (offset, nbytes, now))
+    un = (np.zeros(len(off), np.int64) if unit is None
+          else np.ascontiguousarray(unit, np.int64))
     ready = np.zeros(len(off), np.int64)
-    counts = np.zeros(4, np.int64)
-    if lib.rf_memory_trace(*memory, len(off), _i64p(off), _i64p(nb), _i64p(t), _i64p(ready),
-                           _i64p(counts)) == BAD_GEOMETRY:
-        raise ValueError(f"node cache geometry {tuple(memory[:3])} cannot be modelled")
-    keys = ("line_accesses", "line_hits", "line_misses", "bytes_from_memory")
-    return ready, dict(zip(keys, counts.tolist()))
+    level = np.zeros(len(off), np.int64)
+    counts = np.zeros(len(MEMORY_TRACE_COUNTS), np.int64)
+    mc = memory_config(memory)
+    rc = lib.rf_memory_trace(ctypes.byref(mc), int(units), len(off), _i64p(un), _i64p(off),
+                             _i64p(nb), _i64p(t), int(flush_at), _i64p(ready), _i64p(level),
+                             _i64p(counts))
+    if rc == BAD_GEOMETRY:
+        raise ValueError(f"memory geometry {memory} cannot be modelled")
+    if rc < 0:
+        raise ValueError("memory trace: a unit out of range")
+    return ready, level, dict(zip(MEMORY_TRACE_COUNTS, counts.tolist()))

@@ -11,6 +11,7 @@ from ..core.outputs import JSON, PNG, Outputs
 from ..check import summary as check_summary
 from ..core.provenance import provenance
 from ..load_bench import load_bench
+from ..rtunit import SWEEP_RAYS_IN_FLIGHT
 from ..scenes.lumibench import is_lumibench, root
 from ..studies.bvh import bvh_bench
 from . import options
@@ -22,12 +23,12 @@ def add_parser(subparsers):
         "bench", help="datapath utilization and simulation speed on a real frame",
         description="Run a design point's frame (default: the bunny, primary rays) through the "
                     "RTL (C++ harness over Verilator) and report its statistics "
-                    "(docs/statistics.md): the functional wavefront and the RT-unit replays "
-                    "without and with the node memory, per ray type. The primary workload "
+                    "(docs/statistics.md): the functional wavefront and the RT-unit replay of "
+                    "the design point (docs/rtunit.md), per ray type. The primary workload "
                     "also measures the simulation speed of the rtl and pyverilator backends, "
                     "golden and Embree ray rates, the BVH build time, and a sweep of rays in "
-                    "flight x pipelines (PNG plot); any other workload, utilization over rays "
-                    "in flight per ray type (PNG plot).")
+                    "flight x pipelines (PNG plot); any other workload, with --sweep-rays, "
+                    "utilization over rays in flight (PNG plot).")
     options.add(p, "bench")
     return p
 
@@ -89,17 +90,21 @@ def run(args) -> int:
     if args.bvh and options.given(args):
         raise ValueError(f"--bvh measures its own scenes, BVH fills and culled stacks; drop "
                          f"{options.given(args)[0]}")
-    sweep_rays = _int_list(args.sweep_rays, "--sweep-rays")
+    default_frame = point.workload == "primary" and point.spp == 1
+    if args.sweep_rays is None:
+        sweep_rays = list(SWEEP_RAYS_IN_FLIGHT) if default_frame else []
+    else:
+        sweep_rays = _int_list(args.sweep_rays, "--sweep-rays")
     sweep_pipes = _int_list(args.sweep_pipelines, "--sweep-pipelines")
     if max(sweep_pipes) > design.MAX_PIPELINES:
         raise ValueError(f"--sweep-pipelines: at most {design.MAX_PIPELINES} pipelines")
     if point.size is not None:
         check_memory(point.size * point.size)
-    default_frame = point.workload == "primary" and point.spp == 1
     outs = Outputs()
     js = outs.add("--json", args.json, JSON) if args.json else None
     plot = None
-    if args.bvh or (args.workers == 1 and args.sweep_size):
+    if args.bvh or (args.workers == 1 and args.sweep_size
+                    and (default_frame or sweep_rays or args.plot)):
         kind = "bvh" if args.bvh else "rtunit"
         plot = outs.add("--plot", args.plot or (
             Path(args.json).with_name(f"{Path(args.json).stem}_{kind}.png") if args.json
@@ -124,8 +129,8 @@ def run(args) -> int:
             return 0 if doc["identical"] else 1
         if not default_frame:
             doc = bench.bench_workload(point, sweep_rays=sweep_rays if args.sweep_size else (),
-                                 plot=outs.temp(plot) if plot else None,
-                                 progress=not args.no_progress)
+                                       plot=outs.temp(plot) if plot else None,
+                                       progress=not args.no_progress, ideal=args.ideal_replay)
             if plot:
                 doc["plot"] = str(plot)
             if js:
@@ -136,7 +141,7 @@ def run(args) -> int:
         doc = bench.bench(point, sweep_size=args.sweep_size, sweep_rays=sweep_rays,
                           sweep_pipelines=sweep_pipes, plot=outs.temp(plot) if plot else None,
                           pyverilator_requests=args.pyverilator_requests, repeat=args.repeat,
-                          progress=not args.no_progress)
+                          progress=not args.no_progress, ideal=args.ideal_replay)
         if plot and doc.get("rtunit_sweep"):
             doc["rtunit_sweep"]["plot"] = str(plot)     # the target, not the temporary file
         if js:
@@ -147,8 +152,9 @@ def run(args) -> int:
 
 
 def workload_table(doc: dict) -> str:
-    """The per-ray-type mix of a ``bench --workload`` run, one row per ray type: RT-unit
-    utilization without (``rtunit``) and with the node memory (``rtunit_memory``)."""
+    """The per-ray-type mix of a ``bench --workload`` run, one row per ray type: its rays, ops,
+    latency (issue to done) and bytes from each memory level per ray in the design point's
+    replay (``rtunit_memory``), and the frame's timing."""
     pt = doc["provenance"]["design_point"]
     f = doc["frame"]
     b = f["bvh"]
@@ -160,21 +166,24 @@ def workload_table(doc: dict) -> str:
     rows += [f"{a}: {v}" for a, v in bench.timing_rows(f)]
     if f.get("embree"):
         rows.append(check_summary(f["embree"]))
-    rows.append(f"{'type':>8} {'rays':>7} {'box/ray':>7} {'tri/ray':>7} {'xf/ray':>6} "
-                f"{'cycles':>9} {'rtunit':>6} {'cycles':>9} {'+memory':>7} {'hit rate':>8} "
-                f"{'B/ray':>6} {'anyhit/closest':>14}")
+    rows.append(f"{'type':>8} {'rays':>8} {'box/ray':>8} {'tri/ray':>8} {'xf/ray':>7} "
+                f"{'util':>6} {'lat':>7} {'p95':>7} {'L1 B/ray':>9} {'L2 B/ray':>9} "
+                f"{'DRAM B/ray':>10} {'anyhit/closest':>14}")
     nan = float("nan")
     for kind, t in f["by_type"].items():
         m = t.get("rtunit_memory") or {}
+        served = m.get("bytes_served_per_ray", {})
         ratio = t.get("any_hit_vs_closest_ops")
-        rows.append(f"{kind:>8} {t['rays']:>7} {t['box_ops_per_ray']:>7.2f} "
-                    f"{t['tri_ops_per_ray']:>7.2f} {t.get('transform_ops_per_ray', 0):>6.2f} "
-                    f"{t['rtunit']['cycles']:>9} {t['rtunit']['utilization']:>6.3f} "
-                    f"{m.get('cycles', ''):>9} {m.get('utilization', nan):>7.3f} "
-                    f"{m.get('hit_rate', nan):>8.3f} {m.get('bytes_per_ray', nan):>6.0f} "
+        util = m.get("utilization")
+        rows.append(f"{kind:>8} {t['rays']:>8} {t['box_ops_per_ray']:>8.2f} "
+                    f"{t['tri_ops_per_ray']:>8.2f} {t.get('transform_ops_per_ray', 0):>7.2f} "
+                    f"{'' if util is None else format(util, '.3f'):>6} "
+                    f"{m.get('latency_mean', nan):>7.0f} {m.get('latency_p95', nan):>7.0f} "
+                    f"{served.get('l1', nan):>9.0f} {served.get('l2', nan):>9.0f} "
+                    f"{served.get('dram', nan):>10.0f} "
                     f"{'' if ratio is None else format(ratio, '.3f'):>14}")
-    rows.append("(xf: transform ops, with --transform datapath; cycles and utilization of the RT "
-                "unit with free node fetches (rtunit) and with the node cache and memory "
-                "(+memory); utilization: datapath ops / (pipelines x RT-unit cycles); B/ray: "
-                "bytes from memory per ray; docs/statistics.md)")
+    rows.append("(xf: transform ops, with --transform datapath; util: a ray type's datapath "
+                "ops / (units x pipelines x its cycles), wavefront frames only; lat, p95: "
+                "cycles from the trace call to the ray's last response; B/ray: node bytes "
+                "supplied by each level; docs/statistics.md)")
     return "\n".join(rows)

@@ -26,8 +26,10 @@ from ..design import GROUPS, OPTIONS, DesignPoint, Option, _bool
 from ..export import HEX_FILES, MAX_VCD_REQUESTS
 from ..power import DEFAULT_OPS, LEVELS, stimulus
 from ..rtunit import SWEEP_PIPELINES, SWEEP_RAYS_IN_FLIGHT
+from ..rtunit.presets import DEFAULT_PRESET, PRESETS
 from ..scenes.scene import UP_AXES
 from ..studies import bvh as bvh_study
+from ..studies import gpu as gpu_study
 from ..studies import rayorder
 from ..suite import SUITES
 from ..tiles import DEFAULT_TILE
@@ -120,9 +122,12 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
             flag("--heatmap", metavar="PATH",
                  help="ops-per-pixel heat map (default: beside --out, OUT_heatmap.png)"),
             flag("--rtunit", action="store_true",
-                 help="also replay every wavefront's requests on the RT unit of the design "
-                      "point (--rays-in-flight, --pipelines, node cache and memory): the "
-                      "statistics' rtunit and rtunit_memory (docs/statistics.md)"),
+                 help="also replay the frame's requests on the RT units of the design point "
+                      "(docs/rtunit.md; a tile is a dispatch of its own): the statistics' "
+                      "rtunit_memory (docs/statistics.md)"),
+            flag("--ideal-replay", action="store_true",
+                 help="with --rtunit, also replay with every node fetch free (rtunit): a "
+                      "second timing replay"),
         )),
         ("camera", (
             flag("--camera", metavar="X,Y,Z", help="camera position"),
@@ -179,14 +184,22 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
         flag("--sweep-size", type=int, default=bench.SWEEP_SIZE, metavar="N",
              help=f"frame size of the rays-in-flight x pipelines sweep of the primary frame "
                   f"(default {bench.SWEEP_SIZE}, at most --size; other workloads sweep rays in "
-                  f"flight on their own frame); 0: no sweep, no plot"),
-        flag("--sweep-rays", default=",".join(map(str, SWEEP_RAYS_IN_FLIGHT)), metavar="LIST",
-             help="rays in flight of the sweep (comma-separated)"),
+                  f"flight on their own frame, with --sweep-rays); 0: no sweep, no plot"),
+        flag("--sweep-rays", default=None, metavar="LIST",
+             help="rays in flight of the sweep (comma-separated; default for the primary "
+                  "frame: " + ",".join(map(str, SWEEP_RAYS_IN_FLIGHT)) + "; a --workload "
+                  "frame is replayed again at each only when given, and --plot draws it; "
+                  "without it, --plot draws the rays each RT unit holds over the frame)"),
+        flag("--ideal-replay", action="store_true",
+             help="also replay the frame with every node fetch free (the rtunit object): a "
+                  "second timing replay; by default each request is simulated twice, the "
+                  "functional pass and the design point's replay (rtunit_memory)"),
         flag("--sweep-pipelines", default=",".join(map(str, SWEEP_PIPELINES)), metavar="LIST",
              help="pipeline counts of the sweep (comma-separated)"),
-        _plot("sweep plot PNG (default: beside --json as JSONSTEM_rtunit.png, else "
-              "rayflex_bench_rtunit.png; with --bvh, the BVH shape plot JSONSTEM_bvh.png or "
-              "rayflex_bench_bvh.png)"),
+        _plot("PNG: the sweep (the primary frame; a --workload frame with --sweep-rays), or "
+              "the rays each RT unit holds over a --workload frame (default: beside --json as "
+              "JSONSTEM_rtunit.png, else rayflex_bench_rtunit.png; with --bvh, the BVH shape "
+              "plot JSONSTEM_bvh.png or rayflex_bench_bvh.png)"),
         flag("--pyverilator-requests", type=int, default=bench.PYVERILATOR_REQUESTS,
              metavar="N", help=f"requests streamed through pyverilator (default "
                                f"{bench.PYVERILATOR_REQUESTS}; 0: skip)"),
@@ -222,6 +235,9 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
         _workers("measure points on a local Dask cluster of N one-thread processes (default 1: "
                  "this process)"),
         _scheduler("measure points"),
+        flag("--ideal-replay", action="store_true",
+             help="also replay every point with free node fetches (rtunit): a second timing "
+                  "replay per point"),
     )), (DESIGN, ()), (None, (SHARED["progress"],))),
     "power": ((None, (
         flag("--ops", type=int, default=DEFAULT_OPS, metavar="N",
@@ -256,9 +272,9 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
         flag("--spp", type=int, metavar="N",
              help="every run's samples per pixel (default: the suite's; LumiBench 2)"),
         flag("--out", metavar="DIR", help="output folder (default: suite-NAME)"),
-        flag("--replay-plain", action="store_true",
-             help="also replay every wavefront without the node memory (rtunit: one more "
-                  "simulation of every request)"),
+        flag("--ideal-replay", action="store_true",
+             help="also replay every run with free node fetches (rtunit): a second timing "
+                  "replay of every request"),
         _workers("make runs on a local Dask cluster of N one-thread processes (default 1: this "
                  "process)"),
         _scheduler("make runs"),
@@ -302,6 +318,13 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
         flag("json", nargs="+", help="one bench JSON per image format (box32, q8 and "
                                      "optionally q8g)"),
         flag("--plot", metavar="PNG", help="draw the utilization sweep here"),
+    )),),
+    "study gpu": ((None, (
+        flag("table", choices=tuple(gpu_study.TABLES),
+             help="compressed: node formats per preset; schedules: one-kernel vs wavefront "
+                  "frames; order: ray-order policies; units: 1 vs many RT units"),
+        flag("sweep", metavar="SWEEP.json", help="a rayflex sweep --json document"),
+        flag("--plot", metavar="PNG", help="draw the study's plot here (compressed, order)"),
     )),),
     "study instances hits": ((None, (
         flag("--scene", default="bunny_grid", metavar="SCENE",
@@ -413,15 +436,21 @@ def _scene_of(args):
 
 
 def from_args(args, **overrides) -> DesignPoint:
-    """The checked ``DesignPoint`` of parsed arguments (options not added: their defaults;
-    ``overrides``: values that replace those defaults, e.g. a command's own scene default)."""
-    values = {}
+    """The checked ``DesignPoint`` of parsed arguments (options not added: their defaults, or
+    the ``--rt-preset``'s values; ``overrides``: values that replace those defaults, e.g. a
+    command's own scene default). Options given override the preset's values."""
+    preset = getattr(args, "rt_preset", None) or DEFAULT_PRESET
+    if preset not in PRESETS:
+        raise ValueError(f"--rt-preset: unknown value {preset!r}; choose from "
+                         f"{', '.join(PRESETS)}")
+    values = dict(PRESETS[preset].values)
     for o in OPTIONS:
         v = _scene_of(args) if o.name == "scene" else getattr(args, o.name, None)
         if v is not None:
             values[o.name] = v
         elif o.name in overrides:
             values[o.name] = overrides[o.name]
+    values["rt_preset"] = preset
     return DesignPoint(**values)
 
 
@@ -446,15 +475,20 @@ def parse_list(o: Option, text: str) -> list:
 
 def grid_from_args(args) -> list[DesignPoint]:
     """Every design point of a sweep's lists (in the order of ``OPTIONS``, last varying
-    fastest), each checked."""
-    axes = []
+    fastest), each checked; options not given take each point's ``--rt-preset`` values."""
+    axes, given = [], set()
     for o in OPTIONS:
         v = _scene_of(args) if o.name == "scene" else getattr(args, o.name, None)
         if v is None:
             axes.append([o.default])
-        elif o.listable and isinstance(v, str):
-            axes.append(parse_list(o, v))
         else:
-            axes.append([v])
+            given.add(o.name)
+            axes.append(parse_list(o, v) if o.listable and isinstance(v, str) else [v])
     names = [o.name for o in OPTIONS]
-    return [DesignPoint(**dict(zip(names, combo))) for combo in itertools.product(*axes)]
+    points = []
+    for combo in itertools.product(*axes):
+        values = dict(zip(names, combo))
+        preset = PRESETS[values["rt_preset"]].values
+        points.append(DesignPoint(**{**values, **{k: v for k, v in preset.items()
+                                                  if k not in given}}))
+    return points

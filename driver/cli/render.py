@@ -44,6 +44,8 @@ def run(args) -> int:
     rt = options.given(args, ("rtunit",))
     if rt and not args.rtunit:
         raise ValueError(f"{rt[0]} sets the RT unit, which render models with --rtunit only")
+    if args.ideal_replay and not args.rtunit:
+        raise ValueError("--ideal-replay is a second RT-unit replay: give --rtunit")
     check_backend(args.backend)
     check_workers(args)
     if args.tile is not None:
@@ -74,7 +76,8 @@ def run(args) -> int:
     h = args.height if args.height is not None else h
     w, h = check_size(w, h)
     res = render(scene, w, h, backend=backend, progress=not args.no_progress,
-                 check_embree=args.check_embree, point=point, rtunit=args.rtunit,
+                 check_embree=args.check_embree, point=point,
+                 rtunit=("ideal" if args.ideal_replay else True) if args.rtunit else False,
                  tile=args.tile, workers=args.workers, scheduler=args.scheduler)
     with outs.commit():
         res.save(outs.temp(out))
@@ -117,13 +120,15 @@ def summary(res) -> str:
         f"{wf['utilization']:.3f}, {wf['frame_us_at_1ghz']:.1f} us at 1 GHz; simulated in "
         f"{wf['sim_wall_s']:.2f} s ({wf['sim_cycles_per_s']:.3g} cycles/s)",
     ]
-    for key, what in (("rtunit", "node fetches free"), ("rtunit_memory", "node cache + memory")):
+    for key, what in (("rtunit", "node fetches free"), ("rtunit_memory", "memory hierarchy")):
         r = s.get(key)
         if r:
-            lines.append(f"RT unit R={r['rays_in_flight']} P={r['pipelines']} ({what}): "
+            lines.append(f"RT units {r['rt_units']} x R={r['rays_in_flight']} "
+                         f"P={r['pipelines']}, warp {r['warp_size']}, "
+                         f"{r['frame_schedule']} ({what}): "
                          f"{r['cycles']} cycles, utilization {r['utilization']:.3f}"
-                         + (f", hit rate {r['hit_rate']:.3f}, {r['bytes_per_ray']:.0f} B/ray"
-                            if "hit_rate" in r else ""))
+                         + (f", L1 hit rate {r['hit_rate']:.3f}, {r['bytes_per_ray']:.0f} B/ray "
+                            "from DRAM" if "hit_rate" in r else ""))
     if b:
         lines.append(f"BVH4: {res.scene.counts()['instanced_triangles']} triangles, "
                      f"{b.get('box_nodes', '?')} box "

@@ -8,7 +8,11 @@
   documents of the same frame: the table and the utilization plot (docs/compressed.md;
   ``driver.studies.compressed``);
 - ``instances hits|images|table|transform``: instanced vs flattened (docs/instances.md;
-  ``driver.studies.instances``).
+  ``driver.studies.instances``);
+- ``gpu compressed|schedules|order|units SWEEP.json``: the one-kernel studies' tables and plots
+  from ``rayflex sweep --json`` documents: node formats, frame schedules, ray orders and RT
+  units in a GPU's frame (docs/compressed.md, docs/rayorder.md, docs/rtunit.md;
+  ``driver.studies.gpu``).
 
 Each checks its arguments before any work, writes its outputs all or nothing, shows progress
 on stderr and puts the ``provenance`` object into its JSON, as every command does.
@@ -25,7 +29,7 @@ from ..core.provenance import provenance
 from ..design import DesignPoint
 from ..plotting import describe
 from ..rtunit.order import POLICIES, check_window
-from ..studies import bvh, compressed, instances, rayorder
+from ..studies import bvh, compressed, gpu, instances, rayorder
 from . import options
 
 STUDIES = {
@@ -34,6 +38,8 @@ STUDIES = {
     "compressed": "box32 vs q8 (and q8g) from bench documents of one frame: table and plot; "
                   "docs/compressed.md",
     "instances": "instanced vs flattened scenes; docs/instances.md",
+    "gpu": "one-kernel frames in a GPU from rayflex sweep documents: node formats, frame "
+           "schedules, ray orders, RT units (table, plot); docs/rtunit.md",
 }
 INSTANCE_STUDIES = {
     "hits": "image bytes and hits, instanced vs flattened",
@@ -150,6 +156,29 @@ def _compressed(args) -> int:
     return 0
 
 
+def _gpu(args) -> int:
+    text, draw = gpu.TABLES[args.table]
+    if args.plot and draw is None:
+        raise ValueError(f"--plot: the {args.table} table has no plot")
+    outs = Outputs(inputs=[args.sweep])
+    png = outs.add("--plot", args.plot, PNG) if args.plot else None
+    try:
+        with open(args.sweep) as f:
+            doc = json.load(f)
+    except (OSError, ValueError) as e:
+        raise ValueError(f"{args.sweep}: not a readable JSON document ({e})") from None
+    try:
+        table = text(doc)
+        with outs.commit():
+            if png:
+                draw(doc, outs.temp(png))
+    except (KeyError, IndexError, TypeError) as e:
+        raise ValueError(f"{args.sweep}: not a rayflex sweep --json document of this study "
+                         f"(no {e})") from None
+    print(table)
+    return 0
+
+
 def _json_out(args):
     """The instance studies' ``--json`` output, checked before any work: (outputs, target)."""
     outs = Outputs()
@@ -202,6 +231,6 @@ def _instances_transform(args) -> int:
     return 0
 
 
-_RUN = {"rayorder": _rayorder, "bvh": _bvh, "compressed": _compressed}
+_RUN = {"rayorder": _rayorder, "bvh": _bvh, "compressed": _compressed, "gpu": _gpu}
 _INSTANCES = {"hits": _instances_hits, "images": _instances_images, "table": _instances_table,
               "transform": _instances_transform}

@@ -66,7 +66,7 @@ def run(args) -> int:
     if out.exists() and not out.is_dir():
         raise SuiteError(f"--out {out} is a file, not a folder")
     summary = run_suite(name, runs, base, out, args.backend, lroot, args.workers, args.scheduler,
-                        args.replay_plain, skipped, not args.no_progress)
+                        args.ideal_replay, skipped, not args.no_progress)
     print(table(summary))
     wrote([out / f for f in SUMMARY if (out / f).exists()])
     return EXIT_CHECK if summary["datapath_wrong"] else 0

@@ -20,10 +20,11 @@ def add_parser(subparsers):
                       "energy per ray",
         description="Measure every combination of the design-point options given as "
                     "comma-separated lists (--config all: every configuration) on one "
-                    "workload: per ray type the datapath ops, the RT-unit cycles and "
-                    "utilization without and with the node memory, cache hit rate, bytes and "
-                    "energy per ray (docs/statistics.md). The workload is traced once per "
-                    "BVH/workload option and replayed per RT-unit point; every configuration's "
+                    "workload: the frame's RT-unit cycles and utilization with the memory "
+                    "hierarchy, per ray type the datapath ops, latency, bytes from each memory "
+                    "level and energy per ray (docs/statistics.md, docs/rtunit.md). The workload "
+                    "is traced once per BVH/workload option and replayed per RT-unit point; "
+                    "every configuration's "
                     "responses are checked bit for bit against the trace's. Finished points are "
                     "kept in a results file, so an interrupted sweep resumes where it stopped.")
     options.add(p, "sweep", sweep=True)
@@ -68,7 +69,7 @@ def run(args) -> int:
              f"({', '.join(design.varied(points)) or 'one point'} varied) on "
              f"{points[0].scene} {points[0].workload}")
     announce_builds("sweep", models(points))
-    doc = sweep(points, args.workers, args.scheduler, res, progress)
+    doc = sweep(points, args.workers, args.scheduler, res, progress, args.ideal_replay)
     with outs.commit():
         if csv_path:
             write_csv(doc, outs.temp(csv_path))

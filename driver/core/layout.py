@@ -344,26 +344,73 @@ def c_header() -> str:
 # RT-unit replay statistics (rf_replay's output struct; driver.rtunit reads it with ctypes)
 
 REPLAY_STATS = (
-    "cycles",           # first accept to last response, inclusive
+    "cycles",           # first accept to last response, inclusive (summed over kernels)
     "model_evals",      # pipeline-cycles actually evaluated (skip_idle leaves idle ones out)
-    "starved_cycles",   # cycles in which a pipeline issued nothing because no ray was ready
-    "full_cycles",      # cycles with every pipeline issuing
+    "starved_cycles",   # unit-cycles in which a pipeline issued nothing because no ray was ready
+    "full_cycles",      # unit-cycles with every pipeline of the unit issuing
     "first_accept",     # cycle of the first accepted request
     "last_response",    # cycle of the last response taken
     "bad_tags",         # responses whose tag is not their ray's index (must be 0)
     "accepts",          # requests accepted, over all pipelines
-    "line_accesses",    # node memory: cache lines looked up (a node touches one or more)
-    "line_hits",        # lines present in the node cache (or already being fetched)
-    "line_misses",      # lines fetched from memory
-    "bytes_from_memory",
-    "node_wait_cycles",  # sum over requests of the cycles a ray waited for its node's lines
+    "line_accesses",    # L1: transactions looked up (a node touches one or more)
+    "line_hits",        # L1: transactions present in the node cache (or already being fetched)
+    "line_misses",      # L1: transactions fetched from the next level
+    "bytes_from_memory",  # bytes transferred from DRAM
+    "node_wait_cycles",  # sum over requests of the cycles a ray waited for its node
+    "l1_accesses", "l1_hits", "l1_merged", "l1_misses", "l1_bytes",
+    "l2_accesses", "l2_hits", "l2_merged", "l2_misses", "l2_bytes",
+    "dram_transfers", "dram_bytes",
+    "l1_wait_cycles",   # node waits whose last transaction came from the L1 (hit latency)
+    "l2_wait_cycles",   # ... from the L2
+    "dram_wait_cycles",  # ... from DRAM
+    "mshr_stalls",      # L1 misses that waited for a free MSHR
+    "mshr_stall_cycles",  # cycles those misses waited
+    "frame_cycles",     # first accept of the frame to its last response, inclusive
+    "max_rays_held",    # most rays held by one unit at once
+    "series_bins",      # bins of the rays-in-flight series written
+    "series_bin_cycles",  # cycles per bin of that series
 )
+
+# rf_replay's configuration (all int64): driver.rtunit fills it (docs/rtunit.md)
+REPLAY_CONFIG = (
+    "units",            # RT units (each its own pipelines, L1, MSHRs)
+    "pipelines",        # datapath pipelines per unit
+    "slots",            # rays in flight per unit (issue slots; whole warps)
+    "warp_size",        # threads per warp (a trace call occupies warp_size slots)
+    "resident",         # warps resident per unit (0: no limit)
+    "turnaround",       # cycles from a response to the ray's next request
+    "shader_cycles",    # cycles from a call's last response to the warp's next call
+    "skip_idle",        # do not evaluate a pipeline with nothing in it (exact)
+    "max_idle",         # cycles without progress before the replay reports a deadlock
+    "window",           # rays held per unit by the affinity/treelet schedulers (0: none)
+    "flush",            # drop the caches at each kernel boundary
+    "active_treelets", "treelet_flags",
+    "series_capacity",  # bins of the rays-in-flight series the caller provides
+)
+
+# the memory hierarchy's configuration (rf_memory.h; l1_bytes < 0: no memory model)
+MEMORY_CONFIG = (
+    ("l1_bytes", "int64_t"), ("l1_ways", "int64_t"), ("line_bytes", "int64_t"),
+    ("sector_bytes", "int64_t"), ("l1_latency", "int64_t"), ("mshrs", "int64_t"),
+    ("l2_bytes", "int64_t"), ("l2_ways", "int64_t"), ("l2_latency", "int64_t"),
+    ("mem_latency", "int64_t"), ("bytes_per_cycle", "double"),
+)
+# the memory levels as the replay numbers them (rf_memory.h's enum Level, checked by
+# tests/test_gpu.py): the level a node fetch waited on or was served by (none: it was free);
+# rf_replay's ray_served has one column per level
+MEMORY_LEVELS = ("none", "l1", "l2", "dram")
 
 
 def replay_stats_c() -> str:
-    """The C declaration of ``ReplayStats`` (int64 fields in ``REPLAY_STATS`` order)."""
-    body = "\n".join(f"  int64_t {name};" for name in REPLAY_STATS)
-    return f"struct ReplayStats {{\n{body}\n}};"
+    """The C declarations of ``ReplayStats``, ``ReplayConfig`` (int64 fields in
+    ``REPLAY_STATS`` / ``REPLAY_CONFIG`` order) and ``MemoryConfig`` (``MEMORY_CONFIG``)."""
+    out = []
+    for name, fields in (("ReplayStats", [(f, "int64_t") for f in REPLAY_STATS]),
+                         ("ReplayConfig", [(f, "int64_t") for f in REPLAY_CONFIG]),
+                         ("MemoryConfig", list(MEMORY_CONFIG))):
+        body = "\n".join(f"  {ctype} {f};" for f, ctype in fields)
+        out.append(f"struct {name} {{\n{body}\n}};")
+    return "\n".join(out)
 
 
 def read_nodes(image, ptrs, node: np.dtype) -> np.ndarray:

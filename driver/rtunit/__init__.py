@@ -35,6 +35,12 @@ request or per cycle, and the timing comes from the RTL's own handshakes rather 
 latency formula. With R = 1 and P = 1 every request waits for the previous one: a ray's requests
 are 11 + ``turnaround`` cycles apart, so cycles = ops * 12 with the defaults (>= ops * 11).
 
+``replay`` times one recorded batch on one RT unit with a per-ray pool (the wavefront schedule
+of ``driver.rtunit.gpu`` with one ray per warp): what the studies and the Python API call. A
+whole frame as a GPU issues it, warps of threads over many RT units in front of an L1, an L2 and
+DRAM (``MemoryModel``), is ``driver.rtunit.gpu.replay_frame`` (docs/rtunit.md); both run the
+same engine.
+
 Simulation shortcut (exact): a pipeline that holds no request at the start of a cycle and gets
 none is not evaluated in that cycle (``skip_idle``): the datapath's registers load only on a
 handshake (rf_skid.sv; accumulators only on an accepted beat), so a clock edge with nothing valid
@@ -44,17 +50,18 @@ identical responses and cycles (tests check).
 
 from __future__ import annotations
 
-import time
 import textwrap
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..backends.harness import NO_MEMORY, replay_chains
-from ..core.datapath import LATENCY
 from ..tracing.record import Record
-from . import order as ray_orders
+from .gpu import ReplayMismatch, replay_frame
+from .plan import PER_RAY_POOL, Wave
+
+__all__ = ["Record", "MemoryModel", "ReplayResult", "ReplayMismatch", "replay", "sweep",
+           "plot_sweep"]
 
 DEFAULT_RAYS_IN_FLIGHT = 64        # the default ray pool (see the module docstring)
 DEFAULT_TURNAROUND = 1
@@ -62,47 +69,74 @@ SWEEP_RAYS_IN_FLIGHT = (1, 2, 4, 8, 16, 32, 64, 128, 256, 1024)
 SWEEP_PIPELINES = (1, 2, 4, 8)
 
 
-class ReplayMismatch(RuntimeError):
-    """The replayed RTL responses differ from the functional run's (must never happen)."""
 
 
 @dataclass(frozen=True)
 class MemoryModel:
-    """The node memory of the replay (sim/rf_memory.h): a set-associative LRU node cache of
-    ``cache_bytes`` with ``ways`` ways and ``line_bytes`` lines in front of a memory that answers
-    a line ``latency_cycles`` after its transfer, transfers serialised at ``bytes_per_cycle``;
-    ``cache_bytes`` 0: no cache, every node fetch reads its lines from memory.
-    A request waits until its node's lines are present (``driver.core.layout.NODE_BYTES``: box32
-    box node 128 B; q8 box node, triangle node and pair leaf 64 B; a pair's second triangle
-    none more); the cache changes timing only, never a response."""
+    """The memory hierarchy of the replay (sim/rf_memory.h, docs/rtunit.md): per RT unit a
+    set-associative LRU node cache (L1) of ``cache_bytes`` with ``ways`` ways and ``line_bytes``
+    lines, hit after ``hit_latency`` cycles, with ``mshrs`` miss registers (0: unlimited; misses
+    to a transaction already in flight merge); an L2 of ``l2_bytes`` (0: none) shared by all
+    units, ``l2_ways`` ways, hit after ``l2_latency`` cycles; DRAM shared by all units, a
+    transaction arriving ``latency_cycles`` after its transfer, transfers serialised at
+    ``bytes_per_cycle``. Bytes move in ``sector_bytes`` sectors of a line (0: whole lines).
+    ``cache_bytes`` 0: no L1, every node fetch goes to the next level. A request waits until its
+    node's bytes are present (``driver.core.layout.NODE_BYTES``: box32 box node 128 B; q8 box node,
+    triangle node and pair leaf 64 B; a pair's second triangle none more); the memory changes
+    timing only, never a response."""
 
     cache_bytes: int = 32 * 1024
     ways: int = 4
     line_bytes: int = 64
     latency_cycles: int = 200
     bytes_per_cycle: float = 32.0
+    hit_latency: int = 0
+    sector_bytes: int = 0
+    mshrs: int = 0
+    l2_bytes: int = 0
+    l2_ways: int = 16
+    l2_latency: int = 0
 
     def __post_init__(self):
-        for name in ("cache_bytes", "ways", "line_bytes", "latency_cycles"):
+        for name in ("cache_bytes", "ways", "line_bytes", "latency_cycles", "hit_latency",
+                     "sector_bytes", "mshrs", "l2_bytes", "l2_ways", "l2_latency"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
                 raise ValueError(f"memory model: {name} must be a non-negative integer, got {v!r}")
-        lb = self.line_bytes
+        lb, sb = self.line_bytes, self.sector_bytes
         if self.ways < 1 or lb < 4 or lb & (lb - 1):
             raise ValueError("memory model: ways >= 1, line_bytes a power of two")
-        if self.cache_bytes % (self.ways * lb):
-            raise ValueError(f"memory model: cache_bytes {self.cache_bytes} is not a multiple of "
-                             f"ways x line_bytes ({self.ways * lb})")
+        if sb and (sb < 4 or sb & (sb - 1) or sb > lb):
+            raise ValueError(f"memory model: sector_bytes {sb} must be a power of two >= 4 "
+                             f"and at most line_bytes ({lb}), or 0 (whole lines)")
+        for what, size, ways in (("cache_bytes", self.cache_bytes, self.ways),
+                                 ("l2_bytes", self.l2_bytes, self.l2_ways)):
+            if ways < 1 or size % (ways * lb):
+                raise ValueError(f"memory model: {what} {size} is not a multiple of "
+                                 f"ways x line_bytes ({ways * lb})")
         if not float(self.bytes_per_cycle) > 0:
             raise ValueError("memory model: bytes_per_cycle must be > 0")
 
-    def args(self) -> tuple:
-        return (int(self.cache_bytes), int(self.ways), int(self.line_bytes),
-                int(self.latency_cycles), float(self.bytes_per_cycle))
+    @property
+    def transaction_bytes(self) -> int:
+        """Bytes of one transfer: a sector, or a whole line."""
+        return int(self.sector_bytes or self.line_bytes)
+
+    def config(self) -> dict:
+        """The ``driver.core.layout.MEMORY_CONFIG`` values of ``rf_replay``."""
+        return {"l1_bytes": int(self.cache_bytes), "l1_ways": int(self.ways),
+                "line_bytes": int(self.line_bytes), "sector_bytes": int(self.sector_bytes),
+                "l1_latency": int(self.hit_latency), "mshrs": int(self.mshrs),
+                "l2_bytes": int(self.l2_bytes), "l2_ways": int(self.l2_ways),
+                "l2_latency": int(self.l2_latency), "mem_latency": int(self.latency_cycles),
+                "bytes_per_cycle": float(self.bytes_per_cycle)}
 
     def describe(self) -> dict:
         return {"cache_bytes": self.cache_bytes, "ways": self.ways, "line_bytes": self.line_bytes,
-                "latency_cycles": self.latency_cycles, "bytes_per_cycle": self.bytes_per_cycle}
+                "latency_cycles": self.latency_cycles, "bytes_per_cycle": self.bytes_per_cycle,
+                "hit_latency": self.hit_latency, "sector_bytes": self.sector_bytes,
+                "mshrs": self.mshrs, "l2_bytes": self.l2_bytes, "l2_ways": self.l2_ways,
+                "l2_latency": self.l2_latency}
 
 
 @dataclass
@@ -174,58 +208,23 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
     window of ``ray_window`` rays (default ``order.DEFAULT_WINDOW``; for a scheduling policy at
     least R); the result's ``order`` holds the policy and its cost. ``treelets``: the
     ``order.TreeletConfig`` of the "treelet" policy (default ``order.DEFAULT_TREELETS``)."""
-    r, p, ta = int(rays_in_flight), int(pipelines), int(turnaround)
-    if r < 1:
-        raise ValueError(f"rays in flight must be >= 1, got {rays_in_flight}")
-    if not 1 <= p <= 64:
-        raise ValueError(f"pipelines must be in 1..64, got {pipelines}")
-    if ta < 0:
-        raise ValueError(f"turnaround must be >= 0 cycles, got {turnaround}")
-    pol = ray_orders.policy(ray_order)
-    window = ray_orders.check_window(ray_orders.DEFAULT_WINDOW if ray_window is None
-                                     else ray_window)
-    if pol.schedule and window < r:
-        raise ValueError(f"ray order {ray_order!r}: the window ({window} rays) must hold at "
-                         f"least the {r} rays in flight")
-    perm = ray_orders.permutation(record, ray_order, window)
-    tl = (ray_orders.treelet_schedule(record, treelets or ray_orders.DEFAULT_TREELETS)
-          if pol.treelets and record.ops else None)
-    chains = record.chains()
-    latency = int(record.params.get("LATENCY", LATENCY))
-    t0 = time.perf_counter()
-    rsp, stats, per_pipe = replay_chains(record.params, record, chains, p, r, ta, skip_idle,
-                                         100 * latency + 1000,
-                                         memory.args() if memory else NO_MEMORY, perm,
-                                         window if pol.schedule else 0, tl)
-    wall = time.perf_counter() - t0
-    m = len(rsp)
-    if stats["bad_tags"]:
-        raise ReplayMismatch(f"{stats['bad_tags']} replayed responses carry the wrong ray tag")
-    verified = False
-    if verify and record.responses is not None:
-        diff = np.flatnonzero((rsp != record.responses).any(axis=1))
-        if len(diff):
-            raise ReplayMismatch(f"{len(diff)} of {m} replayed responses differ from the "
-                                 f"functional run's (first: request {int(diff[0])})")
-        verified = True
+    fr = replay_frame([Wave(record)], rays_in_flight, pipelines, memory, PER_RAY_POOL,
+                      ray_order=ray_order, ray_window=ray_window, treelets=treelets,
+                      turnaround=turnaround, skip_idle=skip_idle, verify=verify)
+    c = fr.counters
     mem = None
     if memory:
-        acc = stats["line_accesses"]
-        mem = {**memory.describe(), **{k: stats[k] for k in (
+        acc = c["line_accesses"]
+        mem = {**memory.describe(), **{k: c[k] for k in (
             "line_accesses", "line_hits", "line_misses", "bytes_from_memory",
             "node_wait_cycles")},
-            "hit_rate": stats["line_hits"] / acc if acc else 0.0,
-            "bytes_per_ray": stats["bytes_from_memory"] / record.rays if record.rays else 0.0}
-    cost = None
-    if ray_order != "index":
-        depth = ray_orders.tree_depth(record) if pol.schedule else 0
-        cost = ray_orders.cost(ray_order, window, record.rays, r, depth,
-                               stats if pol.schedule else None,
-                               treelets=(treelets or ray_orders.DEFAULT_TREELETS, tl)
-                               if tl is not None else None)
-    return ReplayResult(r, p, ta, record.rays, m, record.box_ops, stats["cycles"],
-                        stats["starved_cycles"], stats["full_cycles"], stats["model_evals"],
-                        per_pipe.tolist(), wall, verified, latency, rsp, mem, cost,
+            "hit_rate": c["line_hits"] / acc if acc else 0.0,
+            "bytes_per_ray": c["bytes_from_memory"] / record.rays if record.rays else 0.0,
+            **fr.memory_levels()}
+    return ReplayResult(fr.rays_in_flight, fr.pipelines, fr.turnaround, record.rays,
+                        len(fr.responses), record.box_ops, c["cycles"], c["starved_cycles"],
+                        c["full_cycles"], c["model_evals"], fr.per_pipe[0].tolist(), fr.wall_s,
+                        fr.verified, fr.latency, fr.responses, mem, fr.order_cost,
                         record.transform_ops)
 
 

@@ -4,7 +4,11 @@ from ``rayflex bench --workload ... --bvh-format FORMAT --json`` documents of th
     rayflex study compressed BOX32.json Q8.json [Q8G.json] [--plot PNG]
 
 prints the per-ray-type comparison as a Markdown table and draws utilization with the node
-memory vs rays in flight, one panel per ray type, one line per format.
+memory vs rays in flight, one panel per ray type, one line per format. The documents are
+``rayflex bench --frame wavefront --flush-between --ideal-replay --sweep-rays LIST`` runs:
+each ray type replayed on its own with cold caches, so that it has its own cycles (the study as
+it was before one-kernel frames; the one-kernel study is ``rayflex study gpu``,
+``driver.studies.gpu``).
 """
 
 from __future__ import annotations
@@ -64,7 +68,9 @@ def plot(docs: dict, path, title: str) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    kinds = list(docs["box32"]["sweep"])
+    if any(not d.get("sweep") for d in docs.values()):
+        raise ValueError("the documents hold no rays-in-flight sweep (bench --sweep-rays)")
+    kinds = list(docs["box32"]["sweep"][0]["by_type"])
     cols = min(len(kinds), 4)
     rows_ = -(-len(kinds) // cols)
     fig = Figure(figsize=(3.2 * cols + 0.6, 3.0 * rows_ + 1.3), dpi=110)
@@ -73,9 +79,12 @@ def plot(docs: dict, path, title: str) -> None:
     style = {"box32": ("s", "--"), "q8": ("o", "-"), "q8g": ("^", ":")}
     for ax, kind in zip(axes, kinds):
         for i, (fmt, doc) in enumerate(docs.items()):
-            pts = doc["sweep"][kind]
-            ax.plot([p["rays_in_flight"] for p in pts],
-                    [p["rtunit_memory"]["utilization"] for p in pts], marker=style[fmt][0],
+            pts = doc["sweep"]
+            ys = [p["by_type"][kind]["rtunit_memory"]["utilization"] for p in pts]
+            if None in ys:
+                raise ValueError("a ray type's utilization needs the wavefront schedule "
+                                 "(bench --frame wavefront)")
+            ax.plot([p["rays_in_flight"] for p in pts], ys, marker=style[fmt][0],
                     ls=style[fmt][1], color=f"C{i}", ms=4, lw=1.3, label=fmt)
         ax.set_title(kind, fontsize=9)
         ax.set_xscale("log", base=2)

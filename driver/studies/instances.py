@@ -214,9 +214,12 @@ def transform_cost(scene: str = "bunny_grid", workload: str = "path", size: int 
     out: dict = {}
     # datapath first: a scene without instances is refused before any work
     for where in sorted(TRANSFORMS, key=lambda w: w != DATAPATH):
+        # each ray type replayed on its own (the wavefront schedule with cold caches), so that
+        # every ray type has its own cycles
         point = DesignPoint(scene=scene, workload=workload, size=size, spp=spp,
-                            bounces=bounces, transform=where)
-        doc = bench_workload(point, sweep_rays=(), progress=progress)
+                            bounces=bounces, transform=where, frame_schedule="wavefront",
+                            flush_between=True)
+        doc = bench_workload(point, sweep_rays=(), progress=progress, ideal=True)
         f = doc["frame"]
         if not out:
             out = {"provenance": provenance(point), "scene": doc["scene"], "workload": workload,

@@ -11,14 +11,50 @@ from .. import backends, rtunit, workloads
 from ..bvh4 import build
 from ..core.progress import bar
 from ..design import DesignPoint
-from ..rtunit.order import DEFAULT_TREELETS, POLICIES, floor_bytes
-from ..stats import rtunit_stats
+from ..rtunit.gpu import derived
+from ..rtunit.order import DEFAULT_TREELETS, POLICIES, floor_bytes, merge_costs
+from ..stats import WAVEFRONTS
 from ..tracer import trace
 
 ALL_RAYS = 1 << 16     # a window that holds every ray of the study's batches ("all")
 STUDY_WINDOWS = (64, 256, 1024, 4096, ALL_RAYS)
 STUDY_SCENES = ("bunny_floor", "cornell")
 STUDY_TYPES = ("primary", "shadow", "bounce1", "bounce2", "ao")
+_MEM_SUMMED = ("line_accesses", "line_hits", "line_misses", "bytes_from_memory",
+               "node_wait_cycles")
+
+
+def study_stats(replays: list) -> dict:
+    """The study's ``rtunit_memory`` object of replays (``driver.rtunit.ReplayResult``) of a
+    ray type's batches, each on its own (an empty ray pool and a cold node cache, the wavefront
+    schedule of docs/rtunit.md), one after another: cycles add up."""
+    if not replays:
+        raise ValueError("no replay")
+    first = replays[0]
+    out = {"rays_in_flight": first.rays_in_flight, "pipelines": first.pipelines,
+           "turnaround_cycles": first.turnaround, "rays": sum(r.rays for r in replays),
+           "ops": sum(r.ops for r in replays), "cycles": sum(r.cycles for r in replays),
+           "starved_cycles": sum(r.starved_cycles for r in replays),
+           "sim_wall_s": sum(r.wall_s for r in replays),
+           "responses_verified": all(r.verified for r in replays)}
+    if first.memory:
+        for k in _MEM_SUMMED:
+            out[k] = sum(r.memory[k] for r in replays)
+    out[WAVEFRONTS] = [_wavefront_row(r) for r in replays]
+    costs = [r.order for r in replays if getattr(r, "order", None)]
+    if costs:
+        out["ray_order_cost"] = merge_costs(costs)
+    return derived(out)
+
+
+def _wavefront_row(r) -> dict:
+    """One replayed wavefront of an RT-unit object's ``wavefronts``: its size and timing, and
+    with a node memory its bytes from memory (each wavefront starts with an empty ray pool and
+    a cold node cache, so a small one is bound by the memory's latency)."""
+    row = {"rays": r.rays, "ops": r.ops, "cycles": r.cycles, "utilization": r.utilization}
+    if r.memory:
+        row["bytes_from_memory"] = r.memory["bytes_from_memory"]
+    return row
 
 
 def frame_records(scene_name: str, size: int, spp: int, bounces: int, ao_rays: int,
@@ -72,8 +108,8 @@ def study(scenes=STUDY_SCENES, size: int = 64, windows=STUDY_WINDOWS, policies=N
     def replay_all(records, r, order="index", window=None):
         """The RT-unit replays (with ``memory``) of a ray type's batches, one after another:
         the published ``rtunit_memory`` object (docs/statistics.md)."""
-        return rtunit_stats([rtunit.replay(rec, r, 1, memory=memory, ray_order=order,
-                                           ray_window=window) for rec in records])
+        return study_stats([rtunit.replay(rec, r, 1, memory=memory, ray_order=order,
+                                          ray_window=window) for rec in records])
 
     spp, bounces, ao_rays, seed = point.spp, point.bounces, point.ao_rays, point.seed
     rays_in_flight, memory = point.rays_in_flight, point.memory()
@@ -139,9 +175,9 @@ def treelet_variants(recs: dict, rays_in_flight: int, memory, progress: bool = T
     pb = bar(len(runs), "treelet variants", "replay", progress)
     for n, (name, kind) in enumerate(runs):
         cfg = replace(DEFAULT_TREELETS, **TREELET_VARIANTS[name])
-        point = rtunit_stats([rtunit.replay(r, rays_in_flight, 1, memory=memory,
-                                            ray_order="treelet", ray_window=window, treelets=cfg)
-                              for r in recs[kind]])
+        point = study_stats([rtunit.replay(r, rays_in_flight, 1, memory=memory,
+                                           ray_order="treelet", ray_window=window, treelets=cfg)
+                             for r in recs[kind]])
         out["variants"].setdefault(name, {"config": cfg.describe()})[kind] = point
         pb.hook(n + 1, len(runs))
     pb.close()
