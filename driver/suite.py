@@ -20,7 +20,8 @@ run whose JSON was made by the same source tree with the same run and design poi
 interrupted suite resumes where it stopped. At the end ``summary.json`` and ``summary.csv``
 (one row per run: rays, ops per ray, RT-unit utilization with the node memory, bytes from
 memory per ray, cache hit rate, energy per ray, the check's classes) and ``summary.png`` (those
-figures per run, grouped by shader). """
+figures per run, grouped by shader).
+"""
 
 from __future__ import annotations
 
