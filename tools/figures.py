@@ -462,19 +462,17 @@ LUMIBENCH_NUMBERS = {
     "load_1000_cold_peak": ("docs/lumibench_load_1000.json", "cold.peak_rss_bytes",
                             lambda v: f"{v / MIB:,.0f}"),
     "load_1000_triangles": ("docs/lumibench_load_1000.json", "cold.triangles", "{:,}"),
-    **{f"lb_bath_{t}_util": ("images/lumibench/BATH_PT.json",
-                             f"by_type.{t}.rtunit_memory.utilization", "{:.2f}")
-       for t in ("primary", "bounce2")},
-    **{f"lb_bath_{t}_bytes": ("images/lumibench/BATH_PT.json",
-                              f"by_type.{t}.rtunit_memory.bytes_per_ray", "{:,.0f}")
-       for t in ("primary", "bounce2")},
+    **{f"lb_bath_{t}_{k}": ("images/lumibench/BATH_PT.json",
+                            f"by_type.{t}.rtunit_memory.{key}", fmt)
+       for t in ("primary", "bounce2")
+       for k, key, fmt in (("bytes", "bytes_per_ray", "{:,.0f}"),
+                           ("latency", "latency_mean", "{:,.0f}"))
+       if (t, k) != ("bounce2", "latency")},
     "lb_sprng_bounce2_bytes": ("images/lumibench/SPRNG_PT.json",
                                "by_type.bounce2.rtunit_memory.bytes_per_ray", "{:,.0f}"),
-    "lb_sprng_bounce2_util": ("images/lumibench/SPRNG_PT.json",
-                              "by_type.bounce2.rtunit_memory.utilization", "{:.2f}"),
     **{f"lb_{n}_util": ("images/lumibench/summary.json", f"runs.{i}.utilization_memory",
                         "{:.2f}") for n, i in (("ship_sh", 1), ("ship_ao", 2), ("lands_ao", 8),
-                                               ("bath_ao", 11))},
+                                               ("bath_pt", 9), ("bath_ao", 11))},
     **{f"lb_{n}_ops": ("images/lumibench/summary.json", f"runs.{i}.ops_per_ray", "{:.1f}")
        for n, i in (("ship_sh", 1), ("ship_ao", 2), ("lands_sh", 7), ("lands_ao", 8))},
     "lb_ship_ao_ties": ("images/lumibench/summary.json", "runs.2.edge_tie", "{:,}"),
@@ -501,15 +499,15 @@ ship's AO run alone has {n['lb_ship_ao_ties']})."""
     reading = f"""What the runs say about an RT unit of this design point:
 
 - **Camera rays and the short shadow and AO rays keep the datapath busy** where the scene is
-  small or the rays coherent: the ship's shadow and AO runs issue an op in {n['lb_ship_sh_util']}
-  and {n['lb_ship_ao_util']} of the cycles, the landscape's AO run in {n['lb_lands_ao_util']}; the
-  bathroom's camera rays in {n['lb_bath_primary_util']}, fetching {n['lb_bath_primary_bytes']}
-  bytes of nodes per ray from memory: the 32 KiB node cache holds most of what neighbouring rays
-  share.
+  small or the rays coherent: the ship's shadow and AO frames issue an op in
+  {n['lb_ship_sh_util']} and {n['lb_ship_ao_util']} of the cycles, the landscape's AO frame in
+  {n['lb_lands_ao_util']}: the 32 KiB node cache holds most of what neighbouring rays share.
 - **Path-traced bounces on the large scenes are memory-bound**: from the second bounce on, the
-  bathroom's rays keep the datapath busy in only {n['lb_bath_bounce2_util']} of the cycles and
-  fetch {n['lb_bath_bounce2_bytes']} bytes per ray; Spring's fetch {n['lb_sprng_bounce2_bytes']}
-  bytes per ray at {n['lb_sprng_bounce2_util']}. On these frames the memory side (node cache,
+  bathroom's rays fetch {n['lb_bath_bounce2_bytes']} bytes per ray from memory (its camera rays
+  {n['lb_bath_primary_bytes']}), Spring's {n['lb_sprng_bounce2_bytes']}; the bathroom's
+  path-traced frame keeps the datapath busy in {n['lb_bath_pt_util']} of the cycles, its AO
+  frame in {n['lb_bath_ao_util']}, while a ray waits {n['lb_bath_primary_latency']} cycles on
+  average from its trace call to its last response. On these frames the memory side (node cache,
   bandwidth, latency, ray order, compressed nodes) decides what path tracing costs, which the
   bunny frames could not show.
 - **Ops per ray depend on the scene more than on the shader**: the ship costs
@@ -519,9 +517,11 @@ ship's AO run alone has {n['lb_ship_ao_ties']})."""
   configuration's energy per op does not depend on the scene.
 - **The bathroom's shadows are all dark**: it is lit by the sky from (0, 1, 0) and the room is
   closed, so every shadow ray that faces the sky meets the ceiling, as it does in the benchmark.
-- Each ray type here is replayed as a wavefront that starts with an empty ray pool and a cold
-  node cache (`rtunit_memory`, docs/workloads.md#the-node-memory-of-the-rt-unit-model); a
-  path's later bounces are small wavefronts, which a cold cache penalises."""
+- Each frame is replayed as a GPU issues it (the default one-kernel frame, docs/rtunit.md):
+  every pixel's rays in program order (its camera ray, then its shadow, AO or bounce rays) in
+  one kernel, the ray types sharing the ray pool and the node cache; a ray type's figures
+  (bytes, hit rate, latency) are its rays' share of that one replay, the utilization the
+  frame's."""
     manifest = load_manifest()
 
     def load(name: str) -> str:
