@@ -432,6 +432,7 @@ README_NUMBERS = {
     "lumibench_lands_ao_util": ("images/lumibench/summary.json", "runs.8.utilization_memory",
                                 "{:.2f}"),
     "lumibench_wall": ("images/lumibench/summary.json", "wall_s", "{:.0f}"),
+    "lumibench_load": ("docs/figures.json", "lumibench.load.median", "{:.1f}"),
     "bvh_build_bunny": ("docs/bvh_bench.json", "builds.0.build_s", "{:.2f}"),
     "bvh_build_5m": ("docs/bvh_bench.json", "builds.2.build_s", "{:.1f}"),
 }
