@@ -434,8 +434,10 @@ def plot(doc: dict, path) -> None:
                        if dp_energy else "")
         for cached in (True, False):
             part = [e for e in sel if bool(e["design_point"]["cache_kib"]) == cached]
-            ax2.scatter([_timing(e)["cycles_per_ray"] for e in part],
-                        [e["energy_per_ray"]["memory_pj"] for e in part], s=28, color=f"C{i}",
+            ax2.scatter([_timing(e)["cycles_per_ray"] for e in part],      # coinciding points
+                        [e["energy_per_ray"]["memory_pj"] for e in part],   # stay visible:
+                        s=max(70 - 30 * i, 16), edgecolors=f"C{i}",         # larger, hollow
+                        facecolors=f"C{i}" if i % 2 else "none", linewidths=1.5,
                         marker="o" if cached else "s",
                         label=label if cached or not any(
                             bool(e["design_point"]["cache_kib"]) for e in sel) else None)

@@ -6,9 +6,8 @@ from ``rayflex bench --workload ... --bvh-format FORMAT --json`` documents of th
 prints the per-ray-type comparison as a Markdown table and draws utilization with the node
 memory vs rays in flight, one panel per ray type, one line per format. The documents are
 ``rayflex bench --frame wavefront --flush-between --ideal-replay --sweep-rays LIST`` runs:
-each ray type replayed on its own with cold caches, so that it has its own cycles (the study as
-it was before one-kernel frames; the one-kernel study is ``rayflex study gpu``,
-``driver.studies.gpu``).
+each ray type replayed on its own with cold caches, so that it has its own cycles (the study of
+a GPU's one-kernel frame is ``rayflex study gpu``, ``driver.studies.gpu``).
 """
 
 from __future__ import annotations
