@@ -8,12 +8,12 @@ benchmark's logs (``BATH_AO``); ``read_suite`` reads any other list from a TOML 
 
 Every run (``execute``) loads its scene (a LumiBench scene from its cache after the first
 time), builds its BVH, traces the frame on the backend with the design point's datapath, checks
-every ray against Embree (adjudicated, ``driver.adjudicate``) and replays the frame on
-the point's RT units (``rtunit_memory``; with ``ideal`` also with free node fetches,
-``rtunit``; docs/rtunit.md). Runs are independent tasks: in this process, or on Dask workers (``--workers``,
-``--scheduler``, the cluster code of ``driver.tiles``), scene by scene, the most expensive
-first (a worker keeps its last scene and BVH for its next run of that scene); a suite of one run
-spreads that run's tiles over the workers instead. Each finished run is
+every ray against Embree (adjudicated, ``driver.adjudicate``) and replays the frame on the
+point's RT units (``rtunit_memory``; with ``ideal`` also with free node fetches, ``rtunit``;
+docs/rtunit.md). Runs are independent tasks: in this process, or on Dask workers
+(``--workers``, ``--scheduler``, the cluster code of ``driver.tiles``), scene by scene, the
+most expensive first (a worker keeps its last scene and BVH for its next run of that scene); a
+suite of one run spreads that run's tiles over the workers instead. Each finished run is
 written at once into the output folder as ``NAME.json`` (its statistics, docs/statistics.md)
 and ``NAME.png`` (its image), atomically; a suite started again on the same folder skips every
 run whose JSON was made by the same source tree with the same run and design point, so an

@@ -281,7 +281,16 @@ def test_lock_wait_is_announced_and_concurrent_builds_build_once(tmp_path):
         procs = [subprocess.Popen([sys.executable, "-c", _BUILD, str(log)], env=env_for(cache),
                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
                  for _ in range(3)]
-        time.sleep(2.5)
+        # Wait until all three block on the held lock (the kernel lists each blocked flock in
+        # /proc/locks), however long their imports take on a busy machine.
+        inode = os.fstat(held.fileno()).st_ino
+        pids = {str(p.pid) for p in procs}
+
+        def blocked():
+            lines = Path("/proc/locks").read_text().splitlines()
+            return {f.split()[5] for f in lines
+                    if "->" in f and f.split()[6].endswith(f":{inode}")} & pids
+        wait_for(lambda: blocked() == pids or None, 120, "three builds waiting on the lock")
         assert all(p.poll() is None for p in procs)  # all waiting
     results = [p.communicate(timeout=60) for p in procs]
     assert all(p.returncode == 0 and out.strip() == "ok" for p, (out, _) in zip(procs, results))

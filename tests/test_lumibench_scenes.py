@@ -267,3 +267,31 @@ def test_the_bvh_of_a_second_run_comes_from_the_cache(root):
     (root / "Scenes/Bathroom/flag.obj").write_text(FLAG_OBJ.replace("v 2 0 -1", "v 2 0 -1.5"))
     changed = DesignPoint().build(lb.load("lumibench:BATH"))
     assert not changed.stats.get("from_cache")
+
+
+def test_two_processes_building_one_scene_build_its_bvh_once(root, monkeypatch):
+    """The second build of a scene's BVH waits for the first and reads its image (two Dask
+    workers starting runs of the same scene): threads with files of their own lock like
+    processes."""
+    import threading
+    import time
+
+    from driver.design import DesignPoint
+    from driver.scenes import lumibench as loader
+    built, real = [], loader.build_scene
+
+    def slow_build(*args, **kw):
+        built.append(1)
+        time.sleep(0.5)                         # long enough for the other to reach the lock
+        return real(*args, **kw)
+    monkeypatch.setattr(loader, "build_scene", slow_build)
+    out = []
+    threads = [threading.Thread(target=lambda: out.append(
+        DesignPoint().build(lb.load("lumibench:BATH")))) for _ in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=60)
+    assert len(out) == 2 and len(built) == 1
+    assert sorted(bool(b.stats.get("from_cache")) for b in out) == [False, True]
+    assert np.array_equal(out[0].image, out[1].image)

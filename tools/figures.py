@@ -30,6 +30,7 @@ import platform
 import subprocess
 import sys
 import tempfile
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -431,6 +432,7 @@ README_NUMBERS = {
     "lumibench_lands_ao_util": ("images/lumibench/summary.json", "runs.8.utilization_memory",
                                 "{:.2f}"),
     "lumibench_wall": ("images/lumibench/summary.json", "wall_s", "{:.0f}"),
+    "lumibench_load": ("docs/figures.json", "lumibench.load.median", "{:.1f}"),
     "bvh_build_bunny": ("docs/bvh_bench.json", "builds.0.build_s", "{:.2f}"),
     "bvh_build_5m": ("docs/bvh_bench.json", "builds.2.build_s", "{:.1f}"),
 }
@@ -524,32 +526,45 @@ ship's AO run alone has {n['lb_ship_ao_ties']})."""
   docs/rtunit.md): one kernel, each pixel's thread tracing its camera ray and then its shadow,
   AO or bounce rays in program order, no barrier between ray types. The ray types share the
   pipeline, so each has a latency and bytes per ray, not a utilization of its own."""
-    times = f"""Measured on the reference machine (AMD EPYC, 2 cores) while other jobs shared it (a load of
-4 to 10 on its 2 cores): the wall times here are upper bounds; the parts of one run share the
-same conditions, so their ratios hold.
+    manifest = load_manifest()
+
+    def load(name: str) -> str:
+        got = (manifest.get(name) or {}).get("load")
+        return ("load not recorded" if not got else
+                f"load {got['min']:.1f} to {got['max']:.1f}, median {got['median']:.1f}")
+
+    ao = json.loads((root / "images" / "lumibench" / "BATH_AO.json").read_text())
+    ratio = ao["timing"]["trace_s"] / ao["wavefront"]["sim_wall_s"]
+    times = f"""Measured on the reference machine (AMD EPYC, 2 cores) while other jobs shared it; each figure
+gives the machine's load while it ran (runnable processes, sampled every 10 s by
+`tools/figures.py`; above 2, the 2 cores are shared and every wall time grows): the wall times
+here are upper bounds. The parts of one run share the same conditions, so their ratios hold.
 
 - **The suite**: the {n['lb_runs']} runs, {n['lb_rays']} rays, in {n['lb_wall']} s on 2 Dask
-  workers (`images/lumibench/summary.json`), every ray traced on the RTL, checked against Embree
-  and replayed on the RT unit with its node memory: each request is simulated twice, once by
-  the functional trace and once by the timing replay.
+  workers ({load('lumibench')}; `images/lumibench/summary.json`), every ray traced on the RTL,
+  checked against Embree and replayed on the RT unit with its node memory: each request is
+  simulated twice, once by the functional trace and once by the timing replay.
 - **The bathroom's AO frame** (128 × 128, 2 spp, 163,840 rays): {n['lb_bath_ao_rays_per_s']}
   rays per second end to end outside loading and BVH build ({n['lb_bath_ao_trace']} s, of which
   the functional RTL pass {n['lb_bath_ao_functional']} s and the RT-unit replay
   {n['lb_bath_ao_replay']} s; the rest is the traversal's own work between the datapath's
-  steps, the Embree check, shading).
+  steps, the Embree check, shading): end to end takes {ratio:.2f} × the time of the functional
+  RTL pass alone, i.e. a run traces {100 / ratio:.0f} % of the rays per second that the RTL
+  pass alone simulates.
 - **The bathroom's AO frame at 512 × 512** (16 × the benchmark's pixels, {n['lb512_rays']} rays;
   `rayflex suite lumibench --scenes BATH --workloads ao --size 512 --workers 2`: a suite of one
-  run spreads its tiles over the workers): {n['lb512_wall']} s, {n['lb512_rays_per_s']} rays
-  per second; the two workers' peak memory {n['lb512_peak0']} MiB and {n['lb512_peak1']} MiB
-  (`images/lumibench_512/BATH_AO.json`).
+  run spreads its tiles over the workers; {load('lumibench_bath_ao512')}): {n['lb512_wall']} s,
+  {n['lb512_rays_per_s']} rays per second; the two workers' peak memory {n['lb512_peak0']} MiB
+  and {n['lb512_peak1']} MiB (`images/lumibench_512/BATH_AO.json`).
 - **Loading** (`rayflex bench --scene-load`, each phase a fresh process,
-  `docs/lumibench_load_bath.json`): the bathroom starts tracing {n['load_bath_cold']} s after
+  `docs/lumibench_load_bath.json`; {load('lumibench_load_bath')}): the bathroom starts tracing
+  {n['load_bath_cold']} s after
   its process starts the first time (reading its 46 OBJ files, building its two-level BVH) and
   {n['load_bath_warm']} s the second time (the scene and its BVH from the cache; most of it is
   importing the tool).
 - **A large folder**: 1,000 OBJ files of {n['load_1000_triangles']} triangles
-  (`rayflex bench --scene-load --synthetic 1000,3000000`, `docs/lumibench_load_1000.json`) load
-  and build in {n['load_1000_cold']} s the first time, peak memory
+  (`rayflex bench --scene-load --synthetic 1000,3000000`, `docs/lumibench_load_1000.json`;
+  {load('lumibench_load_1000')}) load and build in {n['load_1000_cold']} s the first time, peak memory
   {n['load_1000_cold_peak']} MiB, and start tracing {n['load_1000_warm']} s after the start the
   second time."""
     return {"table": table, "reading": reading, "times": times}
@@ -605,6 +620,38 @@ def machine() -> dict:
     return {"cpu": cpu, "cores": os.cpu_count()}
 
 
+class LoadSampler:
+    """The machine's load (the 1-minute load average: runnable processes) sampled every
+    ``every`` seconds while a figure is made: a time taken on a busy machine says so."""
+
+    def __init__(self, every: float = 10.0):
+        self.every, self.samples = every, []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def _run(self) -> None:
+        while True:
+            self.samples.append(os.getloadavg()[0])
+            if self._stop.wait(self.every):
+                return
+
+    def __enter__(self) -> "LoadSampler":
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        self._thread.join()
+
+    def summary(self) -> dict | None:
+        """min, median and max of the samples, with the cores they share (None: no sample)."""
+        if not self.samples:
+            return None
+        v = sorted(self.samples)
+        return {"min": round(v[0], 2), "median": round(v[len(v) // 2], 2),
+                "max": round(v[-1], 2), "samples": len(v), "cores": os.cpu_count()}
+
+
 def _git(*args) -> str:
     r = subprocess.run(["git", "-C", str(ROOT), *args], capture_output=True, text=True)
     return r.stdout.strip() if r.returncode == 0 else ""
@@ -648,14 +695,14 @@ def rebuild(fig: Figure) -> None:
         [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]))
     print(f"[{fig.name}] {fig.shown()}", file=sys.stderr, flush=True)
     commit = head_commit()                        # the code it runs on (before any later commit)
-    with tempfile.TemporaryDirectory(prefix="figures-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="figures-") as tmp, LoadSampler() as load:
         r = subprocess.run(fig.command(tmp), cwd=ROOT, env=env)
     if r.returncode != 0:
         raise SystemExit(f"figures: error: {fig.name} failed (exit {r.returncode})")
     data = load_manifest()
     data[fig.name] = {"command": fig.shown(), "outputs": list(fig.outputs),
                       "commit": commit, "machine": machine(),
-                      "date": datetime.date.today().isoformat()}
+                      "date": datetime.date.today().isoformat(), "load": load.summary()}
     _write_manifest(data)
 
 

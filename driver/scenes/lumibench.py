@@ -31,6 +31,7 @@ folder puts it there).
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import json
 import math
@@ -282,32 +283,61 @@ def cached_bvh(scene: "LumiBenchScene", fill: int, format: str, transform: str):
 def _cached_bvh(scene, fill, format, transform, two):
     path = _cache_dir() / (f"lumibench-{scene.cache_key}-bvh-{format}-f{fill}-"
                            f"{'two' if two else 'flat'}-{_source_digest()}.npz")
+    bvh = _read_bvh(path, scene, format, transform, two)
+    if bvh is not None:
+        return bvh
+    # one process builds, the others wait and read its image (two Dask workers starting runs
+    # of the same scene would otherwise both build it)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        lock = open(path.with_name(f".{path.name}.lock"), "w")
+    except OSError:
+        lock = None
+    try:
+        if lock is not None:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            bvh = _read_bvh(path, scene, format, transform, two)
+            if bvh is not None:
+                return bvh
+        bvh = build_scene(scene, fill=fill, format=format, transform=transform)
+        _write_bvh(path, bvh)
+        return bvh
+    finally:
+        if lock is not None:
+            lock.close()                                # releases the lock
+
+
+def _read_bvh(path: Path, scene, format: str, transform: str, two: bool):
+    """The cached image at ``path`` as a BVH of ``scene`` (None: not there or unreadable)."""
     t0 = time.perf_counter()
     try:
         with np.load(path, allow_pickle=False) as z:
             image, roots = z["image"], z["blas_root"]
             meta = json.loads(str(z["meta"]))
-        stats = dict(meta["stats"], build_s=time.perf_counter() - t0, from_cache=True)
-        if two:
-            bvh = TwoLevelBVH(image, scene.instances, stats, format, roots, meta["blas"])
-            bvh.transform = transform
-        else:
-            bvh = BVH4(image, scene.triangles, stats, format)
-        return bvh
     except (OSError, ValueError, KeyError):
-        pass
-    bvh = build_scene(scene, fill=fill, format=format, transform=transform)
+        return None
+    stats = dict(meta["stats"], build_s=time.perf_counter() - t0, from_cache=True)
+    if two:
+        bvh = TwoLevelBVH(image, scene.instances, stats, format, roots, meta["blas"])
+        bvh.transform = transform
+        return bvh
+    return BVH4(image, scene.triangles, stats, format)
+
+
+def _write_bvh(path: Path, bvh) -> None:
+    """Write ``bvh`` to ``path`` atomically (nothing, if the cache cannot be written)."""
     meta = {"stats": bvh.stats, "blas": getattr(bvh, "blas", None)}
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
         with open(tmp, "wb") as f:
             np.savez(f, image=bvh.image, meta=np.array(json.dumps(meta, default=_plain)),
                      blas_root=np.asarray(getattr(bvh, "blas_root", np.zeros(0, np.uint32))))
         os.replace(tmp, path)
     except OSError:
-        pass
-    return bvh
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
 
 
 def _plain(v):
