@@ -535,10 +535,10 @@ ship's AO run alone has {n['lb_ship_ao_ties']})."""
 
     ao = json.loads((root / "images" / "lumibench" / "BATH_AO.json").read_text())
     ratio = ao["timing"]["trace_s"] / ao["wavefront"]["sim_wall_s"]
-    times = f"""Measured on the reference machine (AMD EPYC, 2 cores) while other jobs shared it; each figure
-gives the machine's load while it ran (runnable processes, sampled every 10 s by
-`tools/figures.py`; above 2, the 2 cores are shared and every wall time grows): the wall times
-here are upper bounds. The parts of one run share the same conditions, so their ratios hold.
+    times = f"""Measured on the reference machine (AMD EPYC, 2 cores); each figure gives the machine's load
+while it ran (runnable processes, sampled every 10 s by `tools/figures.py`; the suite's own two
+workers make 2; above that, other jobs shared the cores and every wall time grows). The parts of
+one run share the same conditions, so their ratios hold.
 
 - **The suite**: the {n['lb_runs']} runs, {n['lb_rays']} rays, in {n['lb_wall']} s on 2 Dask
   workers ({load('lumibench')}; `images/lumibench/summary.json`), every ray traced on the RTL,
