@@ -18,6 +18,7 @@ exactly, with the world triangles of the instances they cross.
 
 from __future__ import annotations
 
+import threading
 import weakref
 
 import numpy as np
@@ -207,24 +208,39 @@ def _segment_distance(p, a, b):
 
 
 _SCENES: dict = {}     # id(triangle array) -> (weak reference to it, its Embree scene)
+_SCENES_LOCK = threading.Lock()      # one build at a time; a thread wanting it waits for it
 
 
 def _embree_scene(triangles):
     """The Embree scene of a triangle array, built once per array object (tiles and ray types of
-    one frame check against the same scene)."""
+    one frame check against the same scene, from any thread)."""
     from embreex import rtcore_scene as rtcs
     from embreex.mesh_construction import TriangleMesh
     key = id(triangles)
-    hit = _SCENES.get(key)
-    if hit is not None and hit[0]() is triangles:
-        return hit[1]
-    scene = rtcs.EmbreeScene()
-    TriangleMesh(scene, np.ascontiguousarray(triangles, np.float32).reshape(-1, 3, 3))
-    if isinstance(triangles, np.ndarray):
-        for k in [k for k, (ref, _) in _SCENES.items() if ref() is None]:
-            del _SCENES[k]
-        _SCENES[key] = (weakref.ref(triangles), scene)
-    return scene
+    with _SCENES_LOCK:
+        hit = _SCENES.get(key)
+        if hit is not None and hit[0]() is triangles:
+            return hit[1]
+        scene = rtcs.EmbreeScene()
+        TriangleMesh(scene, np.ascontiguousarray(triangles, np.float32).reshape(-1, 3, 3))
+        if isinstance(triangles, np.ndarray):
+            for k in [k for k, (ref, _) in _SCENES.items() if ref() is None]:
+                del _SCENES[k]
+            _SCENES[key] = (weakref.ref(triangles), scene)
+        return scene
+
+
+def prepare_check(triangles) -> threading.Thread:
+    """Start building what a check of ``triangles`` needs (its Embree scene, the exact
+    adjudication's compiled code) on a thread of its own, so that it overlaps the tracing; the
+    check waits for it where it needs it. Returns the (daemon) thread."""
+    def work():
+        from . import adjudicate  # noqa: F401  (numba)
+        if isinstance(triangles, np.ndarray):
+            _embree_scene(triangles)
+    thread = threading.Thread(target=work, name="rayflex-check-setup", daemon=True)
+    thread.start()
+    return thread
 
 
 def embree_closest(triangles, origins, dirs, double_sided: bool = False):

@@ -39,6 +39,7 @@ from .instances import DATAPATH, TRANSFORMS
 from .core.layout import IMAGE_FORMATS
 from .rtunit import MemoryModel
 from .rtunit.order import DEFAULT_POLICY, DEFAULT_WINDOW, POLICIES
+from .rtunit.gpu import DEFAULT_REPLAY_DATAPATH, REPLAY_DATAPATHS
 from .rtunit.plan import FRAMES, MAX_RT_UNITS, MAX_WARP_SIZE, Schedule
 from .rtunit.presets import DEFAULT_PRESET, PRESETS
 from .scenes.camera import MAX_SIZE
@@ -251,6 +252,14 @@ OPTIONS: tuple[Option, ...] = (
     Option("ray_window", "--ray-window", int, DEFAULT_WINDOW,
            "rays a sorting policy sorts together, or the affinity scheduler holds (at least "
            "--rays-in-flight); index order has no window", _int_range(1), "rtunit", "W"),
+    Option("replay_datapath", "--replay-datapath", str, DEFAULT_REPLAY_DATAPATH,
+           "how the RT-unit replay runs the datapath pipelines: timing (each pipeline as the "
+           "handshake timing of its RTL model: a request per cycle, its response the model's "
+           "latency later, the responses the functional pass's) or rtl (every request "
+           "evaluated again on the Verilated model and its response compared with the "
+           "functional pass's, bit for bit: slower); counts and cycles are the same "
+           "(docs/rtunit.md)", _choice(REPLAY_DATAPATHS), "rtunit", "HOW", REPLAY_DATAPATHS,
+           listable=False),
     Option("scene", "--scene", str, DEFAULT_SCENE, _scene_help(),
            lambda flag, v: _resolve_scene(v), "workload", "SCENE", listable=False),
     Option("workload", "--workload", str, "primary",
@@ -307,6 +316,7 @@ class DesignPoint:
     mem_bytes_per_cycle: float = BY_NAME["mem_bytes_per_cycle"].default
     ray_order: str = BY_NAME["ray_order"].default
     ray_window: int = BY_NAME["ray_window"].default
+    replay_datapath: str = BY_NAME["replay_datapath"].default
     scene: str = BY_NAME["scene"].default
     workload: str = BY_NAME["workload"].default
     size: int | None = BY_NAME["size"].default

@@ -32,7 +32,7 @@ from .scenes.camera import frame, primary_rays
 from .core.datapath import ANGULAR, EUCLIDEAN
 from .knn import LANES, pad, run_jobs
 from .rtunit import MemoryModel
-from .rtunit.gpu import replay_frame, waves_of
+from .rtunit.gpu import replay_frame, timing_differences, waves_of
 from .rtunit.plan import Schedule
 from .scenes.scene import load_scene
 from .tracer import trace
@@ -101,8 +101,9 @@ def train(params: dict[str, int]) -> dict:
 def _train_gpu_replay(opts: dict) -> int:
     """The replay as commands run it (``driver.rtunit.gpu``): an ambient-occlusion frame of the
     room (camera rays and any-hit rays interleaved in one kernel) with the default node memory,
-    and in warps of 8 on two units with MSHRs, sectors and an L2; every response checked against
-    the traversal's. Returns the requests replayed."""
+    and in warps of 8 on two units with MSHRs, sectors and an L2; each replayed on the model
+    (every response checked against the traversal's) and as the pipelines' timing (every count
+    and time checked against the model's). Returns the requests replayed."""
     scene = load_scene("room")
     be = HarnessBackend(**opts)
     res = workloads.run(workloads.setup_for(scene), build(scene.mesh), 32, 32,
@@ -113,8 +114,10 @@ def _train_gpu_replay(opts: dict) -> int:
                       mshrs=16, l2_bytes=262144, l2_latency=40)
     for memory, schedule in ((MemoryModel(), Schedule("one-kernel")),
                              (gpu, Schedule("one-kernel", warp_size=8, rt_units=2))):
-        fr = replay_frame(waves, 64, 1, memory, schedule, width=32)
+        fr = replay_frame(waves, 64, 1, memory, schedule, width=32, datapath="rtl")
         _check("RT-unit replay of a one-kernel frame", fr.verified)
+        ft = replay_frame(waves, 64, 1, memory, schedule, width=32, datapath="timing")
+        _check("RT-unit timing replay of a one-kernel frame", not timing_differences(fr, ft))
     return 2 * sum(w.record.ops for w in waves)
 
 

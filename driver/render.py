@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .backends import DEFAULT_BACKEND, resolve
+from .backends.harness import default_threads
 from .bvh4 import build_label
 from .check import check, embree_json, embree_sample
 from .scenes.camera import check_size, primary_rays
@@ -253,11 +254,13 @@ def fits_in(rays: int, available: int | None) -> bool:
 
 def check_frame_memory(pixels: int, spp: int, tile: int | None) -> None:
     """Before any work (one-line RayflexError): a frame traced as one wavefront (``tile`` None,
-    see ``plan_tile``) must fit as that, a tiled one as its buffers plus one tile's rays."""
+    see ``plan_tile``) must fit as that, a tiled one as its buffers plus the rays of the tiles
+    traced at once (``driver.tiles.tile_lanes``: at most one per CPU)."""
     if tile is None:
         check_memory(pixels)
     else:
-        check_memory_tiled(pixels, tile * tile * spp)
+        lanes = min(default_threads(), -(-pixels // (tile * tile)))
+        check_memory_tiled(pixels, tile * tile * spp * lanes)
 
 
 def check_memory_tiled(pixels: int, tile_rays: int, available: int | None = None) -> None:

@@ -26,7 +26,8 @@ TRANSFORM_OPS = "transform_ops"  # TRANSFORM requests (the instance transform on
 REPLAYED = ("cycles", "utilization", "sim_wall_s", "sim_cycles_per_s")
 # the replay's own figures that join the frame's statistics
 REPLAY_KEYS = ("frame_us_at_1ghz", "rays_in_flight", "pipelines", "turnaround_cycles",
-               "starved_cycles", "responses_verified", "latency_cycles", "per_pipeline_ops")
+               "starved_cycles", "replay_datapath", "responses_verified", "latency_cycles",
+               "per_pipeline_ops")
 
 
 def frame_stats(box_ops: np.ndarray, tri_ops: np.ndarray, hit: np.ndarray, cycles: int,
@@ -147,7 +148,8 @@ def public(stats: dict) -> dict:
 
 # an RT-unit object's settings (the same in every part of a frame)
 _RT_CONFIG = ("rays_in_flight", "pipelines", "turnaround_cycles", "frame_schedule", "rt_units",
-              "warp_size", "warps_per_unit", "shader_cycles", "flush_between")
+              "warp_size", "warps_per_unit", "shader_cycles", "flush_between",
+              "replay_datapath")
 # RT-unit figures added up over parts run one after another (tiles); null stays null
 _RT_SUMMED = ("rays", "ops", "cycles", "frame_cycles", "kernels", "starved_cycles",
               "sim_wall_s", "line_accesses", "line_hits", "line_misses", "bytes_from_memory",
@@ -171,7 +173,8 @@ def merge_rtunit(parts: list) -> dict | None:
     first = parts[0]
     out = {k: first[k] for k in _RT_CONFIG if k in first}
     out.update({k: _sum(p[k] for p in parts) for k in _RT_SUMMED if k in first})
-    out["responses_verified"] = all(p["responses_verified"] for p in parts)
+    checked = [p["responses_verified"] for p in parts]
+    out["responses_verified"] = None if None in checked else all(checked)
     rays = out["rays"]
     for k in ("latency_mean", "queue_mean"):
         if k in first:

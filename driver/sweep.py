@@ -248,8 +248,9 @@ def sweep(points: list[DesignPoint], workers: int = 1, scheduler: str | None = N
                         "height": t.width, "wall_s": t.wall_s, "by_type": t.by_type}
                        for key, t in traces.items()],
         "energy_per_op": energies,
-        "bit_exact": {c: all(e["rtunit_memory"]["responses_verified"]
-                             and (e["rtunit"] is None or e["rtunit"]["responses_verified"])
+        "bit_exact": {c: all(e["rtunit_memory"]["responses_verified"] is not False
+                             and (e["rtunit"] is None
+                                  or e["rtunit"]["responses_verified"] is not False)
                              for e in entries if e["design_point"]["config"] == c)
                       for c in sorted({p.config for p in points})},
         "traced_on": first.config,

@@ -36,14 +36,17 @@ from __future__ import annotations
 
 import logging
 import resource
+import threading
 import time
 import uuid
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .backends import DEFAULT_BACKEND, resolve
-from .check import merge_checks
+from .backends.harness import default_threads
+from .check import merge_checks, prepare_check
 from .rtunit.gpu import replay_point, waves_of
 from .stats import merge, merge_rtunit
 from .tracer import trace
@@ -52,9 +55,11 @@ from .workloads import FrameResult, embree_check, run
 DEFAULT_TILE = 64
 CONNECT_TIMEOUT = "5s"          # how long to wait for a Dask scheduler to answer
 BYTES_PER_RAY = 2048          # peak working memory per ray in flight in one tile (measured, README)
-_WORKER_BACKENDS: dict = {}
+_WORKER_BACKENDS = threading.local()      # per thread: (name, options) -> backend
 # Dask configuration while the local cluster starts its workers (see the module docstring)
-WORKER_ENV = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+# (and each worker, one process of one thread, streams the datapath on one model: RAYFLEX_THREADS)
+WORKER_ENV = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+              "distributed.nanny.pre-spawn-environ.RAYFLEX_THREADS": "1"}
 
 
 def plan(width: int, height: int, tile: int = DEFAULT_TILE) -> list[np.ndarray]:
@@ -91,16 +96,23 @@ def _backend(spec):
         return spec
     name, options = (spec, {}) if isinstance(spec, str) else spec
     key = (name, tuple(sorted(options.items())))
-    if key not in _WORKER_BACKENDS:
-        _WORKER_BACKENDS[key] = resolve(name, **options)[0]
-    return _WORKER_BACKENDS[key]
+    made = _WORKER_BACKENDS.__dict__
+    if key not in made:
+        made[key] = resolve(name, **options)[0]
+    return made[key]
+
+
+class TileCancelled(Exception):
+    """A tile traced on a thread of ``render_tiles`` stopped because the frame stopped."""
 
 
 def run_tile(setup, bvh, width: int, height: int, pixels, workload: str, options: dict,
-             backend_spec, check_embree: bool = False) -> TileResult:
-    """Trace one tile (a task: pure in its inputs, the backend cached per process). ``options``:
-    the workload's (``driver.workloads.run``), ``cull_stack``, and ``rtunit``: a design point
-    whose RT unit replays the tile's wavefronts (``add_replays``), or None."""
+             backend_spec, check_embree: bool = False, stop=None) -> TileResult:
+    """Trace one tile (a task: pure in its inputs, the backend cached per process and thread).
+    ``options``: the workload's (``driver.workloads.run``), ``cull_stack``, and ``rtunit``: a
+    design point whose RT unit replays the tile's wavefronts (``add_replays``), or None.
+    ``stop``: a ``threading.Event``; once it is set the tile raises ``TileCancelled`` at its
+    next traversal step."""
 
     be = _backend(backend_spec)
     options = dict(options)
@@ -109,8 +121,13 @@ def run_tile(setup, bvh, width: int, height: int, pixels, workload: str, options
     ideal = bool(options.pop("ideal", False))
     frame_width = options.pop("width", width)
 
+    def stopped(done, total):
+        if stop.is_set():
+            raise TileCancelled
+
     def tracer(bvh_, o, d, **kw):
-        return trace(bvh_, o, d, backend=be, cull_stack=cull, record=point is not None, **kw)
+        return trace(bvh_, o, d, backend=be, cull_stack=cull, record=point is not None,
+                     progress=stopped if stop is not None else None, **kw)
 
     res = run(setup, bvh, width, height, tracer, workload, pixels=pixels, **options)
     if point is not None:
@@ -192,6 +209,13 @@ def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
     tiles = plan(width, height, tile)
     asm = Assembler(width, height)
     if workers == 1 and not scheduler:
+        if check_embree:
+            prepare_check(setup.triangles)
+        lanes = tile_lanes(backend, len(tiles))
+        if lanes > 1:
+            _tiles_on_threads(asm, tiles, lanes, (setup, bvh, width, height), workload,
+                              options, backend, check_embree, progress)
+            return asm.frame()
         for i, px in enumerate(tiles):
             asm.add(run_tile(setup, bvh, width, height, px, workload, options, backend,
                              check_embree))
@@ -223,6 +247,57 @@ def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
     frame.timings = clock.out
     frame.stats[WORKER_PEAKS] = peaks
     return frame
+
+
+def tile_lanes(backend, tiles: int) -> int:
+    """Tiles one process traces at once, each on a thread with its own backend: the CPUs it may
+    use (``driver.backends.harness.default_threads``: ``RAYFLEX_THREADS``), at most the tiles,
+    for the "rtl" and "golden" backends named (``THREAD_SAFE_BACKENDS``); else 1 (a backend
+    object has one model; pyverilator's runs in the interpreter)."""
+    name = backend if isinstance(backend, str) else \
+        backend[0] if isinstance(backend, tuple) else None
+    if name not in THREAD_SAFE_BACKENDS:
+        return 1
+    return max(1, min(default_threads(), tiles))
+
+
+THREAD_SAFE_BACKENDS = ("rtl", "golden")
+
+
+def _tiles_on_threads(asm, tiles, lanes, frame, workload, options, backend, check_embree,
+                      progress) -> None:
+    """Trace ``tiles`` on ``lanes`` threads, at most ``lanes`` tiles at a time (the memory of
+    that many tiles), merged as they finish. Each thread has its own backend; the datapath
+    models, the replay and numpy release the interpreter, so one tile's Python runs while
+    another's model is clocked. An error or an interrupt stops the other tiles at their next
+    traversal step."""
+    stop = threading.Event()
+    name, opts = (backend, {}) if isinstance(backend, str) else backend
+    if name == "rtl":                       # the CPUs shared out among the tiles
+        backend = (name, {**opts, "threads": max(1, default_threads() // lanes)})
+    pool = ThreadPoolExecutor(max_workers=lanes, thread_name_prefix="rayflex-tile")
+    running: set = set()
+    todo = iter(tiles)
+    done = 0
+    try:
+        while True:
+            while len(running) < lanes:
+                px = next(todo, None)
+                if px is None:
+                    break
+                running.add(pool.submit(run_tile, *frame, px, workload, options, backend,
+                                        check_embree, stop))
+            if not running:
+                break
+            finished, running = wait(running, return_when=FIRST_COMPLETED)
+            for fut in finished:
+                asm.add(fut.result())
+                done += 1
+                if progress:
+                    progress(done, len(tiles))
+    finally:
+        stop.set()
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 WORKER_PEAKS = "workers_peak_rss_bytes"     # peak resident memory of each Dask worker

@@ -16,6 +16,8 @@
 // The RT-unit replay (several pipelines, a pool of rays in flight) is rtunit_scheduler.cpp.
 #include <cstdint>
 #include <cstring>
+#include <thread>
+#include <vector>
 
 #include "rf_sim.h"
 
@@ -97,6 +99,50 @@ int64_t rf_run_nodes(void* h, const uint32_t* rays, const uint32_t* image, int64
                      const uint8_t* stall, int64_t stall_len, int64_t max_idle) {
   const NodeSource src{rays, image, image_words, ray, ptr, ext};
   return stream(static_cast<Sim*>(h), src, rsp, n, gap, gap_len, stall, stall_len, max_idle);
+}
+
+// rf_run_nodes split over `parts` models (each its own VerilatedContext, e.g. a pool of rf_new
+// handles), one thread each: part j streams requests [n j / parts, n (j + 1) / parts) on model
+// hs[j] with no gaps and no stalls, writes its responses in place and its cycles (as rf_run_nodes
+// returns them) into part_cycles[j]. Returns 0, or the first part's negative error.
+int64_t rf_run_nodes_split(void** hs, int64_t parts, const uint32_t* rays, const uint32_t* image,
+                           int64_t image_words, const uint32_t* ray, const uint32_t* ptr,
+                           const uint32_t* ext, uint32_t* rsp, int64_t n, int64_t max_idle,
+                           int64_t* part_cycles) {
+  if (parts < 1) return -3;
+  auto part = [&](int64_t j) {
+    const int64_t lo = n * j / parts, hi = n * (j + 1) / parts;
+    const NodeSource src{rays, image, image_words, ray + lo, ptr + lo, ext + lo};
+    part_cycles[j] = stream(static_cast<Sim*>(hs[j]), src, rsp + lo * kRspWords, hi - lo,
+                            nullptr, 1, nullptr, 1, max_idle);
+  };
+  std::vector<std::thread> threads;
+  for (int64_t j = 1; j < parts; j++) threads.emplace_back(part, j);
+  part(0);
+  for (auto& t : threads) t.join();
+  for (int64_t j = 0; j < parts; j++)
+    if (part_cycles[j] < 0) return part_cycles[j];
+  return 0;
+}
+
+// The model's latency as the RT-unit replay sees it: the cycles from a request's input
+// handshake to its response's out_valid with out_ready held high (a fresh model, one request of
+// zero words). Returns -1 if no response comes within 1,000 cycles.
+int64_t rf_latency() {
+  Sim* s = new_sim();
+  Vrayflex& t = s->top;
+  std::memset(t.req_i.data(), 0, kReqWords * 4);
+  t.out_ready_i = 1;
+  t.in_valid_i = 1;
+  int64_t k = -1;
+  if (t.in_ready_o) {
+    tick(s);
+    t.in_valid_i = 0;
+    for (k = 1; k <= 1000 && !t.out_valid_o; k++) tick(s);
+    if (!t.out_valid_o) k = -1;
+  }
+  delete s;
+  return k;
 }
 
 // The request words rf_run_nodes would send (for tests and the cycle-by-cycle backend).

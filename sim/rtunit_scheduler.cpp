@@ -27,6 +27,7 @@ using MinQueue = std::priority_queue<Ready, std::vector<Ready>, std::greater<Rea
 struct Unit {
   std::vector<std::unique_ptr<Sim>> sims;
   std::vector<std::deque<int64_t>> inflight;   // per pipeline: record indices, in request order
+  std::vector<std::deque<int64_t>> due;        // timing model: the cycle each response is out
   std::vector<char> busy;
   MinQueue ready;      // rays whose next request is known, by the cycle its node is present
   MinQueue parked;     // affinity: rays without a slot, by the cycle their node arrives
@@ -344,7 +345,13 @@ extern "C" {
 // evaluated in that cycle (clock gating: with nothing valid inside, a clock edge changes no state
 // of the RayFlex pipeline, whose registers load only on a handshake); cycles still count.
 //
-// Outputs: rsp (m, kRspWords) at the record index; stats (ReplayStats: `cycles` is the sum over
+// timing_latency D > 0: the pipelines are their handshake timing instead of Verilated models:
+// each accepts a request every cycle and presents its response D cycles after the handshake, as
+// the RTL does with out_ready_i held high (rtl/rayflex.sv; the caller measures D on the model,
+// rf_latency). Nothing is evaluated and rsp is not written: the responses are the functional
+// run's. Every count and time equals the evaluated replay's (tests compare the two).
+//
+// Outputs: rsp (m, kRspWords) at the record index (D = 0); stats (ReplayStats: `cycles` is the sum over
 // kernels of first accept to last response, `frame_cycles` the frame's); per_pipe (units * P):
 // requests per pipeline; sched (int64[7]): rays parked, resumed, most parked at once (one unit),
 // most rays held at once (one unit), treelet picks, most rays queued at once, borrowed requests;
@@ -372,6 +379,10 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const uint32_
     return -3;
   if (c.window < 0 || (c.window > 0 && (c.window < c.slots || c.window % c.warp_size)))
     return -3;
+  if (c.timing_latency < 0) return -3;
+  const int64_t D = c.timing_latency;     // > 0: the pipelines' timing, no model evaluated
+  std::vector<uint32_t> scratch(kReqWords, 0);   // the timing model's request (checked, unused)
+  if (D) NodeSource{rays, image, image_words, ray, ptr, ext}.begin(scratch.data());
   if (treelet && (c.window == 0 || n_treelets < 1 || c.active_treelets < 1)) return -3;
   for (int64_t i = 0; treelet && i < m; i++)
     if (treelet[i] < 0 || treelet[i] >= n_treelets) return -3;
@@ -450,11 +461,12 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const uint32_
   e.units = std::vector<Unit>(N);      // built in place: a Unit is not copyable
   for (int64_t uid = 0; uid < N; uid++) {
     Unit& u = e.units[uid];
-    for (int64_t p = 0; p < P; p++) {
+    for (int64_t p = 0; p < P && !D; p++) {
       u.sims.emplace_back(new_sim());
       e.src.begin(u.sims.back()->top.req_i.data());
     }
     u.inflight.resize(P);
+    u.due.resize(P);
     u.busy.assign(P, 0);
     if (e.treelets) {
       u.tq.resize(n_treelets);
@@ -501,14 +513,21 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const uint32_
       Unit& u = e.units[uid];
       if (!c.window) e.admit_waiting(u, uid, k);
       for (int64_t p = 0; p < P; p++) {
-        Vrayflex& t = u.sims[p]->top;
         u.busy[p] = !u.inflight[p].empty();
-        t.out_ready_i = 1;
-        if (!(u.busy[p] && t.out_valid_o)) continue;
+        if (D) {
+          if (!(u.busy[p] && u.due[p].front() <= k)) continue;
+          u.due[p].pop_front();
+        } else {
+          Vrayflex& t = u.sims[p]->top;
+          t.out_ready_i = 1;
+          if (!(u.busy[p] && t.out_valid_o)) continue;
+        }
         const int64_t i = u.inflight[p].front();
         u.inflight[p].pop_front();
-        std::memcpy(rsp + i * kRspWords, t.rsp_o.data(), kRspWords * 4);
-        if (rsp[i * kRspWords] != ray[i]) bad_tags++;
+        if (!D) {
+          std::memcpy(rsp + i * kRspWords, u.sims[p]->top.rsp_o.data(), kRspWords * 4);
+          if (rsp[i * kRspWords] != ray[i]) bad_tags++;
+        }
         taken++;
         last = klast = k;
         progress = true;
@@ -538,18 +557,19 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const uint32_
       else if (e.affinity) e.fill(u, uid, k, k + c.turnaround);
       int64_t issued = 0;
       for (int64_t p = 0; p < P; p++) {
-        Vrayflex& t = u.sims[p]->top;
-        t.in_valid_i = 0;
-        if (u.ready.empty() || u.ready.top().at > k || !t.in_ready_o) continue;
+        Vrayflex* t = D ? nullptr : &u.sims[p]->top;
+        if (t) t->in_valid_i = 0;
+        if (u.ready.empty() || u.ready.top().at > k || (t && !t->in_ready_o)) continue;
         const int64_t r = u.ready.top().id;
         u.ready.pop();
         const int64_t i = e.index_of(r);
-        if (!e.src.fill(i, t.req_i.data())) return -2;
-        if (!u.ready.empty()) {                     // the next ray to issue, if it is known
+        if (!e.src.fill(i, t ? t->req_i.data() : scratch.data())) return -2;
+        if (t && !u.ready.empty()) {                // the next ray to issue, if it is known
           const int64_t nx = u.ready.top().id;
           if (e.pos[nx] < chain_off[nx + 1] - chain_off[nx]) e.src.prefetch(e.index_of(nx));
         }
-        t.in_valid_i = 1;
+        if (t) t->in_valid_i = 1;
+        else u.due[p].push_back(k + D);
         u.inflight[p].push_back(i);
         per_pipe[uid * P + p]++;
         issued++;
@@ -563,7 +583,7 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const uint32_
         starved++;
         kernel_times[kernel * 3 + 2]++;
       }
-      for (int64_t p = 0; p < P; p++) {
+      for (int64_t p = 0; p < P && !D; p++) {
         if (c.skip_idle && !u.busy[p] && !u.sims[p]->top.in_valid_i) continue;
         tick(u.sims[p].get());
         evals++;

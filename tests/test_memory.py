@@ -113,7 +113,7 @@ def test_memory_off_replay_is_the_reference_scheduler(record, r, p, ta):
 
 def test_memory_changes_timing_only(record):
     off = rtunit.replay(record, 64, 1)
-    on = rtunit.replay(record, 64, 1, memory=rtunit.MemoryModel())
+    on = rtunit.replay(record, 64, 1, memory=rtunit.MemoryModel(), datapath="rtl")
     assert on.verified and np.array_equal(on.responses, off.responses)
     assert on.cycles > off.cycles
     m = on.memory

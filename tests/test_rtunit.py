@@ -80,7 +80,7 @@ def test_timed_trace_stats(scene):
     assert s["frame_us_at_1ghz"] == s["cycles"] / 1000
     assert s["latency_cycles"] == LAT and s["pipelines"] == 1
     assert s["rays_in_flight"] == rtunit.DEFAULT_RAYS_IN_FLIGHT and s["turnaround_cycles"] == 1
-    assert s["responses_verified"] is True
+    assert s["responses_verified"] is None and s["replay_datapath"] == "timing"
     assert s["wavefront_cycles"] == s["ops"] + LAT * len(res.step_requests)
     assert s["utilization"] > 0.9 and s["per_pipeline_ops"] == [s["ops"]]
 
@@ -102,7 +102,7 @@ def test_latency_and_throughput_bounds(wave, pipelines):
     for r in (2, 8, 64, 1000):
         res = rtunit.replay(rec, r, pipelines)
         s = res.stats()
-        assert res.verified and s["ops"] == rec.ops == sum(s["per_pipeline_ops"])
+        assert res.datapath == "timing" and s["ops"] == rec.ops == sum(s["per_pipeline_ops"])
         assert s["cycles"] >= -(-rec.ops // pipelines) + LAT
         # each ray has one request in flight, 12 cycles apart: at most R requests per 12 cycles
         assert s["cycles"] >= rec.ops * (LAT + 1) / r - (LAT + 1)
@@ -115,7 +115,7 @@ def test_more_pipelines_same_hits(scene, wave):
         res = trace(bvh, o, d, backend="rtl", rays_in_flight=16, pipelines=p)
         assert np.array_equal(res.t.view(np.uint32), wave.t.view(np.uint32))
         assert np.array_equal(res.prim, wave.prim)
-        assert res.stats["responses_verified"] and res.stats["pipelines"] == p
+        assert res.stats["replay_datapath"] == "timing" and res.stats["pipelines"] == p
         assert res.stats["hits"] == wave.stats["hits"]
         rep = rtunit.replay(res.record, 16, p)
         assert np.array_equal(rep.responses, wave.record.responses)
@@ -123,8 +123,8 @@ def test_more_pipelines_same_hits(scene, wave):
 
 def test_skip_idle_is_exact(wave):
     for r, p in ((1, 1), (3, 2), (40, 4)):
-        a = rtunit.replay(wave.record, r, p, skip_idle=True)
-        b = rtunit.replay(wave.record, r, p, skip_idle=False)
+        a = rtunit.replay(wave.record, r, p, skip_idle=True, datapath="rtl")
+        b = rtunit.replay(wave.record, r, p, skip_idle=False, datapath="rtl")
         assert a.cycles == b.cycles and np.array_equal(a.responses, b.responses)
         assert b.model_evals == b.cycles * p             # every model, every cycle
         assert a.model_evals <= b.model_evals
@@ -153,7 +153,8 @@ def test_replay_detects_mismatch_and_bad_input(wave):
                         rec.responses.copy(), rec.params)
     bad.responses[7, 6] ^= 1
     with pytest.raises(rtunit.ReplayMismatch):
-        rtunit.replay(bad, 8)
+        rtunit.replay(bad, 8, datapath="rtl")
+    assert rtunit.replay(bad, 8).verified is None      # the timing replay compares nothing
     with pytest.raises(ValueError):
         rtunit.replay(rec, 0)
     with pytest.raises(ValueError):
@@ -169,7 +170,8 @@ def test_replay_detects_mismatch_and_bad_input(wave):
 
 def test_golden_backend_with_rt_unit(scene, wave):
     bvh, o, d = scene
-    res = trace(bvh, o[:50], d[:50], backend="golden", rays_in_flight=4, pipelines=2)
+    res = trace(bvh, o[:50], d[:50], backend="golden", rays_in_flight=4, pipelines=2,
+                datapath="rtl")            # the golden model's responses checked on the RTL
     assert res.stats["backend"] == "golden" and res.stats["responses_verified"]
     assert np.array_equal(res.prim, wave.prim[:50])
 

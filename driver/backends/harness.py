@@ -11,6 +11,7 @@ sends three numbers per request instead of 320 bytes. ``replay_schedule`` runs t
 from __future__ import annotations
 
 import ctypes
+import os
 
 import numpy as np
 
@@ -25,6 +26,21 @@ _I32P = ctypes.POINTER(ctypes.c_int32)
 _I64P = ctypes.POINTER(ctypes.c_int64)
 _LIBS: dict = {}
 BAD_NODE = -2             # return code of the harness calls: a pointer that names no node
+# A traversal step is split over several models (one thread each) only when each gets at least
+# this many requests: starting a thread costs about as much as streaming 20 requests.
+SPLIT_MIN_REQUESTS = 256
+THREADS_ENV = "RAYFLEX_THREADS"
+
+
+def default_threads() -> int:
+    """Models (threads) the "rtl" backend streams a big traversal step through: ``RAYFLEX_THREADS``,
+    else the CPUs this process may run on."""
+    text = os.environ.get(THREADS_ENV, "").strip()
+    if not text:
+        return max(1, len(os.sched_getaffinity(0)))
+    if not text.isdigit() or int(text) < 1:
+        raise ValueError(f"{THREADS_ENV}={text!r}: give a positive number of threads")
+    return int(text)
 
 
 class ReplayStats(ctypes.Structure):
@@ -81,6 +97,11 @@ def use_library(params: dict[str, int], path) -> ctypes.CDLL:
                                  _U8P, i64, _U8P, i64, i64]
     lib.rf_build_requests.restype = i64
     lib.rf_build_requests.argtypes = [_U32P, _U32P, i64, _U32P, _U32P, _U32P, _U32P, i64]
+    lib.rf_run_nodes_split.restype = i64
+    lib.rf_run_nodes_split.argtypes = [ctypes.POINTER(vp), i64, _U32P, _U32P, i64, _U32P, _U32P,
+                                       _U32P, _U32P, i64, i64, _I64P]
+    lib.rf_latency.restype = i64
+    lib.rf_latency.argtypes = []
     lib.rf_replay.restype = i64
     lib.rf_replay.argtypes = [ctypes.POINTER(ReplayConfig), ctypes.POINTER(MemoryConfig), _U32P,
                               i64, _U32P, i64, _U32P, _U32P, _U32P, i64, _I64P, _I64P, i64,
@@ -152,6 +173,21 @@ def _check_chains(r, co, chain, before):
     if len(ch) != len(r) or len(bf) != len(r) or (len(r) and int(ch.max()) >= len(co) - 1):
         raise ValueError("chain and before need one entry per request, chains within chain_off")
     return ch, bf
+
+
+def model_latency(params: dict[str, int]) -> int:
+    """The cycles from a request's input handshake to its response on the Verilated model with
+    these parameters (``rf_latency``: measured on a fresh model, once per process)."""
+    key = tuple(sorted(params.items()))
+    if key not in _LATENCY:
+        d = int(harness_library(params).rf_latency())
+        if d < 1:
+            raise RuntimeError(f"the RTL model {params} returned no response to a request")
+        _LATENCY[key] = d
+    return _LATENCY[key]
+
+
+_LATENCY: dict = {}
 
 
 def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, frame, chains,
@@ -239,19 +275,32 @@ class HarnessBackend(RtlBackendBase):
 
     ``run(requests)`` takes a ``REQUEST_DTYPE`` array; ``run_nodes(...)`` takes traversal requests
     as (ray, node pointer, extent) triples and lets the harness assemble the request words from the
-    packed rays and the BVH4 image (no per-request Python work; see ``driver.traversal``)."""
+    packed rays and the BVH4 image (no per-request Python work; see ``driver.traversal``).
+
+    ``threads`` (default ``default_threads()``): a ``run_nodes`` batch of at least
+    ``SPLIT_MIN_REQUESTS`` requests per thread and no gap or stall pattern is split into that
+    many consecutive parts, each streamed through a model of its own in its own thread. The
+    responses are the same (each depends only on its request); the cycles are those of one
+    pipeline streaming the whole batch back to back: the parts' cycles, each N_j + latency, less
+    the latency once per extra part (tests compare both ways)."""
 
     name = "rtl"
 
-    def __init__(self, **options):
+    def __init__(self, threads: int | None = None, **options):
         super().__init__(**options)
+        self.threads = default_threads() if threads is None else int(threads)
+        if self.threads < 1:
+            raise ValueError(f"threads must be >= 1, got {threads!r}")
         self._lib = harness_library(self.params)
         self._sim = self._lib.rf_new()
+        self._more: list = []               # the extra models of a split batch
 
     def __del__(self):
-        sim, self._sim = getattr(self, "_sim", None), None
-        if sim:
-            self._lib.rf_free(sim)
+        sims = [getattr(self, "_sim", None)] + list(getattr(self, "_more", []))
+        self._sim, self._more = None, []
+        for sim in sims:
+            if sim:
+                self._lib.rf_free(sim)
 
     def _patterns(self):
         gap = self.gap.ctypes.data_as(_U8P) if self.gap is not None else None
@@ -285,8 +334,21 @@ class HarnessBackend(RtlBackendBase):
         rw, img, r, p, e = node_arrays(ray_words, image_words, ray, ptr, extent)
         n = len(r)
         out = np.empty((n, RSP_WORDS), np.uint32)
-        cycles = self._lib.rf_run_nodes(self._sim, _u32p(rw), _u32p(img), img.size, _u32p(r),
-                                        _u32p(p), _u32p(e), _u32p(out), n, *self._patterns())
+        parts = min(self.threads, n // SPLIT_MIN_REQUESTS)
+        if parts > 1 and self.gap is None and self.stall is None:
+            while len(self._more) < parts - 1:
+                self._more.append(self._lib.rf_new())
+            sims = (ctypes.c_void_p * parts)(self._sim, *self._more[:parts - 1])
+            part_cycles = np.zeros(parts, np.int64)
+            rc = self._lib.rf_run_nodes_split(sims, parts, _u32p(rw), _u32p(img), img.size,
+                                              _u32p(r), _u32p(p), _u32p(e), _u32p(out), n,
+                                              self._max_idle(), _i64p(part_cycles))
+            cycles = rc if rc < 0 else (int(part_cycles.sum())
+                                        - (parts - 1) * model_latency(self.params))
+        else:
+            cycles = self._lib.rf_run_nodes(self._sim, _u32p(rw), _u32p(img), img.size,
+                                            _u32p(r), _u32p(p), _u32p(e), _u32p(out), n,
+                                            *self._patterns())
         self._account(cycles, n)
         return out
 

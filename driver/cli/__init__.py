@@ -50,6 +50,9 @@ ENVIRONMENT = {
                      "verilator/, synthesized netlists in area/ and power/, LumiBench scenes "
                      "in scenes/",
     "RAYFLEX_PGO": "0: build RTL models in one pass, without profile-guided optimisation",
+    "RAYFLEX_THREADS": "threads (each its own model) the rtl backend streams a big traversal "
+                       "step through (default: the CPUs the process may use; 1 in the Dask "
+                       "workers the tool starts)",
     "CXX": "C++ compiler for the RTL builds (default g++, else clang++)",
     "RAYFLEX_TRACEBACK": "1: print the traceback of an internal error",
     "LUMIBENCH_ROOT": "a clone of LumiBench's repository, for scenes lumibench:ID",

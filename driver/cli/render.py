@@ -64,9 +64,11 @@ def run(args) -> int:
             pixels, point.workload, point.spp, args.tile, args.workers, args.scheduler))
 
     distributed = args.workers > 1 or args.scheduler
-    # a backend that cannot be built fails first (tiles on workers build their own)
-    backend = args.backend if distributed else resolve_backend(args.backend,
-                                                               **point.backend_options())[0]
+    # a backend that cannot be built fails first (tiles on workers and threads make their own
+    # from its name)
+    if not distributed:
+        resolve_backend(args.backend, **point.backend_options())
+    backend = args.backend
     with phase(f"loading {name}", not args.no_progress):
         scene = with_camera(load_scene(source, args.up_axis), **view)
     w, h = scene.size

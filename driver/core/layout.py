@@ -386,6 +386,7 @@ REPLAY_CONFIG = (
     "flush",            # drop the caches at each kernel boundary
     "active_treelets", "treelet_flags",
     "series_capacity",  # bins of the rays-in-flight series the caller provides
+    "timing_latency",   # > 0: pipelines as their handshake timing (this latency), not evaluated
 )
 
 # the memory hierarchy's configuration (rf_memory.h; l1_bytes < 0: no memory model)

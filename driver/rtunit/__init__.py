@@ -57,7 +57,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..tracing.record import Record
-from .gpu import ReplayMismatch, replay_frame
+from .gpu import DEFAULT_REPLAY_DATAPATH, ReplayMismatch, replay_frame
 from .plan import PER_RAY_POOL, Wave
 
 __all__ = ["Record", "MemoryModel", "ReplayResult", "ReplayMismatch", "replay", "sweep",
@@ -144,7 +144,8 @@ class ReplayResult:
     """One RT-unit replay. cycles: first accept to last response, inclusive; responses:
     (m, RSP_WORDS) uint32 at the record index; per_pipeline: requests accepted by each pipeline;
     starved_cycles: cycles in which a pipeline got no request because no ray was ready;
-    model_evals: pipeline-cycles actually evaluated; wall_s: the C++ call."""
+    model_evals: pipeline-cycles actually evaluated; wall_s: the C++ call; verified: whether every
+    response was compared with the functional run's (None: the timing replay evaluates none)."""
 
     rays_in_flight: int
     pipelines: int
@@ -158,12 +159,13 @@ class ReplayResult:
     model_evals: int
     per_pipeline: list
     wall_s: float
-    verified: bool
+    verified: bool | None
     latency: int
     responses: np.ndarray
     memory: dict | None = None      # the memory model's parameters and counters, when on
     order: dict | None = None       # the ray-order policy and its cost (driver.rtunit.order)
     transform_ops: int = 0          # TRANSFORM requests among ``ops``
+    datapath: str = "rtl"           # how the pipelines ran (``gpu.REPLAY_DATAPATHS``)
 
     @property
     def utilization(self) -> float:
@@ -189,6 +191,7 @@ class ReplayResult:
             "model_evals": self.model_evals,
             "sim_wall_s": self.wall_s,
             "sim_cycles_per_s": self.cycles / self.wall_s if self.wall_s > 0 else 0.0,
+            "replay_datapath": self.datapath,
             "responses_verified": self.verified,
             **({"memory": self.memory} if self.memory else {}),
             **({"order": self.order} if self.order else {}),
@@ -199,7 +202,7 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
            turnaround: int = DEFAULT_TURNAROUND, skip_idle: bool = True,
            verify: bool = True, memory: MemoryModel | None = None,
            ray_order: str = "index", ray_window: int | None = None,
-           treelets=None) -> ReplayResult:
+           treelets=None, datapath: str = DEFAULT_REPLAY_DATAPATH) -> ReplayResult:
     """Replay a traversal ``Record`` through P Verilated pipelines with R rays in flight (see the
     module docstring). ``verify``: compare every response with the functional run's (raises
     ``ReplayMismatch``); without recorded responses only the tags are checked. ``memory``: a
@@ -207,10 +210,13 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
     policy of ``driver.rtunit.order`` (``POLICIES``; "index": rays enter in index order) with a
     window of ``ray_window`` rays (default ``order.DEFAULT_WINDOW``; for a scheduling policy at
     least R); the result's ``order`` holds the policy and its cost. ``treelets``: the
-    ``order.TreeletConfig`` of the "treelet" policy (default ``order.DEFAULT_TREELETS``)."""
+    ``order.TreeletConfig`` of the "treelet" policy (default ``order.DEFAULT_TREELETS``).
+    ``datapath``: "timing" (the pipelines' handshake timing, the functional run's responses) or
+    "rtl" (every request evaluated again and checked; ``gpu.REPLAY_DATAPATHS``)."""
     fr = replay_frame([Wave(record)], rays_in_flight, pipelines, memory, PER_RAY_POOL,
                       ray_order=ray_order, ray_window=ray_window, treelets=treelets,
-                      turnaround=turnaround, skip_idle=skip_idle, verify=verify)
+                      turnaround=turnaround, skip_idle=skip_idle, verify=verify,
+                      datapath=datapath)
     c = fr.counters
     mem = None
     if memory:
@@ -225,7 +231,7 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
                         len(fr.responses), record.box_ops, c["cycles"], c["starved_cycles"],
                         c["full_cycles"], c["model_evals"], fr.per_pipe[0].tolist(), fr.wall_s,
                         fr.verified, fr.latency, fr.responses, mem, fr.order_cost,
-                        record.transform_ops)
+                        record.transform_ops, c["datapath"])
 
 
 def sweep(record: Record, rays_in_flight=SWEEP_RAYS_IN_FLIGHT, pipelines=SWEEP_PIPELINES,

@@ -26,6 +26,14 @@ LEVELS = MEMORY_LEVELS[1:]          # the levels that supply node bytes
 _L1, _L2, _DRAM = (MEMORY_LEVELS.index(lvl) for lvl in LEVELS)
 
 
+# How the replay runs the datapath pipelines: "timing", as their handshake timing (a response
+# the model's latency after its request, one request per cycle; the responses are the functional
+# run's), or "rtl", each request evaluated again on a Verilated model and its response compared
+# with the functional run's. Every count and time is the same (tests compare the two).
+REPLAY_DATAPATHS = ("timing", "rtl")
+DEFAULT_REPLAY_DATAPATH = "timing"
+
+
 class ReplayMismatch(RuntimeError):
     """The replayed RTL responses differ from the functional run's (must never happen)."""
 
@@ -52,7 +60,7 @@ class FrameReplay:
     chain_xf: np.ndarray           # (chains,) TRANSFORM requests
     kernel_waves: list             # waves of each kernel
     wall_s: float
-    verified: bool
+    verified: bool | None          # responses compared (None: the timing replay)
     responses: np.ndarray
     order_cost: dict | None = None
     window: int = 0
@@ -133,7 +141,7 @@ class FrameReplay:
                "rays": n, "ops": m, "cycles": self.cycles,
                "frame_cycles": int(c["frame_cycles"]), "kernels": len(self.kernel_waves),
                "starved_cycles": int(c["starved_cycles"]), "sim_wall_s": self.wall_s,
-               "responses_verified": self.verified}
+               "replay_datapath": c["datapath"], "responses_verified": self.verified}
         called = self.plan.call_rays
         out.update(self._rays_part(called))
         if self.memory is not None:
@@ -209,6 +217,7 @@ class FrameReplay:
         rays = sum(int(self.combined.chain_off0[q + 1] - self.combined.chain_off0[q])
                    for q in waves)
         out = {**self._base(), "rays": rays, "ops": int(self.chain_ops[ids].sum()),
+               "replay_datapath": self.counters["datapath"],
                "responses_verified": self.verified}
         if self.schedule.frame == "wavefront":
             kernels = [q for q, w in enumerate(self.kernel_waves) if w in waves]
@@ -264,14 +273,19 @@ def derived(s: dict, units: int = 1) -> dict:
 def replay_frame(waves: list[Wave], rays_in_flight: int, pipelines: int = 1, memory=None,
                  schedule: Schedule = PER_RAY_POOL, width: int | None = None,
                  ray_order: str = "index", ray_window: int | None = None, treelets=None,
-                 turnaround: int = 1, skip_idle: bool = True, verify: bool = True) -> FrameReplay:
+                 turnaround: int = 1, skip_idle: bool = True, verify: bool = True,
+                 datapath: str = DEFAULT_REPLAY_DATAPATH) -> FrameReplay:
     """Replay a frame's recorded batches (``Wave``s, in trace order) on ``schedule.rt_units`` RT
     units of P pipelines and R rays in flight each, in front of ``memory`` (a
     ``driver.rtunit.MemoryModel``; None: free node fetches), on the datapath the records name
     (``Record.params``). ``width``: the frame's width in pixels (threads are pixel indices;
     None: a 1-D dispatch). ``ray_order``/``ray_window``/``treelets``: as
     ``driver.rtunit.replay`` (a sorting order reorders a wavefront's ray queue, so it needs the
-    wavefront schedule). Every response is compared with the functional run's (``verify``)."""
+    wavefront schedule). ``datapath`` (``REPLAY_DATAPATHS``): "timing" models each pipeline by
+    the handshake timing of its Verilated model (``harness.model_latency``) and takes the
+    functional run's responses (a record without responses replays as "rtl"); "rtl" evaluates
+    every request on the model again and compares each response with the functional run's
+    (``verify``)."""
     r, p, ta = int(rays_in_flight), int(pipelines), int(turnaround)
     s = schedule
     if r < 1:
@@ -280,6 +294,9 @@ def replay_frame(waves: list[Wave], rays_in_flight: int, pipelines: int = 1, mem
         raise ValueError(f"pipelines must be in 1..64, got {pipelines}")
     if ta < 0:
         raise ValueError(f"turnaround must be >= 0 cycles, got {turnaround}")
+    if datapath not in REPLAY_DATAPATHS:
+        raise ValueError(f"replay datapath {datapath!r}: choose from "
+                         f"{', '.join(REPLAY_DATAPATHS)}")
     if r % s.warp_size:
         raise ValueError(f"rays in flight ({r}) must be a multiple of the warp size "
                          f"({s.warp_size}): the RT unit holds whole warps")
@@ -308,17 +325,23 @@ def replay_frame(waves: list[Wave], rays_in_flight: int, pipelines: int = 1, mem
         if len(parts) > 1:
             tl = replace(tl, request_treelet=np.concatenate([t.request_treelet for t in parts]))
     latency = int(comb.params.get("LATENCY", LATENCY))
+    timing = datapath == "timing" and comb.responses is not None
     config = {"units": s.rt_units, "pipelines": p, "slots": r, "warp_size": s.warp_size,
               "resident": s.resident(r, window if pol.schedule else 0), "turnaround": ta,
               "shader_cycles": s.shader_cycles, "skip_idle": int(bool(skip_idle)),
               "max_idle": 100 * latency + 1000, "window": window if pol.schedule else 0,
-              "flush": int(bool(s.flush_between)), "active_treelets": 0, "treelet_flags": 0}
+              "flush": int(bool(s.flush_between)), "active_treelets": 0, "treelet_flags": 0,
+              "timing_latency": harness.model_latency(comb.params) if timing else 0}
     t0 = time.perf_counter()
     rsp, counters, per_pipe, arrays = harness.replay_schedule(
         comb.params, config, None if memory is None else memory.config(), comb, chains[:2],
         plan, tl)
     wall = time.perf_counter() - t0
-    verified = _verify(rsp, counters, comb, verify)
+    if timing:
+        rsp, verified = comb.responses, None          # nothing evaluated, nothing compared
+    else:
+        verified = _verify(rsp, counters, comb, verify)
+    counters["datapath"] = "timing" if timing else "rtl"
     cost = None
     if ray_order != "index":
         depth = ray_orders.tree_depth(records[0]) if pol.schedule else 0
@@ -333,6 +356,18 @@ def replay_frame(waves: list[Wave], rays_in_flight: int, pipelines: int = 1, mem
     return FrameReplay(s, r, p, ta, latency, memory, [w.kind for w in waves], comb, plan,
                        counters, per_pipe, arrays, chains[2], *per_chain, kernel_waves,
                        wall, verified, rsp, cost, window if pol.schedule else 0)
+
+
+def timing_differences(a: FrameReplay, b: FrameReplay) -> list[str]:
+    """The names of the counts, times and per-ray arrays in which two replays of the same frame
+    differ (empty: the same timing); how the model is run (``datapath``, ``model_evals``) and
+    the wall time are not compared."""
+    skip = {"datapath", "model_evals"}
+    out = [k for k in a.counters if k not in skip and a.counters[k] != b.counters.get(k)]
+    if not np.array_equal(a.per_pipe, b.per_pipe):
+        out.append("per_pipe")
+    out += [k for k in a.arrays if not np.array_equal(a.arrays[k], b.arrays[k])]
+    return out
 
 
 def chain_layout(comb: Combined) -> tuple:
@@ -376,13 +411,19 @@ def replay_point(waves: list[Wave], point, width: int | None = None,
     ``rtunit_memory``, the replay of the point's RT units and memory hierarchy, and with
     ``ideal`` also ``rtunit``, the same replay with every node fetch free (a second replay: off
     by default); ``by_type``: each ray type's objects. The records replay on the point's datapath
-    configuration and latency; every response is checked against the recorded one bit for bit."""
+    configuration and latency: as the pipelines' timing (``point.replay_datapath``, by default
+    "timing") when the functional run was on that configuration, else evaluated on its model
+    with every response checked against the recorded one bit for bit."""
     kinds = list(dict.fromkeys(w.kind for w in waves))
     params = point.rtl_params()
+    same = all(w.record.params == params for w in waves)
     waves = [w if w.record.params == params else replace(w, record=replace(w.record,
                                                                              params=params))
              for w in waves]
-    args = dict(schedule=point.schedule(), width=width, **point.order_options())
+    # the timing replay takes the functional run's responses: only when that run was on this
+    # configuration's datapath (a sweep traces once and replays every configuration on its RTL)
+    args = dict(schedule=point.schedule(), width=width, **point.order_options(),
+                datapath=point.replay_datapath if same else "rtl")
     out = {"rtunit": None, "rtunit_memory": None,
            "by_type": {k: {"rtunit": None, "rtunit_memory": None} for k in kinds}}
     for key, memory in (("rtunit_memory", point.memory()), ("rtunit", None)):

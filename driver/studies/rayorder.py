@@ -36,7 +36,8 @@ def study_stats(replays: list) -> dict:
            "ops": sum(r.ops for r in replays), "cycles": sum(r.cycles for r in replays),
            "starved_cycles": sum(r.starved_cycles for r in replays),
            "sim_wall_s": sum(r.wall_s for r in replays),
-           "responses_verified": all(r.verified for r in replays)}
+           "responses_verified": (None if any(r.verified is None for r in replays)
+                                  else all(r.verified for r in replays))}
     if first.memory:
         for k in _MEM_SUMMED:
             out[k] = sum(r.memory[k] for r in replays)
