@@ -195,7 +195,7 @@ def _sweep(scene, bvh, rtl, ss, sweep_rays, sweep_pipelines, plot, progress, poi
     t_sweep = time.perf_counter() - t0
     bar.close()
     keep = ("pipelines", "rays_in_flight", "cycles", "utilization", "frame_us_at_1ghz",
-            "starved_cycles", "responses_verified")
+            "starved_cycles", "replay_datapath", "responses_verified")
     if plot:
         rtunit.plot_sweep(points, plot, "RT-unit cycles vs rays in flight and pipelines, free "
                           "node fetches: " + describe(

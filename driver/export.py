@@ -97,9 +97,12 @@ def stream(scene, width: int, height: int, workload: str = "primary", options: d
         for batch in res.batches:
             rec = batch.result.record
             batch.result = None                       # drop the batch's record once streamed
+            # the ray of each request: its chain (a ray that enters an instance continues on
+            # another row of the ray table, which rec.ray names)
+            rays = rec.ray if rec.chain is None else rec.chain
             for lo in range(0, rec.ops, CHUNK):
                 idx = np.arange(lo, min(lo + CHUNK, rec.ops))
-                ray = rec.ray[idx].astype(np.int64)
+                ray = rays[idx].astype(np.int64)
                 yield Chunk(batch.kind, rec.requests(idx), unpack_responses(rec.responses[idx]),
                             first_ray + ray, batch.pixel[ray].astype(np.int64))
             first_ray += len(batch.pixel)

@@ -70,7 +70,7 @@ def test_frame_statistics_consistent(doc):
         assert t["utilization"] == pytest.approx(f["ops"] / t["cycles"], rel=1e-12)
         assert t["frame_us_at_1ghz"] == pytest.approx(t["cycles"] / 1000)
     r = f["rtunit"]
-    assert r["pipelines"] == 1 and r["rays_in_flight"] == 64 and r["responses_verified"]
+    assert r["pipelines"] == 1 and r["rays_in_flight"] == 64 and r["replay_datapath"] == "timing"
     assert (r["rt_units"], r["warp_size"], r["frame_schedule"]) == (1, 1, "one-kernel")
     assert f["embree"]["hit_mismatch"] == 0 and f["embree"]["rays_compared"] == 256
     assert doc["golden_matches_rtl"] is True
@@ -95,7 +95,7 @@ def test_sweep_and_plot(doc):
     assert set(pts) == {(p, r) for p in (1, 2) for r in (1, 4, 16, 64)}
     assert pts[1, 1]["cycles"] >= sw["ops"] * 11
     for p in pts.values():
-        assert p["responses_verified"]
+        assert p["replay_datapath"] == "timing"
         assert p["utilization"] == pytest.approx(sw["ops"] / (p["pipelines"] * p["cycles"]))
         assert p["frame_us_at_1ghz"] == pytest.approx(p["cycles"] / 1000)
     png = doc["_dir"] / "bench_rtunit.png"
@@ -145,7 +145,7 @@ def test_default_frame_utilization():
     o, d = primary_rays(scene.camera, 256, 256)
     res = trace(scene.mesh, o, d, backend="rtl", rays_in_flight=rtunit.DEFAULT_RAYS_IN_FLIGHT)
     s = res.stats
-    assert s["rays"] == 65536 and s["responses_verified"]
+    assert s["rays"] == 65536 and s["replay_datapath"] == "timing"
     assert s["utilization"] >= 0.98 and s["wavefront_utilization"] >= 0.98
 
 
@@ -154,7 +154,7 @@ def test_memory_object(doc):
     m = doc["frame"]["rtunit_memory"]
     for k in ("hit_rate", "bytes_per_ray", "cycles", "utilization", "line_misses"):
         assert k in m, k
-    assert m["responses_verified"] and 0 < m["hit_rate"] < 1
+    assert m["replay_datapath"] == "timing" and 0 < m["hit_rate"] < 1
     assert m["cycles"] > doc["frame"]["rtunit"]["cycles"]       # fetches cost time, never less
     assert m["bytes_per_ray"] * doc["frame"]["rays"] == 64 * m["line_misses"]
 
@@ -170,7 +170,7 @@ def test_no_cache_reads_every_node_from_memory(tmp_path):
                      "--ideal-replay", "--no-progress"]) == 0
     f0, f32 = (json.loads(out[k].read_text())["frame"] for k in (0, 32))
     m = f0["rtunit_memory"]
-    assert m["responses_verified"] and m["line_hits"] == 0 and m["hit_rate"] == 0
+    assert m["replay_datapath"] == "timing" and m["line_hits"] == 0 and m["hit_rate"] == 0
     assert m["bytes_from_memory"] == 64 * m["line_accesses"] >= f0["node_bytes_fetched"]
     assert m["cycles"] > f32["rtunit_memory"]["cycles"] > f0["rtunit"]["cycles"]
 
@@ -190,7 +190,7 @@ def test_culled_stack_and_fill_in_the_bench(tmp_path, doc):
     assert f["bvh"]["box_nodes"] < base["bvh"]["box_nodes"]
     assert f["stack_culls"] > 0 and f["box_ops"] < base["box_ops"]
     assert f["hits"] == base["hits"] and d["golden_matches_rtl"] is True
-    assert f["embree"]["hit_mismatch"] == 0 and f["rtunit_memory"]["responses_verified"]
+    assert f["embree"]["hit_mismatch"] == 0 and f["rtunit_memory"]["replay_datapath"] == "timing"
     assert f["rtunit_memory"]["bytes_per_ray"] < base["rtunit_memory"]["bytes_per_ray"]
     pt = doc["provenance"]["design_point"]
     assert pt["cull_stack"] is False and pt["bvh_fill"] == 0
@@ -212,7 +212,7 @@ def test_workload_bench_per_ray_type(tmp_path, capsys):
     assert 0 < sh["any_hit_vs_closest_ops"] <= 1                 # any hit never issues more
     for t in f["by_type"].values():
         assert set(COUNTS + TIMING) <= set(t)
-        assert t["rtunit"]["responses_verified"]
+        assert t["rtunit"]["replay_datapath"] == "timing"
         # one kernel: a ray type's rays share the pipelines, so it has latency, not cycles
         assert t["rtunit_memory"]["cycles"] is None
         assert t["rtunit_memory"]["latency_mean"] >= t["rtunit"]["latency_mean"] > 0
@@ -237,7 +237,7 @@ def test_workload_bench_one_timing_replay_by_default(tmp_path, monkeypatch):
     d = json.loads(out.read_text())
     assert len(calls) == 1 and calls[0] is not None          # one replay, with its memory
     assert d["frame"]["rtunit"] is None and d["sweep"] is None
-    assert d["frame"]["rtunit_memory"]["responses_verified"]
+    assert d["frame"]["rtunit_memory"]["replay_datapath"] == "timing"
 
 
 @pytest.mark.parametrize("workload", ["primary", "ao"])
@@ -294,3 +294,32 @@ def test_workers_bench_is_identical(tmp_path):
     assert sum(ph.values()) == pytest.approx(d["wall_s_n_workers"], abs=0.05)
     assert d["speedup_tiles"] > 0
     assert not list(tmp_path.glob("*.png"))
+
+
+def test_end_to_end_runs_the_render_in_fresh_processes(tmp_path, capsys):
+    """--end-to-end: a first run, then --repeat counted runs, each its own process; the rays per
+    second are the frame's rays over the render's time outside the BVH."""
+    out = tmp_path / "e.json"
+    assert main(["bench", "--end-to-end", "--scene", "cornell", "--workload", "ao", "--size",
+                 "16", "--repeat", "2", "--json", str(out), "--no-progress"]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["provenance"]["design_point"]["size"] == 16
+    assert doc["command"].startswith("rayflex render cornell --workload ao --size 16")
+    runs = doc["runs"]
+    assert len(runs) == 2 and doc["first_run"]["rays"] == runs[0]["rays"] == runs[1]["rays"]
+    for r in runs:
+        assert r["rays"] > 16 * 16 and r["trace_s"] == pytest.approx(r["wall_s"] - r["bvh_s"])
+        assert r["rays_per_s"] == pytest.approx(r["rays"] / r["trace_s"])
+        assert r["verdicts"]["datapath_wrong"] == 0 and r["replay_datapath"] == "timing"
+        assert 0 < r["functional_s"] < r["trace_s"] < r["process_s"]
+    med = doc["summary"]["rays_per_s"]
+    assert med["min"] <= med["median"] <= med["max"]
+    assert med["median"] == pytest.approx(sum(r["rays_per_s"] for r in runs) / 2)
+    assert "rays per second outside loading and the BVH: median" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("extra", [["--bvh"], ["--workers", "2"], ["--repeat", "0"]])
+def test_end_to_end_refuses_other_modes(extra, capsys):
+    assert main(["bench", "--end-to-end", *extra]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("rayflex: error:")

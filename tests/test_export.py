@@ -29,7 +29,8 @@ def dump(path, scene, w, h, workload="primary", **options):
     return n, ex.load(path)
 
 
-@pytest.mark.parametrize("scene, workload", [("sphere", "primary"), ("cornell", "path")])
+@pytest.mark.parametrize("scene, workload", [("sphere", "primary"), ("cornell", "path"),
+                                             ("bunny_grid", "ao")])
 def test_dump_round_trip_golden_and_rtl(tmp_path, scene, workload):
     n, d = dump(tmp_path / "d.npz", scene, 24, 20, workload)
     req, rsp = d["requests"], d["responses"]
@@ -44,6 +45,12 @@ def test_dump_round_trip_golden_and_rtl(tmp_path, scene, workload):
         assert int((d["ray_type"] == kind).sum()) == s["ops"], kind
     assert set(np.unique(d["ray_type"])) == set(by_type)
     assert 0 <= d["pixel"].min() and d["pixel"].max() < 24 * 20
+    # each request names its frame-wide ray (an instanced scene's too), and that ray's pixel
+    rays = sum(s["rays"] for s in by_type.values())
+    assert 0 <= d["ray"].min() and d["ray"].max() < rays
+    first = np.unique(d["ray"], return_index=True)[1]
+    pixel_of = dict(zip(d["ray"][first].tolist(), d["pixel"][first].tolist()))
+    assert all(pixel_of[r] == p for r, p in zip(d["ray"].tolist(), d["pixel"].tolist()))
     # replayed: bit-exact on both models
     for name in ("golden", "rtl"):
         be = driver.backend(name)

@@ -436,7 +436,7 @@ def test_rtl_frame_and_memory_model_charge_the_bytes_of_each_node(fmt):
     nbytes = np.array([NODE_BYTES[int(x)] for x in typ])
     assert res.stats["node_bytes_fetched"] == nbytes.sum()
     assert (nbytes[typ == GROUP_TYPE] == 128).all() and (typ == GROUP_TYPE).any() == (fmt == "q8g")
-    rep = rtunit.replay(rec, 16, memory=rtunit.MemoryModel())
+    rep = rtunit.replay(rec, 16, memory=rtunit.MemoryModel(), datapath="rtl")
     m = rep.memory
     # a q8 node or a pair leaf is one 64-byte line, a group leaf two; a leaf's later triangles
     # fetch nothing
@@ -523,7 +523,7 @@ def test_a_datapath_with_the_decode_gets_the_nodes_as_stored(backend_name):
     assert q8.any() and ((req["flags"][q8] & FLAG_DECODE_Q8) != 0).all()
     assert ((req["flags"][~q8] & FLAG_DECODE_Q8) == 0).all()
     if backend_name == "rtl":
-        assert rtunit.replay(rec, 64, 1).verified
+        assert rtunit.replay(rec, 64, 1, datapath="rtl").verified
 
 
 def test_leaf_next_pointers_round_trip():

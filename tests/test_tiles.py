@@ -69,7 +69,8 @@ def test_two_workers_give_the_frame_of_one(scene):
 
 
 def _worker_env():
-    return os.environ.get("MALLOC_TRIM_THRESHOLD_"), os.environ.get("OMP_NUM_THREADS")
+    return (os.environ.get("MALLOC_TRIM_THRESHOLD_"), os.environ.get("OMP_NUM_THREADS"),
+            os.environ.get("RAYFLEX_THREADS"))
 
 
 def test_local_workers_keep_glibc_adaptive_malloc(monkeypatch):
@@ -78,7 +79,7 @@ def test_local_workers_keep_glibc_adaptive_malloc(monkeypatch):
     monkeypatch.delenv("MALLOC_TRIM_THRESHOLD_", raising=False)
     with tiles._client(1, None) as client:
         (env,) = client.run(_worker_env).values()
-    assert env == (None, "1")               # Dask's other worker settings stay
+    assert env == (None, "1", "1")     # Dask's other worker settings stay; one model each
 
 
 def test_a_killed_worker_changes_nothing(scene):
@@ -100,6 +101,49 @@ def test_a_killed_worker_changes_nothing(scene):
                                  scheduler=cluster.scheduler_address, progress=progress)
     assert killed
     same_frame(one, two)
+
+
+@pytest.mark.parametrize("backend", ["golden", "rtl"])
+def test_tiles_on_threads_give_the_frame_of_one_thread(scene, monkeypatch, backend):
+    """Tiles traced on threads (one backend each) and merged as they finish: the same frame,
+    with the RT-unit replay of every tile, as one thread tracing them in order."""
+    from driver.design import DesignPoint
+    setup, bvh = scene
+    opts = dict(OPTS, rtunit=DesignPoint(rays_in_flight=16), width=24)
+    frames = {}
+    for threads in ("1", "3"):
+        monkeypatch.setenv("RAYFLEX_THREADS", threads)
+        assert tiles.tile_lanes(backend, 9) == int(threads)
+        seen = []
+        frames[threads] = tiles.render_tiles(setup, bvh, 24, 24, "path", opts, backend,
+                                             tile=8, check_embree=True,
+                                             progress=lambda d, n: seen.append(d))
+        assert seen == list(range(1, 10))
+    one, three = frames["1"], frames["3"]
+    same_frame(one, three)
+    for key in ("cycles", "frame_cycles", "bytes_from_memory", "latency_mean"):
+        assert one.stats["rtunit_memory"][key] == three.stats["rtunit_memory"][key]
+    assert tiles.tile_lanes(("pyverilator", {}), 9) == 1 and tiles.tile_lanes(object(), 9) == 1
+
+
+def test_an_error_on_a_thread_stops_the_other_tiles(scene, monkeypatch):
+    import threading
+    setup, bvh = scene
+    monkeypatch.setenv("RAYFLEX_THREADS", "2")
+    real, calls = tiles.run, []
+
+    def run(*a, **k):
+        calls.append(1)
+        if len(calls) == 3:
+            raise ValueError("a tile failed")
+        return real(*a, **k)
+
+    monkeypatch.setattr(tiles, "run", run)
+    before = threading.active_count()
+    with pytest.raises(ValueError, match="a tile failed"):
+        tiles.render_tiles(setup, bvh, 40, 30, "path", OPTS, "golden", tile=8)
+    assert len(calls) < 20                       # 20 tiles: the frame stopped early
+    assert threading.active_count() == before        # the pool's threads are gone
 
 
 def test_an_error_in_a_tile_stops_the_frame(scene):

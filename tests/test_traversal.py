@@ -335,7 +335,7 @@ def test_culled_stack_on_the_rtl_with_replay():
     tris, o, d = _bunny_view(24)
     bvh = build(tris)
     gold = trace(bvh, o, d, backend="golden", cull_stack=True)
-    rtl = trace(bvh, o, d, backend="rtl", cull_stack=True, rays_in_flight=64)
+    rtl = trace(bvh, o, d, backend="rtl", cull_stack=True, rays_in_flight=64, datapath="rtl")
     assert np.array_equal(gold.t.view(np.uint32), rtl.t.view(np.uint32))
     assert np.array_equal(gold.box_ops, rtl.box_ops)
     assert rtl.stats["stack_culls"] == gold.stats["stack_culls"] > 0

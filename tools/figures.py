@@ -289,6 +289,13 @@ FIGURES = [
             "docs/lumibench_load_bath.json", "--no-progress"),
            ("docs/lumibench_load_bath.json",), 0.3,
            "the bathroom's load and BVH build, first and from the scene cache"),
+    Figure("lumibench_bath_ao_e2e",
+           (*RAYFLEX, "bench", "--end-to-end", "--scene", "lumibench:BATH", "--workload",
+            "lumibench-ao", "--size", "128", "--spp", "2", "--repeat", "7", "--json",
+            "docs/lumibench_bath_ao_e2e.json", "--no-progress"),
+           ("docs/lumibench_bath_ao_e2e.json",), 1.5,
+           "the bathroom's AO frame as a render runs it, 7 fresh processes: rays per second "
+           "outside loading and the BVH"),
     Figure("lumibench_load_1000",
            (*RAYFLEX, "bench", "--scene-load", "--synthetic", "1000,3000000", "--json",
             "docs/lumibench_load_1000.json", "--no-progress"),
@@ -433,6 +440,10 @@ README_NUMBERS = {
                                 "{:.2f}"),
     "lumibench_wall": ("images/lumibench/summary.json", "wall_s", "{:.0f}"),
     "lumibench_load": ("docs/figures.json", "lumibench.load.median", "{:.1f}"),
+    "lumibench_bath_ao_rays_per_s": ("docs/lumibench_bath_ao_e2e.json",
+                                     "summary.rays_per_s.median", "{:,.0f}"),
+    "lumibench_bath_ao_runs": ("docs/lumibench_bath_ao_e2e.json", "runs",
+                               lambda v: f"{len(v):d}"),
     "bvh_build_bunny": ("docs/bvh_bench.json", "builds.0.build_s", "{:.2f}"),
     "bvh_build_5m": ("docs/bvh_bench.json", "builds.2.build_s", "{:.1f}"),
 }
@@ -451,6 +462,15 @@ LUMIBENCH_NUMBERS = {
                               "{:.1f}"),
     "lb_bath_ao_replay": ("images/lumibench/BATH_AO.json", "rtunit_memory.sim_wall_s",
                           "{:.1f}"),
+    **{f"e2e_{key}_{stat}": ("docs/lumibench_bath_ao_e2e.json", f"summary.{key}.{stat}", fmt_)
+       for key, fmt_ in (("rays_per_s", "{:,.0f}"), ("trace_s", "{:.2f}"),
+                         ("functional_s", "{:.2f}"), ("replay_s", "{:.2f}"),
+                         ("process_s", "{:.1f}"))
+       for stat in ("min", "median", "max")},
+    "e2e_runs": ("docs/lumibench_bath_ao_e2e.json", "runs", lambda v: f"{len(v):d}"),
+    "e2e_rays": ("docs/lumibench_bath_ao_e2e.json", "runs.0.rays", "{:,}"),
+    "e2e_peak": ("docs/lumibench_bath_ao_e2e.json", "runs",
+                 lambda v: f"{max(r['peak_rss_bytes'] for r in v) / MIB:,.0f}"),
     "lb512_rays": ("images/lumibench_512/BATH_AO.json", "rays", "{:,}"),
     "lb512_wall": ("images/lumibench_512/BATH_AO.json", "timing.wall_s", "{:.0f}"),
     "lb512_rays_per_s": ("images/lumibench_512/BATH_AO.json", "timing.rays_per_s", "{:,.0f}"),
@@ -485,7 +505,7 @@ LUMIBENCH_NUMBERS = {
 
 LUMIBENCH_PAGE = ROOT / "docs" / "lumibench.md"
 LUMIBENCH_FIGURES = ("lumibench", "lumibench_bath_ao512", "lumibench_load_bath",
-                     "lumibench_load_1000")
+                     "lumibench_load_1000", "lumibench_bath_ao_e2e")
 
 
 def lumibench_sections(root: Path = ROOT) -> dict[str, str]:
@@ -543,14 +563,26 @@ one run share the same conditions, so their ratios hold.
 - **The suite**: the {n['lb_runs']} runs, {n['lb_rays']} rays, in {n['lb_wall']} s on 2 Dask
   workers ({load('lumibench')}; `images/lumibench/summary.json`), every ray traced on the RTL,
   checked against Embree and replayed on the RT unit with its node memory: each request is
-  simulated twice, once by the functional trace and once by the timing replay.
-- **The bathroom's AO frame** (128 × 128, 2 spp, 163,840 rays): {n['lb_bath_ao_rays_per_s']}
-  rays per second end to end outside loading and BVH build ({n['lb_bath_ao_trace']} s, of which
-  the functional RTL pass {n['lb_bath_ao_functional']} s and the RT-unit replay
-  {n['lb_bath_ao_replay']} s; the rest is the traversal's own work between the datapath's
-  steps, the Embree check, shading): end to end takes {ratio:.2f} × the time of the functional
-  RTL pass alone, i.e. a run traces {100 / ratio:.0f} % of the rays per second that the RTL
-  pass alone simulates.
+  simulated once on the RTL by the functional trace, and the timing replay moves it through the
+  pipelines' handshake timing (docs/rtunit.md). Each worker is one process on one core.
+- **The bathroom's AO frame, one process** (128 × 128, 2 spp, {n['e2e_rays']} rays; `rayflex
+  bench --end-to-end --scene lumibench:BATH --workload lumibench-ao --size 128 --spp 2 --repeat
+  7`, `docs/lumibench_bath_ao_e2e.json`; {load('lumibench_bath_ao_e2e')}): each run a fresh
+  `rayflex render lumibench:BATH --workload lumibench-ao --size 128 --spp 2 --check-embree
+  --rtunit` process, every ray on the RTL, checked against Embree and replayed: median
+  {n['e2e_rays_per_s_median']} rays per second outside loading and the BVH (from
+  {n['e2e_rays_per_s_min']} to {n['e2e_rays_per_s_max']} over {n['e2e_runs']} runs;
+  {n['e2e_trace_s_median']} s, of which the functional RTL pass {n['e2e_functional_s_median']} s
+  and the RT-unit replay {n['e2e_replay_s_median']} s, summed over tiles that overlap); the
+  whole process {n['e2e_process_s_median']} s, peak memory {n['e2e_peak']} MiB. The process
+  uses both cores: its tiles run on two threads, each with its own Verilated model
+  (`RAYFLEX_THREADS`; docs/workloads.md).
+- **The same frame inside the suite** (one worker, one core, beside the other worker's run):
+  {n['lb_bath_ao_rays_per_s']} rays per second outside loading and BVH build
+  ({n['lb_bath_ao_trace']} s, of which the functional RTL pass {n['lb_bath_ao_functional']} s
+  and the RT-unit replay {n['lb_bath_ao_replay']} s; the rest is the traversal's own work
+  between the datapath's steps, the Embree check, shading): {ratio:.2f} × the time of the
+  functional RTL pass alone.
 - **The bathroom's AO frame at 512 × 512** (16 × the benchmark's pixels, {n['lb512_rays']} rays;
   `rayflex suite lumibench --scenes BATH --workloads ao --size 512 --workers 2`: a suite of one
   run spreads its tiles over the workers; {load('lumibench_bath_ao512')}): {n['lb512_wall']} s,

@@ -10,6 +10,7 @@ from ..core import outputs
 from ..core.outputs import JSON, PNG, Outputs
 from ..check import summary as check_summary
 from ..core.provenance import provenance
+from ..frame_bench import end_to_end
 from ..load_bench import load_bench
 from ..rtunit import SWEEP_RAYS_IN_FLIGHT
 from ..scenes.lumibench import is_lumibench, root
@@ -64,6 +65,34 @@ def scene_load(args, point) -> int:
     return 0
 
 
+def frame_end_to_end(args, point) -> int:
+    """``--end-to-end``: ``driver.frame_bench``."""
+    check_positive("--repeat", args.repeat)
+    given = [f for f in ("--sweep-rays", "--plot", "--bvh", "--scene-load")
+             if getattr(args, f[2:].replace("-", "_"), None) not in (None, False)]
+    if given or args.workers != 1:
+        raise ValueError(f"--end-to-end times the frame alone: drop "
+                         f"{given[0] if given else '--workers'}")
+    if point.size is None:
+        point = point.replace(size=128)
+    outs = Outputs()
+    js = outs.add("--json", args.json, JSON) if args.json else None
+    doc = {"provenance": provenance(point), **end_to_end(point, args.repeat, not args.no_progress)}
+    with outs.commit():
+        if js:
+            outputs.write_json(doc, outs.temp(js))
+    for k, r in enumerate(doc["runs"], 1):
+        print(f"run {k}: {r['rays']:,} rays in {r['trace_s']:.2f} s outside loading and the BVH "
+              f"({r['rays_per_s']:,.0f} rays/s; functional pass {r['functional_s']:.2f} s, "
+              f"replay {r['replay_s']:.2f} s); the process {r['process_s']:.2f} s, peak "
+              f"{r['peak_rss_bytes'] / 2**20:,.0f} MiB")
+    m = doc["summary"]["rays_per_s"]
+    print(f"rays per second outside loading and the BVH: median {m['median']:,.0f} (min "
+          f"{m['min']:,.0f}, max {m['max']:,.0f}) over {len(doc['runs'])} runs")
+    wrote(outs.paths())
+    return 0
+
+
 def _int_list(text: str, flag: str) -> list[int]:
     try:
         vals = [int(x) for x in str(text).split(",") if x.strip()]
@@ -82,6 +111,8 @@ def run(args) -> int:
         raise ValueError("--synthetic goes with --scene-load")
     if args.scene_load:
         return scene_load(args, point)
+    if args.end_to_end:
+        return frame_end_to_end(args, point)
     check_positive("--sweep-size", args.sweep_size, 0)
     check_positive("--pyverilator-requests", args.pyverilator_requests, 0)
     check_positive("--repeat", args.repeat)

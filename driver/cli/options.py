@@ -222,6 +222,11 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
         flag("--synthetic", metavar="FILES,TRIANGLES", help=(
             "with --scene-load: measure a LumiBench-format folder of FILES OBJ files of "
             "TRIANGLES triangles in all, written to a temporary folder")),
+        flag("--end-to-end", action="store_true", help=(
+            "the design point's frame as 'rayflex render --check-embree --rtunit' runs it, "
+            "instead: --repeat fresh processes after one that fills the caches; rays per "
+            "second outside loading and the BVH (minimum, median, maximum), and each run's "
+            "functional pass, replay and check (docs/lumibench.md)")),
     )), (DESIGN, ()), (None, (SHARED["progress"],))),
     "sweep": ((None, (
         flag("--csv", metavar="PATH", help="one row per design point x ray type"),

@@ -1,0 +1,92 @@
+"""``rayflex bench --end-to-end``: a design point's frame as ``rayflex render --check-embree
+--rtunit`` runs it, timed run by run (docs/lumibench.md).
+
+Each run is a fresh Python process (``python -m driver.frame_bench POINT_JSON``), as a user's
+render is: it imports the tool, loads the scene (from the scene cache once a first run has filled
+it), builds or loads the BVH, traces every ray on the RTL, checks every ray against Embree and
+replays the frame on the design point's RT units; it reports the render's wall time
+(``wall_s``: BVH, tracing, replay, check) split into the BVH and the rest, the functional pass
+and the replay as the statistics give them, the verdicts of the check, and the process's peak
+memory. A first run that is not counted fills the caches (scene, BVH, Verilated model), so the
+counted runs measure what every later run of the frame costs. ``rays_per_s`` is the frame's rays
+over its wall time outside loading and the BVH (``trace_s``); the summary gives the minimum,
+median and maximum over the counted runs.
+"""
+
+from __future__ import annotations
+
+import time
+
+_T_MODULE = time.time()         # before this module's imports: the tool's import time
+
+import json  # noqa: E402
+import os  # noqa: E402
+import resource  # noqa: E402
+import statistics  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+
+from .core.progress import phase as show  # noqa: E402
+from .design import DesignPoint  # noqa: E402
+from .render import render  # noqa: E402
+from .scenes.scene import load_scene  # noqa: E402
+
+# the figures of a run that the summary gives as minimum, median and maximum
+SUMMARISED = ("rays_per_s", "trace_s", "wall_s", "functional_s", "replay_s", "process_s")
+
+
+def run_frame(point_json: str) -> dict:
+    """One run in this process (module docstring)."""
+    t_start = float(os.environ.get("RAYFLEX_T0", time.time()))
+    point = DesignPoint(**json.loads(point_json))
+    t_imp = time.time()
+    scene = load_scene(point.scene)
+    t_load = time.time()
+    res = render(scene, point.size, point.size, backend="rtl", progress=False,
+                 check_embree=True, point=point, rtunit=True)
+    t_end = time.time()
+    s = res.stats
+    bvh_s = float(s["bvh"].get("build_s", 0.0))
+    trace_s = s["wall_s"] - bvh_s
+    verdicts = s["embree"]["adjudicated"]["classes"]
+    return {"rays": int(s["rays"]), "ops": int(s["ops"]), "wall_s": s["wall_s"],
+            "bvh_s": bvh_s, "trace_s": trace_s, "rays_per_s": s["rays"] / trace_s,
+            "functional_s": s["wavefront"]["sim_wall_s"],
+            "replay_s": s["rtunit_memory"]["sim_wall_s"],
+            "replay_datapath": s["rtunit_memory"]["replay_datapath"],
+            "import_s": t_imp - min(_T_MODULE, t_start), "load_s": t_load - t_imp,
+            "process_s": t_end - t_start, "verdicts": verdicts,
+            "peak_rss_bytes": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}
+
+
+def end_to_end(point, repeat: int, progress: bool = True) -> dict:
+    """``repeat`` counted runs of ``point``'s frame after one that fills the caches, each in a
+    fresh process; returns every run and the ``SUMMARISED`` figures' minimum, median and
+    maximum."""
+    text = json.dumps(point.as_dict())
+    with show(f"first run of {point.scene} {point.workload} (fills the caches)", progress):
+        first = _child(text)
+    runs = []
+    for k in range(repeat):
+        with show(f"run {k + 1} of {repeat}", progress):
+            runs.append(_child(text))
+    summary = {key: {"min": min(r[key] for r in runs),
+                     "median": statistics.median(r[key] for r in runs),
+                     "max": max(r[key] for r in runs)} for key in SUMMARISED}
+    return {"command": (f"rayflex render {point.scene} --workload {point.workload} --size "
+                        f"{point.size} --spp {point.spp} --check-embree --rtunit"),
+            "first_run": first, "runs": runs, "summary": summary}
+
+
+def _child(point_json: str) -> dict:
+    env = dict(os.environ, RAYFLEX_T0=repr(time.time()))
+    r = subprocess.run([sys.executable, "-m", "driver.frame_bench", point_json],
+                       capture_output=True, text=True, env=env)
+    if r.returncode != 0:
+        last = (r.stderr.strip().splitlines() or ["(no output)"])[-1]
+        raise RuntimeError(f"end-to-end run failed: {last}")
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+if __name__ == "__main__":
+    print(json.dumps(run_frame(sys.argv[1])))
