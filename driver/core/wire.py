@@ -27,6 +27,7 @@ and the logic that uses it.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -79,7 +80,7 @@ class Field:
 
     @property
     def count(self) -> int:
-        return int(np.prod(self.shape, dtype=np.int64)) if self.shape else 1
+        return math.prod(self.shape)          # 1 for a scalar (shape ())
 
     @property
     def first_bit(self) -> int:
