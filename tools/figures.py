@@ -291,10 +291,10 @@ FIGURES = [
            "the bathroom's load and BVH build, first and from the scene cache"),
     Figure("lumibench_bath_ao_e2e",
            (*RAYFLEX, "bench", "--end-to-end", "--scene", "lumibench:BATH", "--workload",
-            "lumibench-ao", "--size", "128", "--spp", "2", "--repeat", "7", "--json",
+            "lumibench-ao", "--size", "128", "--spp", "2", "--repeat", "9", "--json",
             "docs/lumibench_bath_ao_e2e.json", "--no-progress"),
            ("docs/lumibench_bath_ao_e2e.json",), 1.5,
-           "the bathroom's AO frame as a render runs it, 7 fresh processes: rays per second "
+           "the bathroom's AO frame as a render runs it, 9 fresh processes: rays per second "
            "outside loading and the BVH"),
     Figure("lumibench_load_1000",
            (*RAYFLEX, "bench", "--scene-load", "--synthetic", "1000,3000000", "--json",
@@ -567,7 +567,7 @@ one run share the same conditions, so their ratios hold.
   pipelines' handshake timing (docs/rtunit.md). Each worker is one process on one core.
 - **The bathroom's AO frame, one process** (128 × 128, 2 spp, {n['e2e_rays']} rays; `rayflex
   bench --end-to-end --scene lumibench:BATH --workload lumibench-ao --size 128 --spp 2 --repeat
-  7`, `docs/lumibench_bath_ao_e2e.json`; {load('lumibench_bath_ao_e2e')}): each run a fresh
+  {n['e2e_runs']}`, `docs/lumibench_bath_ao_e2e.json`; {load('lumibench_bath_ao_e2e')}): each run a fresh
   `rayflex render lumibench:BATH --workload lumibench-ao --size 128 --spp 2 --check-embree
   --rtunit` process, every ray on the RTL, checked against Embree and replayed: median
   {n['e2e_rays_per_s_median']} rays per second outside loading and the BVH (from
