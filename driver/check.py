@@ -233,11 +233,15 @@ def _embree_scene(triangles):
 def prepare_check(triangles) -> threading.Thread:
     """Start building what a check of ``triangles`` needs (its Embree scene, the exact
     adjudication's compiled code) on a thread of its own, so that it overlaps the tracing; the
-    check waits for it where it needs it. Returns the (daemon) thread."""
+    check waits for it where it needs it. Returns the thread (join it before the process ends).
+    A failure here is left to the check, which does the same work and reports it."""
     def work():
-        from . import adjudicate  # noqa: F401  (numba)
-        if isinstance(triangles, np.ndarray):
-            _embree_scene(triangles)
+        try:
+            from . import adjudicate  # noqa: F401  (numba)
+            if isinstance(triangles, np.ndarray):
+                _embree_scene(triangles)
+        except Exception:       # the check repeats it and reports the error
+            pass
     thread = threading.Thread(target=work, name="rayflex-check-setup", daemon=True)
     thread.start()
     return thread

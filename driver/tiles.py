@@ -209,19 +209,22 @@ def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
     tiles = plan(width, height, tile)
     asm = Assembler(width, height)
     if workers == 1 and not scheduler:
-        if check_embree:
-            prepare_check(setup.triangles)
-        lanes = tile_lanes(backend, len(tiles))
-        if lanes > 1:
-            _tiles_on_threads(asm, tiles, lanes, (setup, bvh, width, height), workload,
-                              options, backend, check_embree, progress)
+        prep = prepare_check(setup.triangles) if check_embree else None
+        try:
+            lanes = tile_lanes(backend, len(tiles))
+            if lanes > 1:
+                _tiles_on_threads(asm, tiles, lanes, (setup, bvh, width, height), workload,
+                                  options, backend, check_embree, progress)
+                return asm.frame()
+            for i, px in enumerate(tiles):
+                asm.add(run_tile(setup, bvh, width, height, px, workload, options, backend,
+                                 check_embree))
+                if progress:
+                    progress(i + 1, len(tiles))
             return asm.frame()
-        for i, px in enumerate(tiles):
-            asm.add(run_tile(setup, bvh, width, height, px, workload, options, backend,
-                             check_embree))
-            if progress:
-                progress(i + 1, len(tiles))
-        return asm.frame()
+        finally:
+            if prep is not None:
+                prep.join()
     clock = _Phases({})
     with _client(workers, scheduler) as client:
         setup_f, bvh_f = client.scatter([setup, bvh], broadcast=True)

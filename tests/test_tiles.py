@@ -162,3 +162,18 @@ def test_a_scheduler_that_does_not_answer_is_a_one_line_error(scene, monkeypatch
     address = f"tcp://127.0.0.1:{port}"
     with pytest.raises(OSError, match=f"no Dask scheduler answers at {address}"):
         tiles.render_tiles(setup, bvh, 16, 16, "path", OPTS, "golden", scheduler=address)
+
+
+def test_the_check_set_up_thread_fails_quietly(monkeypatch, capfd):
+    """The check's set-up on a side thread leaves a failure to the check itself (which reports
+    it as a one-line error): nothing printed from the thread."""
+    from driver import check
+
+    def broken(triangles):
+        raise OSError("no Embree here")
+
+    monkeypatch.setattr(check, "_embree_scene", broken)
+    thread = check.prepare_check(np.zeros((2, 3, 3), np.float32))
+    thread.join(timeout=60)
+    assert not thread.is_alive()
+    assert capfd.readouterr().err == ""
