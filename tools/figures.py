@@ -314,8 +314,24 @@ LIGHT_MINUTES = 1.5        # --light: the figures at most this long
 
 
 # --------------------------------------------------------------------------------------------
-# The numbers the README quotes: name -> (JSON file, key path, format)
+# Quoted numbers: name -> (JSON file, key path, format)
 
+MIB = 2 ** 20
+# The bathroom's AO frame end to end (docs/lumibench_bath_ao_e2e.json): quoted by the README and
+# by docs/lumibench.md
+E2E_FILE = "docs/lumibench_bath_ao_e2e.json"
+E2E_NUMBERS = {
+    **{f"e2e_{key}_{stat}": (E2E_FILE, f"summary.{key}.{stat}", fmt_)
+       for key, fmt_ in (("rays_per_s", "{:,.0f}"), ("trace_s", "{:.2f}"),
+                         ("functional_s", "{:.2f}"), ("replay_s", "{:.2f}"),
+                         ("process_s", "{:.1f}"))
+       for stat in ("min", "median", "max")},
+    "e2e_runs": (E2E_FILE, "runs", lambda v: f"{len(v):d}"),
+    "e2e_rays": (E2E_FILE, "runs.0.rays", "{:,}"),
+    "e2e_peak": (E2E_FILE, "runs", lambda v: f"{max(r['peak_rss_bytes'] for r in v) / MIB:,.0f}"),
+}
+
+# The numbers the README quotes
 README_NUMBERS = {
     "bunny_rays": ("images/bunny_stats.json", "rays", "{:,}"),
     "bunny_hits": ("images/bunny_stats.json", "hits", "{:,}"),
@@ -440,16 +456,13 @@ README_NUMBERS = {
                                 "{:.2f}"),
     "lumibench_wall": ("images/lumibench/summary.json", "wall_s", "{:.0f}"),
     "lumibench_load": ("docs/figures.json", "lumibench.load.median", "{:.1f}"),
-    "lumibench_bath_ao_rays_per_s": ("docs/lumibench_bath_ao_e2e.json",
-                                     "summary.rays_per_s.median", "{:,.0f}"),
-    "lumibench_bath_ao_runs": ("docs/lumibench_bath_ao_e2e.json", "runs",
-                               lambda v: f"{len(v):d}"),
+    "lumibench_bath_ao_rays_per_s": E2E_NUMBERS["e2e_rays_per_s_median"],
+    "lumibench_bath_ao_runs": E2E_NUMBERS["e2e_runs"],
     "bvh_build_bunny": ("docs/bvh_bench.json", "builds.0.build_s", "{:.2f}"),
     "bvh_build_5m": ("docs/bvh_bench.json", "builds.2.build_s", "{:.1f}"),
 }
 
 
-MIB = 2 ** 20
 # The numbers docs/lumibench.md quotes (the same form; tests/test_suite.py checks the page)
 LUMIBENCH_NUMBERS = {
     "lb_runs": ("images/lumibench/summary.json", "totals.runs", "{:d}"),
@@ -462,15 +475,7 @@ LUMIBENCH_NUMBERS = {
                               "{:.1f}"),
     "lb_bath_ao_replay": ("images/lumibench/BATH_AO.json", "rtunit_memory.sim_wall_s",
                           "{:.1f}"),
-    **{f"e2e_{key}_{stat}": ("docs/lumibench_bath_ao_e2e.json", f"summary.{key}.{stat}", fmt_)
-       for key, fmt_ in (("rays_per_s", "{:,.0f}"), ("trace_s", "{:.2f}"),
-                         ("functional_s", "{:.2f}"), ("replay_s", "{:.2f}"),
-                         ("process_s", "{:.1f}"))
-       for stat in ("min", "median", "max")},
-    "e2e_runs": ("docs/lumibench_bath_ao_e2e.json", "runs", lambda v: f"{len(v):d}"),
-    "e2e_rays": ("docs/lumibench_bath_ao_e2e.json", "runs.0.rays", "{:,}"),
-    "e2e_peak": ("docs/lumibench_bath_ao_e2e.json", "runs",
-                 lambda v: f"{max(r['peak_rss_bytes'] for r in v) / MIB:,.0f}"),
+    **E2E_NUMBERS,
     "lb512_rays": ("images/lumibench_512/BATH_AO.json", "rays", "{:,}"),
     "lb512_wall": ("images/lumibench_512/BATH_AO.json", "timing.wall_s", "{:.0f}"),
     "lb512_rays_per_s": ("images/lumibench_512/BATH_AO.json", "timing.rays_per_s", "{:,.0f}"),
