@@ -23,11 +23,11 @@ import json  # noqa: E402
 import os  # noqa: E402
 import resource  # noqa: E402
 import statistics  # noqa: E402
-import subprocess  # noqa: E402
 import sys  # noqa: E402
 
 from .core.progress import phase as show  # noqa: E402
 from .design import DesignPoint  # noqa: E402
+from .load_bench import fresh_process  # noqa: E402
 from .render import render  # noqa: E402
 from .scenes.scene import load_scene  # noqa: E402
 
@@ -65,27 +65,17 @@ def end_to_end(point, repeat: int, progress: bool = True) -> dict:
     maximum."""
     text = json.dumps(point.as_dict())
     with show(f"first run of {point.scene} {point.workload} (fills the caches)", progress):
-        first = _child(text)
+        first = fresh_process("driver.frame_bench", [text], "end-to-end run")
     runs = []
     for k in range(repeat):
         with show(f"run {k + 1} of {repeat}", progress):
-            runs.append(_child(text))
+            runs.append(fresh_process("driver.frame_bench", [text], "end-to-end run"))
     summary = {key: {"min": min(r[key] for r in runs),
                      "median": statistics.median(r[key] for r in runs),
                      "max": max(r[key] for r in runs)} for key in SUMMARISED}
     return {"command": (f"rayflex render {point.scene} --workload {point.workload} --size "
                         f"{point.size} --spp {point.spp} --check-embree --rtunit"),
             "first_run": first, "runs": runs, "summary": summary}
-
-
-def _child(point_json: str) -> dict:
-    env = dict(os.environ, RAYFLEX_T0=repr(time.time()))
-    r = subprocess.run([sys.executable, "-m", "driver.frame_bench", point_json],
-                       capture_output=True, text=True, env=env)
-    if r.returncode != 0:
-        last = (r.stderr.strip().splitlines() or ["(no output)"])[-1]
-        raise RuntimeError(f"end-to-end run failed: {last}")
-    return json.loads(r.stdout.strip().splitlines()[-1])
 
 
 if __name__ == "__main__":

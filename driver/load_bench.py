@@ -108,17 +108,22 @@ def load_bench(scene: str, root, synthetic: tuple | None = None, bvh_format: str
                "bvh_format": bvh_format}
         for name in PHASES:
             with show(f"{name} load and build of {scene}", progress):
-                out[name] = _child(name, scene, str(root), cache, bvh_format)
+                out[name] = fresh_process("driver.load_bench",
+                                          [name, scene, str(root), cache, bvh_format],
+                                          f"scene-load phase {name}")
         return out
 
 
-def _child(name, scene, root, cache, bvh_format) -> dict:
+def fresh_process(module: str, args: list[str], what: str) -> dict:
+    """Run ``python -m module args`` in a fresh process, which reports one JSON object on its
+    last line of output and may time itself from ``RAYFLEX_T0`` (when it was started); returns
+    that object, or raises RuntimeError with ``what`` and the process's last line of errors."""
     env = dict(os.environ, RAYFLEX_T0=repr(time.time()))
-    r = subprocess.run([sys.executable, "-m", "driver.load_bench", name, scene, root, cache,
-                        bvh_format], capture_output=True, text=True, env=env)
+    r = subprocess.run([sys.executable, "-m", module, *args], capture_output=True, text=True,
+                       env=env)
     if r.returncode != 0:
         last = (r.stderr.strip().splitlines() or ["(no output)"])[-1]
-        raise RuntimeError(f"scene-load phase {name} failed: {last}")
+        raise RuntimeError(f"{what} failed: {last}")
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
