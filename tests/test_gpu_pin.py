@@ -77,7 +77,7 @@ def test_every_statistic_of_the_pinned_frames(pinned):
     bad = []
     for key, memory in (("rtunit", None), ("rtunit_memory", point.memory())):
         fr = replay_frame(waves, point.rays_in_flight, point.pipelines, memory, PIN, width=128)
-        assert fr.counters["datapath"] == "timing"
+        assert fr.datapath == "timing"
         for kind, t in want["by_type"].items():
             bad += differences(fr.type_summary(kind), t[key], f"{name}/{kind}/{key}")
         total = fr.summary()

@@ -56,8 +56,8 @@ def test_timing_replay_equals_the_evaluated_replay(ao_waves, case):
     r, p, memory, schedule, opts = CASES[case]
     rtl = replay_frame(ao_waves, r, p, memory, schedule, width=24, datapath="rtl", **opts)
     timed = replay_frame(ao_waves, r, p, memory, schedule, width=24, datapath="timing", **opts)
-    assert rtl.verified and rtl.counters["datapath"] == "rtl"
-    assert timed.counters["datapath"] == "timing" and timed.verified is None
+    assert rtl.verified and rtl.datapath == "rtl"
+    assert timed.datapath == "timing" and timed.verified is None
     assert timed.counters["model_evals"] == 0 < rtl.counters["model_evals"]
     assert timing_differences(rtl, timed) == []
     assert rtl.summary() | {"sim_wall_s": 0, "replay_datapath": "", "responses_verified": 0} \

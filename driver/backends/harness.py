@@ -200,11 +200,12 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
     Combined``); ``chains``: (chain_idx, chain_off) of its chains; ``plan``: kernels, warps and
     calls (``kernel_off`` over warps, ``warp_call_off`` over calls, ``call_ray_off`` /
     ``call_rays``: chain indices). ``treelets``: a ``driver.rtunit.order.TreeletSchedule`` (needs
-    a window). Returns (responses (m, RSP_WORDS) uint32 at the record index, ``ReplayStats``
-    dict plus ``SCHED_STATS``, requests per pipeline (units, P) int64, per-ray and per-call
-    arrays: ``ray_times`` (n, 3), ``ray_served`` (n, one column per ``MEMORY_LEVELS``),
-    ``ray_wait`` (n,), ``call_times`` (calls, 3), ``call_unit`` (calls,), ``series``,
-    ``kernel_times`` (kernels, 3))."""
+    a window). Returns (responses (m, RSP_WORDS) uint32 at the record index (none, (0,
+    RSP_WORDS), when ``config["timing_latency"]`` makes the pipelines their timing),
+    ``ReplayStats`` dict plus ``SCHED_STATS``, requests per pipeline (units, P) int64, per-ray
+    and per-call arrays: ``ray_times`` (n, 3), ``ray_served`` (n, one column per
+    ``MEMORY_LEVELS``), ``ray_wait`` (n,), ``call_times`` (calls, 3), ``call_unit`` (calls,),
+    ``series``, ``kernel_times`` (kernels, 3))."""
     lib = harness_library(params)
     rw, img, r, p, e = node_arrays(frame.ray_words, frame.image, frame.ray, frame.ptr,
                                    frame.extent)
@@ -227,7 +228,8 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
         cfg.treelet_flags = int(treelets.park) | 2 * int(treelets.borrow)
         pre = treelets.prefetch_lists()
     n_chains, n_calls = len(co) - 1, len(cro) - 1
-    rsp = np.zeros((len(r), RSP_WORDS), np.uint32)
+    # the timing replay (timing_latency > 0) writes no responses
+    rsp = np.zeros((0 if cfg.timing_latency else len(r), RSP_WORDS), np.uint32)
     stats = ReplayStats()
     per_pipe = np.zeros((cfg.units, cfg.pipelines), np.int64)
     sched = np.zeros(len(SCHED_STATS), np.int64)

@@ -231,7 +231,7 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
                         len(fr.responses), record.box_ops, c["cycles"], c["starved_cycles"],
                         c["full_cycles"], c["model_evals"], fr.per_pipe[0].tolist(), fr.wall_s,
                         fr.verified, fr.latency, fr.responses, mem, fr.order_cost,
-                        record.transform_ops, c["datapath"])
+                        record.transform_ops, fr.datapath)
 
 
 def sweep(record: Record, rays_in_flight=SWEEP_RAYS_IN_FLIGHT, pipelines=SWEEP_PIPELINES,

@@ -65,6 +65,7 @@ class FrameReplay:
     order_cost: dict | None = None
     window: int = 0
     extra: dict = field(default_factory=dict)
+    datapath: str = "rtl"          # how the pipelines ran (REPLAY_DATAPATHS)
 
     @property
     def units(self) -> int:
@@ -141,7 +142,7 @@ class FrameReplay:
                "rays": n, "ops": m, "cycles": self.cycles,
                "frame_cycles": int(c["frame_cycles"]), "kernels": len(self.kernel_waves),
                "starved_cycles": int(c["starved_cycles"]), "sim_wall_s": self.wall_s,
-               "replay_datapath": c["datapath"], "responses_verified": self.verified}
+               "replay_datapath": self.datapath, "responses_verified": self.verified}
         called = self.plan.call_rays
         out.update(self._rays_part(called))
         if self.memory is not None:
@@ -217,7 +218,7 @@ class FrameReplay:
         rays = sum(int(self.combined.chain_off0[q + 1] - self.combined.chain_off0[q])
                    for q in waves)
         out = {**self._base(), "rays": rays, "ops": int(self.chain_ops[ids].sum()),
-               "replay_datapath": self.counters["datapath"],
+               "replay_datapath": self.datapath,
                "responses_verified": self.verified}
         if self.schedule.frame == "wavefront":
             kernels = [q for q, w in enumerate(self.kernel_waves) if w in waves]
@@ -341,7 +342,6 @@ def replay_frame(waves: list[Wave], rays_in_flight: int, pipelines: int = 1, mem
         rsp, verified = comb.responses, None          # nothing evaluated, nothing compared
     else:
         verified = _verify(rsp, counters, comb, verify)
-    counters["datapath"] = "timing" if timing else "rtl"
     cost = None
     if ray_order != "index":
         depth = ray_orders.tree_depth(records[0]) if pol.schedule else 0
@@ -355,15 +355,15 @@ def replay_frame(waves: list[Wave], rays_in_flight: int, pipelines: int = 1, mem
                  for sel in (NodeRef.is_box(comb.ptr), ptr == INSTANCE_TYPE)]
     return FrameReplay(s, r, p, ta, latency, memory, [w.kind for w in waves], comb, plan,
                        counters, per_pipe, arrays, chains[2], *per_chain, kernel_waves,
-                       wall, verified, rsp, cost, window if pol.schedule else 0)
+                       wall, verified, rsp, cost, window if pol.schedule else 0,
+                       datapath="timing" if timing else "rtl")
 
 
 def timing_differences(a: FrameReplay, b: FrameReplay) -> list[str]:
     """The names of the counts, times and per-ray arrays in which two replays of the same frame
     differ (empty: the same timing); how the model is run (``datapath``, ``model_evals``) and
     the wall time are not compared."""
-    skip = {"datapath", "model_evals"}
-    out = [k for k in a.counters if k not in skip and a.counters[k] != b.counters.get(k)]
+    out = [k for k in a.counters if k != "model_evals" and a.counters[k] != b.counters.get(k)]
     if not np.array_equal(a.per_pipe, b.per_pipe):
         out.append("per_pipe")
     out += [k for k in a.arrays if not np.array_equal(a.arrays[k], b.arrays[k])]
