@@ -238,6 +238,10 @@ def test_workload_bench_one_timing_replay_by_default(tmp_path, monkeypatch):
     assert len(calls) == 1 and calls[0] is not None          # one replay, with its memory
     assert d["frame"]["rtunit"] is None and d["sweep"] is None
     assert d["frame"]["rtunit_memory"]["replay_datapath"] == "timing"
+    # the default plot --help promises (it was drawn only with --plot or --sweep-rays): the
+    # rays each RT unit holds, from the same replay
+    assert d["plot"] == str(tmp_path / "w_rtunit.png")
+    assert (tmp_path / "w_rtunit.png").stat().st_size > 1000
 
 
 @pytest.mark.parametrize("workload", ["primary", "ao"])

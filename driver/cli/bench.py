@@ -134,8 +134,7 @@ def run(args) -> int:
     outs = Outputs()
     js = outs.add("--json", args.json, JSON) if args.json else None
     plot = None
-    if args.bvh or (args.workers == 1 and args.sweep_size
-                    and (default_frame or sweep_rays or args.plot)):
+    if args.bvh or (args.workers == 1 and args.sweep_size):
         kind = "bvh" if args.bvh else "rtunit"
         plot = outs.add("--plot", args.plot or (
             Path(args.json).with_name(f"{Path(args.json).stem}_{kind}.png") if args.json
