@@ -50,6 +50,7 @@ from .check import compare, embree_closest, embree_json, summary
 from .core.progress import bar as _bar
 from .core.provenance import machine, provenance
 from .core.wire import pack_responses
+from .core.words import plural
 from .design import DesignPoint
 from .plotting import describe
 from .rtunit.gpu import replay_point, waves_of
@@ -467,7 +468,7 @@ def bench_workers(point: DesignPoint, workers=2, tile=64, progress=True) -> dict
     spec = ("rtl", point.backend_options())
     runs = {}
     for n in (1, int(workers)):
-        bar = _bar(n_tiles, f"{point.workload} {size}x{size} on {n} worker(s)", "tile",
+        bar = _bar(n_tiles, f"{point.workload} {size}x{size} on {plural(n, 'worker')}", "tile",
                    progress)
         t0 = time.perf_counter()
         runs[n] = (tiles.render_tiles(setup, bvh, size, size, point.workload, options, spec,

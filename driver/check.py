@@ -23,6 +23,7 @@ import weakref
 
 import numpy as np
 
+from .core.words import plural
 from .instances import Instances, world_boxes
 
 T_REL = 1e-5          # relative t agreement of an edge tie
@@ -375,12 +376,14 @@ def merge_checks(parts: list[dict]) -> dict:
 def summary(e: dict) -> str:
     """The one line the commands print for an ``embree`` object: rays compared, each kind of
     mismatch, the largest t difference and, when it was adjudicated, the count of each class."""
-    text = (f"embree: {e['rays_compared']} rays compared, {e['hit_mismatch']} hit/miss "
-            f"mismatches, {e['prim_mismatch']} primitive mismatches, {e['edge_ties']} edge ties, "
-            f"max t rel err {e['max_t_rel_err']:.2g}")
+    text = (f"embree: {plural(e['rays_compared'], 'ray')} compared, "
+            f"{plural(e['hit_mismatch'], 'hit/miss mismatch', 'hit/miss mismatches')}, "
+            f"{plural(e['prim_mismatch'], 'primitive mismatch', 'primitive mismatches')}, "
+            f"{plural(e['edge_ties'], 'edge tie')}, max t rel err {e['max_t_rel_err']:.2g}")
     if "adjudicated" in e:
         text += "; decided exactly: " + ", ".join(
-            f"{v} {k.replace('_', ' ')}" for k, v in e["adjudicated"]["classes"].items())
+            plural(v, "edge tie") if k == "edge_tie" else f"{v} {k.replace('_', ' ')}"
+            for k, v in e["adjudicated"]["classes"].items())
     return text
 
 

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import textwrap
 
+from .core.words import plural
+
 
 def describe(point: dict, omit=(), parts=("frame", "datapath", "bvh", "rtunit")) -> str:
     """The design point ``point`` (``DesignPoint.as_dict()``, or a JSON's
@@ -53,7 +55,7 @@ def describe(point: dict, omit=(), parts=("frame", "datapath", "bvh", "rtunit"))
         if "rays_in_flight" not in skip:
             r.append(f"R={p['rays_in_flight']}")
         if "pipelines" not in skip:
-            r.append(f"{p['pipelines']} pipeline" + ("s" if p["pipelines"] != 1 else ""))
+            r.append(plural(p["pipelines"], "pipeline"))
         if not {"cache_kib", "cache_ways", "line_bytes"} & skip:
             r.append(f"{p['cache_kib']} KiB {p['cache_ways']}-way node cache"
                      if p["cache_kib"] else "no node cache")

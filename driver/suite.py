@@ -43,6 +43,7 @@ from .core.outputs import jsonable
 from .core.progress import bar as progress_bar
 from .core.progress import phase
 from .core.provenance import git_commit, provenance, rayflex_version
+from .core.words import plural
 from .lumibench_shaders import WORKLOADS
 from .scenes import lumibench as lb
 from .sweep import _box_op, energy_key, energy_per_ray, energy_tables
@@ -300,7 +301,7 @@ def _run_suite(name, runs, base, out, backend, root, workers, scheduler, ideal, 
     # run of a scene takes the next run of the same scene (and keeps the scene and its BVH)
     todo.sort(key=lambda rp: (-per_scene[rp[0].scene], -cost[rp[0].name]))
     if progress:
-        print(f"rayflex: suite {name}: {len(runs)} runs, {len(done)} already in {out}, "
+        print(f"rayflex: suite {name}: {plural(len(runs), 'run')}, {len(done)} already in {out}, "
               f"{len(todo)} to make", file=sys.stderr, flush=True)
     with phase("energy per op (level signals)", progress):
         energy = _energy(base)

@@ -14,6 +14,7 @@ from PIL import Image
 
 from .core.outputs import jsonable
 from .core.provenance import provenance
+from .core.words import plural
 from .plotting import describe, wrap
 
 
@@ -102,7 +103,7 @@ def markdown_table(summary: dict) -> str:
             f"{r['edge_tie']:,} | {r['embree_wrong']:,} | {r['datapath_wrong']:,} | "
             f"{fmt(r['wall_s'], '.1f')} s |")
     t = summary["totals"]
-    lines.append(f"| all {t['runs']} runs | {t['rays']:,} | | | | | | {t['agree']:,} | "
+    lines.append(f"| all {plural(t['runs'], 'run')} | {t['rays']:,} | | | | | | {t['agree']:,} | "
                  f"{t['edge_tie']:,} | {t['embree_wrong']:,} | {t['datapath_wrong']:,} | "
                  f"{summary['wall_s']:.0f} s |")
     return "\n".join(lines)
@@ -152,7 +153,7 @@ def figure(summary: dict) -> bytes:
     fig.legend(handles, labels, loc="center right", fontsize=8, frameon=False,
                title="scene", title_fontsize=8)
     dp = (summary.get("provenance") or {}).get("design_point") or {}
-    fig.suptitle(wrap(f"suite {summary['suite']}: {len(rows)} runs on the RTL; "
+    fig.suptitle(wrap(f"suite {summary['suite']}: {plural(len(rows), 'run')} on the RTL; "
                       + describe(dp, parts=("datapath", "bvh", "rtunit")), 150), fontsize=9)
     fig.tight_layout(rect=(0, 0, 1 - 0.9 / fig.get_figwidth(), 0.93))
     buf = io.BytesIO()

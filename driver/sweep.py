@@ -49,7 +49,7 @@ from .core.progress import phase
 from .rtunit.gpu import replay_point, waves_of
 from .stats import merge, public
 from .core.provenance import git_commit, provenance, rayflex_version
-from .core.words import cell
+from .core.words import cell, plural
 from .power.report import UNITS
 from .power.stimulus import box_op
 from .tiles import _client
@@ -219,8 +219,9 @@ def sweep(points: list[DesignPoint], workers: int = 1, scheduler: str | None = N
     done = load_results(results)
     todo = [p for p in points if p.key() not in done]
     if done and progress:
-        print(f"rayflex: sweep: {len(points) - len(todo)} of {len(points)} points already "
-              f"done in {results}, {len(todo)} to measure", flush=True, file=_stderr())
+        print(f"rayflex: sweep: {len(points) - len(todo)} of {plural(len(points), 'point')} "
+              f"already done in {results}, {len(todo)} to measure", flush=True,
+              file=_stderr())
     traces: dict = {}
     groups: dict = {}
     for p in points:
@@ -485,6 +486,7 @@ def table(doc: dict) -> str:
     out.append("(per ray type, then all rays of the point; util / ideal: utilization with the "
                "memory hierarchy / with free node fetches (--ideal-replay), a ray type's only "
                "in a wavefront frame; -: none; latency: mean cycles from the trace call to the "
-               "ray's last response; B/ray: bytes from DRAM per ray; E/ray: datapath energy per ray "
-               "in bit toggles; mem pJ/ray: node fetches, docs/rtunit.md; docs/statistics.md)")
+               "ray's last response; B/ray: bytes from DRAM per ray; E/ray: datapath energy "
+               "per ray in bit toggles; mem pJ/ray: node fetches, docs/rtunit.md; "
+               "docs/statistics.md)")
     return "\n".join(out)

@@ -16,7 +16,7 @@ from ..rtunit import SWEEP_RAYS_IN_FLIGHT
 from ..scenes.lumibench import is_lumibench, root
 from ..studies.bvh import bvh_bench
 from . import options
-from ..core.words import cell
+from ..core.words import cell, plural
 from .common import check_positive, wrote
 
 
@@ -89,7 +89,7 @@ def frame_end_to_end(args, point) -> int:
               f"{r['peak_rss_bytes'] / 2**20:,.0f} MiB")
     m = doc["summary"]["rays_per_s"]
     print(f"rays per second outside loading and the BVH: median {m['median']:,.0f} (min "
-          f"{m['min']:,.0f}, max {m['max']:,.0f}) over {len(doc['runs'])} runs")
+          f"{m['min']:,.0f}, max {m['max']:,.0f}) over {plural(len(doc['runs']), 'run')}")
     wrote(outs.paths())
     return 0
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..scenes.camera import MAX_SIZE
+from ..core.words import cell, plural
 from ..scenes.lumibench import root
 from ..suite import (SUITES, SUMMARY, Run, SuiteError, check_runs, lumibench_runs, read_suite,
                      run_suite)
@@ -77,20 +78,27 @@ def run(args) -> int:
 
 
 def table(summary: dict) -> str:
-    """The summary as text: one line per run."""
-    head = (f"{'run':<12} {'rays':>9} {'ops/ray':>8} {'util mem':>8} {'B/ray':>7} "
-            f"{'hit rate':>8} {'energy/ray':>10}  check (agree / tie / Embree wrong / ours wrong)")
-    lines = [f"suite {summary['suite']}: {len(summary['runs'])} runs in "
+    """The summary as text: one line per run, each column headed by one word (its JSON key's
+    name where it has one), then what the columns are."""
+    head = (f"{'run':<12} {'rays':>9} {'ops/ray':>8} {'util_mem':>8} {'B/ray':>7} "
+            f"{'hit_rate':>8} {'energy/ray':>10} {'agree':>9} {'edge_tie':>8} "
+            f"{'embree_wrong':>12} {'datapath_wrong':>14}")
+    lines = [f"suite {summary['suite']}: {plural(len(summary['runs']), 'run')} in "
              f"{summary['wall_s']:.1f} s ({summary['runs_made']} made now)", head]
-    fmt = lambda v, f: "-" if v is None else format(v, f)  # noqa: E731
     for r in summary["runs"]:
-        lines.append(f"{r['name']:<12} {r['rays']:>9,} {fmt(r['ops_per_ray'], '8.2f')} "
-                     f"{fmt(r['utilization_memory'], '8.3f')} {fmt(r['bytes_per_ray'], '7.0f')} "
-                     f"{fmt(r['hit_rate'], '8.3f')} {fmt(r['energy_per_ray_signals'], '10.3g')}  "
-                     f"{r['agree']} / {r['edge_tie']} / {r['embree_wrong']} / "
-                     f"{r['datapath_wrong']}" + ("  (partial scene)" if r["partial"] else ""))
+        lines.append(f"{r['name']:<12} {r['rays']:>9,} {cell(r['ops_per_ray'], '.2f'):>8} "
+                     f"{cell(r['utilization_memory'], '.3f'):>8} "
+                     f"{cell(r['bytes_per_ray'], '.0f'):>7} {cell(r['hit_rate'], '.3f'):>8} "
+                     f"{cell(r['energy_per_ray_signals'], '.3g'):>10} "
+                     f"{cell(r['agree'], ','):>9} {cell(r['edge_tie'], ','):>8} "
+                     f"{cell(r['embree_wrong'], ','):>12} {cell(r['datapath_wrong'], ','):>14}"
+                     + ("  (partial scene)" if r["partial"] else ""))
+    lines.append("(util_mem: the RT unit's utilization with the node memory; B/ray: bytes from "
+                 "memory per ray; hit_rate: the node cache's; energy/ray: bit toggles per ray; "
+                 "agree ... datapath_wrong: the rays of each class of the Embree check, "
+                 "docs/lumibench.md; -: none)")
     for k, missing in summary.get("partial", {}).items():
-        lines.append(f"partial: {k} without {len(missing)} missing file(s): "
+        lines.append(f"partial: {k} without {plural(len(missing), 'missing file')}: "
                      + ", ".join(missing[:4]) + (", ..." if len(missing) > 4 else ""))
     for k, why in summary.get("skipped", {}).items():
         lines.append(f"not run: {k}: {why}")

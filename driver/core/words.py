@@ -11,7 +11,7 @@ def plural(n, word: str, many: str | None = None, fmt: str = "") -> str:
     return f"{format(n, fmt)} {word if n == 1 else many or word + 's'}"
 
 
-MISSING = "-"       # a table's cell without a value (a ray type's utilization in a one-kernel frame)
+MISSING = "-"       # a table's cell without a value (a ray type's utilization, one-kernel frame)
 
 
 def cell(value, spec: str = "") -> str:

@@ -48,6 +48,7 @@ from ..backends.cache import cache_root
 from ..bvh.instances import TwoLevelBVH
 from ..bvh4 import BVH4, build_scene
 from ..core.errors import SceneError
+from ..core.words import plural
 from ..instances import Instances
 from .camera import Camera, frame
 from .lumibench_defs import (AO_EXTENT, CACHE_ENV, CACHE_VERSION, DEFINITIONS, EMPTY, PREFIX,
@@ -181,7 +182,8 @@ def load(name: str, root_dir=None, progress: bool = False, use_cache: bool | Non
     scene.load_s, scene.cached = time.perf_counter() - t0, hit
     scene.cache_key = f"{d.id}-{defn}-{key}" if use_cache else ""
     if scene.missing and progress:
-        print(f"rayflex: note: {PREFIX}{d.id} is partial: {len(scene.missing)} file(s) missing "
+        print(f"rayflex: note: {PREFIX}{d.id} is partial: "
+              f"{plural(len(scene.missing), 'file')} missing "
               f"from {top}: {', '.join(scene.missing)}", file=sys.stderr)
     return scene
 
