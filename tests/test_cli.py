@@ -182,6 +182,33 @@ def test_argparse_errors_exit_2(capsys):
     assert main([]) == 2
 
 
+def test_a_camera_value_may_start_with_a_minus(in_tmp, capsys):
+    """``--camera -1,2,3`` printed 24 lines of usage, then "expected one argument"."""
+    args = ["render", "sphere", "--size", "6", "--backend", "golden", "--no-progress",
+            "--look-at", "0,0,0", "--json", "a.json"]
+    assert main([*args, "--camera", "-3,1.5,-2", "--up", "-0,-1,0"]) == 0
+    a = json.loads((in_tmp / "a.json").read_text())
+    assert main([*args[:-1], "b.json", "--camera=-3,1.5,-2", "--up=-0,-1,0"]) == 0
+    b = json.loads((in_tmp / "b.json").read_text())
+    assert a["ops"] == b["ops"] and a["hits"] == b["hits"]
+
+
+def test_a_usage_error_is_one_line(capsys):
+    """An argparse error came after the whole usage (24 lines for render)."""
+    with pytest.raises(SystemExit) as e:
+        main(["render", "sphere", "--size"])
+    assert e.value.code == 2
+    assert capsys.readouterr().err == ("rayflex render: error: argument --size: expected one "
+                                       "argument (rayflex render --help lists the options)\n")
+
+
+def test_only_commands_that_read_scenes_offer_lumibench_root(capsys):
+    for command, offered in (("knn", False), ("render", True), ("suite", True)):
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        assert ("--lumibench-root" in capsys.readouterr().out) is offered, command
+
+
 def test_help(capsys):
     for args in (["--help"], ["render", "--help"]):
         with pytest.raises(SystemExit) as e:
@@ -244,7 +271,8 @@ def test_outputs_are_written_by_extension(in_tmp):
     (["--out", "noext"], "unknown extension"),
     (["--json", "s.csv"], ".json"),
     (["--out", "adir"], "is a directory"),
-    (["--out", "/proc/x.png"], "cannot write in /proc"),
+    (["--out", "/proc/x.png"], "--out /proc/x.png: cannot write in /proc: the folder exists "
+                               "but its file system takes no new file"),
     (["--json", "/proc/s.json"], "cannot write in /proc"),
 ])
 def test_bad_outputs_fail_before_any_work(error_line, in_tmp, monkeypatch, args, words):

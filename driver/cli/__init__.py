@@ -1,7 +1,8 @@
 """``rayflex`` command line: one argparse subcommand per module in ``COMMANDS``.
 
 A subcommand is a module (or an object) with ``add_parser(subparsers)`` (adds and returns its
-parser) and ``run(args) -> int`` (the exit code). To add one, write the module and add one line
+parser) and ``run(args) -> int`` (the exit code), and ``SCENES = False`` if it reads no scene
+(no ``--lumibench-root``). To add one, write the module and add one line
 to ``COMMANDS``. Helpers every command shares (backend, size, output and progress options, the
 one-line error) are in ``driver.cli.common``.
 
@@ -80,8 +81,10 @@ def epilog() -> str:
 def main(argv=None) -> int:
     """Entry point of the ``rayflex`` console script; returns the exit code."""
     parser = build_parser()
-    args = parser.parse_args(argv)
-    args.argv = list(argv) if argv is not None else sys.argv[1:]   # what a JSON may record
+    given = list(argv) if argv is not None else sys.argv[1:]     # what a JSON may record
+    from .options import attach_vectors
+    args = parser.parse_args(attach_vectors(given))
+    args.argv = given
     if not getattr(args, "command", None):
         parser.print_help(sys.stderr)
         return EXIT_USAGE
@@ -92,7 +95,7 @@ def main(argv=None) -> int:
     outputs.forget_written()
     with watch(PROG, codes, Terminated, outputs.written) as watched:
         try:
-            with using_root(args.lumibench_root):
+            with using_root(getattr(args, "lumibench_root", None)):
                 code = int(args.handler.run(args) or 0)
             if watched.late:                     # a signal after the outputs were written
                 print(f"{PROG}: {late_note(watched.late)}", file=sys.stderr)
@@ -117,8 +120,17 @@ def main(argv=None) -> int:
             return EXIT_INTERNAL
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse's parser, whose usage errors are one line (with where the options are listed)
+    instead of the whole usage before the line that matters."""
+
+    def error(self, message):
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} ({self.prog} --help lists "
+                              "the options)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog=PROG, description="Workload driver for the RayFlex ray-tracing datapath.",
         epilog=epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
@@ -127,7 +139,8 @@ def build_parser() -> argparse.ArgumentParser:
     for target in COMMANDS.values():
         handler = _load(target)
         p = handler.add_parser(sub)
-        SHARED["lumibench_root"].add(p)
+        if getattr(handler, "SCENES", True):         # its commands read scenes
+            SHARED["lumibench_root"].add(p)
         p.formatter_class = argparse.RawDescriptionHelpFormatter
         if p.epilog is None:
             p.epilog = epilog()

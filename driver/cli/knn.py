@@ -12,6 +12,8 @@ from ..core.outputs import JSON, TABLE, Outputs
 from . import options
 from .common import EXIT_CHECK, PROG, check_backend, wrote
 
+SCENES = False          # kNN reads vectors, no scene: no --lumibench-root
+
 
 def add_parser(subparsers):
     p = subparsers.add_parser(

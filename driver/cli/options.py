@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import re
 from dataclasses import dataclass
 from typing import Callable
 
@@ -93,10 +94,25 @@ SHARED = {
                                 "(default: $LUMIBENCH_ROOT; docs/lumibench.md)"),
 }
 
+VECTOR_FLAGS = ("--camera", "--look-at", "--up")       # X,Y,Z values
+_NUMBERS = re.compile(r"-[\d.]?[\d.eE+-]*(,[-+\d.eE]*)*")
+
+
+def attach_vectors(argv: list[str]) -> list[str]:
+    """``argv`` with ``--camera -1,2,3`` written ``--camera=-1,2,3`` (likewise ``--look-at``,
+    ``--up``): argparse takes a value that starts with a minus and is not one number for an
+    option, and refused the vector."""
+    out = list(argv)
+    for i in range(len(out) - 1):
+        if out[i] in VECTOR_FLAGS and _NUMBERS.fullmatch(out[i + 1]):
+            out[i:i + 2] = [f"{out[i]}={out[i + 1]}", None]
+    return [a for a in out if a is not None]
+
+
 # argument groups: name -> (title, description)
 ARG_GROUPS = {
-    "camera": ("camera", "replace parts of the scene's camera (the rest stays the scene's); write "
-                         "--camera=-1,2,3 when a value starts with a minus"),
+    "camera": ("camera", "replace parts of the scene's camera (the rest stays the scene's); a "
+                         "value may start with a minus: --camera -1,2,3"),
     "export": ("request-stream export",
                "the frame's datapath requests in issue order with the golden model's responses, "
                "to test another datapath on the same work (the frame is traced once more, on "

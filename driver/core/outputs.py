@@ -28,6 +28,7 @@ multi-file, all-or-nothing write; it is the small part that has to be hand-writt
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import tempfile
@@ -164,6 +165,8 @@ def _probe_writable(parent: Path, flag: str, path) -> None:
         fd, name = tempfile.mkstemp(prefix=".rayflex-probe-", dir=parent)
     except OSError as e:
         reason = e.strerror or type(e).__name__
+        if e.errno == errno.ENOENT and parent.is_dir():     # /proc, /sys: no new file there
+            reason = "the folder exists but its file system takes no new file"
         raise OutputError(f"{flag} {path}: cannot write in {parent}: {reason}") from None
     os.close(fd)
     os.unlink(name)
