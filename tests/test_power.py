@@ -258,6 +258,32 @@ def test_power_says_what_it_will_build(monkeypatch, capsys):
     assert "power: 1 of 4 models to build first" in err
 
 
+def test_a_model_build_reports_before_the_progress_bar_is_drawn(monkeypatch):
+    """power's bar and a first build's lines once shared one stderr line: the bar was drawn,
+    then the model built under it. The model is made first now."""
+    import driver.power as power
+    events = []
+
+    class Model:
+        def __init__(self, params):
+            events.append("model")
+
+    class Bar:
+        def __init__(self, per_cfg):
+            events.append("bar")
+
+        def step(self, cfg, op):
+            pass
+
+        def close(self):
+            events.append("closed")
+    monkeypatch.setattr(activity, "SignalModel", Model)
+    monkeypatch.setattr(power, "_Bar", Bar)
+    monkeypatch.setattr(power, "measure", lambda *a, **k: {})
+    power.run_level("signals", ["baseline-unified", "baseline-disjoint"], progress=True)
+    assert events == ["model", "bar", "closed"] * 2
+
+
 # ------------------------------------------------------------------------------------------------
 # liberty reader
 

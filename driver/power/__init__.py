@@ -165,8 +165,9 @@ def run_level(level: str, cfgs: list[str], n: int = DEFAULT_OPS, seed: int = 0,
             t0 = time.perf_counter()
             p = params_of(cfg, latency)
             names = ops or stimulus.measurable(p)
+            model = activity.SignalModel(p)   # a first build reports its steps: before the bar
             bar = _bar(progress, {cfg: len(names)})
-            out[cfg] = measure(activity.SignalModel(p), p, n, seed, ops=ops,
+            out[cfg] = measure(model, p, n, seed, ops=ops,
                                progress=(lambda op, c=cfg: bar.step(c, op)) if bar else None)
             if bar:
                 bar.close()
