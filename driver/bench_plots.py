@@ -3,7 +3,7 @@ the rays each RT unit holds over the frame, and utilization over rays in flight.
 
 from __future__ import annotations
 
-from .plotting import legend_right, wrap
+from .plotting import legend_under, wrap
 
 MARKERS = ("o", "s", "^", "D", "v", "P")     # one per ray type: coinciding curves stay apart
 
@@ -15,7 +15,7 @@ def plot_rays_held(frame: dict, path, title: str) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(9.4, 4.2), dpi=110)
+    fig = Figure(figsize=(9.4, 4.8), dpi=110)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
     pool = frame["rtunit_memory"]["rays_in_flight"]
@@ -35,7 +35,7 @@ def plot_rays_held(frame: dict, path, title: str) -> None:
     ax.set_xlabel("cycle")
     ax.set_ylabel("rays held per RT unit (mean over the units)")
     ax.grid(True, alpha=0.3)
-    legend_right(ax, fontsize=7)
+    legend_under(ax, ncol=2, fontsize=7)
     ax.set_title(wrap(title, 90), fontsize=8)
     fig.tight_layout()
     fig.savefig(str(path), format="png")
@@ -48,7 +48,7 @@ def plot_workload_sweep(sweep: list, path, title: str) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(10.0, 4.6), dpi=110)
+    fig = Figure(figsize=(10.0, 5.2), dpi=110)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
     x = [p["rays_in_flight"] for p in sweep]
@@ -79,10 +79,9 @@ def plot_workload_sweep(sweep: list, path, title: str) -> None:
         ax2.set_ylim(bottom=0)
         h1, l1 = ax.get_legend_handles_labels()
         h2, l2 = ax2.get_legend_handles_labels()
-        ax.legend(h1 + h2, l1 + l2, fontsize=7, loc="upper left", bbox_to_anchor=(1.12, 1.0),
-                  borderaxespad=0.0)
+        legend_under(ax, h1 + h2, l1 + l2, ncol=min(len(l1 + l2), 4), fontsize=7)
     else:
-        legend_right(ax, title="utilization", fontsize=7)
+        legend_under(ax, ncol=min(len(kinds) + 1, 4), title="utilization", fontsize=7)
     ax.set_title(wrap(title, 90), fontsize=8)
     fig.tight_layout()
     fig.savefig(str(path), format="png")

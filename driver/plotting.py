@@ -1,9 +1,11 @@
 """What every plot the tool draws shares: a title naming the frame and the design point it was
-measured on (``describe``), and legends placed outside the data (``legend_right``,
-``legend_below``), so that no series hides behind one."""
+measured on (``describe``), wrapped between words (``wrap``), and legends placed outside the
+data, under the axes (``legend_under``, ``legend_below``), so that no series hides behind one
+and the axes keep the figure's width."""
 
 from __future__ import annotations
 
+import re
 import textwrap
 
 from .core.words import plural
@@ -70,14 +72,26 @@ def describe(point: dict, omit=(), parts=("frame", "datapath", "bvh", "rtunit"))
     return "; ".join(out)
 
 
+_NUMBER_AND_UNIT = re.compile(r"(?<=\d) (?=[^\W\d])")         # "32 KiB", "246.2 B/cycle"
+
+
 def wrap(title: str, width: int = 110) -> str:
-    """A title broken into lines of at most ``width`` characters (a figure clips a long one)."""
-    return "\n".join(textwrap.fill(part, width) for part in title.split("\n"))
+    """A title broken into lines of at most ``width`` characters (a figure clips a long one),
+    only between words: never inside a word, at its hyphen ("baseline-unified"), nor between
+    a number and its unit ("32 KiB", "246.2 B/cycle")."""
+    glued = _NUMBER_AND_UNIT.sub("\u00a0", title)          # a no-break space
+    return "\n".join(textwrap.fill(part, width, break_long_words=False,
+                                    break_on_hyphens=False)
+                     for part in glued.split("\n"))
 
 
-def legend_right(ax, **kw):
-    """The axes' legend beside them, right of the data."""
-    return ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, **kw)
+def legend_under(ax, handles=None, labels=None, ncol: int = 2, **kw):
+    """The axes' legend under them, below the axis label (``fig.tight_layout`` makes room), so
+    the axes keep the figure's width."""
+    if handles is None:
+        handles, labels = ax.get_legend_handles_labels()
+    return ax.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -0.13),
+                     ncol=ncol, frameon=False, borderaxespad=0.0, **kw)
 
 
 def legend_below(fig, handles, labels, ncol: int, **kw):

@@ -448,7 +448,8 @@ def plot(doc: dict, path) -> None:
     ax2.set_ylabel("node fetches' energy per ray (pJ; docs/rtunit.md)")
     ax2.set_title("memory-side energy per ray vs time per ray (squares: no node cache)",
                   fontsize=8)
-    ax2.set_ylim(bottom=0)
+    energies = [e["energy_per_ray"]["memory_pj"] for e in pts]
+    ax2.set_ylim(0, 1.1 * max([v for v in energies if v is not None] or [1.0]))  # markers whole
     ax2.set_xlim(0, 1.1 * max(_timing(e)["cycles_per_ray"] for e in pts))
     ax2.grid(True, alpha=0.3)
     ax2.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), frameon=False,
