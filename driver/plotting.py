@@ -5,10 +5,7 @@ and the axes keep the figure's width."""
 
 from __future__ import annotations
 
-import re
-import textwrap
-
-from .core.words import plural
+from .core.words import plural, wrap  # noqa: F401  (wrap: every plot's titles)
 
 
 def describe(point: dict, omit=(), parts=("frame", "datapath", "bvh", "rtunit")) -> str:
@@ -70,19 +67,6 @@ def describe(point: dict, omit=(), parts=("frame", "datapath", "bvh", "rtunit"))
         if r:
             out.append(", ".join(r))
     return "; ".join(out)
-
-
-_NUMBER_AND_UNIT = re.compile(r"(?<=\d) (?=[^\W\d])")         # "32 KiB", "246.2 B/cycle"
-
-
-def wrap(title: str, width: int = 110) -> str:
-    """A title broken into lines of at most ``width`` characters (a figure clips a long one),
-    only between words: never inside a word, at its hyphen ("baseline-unified"), nor between
-    a number and its unit ("32 KiB", "246.2 B/cycle")."""
-    glued = _NUMBER_AND_UNIT.sub("\u00a0", title)          # a no-break space
-    return "\n".join(textwrap.fill(part, width, break_long_words=False,
-                                    break_on_hyphens=False)
-                     for part in glued.split("\n"))
 
 
 def legend_under(ax, handles=None, labels=None, ncol: int = 2, **kw):

@@ -7,6 +7,7 @@ import re
 
 from driver.bench_plots import plot_rays_held
 from driver.plotting import wrap
+from driver.core.words import wrap as core_wrap
 
 TITLE = ("rays held per RT unit over the frame: bunny_floor 128x128 ao (spp 2, 4 AO rays); "
          "baseline-unified, latency 11; box32 BVH; rtx2060-vulkan-sim preset, one-kernel frame, "
@@ -15,7 +16,9 @@ TITLE = ("rays held per RT unit over the frame: bunny_floor 128x128 ao (spp 2, 4
 
 
 def test_a_title_wraps_between_words_never_inside_a_word_or_a_quantity():
-    """Titles were broken at "baseline-|unified" and "246.2 | B/cycle"."""
+    """Titles were broken at "baseline-|unified" and "246.2 | B/cycle"; every plot (the RT-unit
+    layer's too) wraps with the one function."""
+    assert wrap is core_wrap
     for width in range(40, 120, 7):
         lines = wrap(TITLE, width).split("\n")
         assert len(lines) > 1

@@ -50,12 +50,12 @@ identical responses and cycles (tests check).
 
 from __future__ import annotations
 
-import textwrap
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.words import wrap
 from ..tracing.record import Record
 from .gpu import DEFAULT_REPLAY_DATAPATH, ReplayMismatch, replay_frame
 from .plan import PER_RAY_POOL, Wave
@@ -300,7 +300,6 @@ def plot_sweep(points: list[dict], path, title: str = "") -> None:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(title="dotted: throughput\nbound ops / P", fontsize=8, loc="upper left",
               bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)      # beside the data
-    ax.set_title("\n".join(textwrap.fill(t, 100) for t in (title or "RT-unit sweep").split("\n")),
-                 fontsize=9)
+    ax.set_title(wrap(title or "RT-unit sweep", 100), fontsize=9)
     fig.tight_layout()
     fig.savefig(str(path), format="png")
