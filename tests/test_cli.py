@@ -200,6 +200,11 @@ def test_a_usage_error_is_one_line(capsys):
     assert e.value.code == 2
     assert capsys.readouterr().err == ("rayflex render: error: argument --size: expected one "
                                        "argument (rayflex render --help lists the options)\n")
+    with pytest.raises(SystemExit) as e:
+        main(["render", "sphere", "--bogus"])
+    assert e.value.code == 2
+    assert capsys.readouterr().err == ("rayflex render: error: unrecognized arguments: --bogus "
+                                       "(rayflex render --help lists the options)\n")
 
 
 def test_only_commands_that_read_scenes_offer_lumibench_root(capsys):

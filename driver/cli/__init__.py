@@ -124,9 +124,18 @@ class Parser(argparse.ArgumentParser):
     """argparse's parser, whose usage errors are one line (with where the options are listed)
     instead of the whole usage before the line that matters."""
 
-    def error(self, message):
-        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} ({self.prog} --help lists "
-                              "the options)\n")
+    def error(self, message, prog=None):
+        prog = prog or self.prog
+        self.exit(EXIT_USAGE, f"{prog}: error: {message} ({prog} --help lists the options)\n")
+
+    def parse_args(self, args=None, namespace=None):
+        """As argparse's, an unknown option named with the command it was given to."""
+        parsed, extra = self.parse_known_args(args, namespace)
+        if extra:
+            command = getattr(parsed, "command", None)
+            self.error(f"unrecognized arguments: {' '.join(extra)}",
+                       f"{self.prog} {command}" if command else None)
+        return parsed
 
 
 def build_parser() -> argparse.ArgumentParser:
