@@ -12,7 +12,8 @@
 //
 // Handshake (valid/ready on both ports; a beat moves on a rising clock edge with valid and ready
 // both high; tag_i travels with its operands to tag_o unchanged):
-//   * in_ready_o is high exactly while the unit holds no division; it is a register output.
+//   * in_ready_o is high exactly while the unit holds no division (decoded from the state
+//     register alone).
 //   * A division taken in cycle 0 has out_valid_o high from cycle DIV_CYCLES
 //     (rf_fp_div_pkg::DIV_CYCLES), for every operand pair, special cases included.  out_valid_o
 //     then holds, with q_o and tag_o stable, until out_ready_i takes the result; in_ready_o is high
