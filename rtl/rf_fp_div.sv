@@ -28,13 +28,13 @@
 //     subnormal significand (leading-zero count, rf_fp_pkg::fp_lzc32) so both significands ma, mb
 //     have their leading one in bit 23; load the partial remainder w = 2 ma (< 4 mb), the divisor
 //     mb, its multiple 3 mb and the exponent ea - eb + 126;
-//   * cycles 1 .. DIV_ITER_CYCLES (= DIV_CYCLES - 2): radix-4 restoring division, one quotient digit a cycle: the
-//     digit is the largest d in 0..3 with d mb <= w (three subtractions side by side, no chain),
-//     w <- 4 (w - d mb);
-//   * cycle DIV_CYCLES - 1: the quotient Q = floor(2 ma / mb * 4^12) has its leading one in bit 25 or 24
-//     (a one-bit normalisation, no leading-zero count); with the sticky bit (the remainder is not
-//     zero) it goes through rf_fp_pkg::fp_round (overflow, gradual underflow, RNE) into the
-//     output register, unless a special case chose the result.
+//   * cycles 1 .. DIV_ITER_CYCLES (= DIV_CYCLES - 2): radix-4 restoring division, one quotient
+//     digit a cycle: the digit is the largest d in 0..3 with d mb <= w (three subtractions side
+//     by side, no chain), w <- 4 (w - d mb);
+//   * cycle DIV_CYCLES - 1: the quotient Q = floor(2 ma / mb * 4^12) has its leading one in bit
+//     25 or 24 (a one-bit normalisation, no leading-zero count); with the sticky bit (the
+//     remainder is not zero) it goes through rf_fp_pkg::fp_round (overflow, gradual underflow,
+//     RNE) into the output register, unless a special case chose the result.
 module rf_fp_div
   import rf_fp_pkg::*;
   import rf_fp_div_pkg::*;

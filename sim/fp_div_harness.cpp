@@ -1,8 +1,8 @@
 // fp_div_harness: driver and monitor for the Verilated fp_div_tb_top (sim/fp_div_tb_top.sv), loaded
 // with ctypes.
 //
-// fp_div_run(a, b, tag, n, gap, gap_len, stall, stall_len, q, tag_out, latency, stats) resets the
-// divider and streams n divisions through it, one clock cycle at a time:
+// fp_div_run(a, b, tag, n, gap, gap_len, stall, stall_len, q, tag_out, latency, stats, max_cycles)
+// resets the divider and streams n divisions through it, one clock cycle at a time:
 //   a, b, tag   : const uint32_t[n]  operands (binary32 bit patterns) and the tag of each division
 //   gap, stall  : repeating 0/1 patterns (nullptr: none); in cycle k a new division is offered
 //                 only if gap[k % gap_len] == 0 (an offered one stays offered, operands unchanged,
@@ -15,7 +15,9 @@
 //                                    out_valid_o dropped or its q_o/tag_o changed before it was
 //                                    taken), [2] cycles with in_ready_o high while a division was
 //                                    in the unit, [3] the RTL's DIV_CYCLES
-// Returns the cycles, or -1 if the unit stopped (no handshake for a bound of cycles).
+//   max_cycles  : stop after this many cycles (0: no bound), whatever is inside the unit
+// Returns the cycles, -1 if the unit stopped (no handshake for a bound of cycles), or -2 when
+// max_cycles ran out first.
 // While no division is offered, a_i, b_i and tag_i carry garbage.
 #include <cstddef>
 #include <cstdint>
@@ -56,7 +58,8 @@ extern "C" {
 
 int64_t fp_div_run(const uint32_t* a, const uint32_t* b, const uint32_t* tag, int64_t n,
                    const uint8_t* gap, int64_t gap_len, const uint8_t* stall, int64_t stall_len,
-                   uint32_t* q, uint32_t* tag_out, int32_t* latency, int64_t* stats) {
+                   uint32_t* q, uint32_t* tag_out, int32_t* latency, int64_t* stats,
+                   int64_t max_cycles) {
   Vfp_div_tb_top& t = model();
   stats[0] = stats[1] = stats[2] = 0;
   t.in_valid_i = 0;
@@ -77,6 +80,7 @@ int64_t fp_div_run(const uint32_t* a, const uint32_t* b, const uint32_t* tag, in
   uint32_t held_q = 0, held_tag = 0;
   int64_t rise = -1;            // first cycle of the current result's out_valid_o
   while (taken < n) {
+    if (max_cycles > 0 && k >= max_cycles) return -2;
     if (!offered && sent < n && !(gap && gap[k % gap_len])) offered = true;
     t.in_valid_i = offered ? 1 : 0;
     if (offered) {

@@ -100,18 +100,21 @@ DIRECTED = {
     # NaN in each position
     "NaN/1": (NAN, ONE), "1/NaN": (ONE, NAN), "NaN/NaN": (NAN, NNAN), "-NaN/2": (NNAN, TWO),
     "sNaN/1": (SNAN, ONE), "1/sNaN": (ONE, SNAN), "NaN/0": (NAN, ZERO), "0/NaN": (ZERO, NAN),
-    "NaN/inf": (NAN, INF), "inf/NaN": (INF, 0x7FFFFFFF), "payload NaN/subnormal": (0xFFD23456, MINS),
+    "NaN/inf": (NAN, INF), "inf/NaN": (INF, 0x7FFFFFFF),
+    "payload NaN/subnormal": (0xFFD23456, MINS),
     # plain quotients
-    "1/3": (ONE, THREE), "2/3": (TWO, THREE), "-1/3": (0xBF800000, THREE), "1/10": (ONE, 0x41200000),
+    "1/3": (ONE, THREE), "2/3": (TWO, THREE), "-1/3": (0xBF800000, THREE),
+    "1/10": (ONE, 0x41200000),
     "1/7": (ONE, 0x40E00000), "355/113": (0x43B18000, 0x42E20000),
     # exact quotients
-    "6/3": (0x40C00000, THREE), "1/1": (ONE, ONE), "1/2": (ONE, TWO), "0.75/0.5": (0x3F400000, HALF),
-    "max/max": (MAXF, MAXF), "max/1": (MAXF, ONE), "max/2": (MAXF, TWO), "-max/-1": (0xFF7FFFFF, 0xBF800000),
+    "6/3": (0x40C00000, THREE), "1/1": (ONE, ONE), "1/2": (ONE, TWO),
+    "0.75/0.5": (0x3F400000, HALF), "max/max": (MAXF, MAXF), "max/1": (MAXF, ONE),
+    "max/2": (MAXF, TWO), "-max/-1": (0xFF7FFFFF, 0xBF800000),
     "min normal/min normal": (MINN, MINN), "min subnormal/min subnormal": (MINS, MINS),
     "min normal/min subnormal": (MINN, MINS),
     # extremes
     "max/min normal": (MAXF, MINN), "min normal/max": (MINN, MAXF), "max/0.5": (MAXF, HALF),
-    "max/(1 - 2^-24)": (MAXF, 0x3F7FFFFF), "max/(1 + 2^-23)": (MAXF, 0x3F800001),
+    "max/(1 - 2^-24) overflows": (MAXF, 0x3F7FFFFF), "max/(1 + 2^-23)": (MAXF, 0x3F800001),
     "min subnormal/max": (MINS, MAXF), "max/min subnormal": (MAXF, MINS),
     "1/min subnormal": (ONE, MINS), "1/max": (ONE, MAXF), "1/min normal": (ONE, MINN),
     "2^-127/2^-127": (0x00400000, 0x00400000),
@@ -128,16 +131,18 @@ DIRECTED = {
     "1/2^149 (exact min subnormal)": (ONE, 0x7A000000), "1/2^150 (tie to 0)": (ONE, 0x7A800000),
     "1/(2^150 - ulp)": (ONE, 0x7A7FFFFF), "-1/(2^149 + ulp)": (0xBF800000, 0x7A000001),
     # exact ties below the normal range (round half to even) and their neighbours
-    "min subnormal/2 (tie to 0)": (MINS, TWO), "3 min subnormal/2 (tie up to 2)": (0x00000003, TWO),
-    "5 min subnormal/2 (tie down to 2)": (0x00000005, TWO), "(2^-126 + ulp)/2 (tie to even)": (0x00800001, TWO),
+    "min subnormal/2 (tie to 0)": (MINS, TWO),
+    "3 min subnormal/2 (tie up to 2)": (0x00000003, TWO),
+    "5 min subnormal/2 (tie down to 2)": (0x00000005, TWO),
+    "(2^-126 + ulp)/2 (tie to even)": (0x00800001, TWO),
     "(2^-126 + 3 ulp)/2 (tie up)": (0x00800003, TWO), "3 min subnormal/6": (0x00000003, 0x40C00000),
     "min subnormal/(2 - ulp)": (MINS, 0x3FFFFFFF), "min subnormal/(2 + ulp)": (MINS, 0x40000001),
-    # rounding up into the next (subnormal) binade; as close as a quotient comes to 1, to 2^-126
-    # (a quotient never rounds up to a power of two on the 24-bit grid: support.fpdiv.gen_div_binade)
+    # rounding up into the next (subnormal) binade; the quotients closest below 1 and 2^-126 (a
+    # quotient never rounds up to a power of two on the 24-bit grid: fpdiv.gen_div_binade)
     "up to 2^-136": (0x05F13F54, 0x47F13F55), "up to 2^-127": (0x3248D184, 0x7348D18D),
-    "(1 - 2 ulp)/(1 - ulp)": (0x3F7FFFFE, 0x3F7FFFFF), "max subnormal/(1 - ulp)": (MAXS, 0x3F7FFFFF),
-    "(2^-126 - ulp)/(1 - 2^-24)": (MAXS, 0x3F7FFFFF), "min normal/(1 + 2^-23)": (MINN, 0x3F800001),
-    "max/(1 - 2^-24) overflow": (MAXF, 0x3F7FFFFF),
+    "(1 - 2^-23)/(1 - 2^-24), closest below 1": (0x3F7FFFFE, 0x3F7FFFFF),
+    "max subnormal/(1 - 2^-24), closest below 2^-126": (MAXS, 0x3F7FFFFF),
+    "min normal/(1 + 2^-23)": (MINN, 0x3F800001),
 }
 
 
@@ -221,6 +226,16 @@ def test_single_division_and_empty_run(div):
     assert empty.cycles == 0 and empty.q.size == 0
 
 
+def test_reset_during_a_division(div):
+    """A reset in any cycle of a division empties the unit: the next run starts clean (its
+    results, tags, latencies and cycle count are those of a run from power-up)."""
+    a, b = np.array([[0x3F800000, 0x40400000], [0x00000003, 0x40000000]], np.uint32).T
+    for stop in range(1, a.size * (div_cycles_documented() + 1)):   # every cycle of the run
+        assert div.run(a, b, max_cycles=stop) is None
+        run = check(div, a, b)
+        assert run.cycles == a.size * (run.div_cycles + 1)
+
+
 # ------------------------------------------------------------------------------------------------
 # Property-based: hypothesis' pairs (it favours zeros, extremes and repeated values)
 
@@ -230,14 +245,16 @@ _float_pairs = st.lists(st.tuples(st.floats(width=32), st.floats(width=32)), min
                         max_size=64)
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=60, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(pairs=_pairs, pressure=st.sampled_from(PRESSURES))
 def test_hypothesis_bit_patterns(div, pairs, pressure):
     a, b = np.array(pairs, np.uint32).T
     check(div, a, b, gaps=pressure[0], stalls=pressure[1], seed=len(pairs))
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=60, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(pairs=_float_pairs)
 def test_hypothesis_floats(div, pairs):
     f = np.array(pairs, np.float32)

@@ -8,7 +8,7 @@ division-specific operand generators.
 The harness (sim/fp_div_harness.cpp) is the driver and the monitor: it offers the divisions in
 order with input gaps (an offered division stays offered until taken; garbage on the operand and
 tag inputs between offers), stalls the output, records each result with its tag and its latency,
-and counts protocol errors. ``check_run`` is the scoreboard.
+and counts protocol errors.  The scoreboard is ``check`` in tests/test_fp_div.py.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ import numpy as np
 
 from driver.backends.build import SIM_DIR, rtl_sources, DIV_SOURCE_LIST
 from driver.backends.rtlbase import pattern
+from driver.backends.verilate import build_library
 
 from . import testbench
 from .fpu import CANONICAL_NAN, _bits, _from_int_scaled, _rand_frac, _rand_sign
@@ -54,19 +55,21 @@ class DivModel:
     """The Verilated fp_div_tb_top (rf_fp_div with a 32-bit tag)."""
 
     def __init__(self) -> None:
-        from driver.backends.verilate import build_library
         self.library = build_library("fp_div_tb_top", DIV_TB_SOURCES, DIV_HARNESS)
         self._dll = ctypes.CDLL(str(self.library))
         self._run = self._dll.fp_div_run
         self._run.restype = ctypes.c_int64
         self._run.argtypes = [_u32p, _u32p, _u32p, ctypes.c_int64,
                               ctypes.c_void_p, ctypes.c_int64, ctypes.c_void_p, ctypes.c_int64,
-                              _u32p, _u32p, _i32p, _i64p]
+                              _u32p, _u32p, _i32p, _i64p, ctypes.c_int64]
 
     def run(self, a: np.ndarray, b: np.ndarray, tags: np.ndarray | None = None,
-            gaps: float = 0.0, stalls: float = 0.0, seed: int = 0) -> DivRun:
+            gaps: float = 0.0, stalls: float = 0.0, seed: int = 0,
+            max_cycles: int = 0) -> DivRun | None:
         """Stream a[i] / b[i] (uint32 bit patterns) with tags (default ``tags_for``), with input
-        gaps and output stalls of the given probabilities (repeating patterns from ``seed``)."""
+        gaps and output stalls of the given probabilities (repeating patterns from ``seed``), after
+        a reset.  With ``max_cycles``: stop after that many cycles, whatever is inside the unit
+        (None if the run did not finish)."""
         a = np.ascontiguousarray(a, dtype=np.uint32)
         b = np.ascontiguousarray(b, dtype=np.uint32)
         n = a.shape[0]
@@ -81,7 +84,9 @@ class DivModel:
         def ptr(p):
             return (None, 0) if p is None else (p.ctypes.data, p.size)
 
-        cycles = self._run(a, b, tags, n, *ptr(gap), *ptr(stall), q, tag, lat, stats)
+        cycles = self._run(a, b, tags, n, *ptr(gap), *ptr(stall), q, tag, lat, stats, max_cycles)
+        if cycles == -2:
+            return None
         if cycles < 0:
             raise AssertionError(f"the divider stopped (no handshake for 1000 cycles) after "
                                  f"{int(np.count_nonzero(lat))} of {n} results")
