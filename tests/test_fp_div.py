@@ -15,7 +15,7 @@ import re
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
+from hypothesis import given, settings, strategies as st
 
 from driver.backends.build import RTL_DIR, DIV_SOURCE_LIST, source_names
 from driver.core.resources import ROOT
@@ -245,16 +245,14 @@ _float_pairs = st.lists(st.tuples(st.floats(width=32), st.floats(width=32)), min
                         max_size=64)
 
 
-@settings(max_examples=60, deadline=None,
-          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=60, deadline=None)
 @given(pairs=_pairs, pressure=st.sampled_from(PRESSURES))
 def test_hypothesis_bit_patterns(div, pairs, pressure):
     a, b = np.array(pairs, np.uint32).T
     check(div, a, b, gaps=pressure[0], stalls=pressure[1], seed=len(pairs))
 
 
-@settings(max_examples=60, deadline=None,
-          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=60, deadline=None)
 @given(pairs=_float_pairs)
 def test_hypothesis_floats(div, pairs):
     f = np.array(pairs, np.float32)
