@@ -137,22 +137,9 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend=DEFAULT_BACKEND, ex
     record = bool(rtunit_options.pop("record", False))
     REPLAY_OPTIONS.bind(None, **rtunit_options)   # an unknown option fails here (TypeError)
     replay = {k: v for k, v in rtunit_options.items() if v is not None}
-    if transform is not None:
-        check_transform(transform)
-    if isinstance(scene_or_mesh_or_bvh, (str, bytes)) or hasattr(scene_or_mesh_or_bvh,
-                                                                 "__fspath__"):
-        from .scenes.scene import load_scene                      # the application layer; lazy
-        scene_or_mesh_or_bvh = load_scene(scene_or_mesh_or_bvh)
-    if double_sided is None:
-        double_sided = bool(getattr(scene_or_mesh_or_bvh, "double_sided", False))
-    bvh = as_bvh(scene_or_mesh_or_bvh, bvh_format)
+    bvh, double_sided, where, be, be_name = _set_up(scene_or_mesh_or_bvh, backend, double_sided,
+                                                    bvh_format, transform)
     instanced = getattr(bvh, "instances", None) is not None
-    where = transform or getattr(bvh, "transform", "driver")
-    xf = instanced and where == DATAPATH
-    be, be_name = resolve(backend, **({"transform": True} if xf else {}))
-    if xf and not getattr(be, "transform", False):
-        raise ValueError(f"transform='{DATAPATH}' needs a backend built with the TRANSFORM "
-                         f"operation (backend({be_name!r}, transform=True))")
     rays = prepare_rays(origins, directions, extent,
                         **({"flags": FLAG_NO_CULL} if double_sided else {}))
     timed = "rays_in_flight" in replay
@@ -179,6 +166,27 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend=DEFAULT_BACKEND, ex
     return TraceResult(t, trav.prim, hit, trav.box_ops, trav.tri_ops, trav.step_requests,
                        trav.step_box_requests, stats, rec, instance,
                        None if inst is None else inst.transform_ops)
+
+
+def _set_up(scene_or_mesh_or_bvh, backend, double_sided, bvh_format, transform):
+    """``trace``'s BVH and backend: (bvh, double_sided, where the transform runs, backend, its
+    name); a ValueError for a transform on a backend built without it."""
+    if transform is not None:
+        check_transform(transform)
+    if isinstance(scene_or_mesh_or_bvh, (str, bytes)) or hasattr(scene_or_mesh_or_bvh,
+                                                                 "__fspath__"):
+        from .scenes.scene import load_scene                      # the application layer; lazy
+        scene_or_mesh_or_bvh = load_scene(scene_or_mesh_or_bvh)
+    if double_sided is None:
+        double_sided = bool(getattr(scene_or_mesh_or_bvh, "double_sided", False))
+    bvh = as_bvh(scene_or_mesh_or_bvh, bvh_format)
+    where = transform or getattr(bvh, "transform", "driver")
+    xf = getattr(bvh, "instances", None) is not None and where == DATAPATH
+    be, be_name = resolve(backend, **({"transform": True} if xf else {}))
+    if xf and not getattr(be, "transform", False):
+        raise ValueError(f"transform='{DATAPATH}' needs a backend built with the TRANSFORM "
+                         f"operation (backend({be_name!r}, transform=True))")
+    return bvh, double_sided, where, be, be_name
 
 
 def _replay_params(be) -> dict:
