@@ -59,6 +59,7 @@ import numpy as np
 from ..tracing.record import Record
 from .gpu import DEFAULT_REPLAY_DATAPATH, ReplayMismatch, replay_frame
 from .plan import PER_RAY_POOL, Wave
+from .order import RayOrder
 
 __all__ = ["Record", "MemoryModel", "ReplayResult", "ReplayMismatch", "replay", "sweep",
            "plot_sweep"]
@@ -214,8 +215,7 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
     ``datapath``: "timing" (the pipelines' handshake timing, the functional run's responses) or
     "rtl" (every request evaluated again and checked; ``gpu.REPLAY_DATAPATHS``)."""
     fr = replay_frame([Wave(record)], rays_in_flight, pipelines, memory, PER_RAY_POOL,
-                      ray_order=ray_order, ray_window=ray_window, treelets=treelets,
-                      turnaround=turnaround, skip_idle=skip_idle, verify=verify,
+                      order=RayOrder(ray_order, ray_window, treelets), turnaround=turnaround, skip_idle=skip_idle, verify=verify,
                       datapath=datapath)
     c = fr.counters
     mem = None
