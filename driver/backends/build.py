@@ -79,6 +79,20 @@ def rtl_params(extended: bool, disjoint: bool, latency: int | None = None,
             "LATENCY": int(latency)}
 
 
+def backend_params(be) -> dict[str, int]:
+    """The build parameters of the datapath backend ``be`` models: a ``Backend``'s ``params``;
+    for an object with only ``run`` and ``cycles`` (e.g. a wrapper that records another
+    backend's calls) those of the ``Backend`` attributes it has, the rest the baseline's."""
+    params = getattr(be, "params", None)
+    if isinstance(params, dict) and {"EXTENDED", "DISJOINT", "LATENCY"} <= set(params):
+        return dict(params)
+    lat = getattr(be, "latency", MIN_LATENCY)
+    compressed = bool(getattr(be, "compressed", False))
+    return rtl_params(getattr(be, "extended", False), getattr(be, "disjoint", False),
+                      lat if isinstance(lat, int) and lat >= MIN_LATENCY + compressed else None,
+                      compressed, bool(getattr(be, "transform", False)))
+
+
 def lint(extended=False, disjoint=False, latency=None, compressed=False, transform=False) -> str:
     """``verilator --lint-only -Wall`` of the whole datapath with the waivers in rtl/lint.vlt."""
     return verilate.lint(TOP, [RTL_DIR / LINT_WAIVERS, *rtl_sources()],
