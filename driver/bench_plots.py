@@ -79,9 +79,9 @@ def plot_workload_sweep(sweep: list, path, title: str) -> None:
         ax2.set_ylim(bottom=0)
         h1, l1 = ax.get_legend_handles_labels()
         h2, l2 = ax2.get_legend_handles_labels()
-        legend_under(ax, h1 + h2, l1 + l2, ncol=min(len(l1 + l2), 4), fontsize=7)
+        legend_under(ax, h1 + h2, l1 + l2, ncol=min(len(l1 + l2), 6), fontsize=7)
     else:
-        legend_under(ax, ncol=min(len(kinds) + 1, 4), title="utilization", fontsize=7)
+        legend_under(ax, ncol=min(len(kinds) + 1, 6), title="utilization", fontsize=7)
     ax.set_title(wrap(title, 90), fontsize=8)
     fig.tight_layout()
     fig.savefig(str(path), format="png")
