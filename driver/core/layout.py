@@ -17,6 +17,8 @@ opcodes a node becomes, ``QNODE_WORDS``) are imported here.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .wire import (FLAG_NAMES, MATRIX_SHAPE, OPCODES, QNODE_WORDS, QUADBOX, RAY_WORDS, REQ_WORDS,
@@ -157,9 +159,43 @@ NODE_BYTES.update({Q8_TYPE: Q8_BYTES, PAIR_TYPE: PAIR_BYTES, LEAF_NEXT_TYPE: 0,
 #   (two 64-byte lines)
 NODE_OPCODE.update({Q8_TYPE: QUADBOX, PAIR_TYPE: TRIANGLE, LEAF_NEXT_TYPE: TRIANGLE,
                     GROUP_TYPE: TRIANGLE})
-# the node images ``driver.bvh4.build`` writes (docs/compressed.md): box32; q8 (q8 box nodes,
-# pair leaves); q8g (q8 box nodes, pair leaves and group leaves of 3 to 6 triangles)
-IMAGE_FORMATS = ("box32", "q8", "q8g")
+
+
+@dataclass(frozen=True)
+class ImageFormat:
+    """A node image ``driver.bvh4.build`` writes (docs/compressed.md), with its properties:
+    ``compressed`` (quantized q8 box nodes, which a datapath built with the q8 decode reads
+    itself; triangle-pair leaves), ``groups`` (group leaves of 3 to 6 triangles sharing
+    vertices), its box nodes (struct, pointer type) and the format of a two-level image's TLAS
+    over BLASes in it (a TLAS has no groups: its instance leaves are single nodes)."""
+
+    name: str
+    compressed: bool
+    groups: bool
+    box_node: np.dtype
+    box_type: int
+    tlas: str
+
+    @property
+    def box_bytes(self) -> int:
+        return self.box_node.itemsize
+
+
+# the one table of the image formats; the first is the default (and the studies' reference)
+FORMATS = {f.name: f for f in (
+    ImageFormat("box32", False, False, BOX_NODE, BOX_TYPE, "box32"),
+    ImageFormat("q8", True, False, Q8_NODE, Q8_TYPE, "q8"),
+    ImageFormat("q8g", True, True, Q8_NODE, Q8_TYPE, "q8"),
+)}
+IMAGE_FORMATS = tuple(FORMATS)
+DEFAULT_FORMAT = IMAGE_FORMATS[0]
+
+
+def image_format(name: str) -> ImageFormat:
+    """The ``FORMATS`` entry of ``name``; ValueError (one line) for an unknown one."""
+    if name not in FORMATS:
+        raise ValueError(f"BVH image format must be one of {IMAGE_FORMATS}, got {name!r}")
+    return FORMATS[name]
 assert Q8_NODE.fields["q"][1] == 32 and Q8_NODE.fields["exp"][1] == 12
 
 
