@@ -66,7 +66,7 @@ struct Engine {
   const int64_t* tl_node_bytes;
   // outputs
   int64_t* ray_times;    // (n_chains, 3): call issued, call admitted, last response
-  int64_t* ray_served;   // (n_chains, 4): node bytes supplied by each memory level
+  int64_t* ray_served;   // (n_chains, kMemoryLevels): node bytes supplied by each memory level
   int64_t* ray_wait;     // (n_chains,): cycles waited for nodes
   int64_t* call_times;   // (n_calls, 3): issued, admitted, done
   int64_t* call_unit;    // (n_calls,)
@@ -78,7 +78,7 @@ struct Engine {
   bool treelets = false, affinity = false, parking = false;
   int64_t calls_per_unit = 0, window_calls = 0, seq = 0, next_warp = 0, kernel_end = 0;
   int64_t kernel_calls_left = 0;
-  int64_t node_wait = 0, level_wait[4] = {0, 0, 0, 0};
+  int64_t node_wait = 0, level_wait[kMemoryLevels] = {};
   int64_t n_parked = 0, n_resumed = 0, max_parked = 0, max_held = 0;
   int64_t picks = 0, max_queued = 0, n_borrowed = 0;
 
@@ -96,7 +96,7 @@ struct Engine {
   // node it reads on entering an instance); it becomes ready when the node is present, or parks.
   void wait(Unit& u, int64_t uid, int64_t r, int64_t at) {
     const uint32_t b = before[index_of(r)];
-    int64_t* served = ray_served + r * 4;
+    int64_t* served = ray_served + r * kMemoryLevels;
     Access ab{at, kLevelNone, kLevelNone};
     if (b != kNoChild)
       ab = mem.fetch(uid, NodeSource::node_word(b) * 4, kNodeBytes[b & kTypeMask], at, served);
@@ -355,7 +355,8 @@ extern "C" {
 // kernels of first accept to last response, `frame_cycles` the frame's); per_pipe (units * P):
 // requests per pipeline; sched (int64[7]): rays parked, resumed, most parked at once (one unit),
 // most rays held at once (one unit), treelet picks, most rays queued at once, borrowed requests;
-// ray_times (n_chains, 3), ray_served (n_chains, 4), ray_wait (n_chains), call_times (n_calls, 3),
+// ray_times (n_chains, 3), ray_served (n_chains, kMemoryLevels), ray_wait (n_chains),
+// call_times (n_calls, 3),
 // call_unit (n_calls) as named in Engine; series (cfg.series_capacity): rays held by all units,
 // summed per bin of stats->series_bin_cycles cycles; kernel_times (n_kernels, 3): each kernel's
 // first accept, last response (-1: none) and starved unit-cycles.
@@ -448,7 +449,7 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const uint32_
     for (int64_t j = 0; j < 3; j++) call_times[k * 3 + j] = -1;
     call_unit[k] = -1;
   }
-  std::memset(ray_served, 0, sizeof(int64_t) * 4 * n_chains);
+  std::memset(ray_served, 0, sizeof(int64_t) * kMemoryLevels * n_chains);
   std::memset(ray_wait, 0, sizeof(int64_t) * n_chains);
   std::memset(series, 0, sizeof(int64_t) * c.series_capacity);
   for (int64_t q = 0; q < n_kernels; q++) {
