@@ -27,6 +27,9 @@ RTL_DIR = data_dir("rtl")
 SIM_DIR = data_dir("sim")
 TOP = "rayflex"
 SOURCE_LIST = RTL_DIR / "sources.txt"
+# The binary32 divider (rf_fp_div, with the FP package it imports) has a list of its own: the
+# datapath does not use it, and every file of SOURCE_LIST is part of the datapath build's cache key.
+DIV_SOURCE_LIST = RTL_DIR / "fp_div_sources.txt"
 LINT_WAIVERS = "lint.vlt"
 HARNESS_SOURCES = ("rayflex_harness.cpp", "rtunit_scheduler.cpp")
 # included by the harness sources from their own directory: their text is hashed into the name of
@@ -50,9 +53,10 @@ def parse_source_list(text: str) -> list[str]:
     return [ln.strip() for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
 
 
-def rtl_sources() -> list[Path]:
-    """The RTL files in compile order; BackendError if the source tree is not there."""
-    paths = [RTL_DIR / f for f in source_names()]
+def rtl_sources(list_file: Path = SOURCE_LIST) -> list[Path]:
+    """The RTL files of a source list (default: the datapath's) in compile order; BackendError if
+    the source tree is not there."""
+    paths = [RTL_DIR / f for f in source_names(list_file)]
     missing = [p for p in paths if not p.is_file()]
     if missing:
         raise BackendError(f"RTL source {missing[0]} not found: the RTL backends need the project's "
