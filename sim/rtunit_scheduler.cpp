@@ -361,17 +361,42 @@ extern "C" {
 // summed per bin of stats->series_bin_cycles cycles; kernel_times (n_kernels, 3): each kernel's
 // first accept, last response (-1: none) and starved unit-cycles.
 // Returns 0, -1 on a deadlock, -2 on a bad node pointer, -3 on bad arguments.
-int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const uint32_t* rays,
-                  int64_t n_rays, const uint32_t* image, int64_t image_words, const uint32_t* ray,
-                  const uint32_t* ptr, const uint32_t* ext, int64_t m, const int64_t* chain_idx,
-                  const int64_t* chain_off, int64_t n_chains, const uint32_t* chain,
-                  const uint32_t* before, int64_t n_kernels, const int64_t* kernel_off,
-                  const int64_t* warp_call_off, const int64_t* call_ray_off,
-                  const int64_t* call_rays, const int32_t* treelet, int64_t n_treelets,
-                  const int64_t* tl_off, const int64_t* tl_node_off, const int64_t* tl_node_bytes,
-                  uint32_t* rsp, ReplayStats* stats, int64_t* per_pipe, int64_t* sched,
-                  int64_t* ray_times, int64_t* ray_served, int64_t* ray_wait, int64_t* call_times,
-                  int64_t* call_unit, int64_t* series, int64_t* kernel_times) {
+int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayInputs* in,
+                  ReplayStats* stats, const ReplayOutputs* out) {
+  // the generated structs' fields (driver.core.layout.REPLAY_INPUTS, REPLAY_OUTPUTS) by name
+  const uint32_t* rays = in->rays;
+  const int64_t n_rays = in->n_rays;
+  const uint32_t* image = in->image;
+  const int64_t image_words = in->image_words;
+  const uint32_t* ray = in->ray;
+  const uint32_t* ptr = in->ptr;
+  const uint32_t* ext = in->ext;
+  const int64_t m = in->m;
+  const int64_t* chain_idx = in->chain_idx;
+  const int64_t* chain_off = in->chain_off;
+  const int64_t n_chains = in->n_chains;
+  const uint32_t* chain = in->chain;
+  const uint32_t* before = in->before;
+  const int64_t n_kernels = in->n_kernels;
+  const int64_t* kernel_off = in->kernel_off;
+  const int64_t* warp_call_off = in->warp_call_off;
+  const int64_t* call_ray_off = in->call_ray_off;
+  const int64_t* call_rays = in->call_rays;
+  const int32_t* treelet = in->treelet;
+  const int64_t n_treelets = in->n_treelets;
+  const int64_t* tl_off = in->tl_off;
+  const int64_t* tl_node_off = in->tl_node_off;
+  const int64_t* tl_node_bytes = in->tl_node_bytes;
+  uint32_t* rsp = out->rsp;
+  int64_t* per_pipe = out->per_pipe;
+  int64_t* sched = out->sched;
+  int64_t* ray_times = out->ray_times;
+  int64_t* ray_served = out->ray_served;
+  int64_t* ray_wait = out->ray_wait;
+  int64_t* call_times = out->call_times;
+  int64_t* call_unit = out->call_unit;
+  int64_t* series = out->series;
+  int64_t* kernel_times = out->kernel_times;
   const ReplayConfig& c = *cfg;
   const int64_t P = c.pipelines, N = c.units;
   if (P < 1 || N < 1 || c.slots < 1 || c.warp_size < 1 || c.slots % c.warp_size ||

@@ -435,6 +435,29 @@ MEMORY_CONFIG = (
     ("l2_bytes", "int64_t"), ("l2_ways", "int64_t"), ("l2_latency", "int64_t"),
     ("mem_latency", "int64_t"), ("bytes_per_cycle", "double"),
 )
+# rf_replay's inputs (a frame's recorded requests, their chains and the plan of kernels, warps
+# and calls: driver.backends.harness.replay_schedule) and outputs (arrays it writes), each one
+# generated struct of (name, C type); a pointer is a numpy array's data
+REPLAY_INPUTS = (
+    ("rays", "const uint32_t*"), ("n_rays", "int64_t"),        # packed ray table
+    ("image", "const uint32_t*"), ("image_words", "int64_t"),  # the BVH image
+    ("ray", "const uint32_t*"), ("ptr", "const uint32_t*"), ("ext", "const uint32_t*"),
+    ("m", "int64_t"),                                          # requests
+    ("chain_idx", "const int64_t*"), ("chain_off", "const int64_t*"), ("n_chains", "int64_t"),
+    ("chain", "const uint32_t*"), ("before", "const uint32_t*"),
+    ("n_kernels", "int64_t"), ("kernel_off", "const int64_t*"), ("warp_call_off", "const int64_t*"),
+    ("call_ray_off", "const int64_t*"), ("call_rays", "const int64_t*"),
+    ("treelet", "const int32_t*"), ("n_treelets", "int64_t"),  # treelet schedule (or null)
+    ("tl_off", "const int64_t*"), ("tl_node_off", "const int64_t*"),
+    ("tl_node_bytes", "const int64_t*"),
+)
+REPLAY_OUTPUTS = (
+    ("rsp", "uint32_t*"), ("per_pipe", "int64_t*"), ("sched", "int64_t*"),
+    ("ray_times", "int64_t*"), ("ray_served", "int64_t*"), ("ray_wait", "int64_t*"),
+    ("call_times", "int64_t*"), ("call_unit", "int64_t*"), ("series", "int64_t*"),
+    ("kernel_times", "int64_t*"),
+)
+
 # the memory levels as the replay numbers them (the C header's enum Level and kMemoryLevels, which
 # sim/rf_memory.h and sim/rtunit_scheduler.cpp use): the level a node fetch waited on or was
 # served by (none: it was free); rf_replay's ray_served has one column per level
@@ -443,11 +466,14 @@ MEMORY_LEVELS = ("none", "l1", "l2", "dram")
 
 def replay_stats_c() -> str:
     """The C declarations of ``ReplayStats``, ``ReplayConfig`` (int64 fields in
-    ``REPLAY_STATS`` / ``REPLAY_CONFIG`` order) and ``MemoryConfig`` (``MEMORY_CONFIG``)."""
+    ``REPLAY_STATS`` / ``REPLAY_CONFIG`` order), ``MemoryConfig`` (``MEMORY_CONFIG``) and
+    rf_replay's ``ReplayInputs`` and ``ReplayOutputs`` (``REPLAY_INPUTS``, ``REPLAY_OUTPUTS``)."""
     out = []
     for name, fields in (("ReplayStats", [(f, "int64_t") for f in REPLAY_STATS]),
                          ("ReplayConfig", [(f, "int64_t") for f in REPLAY_CONFIG]),
-                         ("MemoryConfig", list(MEMORY_CONFIG))):
+                         ("MemoryConfig", list(MEMORY_CONFIG)),
+                         ("ReplayInputs", list(REPLAY_INPUTS)),
+                         ("ReplayOutputs", list(REPLAY_OUTPUTS))):
         body = "\n".join(f"  {ctype} {f};" for f, ctype in fields)
         out.append(f"struct {name} {{\n{body}\n}};")
     return "\n".join(out)
