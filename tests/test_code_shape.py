@@ -1,5 +1,6 @@
 """The code's shape, kept: no function in driver/ longer than 80 lines (90 for a numba kernel,
-whose loops cannot call helpers as cheaply) or with more than 12 parameters; the suite's marker
+whose loops cannot call helpers as cheaply) or with more than 12 parameters (a kernel takes
+related arrays as one tuple); the suite's marker
 table names real test modules and declared markers; no test asserts a constant."""
 
 import ast
@@ -10,8 +11,6 @@ import conftest
 
 ROOT = Path(__file__).resolve().parent.parent
 MAX_LINES, MAX_LINES_NUMBA, MAX_PARAMS = 80, 90, 12
-# numba kernels take their arrays one by one (a kernel is compiled for its arguments' types)
-NUMBA_PARAMS_EXEMPT = True
 
 
 def _numba(f: ast.FunctionDef) -> bool:
@@ -39,7 +38,7 @@ def test_no_function_is_too_long_or_takes_too_many_parameters():
         lines, numba = f.end_lineno - f.lineno + 1, _numba(f)
         if lines > (MAX_LINES_NUMBA if numba else MAX_LINES):
             over.append(f"{name}:{f.lineno}: {lines} lines")
-        if _params(f) > MAX_PARAMS and not (numba and NUMBA_PARAMS_EXEMPT):
+        if _params(f) > MAX_PARAMS:
             over.append(f"{name}:{f.lineno}: {_params(f)} parameters")
     assert not over, "split these (or pass a dataclass):\n" + "\n".join(over)
 
