@@ -28,6 +28,7 @@ from .bvh.pipeline import (BUILDERS, COLLAPSES, PAD_REL, PROGRESS_MIN, as_triang
 # the node image's layout is driver.core.layout's (docs/datapath.md#bvh4-image,
 # docs/compressed.md); the names are re-exported for users
 from .core.layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, IMAGE_FORMATS, NO_CHILD,  # noqa: F401
+                          DEFAULT_FORMAT, FORMATS,
                           GROUP_BYTES, GROUP_NODE, GROUP_TYPE, INSTANCE_NODE, INSTANCE_TYPE,
                           LEAF_NEXT_TYPE, LEAF_OFFSET_LIMIT, PAIR_BYTES, PAIR_NODE, PAIR_TYPE,
                           Q8_BYTES, Q8_NODE, Q8_TYPE, TRI_BYTES, TRI_NODE, TRI_TYPE, NodeRef,
@@ -41,7 +42,7 @@ __all__ = ["BUILDERS", "BVH4", "COLLAPSES", "PAD_REL", "PROGRESS_MIN", "TwoLevel
            "warm_up"]
 
 
-def build_scene(scene, fill: int = 0, format: str = "box32", transform: str = "driver"):
+def build_scene(scene, fill: int = 0, format: str = DEFAULT_FORMAT, transform: str = "driver"):
     """The BVH of a ``driver.scenes.scene.Scene``: the two-level image of its ``instances``
     (``fill`` applies to the BLASes; ``transform``: where its traversals run the instance
     transform, ``driver.instances.TRANSFORMS``) or, for a one-mesh scene, ``build``

@@ -36,7 +36,7 @@ from .backends.build import MIN_LATENCY, rtl_params
 from .bvh4 import build_scene
 from .core.datapath import LATENCY, default_latency
 from .instances import DATAPATH, TRANSFORMS
-from .core.layout import IMAGE_FORMATS
+from .core.layout import DEFAULT_FORMAT, IMAGE_FORMATS
 from .rtunit import MemoryModel
 from .rtunit.order import DEFAULT_POLICY, DEFAULT_WINDOW, POLICIES
 from .rtunit.gpu import DEFAULT_REPLAY_DATAPATH, REPLAY_DATAPATHS
@@ -181,7 +181,7 @@ OPTIONS: tuple[Option, ...] = (
            "keep each stack entry's entry distance and drop box nodes beyond the nearest hit "
            "without a request: the same hits, fewer box ops (the RT unit keeps a float per "
            "stack entry; docs/bvh.md)", lambda flag, v: None, "bvh", "yes|no"),
-    Option("bvh_format", "--bvh-format", str, "box32",
+    Option("bvh_format", "--bvh-format", str, DEFAULT_FORMAT,
            "node image: box32 (128-byte float32 box nodes, a 64-byte node per triangle), q8 "
            "(64-byte quantized box nodes, 64-byte triangle-pair leaves) or q8g (q8 with 128-byte "
            "leaves of 3 to 6 triangles sharing vertices where they cost few ops) "

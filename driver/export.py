@@ -56,6 +56,7 @@ from .core.wire import REQUEST, REQUEST_DTYPE, RESPONSE, RESPONSE_DTYPE, Wire, u
 from .tiles import DEFAULT_TILE, plan
 from .tracer import trace
 from .workloads import run, setup_for
+from .core.layout import DEFAULT_FORMAT
 
 FORMAT_VERSION = 1
 HEX_FILES = {"requests": "requests.hex", "responses": "responses.hex", "format": "format.txt"}
@@ -76,7 +77,7 @@ class Chunk:
 
 def stream(scene, width: int, height: int, workload: str = "primary", options: dict | None = None,
            tile: int | None = None, fill: int = 0, cull_stack: bool = False,
-           backend="golden", progress=None, bvh_format: str = "box32"):
+           backend="golden", progress=None, bvh_format: str = DEFAULT_FORMAT):
     """Yield the frame's requests as ``Chunk``s in issue order (see the module docstring), traced
     on ``backend`` (default the golden model). ``tile``: the tile size (default
     ``driver.tiles.DEFAULT_TILE``); ``options``: spp, bounces, ao_rays, seed;
@@ -313,7 +314,7 @@ def write_vcd(path, requests: np.ndarray, golden: np.ndarray, backend_options: d
 
 def export(scene, width: int, height: int, sinks: list, workload: str = "primary",
            options: dict | None = None, tile: int | None = None, fill: int = 0,
-           cull_stack: bool = False, progress=None, bvh_format: str = "box32") -> int:
+           cull_stack: bool = False, progress=None, bvh_format: str = DEFAULT_FORMAT) -> int:
     """Trace the frame on the golden model and feed every ``Chunk`` to each sink (``add``),
     stopping early once every sink says it is ``done``; ``close`` each at the end (``discard`` on
     an error). Returns the number of requests streamed."""

@@ -29,6 +29,7 @@ import numpy as np  # noqa: E402
 from .core.progress import phase as show  # noqa: E402
 from .design import DesignPoint  # noqa: E402
 from .scenes import lumibench as lb  # noqa: E402
+from .core.layout import DEFAULT_FORMAT
 
 PHASES = ("cold", "warm")
 
@@ -70,7 +71,7 @@ def synthetic_root(path, files: int, triangles: int, seed: int = 0) -> Path:
     return Path(path)
 
 
-def phase(name: str, scene: str, root: str, cache: str, bvh_format: str = "box32") -> dict:
+def phase(name: str, scene: str, root: str, cache: str, bvh_format: str = DEFAULT_FORMAT) -> dict:
     """One phase in this process (module docstring); the times are from the process's start
     where ``RAYFLEX_T0`` gives it."""
     t_start = float(os.environ.get("RAYFLEX_T0", time.time()))
@@ -91,7 +92,7 @@ def phase(name: str, scene: str, root: str, cache: str, bvh_format: str = "box32
             "peak_rss_bytes": rss, "bvh_bytes": int(bvh.image.nbytes)}
 
 
-def load_bench(scene: str, root, synthetic: tuple | None = None, bvh_format: str = "box32",
+def load_bench(scene: str, root, synthetic: tuple | None = None, bvh_format: str = DEFAULT_FORMAT,
                progress: bool = True) -> dict:
     """Both phases of ``scene`` from ``root`` in fresh processes, with a cache of their own;
     ``synthetic`` (files, triangles): measure a synthetic root instead (``synthetic_root``)."""

@@ -54,6 +54,7 @@ from .power.report import UNITS
 from .power.stimulus import box_op
 from .tiles import _client
 from .tracer import trace
+from .core.layout import FORMATS
 
 ENERGY_LEVELS = ("signals", "gates")
 # the options that make the functional trace (everything else is replayed)
@@ -155,7 +156,7 @@ def energy_key(config: str, latency: int) -> str:
 def _box_op(p: DesignPoint) -> str:
     """The operation a box node of point ``p``'s frame is (``stimulus.box_op``: box, or for a
     q8 image box_q8 / box_q8_host, decoded by the datapath / the host)."""
-    return box_op({"COMPRESSED": p.compressed}, p.bvh_format != "box32")
+    return box_op({"COMPRESSED": p.compressed}, FORMATS[p.bvh_format].compressed)
 
 
 def _per_op(measured: dict, unit: str) -> dict:

@@ -18,6 +18,7 @@ from .backends import DEFAULT_BACKEND, resolve
 from .backends.build import backend_params
 from .bvh4 import BVH4, build, build_two_level
 from .core.datapath import prepare_rays
+from .core.layout import DEFAULT_FORMAT
 from .core.wire import FLAG_NO_CULL
 from .instances import DATAPATH, Instances, check_transform
 from .tracing.stepper import InstanceStepper
@@ -83,10 +84,10 @@ def as_bvh(scene, bvh_format: str | None = None) -> BVH4:
         scene = load_scene(scene)
     if isinstance(scene, Instances) or getattr(scene, "instances", None) is not None:
         return build_two_level(scene if isinstance(scene, Instances) else scene.instances,
-                               format=bvh_format or "box32")
+                               format=bvh_format or DEFAULT_FORMAT)
     if hasattr(scene, "mesh") and not hasattr(scene, "faces"):
         scene = scene.mesh
-    return build(scene, format=bvh_format or "box32")
+    return build(scene, format=bvh_format or DEFAULT_FORMAT)
 
 
 def trace(scene_or_mesh_or_bvh, origins, directions, backend=DEFAULT_BACKEND, extent=np.inf,

@@ -40,7 +40,7 @@ package rf_pkg;
 
   // ---------------------------------------------------------------------------------------------
   // IO structs: a word-aligned wire format, word 0 at the least significant bits, so that a host
-  // packs a request as an array of little-endian uint32 words (driver/layout.py mirrors this, and
+  // packs a request as an array of little-endian uint32 words (driver/core/layout.py mirrors this, and
   // tests/test_layout.py checks every field against it).
   // Packed arrays put element 0 at the low end: box[i][j] is word 15 + 6*i + j.
   // ---------------------------------------------------------------------------------------------
@@ -68,7 +68,7 @@ package rf_pkg;
   } req_t;
 
   // A TRANSFORM's 3x4 matrix, row-major (m[r][c] is box word 4r + c): a TRANSFORM request carries
-  // it on the first 12 box words (driver/layout.py: request field matrix overlays box), i.e. the
+  // it on the first 12 box words (driver/core/layout.py: request field matrix overlays box), i.e. the
   // matrix is req_matrix(req.box).
   localparam int unsigned MATRIX_WORDS = 12;
   typedef fp32_t [2:0][3:0] matrix_t;
@@ -80,9 +80,9 @@ package rf_pkg;
   endfunction
   /* verilator lint_on UNUSEDSIGNAL */
 
-  // The q8 box node as stored in the compressed BVH image (driver/layout.py Q8_NODE; 16 words,
+  // The q8 box node as stored in the compressed BVH image (driver/core/layout.py Q8_NODE; 16 words,
   // word 0 at the low end). A QUADBOX with flags[FLAG_DECODE_Q8_BIT] carries it on the first 16
-  // box words (driver/layout.py: request field qnode overlays box), i.e. the node is
+  // box words (driver/core/layout.py: request field qnode overlays box), i.e. the node is
   // q8_node_t'(box words 0..15); a COMPRESSED build decodes it (rf_s00_q8_decode).
   localparam int unsigned QNODE_WORDS = 16;
   typedef struct packed {

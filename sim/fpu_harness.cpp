@@ -23,7 +23,7 @@ Vfpu_tb_top& model() {
 
 }  // namespace
 
-// The library is compiled with -fvisibility=hidden (driver/verilate.py): only this API is exported,
+// The library is compiled with -fvisibility=hidden (driver/backends/verilate.py): only this API is exported,
 // so the compiler may inline and call the model's functions directly.
 #pragma GCC visibility push(default)
 extern "C" {

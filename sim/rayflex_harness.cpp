@@ -2,7 +2,7 @@
 //
 // Requests and responses travel as arrays of little-endian uint32 words in the wire format of
 // rtl/rf_pkg.sv (req_t: kReqWords words per request, rsp_t: kRspWords words per response; word 0
-// holds bits [31:0]); the layout constants come from rf_layout.h, generated from driver/layout.py.
+// holds bits [31:0]); the layout constants come from rf_layout.h, generated from driver/core/layout.py.
 //
 // rf_run streams ready-made request words. rf_run_nodes streams traversal requests that it
 // assembles itself, as an RT unit would, from a ray table (the first kRayWords wire words of each
@@ -70,7 +70,7 @@ int64_t stream(Sim* s, const Source& src, uint32_t* rsp, int64_t n, const uint8_
 
 }  // namespace
 
-// The library is compiled with -fvisibility=hidden (driver/verilate.py): only this API is exported,
+// The library is compiled with -fvisibility=hidden (driver/backends/verilate.py): only this API is exported,
 // so the compiler may inline and call the model's functions directly.
 #pragma GCC visibility push(default)
 extern "C" {

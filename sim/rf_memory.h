@@ -41,7 +41,12 @@
 namespace rf {
 
 constexpr int64_t kAbsent = INT64_MIN;   // a sector that is not in the cache
-enum Level : int { kLevelNone = 0, kLevelL1 = 1, kLevelL2 = 2, kLevelDram = 3 };
+using rf_layout::Level;            // generated from driver.core.layout.MEMORY_LEVELS, as are
+using rf_layout::kLevelNone;       // the level count kMemoryLevels and the names below
+using rf_layout::kLevelL1;
+using rf_layout::kLevelL2;
+using rf_layout::kLevelDram;
+using rf_layout::kMemoryLevels;
 
 // Open-addressing hash table: line address (>= 0) -> entry index; linear probing, deletion by
 // backward shift (no tombstones).
@@ -193,7 +198,7 @@ struct Access {
   int served;     // the level that supplied the bytes (a merged access: the cache it merged in)
 };
 
-using rf_layout::MemoryConfig;   // generated from driver.layout.MEMORY_CONFIG
+using rf_layout::MemoryConfig;   // generated from driver.core.layout.MEMORY_CONFIG
 
 struct MemorySystem {
   bool on = false;                 // a memory model at all (l1_bytes >= 0)

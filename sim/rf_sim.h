@@ -2,7 +2,7 @@
 // streaming calls (rayflex_harness.cpp) and the RT-unit scheduler (rtunit_scheduler.cpp).
 //
 // Every word index, bit position, opcode and node-layout constant comes from rf_layout.h, which
-// driver/layout.py generates at build time from its tables (docs/datapath.md: requests and responses, BVH4 image).
+// driver/core/layout.py generates at build time from its tables (docs/datapath.md: requests and responses, BVH4 image).
 #pragma once
 
 #include <cmath>
@@ -84,7 +84,7 @@ struct NodeSource {
   // with the decode (RF_COMPRESSED, the build parameter COMPRESSED) gets the node as stored in
   // `qnode` with the request flag DECODE_Q8 and decodes it itself; any other gets the decoded
   // boxes: child i, axis a: origin[a] + float(q) * 2^exp[a] (the product is exact, the sum one
-  // float add, round to nearest even, as driver.layout.decode_q8); unused slots (i >= count) the
+  // float add, round to nearest even, as driver.core.layout.decode_q8); unused slots (i >= count) the
   // unused box, six +inf.
   static void q8_request(const uint32_t* node, uint32_t* req) {
 #if defined(RF_COMPRESSED) && RF_COMPRESSED
@@ -112,7 +112,7 @@ struct NodeSource {
 
   // The leaf and the triangle index k of a triangle request pointer of a pair or group leaf:
   // k = 0 for the leaf's own pointer, bits 31:29 + 1 for kLeafNextType
-  // (driver.layout.leaf_request).
+  // (driver.core.layout.leaf_request).
   static uint32_t leaf_index(uint32_t p, uint32_t* leaf) {
     if ((p & kTypeMask) != kLeafNextType) {
       *leaf = p;
@@ -122,7 +122,7 @@ struct NodeSource {
     return (p >> kLeafIndexLsb) + 1u;
   }
 
-  // Triangle k of a pair or group leaf (driver.layout.leaf_triangles): (v0, v1, v2) for k = 0;
+  // Triangle k of a pair or group leaf (driver.core.layout.leaf_triangles): (v0, v1, v2) for k = 0;
   // (v[i0], v[i1], v[i2]) with 2-bit selectors in idx bits 5:0 for k = 1; 3-bit selectors at idx
   // bits kGroupSelLsb + kGroupSelBits (k - 2) for k >= 2 (a group leaf, whose vertices v4..v7
   // are in its second 64 bytes).

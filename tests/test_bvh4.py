@@ -219,7 +219,7 @@ def test_bunny():
     s = bvh.stats
     print(f"\nbunny: {s}")
     assert s["tri_nodes"] == 99_785
-    assert s["build_s"] < 4.0       # ~0.2 s here (bench/bvh_build.py); a loose bound only
+    assert s["build_s"] < 4.0       # ~0.2 s here (`rayflex bench --bvh`); a loose bound only
     check_bvh(bvh)
 
 

@@ -441,9 +441,12 @@ _LATE_SIGNAL = textwrap.dedent("""
 """)
 
 
-@pytest.mark.parametrize("where", ["rename", "printing"])
-@pytest.mark.parametrize("sig, word", [(signal.SIGINT, "interrupted"),
-                                       (signal.SIGTERM, "terminated")])
+# each signal and each moment once by default (a render in a fresh process each, ~30 s on a
+# loaded 2-core machine); the other two pairings under -m slow
+@pytest.mark.parametrize("where, sig, word", [
+    ("printing", signal.SIGINT, "interrupted"), ("rename", signal.SIGTERM, "terminated"),
+    pytest.param("rename", signal.SIGINT, "interrupted", marks=pytest.mark.slow),
+    pytest.param("printing", signal.SIGTERM, "terminated", marks=pytest.mark.slow)])
 def test_a_signal_after_the_outputs_are_written_does_not_call_them_lost(tmp_path, where, sig,
                                                                         word):
     """A Ctrl-C that arrived just after ``wrote ...`` exited 130 ("nothing written") though every

@@ -387,13 +387,20 @@ def test_study_gpu_tables_and_plot_from_a_sweep(tmp_path, capsys):
 
 
 def test_memory_levels_are_the_replays_numbering():
-    """``driver.core.layout.MEMORY_LEVELS`` (the columns of a ray's bytes per level) numbers the
-    levels as sim/rf_memory.h's ``enum Level`` does."""
+    """``driver.core.layout.MEMORY_LEVELS`` (the columns of a ray's bytes per level) is the
+    replay's numbering: the harness's ``enum Level`` and level count are generated from it, and
+    the C++ sources hold no level count of their own."""
     import re
 
     from driver.backends.build import SIM_DIR
-    from driver.core.layout import MEMORY_LEVELS
-    text = (SIM_DIR / "rf_memory.h").read_text()
-    enum = re.search(r"enum Level : int \{([^}]*)\}", text).group(1)
+    from driver.core.layout import MEMORY_LEVELS, c_header
+    header = c_header()
+    enum = re.search(r"enum Level : int \{([^}]*)\}", header).group(1)
     levels = {int(v): name for name, v in re.findall(r"kLevel(\w+) = (\d+)", enum)}
     assert [levels[i].lower() for i in range(len(levels))] == list(MEMORY_LEVELS)
+    assert f"constexpr int kMemoryLevels = {len(MEMORY_LEVELS)};" in header
+    text = "".join((SIM_DIR / name).read_text() for name in ("rf_memory.h", "rtunit_scheduler.cpp"))
+    assert "enum Level" not in text
+    per_level = [ln for ln in text.splitlines() if re.search(r"ray_served|level_wait", ln)]
+    assert len(per_level) >= 5
+    assert not [ln for ln in per_level if re.search(rf"\b{len(MEMORY_LEVELS)}\b", ln)]

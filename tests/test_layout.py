@@ -196,11 +196,13 @@ def test_node_ref_and_node_dtypes():
 def test_c_header_has_every_constant_the_harness_uses():
     header = layout.c_header()
     names = set(re.findall(r"constexpr \w+ (k\w+)(?:\[\d*\])? =", header))
+    names |= set(re.findall(r"\b(kLevel\w+) = \d+", header))       # the memory levels' enum
     sim = RTL_DIR.parent / "sim"
     src = "".join(p.read_text() for p in sorted(sim.glob("r*.cpp")) + sorted(sim.glob("rf_*.h")))
-    # constants the harness defines for itself (kPrefetchAhead, kOpcodeMask, the memory levels)
+    # constants the harness defines for itself (kPrefetchAhead, kOpcodeMask)
     own = set(re.findall(r"\b(k[A-Z]\w+)(?:\[\d*\])?\s*=", src))
-    assert {"kPrefetchAhead", "kOpcodeMask", "kLevelDram"} <= own
+    assert {"kPrefetchAhead", "kOpcodeMask"} <= own and not {"kLevelDram", "kMemoryLevels"} & own
+    assert {"kLevelDram", "kMemoryLevels"} <= names
     used = set(re.findall(r"\bk[A-Z]\w+", src)) - own
     assert used and used <= names, used - names
     assert "struct ReplayStats" in header

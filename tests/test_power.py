@@ -248,8 +248,8 @@ def test_liberty_level_without_the_file_exits_2(tmp_path, capsys):
 
 def test_power_says_what_it_will_build(monkeypatch, capsys):
     import driver.power as power
-    monkeypatch.setattr(power, "uncached_models", lambda models: [f"signals {m[1]}"
-                                                                  for m in models[:1]])
+    monkeypatch.setattr(power.run, "uncached_models", lambda models: [f"signals {m[1]}"
+                                                                      for m in models[:1]])
     monkeypatch.setattr(power, "run_level", lambda *a, **k: (_ for _ in ()).throw(
         KeyboardInterrupt()))
     monkeypatch.setattr(report, "frame_mix", lambda *a, **k: {})
@@ -562,7 +562,7 @@ def test_liberty_level_on_the_gate_model(tiny_net, tiny):
 def test_configurations_measured_side_by_side_in_processes(tiny_net, monkeypatch):
     """With two cores the configurations are measured in child processes, with the numbers a
     single process gives; an error in a child reaches the caller."""
-    import driver.power as power
+    import driver.power.run as power
     net, _ = tiny_net
     nets = {"baseline-unified": net, "baseline-disjoint": net}
     monkeypatch.setattr(power.os, "cpu_count", lambda: 1)
@@ -594,7 +594,7 @@ class _DiesInChild:
 
 
 def test_a_dead_measurement_process_is_a_one_line_error(monkeypatch):
-    import driver.power as power
+    import driver.power.run as power
     monkeypatch.setattr(power.os, "cpu_count", lambda: 2)
 
     net = _DiesInChild()
@@ -619,7 +619,7 @@ def test_cold_syntheses_run_side_by_side_longest_first(monkeypatch):
     import threading
     import time
 
-    import driver.power as power
+    import driver.power.run as power
     est = {"baseline-unified": 1, "baseline-disjoint": 2, "extended-unified": 3,
            "extended-disjoint": 9}
     by_params = {tuple(power.params_of(c)[k] for k in ("EXTENDED", "DISJOINT")): c for c in est}

@@ -15,7 +15,8 @@ import os
 
 import numpy as np
 
-from ..core.layout import MEMORY_CONFIG, MEMORY_LEVELS, NO_CHILD, REPLAY_CONFIG, REPLAY_STATS
+from ..core.layout import (MEMORY_CONFIG, MEMORY_LEVELS, NO_CHILD, REPLAY_CONFIG, REPLAY_INPUTS,
+                           REPLAY_OUTPUTS, REPLAY_STATS)
 from ..core.wire import RAY_WORDS, REQ_WORDS, RSP_WORDS, pack_requests, unpack_responses
 from .build import build_harness
 from .rtlbase import PATTERN_LEN, RtlBackendBase
@@ -56,6 +57,27 @@ class ReplayConfig(ctypes.Structure):
     """rf_layout::ReplayConfig (fields: ``driver.core.layout.REPLAY_CONFIG``)."""
 
     _fields_ = [(name, ctypes.c_int64) for name in REPLAY_CONFIG]
+
+
+def _ctype(c: str):
+    return ctypes.c_int64 if c == "int64_t" else ctypes.c_void_p
+
+
+class ReplayInputs(ctypes.Structure):
+    """rf_layout::ReplayInputs (fields: ``driver.core.layout.REPLAY_INPUTS``; a pointer field
+    is a numpy array's data address, or None)."""
+
+    _fields_ = [(name, _ctype(c)) for name, c in REPLAY_INPUTS]
+
+
+class ReplayOutputs(ctypes.Structure):
+    """rf_layout::ReplayOutputs (fields: ``driver.core.layout.REPLAY_OUTPUTS``)."""
+
+    _fields_ = [(name, _ctype(c)) for name, c in REPLAY_OUTPUTS]
+
+
+def _data(a):
+    return None if a is None else a.ctypes.data
 
 
 class MemoryConfig(ctypes.Structure):
@@ -103,11 +125,9 @@ def use_library(params: dict[str, int], path) -> ctypes.CDLL:
     lib.rf_latency.restype = i64
     lib.rf_latency.argtypes = []
     lib.rf_replay.restype = i64
-    lib.rf_replay.argtypes = [ctypes.POINTER(ReplayConfig), ctypes.POINTER(MemoryConfig), _U32P,
-                              i64, _U32P, i64, _U32P, _U32P, _U32P, i64, _I64P, _I64P, i64,
-                              _U32P, _U32P, i64, _I64P, _I64P, _I64P, _I64P, _I32P, i64, _I64P,
-                              _I64P, _I64P, _U32P, ctypes.POINTER(ReplayStats), _I64P, _I64P,
-                              _I64P, _I64P, _I64P, _I64P, _I64P, _I64P, _I64P]
+    lib.rf_replay.argtypes = [ctypes.POINTER(ReplayConfig), ctypes.POINTER(MemoryConfig),
+                              ctypes.POINTER(ReplayInputs), ctypes.POINTER(ReplayStats),
+                              ctypes.POINTER(ReplayOutputs)]
     lib.rf_memory_trace.restype = i64
     lib.rf_memory_trace.argtypes = [ctypes.POINTER(MemoryConfig), i64, i64, _I64P, _I64P, _I64P,
                                     _I64P, i64, _I64P, _I64P, _I64P]
@@ -241,16 +261,17 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
            "series": np.zeros(SERIES_CAPACITY, np.int64),
            "kernel_times": np.zeros((len(ko) - 1, 3), np.int64)}
     mc = memory_config(memory)
-    rc = lib.rf_replay(ctypes.byref(cfg), ctypes.byref(mc), _u32p(rw), len(rw), _u32p(img),
-                       img.size, _u32p(r), _u32p(p), _u32p(e), len(r), _i64p(ci), _i64p(co),
-                       n_chains, _u32p(ch), _u32p(bf), len(ko) - 1, _i64p(ko), _i64p(wo),
-                       _i64p(cro), _i64p(crs),
-                       None if ids is None else ids.ctypes.data_as(_I32P), n_tl,
-                       *(None if a is None else _i64p(a) for a in pre), _u32p(rsp),
-                       ctypes.byref(stats), _i64p(per_pipe), _i64p(sched),
-                       *(_i64p(out[k]) for k in ("ray_times", "ray_served", "ray_wait",
-                                                 "call_times", "call_unit", "series",
-                                                 "kernel_times")))
+    inputs = ReplayInputs(
+        rays=_data(rw), n_rays=len(rw), image=_data(img), image_words=img.size, ray=_data(r),
+        ptr=_data(p), ext=_data(e), m=len(r), chain_idx=_data(ci), chain_off=_data(co),
+        n_chains=n_chains, chain=_data(ch), before=_data(bf), n_kernels=len(ko) - 1,
+        kernel_off=_data(ko), warp_call_off=_data(wo), call_ray_off=_data(cro),
+        call_rays=_data(crs), treelet=_data(ids), n_treelets=n_tl,
+        **dict(zip(("tl_off", "tl_node_off", "tl_node_bytes"), map(_data, pre))))
+    outputs = ReplayOutputs(rsp=_data(rsp), per_pipe=_data(per_pipe), sched=_data(sched),
+                            **{k: _data(v) for k, v in out.items()})
+    rc = lib.rf_replay(ctypes.byref(cfg), ctypes.byref(mc), ctypes.byref(inputs),
+                       ctypes.byref(stats), ctypes.byref(outputs))
     if rc == BAD_GEOMETRY:
         raise ValueError("memory geometry cannot be modelled: each cache a multiple of ways x "
                          "line size, the line a power of two >= 4 bytes, sectors a power of two "

@@ -42,11 +42,12 @@ def place_slots(r, slots, left, child, box, parent, node_lo, node_hi, nb, box_pt
 
 
 @njit(cache=True, nogil=True)
-def fill_image(slots, left, prim, node_lo, node_hi, node_area, tris, child, box, parent, count,
-               tri, tri_prim, box_ptr, tri_ptr, no_child):
+def fill_image(slots, tree, tris, nodes, leaves, box_ptr, tri_ptr, no_child):
     """Number the wide tree's nodes and write them into the image's node fields; returns the
     sum of the used slots' areas (the SAH numerator).
 
+    tree: the binary tree's (left, prim, node_lo, node_hi, node_area); nodes: the box nodes'
+    (child, box, parent, count); leaves: the triangle nodes' (tri, tri_prim).
     slots (k, 4): binary node ids per box node, breadth first (used slots first, -1 unused);
     box node i's children that are box nodes are numbered in row-major slot order over all
     rows (breadth first), triangle nodes in the order they are referenced. child/box/parent/
@@ -54,6 +55,9 @@ def fill_image(slots, left, prim, node_lo, node_hi, node_area, tris, child, box,
     ``driver.core.layout``'s structs). Pointers are affine in the node index (``driver.bvh4``
     derives them from ``NodeRef``): box node i is ``box_ptr[0] + i * box_ptr[1]``, triangle node j
     ``tri_ptr[0] + j * tri_ptr[1]``; an unused slot is ``no_child`` with a +inf box."""
+    left, prim, node_lo, node_hi, node_area = tree
+    child, box, parent, count = nodes
+    tri, tri_prim = leaves
     k = slots.shape[0]
     nb, nt = 0, 0
     area = 0.0
@@ -92,8 +96,8 @@ def _write_image(levels, left, prim, node_lo, node_hi, node_area, tris):
     box0, box1 = NodeRef.encode([0, BOX_BYTES], BOX_TYPE).astype(np.int64)
     tri0, tri1 = NodeRef.encode([BOX_BYTES * n_box, BOX_BYTES * n_box + TRI_BYTES],
                                 TRI_TYPE).astype(np.int64)
-    area = fill_image(slots, left, prim, node_lo, node_hi, node_area, tris, bn["child"],
-                      bn["box"], bn["parent"], bn["count"], tn["tri"], tn["prim"],
+    area = fill_image(slots, (left, prim, node_lo, node_hi, node_area), tris,
+                      (bn["child"], bn["box"], bn["parent"], bn["count"]), (tn["tri"], tn["prim"]),
                       (box0, box1 - box0), (tri0, tri1 - tri0), NO_CHILD)
     r = bn["box"][0, :bn["count"][0]].astype(np.float64)
     root_area = _half_area(r[:, :3].min(axis=0), r[:, 3:].max(axis=0))

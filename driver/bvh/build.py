@@ -138,7 +138,7 @@ def _fills(nl, cnt, fill):
 
 
 @njit(cache=True, nogil=True)
-def _small(nid, s, e, lo, hi, fill, order, left, right, prim, node_box, lists, stk, a_r):
+def _small(nid, s, e, lo, hi, fill, order, tree, scratch):
     """Build the whole subtree of node ``nid``, of at most SWEEP_MAX primitives (s:e), boxes
     included. Nodes of 3 or more primitives take the exact SAH split: every split of the centroid
     order on each axis that ``_fills`` (ties: lowest position, then lowest axis; equal centroids
@@ -148,6 +148,8 @@ def _small(nid, s, e, lo, hi, fill, order, left, right, prim, node_box, lists, s
     partitioning every node would give. Scratch (``_scratch``): lists (SWEEP_MAX, 4, SWEEP_MAX)
     int64 (per stack entry: the offsets sorted on x, y, z, then in list order), stk (SWEEP_MAX,
     2) int64 (node id, count), a_r (SWEEP_MAX,) float64."""
+    left, right, prim, node_box = tree
+    lists, stk, a_r = scratch[5], scratch[6], scratch[7]
     cnt = e - s
     for r in range(cnt):
         lists[0, 3, r] = r
@@ -223,12 +225,13 @@ def _small(nid, s, e, lo, hi, fill, order, left, right, prim, node_box, lists, s
 
 
 @njit(cache=True, nogil=True)
-def _binned(s, e, lo, hi, cbox, bins, fill, go_right, count, tab, cost, a_r, n_r):
+def _binned(s, e, lo, hi, cbox, bins, fill, go_right, scratch):
     """Binned SAH over the centroid bounds cbox; fills go_right[s:e] and returns True, or
     returns False if no axis can split. A split that does not ``_fills`` moves the one or two
     primitives nearest the bin boundary (by centroid on the split axis) across it. Scratch
     (``_scratch``): count (3, bins) int64, tab (3, bins, 6) float32 (bin bounds: min xyz, max
     xyz), cost (bins - 1, 3), a_r/n_r (bins,)."""
+    count, tab, cost, a_r, n_r = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4]
     count[:] = 0
     tab[:, :, :3] = np.inf
     tab[:, :, 3:] = -np.inf
@@ -354,14 +357,14 @@ def _scratch(bins):
 
 
 @njit(cache=True, nogil=True)
-def _split(nid, s, e, cbox, lo, hi, bins, fill, order, tmp, go_right, left, right,
-           scratch):
+def _split(nid, s, e, cbox, lo, hi, bins, fill, work, tree, scratch):
     """Split node ``nid`` (primitives s:e, more than SWEEP_MAX; centroid bounds cbox) by binned
     SAH; returns the left count. Children are numbered in pre-order with contiguous subtrees:
     left = nid + 1, right = nid + 2 * (left count)."""
+    order, tmp, go_right = work
+    left, right = tree[0], tree[1]
     cnt = e - s
-    ok = _binned(s, e, lo, hi, cbox, bins, fill, go_right, scratch[0], scratch[1],
-                 scratch[2], scratch[3], scratch[4])
+    ok = _binned(s, e, lo, hi, cbox, bins, fill, go_right, scratch)
     nl = _fillable_count(cnt // 2, cnt, fill)              # all centroids coincide: middle
     if ok:
         nl = _partition(s, e, go_right, order, lo, hi, tmp[0], tmp[1], tmp[2])
@@ -370,8 +373,7 @@ def _split(nid, s, e, cbox, lo, hi, bins, fill, order, tmp, go_right, left, righ
 
 
 @njit(cache=True, nogil=True)
-def _subtree(nid, s, e, lo, hi, bins, fill, order, tmp, go_right, left, right, prim,
-             node_box):
+def _subtree(nid, s, e, lo, hi, bins, fill, work, tree):
     """Build the whole subtree of node ``nid`` (box not yet computed), depth first with a
     bounded stack (smaller child first: at most log2(n) + 2 entries)."""
     stack = np.empty((_STACK, 3), np.int64)
@@ -383,12 +385,10 @@ def _subtree(nid, s, e, lo, hi, bins, fill, order, tmp, go_right, left, right, p
         sp -= 1
         nid, s, e = stack[sp, 0], stack[sp, 1], stack[sp, 2]
         if e - s <= SWEEP_MAX:
-            _small(nid, s, e, lo, hi, fill, order, left, right, prim, node_box,
-                   scratch[5], scratch[6], scratch[7])
+            _small(nid, s, e, lo, hi, fill, work[0], tree, scratch)
             continue
-        _bounds(s, e, lo, hi, node_box[nid], cbox)
-        nl = _split(nid, s, e, cbox, lo, hi, bins, fill, order, tmp, go_right, left,
-                    right, scratch)
+        _bounds(s, e, lo, hi, tree[3][nid], cbox)
+        nl = _split(nid, s, e, cbox, lo, hi, bins, fill, work, tree, scratch)
         small_left = nl <= e - s - nl
         for first in (not small_left, small_left):         # larger first, smaller on top
             if first:
@@ -399,13 +399,12 @@ def _subtree(nid, s, e, lo, hi, bins, fill, order, tmp, go_right, left, right, p
 
 
 @njit(cache=True, nogil=True)
-def _node(nid, s, e, lo, hi, bins, fill, order, tmp, go_right, left, right, prim, node_box):
+def _node(nid, s, e, lo, hi, bins, fill, work, tree):
     """Compute the box of node ``nid`` (primitives s:e, more than SWEEP_MAX) and split it;
     returns the left count. The top of the tree is built node by node with it, in parallel."""
     cbox = np.empty(6)
-    _bounds(s, e, lo, hi, node_box[nid], cbox)
-    return _split(nid, s, e, cbox, lo, hi, bins, fill, order, tmp, go_right, left, right,
-                  _scratch(bins))
+    _bounds(s, e, lo, hi, tree[3][nid], cbox)
+    return _split(nid, s, e, cbox, lo, hi, bins, fill, work, tree, _scratch(bins))
 
 
 def build_binary(tris, bins: int, progress=None, fill: int = 0, threads: int | None = None):
@@ -429,8 +428,8 @@ def build_binary(tris, bins: int, progress=None, fill: int = 0, threads: int | N
     tmp = (np.empty(n, np.int64), np.empty((n, 3), np.float32), np.empty((n, 3), np.float32))
     #                                                         partition scratch
     go_right = np.zeros(n, np.bool_)
-    args = (lo, hi, int(bins), int(fill), order, tmp, go_right, left, right, prim,
-            node_box)
+    # the kernels take the work arrays and the tree's arrays as two tuples
+    args = (lo, hi, int(bins), int(fill), (order, tmp, go_right), (left, right, prim, node_box))
     if threads is None:
         threads = min(os.cpu_count() or 1, 8) if n >= PARALLEL_MIN else 1
     # nodes of more than `grain` primitives are split one task each (both children become tasks:

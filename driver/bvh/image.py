@@ -31,9 +31,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.layout import (BOX_NODE, BOX_TYPE, GROUP_TYPE, IMAGE_FORMATS, INSTANCE_NODE,
+from ..core.layout import (BOX_NODE, BOX_TYPE, DEFAULT_FORMAT, FORMATS, GROUP_TYPE, INSTANCE_NODE,
                            INSTANCE_TYPE, LEAF_NEXT_TYPE, PAIR_TYPE, Q8_NODE, Q8_TYPE, TRI_NODE,
-                           TRI_TYPE, NodeRef, decode_q8, leaf_triangles, node_word, read_nodes)
+                           TRI_TYPE, NodeRef, decode_q8, image_format, leaf_triangles, node_word,
+                           read_nodes)
 from ..core.wire import FLAG_DECODE_Q8, QNODE_WORDS, QUADBOX, TRANSFORM, TRIANGLE
 
 
@@ -68,15 +69,13 @@ class BVH4:
     """
 
     def __init__(self, image: np.ndarray, triangles: np.ndarray, stats: dict,
-                 format: str = "box32"):
-        if format not in IMAGE_FORMATS:
-            raise ValueError(f"BVH image format must be one of {IMAGE_FORMATS}, got {format!r}")
+                 format: str = DEFAULT_FORMAT):
+        fmt = image_format(format)
         self.image = image
         self.format = format
-        q8 = format != "box32"
-        self.box_type = Q8_TYPE if q8 else BOX_TYPE
+        self.box_type = fmt.box_type
         self.root = self.box_type       # box node at offset 0
-        self.child_word = node_word(Q8_NODE if q8 else BOX_NODE, "child")
+        self.child_word = node_word(fmt.box_node, "child")
         self.triangles = triangles
         self.stats = stats
         self._words = image.view("<u4")
@@ -111,7 +110,7 @@ class BVH4:
     def node_extras(self, ptrs):
         """(parent pointer (m,) uint32, child count (m,) int64) of box nodes."""
         ptrs = np.asarray(ptrs, np.uint32)
-        if self.format != "box32":
+        if FORMATS[self.format].compressed:
             nodes = read_nodes(self._words, ptrs, Q8_NODE)
             return nodes["parent"].astype(np.uint32), (nodes["exp"][:, 3] & 7).astype(np.int64)
         nodes = read_nodes(self._words, ptrs, BOX_NODE)

@@ -38,20 +38,21 @@ import numpy as np
 from ..instances import Instances, world_boxes
 from .image import BVH4, box_operands
 from .pipeline import build
-from ..core.layout import (BOX_BYTES, BOX_NODE, BOX_TYPE, INSTANCE_BYTES, INSTANCE_NODE,
-                           INSTANCE_TYPE, NO_CHILD, PAIR_NODE, PAIR_TYPE, Q8_BYTES, Q8_NODE,
-                           Q8_TYPE, TRI_NODE, TRI_TYPE, NodeRef, read_nodes)
+from ..core.layout import (DEFAULT_FORMAT, FORMATS, INSTANCE_BYTES, INSTANCE_NODE,
+                           INSTANCE_TYPE, NO_CHILD, PAIR_NODE, PAIR_TYPE, TRI_NODE, TRI_TYPE,
+                           NodeRef, read_nodes)
 
 
 def tlas_format(format: str) -> str:
     """The TLAS's image format under BLASes in ``format``: box32 under box32, else q8 (a q8g
     TLAS would group instance leaves, which are single nodes)."""
-    return "box32" if format == "box32" else "q8"
+    return FORMATS[format].tlas
 
 
 def _box_node(fmt: str):
     """(node struct, bytes, pointer type) of the box nodes of an image in ``fmt``."""
-    return (BOX_NODE, BOX_BYTES, BOX_TYPE) if fmt == "box32" else (Q8_NODE, Q8_BYTES, Q8_TYPE)
+    f = FORMATS[fmt]
+    return f.box_node, f.box_bytes, f.box_type
 
 
 class TwoLevelBVH(BVH4):
@@ -108,7 +109,7 @@ def _root_box(bvh: BVH4) -> np.ndarray:
     return np.concatenate([used[:, :3].min(0), used[:, 3:].max(0)])
 
 
-def build_two_level(instances: Instances, format: str = "box32", progress=None,
+def build_two_level(instances: Instances, format: str = DEFAULT_FORMAT, progress=None,
                     **build_kw) -> TwoLevelBVH:
     """The two-level image of ``instances`` (module docstring): BLASes in ``format`` ("box32",
     "q8" or "q8g"), the TLAS in ``tlas_format(format)``; ``build_kw`` go to every
@@ -186,7 +187,7 @@ def build_two_level(instances: Instances, format: str = "box32", progress=None,
 def _tlas_leaves(tlas: BVH4, child: np.ndarray, t_fmt: str, k: int) -> tuple:
     """The TLAS's leaf slots among its box nodes' ``child`` pointers (a mask) and the instance
     each holds; AssertionError unless each of the ``k`` instances is exactly one leaf."""
-    if t_fmt == "box32":
+    if not FORMATS[t_fmt].compressed:
         leaf = (child != NO_CHILD) & (NodeRef.type(child) == TRI_TYPE)
         which = read_nodes(tlas.image, child[leaf], TRI_NODE)["prim"].astype(np.int64)
     else:                               # unpaired pair leaves: prim[0] is the instance

@@ -53,7 +53,7 @@ import time
 
 import numpy as np
 
-from ..core.layout import IMAGE_FORMATS
+from ..core.layout import DEFAULT_FORMAT, FORMATS, IMAGE_FORMATS
 from ..core.progress import bar as progress_bar
 from .image import BVH4, _half_area
 from .phases import Phases
@@ -99,7 +99,7 @@ PROGRESS_MIN = 1_000_000        # progress=None shows a bar from this many trian
 
 
 def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collapse: str = "sah",
-          fill: int = 0, progress=None, format: str = "box32", pair: bool = True,
+          fill: int = 0, progress=None, format: str = DEFAULT_FORMAT, pair: bool = True,
           on_phase=None) -> BVH4:
     """Build a BVH4 (binned SAH, one triangle per leaf) and its memory image
     (docs/datapath.md#bvh4-image, docs/compressed.md).
@@ -137,7 +137,7 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
     tris = as_triangles(triangles_or_trimesh)
     phases = Phases(on_phase)
     pairs, prims = None, tris
-    if format != "box32":
+    if FORMATS[format].compressed:
         pairs = _leaf_pairs(tris, getattr(triangles_or_trimesh, "faces", None), pair, phases)
         prims = pairs[4]                # one box-shaped triangle per leaf: the builder's input
 
@@ -152,9 +152,9 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
                 greedy_area = _half_area(node_lo.astype(np.float64), node_hi)
             node_area = bvh_build.grow_boxes(node_lo, node_hi, pad)   # in place: stored boxes
         groups = None
-        if format != "box32":
+        if FORMATS[format].compressed:
             with phases("group leaves"):
-                groups = group_leaves(left, right, prim, node_area, pairs, format == "q8g")
+                groups = group_leaves(left, right, prim, node_area, pairs, FORMATS[format].groups)
         with phases("collapse"):
             if collapse == "sah":
                 levels = collapse_sah(left, right, node_area)

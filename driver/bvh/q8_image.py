@@ -106,11 +106,10 @@ def _write_group(g, slot, gtri, gvert, gidx, tris, lw, lf, no_child):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, gtri, gvert, gidx,
-              tris, facing, origin, exp, child, q, parent, ref, lw, lf, box_ptr, leaf_base, types,
+def _quantize(slots, tree, pairs, groups, tris, facing, nodes, leaves, box_ptr, leaf_ptr,
               no_child):
-    """Number the wide tree's nodes and write the q8 box nodes (origin, exp + count, child, q,
-    parent) and the leaves (lw/lf: 64-byte leaf slots in the order they are referenced), as
+    """Number the wide tree's nodes and write the q8 box nodes (``nodes``: origin, exp + count,
+    child, q, parent, and ref) and the leaves (lw/lf: 64-byte leaf slots in the order they are referenced), as
     ``driver.bvh.box32.fill_image`` does for box32. A leaf's ``prim`` below ``len(first)`` is a
     pair leaf (one slot), else group ``prim - len(first)`` (``gtri``, ``gvert``, ``gidx``: two
     slots). ``leaf_base``: byte offset of the first slot; ``types``: (pair,
@@ -120,6 +119,12 @@ def _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, gtri,
     Q8_EXP_MAX (the first such node). Node r's box children and leaf slots are numbered after
     those of nodes 0..r-1 (a prefix sum of each node's counts), so the nodes are then written
     independently, on all cores."""
+    left, prim, node_lo, node_hi = tree
+    first, second, idx, v3 = pairs
+    gtri, gvert, gidx = groups
+    origin, exp, child, q, parent, ref = nodes
+    lw, lf = leaves
+    leaf_base, types = leaf_ptr
     k = slots.shape[0]
     n_pairs = len(first)
     nb0 = np.zeros(k + 1, np.int64)                # box children / leaf slots before node r
@@ -227,10 +232,11 @@ def _write_q8_image(levels, left, prim, node_lo, node_hi, pairs, groups, tris):
     lw = image[Q8_BYTES * n_box:].view("<u4").reshape(n_slots, PAIR_BYTES // 4)
     ref = np.empty((n_box, 4, 6), np.float32)
     box0, box1 = NodeRef.encode([0, Q8_BYTES], Q8_TYPE).astype(np.int64)
-    bad = _quantize(slots, left, prim, node_lo, node_hi, first, second, idx, v3, gtri, gvert,
-                    gidx, tris, q8.facing(tris, first, second, members), qn["origin"], qn["exp"],
-                    qn["child"], qn["q"], qn["parent"], ref, lw, lw.view("<f4"),
-                    (box0, box1 - box0), Q8_BYTES * n_box, (PAIR_TYPE, GROUP_TYPE), NO_CHILD)
+    bad = _quantize(slots, (left, prim, node_lo, node_hi), (first, second, idx, v3),
+                    (gtri, gvert, gidx), tris, q8.facing(tris, first, second, members),
+                    (qn["origin"], qn["exp"], qn["child"], qn["q"], qn["parent"], ref),
+                    (lw, lw.view("<f4")), (box0, box1 - box0),
+                    (Q8_BYTES * n_box, (PAIR_TYPE, GROUP_TYPE)), NO_CHILD)
     if bad:
         raise ValueError("q8 image: the scene's extent needs a plane exponent above "
                          f"{2 ** 119 * 255:.3g} per step (box node {bad - 1}); use box32")

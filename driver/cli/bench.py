@@ -18,6 +18,7 @@ from ..studies.bvh import bvh_bench
 from . import options
 from ..core.words import cell, plural
 from .common import check_positive, wrote
+from ..core.layout import FORMATS
 
 
 def add_parser(subparsers):
@@ -193,7 +194,7 @@ def workload_table(doc: dict) -> str:
             f"bounces {pt['bounces']}): {f['rays']} rays, {f['ops']} ops")
     rows = [head, f"BVH4 {b['format']}: {b['bytes']:,} bytes, {b['bytes_per_triangle']:.1f} bytes "
                   f"per triangle" + (f", {b['pair_ratio']:.1%} of the triangles paired"
-                                     if b["format"] != "box32" else "")]
+                                     if FORMATS[b["format"]].compressed else "")]
     rows += [f"{a}: {v}" for a, v in bench.timing_rows(f)]
     if f.get("embree"):
         rows.append(check_summary(f["embree"]))

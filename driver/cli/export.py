@@ -11,6 +11,7 @@ from ..core.outputs import HEX, NPZ, TEXT, VCD, OutputError
 from ..core.progress import bar as progress_bar
 from ..export import HEX_FILES, HexSink, NpzSink, WindowSink, export, parse_window, write_vcd
 from ..tiles import DEFAULT_TILE, plan
+from ..core.layout import DEFAULT_FORMAT
 
 DEFAULT_VCD_WINDOW = "0:100"
 
@@ -62,7 +63,7 @@ class Export:
         bar = progress_bar(tiles, f"{scene.name} request stream (golden)", "tile", progress)
         try:
             n = export(scene, width, height, sinks, workload, options, tile, tree["fill"],
-                       tree["cull_stack"], bar.hook, tree.get("bvh_format", "box32"))
+                       tree["cull_stack"], bar.hook, tree.get("bvh_format", DEFAULT_FORMAT))
         finally:
             bar.close()
         if win:

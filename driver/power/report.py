@@ -17,6 +17,7 @@ from ..core.configs import Q8_SUFFIX, XF_SUFFIX
 from ..core.provenance import provenance
 from . import stimulus
 from .netlist import STAGE_LABELS
+from ..core.layout import FORMATS
 
 PAPER = {
     "source": "RayFlex paper, Power Consumption (Genus, VCD of 100 random tests, 1 GHz)",
@@ -140,7 +141,7 @@ def build(level: str, res: dict, n: int, seed: int, mix: dict, point, cfgs,
     rep = {"provenance": prov, "level": level, "unit": UNITS[level], "ops_per_type": n,
            "stimulus_seed": seed, "configs": cfg_results, "ratios": ratios(cfg_results),
            "paper": PAPER, "pending": stimulus.pending(),
-           "per_ray": per_ray(mix, cfg_results, point.bvh_format != "box32")}
+           "per_ray": per_ray(mix, cfg_results, FORMATS[point.bvh_format].compressed)}
     if "synth_s" in res:
         rep["synthesis"] = res["synth_s"]
     if liberty:

@@ -57,6 +57,7 @@ from .lumibench_defs import (AO_EXTENT, CACHE_ENV, CACHE_VERSION, DEFINITIONS, E
                              is_lumibench, root, using_root)
 from .materials import Materials
 from .model import Scene
+from ..core.layout import DEFAULT_FORMAT
 
 # the definitions' names are this module's too: ``lumibench.X`` is the whole scene API
 __all__ = ["AO_EXTENT", "CACHE_ENV", "CACHE_VERSION", "DEFINITIONS", "EMPTY", "PREFIX",
@@ -97,7 +98,7 @@ class LumiBenchScene(Scene):
     def flattened(self) -> "LumiBenchScene":
         return replace(self, instances=None)
 
-    def build_bvh(self, fill: int = 0, format: str = "box32", transform: str = "driver"):
+    def build_bvh(self, fill: int = 0, format: str = DEFAULT_FORMAT, transform: str = "driver"):
         """This scene's BVH (``driver.bvh4.build_scene``), from the cache when the
         same scene files were built with the same options by the same source tree (its
         ``stats["from_cache"]``): a second run of a scene starts tracing without a build."""

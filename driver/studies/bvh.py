@@ -36,9 +36,10 @@ from ..core.progress import iterate
 from ..scenes.builtins import instanced_bunnies as grid
 from ..scenes.camera import primary_rays
 from ..tracer import trace
+from ..core.layout import DEFAULT_FORMAT, IMAGE_FORMATS
 
 BUNNY_TRIANGLES = 99_785
-FORMATS = ("box32", "q8", "q8g")    # image formats whose builds are timed
+FORMATS = IMAGE_FORMATS            # image formats whose builds are timed
 FILLS = (0, 8, 16, 32, 40, 64, 256, 1 << 30)     # --bvh-fill values of the shape trade-off
 # a reference point on the bunny frame: box nodes, and 0.95 x the 6.29 ops per ray of plain SAH
 REFERENCE = {"box_nodes": 36_000, "ops_per_ray": 0.95 * 6.29}
@@ -72,7 +73,7 @@ def _build_child(count, fmt, conn):
     conn.close()
 
 
-def _timed_build(count: int, fmt: str = "box32") -> dict:
+def _timed_build(count: int, fmt: str = DEFAULT_FORMAT) -> dict:
     ctx = multiprocessing.get_context("spawn")
     recv, send = ctx.Pipe(duplex=False)
     proc = ctx.Process(target=_build_child, args=(count, fmt, send))
@@ -199,8 +200,8 @@ def bvh_bench(counts=(0, 20, 50), quality: bool = True, size: int = 256,
         entry = {"bunnies": count or 1, **_timed_build(count, fmt)}
         entry["process_wall_s"] = round(time.perf_counter() - t0, 2)
         base = [b for b in result["builds"] if b["bunnies"] == entry["bunnies"]
-                and b["format"] == "box32"]
-        if fmt != "box32" and base:
+                and b["format"] == DEFAULT_FORMAT]
+        if fmt != DEFAULT_FORMAT and base:
             entry["vs_box32_build_s"] = round(entry["build_s"] / base[0]["build_s"], 3)
         result["builds"].append(entry)
     if quality:
@@ -274,7 +275,7 @@ def _mesh_child(conn, phase, formats) -> None:
                      "phase_s": {k: round(v, 5) for k, v in st["phase_s"].items()},
                      "bytes_per_triangle": round(st["bytes_per_triangle"], 2),
                      "pair_ratio": round(st["pair_ratio"], 4)}
-                if fmt != "box32":
+                if fmt != DEFAULT_FORMAT:
                     n = len(tris)
                     for what, keys in (("matching", ("matching",)), ("pairing", PAIRING)):
                         for clock, key in (("", "phase_s"), ("_cpu", "phase_cpu_s")):
@@ -355,7 +356,7 @@ def build_table(doc: dict) -> str:
         by.setdefault(b["bunnies"], {})[b["format"]] = b
     fmts = [f for f in FORMATS if any(f in row for row in by.values())]
     head = ["mesh", *(f"{f} CPU s (wall)" for f in fmts),
-            *(f"{f} / box32 CPU (wall)" for f in fmts if f != "box32"),
+            *(f"{f} / {DEFAULT_FORMAT} CPU (wall)" for f in fmts if f != DEFAULT_FORMAT),
             "q8g bytes / triangle", "load average"]
     rows = []
     for count, row in by.items():
@@ -364,9 +365,9 @@ def build_table(doc: dict) -> str:
                 else f"{count} bunnies, {any_row['triangles']:,} triangles")
         cells = [mesh, *(f"{row[f]['build_cpu_s']:.2f} ({row[f]['build_s']:.2f})"
                          if f in row else "–" for f in fmts)]
-        base = row.get("box32")
+        base = row.get(DEFAULT_FORMAT)
         for f in fmts:
-            if f != "box32":
+            if f != DEFAULT_FORMAT:
                 cells.append(f"{row[f]['build_cpu_s'] / base['build_cpu_s']:.2f} "
                              f"({row[f]['build_s'] / base['build_s']:.2f})"
                              if base and f in row else "–")

@@ -16,8 +16,9 @@ import json
 
 from ..core.markdown import table as markdown_table
 from ..plotting import wrap
+from ..core.layout import DEFAULT_FORMAT, IMAGE_FORMATS
 
-FORMATS = ("box32", "q8", "q8g")
+FORMATS = IMAGE_FORMATS
 
 
 def rows(docs: dict) -> list[dict]:
@@ -25,7 +26,7 @@ def rows(docs: dict) -> list[dict]:
     ray, cache hit rate, utilization and cycles per ray with the node memory, and the ratios to
     box32."""
     out = []
-    base = docs["box32"]["frame"]
+    base = docs[DEFAULT_FORMAT]["frame"]
     for kind in base["by_type"]:
         ref = base["by_type"][kind]
         for fmt, doc in docs.items():
@@ -69,7 +70,7 @@ def plot(docs: dict, path, title: str) -> None:
 
     if any(not d.get("sweep") for d in docs.values()):
         raise ValueError("the documents hold no rays-in-flight sweep (bench --sweep-rays)")
-    kinds = list(docs["box32"]["sweep"][0]["by_type"])
+    kinds = list(docs[DEFAULT_FORMAT]["sweep"][0]["by_type"])
     cols = min(len(kinds), 4)
     rows_ = -(-len(kinds) // cols)
     fig = Figure(figsize=(3.2 * cols + 0.6, 3.0 * rows_ + 1.3), dpi=110)
@@ -120,12 +121,12 @@ def load(paths) -> dict:
             raise ValueError(f"{p}: not a rayflex bench --workload JSON with the node memory")
         doc = {**doc, **{k: point[k] for k in ("spp", "bounces", "seed")}}
         docs[fmt] = doc
-    if len(docs) != len(paths) or not {"box32", "q8"} <= set(docs):
+    if len(docs) != len(paths) or not {DEFAULT_FORMAT, "q8"} <= set(docs):
         raise ValueError("give one document per format, box32 and q8 among them")
     keys = ("scene", "workload", "width", "height", "spp", "bounces", "seed")
-    if any(doc[k] != docs["box32"][k] for doc in docs.values() for k in keys):
+    if any(doc[k] != docs[DEFAULT_FORMAT][k] for doc in docs.values() for k in keys):
         raise ValueError("the documents are not the same frame")
-    if any(doc["frame"]["by_type"].keys() != docs["box32"]["frame"]["by_type"].keys()
+    if any(doc["frame"]["by_type"].keys() != docs[DEFAULT_FORMAT]["frame"]["by_type"].keys()
            for doc in docs.values()):
         raise ValueError("the documents hold different ray types")
     return {f: docs[f] for f in FORMATS if f in docs}

@@ -14,6 +14,7 @@ its latency (trace call to last response, mean and 95th percentile).
 from __future__ import annotations
 
 import numpy as np
+from ..core.layout import DEFAULT_FORMAT
 
 LEVELS = ("l1", "l2", "dram")
 
@@ -67,7 +68,7 @@ def compressed(doc: dict) -> dict:
     out: dict = {}
     for p in doc["points"]:
         dp = p["design_point"]
-        ref = _one(doc, rt_preset=dp["rt_preset"], size=dp["size"], bvh_format="box32")
+        ref = _one(doc, rt_preset=dp["rt_preset"], size=dp["size"], bvh_format=DEFAULT_FORMAT)
         out.setdefault(_group(p), {})[dp["bvh_format"]] = {
             "frame": frame_row(p, ref),
             "by_type": {k: _type_row(t) for k, t in p["by_type"].items()}}

@@ -32,7 +32,7 @@ import numpy as np
 
 from ..bench import bench_workload
 from ..bvh4 import build, build_two_level
-from ..core.layout import IMAGE_FORMATS
+from ..core.layout import DEFAULT_FORMAT, IMAGE_FORMATS
 from ..core.markdown import table as markdown_table
 from ..core.provenance import provenance
 from ..design import DesignPoint
@@ -60,9 +60,9 @@ def hits(scene_name: str = "bunny_grid", size: int = 256, backend: str = "golden
                        "instanced_build_s": inst.stats["build_s"],
                        "flattened_build_s": flat.stats["build_s"]}
         two_level[fmt] = inst
-        if fmt == "box32":
+        if fmt == DEFAULT_FORMAT:
             bvh_f = flat
-    bvh_i = two_level["box32"]
+    bvh_i = two_level[DEFAULT_FORMAT]
     o, d = primary_rays(scene.camera, size, size)
     out = {"scene": scene.name, **scene.counts(), "size": size, "backend": backend,
            "images": images, "rays": {}}
@@ -70,7 +70,7 @@ def hits(scene_name: str = "bunny_grid", size: int = 256, backend: str = "golden
     out["rays"]["primary"] = _compare(a, b, scene.triangles)
     out["formats_vs_box32"] = {fmt: _same_image_hits(trace(two_level[fmt], o, d,
                                                            backend=backend), a)
-                               for fmt in IMAGE_FORMATS if fmt != "box32"}
+                               for fmt in IMAGE_FORMATS if fmt != DEFAULT_FORMAT}
     rows = np.flatnonzero(a.hit & b.hit)
     p = o[rows].astype(np.float64) + b.t[rows, None].astype(np.float64) * d[rows]
     light = setup_for(scene).lights[0]                  # the scene's first (or default) light

@@ -15,6 +15,7 @@ from ..rtunit.gpu import derived
 from ..rtunit.order import DEFAULT_TREELETS, POLICIES, floor_bytes, merge_costs
 from ..stats import WAVEFRONTS
 from ..tracer import trace
+from ..core.layout import DEFAULT_FORMAT
 
 ALL_RAYS = 1 << 16     # a window that holds every ray of the study's batches ("all")
 STUDY_WINDOWS = (64, 256, 1024, 4096, ALL_RAYS)
@@ -59,7 +60,7 @@ def _wavefront_row(r) -> dict:
 
 
 def frame_records(scene_name: str, size: int, spp: int, bounces: int, ao_rays: int,
-                  seed: int = 0, bvh_format: str = "box32") -> dict:
+                  seed: int = 0, bvh_format: str = DEFAULT_FORMAT) -> dict:
     """{ray type: [Record, ...]}: the path frame's batches and the ao frame's ao rays, traced on
     "rtl" with every request recorded, on the scene's BVH in ``bvh_format``."""
     from ..scenes.scene import load_scene
@@ -86,14 +87,14 @@ def window_label(w) -> str:
     return "all" if int(w) >= ALL_RAYS else str(w)
 
 
-STUDY_FORMATS = ("box32", "q8")
+STUDY_FORMATS = (DEFAULT_FORMAT, "q8")
 # the study's frames (path: 2 samples per pixel, 2 bounces; ao: 4 rays per hit) and RT unit (64
 # rays in flight, the default node cache and memory)
 STUDY_POINT = DesignPoint(spp=2, bounces=2, ao_rays=4, rays_in_flight=64)
 
 
 def study(scenes=STUDY_SCENES, size: int = 64, windows=STUDY_WINDOWS, policies=None,
-          point: DesignPoint = STUDY_POINT, progress: bool = True, formats=("box32",),
+          point: DesignPoint = STUDY_POINT, progress: bool = True, formats=(DEFAULT_FORMAT,),
           variants: bool = False, variants_window: int = None) -> dict:
     """Every policy at every window on the path (and ao) frames of ``scenes`` at ``size`` x
     ``size``, for the BVH in each of ``formats``, on the RT unit of design point ``point`` (its
