@@ -192,4 +192,5 @@ def _replay_params(be) -> dict:
     compressed = bool(getattr(be, "compressed", False))
     return rtl_params(getattr(be, "extended", False), getattr(be, "disjoint", False),
                       lat if isinstance(lat, int) and lat >= MIN_LATENCY + compressed else None,
-                      compressed, bool(getattr(be, "transform", False)))
+                      compressed, bool(getattr(be, "transform", False)),
+                      bool(getattr(be, "fused", False)))

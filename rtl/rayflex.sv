@@ -17,12 +17,14 @@
 // Parameters: EXTENDED adds EUCLIDEAN/ANGULAR, DISJOINT gives each operation private functional
 // units, COMPRESSED adds the q8 decode stage (QUADBOX with FLAG_DECODE_Q8), TRANSFORM adds the
 // ray transform by a 3x4 matrix (docs/transform.md: on S2's multipliers and the adders of S3 and
-// S5..S8, two adders more in S8), LATENCY >= 11 + COMPRESSED (the paper's design has 11).
+// S5..S8, two adders more in S8), FUSED rounds the box slab value (bound - origin) * inv and the
+// triangle's edge functions once each (docs/tradeoffs.md: in S1 and S5), LATENCY >= 11 + COMPRESSED (the paper's design has 11).
 module rayflex import rf_pkg::*; #(
   parameter bit          EXTENDED   = 1'b0,
   parameter bit          DISJOINT   = 1'b0,
   parameter bit          COMPRESSED = 1'b0,
   parameter bit          TRANSFORM  = 1'b0,
+  parameter bit          FUSED      = 1'b0,
   parameter int unsigned LATENCY    = 11 + 32'(COMPRESSED)
 ) (
   input  logic clk_i,
@@ -73,15 +75,18 @@ module rayflex import rf_pkg::*; #(
   logic   [NUM_REGS-1:0] d_valid, d_ready, q_valid, q_ready;
 
   // ---- compute stages ----
-  rf_s01_origin_sub #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM)) u_s1 (
+  rf_s01_origin_sub #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM),
+                      .FUSED(FUSED)) u_s1 (
     .req_i(req_s1), .st_o(d_st[0]));
-  rf_s02_scale_mul #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM)) u_s2 (
+  rf_s02_scale_mul #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM),
+                     .FUSED(FUSED)) u_s2 (
     .st_i(q_st[0]), .st_o(d_st[1]));
   rf_s03_nearfar_xy #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM)) u_s3 (
     .st_i(q_st[1]), .st_o(d_st[2]));
-  rf_s04_nearfar_z #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s4 (
+  rf_s04_nearfar_z #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .FUSED(FUSED)) u_s4 (
     .st_i(q_st[2]), .st_o(d_st[3]));
-  rf_s05_clamp_uvw #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM)) u_s5 (
+  rf_s05_clamp_uvw #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM),
+                     .FUSED(FUSED)) u_s5 (
     .st_i(q_st[3]), .st_o(d_st[4]));
   rf_s06_slab_hit #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM)) u_s6 (
     .st_i(q_st[4]), .st_o(d_st[5]));
