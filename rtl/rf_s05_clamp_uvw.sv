@@ -38,7 +38,8 @@ module rf_s05_clamp_uvw import rf_pkg::*; #(
                          .min_o(tmax[i]), .max_o(unused_max));
   end
 
-  // ---- TRIANGLE: U, V, W (FUSED: one rounding each) ----
+  // ---- TRIANGLE: U, V, W (FUSED: one rounding each; else from the adder pool below) ----
+  fp32_t [(NT > 0 ? NT : 1)-1:0] tri_a, tri_b, tri_y;
   fp32_t [2:0] uvw;
   if (FUSED) begin : g_fused
     logic en;                               // operand isolation: zeros unless a TRIANGLE
@@ -56,7 +57,6 @@ module rf_s05_clamp_uvw import rf_pkg::*; #(
   end
 
   // ---- adder pool: operands per operation ----
-  fp32_t [(NT > 0 ? NT : 1)-1:0] tri_a, tri_b, tri_y;
   fp32_t [(NE > 0 ? NE : 1)-1:0] euc_a, euc_b, euc_y;
   fp32_t [(NA > 0 ? NA : 1)-1:0] ang_a, ang_b, ang_y;
   fp32_t [(NX > 0 ? NX : 1)-1:0] xfm_a, xfm_b, xfm_y;
