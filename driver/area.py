@@ -41,8 +41,8 @@ from .backends import build as rtl_build
 from .backends.cache import cache_root as tool_cache
 from .backends.build import source_names
 from .core import resources
-from .core.configs import (ALL_CONFIGS, BASELINE, CONFIGS, FUSED_SUFFIX, XF_CONFIGS,
-                           build_params, parse_config)
+from .core.configs import (ALL_CONFIGS, BASELINE, CONFIGS, FUSED_SUFFIX, SHARED_SUFFIX,
+                           XF_CONFIGS, build_params, parse_config)
 from .core.resources import checkout, data_dir
 
 ROOT = checkout() or resources.ROOT      # the checkout (whose git history --rev reads)
@@ -59,7 +59,8 @@ def config_params(name: str) -> dict[str, int]:
     params = parse_config(name)
     if params is None:
         raise AreaError(f"unknown configuration {name!r}; choose from "
-                        f"{', '.join(ALL_CONFIGS + XF_CONFIGS)} (each also NAME{FUSED_SUFFIX})")
+                        f"{', '.join(ALL_CONFIGS + XF_CONFIGS)} (an extended one also "
+                        f"NAME{SHARED_SUFFIX}, each also NAME{FUSED_SUFFIX})")
     return params
 
 
@@ -243,14 +244,14 @@ def categorize(by_type: dict[str, int]) -> dict:
 def synthesize(extended: int | None = 0, disjoint: int | None = 0, top: str = TOP,
                cache: bool = True, timeout: float | None = None, name: str | None = None,
                sources: list[tuple[str, bytes]] | None = None, compressed: int = 0,
-               transform: int = 0, fused: int = 0) -> dict:
+               transform: int = 0, fused: int = 0, shared: int = 0) -> dict:
     """Synthesize one configuration (or, with ``top`` other than rayflex, one module without
     parameters) of the RTL ``sources`` (default: a snapshot of the working tree) and return its
     cell statistics (cached)."""
     sources = sources if sources is not None else snapshot()
     params = {}
     if top == TOP:
-        params = build_params(extended, disjoint, compressed, transform, fused)
+        params = build_params(extended, disjoint, compressed, transform, fused, shared)
     script = synth_script(top, params, [n for n, _ in sources])
     h = hashlib.sha256(f"{RECIPE}\n{yosys_version()}\n{script}".encode())
     for n, b in sources:
@@ -293,6 +294,7 @@ def _cells_by_type(sources, script: str, timeout: float | None) -> dict:
 
 def _config_name(params: dict) -> str:
     names = ALL_CONFIGS + XF_CONFIGS
+    names += [n + SHARED_SUFFIX for n in names if n.startswith("extended")]
     return next(n for n in names + [n + FUSED_SUFFIX for n in names] if config_params(n) == params)
 
 
@@ -310,7 +312,8 @@ def synthesize_all(names=None, jobs: int = 1, cache: bool = True, timeout=None,
         p = params[n]
         r = synthesize(p["EXTENDED"], p["DISJOINT"], cache=cache, timeout=timeout, name=n,
                        sources=sources, compressed=p.get("COMPRESSED", 0),
-                       transform=p.get("TRANSFORM", 0), fused=p.get("FUSED", 0))
+                       transform=p.get("TRANSFORM", 0), fused=p.get("FUSED", 0),
+                       shared=p.get("SHARED", 0))
         if progress:
             progress(f"{n}: {r['cells']} cells in {r['synth_s']} s"
                      f"{' (cached)' if r['cached'] else ''}")
@@ -363,11 +366,12 @@ def markdown(rep: dict) -> str:
 
 
 def elaborate(extended: int = 0, disjoint: int = 0, timeout: float | None = 300,
-              sources=None, compressed: int = 0, transform: int = 0, fused: int = 0) -> dict:
+              sources=None, compressed: int = 0, transform: int = 0, fused: int = 0,
+              shared: int = 0) -> dict:
     """Elaborate one configuration without synthesis (seconds, not minutes): the word-level cell
     counts by type after ``read_slang`` (e.g. how many ``$mul`` / ``$add`` operators)."""
     sources = sources if sources is not None else snapshot()
-    params = build_params(extended, disjoint, compressed, transform, fused)
+    params = build_params(extended, disjoint, compressed, transform, fused, shared)
     g = " ".join(f"-G {k}={v}" for k, v in params.items())
     script = (f"read_slang -j 1 --top {TOP} {g} {' '.join(n for n, _ in sources)}\n"
               f"hierarchy -top {TOP}\ntee -q -o stat.json stat -json\n")
@@ -402,8 +406,8 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m driver.area", description=__doc__.split("\n\n")[0])
     p.add_argument("--configs", default=",".join(CONFIGS),
                    help="comma-separated subset of: "
-                        f"{', '.join(ALL_CONFIGS + XF_CONFIGS)}, each also NAME{FUSED_SUFFIX} "
-                        "(default: "
+                        f"{', '.join(ALL_CONFIGS + XF_CONFIGS)}, an extended one also "
+                        f"NAME{SHARED_SUFFIX}, each also NAME{FUSED_SUFFIX} (default: "
                         f"{', '.join(CONFIGS)})")
     p.add_argument("--top", help="synthesize only this module (no parameters), e.g. rf_fp_add")
     p.add_argument("--jobs", type=int, default=1, help="configurations in parallel (default 1)")

@@ -193,4 +193,4 @@ def _replay_params(be) -> dict:
     return rtl_params(getattr(be, "extended", False), getattr(be, "disjoint", False),
                       lat if isinstance(lat, int) and lat >= MIN_LATENCY + compressed else None,
                       compressed, bool(getattr(be, "transform", False)),
-                      bool(getattr(be, "fused", False)))
+                      bool(getattr(be, "fused", False)), bool(getattr(be, "shared", False)))

@@ -80,6 +80,33 @@ package rf_pkg;
   endfunction
   /* verilator lint_on UNUSEDSIGNAL */
 
+  // The SHARED build's request registers (the input register, and the decode register of a
+  // COMPRESSED build; docs/tradeoffs.md#sharing-registers): an EUCLIDEAN or ANGULAR beat's vector
+  // fields travel on its box and triangle words, which such a beat does not use, so the registers
+  // before stage 1 keep no bits of their own for them (synthesis removes the unread ones).
+  // req_share packs a request before the input register, req_unshare unpacks it for stage 1.
+  localparam int unsigned VEC_FIELDS_W = 2 * 16 * 32 + 16 + 1;     // vec_a, vec_b, mask, reset
+  localparam int unsigned SHARE_W      = (24 + 9) * 32;            // box and triangle words
+
+  function automatic req_t req_share(input req_t r);
+    req_t p;
+    p = r;
+    if ((r.opcode == OP_EUCLIDEAN) || (r.opcode == OP_ANGULAR))
+      {p.triangle, p.box} = SHARE_W'({r.reset_accumulator, r.vec_mask, r.vec_b, r.vec_a});
+    return p;
+  endfunction
+
+  /* verilator lint_off UNUSEDSIGNAL */   // the vector fields of p: unpacked from the box words
+  function automatic req_t req_unshare(input req_t p);
+    req_t r;
+    logic [SHARE_W-1:0] w;
+    r = p;
+    w = {p.triangle, p.box};
+    {r.reset_accumulator, r.vec_mask, r.vec_b, r.vec_a} = w[VEC_FIELDS_W-1:0];
+    return r;
+  endfunction
+  /* verilator lint_on UNUSEDSIGNAL */
+
   // The q8 box node as stored in the compressed BVH image (driver/layout.py Q8_NODE; 16 words,
   // word 0 at the low end). A QUADBOX with flags[FLAG_DECODE_Q8_BIT] carries it on the first 16
   // box words (driver/layout.py: request field qnode overlays box), i.e. the node is

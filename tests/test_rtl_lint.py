@@ -31,8 +31,11 @@ def test_lint_clean(extended, disjoint, latency, compressed):
     ids=["baseline-unified", "baseline-disjoint", "extended-unified-q8-xf",
          "extended-disjoint-xf"])
 def test_lint_clean_fused(extended, disjoint, compressed, transform):
-    """The FUSED build (one rounding in the box slab and the edge functions) is lint clean."""
+    """The FUSED build (one rounding in the box slab and the edge functions) is lint clean, and
+    so is an extended one with SHARED request registers."""
     assert rtl.lint(extended, disjoint, None, compressed, transform, fused=True) == ""
+    if extended:
+        assert rtl.lint(extended, disjoint, None, compressed, transform, shared=True) == ""
 
 
 def test_rtl_rejects_latency_below_12_with_the_decode():

@@ -62,10 +62,10 @@ def rtl_sources() -> list[Path]:
 
 def rtl_params(extended: bool, disjoint: bool, latency: int | None = None,
                compressed: bool = False, transform: bool = False,
-               fused: bool = False) -> dict[str, int]:
+               fused: bool = False, shared: bool = False) -> dict[str, int]:
     """The top-level parameters of a configuration (``-G`` overrides); ``latency`` None: the
-    configuration's least (``driver.core.datapath.default_latency``); FUSED only when set (the
-    other builds keep their names in the build cache)."""
+    configuration's least (``driver.core.datapath.default_latency``); FUSED and SHARED only when
+    set (the other builds keep their names in the build cache)."""
     least = default_latency(compressed)
     latency = least if latency is None else latency
     if int(latency) < least:
@@ -74,14 +74,16 @@ def rtl_params(extended: bool, disjoint: bool, latency: int | None = None,
                            f"{', the q8 decode stage' if compressed else ''})")
     return {"EXTENDED": int(bool(extended)), "DISJOINT": int(bool(disjoint)),
             "COMPRESSED": int(bool(compressed)), "TRANSFORM": int(bool(transform)),
-            "LATENCY": int(latency), **({"FUSED": 1} if fused else {})}
+            "LATENCY": int(latency), **({"FUSED": 1} if fused else {}),
+            **({"SHARED": 1} if shared else {})}
 
 
 def lint(extended=False, disjoint=False, latency=None, compressed=False, transform=False,
-         fused=False) -> str:
+         fused=False, shared=False) -> str:
     """``verilator --lint-only -Wall`` of the whole datapath with the waivers in rtl/lint.vlt."""
     return verilate.lint(TOP, [RTL_DIR / LINT_WAIVERS, *rtl_sources()],
-                         rtl_params(extended, disjoint, latency, compressed, transform, fused))
+                         rtl_params(extended, disjoint, latency, compressed, transform, fused,
+                                    shared))
 
 
 def pgo_enabled() -> bool:

@@ -23,17 +23,20 @@ class GoldenBackend:
     takes n + latency cycles (first request accepted to last response taken). ``compressed``: the
     build decodes q8 nodes (QUADBOX with ``FLAG_DECODE_Q8``); its default latency is one more.
     ``transform``: the build has the TRANSFORM operation (docs/transform.md). ``fused``: the box
-    slab values and the triangle's edge functions are rounded once (docs/tradeoffs.md)."""
+    slab values and the triangle's edge functions are rounded once (docs/tradeoffs.md);
+    ``shared`` (the request registers' layout) gives the same results by contract."""
 
     name = "golden"
 
     def __init__(self, extended: bool = False, disjoint: bool = False, latency: int | None = None,
-                 compressed: bool = False, transform: bool = False, fused: bool = False):
+                 compressed: bool = False, transform: bool = False, fused: bool = False,
+                 shared: bool = False):
         self.extended = bool(extended)
         self.disjoint = bool(disjoint)     # same results by contract; kept for a uniform interface
         self.compressed = bool(compressed)
         self.transform = bool(transform)
         self.fused = bool(fused)
+        self.shared = bool(shared)         # same results by contract, like disjoint
         self.latency = default_latency(self.compressed) if latency is None else int(latency)
         self.cycles = 0
         self.requests = 0
