@@ -308,6 +308,12 @@ FIGURES = [
                           "--jobs", "2", "--json", "docs/area_q8_xf.json"),
            ("docs/area_q8_xf.json",), 45.0,
            "Yosys cell counts of the q8 decode and TRANSFORM beside baseline-unified"),
+    Figure("tradeoffs_fused_lumibench",
+           (sys.executable, "tools/fused_study.py", "--json",
+            "docs/tradeoffs_fused_lumibench.json"),
+           ("docs/tradeoffs_fused_lumibench.json",), 7.0,
+           "the hits the FUSED datapath changes on every ray of the LumiBench runs, adjudicated "
+           "(docs/tradeoffs.md)"),
 ]
 BY_NAME = {f.name: f for f in FIGURES}
 LIGHT_MINUTES = 1.5        # --light: the figures at most this long
