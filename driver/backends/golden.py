@@ -38,6 +38,10 @@ class GoldenBackend:
         self.fused = bool(fused)
         self.shared = bool(shared)         # same results by contract, like disjoint
         self.latency = default_latency(self.compressed) if latency is None else int(latency)
+        self.params = {"EXTENDED": int(self.extended), "DISJOINT": int(self.disjoint),
+                       "COMPRESSED": int(self.compressed), "TRANSFORM": int(self.transform),
+                       "LATENCY": self.latency, **({"FUSED": 1} if self.fused else {}),
+                       **({"SHARED": 1} if self.shared else {})}
         self.cycles = 0
         self.requests = 0
         self.euclid_acc = F32(0)
