@@ -217,7 +217,7 @@ def test_hits_changed_small_scene():
     assert fused.hit.mean() > 0.9
     changed = np.flatnonzero(fused.prim != plain.prim)
     assert 0 < len(changed) < n // 1000
-    v = adjudicate(tris, o, d, np.inf, fused.t, fused.prim, plain.t, plain.prim, False, False,
+    v = adjudicate(tris, o, d, np.inf, (fused.t, fused.prim), (plain.t, plain.prim), False, False,
                    float(np.abs(tris).max()), rays=changed)
     counts = v.counts()
     assert counts["datapath_wrong"] == 0, v.records

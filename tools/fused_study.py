@@ -54,7 +54,7 @@ def compare_batch(bvh, batch, fused_be, tri, double_sided: bool) -> dict:
     counts = dict.fromkeys(CLASSES, 0)
     records = []
     if len(changed):
-        v = adjudicate(tri, batch.origins, batch.dirs, batch.extent, f.t, f.prim, r.t, r.prim,
+        v = adjudicate(tri, batch.origins, batch.dirs, batch.extent, (f.t, f.prim), (r.t, r.prim),
                        batch.any_hit, double_sided, _scale(tri, batch.origins), rays=changed,
                        emb_occluded=r.hit if batch.any_hit else None)
         counts = v.counts()
