@@ -7,7 +7,7 @@ written as the canonical quiet NaN 0x7FC00000 at the outputs (a NaN anywhere in 
 adds/multiplies stays NaN, and compares are false on NaN, so canonicalising at the output is the
 same as canonicalising after every step).
 
-The FUSED build (``fused=True``; docs/tradeoffs.md#forgoing-rounding) rounds twice less: the box
+The FUSED build (``fused=True``; docs/tradeoffs.md#forgoing-rounding) rounds less often: the box
 slab value ``(bound - origin) * inv`` and the triangle's edge functions ``U = Cx*By - Cy*Bx`` (V, W
 likewise) are each one operation with one rounding (``sum_of_products``, ``slab``).
 """
