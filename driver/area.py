@@ -42,8 +42,8 @@ from .backends import build as rtl_build
 from .backends.cache import cache_root as tool_cache
 from .backends.build import source_names
 from .core import resources
-from .core.configs import (ALL_CONFIGS, BASELINE, CONFIGS, Q8_SUFFIX, XF_CONFIGS, XF_SUFFIX,
-                           build_params)
+from .core.configs import (ALL_CONFIGS, BASELINE, CONFIGS, FUSED_SUFFIX, SHARED_SUFFIX,
+                           XF_CONFIGS, build_params, parse_config)
 from .core.resources import checkout, data_dir
 
 ROOT = checkout() or resources.ROOT      # the checkout (whose git history --rev reads)
@@ -56,13 +56,13 @@ RECIPE = 2             # bump when the script below changes meaning
 
 def config_params(name: str) -> dict[str, int]:
     """The top-level parameters of a configuration name (``CONFIGS``, or one of them + ``-q8``,
-    either + ``-xf``)."""
-    plain = name.removesuffix(XF_SUFFIX)
-    base = plain.removesuffix(Q8_SUFFIX)
-    if base not in CONFIGS or plain not in ALL_CONFIGS:
+    either + ``-xf``, any of those + ``-fused``: ``driver.core.configs.parse_config``)."""
+    params = parse_config(name)
+    if params is None:
         raise AreaError(f"unknown configuration {name!r}; choose from "
-                        f"{', '.join(ALL_CONFIGS + XF_CONFIGS)}")
-    return build_params(*CONFIGS[base], compressed=plain != base, transform=name != plain)
+                        f"{', '.join(ALL_CONFIGS + XF_CONFIGS)} (an extended one also "
+                        f"NAME{SHARED_SUFFIX}, each also NAME{FUSED_SUFFIX})")
+    return params
 
 
 # the paper's total-area overheads vs baseline-unified (Genus, a real standard-cell library)
@@ -254,14 +254,14 @@ def categorize(by_type: dict[str, int]) -> dict:
 def synthesize(extended: int | None = 0, disjoint: int | None = 0, top: str = TOP,
                cache: bool = True, timeout: float | None = None, name: str | None = None,
                sources: list[tuple[str, bytes]] | None = None, compressed: int = 0,
-               transform: int = 0) -> dict:
+               transform: int = 0, fused: int = 0, shared: int = 0) -> dict:
     """Synthesize one configuration (or, with ``top`` other than rayflex, one module without
     parameters) of the RTL ``sources`` (default: a snapshot of the working tree) and return its
     cell statistics (cached)."""
     sources = sources if sources is not None else snapshot()
     params = {}
     if top == TOP:
-        params = build_params(extended, disjoint, compressed, transform)
+        params = build_params(extended, disjoint, compressed, transform, fused, shared)
     script = synth_script(top, params, [n for n, _ in sources])
     h = hashlib.sha256(f"{RECIPE}\n{yosys_version()}\n{script}".encode())
     for n, b in sources:
@@ -303,7 +303,9 @@ def _cells_by_type(sources, script: str, timeout: float | None) -> dict:
 
 
 def _config_name(params: dict) -> str:
-    return next(n for n in ALL_CONFIGS + XF_CONFIGS if config_params(n) == params)
+    names = ALL_CONFIGS + XF_CONFIGS
+    names += [n + SHARED_SUFFIX for n in names if n.startswith("extended")]
+    return next(n for n in names + [n + FUSED_SUFFIX for n in names] if config_params(n) == params)
 
 
 def synthesize_all(names=None, jobs: int = 1, cache: bool = True, timeout=None,
@@ -320,7 +322,8 @@ def synthesize_all(names=None, jobs: int = 1, cache: bool = True, timeout=None,
         p = params[n]
         r = synthesize(p["EXTENDED"], p["DISJOINT"], cache=cache, timeout=timeout, name=n,
                        sources=sources, compressed=p.get("COMPRESSED", 0),
-                       transform=p.get("TRANSFORM", 0))
+                       transform=p.get("TRANSFORM", 0), fused=p.get("FUSED", 0),
+                       shared=p.get("SHARED", 0))
         if progress:
             progress(f"{n}: {r['cells']} cells in {r['synth_s']} s"
                      f"{' (cached)' if r['cached'] else ''}")
@@ -373,15 +376,71 @@ def markdown(rep: dict) -> str:
 
 
 def elaborate(extended: int = 0, disjoint: int = 0, timeout: float | None = 300,
-              sources=None, compressed: int = 0, transform: int = 0) -> dict:
+              sources=None, compressed: int = 0, transform: int = 0, fused: int = 0,
+              shared: int = 0) -> dict:
     """Elaborate one configuration without synthesis (seconds, not minutes): the word-level cell
     counts by type after ``read_slang`` (e.g. how many ``$mul`` / ``$add`` operators)."""
     sources = sources if sources is not None else snapshot()
-    params = build_params(extended, disjoint, compressed, transform)
+    params = build_params(extended, disjoint, compressed, transform, fused, shared)
     g = " ".join(f"-G {k}={v}" for k, v in params.items())
     script = (f"read_slang -j 1 --top {TOP} {g} {' '.join(n for n, _ in sources)}\n"
               f"hierarchy -top {TOP}\ntee -q -o stat.json stat -json\n")
     return _cells_by_type(sources, script, timeout)
+
+
+# ------------------------------------------------------------------------------------------------
+# flip-flops only (minutes, not the full synthesis's tens of minutes)
+
+FF_FLOW = ("proc; flatten; opt_expr; opt_clean; simplemap; opt -purge; opt_dff; opt -purge "
+           "(simple cells mapped to bits, dead and constant bits removed, arithmetic word-level)")
+
+
+def flip_flops(name: str, sources=None, timeout: float | None = None) -> dict:
+    """The flip-flops of configuration ``name`` after dead-bit elimination, without technology
+    mapping: the word-level design with its simple cells (logic, muxes, flip-flops) mapped to
+    bits, so that every register bit no output needs, and every constant one, is removed as the
+    full synthesis removes it (the same count as ``synthesize``'s within a few bits; cached)."""
+    sources = sources if sources is not None else snapshot()
+    params = config_params(name)
+    g = " ".join(f"-G {k}={v}" for k, v in params.items())
+    script = (f"read_slang -j 1 --top {TOP} {g} {' '.join(n for n, _ in sources)}\n"
+              f"hierarchy -top {TOP}\n" + "\n".join(FF_FLOW.split(" (")[0].split("; "))
+              + "\ntee -q -o stat.json stat -json\n")
+    h = hashlib.sha256(f"ff{RECIPE}\n{yosys_version()}\n{script}".encode())
+    for n, b in sources:
+        h.update(n.encode() + b"\0" + b)
+    entry = cache_root() / f"ff-{h.hexdigest()[:24]}.json"
+    if entry.is_file():
+        return json.loads(entry.read_text())
+    t0 = time.perf_counter()
+    by_type = _cells_by_type(sources, script, timeout)
+    res = {"config": name, "flip_flops": sum(v for k, v in by_type.items() if "DFF" in k),
+           "seconds": round(time.perf_counter() - t0, 1), "rtl_sha": rtl_sha(sources)}
+    entry.parent.mkdir(parents=True, exist_ok=True)
+    entry.write_text(json.dumps(res) + "\n")
+    return res
+
+
+def flip_flop_report(names, jobs: int = 1, timeout=None, progress=None, rev=None) -> dict:
+    """``flip_flops`` of the named configurations of one RTL snapshot, ``jobs`` at a time."""
+    sources = snapshot(None if rev is None else rev_label(rev))
+    for n in names:
+        config_params(n)                              # an unknown name fails before any work
+
+    def one(n):
+        r = flip_flops(n, sources, timeout)
+        if progress:
+            progress(f"{n}: {r['flip_flops']:,} flip-flops")
+        return r
+
+    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+        results = dict(zip(names, pool.map(one, names)))
+    first = results[names[0]]["flip_flops"]
+    rows = ["| configuration | flip-flops | vs " + names[0] + " |", "|---|---:|---:|"]
+    rows += [f"| {n} | {r['flip_flops']:,} | {r['flip_flops'] / first - 1:+.1%} |"
+             for n, r in results.items()]
+    return {"rtl_sha": rtl_sha(sources), "yosys": yosys_version(), "flow": FF_FLOW,
+            "configs": results, "table": "\n".join(rows)}
 
 
 # ------------------------------------------------------------------------------------------------
@@ -412,7 +471,8 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m driver.area", description=__doc__.split("\n\n")[0])
     p.add_argument("--configs", default=",".join(CONFIGS),
                    help="comma-separated subset of: "
-                        f"{', '.join(ALL_CONFIGS + XF_CONFIGS)} (default: "
+                        f"{', '.join(ALL_CONFIGS + XF_CONFIGS)}, an extended one also "
+                        f"NAME{SHARED_SUFFIX}, each also NAME{FUSED_SUFFIX} (default: "
                         f"{', '.join(CONFIGS)})")
     p.add_argument("--top", help="synthesize only this module (default parameters), e.g. "
                                  "rf_fp_add or rf_fp_div")
@@ -426,12 +486,22 @@ def main(argv=None) -> int:
     p.add_argument("--timeout", type=float, help="seconds per Yosys run")
     p.add_argument("--check-frontends", action="store_true",
                    help="only report whether read_verilog -sv and read_slang read the RTL")
+    p.add_argument("--flip-flops", action="store_true",
+                   help="only count each configuration's flip-flops (no technology mapping: "
+                        "minutes instead of tens of minutes)")
     args = p.parse_args(argv)
     log = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
     try:
         if args.check_frontends:
             for fe, status in check_frontends(args.timeout, snapshot(args.rev)).items():
                 print(f"{fe}: {status}")
+            return 0
+        if args.flip_flops:
+            rep = flip_flop_report([n.strip() for n in args.configs.split(",") if n.strip()],
+                                   args.jobs, args.timeout, log, args.rev)
+            print(rep["table"])
+            if args.json:
+                Path(args.json).write_text(json.dumps(rep, indent=2) + "\n")
             return 0
         if args.top:
             src = snapshot(args.rev, source_list_for(args.top))

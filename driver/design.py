@@ -31,7 +31,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Callable
 
-from .core.configs import ALL_CONFIGS, CONFIGS, Q8_SUFFIX
+from .core.configs import (ALL_CONFIGS, DESIGN_CONFIGS, FUSED_SUFFIX, Q8_SUFFIX, SHARED_SUFFIX,
+                           parse_config)
 from .backends.build import MIN_LATENCY, rtl_params
 from .bvh4 import build_scene
 from .core.datapath import LATENCY, default_latency
@@ -160,7 +161,11 @@ OPTIONS: tuple[Option, ...] = (
            "datapath configuration: " + ", ".join(ALL_CONFIGS) + " (EXTENDED x DISJOINT build "
            f"parameters; {Q8_SUFFIX}: with the q8 node decode in the datapath, build parameter "
            "COMPRESSED, docs/compressed.md; every one gives the same box/triangle results, bit "
-           "for bit)", _choice(tuple(ALL_CONFIGS)), "datapath", "NAME", tuple(ALL_CONFIGS)),
+           f"for bit; an extended one also as NAME{SHARED_SUFFIX}: its vectors on the request "
+           "registers' box and triangle bits, build parameter SHARED, the same results), each "
+           f"also as NAME{FUSED_SUFFIX}: the box slab values and the triangle's edge functions "
+           "rounded once, build parameter FUSED (other results); docs/tradeoffs.md",
+           _choice(tuple(DESIGN_CONFIGS)), "datapath", "NAME", tuple(DESIGN_CONFIGS)),
     Option("latency", "--latency", int, None,
            f"pipeline stages of the datapath, up to {MAX_LATENCY}, at least the "
            "configuration's own", _latency, "datapath"),
@@ -363,16 +368,28 @@ class DesignPoint:
     # what the parts of the driver take
     @property
     def extended(self) -> bool:
-        return bool(CONFIGS[self.config.removesuffix(Q8_SUFFIX)][0])
+        return bool(parse_config(self.config)["EXTENDED"])
 
     @property
     def disjoint(self) -> bool:
-        return bool(CONFIGS[self.config.removesuffix(Q8_SUFFIX)][1])
+        return bool(parse_config(self.config)["DISJOINT"])
 
     @property
     def compressed(self) -> bool:
         """The q8 node decode is in the datapath (build parameter COMPRESSED)."""
-        return self.config.endswith(Q8_SUFFIX)
+        return bool(parse_config(self.config).get("COMPRESSED"))
+
+    @property
+    def shared(self) -> bool:
+        """The vectors travel on the request registers' box and triangle bits (build parameter
+        SHARED)."""
+        return bool(parse_config(self.config).get("SHARED"))
+
+    @property
+    def fused(self) -> bool:
+        """The box slab values and the edge functions are rounded once (build parameter
+        FUSED)."""
+        return bool(parse_config(self.config).get("FUSED"))
 
     @property
     def transform_op(self) -> bool:
@@ -382,13 +399,15 @@ class DesignPoint:
     def backend_options(self) -> dict:
         """Keyword options of ``driver.backends.backend`` for this datapath."""
         return {"extended": self.extended, "disjoint": self.disjoint, "latency": self.latency,
-                "compressed": self.compressed, "transform": self.transform_op}
+                "compressed": self.compressed, "transform": self.transform_op,
+                **({"fused": True} if self.fused else {}),
+                **({"shared": True} if self.shared else {})}
 
     def rtl_params(self) -> dict:
-        """RTL build parameters (EXTENDED, DISJOINT, LATENCY, COMPRESSED, TRANSFORM) of this
-        datapath."""
+        """RTL build parameters (EXTENDED, DISJOINT, LATENCY, COMPRESSED, TRANSFORM, FUSED,
+        SHARED) of this datapath."""
         return rtl_params(self.extended, self.disjoint, self.latency, self.compressed,
-                          self.transform_op)
+                          self.transform_op, self.fused, self.shared)
 
     def memory(self):
         """The RT units' ``driver.rtunit.MemoryModel`` (``cache_kib`` 0: no node cache;

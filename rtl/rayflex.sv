@@ -9,7 +9,7 @@
 // one more cycle of latency (LATENCY >= 12), the same throughput.
 //
 // The request is registered as it arrives (the paper's input stage), so no logic sits between the
-// ports and a register: every output is a register output and nothing combinational depends on
+// ports and a register (except SHARED's repacking mux, one per box and triangle bit): every output is a register output and nothing combinational depends on
 // the inputs, which also keeps the Verilated model's per-cycle work in the clocked region.
 //
 // One request per cycle; the response leaves LATENCY cycles after its input handshake when
@@ -17,12 +17,17 @@
 // Parameters: EXTENDED adds EUCLIDEAN/ANGULAR, DISJOINT gives each operation private functional
 // units, COMPRESSED adds the q8 decode stage (QUADBOX with FLAG_DECODE_Q8), TRANSFORM adds the
 // ray transform by a 3x4 matrix (docs/transform.md: on S2's multipliers and the adders of S3 and
-// S5..S8, two adders more in S8), LATENCY >= 11 + COMPRESSED (the paper's design has 11).
+// S5..S8, two adders more in S8), FUSED rounds the box slab value (bound - origin) * inv and the
+// triangle's edge functions once each (docs/tradeoffs.md: in S1 and S5), SHARED carries an
+// extended beat's vectors on the box and triangle words of the request registers (R_in, R_dec;
+// rf_pkg::req_share), LATENCY >= 11 + COMPRESSED (the paper's design has 11).
 module rayflex import rf_pkg::*; #(
   parameter bit          EXTENDED   = 1'b0,
   parameter bit          DISJOINT   = 1'b0,
   parameter bit          COMPRESSED = 1'b0,
   parameter bit          TRANSFORM  = 1'b0,
+  parameter bit          FUSED      = 1'b0,
+  parameter bit          SHARED     = 1'b0,
   parameter int unsigned LATENCY    = 11 + 32'(COMPRESSED)
 ) (
   input  logic clk_i,
@@ -44,11 +49,12 @@ module rayflex import rf_pkg::*; #(
   end
 
   // ---- input register ----
-  req_t req_q;
+  req_t req_q, req_in;
   logic req_valid_q, req_ready;
+  assign req_in = SHARED ? req_share(req_i) : req_i;
   rf_skid #(.T(req_t)) u_in_reg (
     .clk_i, .rst_ni,
-    .valid_i(in_valid_i), .ready_o(in_ready_o), .data_i(req_i),
+    .valid_i(in_valid_i), .ready_o(in_ready_o), .data_i(req_in),
     .valid_o(req_valid_q), .ready_i(req_ready), .data_o(req_q));
 
   // ---- q8 decode stage (COMPRESSED) ----
@@ -68,20 +74,26 @@ module rayflex import rf_pkg::*; #(
     assign req_ready    = req_s1_ready;
   end
 
+  req_t req_st1;                 // what stage 1 reads: the request unpacked (SHARED)
+  assign req_st1 = SHARED ? req_unshare(req_s1) : req_s1;
+
   // d_*[k] is the input of stage_t register k (R(k+1)); q_*[k] its output.
   stage_t [NUM_REGS-1:0] d_st, q_st;
   logic   [NUM_REGS-1:0] d_valid, d_ready, q_valid, q_ready;
 
   // ---- compute stages ----
-  rf_s01_origin_sub #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM)) u_s1 (
-    .req_i(req_s1), .st_o(d_st[0]));
-  rf_s02_scale_mul #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM)) u_s2 (
+  rf_s01_origin_sub #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM),
+                      .FUSED(FUSED)) u_s1 (
+    .req_i(req_st1), .st_o(d_st[0]));
+  rf_s02_scale_mul #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM),
+                     .FUSED(FUSED)) u_s2 (
     .st_i(q_st[0]), .st_o(d_st[1]));
   rf_s03_nearfar_xy #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM)) u_s3 (
     .st_i(q_st[1]), .st_o(d_st[2]));
-  rf_s04_nearfar_z #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT)) u_s4 (
+  rf_s04_nearfar_z #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .FUSED(FUSED)) u_s4 (
     .st_i(q_st[2]), .st_o(d_st[3]));
-  rf_s05_clamp_uvw #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM)) u_s5 (
+  rf_s05_clamp_uvw #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM),
+                     .FUSED(FUSED)) u_s5 (
     .st_i(q_st[3]), .st_o(d_st[4]));
   rf_s06_slab_hit #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM)) u_s6 (
     .st_i(q_st[4]), .st_o(d_st[5]));

@@ -75,4 +75,100 @@ package rf_fp_pkg;
     return n;
   endfunction
 
+  // ---------------------------------------------------------------------------------------------
+  // The FUSED build's one-rounding operations (rf_fp_dot2, rf_fp_slab): an exact product, and the
+  // sum of two exact products rounded once.
+  // ---------------------------------------------------------------------------------------------
+
+  // An exact product of two binary32 numbers: its class and, finite and non-zero, the value
+  // (-1)^sign * sig * 2^(exp - 300) with sig[47] = 1 (exp = the operands' biased exponents added,
+  // a subnormal operand normalised first, minus 1 when the product's leading one is bit 46).
+  typedef struct packed {
+    logic               nan;      // a NaN operand, or 0 * inf
+    logic               inf;
+    logic               zero;
+    logic               sign;
+    logic signed [10:0] exp;
+    logic [47:0]        sig;
+  } fp_xprod_t;
+
+  // A finite non-zero binary32 operand as {24-bit significand with bit 23 set, biased exponent
+  // (below 1 for a subnormal, normalised by its leading-zero count)}.
+  function automatic logic [34:0] fp_unpack(input logic [30:0] x);
+    logic [4:0] lzc;
+    if (x[30:23] != 8'd0) return {1'b1, x[22:0], 3'b000, x[30:23]};
+    lzc = fp_lzc32({1'b0, x[22:0], 8'd0});                       // 1..23
+    return {24'({1'b0, x[22:0]} << lzc), 11'(11'sd1 - $signed({6'd0, lzc}))};
+  endfunction
+
+  function automatic fp_xprod_t fp_xprod(input logic [31:0] a, input logic [31:0] b);
+    fp_xprod_t p;
+    logic [34:0] ua, ub;
+    logic [47:0] prod;
+    logic        a_nan, b_nan, a_inf, b_inf, a_zero, b_zero;
+    a_nan  = a[30:0] > 31'h7F80_0000;
+    b_nan  = b[30:0] > 31'h7F80_0000;
+    a_inf  = a[30:0] == 31'h7F80_0000;
+    b_inf  = b[30:0] == 31'h7F80_0000;
+    a_zero = a[30:0] == 31'd0;
+    b_zero = b[30:0] == 31'd0;
+    p.sign = a[31] ^ b[31];
+    p.nan  = a_nan | b_nan | (a_inf & b_zero) | (a_zero & b_inf);
+    p.inf  = ~p.nan & (a_inf | b_inf);
+    p.zero = ~p.nan & ~p.inf & (a_zero | b_zero);
+    ua     = fp_unpack(a[30:0]);
+    ub     = fp_unpack(b[30:0]);
+    prod   = 48'(ua[34:11]) * 48'(ub[34:11]);
+    p.exp  = $signed(ua[10:0]) + $signed(ub[10:0]) - (prod[47] ? 11'sd0 : 11'sd1);
+    p.sig  = prod[47] ? prod : prod << 1;
+    return p;
+  endfunction
+
+  // Leading zeros of a 64-bit x != 0.
+  function automatic logic [5:0] fp_lzc64(input logic [63:0] x);
+    if (x[63:32] != 32'd0) return {1'b0, fp_lzc32(x[63:32])};
+    return {1'b1, fp_lzc32(x[31:0])};
+  endfunction
+
+  // p + q rounded once to binary32 (nearest even), IEEE specials of the exact sum: a NaN product
+  // or inf + (-inf) is the canonical NaN, an inf wins, two zeros give -0 only if both are -0, an
+  // exact cancellation +0.
+  // The significands sit in a 64-bit frame: bit 63 takes an addition's carry, bits 62:15 the
+  // 48-bit product, 14:0 guard and sticky space. The smaller operand is aligned with its
+  // shifted-out bits OR-ed into bit 0 (sticky); bits are lost only for an exponent difference of
+  // at least 16, and then a subtraction cancels at most one leading bit, so the sticky bit stays
+  // far below the result's round bit (bit 39 of the normalised frame); a difference of 0 or 1 is
+  // exact (massive cancellation counts leading zeros). The value of the normalised frame norm
+  // (leading one in bit 63, shifted by lzc) is norm / 2^63 * 2^(exp_big - 252 - lzc), i.e. the
+  // rounder's biased exponent is exp_big - 125 - lzc.
+  /* verilator lint_off UNUSEDSIGNAL */   // hi, lo: the class bits are read from p and q
+  function automatic logic [31:0] fp_sum_round(input fp_xprod_t p, input fp_xprod_t q);
+    fp_xprod_t         hi, lo;        // the larger and the smaller magnitude
+    logic              swap, sub;
+    logic [10:0]       diff;
+    logic [5:0]        shift, lzc;
+    logic [63:0]       lo_w, aligned, sum, norm;
+    logic signed [9:0] exp;
+    if (p.nan | q.nan | (p.inf & q.inf & (p.sign != q.sign))) return 32'h7FC0_0000;
+    if (p.inf) return {p.sign, 31'h7F80_0000};
+    if (q.inf) return {q.sign, 31'h7F80_0000};
+    if (p.zero & q.zero) return {p.sign & q.sign, 31'd0};
+    // order by magnitude (a zero is the smaller operand)
+    swap    = p.zero | (~q.zero & ((q.exp > p.exp) | ((q.exp == p.exp) & (q.sig > p.sig))));
+    hi      = swap ? q : p;
+    lo      = swap ? p : q;
+    sub     = hi.sign ^ lo.sign;
+    diff    = 11'(hi.exp - lo.exp);
+    shift   = (diff > 11'd63) ? 6'd63 : diff[5:0];
+    lo_w    = lo.zero ? 64'd0 : {1'b0, lo.sig, 15'd0};
+    aligned = (lo_w >> shift) | 64'((lo_w & ~(64'hFFFF_FFFF_FFFF_FFFF << shift)) != 64'd0);
+    sum     = sub ? {1'b0, hi.sig, 15'd0} - aligned : {1'b0, hi.sig, 15'd0} + aligned;
+    if (sum == 64'd0) return 32'd0;                                 // exact cancellation: +0
+    lzc     = fp_lzc64(sum);
+    norm    = sum << lzc;
+    exp     = 10'(hi.exp - 11'sd125 - $signed({5'd0, lzc}));
+    return fp_round(hi.sign, exp, {norm[63:33], norm[32:0] != 33'd0});
+  endfunction
+  /* verilator lint_on UNUSEDSIGNAL */
+
 endpackage

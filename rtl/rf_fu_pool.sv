@@ -43,6 +43,11 @@ module rf_fu_pool import rf_pkg::*; #(
 
   localparam int unsigned P = max5(N_TRI, N_BOX, N_EUC, N_ANG, N_XFM);
 
+  if (P == 0) begin : g_empty           // a pool no operation uses (e.g. S5's adders, FUSED)
+    opcode_e unused_op;
+    assign unused_op = op_i;
+  end
+
   if (!DISJOINT) begin : g_unified
     fp32_t [(P > 0 ? P : 1)-1:0] y;
     for (genvar k = 0; k < P; k++) begin : g_unit

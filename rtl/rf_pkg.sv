@@ -80,6 +80,33 @@ package rf_pkg;
   endfunction
   /* verilator lint_on UNUSEDSIGNAL */
 
+  // The SHARED build's request registers (the input register, and the decode register of a
+  // COMPRESSED build; docs/tradeoffs.md#sharing-registers): an EUCLIDEAN or ANGULAR beat's vector
+  // fields travel on its box and triangle words, which such a beat does not use, so the registers
+  // before stage 1 keep no bits of their own for them (synthesis removes the unread ones).
+  // req_share packs a request before the input register, req_unshare unpacks it for stage 1.
+  localparam int unsigned VEC_FIELDS_W = 2 * 16 * 32 + 16 + 1;     // vec_a, vec_b, mask, reset
+  localparam int unsigned SHARE_W      = (24 + 9) * 32;            // box and triangle words
+
+  function automatic req_t req_share(input req_t r);
+    req_t p;
+    p = r;
+    if ((r.opcode == OP_EUCLIDEAN) || (r.opcode == OP_ANGULAR))
+      {p.triangle, p.box} = SHARE_W'({r.reset_accumulator, r.vec_mask, r.vec_b, r.vec_a});
+    return p;
+  endfunction
+
+  /* verilator lint_off UNUSEDSIGNAL */   // the vector fields of p: unpacked from the box words
+  function automatic req_t req_unshare(input req_t p);
+    req_t r;
+    logic [SHARE_W-1:0] w;
+    r = p;
+    w = {p.triangle, p.box};
+    {r.reset_accumulator, r.vec_mask, r.vec_b, r.vec_a} = w[VEC_FIELDS_W-1:0];
+    return r;
+  endfunction
+  /* verilator lint_on UNUSEDSIGNAL */
+
   // The q8 box node as stored in the compressed BVH image (driver/core/layout.py Q8_NODE; 16 words,
   // word 0 at the low end). A QUADBOX with flags[FLAG_DECODE_Q8_BIT] carries it on the first 16
   // box words (driver/core/layout.py: request field qnode overlays box), i.e. the node is
@@ -123,7 +150,8 @@ package rf_pkg;
   // the shared structure): each operation has one "view" (struct) per group of stages. Rn is the
   // stage_t register after stage Sn (S1 = input stage); comments name the stage that writes a
   // field. Every view is PAYLOAD_W bits wide: 32-bit values sit at the low end, word aligned, the
-  // few single-bit fields above them and the unused bits (rsvd) on top.
+  // few single-bit fields above them and the unused bits (rsvd) on top (the extended operations'
+  // views are placed on the bits the box and triangle views use in the same register).
   // ---------------------------------------------------------------------------------------------
   localparam int unsigned PAYLOAD_W = 29 * 32;
 
@@ -189,23 +217,33 @@ package rf_pkg;
     fp32_t            num;           // S8: t_num = (U*Az + V*Bz) + W*Cz
   } tri_edge_t;
 
+  // EUCLIDEAN and ANGULAR: their fields sit where a QUADBOX or TRIANGLE field lives in the same
+  // register (the paper's "fields with the same lifetime at the same bits"), so that synthesis
+  // keeps no stage-register bit for the extended operations alone: the reduction trees' live
+  // lanes in words 8.. (the box's interval and the triangle's U, V, W at R4..R6), the
+  // accumulators in words 0..1 (the box's sorted tmin at R7..R9), the masks above word 23 (R1
+  // only: the box's inv and extent).
+  localparam int unsigned VEC_BASE = 8;      // the word of lane 0
+
   // EUCLIDEAN, R1..R9
   typedef struct packed {
-    logic [PAYLOAD_W-17*32-16-1:0] rsvd;
+    logic [PAYLOAD_W-(VEC_BASE+16)*32-16-1:0] rsvd;
     logic  [15:0]     mask;          // S1
-    fp32_t            acc;           // S7: accumulator value after this beat
     fp32_t [EUC_LANES-1:0] e;        // S1: a - b; S2: (a - b)^2, masked lanes +0;
                                      // S3..S6: reduction tree, level k keeps e[0 .. (16 >> k) - 1]
+    logic  [(VEC_BASE-1)*32-1:0] gap;
+    fp32_t            acc;           // S7: accumulator value after this beat
   } euc_t;
 
   // ANGULAR, R1..R9
   typedef struct packed {
-    logic [PAYLOAD_W-18*32-8-1:0] rsvd;
+    logic [PAYLOAD_W-(VEC_BASE+16)*32-8-1:0] rsvd;
     logic  [ANG_LANES-1:0] mask;     // S1
-    fp32_t            dot_acc;       // S7: accumulator values after this beat
-    fp32_t            norm_acc;
     fp32_t [ANG_LANES-1:0] dot;      // S1: query lanes a; S2: a*b, masked +0; S3..S5: tree
     fp32_t [ANG_LANES-1:0] norm;     // S1: candidate lanes b; S2: b*b, masked +0; S3..S5: tree
+    logic  [(VEC_BASE-2)*32-1:0] gap;
+    fp32_t            dot_acc;       // S7: accumulator values after this beat
+    fp32_t            norm_acc;
   } ang_t;
 
   // TRANSFORM, R1

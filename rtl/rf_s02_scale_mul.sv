@@ -4,15 +4,17 @@
 //   EUCLIDEAN 16 x  (a - b)^2               masked lanes +0
 //   ANGULAR   16 x  a*b and b*b over 8 lanes, masked lanes +0
 //   TRANSFORM 18 x  m[r][c]*o[c], m[r][c]*d[c]   (r, c < 3; m[r][3] passes as t[r])
+// FUSED: the QUADBOX's slab values come from S1 (one rounding) and pass through.
 module rf_s02_scale_mul import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
   parameter bit DISJOINT = 1'b0,
-  parameter bit TRANSFORM = 1'b0
+  parameter bit TRANSFORM = 1'b0,
+  parameter bit FUSED = 1'b0
 ) (
   input  stage_t st_i,
   output stage_t st_o
 );
-  localparam int unsigned NT = 9, NB = 24;
+  localparam int unsigned NT = 9, NB = FUSED ? 0 : 24;
   localparam int unsigned NE = EXTENDED ? EUC_LANES : 0, NA = EXTENDED ? 2 * ANG_LANES : 0;
   localparam int unsigned NX = TRANSFORM ? 18 : 0;
 
@@ -34,17 +36,17 @@ module rf_s02_scale_mul import rf_pkg::*; #(
 
   // ---- multiplier pool: operands per operation ----
   fp32_t [NT-1:0] tri_a, tri_b, tri_y;
-  fp32_t [NB-1:0] box_a, box_b, box_y;
+  fp32_t [(NB > 0 ? NB : 1)-1:0] box_a, box_b, box_y;
   fp32_t [(NE > 0 ? NE : 1)-1:0] euc_a, euc_b, euc_y;
   fp32_t [(NA > 0 ? NA : 1)-1:0] ang_a, ang_b, ang_y;
   fp32_t [(NX > 0 ? NX : 1)-1:0] xfm_a, xfm_b, xfm_y;
 
   always_comb begin
-    for (int i = 0; i < 4; i++) begin
-      for (int j = 0; j < 6; j++) begin
-        box_a[6*i+j] = v_box.slab[i][j];
-        box_b[6*i+j] = v_box.inv[j % 3];
-      end
+    box_a = '0;
+    box_b = '0;
+    for (int k = 0; k < int'(NB); k++) begin
+      box_a[k] = v_box.slab[k / 6][k % 6];
+      box_b[k] = v_box.inv[(k % 6) % 3];
     end
     for (int v = 0; v < 3; v++) begin
       for (int s = 0; s < 3; s++) begin
@@ -96,9 +98,7 @@ module rf_s02_scale_mul import rf_pkg::*; #(
     st_o = st_i;
     unique case (st_i.op)
       OP_QUADBOX: begin
-        for (int i = 0; i < 4; i++) begin
-          for (int j = 0; j < 6; j++) st_o.pl.box_slab.slab[i][j] = box_y[6*i+j];
-        end
+        for (int k = 0; k < int'(NB); k++) st_o.pl.box_slab.slab[k / 6][k % 6] = box_y[k];
       end
       OP_TRIANGLE: begin
         st_o.pl.tri_shear.no_cull = v_tri.no_cull;

@@ -3,14 +3,16 @@
 //   TRIANGLE   6 x  Cx*By, Cy*Bx, Ax*Cy, Ay*Cx, Bx*Ay, By*Ax   (multipliers)
 //   EUCLIDEAN  4 x  tree level 2: e[i] + e[i+4]                  (adders)
 //   ANGULAR    4 x  tree level 2 on dot and norm                  (adders)
+// FUSED: no cross products (S5 computes U, V, W from X and Y with one rounding each).
 module rf_s04_nearfar_z import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
-  parameter bit DISJOINT = 1'b0
+  parameter bit DISJOINT = 1'b0,
+  parameter bit FUSED = 1'b0
 ) (
   input  stage_t st_i,
   output stage_t st_o
 );
-  localparam int unsigned MT = 6;
+  localparam int unsigned MT = FUSED ? 0 : 6;
   localparam int unsigned AE = EXTENDED ? 4 : 0, AA = EXTENDED ? 4 : 0;
 
   box_range_t v_box;
@@ -33,23 +35,28 @@ module rf_s04_nearfar_z import rf_pkg::*; #(
   end
 
   // ---- multiplier pool: the 2-D xprod products (vertex index 0, 1, 2 = A, B, C) ----
-  fp32_t [MT-1:0] tri_ma, tri_mb, tri_my;
-  fp32_t          unused_box_my, unused_euc_my, unused_ang_my, unused_xfm_my;
-  always_comb begin
-    tri_ma[0] = v_tri.x[2];  tri_mb[0] = v_tri.y[1];   // Cx*By
-    tri_ma[1] = v_tri.y[2];  tri_mb[1] = v_tri.x[1];   // Cy*Bx
-    tri_ma[2] = v_tri.x[0];  tri_mb[2] = v_tri.y[2];   // Ax*Cy
-    tri_ma[3] = v_tri.y[0];  tri_mb[3] = v_tri.x[2];   // Ay*Cx
-    tri_ma[4] = v_tri.x[1];  tri_mb[4] = v_tri.y[0];   // Bx*Ay
-    tri_ma[5] = v_tri.y[1];  tri_mb[5] = v_tri.x[0];   // By*Ax
+  fp32_t [5:0] tri_my;
+  if (MT > 0) begin : g_xprod
+    fp32_t [MT-1:0] tri_ma, tri_mb;
+    fp32_t          unused_box_my, unused_euc_my, unused_ang_my, unused_xfm_my;
+    always_comb begin
+      tri_ma[0] = v_tri.x[2];  tri_mb[0] = v_tri.y[1];   // Cx*By
+      tri_ma[1] = v_tri.y[2];  tri_mb[1] = v_tri.x[1];   // Cy*Bx
+      tri_ma[2] = v_tri.x[0];  tri_mb[2] = v_tri.y[2];   // Ax*Cy
+      tri_ma[3] = v_tri.y[0];  tri_mb[3] = v_tri.x[2];   // Ay*Cx
+      tri_ma[4] = v_tri.x[1];  tri_mb[4] = v_tri.y[0];   // Bx*Ay
+      tri_ma[5] = v_tri.y[1];  tri_mb[5] = v_tri.x[0];   // By*Ax
+    end
+    rf_fu_pool #(.IS_MUL(1'b1), .DISJOINT(DISJOINT), .N_TRI(MT), .N_BOX(0), .N_EUC(0), .N_ANG(0))
+      u_mul (.op_i(st_i.op),
+             .tri_a_i(tri_ma), .tri_b_i(tri_mb), .tri_y_o(tri_my),
+             .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_my),
+             .euc_a_i(FP_POS_ZERO), .euc_b_i(FP_POS_ZERO), .euc_y_o(unused_euc_my),
+             .ang_a_i(FP_POS_ZERO), .ang_b_i(FP_POS_ZERO), .ang_y_o(unused_ang_my),
+             .xfm_a_i(FP_POS_ZERO), .xfm_b_i(FP_POS_ZERO), .xfm_y_o(unused_xfm_my));
+  end else begin : g_no_xprod
+    assign tri_my = '0;
   end
-  rf_fu_pool #(.IS_MUL(1'b1), .DISJOINT(DISJOINT), .N_TRI(MT), .N_BOX(0), .N_EUC(0), .N_ANG(0))
-    u_mul (.op_i(st_i.op),
-           .tri_a_i(tri_ma), .tri_b_i(tri_mb), .tri_y_o(tri_my),
-           .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_my),
-           .euc_a_i(FP_POS_ZERO), .euc_b_i(FP_POS_ZERO), .euc_y_o(unused_euc_my),
-           .ang_a_i(FP_POS_ZERO), .ang_b_i(FP_POS_ZERO), .ang_y_o(unused_ang_my),
-           .xfm_a_i(FP_POS_ZERO), .xfm_b_i(FP_POS_ZERO), .xfm_y_o(unused_xfm_my));
 
   // ---- adder pool: reduction trees (extended only) ----
   fp32_t [(AE > 0 ? AE : 1)-1:0] euc_ay;
@@ -91,7 +98,7 @@ module rf_s04_nearfar_z import rf_pkg::*; #(
         st_o.pl.box_range.tfar  = far;
       end
       OP_TRIANGLE: begin
-        st_o.pl.tri_edge.xprod = tri_my;
+        if (!FUSED) st_o.pl.tri_edge.xprod = tri_my;
       end
       OP_EUCLIDEAN: begin
         if (EXTENDED) begin

@@ -4,15 +4,17 @@
 //   EUCLIDEAN  2 x  tree level 3: e[i] + e[i+2]
 //   ANGULAR    2 x  tree level 3 (last): dot[0] + dot[1], norm[0] + norm[1]
 //   TRANSFORM  3 x  d'[r] = (m[r][0]*d[0] + m[r][1]*d[1]) + m[r][2]*d[2]
+// FUSED: U, V, W from X and Y, each a product difference with one rounding (rf_fp_dot2, private).
 module rf_s05_clamp_uvw import rf_pkg::*; #(
   parameter bit EXTENDED = 1'b0,
   parameter bit DISJOINT = 1'b0,
-  parameter bit TRANSFORM = 1'b0
+  parameter bit TRANSFORM = 1'b0,
+  parameter bit FUSED = 1'b0
 ) (
   input  stage_t st_i,
   output stage_t st_o
 );
-  localparam int unsigned NT = 3, NE = EXTENDED ? 2 : 0, NA = EXTENDED ? 2 : 0;
+  localparam int unsigned NT = FUSED ? 0 : 3, NE = EXTENDED ? 2 : 0, NA = EXTENDED ? 2 : 0;
   localparam int unsigned NX = TRANSFORM ? 3 : 0;
 
   box_range_t v_box;
@@ -36,14 +38,33 @@ module rf_s05_clamp_uvw import rf_pkg::*; #(
                          .min_o(tmax[i]), .max_o(unused_max));
   end
 
+  // ---- TRIANGLE: U, V, W (FUSED: one rounding each; else from the adder pool below) ----
+  fp32_t [(NT > 0 ? NT : 1)-1:0] tri_a, tri_b, tri_y;
+  fp32_t [2:0] uvw;
+  if (FUSED) begin : g_fused
+    logic en;                               // operand isolation: zeros unless a TRIANGLE
+    fp32_t [2:0] x, y;
+    fp32_t unused_pool_y;                   // the pool has no TRIANGLE units
+    assign unused_pool_y = tri_y[0];
+    assign en = st_i.op == OP_TRIANGLE;
+    assign x  = en ? v_tri.x : '0;
+    assign y  = en ? v_tri.y : '0;
+    rf_fp_dot2 u_u (.a_i(x[2]), .b_i(y[1]), .c_i(fp_neg(y[2])), .d_i(x[1]), .y_o(uvw[0]));
+    rf_fp_dot2 u_v (.a_i(x[0]), .b_i(y[2]), .c_i(fp_neg(y[0])), .d_i(x[2]), .y_o(uvw[1]));
+    rf_fp_dot2 u_w (.a_i(x[1]), .b_i(y[0]), .c_i(fp_neg(y[1])), .d_i(x[0]), .y_o(uvw[2]));
+  end else begin : g_plain
+    assign uvw = tri_y;
+  end
+
   // ---- adder pool: operands per operation ----
-  fp32_t [NT-1:0] tri_a, tri_b, tri_y;
   fp32_t [(NE > 0 ? NE : 1)-1:0] euc_a, euc_b, euc_y;
   fp32_t [(NA > 0 ? NA : 1)-1:0] ang_a, ang_b, ang_y;
   fp32_t [(NX > 0 ? NX : 1)-1:0] xfm_a, xfm_b, xfm_y;
   fp32_t unused_box_y;
   always_comb begin
-    for (int k = 0; k < 3; k++) begin
+    tri_a = '0;
+    tri_b = '0;
+    for (int k = 0; k < int'(NT); k++) begin
       tri_a[k] = v_tri.xprod[2*k];
       tri_b[k] = fp_neg(v_tri.xprod[2*k+1]);
     end
@@ -89,9 +110,9 @@ module rf_s05_clamp_uvw import rf_pkg::*; #(
         st_o.pl.box_range.tfar  = tmax;
       end
       OP_TRIANGLE: begin
-        st_o.pl.tri_edge.u = tri_y[0];
-        st_o.pl.tri_edge.v = tri_y[1];
-        st_o.pl.tri_edge.w = tri_y[2];
+        st_o.pl.tri_edge.u = uvw[0];
+        st_o.pl.tri_edge.v = uvw[1];
+        st_o.pl.tri_edge.w = uvw[2];
       end
       OP_EUCLIDEAN: begin
         if (EXTENDED) begin

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from driver.core.configs import CONFIGS as CONFIG_NAMES, Q8_SUFFIX, XF_SUFFIX
+from driver.core.configs import CONFIGS as CONFIG_NAMES, parse_config
 
 # The suite builds the RTL harness without profile-guided optimisation: a PGO build compiles the
 # model twice and runs a training workload, which for five configurations would double the suite's
@@ -23,7 +23,7 @@ MODULE_MARKERS = {
     "rtl": ("test_rtl", "test_rtl_extended", "test_rtl_lint", "test_fp_units", "test_fp_div",
             "test_q8_decode_unit", "test_q8_datapath", "test_no_cull", "test_transform",
             "test_pgo", "test_faults", "test_layout", "test_knn", "test_export",
-            "test_replay_timing"),
+            "test_replay_timing", "test_fused", "test_shared"),
     "golden": ("test_golden", "test_golden_directed", "test_extended_golden", "test_prepare_rays"),
     "bvh": ("test_bvh4", "test_q8_image", "test_geometry_corpus", "test_instances",
             "test_traversal"),
@@ -55,6 +55,8 @@ RTL_BUILDS = {
     "test_instances": (_B, _B + "-q8", _B + "-xf"),
     "test_q8_image": (_B, _B + "-q8"),
     "test_sweep": (_B, "baseline-disjoint"),
+    "test_fused": (_B + "-fused", "extended-unified-fused", "extended-disjoint-fused"),
+    "test_shared": ("extended-unified-shared", "extended-disjoint-q8-shared"),
     **{m: (_B,) for m in ("test_rtunit", "test_gpu", "test_gpu_pin", "test_memory",
                           "test_rayorder", "test_replay_timing", "test_traversal",
                           "test_workloads", "test_cli", "test_bench", "test_export",
@@ -67,9 +69,10 @@ def rtl_build_params(name: str) -> dict:
     """The harness build parameters of a ``RTL_BUILDS`` entry."""
     from driver.backends.build import rtl_params
     config, _, latency = name.partition("@")
-    xf, q8 = config.endswith(XF_SUFFIX), config.removesuffix(XF_SUFFIX).endswith(Q8_SUFFIX)
-    extended, disjoint = CONFIG_NAMES[config.removesuffix(XF_SUFFIX).removesuffix(Q8_SUFFIX)]
-    return rtl_params(extended, disjoint, int(latency) if latency else None, q8, xf)
+    p = parse_config(config)
+    return rtl_params(p["EXTENDED"], p["DISJOINT"], int(latency) if latency else None,
+                      p.get("COMPRESSED", 0), p.get("TRANSFORM", 0), p.get("FUSED", 0),
+                      p.get("SHARED", 0))
 
 
 _BUILD = ("import json, sys; from driver.backends import build; "

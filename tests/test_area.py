@@ -216,3 +216,9 @@ def test_whole_datapath_all_configurations():
     for n in ("baseline-disjoint", "extended-unified", "extended-disjoint"):
         assert c[n]["ratio"]["cells"] > 1.0
     assert c["extended-disjoint"]["cells"] == max(r["cells"] for r in c.values())
+
+
+def test_flip_flops_rejects_an_unknown_configuration_before_any_work(capsys):
+    assert area.main(["--flip-flops", "--configs", "baseline-unified,baseline-shared"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown configuration 'baseline-shared'" in err[0]

@@ -9,7 +9,7 @@ import json
 import pytest
 
 from driver import design, rtunit
-from driver.core.configs import ALL_CONFIGS, CONFIGS, Q8_SUFFIX
+from driver.core.configs import ALL_CONFIGS, CONFIGS, DESIGN_CONFIGS, FUSED_SUFFIX, Q8_SUFFIX
 from driver.cli import build_parser, main, options
 from driver.design import OPTIONS, DesignPoint
 from driver.cli.power import config_help
@@ -45,7 +45,7 @@ def test_defaults_are_the_rt_unit_and_memory_models_own():
     assert p.memory() == rtunit.MemoryModel()
     assert p.rays_in_flight == rtunit.DEFAULT_RAYS_IN_FLIGHT
     assert DesignPoint(cache_kib=0).memory().cache_bytes == 0
-    assert design.BY_NAME["config"].choices == tuple(ALL_CONFIGS)
+    assert design.BY_NAME["config"].choices == tuple(DESIGN_CONFIGS)
     for name, (e, d) in CONFIGS.items():
         for c, x in ((0, 0), (1, 0), (0, 1), (1, 1)):
             q = DesignPoint(config=name + Q8_SUFFIX * c, latency=13,
@@ -60,6 +60,9 @@ def test_defaults_are_the_rt_unit_and_memory_models_own():
         assert DesignPoint(config=name + Q8_SUFFIX).latency == 12
         with pytest.raises(ValueError, match="at least 12"):
             DesignPoint(config=name + Q8_SUFFIX, latency=11)
+        # -fused: build parameter FUSED, passed only when set
+        f = DesignPoint(config=name + Q8_SUFFIX + FUSED_SUFFIX)
+        assert f.backend_options()["fused"] and f.rtl_params()["FUSED"] == 1 and f.latency == 12
 
 
 def test_from_args_and_grid():
@@ -67,8 +70,8 @@ def test_from_args_and_grid():
     args = p.parse_args(["--config", "all", "--rays-in-flight", "16,64", "--cache-kib", "0,16",
                          "--scene", "sphere", "--size", "8"])
     grid = options.grid_from_args(args)
-    assert len(grid) == len(ALL_CONFIGS) * 2 * 2
-    assert {g.config for g in grid} == set(ALL_CONFIGS)
+    assert len(grid) == len(DESIGN_CONFIGS) * 2 * 2
+    assert {g.config for g in grid} == set(DESIGN_CONFIGS)
     assert {(g.rays_in_flight, g.cache_kib) for g in grid} == {(16, 0), (16, 16), (64, 0),
                                                              (64, 16)}
     assert all(g.scene == "sphere" and g.size == 8 for g in grid)

@@ -25,6 +25,19 @@ def test_lint_clean(extended, disjoint, latency, compressed):
     assert rtl.lint(extended, disjoint, latency, compressed) == ""
 
 
+@pytest.mark.parametrize("extended,disjoint,compressed,transform", [
+    (False, False, False, False), (False, True, False, False), (True, False, True, True),
+    (True, True, False, True)],
+    ids=["baseline-unified", "baseline-disjoint", "extended-unified-q8-xf",
+         "extended-disjoint-xf"])
+def test_lint_clean_fused(extended, disjoint, compressed, transform):
+    """The FUSED build (one rounding in the box slab and the edge functions) is lint clean, and
+    so is an extended one with SHARED request registers."""
+    assert rtl.lint(extended, disjoint, None, compressed, transform, fused=True) == ""
+    if extended:
+        assert rtl.lint(extended, disjoint, None, compressed, transform, shared=True) == ""
+
+
 def test_rtl_rejects_latency_below_12_with_the_decode():
     with pytest.raises(BackendError, match="at least 12"):
         rtl.lint(latency=11, compressed=True)

@@ -96,6 +96,10 @@ def _power(level, minutes, workloads=True):
                   f"energy per operation (and per ray) of the four configurations, {level} level")
 
 
+# the two trade-offs beside the configurations they change (docs/tradeoffs.md)
+TRADEOFF_CONFIGS = ("baseline-unified,baseline-unified-fused,extended-unified,"
+                    "extended-unified-shared")
+
 # the q8 decode and TRANSFORM beside the configuration they extend (docs/power.md)
 POWER_Q8_XF = "baseline-unified,baseline-unified-q8,baseline-unified-xf"
 
@@ -308,6 +312,18 @@ FIGURES = [
                           "--jobs", "2", "--json", "docs/area_q8_xf.json"),
            ("docs/area_q8_xf.json",), 45.0,
            "Yosys cell counts of the q8 decode and TRANSFORM beside baseline-unified"),
+    Figure("tradeoffs_power_signals",
+           (*RAYFLEX, "power", "--level", "signals", "--config", TRADEOFF_CONFIGS, "--op",
+            "box,triangle", "--json", "docs/tradeoffs_power_signals.json"),
+           ("docs/tradeoffs_power_signals.json",), 10.0,
+           "energy per box and triangle op (RTL toggles) of the FUSED and SHARED builds beside "
+           "today's (docs/tradeoffs.md)"),
+    Figure("tradeoffs_fused_lumibench",
+           (sys.executable, "tools/fused_study.py", "--json",
+            "docs/tradeoffs_fused_lumibench.json"),
+           ("docs/tradeoffs_fused_lumibench.json",), 7.0,
+           "the hits the FUSED datapath changes on every ray of the LumiBench runs, adjudicated "
+           "(docs/tradeoffs.md)"),
 ]
 BY_NAME = {f.name: f for f in FIGURES}
 LIGHT_MINUTES = 1.5        # --light: the figures at most this long

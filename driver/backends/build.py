@@ -65,9 +65,11 @@ def rtl_sources(list_file: Path = SOURCE_LIST) -> list[Path]:
 
 
 def rtl_params(extended: bool, disjoint: bool, latency: int | None = None,
-               compressed: bool = False, transform: bool = False) -> dict[str, int]:
+               compressed: bool = False, transform: bool = False,
+               fused: bool = False, shared: bool = False) -> dict[str, int]:
     """The top-level parameters of a configuration (``-G`` overrides); ``latency`` None: the
-    configuration's least (``driver.core.datapath.default_latency``)."""
+    configuration's least (``driver.core.datapath.default_latency``); FUSED and SHARED only when
+    set (the other builds keep their names in the build cache)."""
     least = default_latency(compressed)
     latency = least if latency is None else latency
     if int(latency) < least:
@@ -76,7 +78,8 @@ def rtl_params(extended: bool, disjoint: bool, latency: int | None = None,
                            f"{', the q8 decode stage' if compressed else ''})")
     return {"EXTENDED": int(bool(extended)), "DISJOINT": int(bool(disjoint)),
             "COMPRESSED": int(bool(compressed)), "TRANSFORM": int(bool(transform)),
-            "LATENCY": int(latency)}
+            "LATENCY": int(latency), **({"FUSED": 1} if fused else {}),
+            **({"SHARED": 1} if shared else {})}
 
 
 def backend_params(be) -> dict[str, int]:
@@ -90,13 +93,16 @@ def backend_params(be) -> dict[str, int]:
     compressed = bool(getattr(be, "compressed", False))
     return rtl_params(getattr(be, "extended", False), getattr(be, "disjoint", False),
                       lat if isinstance(lat, int) and lat >= MIN_LATENCY + compressed else None,
-                      compressed, bool(getattr(be, "transform", False)))
+                      compressed, bool(getattr(be, "transform", False)),
+                      bool(getattr(be, "fused", False)), bool(getattr(be, "shared", False)))
 
 
-def lint(extended=False, disjoint=False, latency=None, compressed=False, transform=False) -> str:
+def lint(extended=False, disjoint=False, latency=None, compressed=False, transform=False,
+         fused=False, shared=False) -> str:
     """``verilator --lint-only -Wall`` of the whole datapath with the waivers in rtl/lint.vlt."""
     return verilate.lint(TOP, [RTL_DIR / LINT_WAIVERS, *rtl_sources()],
-                         rtl_params(extended, disjoint, latency, compressed, transform))
+                         rtl_params(extended, disjoint, latency, compressed, transform, fused,
+                                    shared))
 
 
 def pgo_enabled() -> bool:

@@ -22,20 +22,26 @@ class GoldenBackend:
     """Numpy model of the whole datapath. ``cycles`` counts an ideal pipeline: a run of n requests
     takes n + latency cycles (first request accepted to last response taken). ``compressed``: the
     build decodes q8 nodes (QUADBOX with ``FLAG_DECODE_Q8``); its default latency is one more.
-    ``transform``: the build has the TRANSFORM operation (docs/transform.md)."""
+    ``transform``: the build has the TRANSFORM operation (docs/transform.md). ``fused``: the box
+    slab values and the triangle's edge functions are rounded once (docs/tradeoffs.md);
+    ``shared`` (the request registers' layout) gives the same results by contract."""
 
     name = "golden"
 
     def __init__(self, extended: bool = False, disjoint: bool = False, latency: int | None = None,
-                 compressed: bool = False, transform: bool = False):
+                 compressed: bool = False, transform: bool = False, fused: bool = False,
+                 shared: bool = False):
         self.extended = bool(extended)
         self.disjoint = bool(disjoint)     # same results by contract; kept for a uniform interface
         self.compressed = bool(compressed)
         self.transform = bool(transform)
+        self.fused = bool(fused)
+        self.shared = bool(shared)         # same results by contract, like disjoint
         self.latency = default_latency(self.compressed) if latency is None else int(latency)
         self.params = {"EXTENDED": int(self.extended), "DISJOINT": int(self.disjoint),
                        "COMPRESSED": int(self.compressed), "TRANSFORM": int(self.transform),
-                       "LATENCY": self.latency}
+                       "LATENCY": self.latency, **({"FUSED": 1} if self.fused else {}),
+                       **({"SHARED": 1} if self.shared else {})}
         self.cycles = 0
         self.requests = 0
         self.euclid_acc = F32(0)
@@ -66,7 +72,8 @@ class GoldenBackend:
             return
         r = _fields(req, i, ("origin", "inv", "dir", "box", "qnode", "opcode", "flags", "extent"))
         boxes = request_boxes(r)
-        hit, tmin = quadbox(r["origin"], r["inv"], r["dir"], boxes, r["extent"])
+        hit, tmin = quadbox(r["origin"], r["inv"], r["dir"], boxes, r["extent"],
+                            self.fused)
         order, hit, tmin = sort4(hit, tmin)
         rsp["box_index"][i] = order
         rsp["box_hit"][i] = hit
@@ -78,7 +85,7 @@ class GoldenBackend:
         r = _fields(req, i, ("kx", "ky", "kz", "origin", "shear", "tri", "flags"))
         k = np.stack([r["kx"], r["ky"], r["kz"]], axis=1).astype(np.intp)
         no_cull = (r["flags"] & FLAG_NO_CULL) != 0
-        hit, num, den = triangle(r["origin"], k, r["shear"], r["tri"], no_cull)
+        hit, num, den = triangle(r["origin"], k, r["shear"], r["tri"], no_cull, self.fused)
         rsp["tri_hit"][i] = hit
         rsp["t_num"][i] = canonical(num)
         rsp["t_den"][i] = canonical(den)

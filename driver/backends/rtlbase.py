@@ -21,7 +21,9 @@ def pattern(probability: float, seed: int, length: int = PATTERN_LEN) -> np.ndar
 
 class RtlBackendBase:
     """Options of both RTL backends: ``extended``, ``disjoint``, ``compressed`` (the q8 decode
-    stage), ``transform`` (the TRANSFORM operation), ``latency`` (build parameters; None: the least, 11 or 12 with ``compressed``),
+    stage), ``transform`` (the TRANSFORM operation), ``fused`` (one rounding in the box slab and
+    the edge functions), ``shared`` (the vectors on the request registers' box and triangle bits;
+    both docs/tradeoffs.md), ``latency`` (build parameters; None: the least, 11 or 12 with ``compressed``),
     ``gaps``/``stalls`` (probability of an input bubble / output back-pressure per cycle, as
     repeating patterns from ``seed``). Given the same requests and patterns both return identical
     responses and cycle counts."""
@@ -29,12 +31,15 @@ class RtlBackendBase:
     name = "rtl"
 
     def __init__(self, extended=False, disjoint=False, latency=None, gaps=0.0, stalls=0.0,
-                 seed=0, compressed=False, transform=False):
-        self.params = rtl_params(extended, disjoint, latency, compressed, transform)
+                 seed=0, compressed=False, transform=False, fused=False, shared=False):
+        self.params = rtl_params(extended, disjoint, latency, compressed, transform, fused,
+                                 shared)
         self.extended = bool(extended)
         self.disjoint = bool(disjoint)
         self.compressed = bool(compressed)
         self.transform = bool(transform)
+        self.fused = bool(fused)
+        self.shared = bool(shared)
         self.latency = self.params["LATENCY"]
         self.gap = pattern(gaps, seed)
         self.stall = pattern(stalls, seed + 1)

@@ -9,7 +9,7 @@ import time
 
 from .. import power
 from ..core import outputs
-from ..core.configs import CONFIGS, Q8_SUFFIX, XF_SUFFIX
+from ..core.configs import CONFIGS, FUSED_SUFFIX, Q8_SUFFIX, SHARED_SUFFIX, XF_SUFFIX
 from ..core.outputs import JSON, PNG, Outputs
 from ..power import liberty, report
 from ..scenes.scene import resolve
@@ -22,7 +22,9 @@ def config_help() -> str:
     return ("configurations to measure, comma-separated: any of "
             f"{', '.join(CONFIGS)}, each also with the q8 decode (NAME"
             f"{Q8_SUFFIX}, build parameter COMPRESSED) and with TRANSFORM "
-            f"(NAME{XF_SUFFIX}, NAME{Q8_SUFFIX}{XF_SUFFIX}), "
+            f"(NAME{XF_SUFFIX}, NAME{Q8_SUFFIX}{XF_SUFFIX}), an extended one with shared request "
+            f"registers (NAME{SHARED_SUFFIX}, build parameter SHARED), any of those rounded once "
+            f"in the box slab and the edge functions (NAME{FUSED_SUFFIX}, build parameter FUSED), "
             "e.g. baseline-unified,baseline-unified-q8,baseline-unified-xf; "
             "or all: the four base configurations")
 
@@ -61,7 +63,7 @@ def run(args) -> int:
                                  f"{c}, got {args.latency}")
     # the workload frame's design point: the first configuration's datapath (the traversal's
     # operations are the same bits on every configuration)
-    point = options.from_args(argparse_copy(args, config=cfgs[0].removesuffix(XF_SUFFIX)))
+    point = options.from_args(argparse_copy(args, config=cfgs[0].replace(XF_SUFFIX, "", 1)))
     rt = options.given(args, ("rtunit",))
     if rt:
         raise ValueError(f"{rt[0]}: power does not model the RT unit (energy per op and per "

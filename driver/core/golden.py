@@ -6,6 +6,10 @@ to nearest-even and keeps subnormals, which is exactly the datapath's arithmetic
 written as the canonical quiet NaN 0x7FC00000 at the outputs (a NaN anywhere in a chain of
 adds/multiplies stays NaN, and compares are false on NaN, so canonicalising at the output is the
 same as canonicalising after every step).
+
+The FUSED build (``fused=True``; docs/tradeoffs.md#forgoing-rounding) rounds less often: the box
+slab value ``(bound - origin) * inv`` and the triangle's edge functions ``U = Cx*By - Cy*Bx`` (V, W
+likewise) are each one operation with one rounding (``sum_of_products``, ``slab``).
 """
 
 from __future__ import annotations
@@ -26,21 +30,80 @@ def canonical(x: np.ndarray) -> np.ndarray:
     return x
 
 
-def quadbox(origin, inv, dirs, boxes, extent):
+def _round_to_odd(s: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """The float64 value s + e rounded to odd (s = RN(s + e), e its exact error): s itself when e
+    is 0 or s is odd, else the neighbour of s toward e (the odd one of the two around s + e)."""
+    bits = s.view(np.uint64)
+    step = (e != 0) & ((bits & np.uint64(1)) == 0) & np.isfinite(s)
+    up = np.signbit(e) == np.signbit(s)                       # |s + e| > |s|
+    out = bits.copy()
+    out[step & up] += np.uint64(1)
+    out[step & ~up] -= np.uint64(1)
+    return out.view(np.float64)
+
+
+def sum_of_products(a, b, c, d) -> np.ndarray:
+    """a*b + c*d of float32 arrays with ONE rounding to float32 (round to nearest even), IEEE
+    special values as the exact expression has them (0*inf, inf - inf: NaN).
+
+    Exact by this argument: a product of two binary32 numbers has at most 48 significant bits and a
+    magnitude in [2^-298, 2^256], so it is exact in float64 (53 bits, normal down to 2^-1022).
+    The sum p + q of the two exact products is computed as TwoSum (s = RN64(p + q) and its exact
+    error e, Knuth; exact for any finite float64 without overflow) and rounded to odd in float64
+    (``_round_to_odd``). Rounding to odd at 53 bits, then to nearest even at 24 bits, is the
+    correct rounding of p + q: every binary32 number and every midpoint between two of them (also
+    in the subnormal range, and the overflow threshold 2^128 - 2^103) is a float64 with an even last
+    bit, and a value rounded to odd is either exact or odd, in the same open interval between two
+    consecutive float64 numbers as the exact value, so it compares with every such point exactly as
+    the exact value does; nearest-even rounding depends on nothing else. (Boldo and Melquiond,
+    "Emulation of FMA and correctly rounded sums: proved algorithms using rounding to odd", IEEE
+    Trans. Computers 57(4), 2008.) A zero sum takes the sign IEEE gives an exact sum (float64's)."""
+    p = np.asarray(a, np.float64) * np.asarray(b, np.float64)
+    q = np.asarray(c, np.float64) * np.asarray(d, np.float64)
+    s = p + q
+    bp = s - q
+    e = (p - bp) + (q - (s - bp))                              # TwoSum: s + e == p + q exactly
+    return _round_to_odd(s, e).astype(F32)
+
+
+def slab(bound, origin, inv) -> np.ndarray:
+    """(bound - origin) * inv of float32 arrays with ONE rounding to float32: the exact real value,
+    rounded to nearest even, with the special values of the IEEE expression (NaN operands,
+    inf - inf, 0 * inf: NaN; infinities and zeros with their IEEE signs).
+
+    The value's class (NaN, inf, zero and its sign, or finite non-zero) is that of float64's
+    (bound - origin) * inv: float64 rounding keeps the sign and the zero-ness of the difference and
+    of the product (a product of non-zero numbers of binary32 range is at least 2^-298, no float64
+    underflow). A finite non-zero value is rounded from the exact
+    bound*inv - origin*inv (``sum_of_products``: the same real number)."""
+    b = np.asarray(bound, np.float64)
+    o = np.asarray(origin, np.float64)
+    m = np.asarray(inv, np.float64)
+    plain = (b - o) * m
+    fused = sum_of_products(bound, inv, -np.asarray(origin, F32), inv)
+    return np.where(np.isfinite(plain) & (plain != 0), fused, plain.astype(F32))
+
+
+def quadbox(origin, inv, dirs, boxes, extent, fused=False):
     """docs/datapath.md#quadbox before the sort. origin, inv, dirs: (n, 3); boxes: (n, 4, 6);
     extent: (n,).
 
     Returns (hit (n, 4) bool, tmin (n, 4) float32: +0-canonical on a hit, +inf on a miss).
     Works one axis at a time on contiguous (n, 4) arrays. A NaN near/far value (0 * inf) makes the
     box a miss: np.maximum/np.minimum propagate NaN into tmin/tmax and `tmin < tmax` is then false,
-    which is exactly the "any NaN -> miss" rule.
+    which is exactly the "any NaN -> miss" rule. ``fused``: each slab value with one rounding
+    (``slab``).
     """
     near = []
     far = []
     for a in range(3):
         o = origin[:, a:a + 1]
-        lo = (boxes[:, :, a] - o) * inv[:, a:a + 1]
-        hi = (boxes[:, :, 3 + a] - o) * inv[:, a:a + 1]
+        if fused:
+            lo = slab(boxes[:, :, a], o, inv[:, a:a + 1])
+            hi = slab(boxes[:, :, 3 + a], o, inv[:, a:a + 1])
+        else:
+            lo = (boxes[:, :, a] - o) * inv[:, a:a + 1]
+            hi = (boxes[:, :, 3 + a] - o) * inv[:, a:a + 1]
         neg = np.signbit(dirs[:, a:a + 1])
         near.append(np.where(neg, hi, lo))
         far.append(np.where(neg, lo, hi))
@@ -71,9 +134,10 @@ def sort4(hit, tmin):
     return order, np.take_along_axis(hit, order, 1), np.take_along_axis(tmin, order, 1)
 
 
-def triangle(origin, kxyz, shear, tri, no_cull=False):
+def triangle(origin, kxyz, shear, tri, no_cull=False, fused=False):
     """docs/datapath.md#triangle. origin (n,3), kxyz (n,3) int, shear (n,3), tri (n,3,3); no_cull:
-    bool, scalar or (n,), the NO_CULL flag (both faces hit).
+    bool, scalar or (n,), the NO_CULL flag (both faces hit); ``fused``: U, V, W each with one
+    rounding (``sum_of_products``).
 
     Returns (hit (n,) bool, t_num (n,), t_den (n,))."""
     p = tri - origin[:, None, :]                                  # P' = P - o
@@ -85,9 +149,14 @@ def triangle(origin, kxyz, shear, tri, no_cull=False):
     y = py - sy * pz
     z = sz * pz
     (ax, bx, cx), (ay, by, cy), (az, bz, cz) = x.T, y.T, z.T
-    u = cx * by - cy * bx
-    v = ax * cy - ay * cx
-    w = bx * ay - by * ax
+    if fused:
+        u = sum_of_products(cx, by, -cy, bx)
+        v = sum_of_products(ax, cy, -ay, cx)
+        w = sum_of_products(bx, ay, -by, ax)
+    else:
+        u = cx * by - cy * bx
+        v = ax * cy - ay * cx
+        w = bx * ay - by * ax
     t_den = (u + v) + w
     t_num = ((u * az) + (v * bz)) + (w * cz)
     front = (u >= 0) & (v >= 0) & (w >= 0)

@@ -37,9 +37,13 @@ def configs() -> dict[str, tuple[int, int]]:
 
 def all_configs() -> list[str]:
     """Every configuration power measures: the four, each with the q8 decode (``-q8``,
-    COMPRESSED) and each of those with TRANSFORM (``-xf``), as driver/area.py names them."""
+    COMPRESSED) and each of those with TRANSFORM (``-xf``), the extended ones with shared request
+    registers (``-shared``, SHARED), and each of those rounded once in the box slab and the edge
+    functions (``-fused``, FUSED), as driver/area.py names them."""
     area = _area()
-    return [*area.ALL_CONFIGS, *area.XF_CONFIGS]
+    names = [*area.ALL_CONFIGS, *area.XF_CONFIGS]
+    names += [n + area.SHARED_SUFFIX for n in names if n.startswith("extended")]
+    return names + [n + area.FUSED_SUFFIX for n in names]
 
 
 def build_params(cfg: str) -> dict[str, int]:

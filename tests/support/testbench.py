@@ -64,15 +64,16 @@ class Testbench:
 
     def __init__(self, name: str = "rtl", *, extended: bool = False, disjoint: bool = False,
                  latency: int | None = None, compressed: bool = False, transform: bool = False,
-                 gaps: float = 0.0,
+                 fused: bool = False, shared: bool = False, gaps: float = 0.0,
                  stalls: float = 0.0, seed: int = 0, stamp: bool = True, **options):
         if name != "golden":        # the golden model has no handshakes to pressure
             options.update(gaps=gaps, stalls=stalls, seed=seed)
         self.dut = driver.backend(name, extended=extended, disjoint=disjoint, latency=latency,
-                                  compressed=compressed, transform=transform, **options)
+                                  compressed=compressed, transform=transform, fused=fused,
+                                  **({"shared": True} if shared else {}), **options)
         self.ref = driver.backend("golden", extended=extended, disjoint=disjoint,
                                   latency=self.dut.latency, compressed=compressed,
-                                  transform=transform)
+                                  transform=transform, fused=fused)
         self.name = name
         self.latency = self.dut.latency
         self.stamp = stamp
