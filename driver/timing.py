@@ -37,6 +37,7 @@ import numpy as np
 from . import area
 from .backends.cache import cache_root as tool_cache
 from .core.configs import ALL_CONFIGS, BASELINE, CONFIGS, XF_CONFIGS
+from .plotting import wrap
 from .power.liberty import DEBIAN_OSU018
 
 RECIPE = 1                 # bump when the mapping script or the STA script changes meaning
@@ -502,9 +503,120 @@ def plot(rep: dict, path) -> None:
     ax.set_xlabel("pipeline stage (paths ending at its register); black edge: the stage that "
                   "sets the clock")
     lib = Path(next(iter(rep["configs"].values()))["liberty"]).stem
-    ax.set_title(f"Delay per pipeline stage, {lib} (OpenSTA), RTL {rep['rtl_rev']}")
+    ax.set_title(wrap(f"Delay per pipeline stage, {lib} (OpenSTA), RTL {rep['rtl_rev']}", 100))
     ax.legend(fontsize=8, ncol=2, loc="upper left")
     ax.grid(axis="y", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def sweep_targets(names, sources, liberty: Path, targets, top: str = area.TOP,
+                  timeout=None, progress=None) -> dict:
+    """Area and Fmax of each configuration (or module ``top``) mapped at each of ABC's delay
+    ``targets`` (ps): the paper's area-against-target-clock study on the open flow. The generic
+    netlist is shared; each target is one mapping and one OpenSTA run (cached)."""
+    out = {}
+    for n in names:
+        rows = []
+        for d in targets:
+            r = time_config(n, sources, liberty, d, True, timeout, progress, top=top)
+            rows.append({"delay_target_ps": d, "target_mhz": round(1e6 / d, 1),
+                         "fmax_mhz": r["fmax_mhz"], "area_um2": r["area_um2"],
+                         "cells": r["cells"], "limiting_stage": r["limiting_stage"]})
+        best = max(x["fmax_mhz"] for x in rows)
+        for x in rows:
+            x["target_vs_fmax"] = round(x["target_mhz"] / best, 3)
+            x["area_vs_first"] = round(x["area_um2"] / rows[0]["area_um2"], 4)
+        out[n] = rows
+    return out
+
+
+# The paper's synthesis results at target clocks of 500 to 1500 MHz (its 15 nm library and Genus)
+PAPER_FREQUENCY = {
+    "source": "RayFlex paper, Synthesis Results (Genus, a 15 nm open cell library, target clocks "
+              "500-1500 MHz)",
+    "area": "the circuit area does not show much sensitivity to the target clock frequency in "
+            "our evaluated range",
+    "power": "the power consumption follows a nearly linear trend in the evaluated frequency "
+             "range; unified vs disjoint within +/-4 %, baseline vs extended 14 % to 22 %",
+    "target_mhz": [500, 1500], "power_mW_at_1GHz": [60, 85],
+}
+
+
+def plot_targets(sweep: dict, path, title: str) -> None:
+    """Area against ABC's target clock as a fraction of the achieved Fmax, with the paper's
+    range (its targets as a fraction of its 1 GHz)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import matplotlib.ticker  # noqa: F401
+
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for n, rows in sweep.items():
+        ax.plot([r["target_vs_fmax"] for r in rows], [r["area_vs_first"] for r in rows], "o-",
+                label=f"{n} (Fmax {max(r['fmax_mhz'] for r in rows):.0f} MHz)")
+    ax.axvspan(0.5, 1.5, color="grey", alpha=0.12,
+               label="the paper's targets, 500-1500 MHz of its 1 GHz (area flat)")
+    ax.axhline(1.0, color="grey", lw=0.8)
+    vals = [r["area_vs_first"] for rows in sweep.values() for r in rows]
+    ax.set_ylim(min(0.9, min(vals) - 0.02), max(1.1, max(vals) + 0.02))   # +-10 % at least
+    ax.set_xscale("log")
+    ax.xaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
+    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    ax.set_xticks([0.25, 0.5, 1, 2, 4, 8])
+    ax.set_xlabel("ABC's target clock / the best Fmax reached (log)")
+    ax.set_ylabel("cell area / area at the first target")
+    ax.set_title(wrap(title, 90), fontsize=10)
+    ax.legend(fontsize=8, loc="upper left")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def power_vs_frequency(power_doc: dict, fmax: dict[str, float]) -> dict:
+    """The paper's power-against-frequency study on the open flow: a ``rayflex power --level
+    liberty`` document's energy per operation (with clock pins; leakage as power) times the
+    clock, from 100 MHz to each configuration's Fmax (``fmax``: configuration -> MHz, where
+    timed). One netlist at every clock: the line is straight by construction (the paper
+    synthesizes again per target)."""
+    out = {}
+    for n, c in power_doc["configs"].items():
+        leak = (c.get("leakage") or {}).get("leakage_mW", 0.0)
+        clock_pj = (c.get("leakage") or {}).get("clock_per_cycle_pj", 0.0)
+        rows = {}
+        for op in ("box", "triangle"):
+            if op not in c:
+                continue
+            dyn = c[op]["energy_per_op"] + clock_pj           # pJ per op, one op per cycle
+            rows[op] = {"pj_per_op": round(dyn, 1),
+                        "mw_at_1ghz": round(dyn + leak, 1),
+                        "mw_at_fmax": (round(dyn * fmax[n] / 1000 + leak, 1)
+                                       if n in fmax else None)}
+        out[n] = {"fmax_mhz": fmax.get(n), "leakage_mW": leak, "ops": rows}
+    return out
+
+
+def plot_power(study: dict, path, title: str) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for n, c in study.items():
+        tri = c["ops"].get("triangle")
+        if not tri:
+            continue
+        top = c["fmax_mhz"] or 1000.0
+        f = np.linspace(0, top, 50)
+        ax.plot(f, tri["pj_per_op"] * f / 1000 + c["leakage_mW"],
+                label=f"{n}" + (f" (to its Fmax {top:.0f} MHz)" if c["fmax_mhz"] else ""))
+    ax.set_xlabel("clock (MHz)")
+    ax.set_ylabel("power, a triangle op every cycle (mW)")
+    ax.set_title(wrap(title, 90), fontsize=10)
+    ax.legend(fontsize=8, loc="upper left")
+    ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -41,6 +41,8 @@ def run(args) -> int:
     md = outs.add("--markdown", args.markdown, MARKDOWN) if args.markdown else None
     png = outs.add("--plot", args.plot, PNG) if args.plot else None
     log = progress_of(args)
+    if args.delay_targets is not None:
+        return sweep(args, names, lib, outs, js, md, png, log)
     try:
         if args.top:
             src = area.snapshot(args.rev)
@@ -62,5 +64,47 @@ def run(args) -> int:
             outs.temp(md).write_text(table + "\n")
         if png:
             timing.plot(rep, outs.temp(png))
+    wrote(outs.paths())
+    return 0
+
+
+def sweep(args, names, lib, outs, js, md, png, log) -> int:
+    """``--delay-targets``: the area-against-target-clock study."""
+    try:
+        targets = [float(x) for x in args.delay_targets.split(",") if x.strip()]
+    except ValueError:
+        raise ValueError(f"--delay-targets: not a list of numbers: {args.delay_targets!r}") \
+            from None
+    if not targets or any(t <= 0 for t in targets):
+        raise ValueError("--delay-targets: give delay targets > 0 ps")
+    src = area.snapshot(args.rev)
+    try:
+        res = timing.sweep_targets([args.top] if args.top else names, src, lib, targets,
+                                   top=args.top or area.TOP, timeout=args.timeout,
+                                   progress=log)
+    except (area.AreaError, timing.TimingError) as e:
+        raise ValueError(str(e)) from None
+    doc = {"provenance": provenance(), "rtl_sha": area.rtl_sha(src),
+           "rtl_rev": area.rev_label(args.rev), "liberty": str(lib), "delay_sweep": res,
+           "paper": timing.PAPER_FREQUENCY}
+    rows = ["| configuration | delay target (ps) | target (MHz) | target / Fmax | Fmax (MHz) | "
+            "area (mm²) | area vs first | cells |", "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for n, rs in res.items():
+        for r in rs:
+            rows.append(f"| {n} | {r['delay_target_ps']:g} | {r['target_mhz']:g} | "
+                        f"{r['target_vs_fmax']:.2f} | {r['fmax_mhz']:.1f} | "
+                        f"{r['area_um2'] / 1e6:.4f} | {r['area_vs_first']:.4f} | {r['cells']:,} |")
+    table = "\n".join(rows)
+    print(table)
+    with outs.commit():
+        if js:
+            outputs.write_json(doc, outs.temp(js))
+        if md:
+            outs.temp(md).write_text(table + "\n")
+        if png:
+            timing.plot_targets(res, outs.temp(png),
+                                f"Area against ABC's delay target, {lib.stem} (0.18 um clocks "
+                                "are not the paper's 15 nm clocks: x is relative to the Fmax "
+                                "reached)")
     wrote(outs.paths())
     return 0
