@@ -608,10 +608,15 @@ def plot_power(study: dict, path, title: str) -> None:
         tri = c["ops"].get("triangle")
         if not tri:
             continue
-        top = c["fmax_mhz"] or 1000.0
-        f = np.linspace(0, top, 50)
-        ax.plot(f, tri["pj_per_op"] * f / 1000 + c["leakage_mW"],
-                label=f"{n}" + (f" (to its Fmax {top:.0f} MHz)" if c["fmax_mhz"] else ""))
+        f = np.linspace(0, 1000.0, 101)
+        line, = ax.plot(f, tri["pj_per_op"] * f / 1000 + c["leakage_mW"], ":",
+                        label=n + (f" (solid to its Fmax, {c['fmax_mhz']:.0f} MHz)"
+                                   if c["fmax_mhz"] else " (not timed)"))
+        if c["fmax_mhz"]:
+            g = np.linspace(0, c["fmax_mhz"], 20)
+            ax.plot(g, tri["pj_per_op"] * g / 1000 + c["leakage_mW"], "-", color=line.get_color())
+            ax.plot([c["fmax_mhz"]], [tri["pj_per_op"] * c["fmax_mhz"] / 1000 + c["leakage_mW"]],
+                    "o", color=line.get_color())
     ax.set_xlabel("clock (MHz)")
     ax.set_ylabel("power, a triangle op every cycle (mW)")
     ax.set_title(wrap(title, 90), fontsize=10)

@@ -78,7 +78,12 @@ HAND_READ = {"tools": ("Yosys 0.23 ", "OpenSTA 2.0.17"), "start": "b_i[7]", "end
 @needs_tools
 def test_fp_adder_against_a_hand_read_opensta_report(cache, tmp_path):
     out = tmp_path / "add.json"
-    assert main(["timing", "--top", "rf_fp_add", "--json", str(out), "--no-progress"]) == 0
+    power = tmp_path / "power.json"            # a power document's shape, its numbers made up
+    power.write_text(json.dumps({"level": "liberty", "configs": {"rf_fp_add": {
+        "triangle": {"energy_per_op": 90.0}, "leakage": {"leakage_mW": 0.5,
+                                                         "clock_per_cycle_pj": 10.0}}}}))
+    assert main(["timing", "--top", "rf_fp_add", "--json", str(out), "--no-progress",
+                 "--power-json", str(power), "--power-plot", str(tmp_path / "p.png")]) == 0
     doc = json.loads(out.read_text())
     r = doc["configs"]["rf_fp_add"]
     path = r["stages"]["outputs"]["path"]
@@ -87,6 +92,10 @@ def test_fp_adder_against_a_hand_read_opensta_report(cache, tmp_path):
     assert r["fmax_mhz"] == pytest.approx(1000 / r["min_period_ns"], abs=0.06)
     assert path[-1]["at_ns"] == pytest.approx(r["stages"]["outputs"]["arrival_ns"])
     assert sum(s["incr_ns"] for s in path) == pytest.approx(path[-1]["at_ns"], abs=0.002 * len(path))
+    pf = doc["power_vs_frequency"]["rf_fp_add"]["ops"]["triangle"]
+    assert (pf["pj_per_op"], pf["mw_at_1ghz"]) == (100.0, 100.5)          # (90 + 10) pJ x 1 GHz
+    assert pf["mw_at_fmax"] == pytest.approx(100 * r["fmax_mhz"] / 1000 + 0.5, abs=0.06)
+    assert (tmp_path / "p.png").stat().st_size > 1000
     report = (cache / "timing" / (re.sub(r"\.v$", "", r["netlist"].split("/")[-1]) + ".sta.txt"))
     assert report.is_file() and "Startpoint" in report.read_text()
     if not (r["yosys_map"].startswith(HAND_READ["tools"][0]) and r["sta"] == HAND_READ["tools"][1]):
@@ -152,3 +161,21 @@ def test_paths_are_grouped_by_the_stage_register_they_end_at(cache):
     assert s1["flip_flops"] == s2["flip_flops"] == 64      # main and skid slot, 32 bits each
     again = timing.time_config("two_stages", src, timing.DEBIAN_OSU018, top="two_stages")
     assert again["cached"] and again["fmax_mhz"] == r["fmax_mhz"]
+
+
+@needs_tools
+def test_delay_target_sweep(cache, tmp_path, capsys):
+    """Area against ABC's delay target: one generic netlist, one mapping per target."""
+    out = tmp_path / "s.json"
+    assert main(["timing", "--top", "rf_fp_cmp", "--delay-targets", "1000,50000", "--json",
+                 str(out), "--plot", str(tmp_path / "s.png"), "--no-progress"]) == 0
+    rows = json.loads(out.read_text())["delay_sweep"]["rf_fp_cmp"]
+    assert [r["delay_target_ps"] for r in rows] == [1000, 50000]
+    assert [r["target_mhz"] for r in rows] == [1000.0, 20.0]
+    assert rows[0]["area_vs_first"] == 1.0 and rows[1]["area_um2"] > 0
+    best = max(r["fmax_mhz"] for r in rows)
+    assert rows[1]["target_vs_fmax"] == round(20.0 / best, 3)
+    assert len(list((cache / "area").glob("rf_fp_cmp-*.il"))) == 1
+    assert len(list((cache / "timing").glob("rf_fp_cmp-*.json"))) == 2
+    assert main(["timing", "--top", "rf_fp_cmp", "--delay-targets", "0,5"]) == 2
+    assert "--delay-targets: give delay targets > 0 ps" in capsys.readouterr().err

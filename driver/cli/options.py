@@ -307,6 +307,10 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
         flag("--liberty", metavar="PATH",
              help="standard-cell liberty to map to (default: Debian's qflow-tech-osu018, "
                   "OSU 0.18 um)"),
+        flag("--power-json", metavar="PATH",
+             help="a rayflex power --level liberty JSON: add power against frequency (its "
+                  "energy per op times the clock, up to each configuration's Fmax)"),
+        flag("--power-plot", metavar="PATH", help="PNG of that power against frequency"),
         flag("--delay-targets", metavar="LIST",
              help="instead: area and Fmax at each of these delay targets (ps, comma-separated), "
                   "the paper's area-against-clock study; --plot draws area against the target "

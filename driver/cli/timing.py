@@ -3,6 +3,9 @@ with the command line of ``rayflex area``."""
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 from .. import area, timing
 from ..core import outputs
 from ..core.outputs import JSON, MARKDOWN, PNG, Outputs
@@ -40,6 +43,18 @@ def run(args) -> int:
     js = outs.add("--json", args.json, JSON) if args.json else None
     md = outs.add("--markdown", args.markdown, MARKDOWN) if args.markdown else None
     png = outs.add("--plot", args.plot, PNG) if args.plot else None
+    power_doc = None
+    if args.power_json:
+        try:
+            power_doc = json.loads(Path(args.power_json).read_text())
+        except (OSError, ValueError) as e:
+            raise ValueError(f"--power-json {args.power_json}: {e}") from None
+        if power_doc.get("level") != "liberty" or not isinstance(power_doc.get("configs"), dict):
+            raise ValueError(f"--power-json {args.power_json}: not a rayflex power --level "
+                             "liberty document")
+    ppng = outs.add("--power-plot", args.power_plot, PNG) if args.power_plot else None
+    if ppng and not power_doc:
+        raise ValueError("--power-plot needs --power-json")
     log = progress_of(args)
     if args.delay_targets is not None:
         return sweep(args, names, lib, outs, js, md, png, log)
@@ -55,6 +70,10 @@ def run(args) -> int:
     except (area.AreaError, timing.TimingError) as e:
         raise ValueError(str(e)) from None
     rep["provenance"] = provenance()
+    if power_doc:
+        rep["power_vs_frequency"] = timing.power_vs_frequency(
+            power_doc, {n: r["fmax_mhz"] for n, r in rep["configs"].items()})
+        rep["paper_frequency"] = timing.PAPER_FREQUENCY
     table = timing.markdown(rep)
     print(table)
     with outs.commit():
@@ -64,6 +83,12 @@ def run(args) -> int:
             outs.temp(md).write_text(table + "\n")
         if png:
             timing.plot(rep, outs.temp(png))
+        if ppng:
+            timing.plot_power(rep["power_vs_frequency"], outs.temp(ppng),
+                              "Power against clock on the open flow: energy per triangle op "
+                              f"({Path(args.power_json).name}) x clock, up to each "
+                              "configuration's Fmax; one netlist at every clock (the paper "
+                              "synthesizes again per target: 60-85 mW at 1 GHz, 15 nm)")
     wrote(outs.paths())
     return 0
 
