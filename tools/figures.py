@@ -98,6 +98,9 @@ def _power(level, minutes, workloads=True):
 
 # the q8 decode and TRANSFORM beside the configuration they extend (docs/power.md)
 POWER_Q8_XF = "baseline-unified,baseline-unified-q8,baseline-unified-xf"
+# the configurations rayflex timing has timed for docs/timing.md, and the area study's targets (ps)
+TIMED = "baseline-unified"
+DELAY_TARGETS = "2000,5000,10000,14000,20000,30000,50000"
 
 
 def _power_q8_xf(level, minutes):
@@ -308,6 +311,19 @@ FIGURES = [
                           POWER_Q8_XF, "--jobs", "2", "--json", "docs/area_q8_xf.json"),
            ("docs/area_q8_xf.json",), 45.0,
            "Yosys cell counts of the q8 decode and TRANSFORM beside baseline-unified"),
+    Figure("timing",
+           (*RAYFLEX, "timing", "--configs", TIMED, "--jobs", "2", "--json", "docs/timing.json",
+            "--plot", "images/timing_stages.png", "--power-json", "docs/power_liberty.json",
+            "--power-plot", "images/timing_power.png", "--no-progress"),
+           ("docs/timing.json", "images/timing_stages.png", "images/timing_power.png"), 120.0,
+           "Fmax and each pipeline stage's least period (OSU 0.18 um, OpenSTA); power against "
+           "the clock"),
+    Figure("timing_sweep_fp_add",
+           (*RAYFLEX, "timing", "--top", "rf_fp_add", "--delay-targets", DELAY_TARGETS,
+            "--json", "docs/timing_sweep_fp_add.json", "--plot",
+            "images/timing_sweep_fp_add.png", "--no-progress"),
+           ("docs/timing_sweep_fp_add.json", "images/timing_sweep_fp_add.png"), 1.0,
+           "the FP adder's area and Fmax against ABC's delay target"),
 ]
 BY_NAME = {f.name: f for f in FIGURES}
 LIGHT_MINUTES = 1.5        # --light: the figures at most this long
