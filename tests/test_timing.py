@@ -164,18 +164,18 @@ def test_paths_are_grouped_by_the_stage_register_they_end_at(cache):
 
 
 @needs_tools
-def test_delay_target_sweep(cache, tmp_path, capsys):
-    """Area against ABC's delay target: one generic netlist, one mapping per target."""
+def test_required_delay_sweep(cache, tmp_path, capsys):
+    """Area against ABC's required delay: one generic netlist, one mapping per delay."""
     out = tmp_path / "s.json"
-    assert main(["timing", "--top", "rf_fp_cmp", "--delay-targets", "1000,50000", "--json",
+    assert main(["timing", "--top", "rf_fp_cmp", "--abc-delays", "1000,50000", "--json",
                  str(out), "--plot", str(tmp_path / "s.png"), "--no-progress"]) == 0
     rows = json.loads(out.read_text())["delay_sweep"]["rf_fp_cmp"]
-    assert [r["delay_target_ps"] for r in rows] == [1000, 50000]
-    assert [r["target_mhz"] for r in rows] == [1000.0, 20.0]
+    assert [r["abc_delay_ps"] for r in rows] == [1000, 50000]
+    assert [r["goal_mhz"] for r in rows] == [1000.0, 20.0]
     assert rows[0]["area_vs_first"] == 1.0 and rows[1]["area_um2"] > 0
     best = max(r["fmax_mhz"] for r in rows)
-    assert rows[1]["target_vs_fmax"] == round(20.0 / best, 3)
+    assert rows[1]["goal_vs_fmax"] == round(20.0 / best, 3)
     assert len(list((cache / "area").glob("rf_fp_cmp-*.il"))) == 1
     assert len(list((cache / "timing").glob("rf_fp_cmp-*.json"))) == 2
-    assert main(["timing", "--top", "rf_fp_cmp", "--delay-targets", "0,5"]) == 2
-    assert "--delay-targets: give delay targets > 0 ps" in capsys.readouterr().err
+    assert main(["timing", "--top", "rf_fp_cmp", "--abc-delays", "0,5"]) == 2
+    assert "--abc-delays: give delays > 0 ps" in capsys.readouterr().err

@@ -69,7 +69,7 @@ def run(args) -> int:
                 print(f"{fe}: {status}")
             return 0
         if args.top:
-            src = area.snapshot(args.rev)
+            src = area.snapshot(args.rev, area.source_list_for(args.top))
             r = area.synthesize(top=args.top, cache=not args.no_cache, timeout=args.timeout,
                                 sources=src, tool=tool, progress=log)
             rep = {"yosys": r["yosys"],

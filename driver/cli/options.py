@@ -220,9 +220,10 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
         flag("--sweep-pipelines", default=",".join(map(str, SWEEP_PIPELINES)), metavar="LIST",
              help="pipeline counts of the sweep (comma-separated)"),
         _plot("PNG: the sweep (the primary frame; a --workload frame with --sweep-rays), or "
-              "the rays each RT unit holds over a --workload frame (default: beside --json as "
-              "JSONSTEM_rtunit.png, else rayflex_bench_rtunit.png; with --bvh, the BVH shape "
-              "plot JSONSTEM_bvh.png or rayflex_bench_bvh.png)"),
+              "the rays each RT unit holds over a --workload frame; always drawn, except with "
+              "--workers N or --sweep-size 0 (default: beside --json as JSONSTEM_rtunit.png, "
+              "else rayflex_bench_rtunit.png; with --bvh, the BVH shape plot JSONSTEM_bvh.png "
+              "or rayflex_bench_bvh.png)"),
         flag("--pyverilator-requests", type=int, default=bench.PYVERILATOR_REQUESTS,
              metavar="N", help=f"requests streamed through pyverilator (default "
                                f"{bench.PYVERILATOR_REQUESTS}; 0: skip)"),
@@ -300,8 +301,8 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
     "timing": ((None, (
         *_synthesis("timing"),
         _plot("PNG of each stage's least clock period per configuration (default: none)"),
-        flag("--delay-target", type=float, default=timing.DEFAULT_DELAY_PS, metavar="PS",
-             help="ABC's delay target in ps (default "
+        flag("--abc-delay", type=float, default=timing.DEFAULT_DELAY_PS, metavar="PS",
+             help="ABC's required delay in ps, abc -D (default "
                   f"{timing.DEFAULT_DELAY_PS:g}: the paper's 1 GHz, out of reach in 0.18 um, "
                   "so each cone is mapped for its least delay)"),
         flag("--liberty", metavar="PATH",
@@ -311,9 +312,9 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
              help="a rayflex power --level liberty JSON: add power against frequency (its "
                   "energy per op times the clock, up to each configuration's Fmax)"),
         flag("--power-plot", metavar="PATH", help="PNG of that power against frequency"),
-        flag("--delay-targets", metavar="LIST",
-             help="instead: area and Fmax at each of these delay targets (ps, comma-separated), "
-                  "the paper's area-against-clock study; --plot draws area against the target "
+        flag("--abc-delays", metavar="LIST",
+             help="instead: area and Fmax at each of these required delays (ps, comma-separated), "
+                  "the paper's area-against-clock study; --plot draws area against 1 / the delay "
                   "clock as a fraction of the best Fmax"),
         SHARED["progress"],
     )),),

@@ -19,7 +19,7 @@ def add_parser(subparsers):
     p = subparsers.add_parser(
         "timing", help="Fmax and the critical path per pipeline stage (Yosys, OpenSTA; cached)",
         description="Map each configuration to a standard-cell liberty (Yosys and ABC with a "
-                    "delay target; default the OSU 0.18 um cells) and time it with OpenSTA: the "
+                    "required delay; default the OSU 0.18 um cells) and time it with OpenSTA: the "
                     "worst register-to-register path of each pipeline stage, the stage that "
                     "sets the clock, its cells and Fmax. Needs Debian's packages: "
                     f"{timing.INSTALL}. A configuration takes minutes the first time (the "
@@ -35,8 +35,8 @@ def run(args) -> int:
         lib = timing.check_tools(args.liberty)
         if names is None and not args.top:
             names = list(timing.DEFAULT_CONFIGS)
-        if not args.delay_target > 0:
-            raise ValueError(f"--delay-target must be > 0 ps, got {args.delay_target:g}")
+        if not args.abc_delay > 0:
+            raise ValueError(f"--abc-delay must be > 0 ps, got {args.abc_delay:g}")
     except (area.AreaError, timing.TimingError) as e:
         raise ValueError(str(e)) from None
     outs = Outputs()
@@ -56,16 +56,16 @@ def run(args) -> int:
     if ppng and not power_doc:
         raise ValueError("--power-plot needs --power-json")
     log = progress_of(args)
-    if args.delay_targets is not None:
+    if args.abc_delays is not None:
         return sweep(args, names, lib, outs, js, md, png, log)
     try:
         if args.top:
-            src = area.snapshot(args.rev)
-            r = timing.time_config(args.top, src, lib, args.delay_target, not args.no_cache,
+            src = area.snapshot(args.rev, area.source_list_for(args.top))
+            r = timing.time_config(args.top, src, lib, args.abc_delay, not args.no_cache,
                                    args.timeout, log, top=args.top)
             rep = timing.report({args.top: r}, src, area.rev_label(args.rev))
         else:
-            rep = timing.time_all(names, lib, args.delay_target, jobs, not args.no_cache,
+            rep = timing.time_all(names, lib, args.abc_delay, jobs, not args.no_cache,
                                   args.timeout, log, rev=args.rev)
     except (area.AreaError, timing.TimingError) as e:
         raise ValueError(str(e)) from None
@@ -88,23 +88,23 @@ def run(args) -> int:
                               "Power against clock on the open flow: energy per triangle op "
                               f"({Path(args.power_json).name}) x clock, up to each "
                               "configuration's Fmax; one netlist at every clock (the paper "
-                              "synthesizes again per target: 60-85 mW at 1 GHz, 15 nm)")
+                              "synthesizes again per clock: 60-85 mW at 1 GHz, 15 nm)")
     wrote(outs.paths())
     return 0
 
 
 def sweep(args, names, lib, outs, js, md, png, log) -> int:
-    """``--delay-targets``: the area-against-target-clock study."""
+    """``--abc-delays``: the area-against-clock study."""
     try:
-        targets = [float(x) for x in args.delay_targets.split(",") if x.strip()]
+        delays = [float(x) for x in args.abc_delays.split(",") if x.strip()]
     except ValueError:
-        raise ValueError(f"--delay-targets: not a list of numbers: {args.delay_targets!r}") \
+        raise ValueError(f"--abc-delays: not a list of numbers: {args.abc_delays!r}") \
             from None
-    if not targets or any(t <= 0 for t in targets):
-        raise ValueError("--delay-targets: give delay targets > 0 ps")
-    src = area.snapshot(args.rev)
+    if not delays or any(t <= 0 for t in delays):
+        raise ValueError("--abc-delays: give delays > 0 ps")
+    src = area.snapshot(args.rev, area.source_list_for(args.top) if args.top else None)
     try:
-        res = timing.sweep_targets([args.top] if args.top else names, src, lib, targets,
+        res = timing.sweep_delays([args.top] if args.top else names, src, lib, delays,
                                    top=args.top or area.TOP, timeout=args.timeout,
                                    progress=log)
     except (area.AreaError, timing.TimingError) as e:
@@ -112,12 +112,12 @@ def sweep(args, names, lib, outs, js, md, png, log) -> int:
     doc = {"provenance": provenance(), "rtl_sha": area.rtl_sha(src),
            "rtl_rev": area.rev_label(args.rev), "liberty": str(lib), "delay_sweep": res,
            "paper": timing.PAPER_FREQUENCY}
-    rows = ["| configuration | delay target (ps) | target (MHz) | target / Fmax | Fmax (MHz) | "
+    rows = ["| configuration | abc -D (ps) | 1 / -D (MHz) | 1 / -D / Fmax | Fmax (MHz) | "
             "area (mm²) | area vs first | cells |", "|---|---:|---:|---:|---:|---:|---:|---:|"]
     for n, rs in res.items():
         for r in rs:
-            rows.append(f"| {n} | {r['delay_target_ps']:g} | {r['target_mhz']:g} | "
-                        f"{r['target_vs_fmax']:.2f} | {r['fmax_mhz']:.1f} | "
+            rows.append(f"| {n} | {r['abc_delay_ps']:g} | {r['goal_mhz']:g} | "
+                        f"{r['goal_vs_fmax']:.2f} | {r['fmax_mhz']:.1f} | "
                         f"{r['area_um2'] / 1e6:.4f} | {r['area_vs_first']:.4f} | {r['cells']:,} |")
     table = "\n".join(rows)
     print(table)
@@ -127,8 +127,8 @@ def sweep(args, names, lib, outs, js, md, png, log) -> int:
         if md:
             outs.temp(md).write_text(table + "\n")
         if png:
-            timing.plot_targets(res, outs.temp(png),
-                                f"Area against ABC's delay target, {lib.stem} (0.18 um clocks "
+            timing.plot_delays(res, outs.temp(png),
+                                f"Area against ABC's required delay, {lib.stem} (0.18 um clocks "
                                 "are not the paper's 15 nm clocks: x is relative to the Fmax "
                                 "reached)")
     wrote(outs.paths())
