@@ -464,9 +464,9 @@ def _config_name(params: dict) -> str:
     return next(n for n in ALL_CONFIGS + XF_CONFIGS if config_params(n) == params)
 
 
-# seconds one configuration's synthesis took on the reference machine (2 cores, two at a time)
-# when no earlier run in the cache says better: the wheel's from docs/area.md, the native flow's
-# measured the same way
+# seconds one configuration's synthesis takes on the reference machine (2 cores, two at a time)
+# when no earlier run in the cache says better: the wheel's measured (docs/area.md); the native
+# flow's an estimate, the wheel's over half the 3-4 x it was faster on rf_fp_mul
 ESTIMATE_S = {"wheel": 1700.0, "native": 900.0}
 
 
