@@ -27,11 +27,13 @@ wheel only elaborates and the system's Yosys synthesizes (``--yosys``, docs/area
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -267,8 +269,9 @@ def _run_yosys(workdir: Path, script: str, timeout: float | None, cmd: list[str]
     t0 = time.monotonic()
     # relative file names only: the WebAssembly Yosys sees the working directory
     with open(out, "w") as sink:
+        # its own process group: ABC runs as Yosys' child, and an interrupt ends both
         proc = subprocess.Popen(cmd, cwd=workdir, stdout=sink, stderr=subprocess.STDOUT,
-                                stdin=subprocess.DEVNULL)
+                                stdin=subprocess.DEVNULL, start_new_session=True)
     with _LIVE_LOCK:
         _LIVE.add(proc)
     seen, last = 0, None
@@ -302,9 +305,8 @@ def _run_yosys(workdir: Path, script: str, timeout: float | None, cmd: list[str]
         if proc.returncode == 0:
             report_passes()
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        kill(proc)
+        proc.wait()
         with _LIVE_LOCK:
             _LIVE.discard(proc)
     if proc.returncode:
@@ -315,12 +317,17 @@ def _run_yosys(workdir: Path, script: str, timeout: float | None, cmd: list[str]
                                             f"exit status {proc.returncode}"))
 
 
+def kill(proc) -> None:
+    """End a tool started in its own process group, with its children (Yosys' ABC)."""
+    with contextlib.suppress(OSError):
+        os.killpg(proc.pid, signal.SIGKILL)
+
+
 def stop_all() -> None:
     """Kill every Yosys this process runs (an interrupt: the worker threads' runs end too)."""
     with _LIVE_LOCK:
         for proc in list(_LIVE):
-            if proc.poll() is None:
-                proc.kill()
+            kill(proc)
 
 
 def ff_ge(cell_type: str) -> float | None:

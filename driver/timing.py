@@ -239,7 +239,7 @@ def parse_report(text: str) -> dict | None:
 
 def _run(cmd, cwd: Path, timeout: float | None, what: str) -> str:
     proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            stdin=subprocess.DEVNULL, text=True)
+                            stdin=subprocess.DEVNULL, text=True, start_new_session=True)
     with area._LIVE_LOCK:
         area._LIVE.add(proc)
     try:
@@ -247,9 +247,8 @@ def _run(cmd, cwd: Path, timeout: float | None, what: str) -> str:
     except subprocess.TimeoutExpired:
         raise TimingError(f"{what} took longer than {timeout} s") from None
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        area.kill(proc)
+        proc.wait()
         with area._LIVE_LOCK:
             area._LIVE.discard(proc)
     if proc.returncode:
