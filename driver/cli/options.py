@@ -109,7 +109,10 @@ def _synthesis(command: str) -> tuple[Flag, ...]:
         flag("--rev", metavar="REV",
              help="the RTL of this git revision (e.g. HEAD) instead of the working tree"),
         flag("--no-cache", action="store_true",
-             help=f"synthesize even if cached (the cache: $RAYFLEX_CACHE/{command})"),
+             help=("synthesize even if cached (the cache: $RAYFLEX_CACHE/area)" if command == "area"
+                   else "map and time even if cached ($RAYFLEX_CACHE/timing; the generic "
+                        "netlist stays cached: rayflex area --yosys native --no-cache makes it "
+                        "again)")),
         flag("--timeout", type=float, metavar="SECONDS", help="seconds per Yosys or OpenSTA run"),
         _json("write the report as JSON"),
         flag("--markdown", metavar="PATH", help="write the markdown tables"),
@@ -314,8 +317,8 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
         flag("--power-plot", metavar="PATH", help="PNG of that power against frequency"),
         flag("--abc-delays", metavar="LIST",
              help="instead: area and Fmax at each of these required delays (ps, comma-separated), "
-                  "the paper's area-against-clock study; --plot draws area against 1 / the delay "
-                  "clock as a fraction of the best Fmax"),
+                  "the paper's area-against-clock study; --plot draws area against the clock "
+                  "1 / delay as a fraction of the best Fmax"),
         SHARED["progress"],
     )),),
     "suite": ((None, (
