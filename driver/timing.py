@@ -509,7 +509,7 @@ def plot(rep: dict, path) -> None:
         r = rep["configs"][n]
         vals = [r["stages"].get(s, {}).get("min_period_ns", np.nan) for s in stages]
         bars = ax.bar(x + (i - (len(cfgs) - 1) / 2) * width, vals, width,
-                      label=f"{n}: {r['fmax_mhz']:.0f} MHz")
+                      label=f"{n}: {r['fmax_mhz']:.1f} MHz")
         lim = stages.index(r["limiting_stage"]) if r["limiting_stage"] in stages else None
         if lim is not None:
             bars[lim].set_edgecolor("black")

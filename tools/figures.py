@@ -99,7 +99,7 @@ def _power(level, minutes, workloads=True):
 # the q8 decode and TRANSFORM beside the configuration they extend (docs/power.md)
 POWER_Q8_XF = "baseline-unified,baseline-unified-q8,baseline-unified-xf"
 # the configurations rayflex timing has timed for docs/timing.md, and the area study's required delays (ps)
-TIMED = "baseline-unified"
+TIMED = "baseline-unified,baseline-disjoint"
 ABC_DELAYS = "2000,5000,10000,14000,20000,30000,50000"
 
 
