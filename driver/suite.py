@@ -44,6 +44,7 @@ from .core.progress import bar as progress_bar
 from .core.progress import phase
 from .core.provenance import git_commit, provenance, rayflex_version
 from .core.words import plural
+from .design import clock_figures
 from .lumibench_shaders import WORKLOADS
 from .scenes import lumibench as lb
 from .sweep import _box_op, energy_key, energy_per_ray, energy_tables
@@ -208,6 +209,7 @@ def execute(run: Run, point, backend: str = "rtl", root=None, ideal: bool = Fals
     doc = {"provenance": provenance(point), "run": asdict(run), "key": key(run, point, backend),
            "scene": scene.name, "width": point.size, "height": point.size,
            **({"lumibench": info} if info else {}), **stats,
+           "clock": clock_figures(point, stats),
            "timing": _timing(stats, t_load, time.perf_counter() - t0, scene)}
     buf = io.BytesIO()
     Image.fromarray(res.image).save(buf, format="PNG")

@@ -182,3 +182,25 @@ def test_presets_and_overrides():
 def _parse(argv):
     from driver.cli import build_parser
     return build_parser().parse_args(argv)
+
+
+def test_the_clock_given_timed_or_default(monkeypatch):
+    """--clock-mhz, else the configuration's Fmax from the timing cache, else 1 GHz; the frame in
+    real units at that clock."""
+    design._cached_fmax.cache_clear()
+    monkeypatch.setattr(design.timing, "cached_fmax", lambda c: None)
+    p = DesignPoint()
+    assert p.clock() == (1000.0, "default")
+    assert DesignPoint(clock_mhz=250.0).clock() == (250.0, "--clock-mhz")
+    design._cached_fmax.cache_clear()
+    monkeypatch.setattr(design.timing, "cached_fmax",
+                        lambda c: 42.5 if c == "baseline-unified" else None)
+    assert DesignPoint().clock() == (42.5, "timing")
+    assert DesignPoint(config="extended-unified").clock() == (1000.0, "default")
+    stats = {"rays": 100, "wavefront": {"cycles": 850}, "rtunit": {"cycles": 1700}}
+    c = design.clock_figures(DesignPoint(clock_mhz=500.0, rt_units=2), stats)
+    assert c == {"clock_mhz": 500.0, "clock_source": "--clock-mhz", "frame_us": 3.4,
+                 "rays_per_s_per_rt_unit": round(100 / 3.4e-6 / 2)}
+    with pytest.raises(ValueError, match="--clock-mhz must be a clock in MHz"):
+        DesignPoint(clock_mhz=0.0)
+    design._cached_fmax.cache_clear()

@@ -25,7 +25,7 @@ from driver.core import layout, wire
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
-COMMANDS = ("render", "bench", "power", "knn", "sweep", "study")      # rayflex COMMAND --help
+COMMANDS = ("render", "bench", "power", "knn", "sweep", "study", "area", "timing")  # --help
 
 
 def _pages() -> list[Path]:

@@ -98,8 +98,14 @@ EXPECT = {
         ("Yosys cell counts", r"cells"),
         ("of the four configurations", r"extended-disjoint"),
         ("against the paper's area", r"paper")],
+    "What clock does each configuration reach, and which stage sets it?": [
+        ("Fmax, the stage that sets it and the cells on its path",
+         r"\| Fmax \(MHz\) \| least period \(ns\) \| limiting stage \| cells on its path \|"),
+        ("each pipeline stage's least clock period", r"^\| baseline-unified \| [\d.*| ]+\|$"),
+        ("the q8 decode and TRANSFORM", r"baseline-unified-(q8|xf) \| [\d.]+ \|", 2)],
 }
-SLOW = {"What does each ray type cost in energy?", "How big is each configuration?"}
+SLOW = {"What does each ray type cost in energy?", "How big is each configuration?",
+        "What clock does each configuration reach, and which stage sets it?"}
 
 
 def questions() -> dict[str, tuple[str, str]]:

@@ -102,6 +102,9 @@ TRADEOFF_CONFIGS = ("baseline-unified,baseline-unified-fused,extended-unified,"
 
 # the q8 decode and TRANSFORM beside the configuration they extend (docs/power.md)
 POWER_Q8_XF = "baseline-unified,baseline-unified-q8,baseline-unified-xf"
+# the configurations rayflex timing has timed for docs/timing.md, and the area study's required delays (ps)
+TIMED = "baseline-unified,baseline-disjoint"
+ABC_DELAYS = "2000,5000,10000,14000,20000,30000,50000"
 
 
 def _power_q8_xf(level, minutes):
@@ -305,11 +308,11 @@ FIGURES = [
             "docs/lumibench_load_1000.json", "--no-progress"),
            ("docs/lumibench_load_1000.json",), 2.0,
            "a LumiBench-format folder of 1,000 OBJ files, 3 M triangles: load and build"),
-    Figure("area", (sys.executable, "-m", "driver.area", "--jobs", "2", "--json",
-                    "docs/area.json"),
+    Figure("area", (sys.executable, "-m", "driver.area", "--yosys", "wheel", "--jobs", "2",
+                    "--json", "docs/area.json"),
            ("docs/area.json",), 60.0, "Yosys cell counts of the four configurations"),
-    Figure("area_q8_xf", (sys.executable, "-m", "driver.area", "--configs", POWER_Q8_XF,
-                          "--jobs", "2", "--json", "docs/area_q8_xf.json"),
+    Figure("area_q8_xf", (sys.executable, "-m", "driver.area", "--yosys", "wheel", "--configs",
+                          POWER_Q8_XF, "--jobs", "2", "--json", "docs/area_q8_xf.json"),
            ("docs/area_q8_xf.json",), 45.0,
            "Yosys cell counts of the q8 decode and TRANSFORM beside baseline-unified"),
     Figure("tradeoffs_power_signals",
@@ -324,6 +327,19 @@ FIGURES = [
            ("docs/tradeoffs_fused_lumibench.json",), 7.0,
            "the hits the FUSED datapath changes on every ray of the LumiBench runs, adjudicated "
            "(docs/tradeoffs.md)"),
+    Figure("timing",
+           (*RAYFLEX, "timing", "--configs", TIMED, "--jobs", "2", "--json", "docs/timing.json",
+            "--plot", "images/timing_stages.png", "--power-json", "docs/power_liberty.json",
+            "--power-plot", "images/timing_power.png", "--no-progress"),
+           ("docs/timing.json", "images/timing_stages.png", "images/timing_power.png"), 120.0,
+           "Fmax and each pipeline stage's least period (OSU 0.18 um, OpenSTA); power against "
+           "the clock"),
+    Figure("timing_sweep_fp_add",
+           (*RAYFLEX, "timing", "--top", "rf_fp_add", "--abc-delays", ABC_DELAYS,
+            "--json", "docs/timing_sweep_fp_add.json", "--plot",
+            "images/timing_sweep_fp_add.png", "--no-progress"),
+           ("docs/timing_sweep_fp_add.json", "images/timing_sweep_fp_add.png"), 1.0,
+           "the FP adder's area and Fmax against ABC's required delay"),
 ]
 BY_NAME = {f.name: f for f in FIGURES}
 LIGHT_MINUTES = 1.5        # --light: the figures at most this long
@@ -436,6 +452,10 @@ README_NUMBERS = {
     "power_transform_vs_box": ("docs/power_q8_xf_gates.json",
                                "ratios.transform_op.baseline-unified-xf.transform_vs_box",
                                "{:+.1%}"),
+    "timing_fmax": ("docs/timing.json", "configs.baseline-unified.fmax_mhz", "{:.1f}"),
+    "timing_period": ("docs/timing.json", "configs.baseline-unified.min_period_ns", "{:.2f}"),
+    "timing_s8": ("docs/timing.json", "configs.baseline-unified.stages.S8.min_period_ns",
+                  "{:.2f}"),
     "paper_power_ext_box": ("docs/power_gates.json", "paper.extended_vs_baseline.box", "{:+.0%}"),
     "paper_power_ext_tri": ("docs/power_gates.json", "paper.extended_vs_baseline.triangle",
                             "{:+.0%}"),

@@ -33,6 +33,8 @@ COMMANDS = {
     "sweep": "driver.cli.sweep",
     "suite": "driver.cli.suite",
     "power": "driver.cli.power",
+    "area": "driver.cli.area",
+    "timing": "driver.cli.timing",
     "study": "driver.cli.study",
 }
 
@@ -51,7 +53,7 @@ EXIT_CODES = {
 
 ENVIRONMENT = {
     "RAYFLEX_CACHE": "the tool's cache (default ~/.cache/rayflex): Verilator models in "
-                     "verilator/, synthesized netlists in area/ and power/, LumiBench scenes "
+                     "verilator/, synthesized netlists in area/, timing/ and power/, LumiBench scenes "
                      "in scenes/",
     "RAYFLEX_PGO": "0: build RTL models in one pass, without profile-guided optimisation",
     "RAYFLEX_THREADS": "threads (each its own model) the rtl backend streams a big traversal "

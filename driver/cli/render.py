@@ -16,6 +16,7 @@ from ..core import outputs
 from ..core.outputs import IMAGE, JSON, Outputs
 from ..core.progress import phase
 from ..core.provenance import provenance
+from ..design import clock_figures
 from ..scenes.camera import check_size
 from . import options
 from .common import (EXIT_CHECK, PROG, check_backend, check_flag_size, check_positive,
@@ -86,7 +87,8 @@ def run(args) -> int:
         res.save_heatmap(outs.temp(hm))
         if js:
             outputs.write_json({"provenance": provenance(point), "scene": scene.name,
-                                "width": w, "height": h, **scene_info(scene), **res.stats},
+                                "width": w, "height": h, **scene_info(scene), **res.stats,
+                                "clock": clock_figures(point, res.stats)},
                                outs.temp(js))
         if dump:
             dump.write(scene, w, h, point.workload, point.workload_options(), res.stats.get("tile"),

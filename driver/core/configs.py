@@ -62,3 +62,13 @@ def parse_config(name: str) -> dict[str, int] | None:
     if base not in CONFIGS or (shared and not CONFIGS[base][0]):
         return None
     return build_params(*CONFIGS[base], compressed, transform, fused, shared)
+
+
+def config_name(params: dict[str, int]) -> str:
+    """The configuration name of build parameters (``build_params``): ``parse_config``'s
+    inverse (``LATENCY`` and other keys are ignored)."""
+    base = next(n for n, (e, d) in CONFIGS.items()
+                if (e, d) == (params.get("EXTENDED", 0), params.get("DISJOINT", 0)))
+    suffixes = ((Q8_SUFFIX, "COMPRESSED"), (XF_SUFFIX, "TRANSFORM"), (SHARED_SUFFIX, "SHARED"),
+                (FUSED_SUFFIX, "FUSED"))
+    return base + "".join(s for s, key in suffixes if params.get(key))

@@ -74,8 +74,10 @@ JSON = "json"
 TABLE = "table"           # kNN neighbours: .json or .csv
 PNG = "png"               # plots matplotlib writes as PNG
 NPZ, VCD, HEX, TEXT = "npz", "vcd", "hex", "text"       # request-stream export (driver.export)
+MARKDOWN = "markdown"      # tables (rayflex area, timing)
 _KIND_EXT = {JSON: (".json",), TABLE: (".json", ".csv"), PNG: (".png",), NPZ: (".npz",),
-             VCD: (".vcd",), HEX: (".hex",), TEXT: (".txt",)}
+             VCD: (".vcd",), HEX: (".hex",), TEXT: (".txt",),
+             MARKDOWN: (".md",)}
 
 
 def extensions(kind: str) -> tuple[str, ...]:

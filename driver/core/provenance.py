@@ -19,9 +19,13 @@ def provenance(point=None) -> dict:
     """The ``provenance`` object of every JSON the commands write: the rayflex version, the git
     commit of the source tree when it is a git checkout (None for an installed wheel), the whole
     design point (``driver.design.DesignPoint``; None when there is none) and the machine."""
+    dp = None
+    if point is not None:
+        dp = point.as_dict()
+        if hasattr(point, "clock"):          # the clock as resolved, and where it came from
+            dp["clock_mhz"], dp["clock_source"] = point.clock()
     return {"rayflex_version": rayflex_version(), "git_commit": git_commit(),
-            "design_point": point.as_dict() if point is not None else None,
-            "machine": machine()}
+            "design_point": dp, "machine": machine()}
 
 
 def rayflex_version() -> str | None:
