@@ -9,6 +9,7 @@ RT-unit timing replay (``driver.rtunit``).
 from __future__ import annotations
 
 import inspect
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -22,7 +23,7 @@ from .core.wire import FLAG_NO_CULL
 from .instances import DATAPATH, Instances, check_transform
 from .tracing.stepper import InstanceStepper
 from .tracing.issue import issuer
-from .stats import frame_stats, with_replay
+from .stats import frame_stats, unit_rtl_stats, with_replay
 from .traversal import traverse
 
 REPLAY_OPTIONS = inspect.signature(rtunit.replay)     # what ``trace(**rtunit_options)`` passes on
@@ -155,6 +156,9 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend=DEFAULT_BACKEND, ex
                          f"operation (backend({be_name!r}, transform=True))")
     rays = prepare_rays(origins, directions, extent,
                         **({"flags": FLAG_NO_CULL} if double_sided else {}))
+    if hasattr(be, "trace_unit"):
+        return _trace_unit(be, be_name, bvh, rays, any_hit, progress, cull_stack,
+                           record or bool(replay))
     timed = "rays_in_flight" in replay
     issue = issuer(be, rays, bvh, be_name, record=bool(record) or timed)
     cycles0 = int(be.cycles)
@@ -179,6 +183,28 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend=DEFAULT_BACKEND, ex
     return TraceResult(t, trav.prim, hit, trav.box_ops, trav.tri_ops, trav.step_requests,
                        trav.step_box_requests, stats, rec, instance,
                        None if inst is None else inst.transform_ops)
+
+
+def _trace_unit(be, be_name: str, bvh, rays, any_hit, progress, cull_stack,
+                replay) -> TraceResult:
+    """The whole batch through an RT unit in RTL (``driver.backends.rtunit``): the unit runs the
+    traversal itself; the statistics gain ``unit_rtl`` (docs/statistics.md)."""
+    if cull_stack:
+        raise ValueError("the RT unit in RTL has no culling stack yet: drop --cull-stack or use "
+                         "--backend rtl")
+    if replay:
+        raise ValueError("the RT unit in RTL times the frame itself: the RT-unit replay "
+                         "(--rtunit, rays_in_flight=, record=) replays the Python traversal's "
+                         "requests: use --backend rtl for it")
+    t0 = time.perf_counter()
+    res = be.trace_unit(bvh, rays, any_hit=any_hit, progress=progress)
+    wall = time.perf_counter() - t0
+    t = np.where(res.hit, res.t, np.float32(np.inf)).astype(np.float32)
+    stats = frame_stats(res.box_ops, res.tri_ops, res.hit, res.stats["cycles"],
+                        int(be.latency), wall, be_name)
+    stats["unit_rtl"] = unit_rtl_stats(res, be)
+    steps = np.zeros(0, np.int64)
+    return TraceResult(t, res.prim, res.hit, res.box_ops, res.tri_ops, steps, steps, stats)
 
 
 def _replay_params(be) -> dict:

@@ -10,6 +10,8 @@ from __future__ import annotations
 import sys
 
 from ..backends import resolve as resolve_backend
+from ..backends.rtunit import UNIT_BACKEND
+from ..design import unit_flags
 from ..check import failed
 from ..check import summary as check_summary
 from ..core import outputs
@@ -41,7 +43,13 @@ def run(args) -> int:
         raise ValueError("give either --size or --width/--height, not both")
     for flag in ("width", "height"):
         check_flag_size(f"--{flag}", getattr(args, flag))
+    unit_flags(args, args.backend)
     rt = options.given(args, ("rtunit",))
+    if args.backend == UNIT_BACKEND:
+        rt = []                 # the RT unit in RTL reads them (unit_flags refused the others)
+    if args.backend == UNIT_BACKEND and args.rtunit:
+        raise ValueError(f"--rtunit replays the Python traversal's requests: --backend "
+                         f"{UNIT_BACKEND} times the frame itself (unit_rtl in the JSON)")
     if rt and not args.rtunit:
         raise ValueError(f"{rt[0]} sets the RT unit, which render models with --rtunit only")
     if args.ideal_replay and not args.rtunit:
@@ -67,7 +75,7 @@ def run(args) -> int:
     # a backend that cannot be built fails first (tiles on workers and threads make their own
     # from its name)
     if not distributed:
-        resolve_backend(args.backend, **point.backend_options())
+        resolve_backend(args.backend, **point.backend_options(args.backend))
     backend = args.backend
     with phase(f"loading {name}", not args.no_progress):
         scene = with_camera(load_scene(source, args.up_axis), **view)
