@@ -218,13 +218,14 @@ class _Candidate:
                           & (self.t < ext - self.tol))
 
 
-def adjudicate(triangles, origins, dirs, extent, our_t, our_prim, emb_t, emb_prim,
-               any_hit: bool, double_sided: bool, scale: float, rays=None,
-               emb_occluded=None) -> Verdicts:
-    """The verdict on every ray of a batch (module docstring). ``rays``: the rays to decide
-    (default: every ray where the answers differ; the rest agree). Any-hit rays:
-    ``emb_occluded`` is Embree's occlusion answer and ``emb_prim``/``emb_t`` its closest valid
-    hit within the extent (for the rays it occludes; -1 elsewhere)."""
+def adjudicate(triangles, origins, dirs, extent, ours, embree, any_hit: bool,
+               double_sided: bool, scale: float, rays=None, emb_occluded=None) -> Verdicts:
+    """The verdict on every ray of a batch (module docstring). ``ours`` and ``embree``: each
+    side's answers, a pair of arrays (t, prim). ``rays``: the rays to decide (default: every ray
+    where the answers differ; the rest agree). Any-hit rays: ``emb_occluded`` is Embree's
+    occlusion answer and ``embree`` its closest valid hit within the extent (for the rays it
+    occludes; prim -1 elsewhere)."""
+    (our_t, our_prim), (emb_t, emb_prim) = ours, embree
     o = np.asarray(origins, np.float64).reshape(-1, 3)
     d = np.asarray(dirs, np.float64).reshape(-1, 3)
     n = len(o)

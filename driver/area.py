@@ -18,6 +18,7 @@ sources, the script and the Yosys version, so a second run is instant.
     python -m driver.area --configs baseline-unified,baseline-unified-q8   # with the q8 decode
     python -m driver.area --json area.json --markdown area.md --jobs 2
     python -m driver.area --top rf_fp_add      # one module (no parameters)
+    python -m driver.area --top rf_fp_div      # the divider (its own source list)
     python -m driver.area --check-frontends    # can read_verilog -sv / read_slang read the RTL?
 """
 
@@ -88,17 +89,26 @@ class AreaError(RuntimeError):
 # ------------------------------------------------------------------------------------------------
 # sources and tools
 
-def rtl_files() -> list[Path]:
-    """The RTL files in compile order (the same list the Verilator build uses)."""
-    return [RTL_DIR / f for f in source_names()]
+def rtl_files(list_file: Path | None = None) -> list[Path]:
+    """The RTL files in compile order (the same list the Verilator build uses; ``list_file``:
+    another source list, e.g. the divider's)."""
+    return [RTL_DIR / f for f in (source_names(list_file) if list_file else source_names())]
 
 
-def snapshot(rev: str | None = None) -> list[tuple[str, bytes]]:
+def source_list_for(top: str) -> Path:
+    """The source list a module is synthesized from: the divider's (``rtl/fp_div_sources.txt``)
+    for the divider's modules, the datapath's for every other."""
+    div_list = rtl_build.DIV_SOURCE_LIST
+    return div_list if f"{top}.sv" in source_names(div_list) else rtl_build.SOURCE_LIST
+
+
+def snapshot(rev: str | None = None, list_file: Path | None = None) -> list[tuple[str, bytes]]:
     """(file name, contents) of the RTL in compile order, read once: from the working tree, or
-    with ``rev`` from that git revision (so that concurrent RTL edits cannot mix versions)."""
+    with ``rev`` from that git revision (so that concurrent RTL edits cannot mix versions).
+    ``list_file``: another source list than the datapath's (``source_list_for``)."""
     if rev is None:
         out = []
-        for f in rtl_files():
+        for f in rtl_files(list_file):
             if not f.is_file():
                 raise AreaError(f"RTL source {f} not found")
             out.append((f.name, f.read_bytes()))
@@ -114,7 +124,7 @@ def snapshot(rev: str | None = None) -> list[tuple[str, bytes]]:
     # the revision's own source list: files come and go between revisions, and so did the RTL's
     # folder (``OLD_RTL_DIRS``): the first folder whose source list the revision has
     here = RTL_DIR.relative_to(ROOT).as_posix()
-    listed = rtl_build.SOURCE_LIST.relative_to(RTL_DIR).as_posix()
+    listed = (list_file or rtl_build.SOURCE_LIST).relative_to(RTL_DIR).as_posix()
     first = None
     for folder in (here, *(d for d in OLD_RTL_DIRS if d != here)):
         try:
@@ -404,7 +414,8 @@ def main(argv=None) -> int:
                    help="comma-separated subset of: "
                         f"{', '.join(ALL_CONFIGS + XF_CONFIGS)} (default: "
                         f"{', '.join(CONFIGS)})")
-    p.add_argument("--top", help="synthesize only this module (no parameters), e.g. rf_fp_add")
+    p.add_argument("--top", help="synthesize only this module (default parameters), e.g. "
+                                 "rf_fp_add or rf_fp_div")
     p.add_argument("--jobs", type=int, default=1, help="configurations in parallel (default 1)")
     p.add_argument("--json", metavar="PATH", help="write the report as JSON")
     p.add_argument("--markdown", metavar="PATH", help="write the markdown table")
@@ -423,7 +434,7 @@ def main(argv=None) -> int:
                 print(f"{fe}: {status}")
             return 0
         if args.top:
-            src = snapshot(args.rev)
+            src = snapshot(args.rev, source_list_for(args.top))
             r = synthesize(top=args.top, cache=not args.no_cache, timeout=args.timeout,
                            sources=src)
             rep = {"yosys": r["yosys"],

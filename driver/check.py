@@ -152,7 +152,7 @@ def check(triangles, origins, dirs, our_t, our_prim, double_sided: bool = False)
     result = compare(our_t, our_prim, emb_t, emb_prim, triangles, origins, dirs)
     result.update(embree_t=emb_t, embree_prim=emb_prim)
     result["adjudicated"] = _adjudicated(adjudicate(
-        triangles, origins, dirs, np.inf, our_t, our_prim, emb_t, emb_prim, False,
+        triangles, origins, dirs, np.inf, (our_t, our_prim), (emb_t, emb_prim), False,
         double_sided, _scale(triangles, origins)))
     return result
 
@@ -306,7 +306,7 @@ def check_rays(triangles, origins, dirs, extent, our_t, our_prim, any_hit: bool,
         out = emb_t >= ext
         emb_t, emb_prim = np.where(out, np.inf, emb_t), np.where(out, -1, emb_prim)
         result = compare(our_t, prim, emb_t, emb_prim, tri, origins, dirs)
-        verdicts = adjudicate(tri, origins, dirs, ext, our_t, prim, emb_t, emb_prim, False,
+        verdicts = adjudicate(tri, origins, dirs, ext, (our_t, prim), (emb_t, emb_prim), False,
                               double_sided, scale)
     else:
         theirs = embree_occluded(tri, origins, dirs, ext, double_sided)
@@ -329,7 +329,7 @@ def check_rays(triangles, origins, dirs, extent, our_t, our_prim, any_hit: bool,
                                     double_sided)
             inside = et < ext[only]
             emb_t[only[inside]], emb_prim[only[inside]] = et[inside], ep[inside]
-        verdicts = adjudicate(tri, origins, dirs, ext, our_t, prim, emb_t, emb_prim, True,
+        verdicts = adjudicate(tri, origins, dirs, ext, (our_t, prim), (emb_t, emb_prim), True,
                               double_sided, scale,
                               rays=np.union1d(np.flatnonzero(ours != theirs), bad),
                               emb_occluded=theirs)

@@ -208,9 +208,12 @@ def decode_hex(line: str, wire: Wire = REQUEST) -> np.ndarray:
     return wire.unpack(words.reshape(1, -1))
 
 
-def hex_format() -> str:
+def hex_format(npz: str | None = None) -> str:
     """The text of ``format.txt``: the line format and every field's bits, from the wire table
-    (``driver.core.wire``)."""
+    (``driver.core.wire``); ``npz``: the NPZ of the same stream (``--dump-requests``), as the
+    folder of ``format.txt`` reaches it, or None when none is written with it."""
+    where = (f"{npz} (--dump-requests) holds the ray and pixel of each." if npz else
+             "the ray and pixel of each are in the NPZ of --dump-requests PATH.npz.")
     out = [f"RayFlex request stream, format {FORMAT_VERSION}",
            "",
            "requests.hex / responses.hex: one request (response) per line, in issue order; the",
@@ -218,7 +221,7 @@ def hex_format() -> str:
            "bit b of the number is bit b of the struct (32-bit word w = bits 32w+31..32w).",
            "Read with $readmemh into  logic [WIDTH-1:0] mem [0:N-1]  (WIDTH below).",
            "f32 fields are IEEE binary32; array element j of a field starts at lsb + j * width.",
-           "Line i of both files belongs together; requests.npz holds the ray and pixel of each."]
+           "Line i of both files belongs together; " + where]
     for wire in (REQUEST, RESPONSE):
         out += ["", f"{wire.sv_type}: {wire.words} words, WIDTH = {32 * wire.words} bits, "
                     f"{8 * wire.words} hex digits",
@@ -232,10 +235,10 @@ def hex_format() -> str:
 
 class HexSink:
     """Writes ``requests.hex``, ``responses.hex`` and ``format.txt`` (paths given) as the frame
-    runs."""
+    runs; ``npz``: the NPZ written with them (``hex_format``)."""
 
-    def __init__(self, requests, responses, fmt):
-        Path(fmt).write_text(hex_format())
+    def __init__(self, requests, responses, fmt, npz: str | None = None):
+        Path(fmt).write_text(hex_format(npz))
         self.req = open(requests, "wb")
         self.rsp = open(responses, "wb")
 

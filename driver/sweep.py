@@ -49,6 +49,7 @@ from .core.progress import phase
 from .rtunit.gpu import replay_point, waves_of
 from .stats import merge, public
 from .core.provenance import git_commit, provenance, rayflex_version
+from .core.words import cell
 from .power.report import UNITS
 from .power.stimulus import box_op
 from .tiles import _client
@@ -465,7 +466,6 @@ def table(doc: dict) -> str:
     frame; with free node fetches when replayed, ``--ideal-replay``), mean latency, bytes from
     DRAM per ray, the datapath's energy and the node fetches' energy per ray."""
     keys = list(doc["grid"])
-    nan = float("nan")
     head = " ".join(f"{k:>18}" for k in keys) + \
         f" {'type':>8} {'rays':>6} {'ops/ray':>7} {'util':>6} {'ideal':>6} {'latency':>8} " \
         f"{'B/ray':>6} {'E/ray':>9} {'mem pJ/ray':>10}"
@@ -474,17 +474,17 @@ def table(doc: dict) -> str:
         cells = " ".join(f"{str(e['design_point'][k]):>18}" for k in keys)
         for kind, t in [*e["by_type"].items(), ("all", e)]:
             m = t["rtunit_memory"] or {}
-            util, ideal = m.get("utilization"), (t["rtunit"] or {}).get("utilization")
-            energy, mem = t["energy_per_ray"]["signals"], t["energy_per_ray"]["memory_pj"]
+            energy = t["energy_per_ray"]
             out.append(f"{cells} {kind:>8} {t['rays']:>6} {t['ops'] / max(t['rays'], 1):>7.2f} "
-                       f"{nan if util is None else util:>6.3f} "
-                       f"{nan if ideal is None else ideal:>6.3f} "
-                       f"{m.get('latency_mean', nan):>8.0f} {m.get('bytes_per_ray', nan):>6.0f} "
-                       f"{nan if energy is None else energy:>9.0f} "
-                       f"{nan if mem is None else mem:>10.0f}")
+                       f"{cell(m.get('utilization'), '.3f'):>6} "
+                       f"{cell((t['rtunit'] or {}).get('utilization'), '.3f'):>6} "
+                       f"{cell(m.get('latency_mean'), '.0f'):>8} "
+                       f"{cell(m.get('bytes_per_ray'), '.0f'):>6} "
+                       f"{cell(energy['signals'], '.0f'):>9} "
+                       f"{cell(energy['memory_pj'], '.0f'):>10}")
     out.append("(per ray type, then all rays of the point; util / ideal: utilization with the "
                "memory hierarchy / with free node fetches (--ideal-replay), a ray type's only "
-               "in a wavefront frame; latency: mean cycles from the trace call to the ray's "
-               "last response; B/ray: bytes from DRAM per ray; E/ray: datapath energy per ray "
+               "in a wavefront frame; -: none; latency: mean cycles from the trace call to the "
+               "ray's last response; B/ray: bytes from DRAM per ray; E/ray: datapath energy per ray "
                "in bit toggles; mem pJ/ray: node fetches, docs/rtunit.md; docs/statistics.md)")
     return "\n".join(out)

@@ -16,7 +16,7 @@ import numpy as np
 
 from . import rtunit
 from .backends import DEFAULT_BACKEND, resolve
-from .backends.build import MIN_LATENCY, rtl_params
+from .backends.build import backend_params
 from .bvh4 import BVH4, build, build_two_level
 from .core.datapath import prepare_rays
 from .core.wire import FLAG_NO_CULL
@@ -138,22 +138,9 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend=DEFAULT_BACKEND, ex
     record = bool(rtunit_options.pop("record", False))
     REPLAY_OPTIONS.bind(None, **rtunit_options)   # an unknown option fails here (TypeError)
     replay = {k: v for k, v in rtunit_options.items() if v is not None}
-    if transform is not None:
-        check_transform(transform)
-    if isinstance(scene_or_mesh_or_bvh, (str, bytes)) or hasattr(scene_or_mesh_or_bvh,
-                                                                 "__fspath__"):
-        from .scenes.scene import load_scene                      # the application layer; lazy
-        scene_or_mesh_or_bvh = load_scene(scene_or_mesh_or_bvh)
-    if double_sided is None:
-        double_sided = bool(getattr(scene_or_mesh_or_bvh, "double_sided", False))
-    bvh = as_bvh(scene_or_mesh_or_bvh, bvh_format)
+    bvh, double_sided, where, be, be_name = _set_up(scene_or_mesh_or_bvh, backend, double_sided,
+                                                    bvh_format, transform)
     instanced = getattr(bvh, "instances", None) is not None
-    where = transform or getattr(bvh, "transform", "driver")
-    xf = instanced and where == DATAPATH
-    be, be_name = resolve(backend, **({"transform": True} if xf else {}))
-    if xf and not getattr(be, "transform", False):
-        raise ValueError(f"transform='{DATAPATH}' needs a backend built with the TRANSFORM "
-                         f"operation (backend({be_name!r}, transform=True))")
     rays = prepare_rays(origins, directions, extent,
                         **({"flags": FLAG_NO_CULL} if double_sided else {}))
     if hasattr(be, "trace_unit"):
@@ -177,7 +164,7 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend=DEFAULT_BACKEND, ex
                         trav.culled if cull_stack else None, trav.node_bytes,
                         None if inst is None else inst.instance_ops,
                         None if inst is None else inst.transform_ops)
-    rec = issue.record(_replay_params(be)) if hasattr(issue, "record") else None
+    rec = issue.record(backend_params(be)) if hasattr(issue, "record") else None
     if timed:
         stats = with_replay(stats, rtunit.replay(rec, **replay).stats())
     return TraceResult(t, trav.prim, hit, trav.box_ops, trav.tri_ops, trav.step_requests,
@@ -207,15 +194,23 @@ def _trace_unit(be, be_name: str, bvh, rays, any_hit, progress, cull_stack,
     return TraceResult(t, res.prim, res.hit, res.box_ops, res.tri_ops, steps, steps, stats)
 
 
-def _replay_params(be) -> dict:
-    """RTL build parameters for replaying this backend's requests (an RTL backend's own, else
-    the defaults with the backend's extended/disjoint/latency/compressed/transform where it has
-    them)."""
-    params = getattr(be, "params", None)
-    if isinstance(params, dict) and {"EXTENDED", "DISJOINT", "LATENCY"} <= set(params):
-        return dict(params)
-    lat = getattr(be, "latency", MIN_LATENCY)
-    compressed = bool(getattr(be, "compressed", False))
-    return rtl_params(getattr(be, "extended", False), getattr(be, "disjoint", False),
-                      lat if isinstance(lat, int) and lat >= MIN_LATENCY + compressed else None,
-                      compressed, bool(getattr(be, "transform", False)))
+def _set_up(scene_or_mesh_or_bvh, backend, double_sided, bvh_format, transform):
+    """``trace``'s BVH and backend: (bvh, double_sided, where the transform runs, backend, its
+    name); a ValueError for a transform on a backend built without it."""
+    if transform is not None:
+        check_transform(transform)
+    if isinstance(scene_or_mesh_or_bvh, (str, bytes)) or hasattr(scene_or_mesh_or_bvh,
+                                                                 "__fspath__"):
+        from .scenes.scene import load_scene                      # the application layer; lazy
+        scene_or_mesh_or_bvh = load_scene(scene_or_mesh_or_bvh)
+    if double_sided is None:
+        double_sided = bool(getattr(scene_or_mesh_or_bvh, "double_sided", False))
+    bvh = as_bvh(scene_or_mesh_or_bvh, bvh_format)
+    where = transform or getattr(bvh, "transform", "driver")
+    xf = getattr(bvh, "instances", None) is not None and where == DATAPATH
+    be, be_name = resolve(backend, **({"transform": True} if xf else {}))
+    if xf and not backend_params(be)["TRANSFORM"]:
+        raise ValueError(f"transform='{DATAPATH}' needs a backend built with the TRANSFORM "
+                         f"operation (backend({be_name!r}, transform=True))")
+    return bvh, double_sided, where, be, be_name
+

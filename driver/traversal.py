@@ -160,16 +160,7 @@ def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
         ray_b = active[bi]
         box_ops[ray_b] += 1
         children = image[base[bi, None] + _CHILD_WORD[typ[bi], None] + _LANES]
-        hit = rsp.box_hit[:, ::-1]
-        child = np.take_along_axis(children, rsp.box_index.astype(np.intp), 1)[:, ::-1]
-        if (child[hit] == NO_CHILD).any():
-            raise RuntimeError("the datapath reported a hit on an unused box slot")
-        col = sp[ray_b][:, None] + np.cumsum(hit, axis=1) - 1
-        r, c = np.nonzero(hit)
-        stack[ray_b[r], col[r, c]] = child[r, c]
-        if cull:
-            dist[ray_b[r], col[r, c]] = rsp.box_tmin[:, ::-1][r, c]
-        sp[ray_b] += hit.sum(axis=1)
+        _push_hit_children(ray_b, children, rsp, stack, dist, sp)
 
         # triangle nodes: keep a strictly nearer hit; an any-hit ray is done at its first one
         ray_t = active[ti]
@@ -184,23 +175,44 @@ def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
             instances.hit(ray_t[better])
         if any_hit:
             sp[ray_t[better]] = 0
-        # the rest of a leaf is the ray's next request (unless the ray is done): its next
-        # triangle, named by a LEAF_NEXT_TYPE pointer
-        leaf = ti[typ[ti] != TRI_TYPE]
-        if any_hit:
-            leaf = leaf[~better[np.searchsorted(ti, leaf)]]
-        k = leaf_request(ptr[leaf])[1] + 1
-        more = k < leaf_count(image, ptr[leaf])
-        leaf, k = leaf[more], k[more]
-        ray_l = active[leaf]
-        stack[ray_l, sp[ray_l]] = leaf_next(ptr[leaf], k)
-        sp[ray_l] += 1
+        _push_rest_of_leaf(active, ti, typ, ptr, better if any_hit else None, image, stack, sp)
 
         active = active[sp[active] > 0]
         if progress is not None:
             progress(n - len(active), n)
     return Traversal(nearest, prim, box_ops, tri_ops, np.array(steps, np.int64),
                      np.array(steps_box, np.int64), culled, node_bytes)
+
+
+def _push_hit_children(ray_b, children, rsp, stack, dist, sp) -> None:
+    """Push the hit children of the box nodes of rays ``ray_b`` (their four child pointers
+    ``children``, the box responses ``rsp``), farthest first, so that the nearest is popped
+    next; with culling (``dist`` not None) also their entry distances."""
+    hit = rsp.box_hit[:, ::-1]
+    child = np.take_along_axis(children, rsp.box_index.astype(np.intp), 1)[:, ::-1]
+    if (child[hit] == NO_CHILD).any():
+        raise RuntimeError("the datapath reported a hit on an unused box slot")
+    col = sp[ray_b][:, None] + np.cumsum(hit, axis=1) - 1
+    r, c = np.nonzero(hit)
+    stack[ray_b[r], col[r, c]] = child[r, c]
+    if dist is not None:
+        dist[ray_b[r], col[r, c]] = rsp.box_tmin[:, ::-1][r, c]
+    sp[ray_b] += hit.sum(axis=1)
+
+
+def _push_rest_of_leaf(active, ti, typ, ptr, done, image, stack, sp) -> None:
+    """The rest of a leaf is the ray's next request: its next triangle, named by a
+    LEAF_NEXT_TYPE pointer, pushed for the triangle-node requests ``ti`` of the step (``done``:
+    an any-hit step's accepted hits, whose rays end here; None for closest-hit)."""
+    leaf = ti[typ[ti] != TRI_TYPE]
+    if done is not None:
+        leaf = leaf[~done[np.searchsorted(ti, leaf)]]
+    k = leaf_request(ptr[leaf])[1] + 1
+    more = k < leaf_count(image, ptr[leaf])
+    leaf, k = leaf[more], k[more]
+    ray_l = active[leaf]
+    stack[ray_l, sp[ray_l]] = leaf_next(ptr[leaf], k)
+    sp[ray_l] += 1
 
 
 def _cull(active, stack, dist, sp, nearest, culled) -> np.ndarray:

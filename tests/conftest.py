@@ -3,14 +3,134 @@ scalar reference, meshes, the FP-unit model) are the package ``tests/support``, 
 ``support`` because pyproject.toml's pytest settings put tests/ on the path (``pythonpath``)."""
 
 import os
+from pathlib import Path
 
 import pytest
+
+from driver.core.configs import CONFIGS as CONFIG_NAMES, Q8_SUFFIX, XF_SUFFIX
 
 # The suite builds the RTL harness without profile-guided optimisation: a PGO build compiles the
 # model twice and runs a training workload, which for five configurations would double the suite's
 # cold-cache time. The default (PGO) build is what `rayflex` uses; tests/test_pgo.py builds and
 # checks it explicitly, and every PGO build checks its own final library against golden.
 os.environ.setdefault("RAYFLEX_PGO", "0")
+
+# The parts of the suite a contributor runs on their own (`pytest -m rtl`, `-m "bvh or rtunit"`),
+# beside `slow`: each marker is given to whole test modules, from this one table. The markers are
+# declared (with what they mean) in pyproject.toml; tests/test_code_shape.py checks that every name
+# here is a test module and every marker a declared one.
+MODULE_MARKERS = {
+    "rtl": ("test_rtl", "test_rtl_extended", "test_rtl_lint", "test_fp_units", "test_q8_decode_unit",
+            "test_q8_datapath", "test_no_cull", "test_transform", "test_pgo", "test_faults",
+            "test_layout", "test_knn", "test_export", "test_replay_timing"),
+    "golden": ("test_golden", "test_golden_directed", "test_extended_golden", "test_prepare_rays"),
+    "bvh": ("test_bvh4", "test_q8_image", "test_geometry_corpus", "test_instances",
+            "test_traversal"),
+    "rtunit": ("test_rtunit", "test_gpu", "test_gpu_pin", "test_memory", "test_rayorder",
+               "test_replay_timing"),
+    "timing": ("test_area", "test_power", "test_power_ops"),
+    "docs": ("test_docs", "test_statistics_doc", "test_readme_questions", "test_api",
+             "test_layers", "test_code_shape"),
+    "cli": ("test_cli", "test_first_run", "test_camera_options", "test_bench", "test_sweep",
+            "test_suite", "test_design"),
+}
+
+
+# The harness builds ("rtl" backend) each test module needs, by configuration name
+# (driver/core/configs.py; "@N": latency N): the suite builds those of the collected tests before
+# the first test, on every core, each without profile guidance (RAYFLEX_PGO=0 above). A build
+# missing here is made by the first test that needs it; one listed but not needed costs its time.
+_B = "baseline-unified"
+RTL_BUILDS = {
+    "test_rtl": (_B, _B + "@14"),
+    "test_rtl_extended": tuple(CONFIG_NAMES),
+    "test_no_cull": tuple(CONFIG_NAMES),
+    "test_q8_datapath": (_B, *(n + "-q8" for n in CONFIG_NAMES)),
+    "test_transform": (_B, _B + "-xf", "extended-disjoint-q8-xf"),
+    "test_knn": ("extended-unified",),
+    "test_instances": (_B, _B + "-q8", _B + "-xf"),
+    "test_q8_image": (_B, _B + "-q8"),
+    "test_sweep": (_B, "baseline-disjoint"),
+    **{m: (_B,) for m in ("test_rtunit", "test_gpu", "test_gpu_pin", "test_memory",
+                          "test_rayorder", "test_replay_timing", "test_traversal",
+                          "test_workloads", "test_cli", "test_bench", "test_export",
+                          "test_double_sided", "test_tiles", "test_statistics_doc",
+                          "test_readme_questions", "test_api")},
+}
+
+
+def rtl_build_params(name: str) -> dict:
+    """The harness build parameters of a ``RTL_BUILDS`` entry."""
+    from driver.backends.build import rtl_params
+    config, _, latency = name.partition("@")
+    xf, q8 = config.endswith(XF_SUFFIX), config.removesuffix(XF_SUFFIX).endswith(Q8_SUFFIX)
+    extended, disjoint = CONFIG_NAMES[config.removesuffix(XF_SUFFIX).removesuffix(Q8_SUFFIX)]
+    return rtl_params(extended, disjoint, int(latency) if latency else None, q8, xf)
+
+
+_BUILD = ("import json, sys; from driver.backends import build; "
+          "build.build_harness(json.loads(sys.argv[1]))")
+
+
+def pytest_collection_finish(session):
+    """Build the harness configurations the collected tests need (``RTL_BUILDS``), as many at
+    once as there are cores, each in its own process, with a line per build on the terminal."""
+    if session.config.option.collectonly or not session.items:
+        return
+    names = sorted({n for item in session.items
+                    for n in RTL_BUILDS.get(Path(str(item.fspath)).stem, ())})
+    if names:
+        _prebuild(names, session.config.pluginmanager.get_plugin("terminalreporter"))
+
+
+def _prebuild(names: list[str], term) -> None:
+    import json
+    import signal
+    import subprocess
+    import sys
+    import time
+    say = term.write_line if term is not None else (lambda line: None)
+    jobs = max(1, min(len(names), os.cpu_count() or 1))
+    say(f"RTL builds for these tests: {len(names)} configuration(s), {jobs} at a time")
+    waiting, running, done, t0 = list(names), {}, 0, time.monotonic()
+    shown = t0
+    try:
+        while waiting or running:
+            while waiting and len(running) < jobs:
+                name = waiting.pop(0)
+                running[name] = (time.monotonic(), subprocess.Popen(
+                    [sys.executable, "-c", _BUILD, json.dumps(rtl_build_params(name))],
+                    stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                    start_new_session=True))
+            for name, (start, proc) in list(running.items()):
+                if proc.poll() is None:
+                    continue
+                del running[name]
+                done += 1
+                err = proc.stderr.read().strip().splitlines()
+                what = ("built or found" if proc.returncode == 0 else
+                        f"FAILED ({err[-1] if err else proc.returncode}; its tests will say why)")
+                say(f"  [{done}/{len(names)}] {name}: {what} in "
+                    f"{time.monotonic() - start:.0f} s")
+            if running and time.monotonic() - shown >= 30:      # a line every 30 s meanwhile
+                shown = time.monotonic()
+                say(f"  building {', '.join(running)} ({shown - t0:.0f} s so far)")
+            time.sleep(0.2)
+    finally:
+        for _, proc in running.values():              # Ctrl-C: stop the builds still running
+            os.killpg(proc.pid, signal.SIGTERM)
+            proc.wait()
+    say(f"RTL builds ready in {time.monotonic() - t0:.0f} s")
+
+
+def pytest_collection_modifyitems(config, items):
+    by_module = {}
+    for marker, modules in MODULE_MARKERS.items():
+        for module in modules:
+            by_module.setdefault(module, []).append(marker)
+    for item in items:
+        for marker in by_module.get(Path(str(item.fspath)).stem, ()):
+            item.add_marker(marker)
 
 
 @pytest.fixture

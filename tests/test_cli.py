@@ -138,6 +138,24 @@ def test_bad_files_exit_2(error_line, in_tmp):
     assert "fov" in error_line()
 
 
+@pytest.mark.parametrize("text, what", [
+    ("v 0 0 0\nv 1 0 x\nv 0 1 0\nf 1 2 3\n", "2: vertex 2: coordinate 'x' is not a number"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n",
+     "4: face 1: vertex index 7 is beyond the file's 3 vertices"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2\n",
+     "5: face 2 has 2 corners; a face needs at least 3"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1\nf 1 2 3\n",
+     "3: vertex 3 has 2 coordinates; a vertex needs 3 (x y z)"),
+])
+def test_a_broken_obj_file_is_named_by_line_in_obj_terms(error_line, in_tmp, text, what):
+    """A broken mesh answered in numpy's words ("string or file could not be read to its end
+    due to unmatched data", "index 6 is out of bounds for axis 0 with size 3")."""
+    (in_tmp / "m.obj").write_text(text)
+    assert main(["render", "m.obj", "--backend", "golden", "--size", "4"]) == 2
+    assert error_line() == f"rayflex: error: m.obj:{what}"
+    assert not list(in_tmp.glob("*.png"))
+
+
 def test_camera_inside_mesh_is_legal(in_tmp):
     (in_tmp / "in.toml").write_text('mesh = "sphere"\nsize = 6\n[camera]\n'
                                     'position = [0, 0, 0]\nlook_at = [1, 0, 0]\n')

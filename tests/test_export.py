@@ -126,6 +126,11 @@ def test_cli_dump_and_vcd(tmp_path):
     assert len((tmp_path / "hx" / "requests.hex").read_text().splitlines()) == len(d["ray"])
     vcd = (tmp_path / "w.vcd").read_text()
     assert "$enddefinitions" in vcd and "req_i" in vcd and "rsp_o" in vcd
+    # format.txt names the NPZ written with it as it is (it once said requests.npz), from hx/
+    fmt = (tmp_path / "hx" / "format.txt").read_text()
+    assert "../d.npz (--dump-requests) holds the ray and pixel of each." in fmt
+    assert "requests.npz" not in fmt
+    assert "in the NPZ of --dump-requests PATH.npz" in ex.hex_format()
 
 
 @pytest.mark.parametrize("args, words", [

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import json
 import fcntl
 import os
 import shutil
@@ -411,4 +412,80 @@ def test_missing_make_gives_the_install_hint(tmp_path):
     _, err = p.communicate(timeout=120)
     assert p.returncode == EXIT_USAGE
     assert "make not found: install make (Debian: apt-get install make)" in last_line(err)
+    assert not list(work.iterdir())
+
+
+# ---------------------------------------------------------------------------------------------
+# a signal once the outputs are written
+
+_LATE_SIGNAL = textwrap.dedent("""
+    import os, sys
+    import driver.cli.render as render
+    import driver.core.outputs as outputs
+    where, signum = sys.argv[1], int(sys.argv[2])
+    if where == "rename":              # between the renames of the outputs (the first is done)
+        replace = os.replace
+        def replace_then_signal(a, b):
+            replace(a, b)
+            if str(b) == "sphere.png":
+                os.kill(os.getpid(), signum)
+        outputs.os.replace = replace_then_signal
+    else:                              # every output in place, the summary not yet printed
+        wrote = render.wrote
+        def signal_then_wrote(paths):
+            os.kill(os.getpid(), signum)
+            wrote(paths)
+        render.wrote = signal_then_wrote
+    from driver.cli import main
+    sys.exit(main(sys.argv[3:]))
+""")
+
+
+@pytest.mark.parametrize("where", ["rename", "printing"])
+@pytest.mark.parametrize("sig, word", [(signal.SIGINT, "interrupted"),
+                                       (signal.SIGTERM, "terminated")])
+def test_a_signal_after_the_outputs_are_written_does_not_call_them_lost(tmp_path, where, sig,
+                                                                        word):
+    """A Ctrl-C that arrived just after ``wrote ...`` exited 130 ("nothing written") though every
+    file was complete. The signal is sent from inside the process at that point: while the
+    outputs are renamed into place (held back until all are) or once they are all in place."""
+    work = tmp_path / "work"
+    work.mkdir()
+    p = subprocess.run([sys.executable, "-c", _LATE_SIGNAL, where, str(int(sig)), "render",
+                        "sphere", "--size", "4", "--backend", "golden", "--no-progress",
+                        "--json", "f.json"], cwd=work, env=env_for(tmp_path),
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == EXIT_OK, p.stderr
+    assert last_line(p.stderr) == (f"rayflex: {word} after the outputs were written: they "
+                                   "are complete")
+    assert sorted(f.name for f in work.iterdir()) == ["f.json", "sphere.png",
+                                                      "sphere_heatmap.png"]
+    assert "wrote sphere.png, sphere_heatmap.png, f.json" in p.stdout
+    assert json.loads((work / "f.json").read_text())["width"] == 4
+
+
+_SIGNAL_WHILE_WRITING = textwrap.dedent("""
+    import os, signal, sys
+    import driver.core.outputs as outputs
+    write_json = outputs.write_json
+    def write_then_signal(doc, path):
+        write_json(doc, path)
+        os.kill(os.getpid(), signal.SIGINT)
+    outputs.write_json = write_then_signal
+    from driver.cli import main
+    sys.exit(main(sys.argv[1:]))
+""")
+
+
+def test_a_signal_while_the_outputs_are_written_leaves_none(tmp_path):
+    """The other side of the line: a Ctrl-C while the outputs are being written (the JSON is,
+    the renames have not begun) leaves no file and exits 130."""
+    work = tmp_path / "work"
+    work.mkdir()
+    p = subprocess.run([sys.executable, "-c", _SIGNAL_WHILE_WRITING, "render", "sphere",
+                        "--size", "4", "--backend", "golden", "--no-progress", "--json",
+                        "f.json"], cwd=work, env=env_for(tmp_path), capture_output=True,
+                       text=True, timeout=300)
+    assert p.returncode == 130, p.stderr
+    assert last_line(p.stderr) == "rayflex: interrupted"
     assert not list(work.iterdir())

@@ -12,7 +12,7 @@ import pytest
 from driver.cli import main
 from driver.core.errors import SceneError
 from driver.scenes import lumibench as lb
-from driver.scenes.objfile import DEFAULT_DIFFUSE, read_obj
+from driver.scenes.objfile import DEFAULT_DIFFUSE, read_obj, scan
 from driver.scenes.scene import load_scene, resolve, scene_name
 
 BOX_OBJ = """# a unit cube's bottom and top, as quads, two materials
@@ -121,16 +121,39 @@ def test_obj_without_materials_is_grey_and_numbers_parse_exactly(tmp_path):
     assert np.allclose(m.albedo, DEFAULT_DIFFUSE)
 
 
-@pytest.mark.parametrize("text, what", [("v 0 0\nf 1 1 1\n", "fewer than 3 coordinates"),
-                                        ("v 0 0 x\n", "not a number"),
-                                        ("v 0 0 0\nf 1 0 1\n", "index 0"),
-                                        ("v 0 0 0\nf 1 2 3\n", "outside")])
-def test_a_malformed_obj_is_one_line_naming_the_file(tmp_path, text, what):
+TRI = "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
+BROKEN_OBJ = [   # (file, what the one line says after "bad.obj:")
+    ("v 0 0\nf 1 1 1\n", "1: vertex 1 has 2 coordinates; a vertex needs 3 (x y z)"),
+    ("v 0\n", "1: vertex 1 has 1 coordinate; a vertex needs 3 (x y z)"),
+    ("v 0 0 0\nv 1 0 1,5\n", "2: vertex 2: coordinate '1,5' is not a number"),
+    (TRI + "f 1 0 1\n", "4: face 1: vertex index 0 (OBJ indices start at 1)"),
+    (TRI + "f 1 2 3\nf 1 2 7\n", "5: face 2: vertex index 7 is beyond the file's 3 vertices"),
+    ("v 0 0 0\nf 1 1 2\n", "2: face 1: vertex index 2 is beyond the file's 1 vertex"),
+    (TRI + "f 1 2 -4\n",
+     "4: face 1: vertex index -4 counts back past the first vertex (3 vertices read before it)"),
+    (TRI + "f 1 2 x3\n", "4: face 1: 'x3' is not a vertex index"),
+    (TRI + "f 1/1 2/1 3.0/1\n", "4: face 1: '3.0/1' is not a vertex index"),
+]
+
+
+@pytest.mark.parametrize("text, what", BROKEN_OBJ)
+def test_a_malformed_obj_is_one_line_naming_the_file_line_and_fault(tmp_path, text, what):
     p = tmp_path / "bad.obj"
     p.write_text(text)
-    with pytest.raises(SceneError, match=what) as e:
+    with pytest.raises(SceneError) as e:
         read_obj(p)
-    assert "bad.obj" in str(e.value) and "\n" not in str(e.value)
+    assert str(e.value) == f"{p}:{what}"
+
+
+def test_a_face_of_two_corners_is_skipped_or_refused_when_strict(tmp_path):
+    """tinyobjloader (and so a LumiBench scene) skips a face of fewer than 3 corners; a mesh
+    file given on its own (``strict``) is refused there."""
+    p = tmp_path / "two.obj"
+    p.write_text(TRI + "f 1 2 3\n\nf 2 3\n")
+    assert len(read_obj(p).triangles) == 1
+    with pytest.raises(SceneError) as e:
+        scan(p, strict=True)
+    assert str(e.value) == f"{p}:6: face 2 has 2 corners; a face needs at least 3"
 
 
 def test_folder_scene_as_the_benchmark_defines_it(root):

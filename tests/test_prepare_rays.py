@@ -199,3 +199,35 @@ def test_shape_mismatch():
         driver.prepare_rays(np.zeros((1, 3)), np.ones((2, 3)))
     with pytest.raises(ValueError):
         driver.prepare_rays(np.zeros((2, 3)), np.ones((2, 2)))
+
+
+@pytest.mark.parametrize("o, d, extent, message", [
+    (np.zeros((32, 4)), np.ones((32, 4)), 1.0,
+     "origins must be an (n, 3) array, one x, y, z row per ray; got shape (32, 4)"),
+    (np.zeros((2, 3)), np.ones(6), 1.0,
+     "directions must be an (n, 3) array, one x, y, z row per ray; got shape (6,)"),
+    (np.zeros((2, 3)), 1.0, 1.0,
+     "directions must be an (n, 3) array, one x, y, z row per ray; got shape ()"),
+    ([[0, 0], [0, 0, 0]], np.ones((2, 3)), 1.0,
+     "origins must be an (n, 3) array of numbers, one x, y, z row per ray (got rows of unequal "
+     "length, or values that are not numbers)"),
+    (np.zeros((4, 3)), np.ones((4, 3)), np.ones(5),
+     "extent must be a scalar or one value per ray, shape (4,); got shape (5,)"),
+    (np.zeros((4, 3)), np.ones((4, 3)), "far",
+     "extent must be a number or one number per ray, shape (4,)"),
+])
+def test_a_bad_shape_names_the_argument_and_the_shape_it_wants(o, d, extent, message):
+    """Rays of the wrong shape gave numpy's "cannot reshape array of size 128 into shape (3)"
+    (and (2, 6) was silently read as 4 rays)."""
+    with pytest.raises(ValueError) as e:
+        driver.prepare_rays(o, d, extent)
+    assert str(e.value) == message
+    with pytest.raises(ValueError) as e:
+        driver.trace(np.eye(3, dtype=np.float32)[None], o, d, backend="golden", extent=extent)
+    assert str(e.value) == message
+
+
+def test_rays_of_any_leading_shape_are_rows():
+    """(h, w, 3) rays (an image's) are h * w rows in C order."""
+    d = np.random.default_rng(1).normal(size=(2, 5, 3))
+    assert (driver.prepare_rays(np.zeros_like(d), d)["dir"] == d.reshape(-1, 3).astype(F32)).all()

@@ -14,6 +14,7 @@ from driver.backends.harness import HarnessBackend, default_threads, model_laten
 from driver.bvh4 import build
 from driver.rtunit import MemoryModel
 from driver.rtunit.gpu import replay_frame, timing_differences, waves_of
+from driver.rtunit.order import RayOrder
 from driver.rtunit.plan import Schedule
 from driver.scenes.scene import load_scene
 from driver.tracer import trace
@@ -44,10 +45,10 @@ CASES = {
         32, 1, MemoryModel(), Schedule("wavefront", shader_cycles=50, flush_between=True), {}),
     "one ray in flight, turnaround 0": (1, 1, None, Schedule("wavefront"), {"turnaround": 0}),
     "affinity": (16, 1, MemoryModel(), Schedule("one-kernel"),
-                 {"ray_order": "affinity", "ray_window": 64}),
+                 {"order": RayOrder("affinity", 64)}),
     "treelets": (16, 1, MemoryModel(), Schedule("one-kernel"),
-                 {"ray_order": "treelet", "ray_window": 64}),
-    "hash order": (32, 2, MemoryModel(), Schedule("wavefront"), {"ray_order": "hash"}),
+                 {"order": RayOrder("treelet", 64)}),
+    "hash order": (32, 2, MemoryModel(), Schedule("wavefront"), {"order": RayOrder("hash")}),
 }
 
 

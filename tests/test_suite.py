@@ -108,6 +108,19 @@ def test_a_bad_suite_is_one_line_before_any_work(in_tmp, error_line, toml, words
     assert not (in_tmp / "o").exists()
 
 
+def test_a_suite_neither_named_nor_given_says_what_to_give(in_tmp, error_line):
+    """With neither NAME nor --suite the line said "..., not both"."""
+    assert suite() == 2
+    assert error_line() == ("rayflex: error: which suite? give a built-in suite's name "
+                            "(lumibench: rayflex suite lumibench) or a TOML list of runs "
+                            "(--suite FILE)")
+    (in_tmp / "s.toml").write_text("[[runs]]\nscene = 'sphere'\nworkload = 'ao'\n")
+    assert suite("lumibench", "--suite", "s.toml") == 2
+    assert error_line() == ("rayflex: error: give the suite once: lumibench or --suite s.toml, "
+                            "not both")
+    assert not list(in_tmp.glob("suite-*"))
+
+
 def test_runs_on_dask_workers_equal_one_process(root, in_tmp):
     argv = ["lumibench", "--lumibench-root", str(root), "--scenes", "SHIP", "--workloads",
             "ao,pt", "--size", "8"]

@@ -164,3 +164,14 @@ def test_the_build_notice_counts_only_models_really_missing(swept):
     models = sweep_mod.models(points)
     assert sorted(kind for kind, _ in models) == ["rtl", "rtl", "signals", "signals"]
     assert uncached_models(models) == []
+
+
+def test_the_table_marks_a_missing_value_as_bench_does(swept):
+    """The sweep table printed ``nan`` where bench left blanks: both print ``-``
+    (``driver.core.words.cell``) for a ray type's utilization in a one-kernel frame."""
+    _, doc = swept
+    rows = [ln.split() for ln in sweep_mod.table(doc).splitlines()[1:-1]]
+    assert len(rows) == 8 * 3 and "nan" not in sweep_mod.table(doc)
+    for r in rows:
+        util, ideal = r[6], r[7]       # after the 3 varied options, type, rays and ops/ray
+        assert (util == ideal == "-") == (r[3] != "all"), r

@@ -24,7 +24,10 @@ class Backend(Protocol):
     name: str
     extended: bool
     disjoint: bool
+    compressed: bool        # decodes q8 nodes (a QUADBOX with FLAG_DECODE_Q8)
+    transform: bool         # has the TRANSFORM operation
     latency: int
+    params: dict            # its build parameters (driver.backends.build.rtl_params)
     cycles: int
 
     def run(self, req: np.ndarray) -> np.ndarray: ...
@@ -35,8 +38,6 @@ class NodeBackend(Backend, Protocol):
     """A backend that also assembles traversal requests itself from (ray, node pointer, extent)
     triples, the packed ray table and the BVH4 image (the "rtl" harness; see
     ``driver.backends.harness.HarnessBackend.run_nodes``)."""
-
-    params: dict
 
     def run_nodes(self, ray_words: np.ndarray, image_words: np.ndarray, ray: np.ndarray,
                   ptr: np.ndarray, extent: np.ndarray) -> np.ndarray: ...

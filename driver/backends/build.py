@@ -27,6 +27,9 @@ RTL_DIR = data_dir("rtl")
 SIM_DIR = data_dir("sim")
 TOP = "rayflex"
 SOURCE_LIST = RTL_DIR / "sources.txt"
+# The binary32 divider (rf_fp_div, with the FP package it imports) has a list of its own: the
+# datapath does not use it, and every file of SOURCE_LIST is part of the datapath build's cache key.
+DIV_SOURCE_LIST = RTL_DIR / "fp_div_sources.txt"
 LINT_WAIVERS = "lint.vlt"
 HARNESS_SOURCES = ("rayflex_harness.cpp", "rtunit_scheduler.cpp")
 # included by the harness sources from their own directory: their text is hashed into the name of
@@ -50,9 +53,10 @@ def parse_source_list(text: str) -> list[str]:
     return [ln.strip() for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
 
 
-def rtl_sources() -> list[Path]:
-    """The RTL files in compile order; BackendError if the source tree is not there."""
-    paths = [RTL_DIR / f for f in source_names()]
+def rtl_sources(list_file: Path = SOURCE_LIST) -> list[Path]:
+    """The RTL files of a source list (default: the datapath's) in compile order; BackendError if
+    the source tree is not there."""
+    paths = [RTL_DIR / f for f in source_names(list_file)]
     missing = [p for p in paths if not p.is_file()]
     if missing:
         raise BackendError(f"RTL source {missing[0]} not found: the RTL backends need the project's "
@@ -73,6 +77,20 @@ def rtl_params(extended: bool, disjoint: bool, latency: int | None = None,
     return {"EXTENDED": int(bool(extended)), "DISJOINT": int(bool(disjoint)),
             "COMPRESSED": int(bool(compressed)), "TRANSFORM": int(bool(transform)),
             "LATENCY": int(latency)}
+
+
+def backend_params(be) -> dict[str, int]:
+    """The build parameters of the datapath backend ``be`` models: a ``Backend``'s ``params``;
+    for an object with only ``run`` and ``cycles`` (e.g. a wrapper that records another
+    backend's calls) those of the ``Backend`` attributes it has, the rest the baseline's."""
+    params = getattr(be, "params", None)
+    if isinstance(params, dict) and {"EXTENDED", "DISJOINT", "LATENCY"} <= set(params):
+        return dict(params)
+    lat = getattr(be, "latency", MIN_LATENCY)
+    compressed = bool(getattr(be, "compressed", False))
+    return rtl_params(getattr(be, "extended", False), getattr(be, "disjoint", False),
+                      lat if isinstance(lat, int) and lat >= MIN_LATENCY + compressed else None,
+                      compressed, bool(getattr(be, "transform", False)))
 
 
 def lint(extended=False, disjoint=False, latency=None, compressed=False, transform=False) -> str:

@@ -33,6 +33,9 @@ class GoldenBackend:
         self.compressed = bool(compressed)
         self.transform = bool(transform)
         self.latency = default_latency(self.compressed) if latency is None else int(latency)
+        self.params = {"EXTENDED": int(self.extended), "DISJOINT": int(self.disjoint),
+                       "COMPRESSED": int(self.compressed), "TRANSFORM": int(self.transform),
+                       "LATENCY": self.latency}
         self.cycles = 0
         self.requests = 0
         self.euclid_acc = F32(0)

@@ -145,14 +145,7 @@ def build_two_level(instances: Instances, format: str = "box32", progress=None,
     tnodes = image[:inst_off].view(t_node)
     tnodes[:] = tlas.image[:inst_off].view(t_node)
     child = tnodes["child"]
-    if t_fmt == "box32":
-        leaf = (child != NO_CHILD) & (NodeRef.type(child) == TRI_TYPE)
-        which = read_nodes(tlas.image, child[leaf], TRI_NODE)["prim"].astype(np.int64)
-    else:                               # unpaired pair leaves: prim[0] is the instance
-        leaf = (child != NO_CHILD) & (NodeRef.type(child) == PAIR_TYPE)
-        which = read_nodes(tlas.image, child[leaf], PAIR_NODE)["prim"][:, 0].astype(np.int64)
-    if leaf.sum() != k or not np.array_equal(np.sort(which), np.arange(k)):
-        raise AssertionError("TLAS: every instance must be exactly one leaf")
+    leaf, which = _tlas_leaves(tlas, child, t_fmt, k)
     child[leaf] = NodeRef.encode(inst_off + INSTANCE_BYTES * which, INSTANCE_TYPE)
     for key in keys:
         b, off = blases[key], layout[key]
@@ -170,12 +163,7 @@ def build_two_level(instances: Instances, format: str = "box32", progress=None,
     inodes["instance"] = np.arange(k, dtype=np.uint32)
     blas_bytes = sum(b["bytes"] for b in blas_info)
     depth = tlas.stats["depth"] + max(b.stats["depth"] for b in blases.values())
-    phase_s: dict[str, float] = {}
-    phase_cpu_s: dict[str, float] = {}
-    for b in (tlas, *blases.values()):
-        for total, key in ((phase_s, "phase_s"), (phase_cpu_s, "phase_cpu_s")):
-            for name, seconds in b.stats[key].items():
-                total[name] = total.get(name, 0.0) + seconds
+    phase_s, phase_cpu_s = _phase_totals((tlas, *blases.values()))
     tri = sum(b.stats["tri_nodes"] for b in blases.values())
     paired = sum(b.stats["pair_ratio"] * b.stats["tri_nodes"] for b in blases.values())
     stats = {"format": format, "tlas_format": t_fmt, "instances": k,
@@ -193,3 +181,28 @@ def build_two_level(instances: Instances, format: str = "box32", progress=None,
              "child_histogram": tlas.stats["child_histogram"], "phase_s": phase_s,
              "phase_cpu_s": phase_cpu_s}
     return TwoLevelBVH(image, instances, stats, format, roots, blas_info)
+
+
+def _tlas_leaves(tlas: BVH4, child: np.ndarray, t_fmt: str, k: int) -> tuple:
+    """The TLAS's leaf slots among its box nodes' ``child`` pointers (a mask) and the instance
+    each holds; AssertionError unless each of the ``k`` instances is exactly one leaf."""
+    if t_fmt == "box32":
+        leaf = (child != NO_CHILD) & (NodeRef.type(child) == TRI_TYPE)
+        which = read_nodes(tlas.image, child[leaf], TRI_NODE)["prim"].astype(np.int64)
+    else:                               # unpaired pair leaves: prim[0] is the instance
+        leaf = (child != NO_CHILD) & (NodeRef.type(child) == PAIR_TYPE)
+        which = read_nodes(tlas.image, child[leaf], PAIR_NODE)["prim"][:, 0].astype(np.int64)
+    if leaf.sum() != k or not np.array_equal(np.sort(which), np.arange(k)):
+        raise AssertionError("TLAS: every instance must be exactly one leaf")
+    return leaf, which
+
+
+def _phase_totals(bvhs) -> tuple[dict, dict]:
+    """The build phases' wall and CPU seconds summed over the images ``bvhs``."""
+    phase_s: dict[str, float] = {}
+    phase_cpu_s: dict[str, float] = {}
+    for b in bvhs:
+        for total, key in ((phase_s, "phase_s"), (phase_cpu_s, "phase_cpu_s")):
+            for name, seconds in b.stats[key].items():
+                total[name] = total.get(name, 0.0) + seconds
+    return phase_s, phase_cpu_s

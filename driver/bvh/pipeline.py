@@ -130,46 +130,21 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
     from . import build as bvh_build
     from .box32 import _write_image
     from .collapse import _collapse, collapse_sah
-    from .q8 import _pairs, pair_triangles, vertex_ids
     from .q8_image import _write_q8_image
     from .q8g import group_leaves
     t0 = time.perf_counter()
-    if int(bins) < 2:
-        raise ValueError(f"bins must be >= 2, got {bins}")
-    if builder not in BUILDERS:
-        raise ValueError(f"builder must be one of {BUILDERS}, got {builder!r}")
-    if collapse not in COLLAPSES:
-        raise ValueError(f"collapse must be one of {COLLAPSES}, got {collapse!r}")
-    if isinstance(fill, bool) or not isinstance(fill, (int, np.integer)) or fill < 0:
-        raise ValueError(f"fill must be an integer >= 0, got {fill!r}")
-    if format not in IMAGE_FORMATS:
-        raise ValueError(f"format must be one of {IMAGE_FORMATS}, got {format!r}")
-    if fill and builder != "fast":
-        raise ValueError("fill needs the fast builder (the numpy reference has plain SAH splits)")
+    _check_options(bins, builder, collapse, fill, format)
     tris = as_triangles(triangles_or_trimesh)
     phases = Phases(on_phase)
     pairs, prims = None, tris
     if format != "box32":
-        if pair:
-            faces = getattr(triangles_or_trimesh, "faces", None)
-            pairs = pair_triangles(tris, None if faces is None else np.asarray(faces), phases)
-        else:                           # no partner: every leaf holds one triangle
-            with phases("pairs"):
-                ids = vertex_ids(tris)
-                pairs = (*_pairs(ids, np.full(len(tris), -1, np.int64), tris), ids)
+        pairs = _leaf_pairs(tris, getattr(triangles_or_trimesh, "faces", None), pair, phases)
         prims = pairs[4]                # one box-shaped triangle per leaf: the builder's input
 
     show = None if progress is None and len(tris) >= PROGRESS_MIN else bool(progress)
     with progress_bar(len(tris), "BVH build", "tri", show, leave=False) as bar:
         with phases("binary build"):
-            if builder == "fast":
-                left, right, prim, node_lo, node_hi = bvh_build.build_binary(
-                    prims, int(bins), bar, int(fill))
-            else:
-                left, right, prim, node_lo, node_hi = _build_binary(*_prim_boxes(prims),
-                                                                    int(bins))
-                bar.update(len(prims))
-            bvh_build.check_tree(left, right)
+            left, right, prim, node_lo, node_hi = _binary(prims, bins, builder, fill, bar)
         bar.set_postfix_str("collapse")
         with phases("stored boxes"):
             pad = PAD_REL * float(max(-tris.min(), tris.max()))
@@ -193,20 +168,65 @@ def build(triangles_or_trimesh, bins: int = 16, *, builder: str = "fast", collap
             else:
                 image, depth, sah, hist = _write_q8_image(levels, left, prim, node_lo, node_hi,
                                                           pairs, groups, tris)
-    n_box = sum(len(s) for s in levels)
     paired = 0 if pairs is None else 2 * int((pairs[1] >= 0).sum())
-    n_groups = 0 if groups is None else len(groups[0])
-    leaves = len(prims) if groups is None else len(prims) - int((groups[0] >= 0).sum()) + n_groups
-    stats = {"format": format, "box_nodes": n_box, "tri_nodes": len(tris),
-             "leaf_nodes": leaves, "group_leaves": n_groups,
-             "grouped_triangles": 0 if groups is None else int((groups[1] >= 0).sum()),
+    stats = {"format": format, **_shape_stats(levels, tris, prims, groups),
              "depth": depth, "sah_cost": sah, "fill": int(fill),
              "build_s": time.perf_counter() - t0, "bytes": int(image.nbytes),
              "bytes_per_triangle": image.nbytes / len(tris), "pair_ratio": paired / len(tris),
-             "avg_children": float((hist * np.arange(1, 5)).sum() / n_box),
+             "avg_children": float((hist * np.arange(1, 5)).sum()
+                                   / sum(len(s) for s in levels)),
              "child_histogram": hist.tolist(), "phase_s": phases.seconds,
              "phase_cpu_s": phases.cpu_seconds}
     return BVH4(image, tris, stats, format)
+
+
+def _binary(prims, bins, builder, fill, bar) -> tuple:
+    """The binary tree (left, right, prim, node_lo, node_hi) of the builder, checked."""
+    from . import build as bvh_build                        # numba: loaded by a build
+    if builder == "fast":
+        tree = bvh_build.build_binary(prims, int(bins), bar, int(fill))
+    else:
+        tree = _build_binary(*_prim_boxes(prims), int(bins))
+        bar.update(len(prims))
+    bvh_build.check_tree(*tree[:2])
+    return tree
+
+
+def _check_options(bins, builder, collapse, fill, format) -> None:
+    """``build``'s options, each a one-line ValueError when wrong."""
+    if int(bins) < 2:
+        raise ValueError(f"bins must be >= 2, got {bins}")
+    if builder not in BUILDERS:
+        raise ValueError(f"builder must be one of {BUILDERS}, got {builder!r}")
+    if collapse not in COLLAPSES:
+        raise ValueError(f"collapse must be one of {COLLAPSES}, got {collapse!r}")
+    if isinstance(fill, bool) or not isinstance(fill, (int, np.integer)) or fill < 0:
+        raise ValueError(f"fill must be an integer >= 0, got {fill!r}")
+    if format not in IMAGE_FORMATS:
+        raise ValueError(f"format must be one of {IMAGE_FORMATS}, got {format!r}")
+    if fill and builder != "fast":
+        raise ValueError("fill needs the fast builder (the numpy reference has plain SAH splits)")
+
+
+def _leaf_pairs(tris, faces, pair: bool, phases) -> tuple:
+    """The triangle pairs of a q8 format's leaves (``driver.bvh.q8.pair_triangles``'s tuple):
+    triangles sharing an edge paired when ``pair``, else every leaf one triangle."""
+    from .q8 import _pairs, pair_triangles, vertex_ids      # numba: loaded by a build
+    if pair:
+        return pair_triangles(tris, None if faces is None else np.asarray(faces), phases)
+    with phases("pairs"):               # no partner: every leaf holds one triangle
+        ids = vertex_ids(tris)
+        return (*_pairs(ids, np.full(len(tris), -1, np.int64), tris), ids)
+
+
+def _shape_stats(levels, tris, prims, groups) -> dict:
+    """The image's node and leaf counts of ``build``'s statistics, in their order."""
+    n_groups = 0 if groups is None else len(groups[0])
+    return {"box_nodes": sum(len(s) for s in levels), "tri_nodes": len(tris),
+            "leaf_nodes": (len(prims) if groups is None
+                           else len(prims) - int((groups[0] >= 0).sum()) + n_groups),
+            "group_leaves": n_groups,
+            "grouped_triangles": 0 if groups is None else int((groups[1] >= 0).sum())}
 
 
 def warm_up() -> float:

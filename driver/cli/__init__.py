@@ -17,11 +17,12 @@ import signal
 import sys
 from importlib.metadata import PackageNotFoundError, version as dist_version
 
+from ..core import outputs
 from ..core.errors import Terminated
 from ..scenes.lumibench import using_root
 from .common import (EXIT_CHECK, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED,
                      EXIT_USAGE, PROG, one_line)
-from .interrupt import watch
+from .interrupt import late_note, watch
 
 # name -> "module" or "module:attribute"; each provides add_parser(subparsers) and run(args)
 COMMANDS = {
@@ -41,8 +42,10 @@ EXIT_CODES = {
                 "rounding)",
     EXIT_USAGE: "bad input, usage or environment error (one line on stderr; nothing written)",
     EXIT_INTERNAL: "internal error, a bug (one line; RAYFLEX_TRACEBACK=1 shows the traceback)",
-    EXIT_INTERRUPTED: "interrupted (SIGINT, Ctrl-C); nothing written, builds cleaned up",
-    EXIT_TERMINATED: "terminated (SIGTERM); nothing written, builds cleaned up",
+    EXIT_INTERRUPTED: "interrupted (SIGINT, Ctrl-C); nothing written, builds cleaned up (once "
+                      "the outputs are written, a signal no longer interrupts: the command "
+                      "ends as it would have, its outputs complete)",
+    EXIT_TERMINATED: "terminated (SIGTERM); nothing written, builds cleaned up (likewise)",
 }
 
 ENVIRONMENT = {
@@ -86,10 +89,14 @@ def main(argv=None) -> int:
              signal.SIGTERM: ("terminated", EXIT_TERMINATED)}
     # SIGTERM raises Terminated so builds and output writes clean up; both signals end the
     # process within about a second even inside a native kernel (driver.cli.interrupt)
-    with watch(PROG, codes, Terminated):
+    outputs.forget_written()
+    with watch(PROG, codes, Terminated, outputs.written) as watched:
         try:
             with using_root(args.lumibench_root):
-                return int(args.handler.run(args) or 0)
+                code = int(args.handler.run(args) or 0)
+            if watched.late:                     # a signal after the outputs were written
+                print(f"{PROG}: {late_note(watched.late)}", file=sys.stderr)
+            return code
         except KeyboardInterrupt:
             print(f"{PROG}: interrupted", file=sys.stderr)
             return EXIT_INTERRUPTED

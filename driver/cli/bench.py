@@ -16,6 +16,7 @@ from ..rtunit import SWEEP_RAYS_IN_FLIGHT
 from ..scenes.lumibench import is_lumibench, root
 from ..studies.bvh import bvh_bench
 from . import options
+from ..core.words import cell
 from .common import check_positive, wrote
 
 
@@ -134,8 +135,7 @@ def run(args) -> int:
     outs = Outputs()
     js = outs.add("--json", args.json, JSON) if args.json else None
     plot = None
-    if args.bvh or (args.workers == 1 and args.sweep_size
-                    and (default_frame or sweep_rays or args.plot)):
+    if args.bvh or (args.workers == 1 and args.sweep_size):
         kind = "bvh" if args.bvh else "rtunit"
         plot = outs.add("--plot", args.plot or (
             Path(args.json).with_name(f"{Path(args.json).stem}_{kind}.png") if args.json
@@ -200,21 +200,27 @@ def workload_table(doc: dict) -> str:
     rows.append(f"{'type':>8} {'rays':>8} {'box/ray':>8} {'tri/ray':>8} {'xf/ray':>7} "
                 f"{'util':>6} {'lat':>7} {'p95':>7} {'L1 B/ray':>9} {'L2 B/ray':>9} "
                 f"{'DRAM B/ray':>10} {'anyhit/closest':>14}")
-    nan = float("nan")
     for kind, t in f["by_type"].items():
         m = t.get("rtunit_memory") or {}
         served = m.get("bytes_served_per_ray", {})
-        ratio = t.get("any_hit_vs_closest_ops")
-        util = m.get("utilization")
         rows.append(f"{kind:>8} {t['rays']:>8} {t['box_ops_per_ray']:>8.2f} "
                     f"{t['tri_ops_per_ray']:>8.2f} {t.get('transform_ops_per_ray', 0):>7.2f} "
-                    f"{'' if util is None else format(util, '.3f'):>6} "
-                    f"{m.get('latency_mean', nan):>7.0f} {m.get('latency_p95', nan):>7.0f} "
-                    f"{served.get('l1', nan):>9.0f} {served.get('l2', nan):>9.0f} "
-                    f"{served.get('dram', nan):>10.0f} "
-                    f"{'' if ratio is None else format(ratio, '.3f'):>14}")
-    rows.append("(xf: transform ops, with --transform datapath; util: a ray type's datapath "
-                "ops / (units x pipelines x its cycles), wavefront frames only; lat, p95: "
-                "cycles from the trace call to the ray's last response; B/ray: node bytes "
-                "supplied by each level; docs/statistics.md)")
+                    f"{cell(m.get('utilization'), '.3f'):>6} "
+                    f"{cell(m.get('latency_mean'), '.0f'):>7} "
+                    f"{cell(m.get('latency_p95'), '.0f'):>7} "
+                    f"{cell(served.get('l1'), '.0f'):>9} {cell(served.get('l2'), '.0f'):>9} "
+                    f"{cell(served.get('dram'), '.0f'):>10} "
+                    f"{cell(t.get('any_hit_vs_closest_ops'), '.3f'):>14}")
+    frame = f.get("rtunit_memory") or {}
+    if pt.get("frame_schedule") == "one-kernel":
+        util = (f"util: one-kernel frame: its ray types share the pipelines, so none has "
+                f"cycles or a utilization of its own (-); the frame's is "
+                f"{cell(frame.get('utilization'), '.3f')}, each type's latency is shown; "
+                f"--frame wavefront gives each type its own")
+    else:
+        util = "util: a ray type's datapath ops / (units x pipelines x its cycles)"
+    rows.append(f"(xf: transform ops, with --transform datapath; {util}; lat, p95: cycles from "
+                "the trace call to the ray's last response; B/ray: node bytes supplied by each "
+                "level; anyhit/closest: an any-hit type's ops over the closest hit's of the "
+                "same rays; -: none; docs/statistics.md)")
     return "\n".join(rows)

@@ -4,6 +4,7 @@ other outputs before any work, written inside the command's all-or-nothing commi
 from __future__ import annotations
 
 import importlib.util
+import os
 from pathlib import Path
 
 from ..core.outputs import HEX, NPZ, TEXT, VCD, OutputError
@@ -51,8 +52,9 @@ class Export:
         if self.npz:
             sinks.append(NpzSink(t(self.npz)))
         if self.hex:
+            npz = self.npz and os.path.relpath(self.npz, self.hex["format"].parent)
             sinks.append(HexSink(t(self.hex["requests"]), t(self.hex["responses"]),
-                                 t(self.hex["format"])))
+                                 t(self.hex["format"]), npz))
         win = WindowSink(*self.window) if self.vcd else None
         if win:
             sinks.append(win)

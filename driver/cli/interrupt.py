@@ -15,6 +15,12 @@ the thread wakes on it, and
 - otherwise the handler's exception unwinds as usual (builds cleaned up, nothing written) and
   the process ends by itself.
 
+Once the command's outputs are in place (``finished()`` true: ``driver.core.outputs.written``)
+a signal no longer interrupts: the handler notes it (``Watch.late``) and the command ends as it
+would have (what is left is printing its summary), its outputs complete; should the handler not
+run within ``GRACE`` (native code), the thread ends the process with status 0 and a line saying
+the outputs are complete.
+
 The thread needs the GIL only for a moment; the native kernels release it while they run (the
 builder's numba kernels are compiled ``nogil``, ctypes releases it around every call), so the
 thread runs beside them. Nothing is half-written by the hard exit: the commands write their
@@ -38,8 +44,13 @@ GRACE = 0.5     # s: a handler that has not run by then is waiting for native co
 LIMIT = 1.0     # s: from the signal to the end of the process, at most (plus the exit itself)
 
 
-class _State:
-    def __init__(self):
+class Watch:
+    """What ``watch`` saw: ``late`` is the word ("interrupted", "terminated") of a signal that
+    arrived after the outputs were written (then ignored), else None."""
+
+    def __init__(self, finished):
+        self.finished = finished
+        self.late = None
         self.handled = threading.Event()       # the main thread ran a SIGINT/SIGTERM handler
         self.signalled = threading.Event()     # the thread saw SIGINT or SIGTERM
 
@@ -75,8 +86,10 @@ def _kill_children() -> None:
             os.kill(pid, signal.SIGKILL)
 
 
-def _hard_exit(signum: int, prog: str, codes: dict) -> None:
+def _hard_exit(signum: int, prog: str, codes: dict, finished=lambda: False) -> None:
     word, code = codes[signum]
+    if finished():
+        word, code = late_note(word), 0
     with contextlib.suppress(Exception):
         _kill_children()
     with contextlib.suppress(OSError):
@@ -84,7 +97,12 @@ def _hard_exit(signum: int, prog: str, codes: dict) -> None:
     os._exit(code)
 
 
-def _follow(r: int, state: _State, prog: str, codes: dict) -> None:
+def late_note(word: str) -> str:
+    """The line for a signal that came once the outputs were written."""
+    return f"{word} after the outputs were written: they are complete"
+
+
+def _follow(r: int, state: Watch, prog: str, codes: dict) -> None:
     while True:
         try:
             data = os.read(r, 64)
@@ -99,30 +117,39 @@ def _follow(r: int, state: _State, prog: str, codes: dict) -> None:
             state.signalled.set()
             t0 = time.monotonic()
             if not state.handled.wait(GRACE):
-                _hard_exit(signum, prog, codes)
+                _hard_exit(signum, prog, codes, state.finished)
+            if state.late:                   # outputs written: the command ends as it would
+                state.handled.clear()
+                continue
             time.sleep(max(0.0, LIMIT - (time.monotonic() - t0)))
-            _hard_exit(signum, prog, codes)          # still running: the cleanup is stuck
+            _hard_exit(signum, prog, codes, state.finished)  # still running: stuck
 
 
 @contextlib.contextmanager
-def watch(prog: str, codes: dict, sigterm_exception: type[BaseException]):
+def watch(prog: str, codes: dict, sigterm_exception: type[BaseException],
+          finished=lambda: False):
     """While the block runs: SIGINT raises KeyboardInterrupt and SIGTERM
     ``sigterm_exception`` in the main thread as usual, and a daemon thread ends the process if
     that does not happen or does not finish in time (module docstring). ``codes``: signal
-    number -> (word, exit status), e.g. ``{SIGINT: ("interrupted", 130)}``. Outside the main
-    thread, or where the handlers cannot be set, the block runs unwatched."""
+    number -> (word, exit status), e.g. ``{SIGINT: ("interrupted", 130)}``. ``finished()``
+    true: the outputs are written, a signal is noted, not raised. Yields a ``Watch``. Outside
+    the main thread, or where the handlers cannot be set, the block runs unwatched."""
+    state = Watch(finished)
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield state
         return
-    state = _State()
 
-    def on_int(signum, frame):
-        state.handled.set()
-        raise KeyboardInterrupt
+    def handler(exception):
+        def on_signal(signum, frame):
+            if finished():
+                state.late = codes[signum][0]
+                state.handled.set()
+                return
+            state.handled.set()
+            raise exception()
+        return on_signal
 
-    def on_term(signum, frame):
-        state.handled.set()
-        raise sigterm_exception()
+    on_int, on_term = handler(KeyboardInterrupt), handler(sigterm_exception)
 
     r, w = os.pipe()
     os.set_blocking(w, False)
@@ -133,12 +160,12 @@ def watch(prog: str, codes: dict, sigterm_exception: type[BaseException]):
     except ValueError:
         os.close(r)
         os.close(w)
-        yield
+        yield state
         return
     threading.Thread(target=_follow, args=(r, state, prog, codes), name="rayflex-signals",
                      daemon=True).start()
     try:
-        yield
+        yield state
     finally:
         signal.set_wakeup_fd(old_fd)
         signal.signal(signal.SIGINT, old_int)

@@ -197,9 +197,10 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
         flag("--sweep-pipelines", default=",".join(map(str, SWEEP_PIPELINES)), metavar="LIST",
              help="pipeline counts of the sweep (comma-separated)"),
         _plot("PNG: the sweep (the primary frame; a --workload frame with --sweep-rays), or "
-              "the rays each RT unit holds over a --workload frame (default: beside --json as "
-              "JSONSTEM_rtunit.png, else rayflex_bench_rtunit.png; with --bvh, the BVH shape "
-              "plot JSONSTEM_bvh.png or rayflex_bench_bvh.png)"),
+              "the rays each RT unit holds over a --workload frame; always drawn, except with "
+              "--workers N or --sweep-size 0 (default: beside --json as JSONSTEM_rtunit.png, "
+              "else rayflex_bench_rtunit.png; with --bvh, the BVH shape plot JSONSTEM_bvh.png "
+              "or rayflex_bench_bvh.png)"),
         flag("--pyverilator-requests", type=int, default=bench.PYVERILATOR_REQUESTS,
              metavar="N", help=f"requests streamed through pyverilator (default "
                                f"{bench.PYVERILATOR_REQUESTS}; 0: skip)"),

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from ..scenes.camera import MAX_SIZE
 from ..scenes.lumibench import root
-from ..suite import (SUMMARY, Run, SuiteError, check_runs, lumibench_runs, read_suite,
+from ..suite import (SUITES, SUMMARY, Run, SuiteError, check_runs, lumibench_runs, read_suite,
                      run_suite)
 from . import options
 from .common import EXIT_CHECK, check_backend, check_positive, check_workers, wrote
@@ -29,8 +29,12 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
-    if (args.suite_name is None) == (args.suite is None):
-        raise SuiteError("give a suite: NAME (lumibench) or --suite FILE, not both")
+    if args.suite_name is None and args.suite is None:
+        raise SuiteError(f"which suite? give a built-in suite's name ({', '.join(SUITES)}: "
+                         f"rayflex suite {SUITES[0]}) or a TOML list of runs (--suite FILE)")
+    if args.suite_name is not None and args.suite is not None:
+        raise SuiteError(f"give the suite once: {args.suite_name} or --suite {args.suite}, "
+                         "not both")
     if args.suite and (args.scenes or args.workloads):
         raise SuiteError("--scenes and --workloads choose LumiBench's runs; a --suite file "
                          "lists its own")

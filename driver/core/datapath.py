@@ -85,20 +85,50 @@ def _flag_names(mask: int = FLAGS_DEFINED) -> str:
     return ", ".join(FLAG_NAMES[m] for m in sorted(FLAG_NAMES) if m & mask)
 
 
+def vectors(x, name: str) -> np.ndarray:
+    """(n, 3) float32 of an array-like of x, y, z rows (``(n, 3)``, one ``(3,)`` vector, or any
+    ``(..., 3)``, rows in C order); a one-line ValueError naming ``name`` and the shape it
+    wants otherwise."""
+    try:
+        a = np.asarray(x, dtype=np.float32)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be an (n, 3) array of numbers, one x, y, z row per ray "
+                         "(got rows of unequal length, or values that are not numbers)") from None
+    if a.ndim == 0 or a.shape[-1] != 3:
+        raise ValueError(f"{name} must be an (n, 3) array, one x, y, z row per ray; got shape "
+                         f"{a.shape}")
+    return a.reshape(-1, 3)
+
+
+def per_ray(x, n: int, name: str) -> np.ndarray:
+    """(n,) float32 of a scalar or one value per ray; a one-line ValueError naming ``name``
+    otherwise."""
+    try:
+        a = np.asarray(x, dtype=np.float32)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number or one number per ray, shape ({n},)"
+                         ) from None
+    if a.ndim > 1 or (a.ndim == 1 and len(a) != n):
+        raise ValueError(f"{name} must be a scalar or one value per ray, shape ({n},); got "
+                         f"shape {a.shape}")
+    return np.broadcast_to(a, (n,))
+
+
 def prepare_rays(origins, directions, extent=np.inf, flags=0) -> np.ndarray:
     """Fill the ray fields of a new request array (docs/datapath.md#ray-preparation,
     #requests-and-responses).
 
-    origins, directions : (n, 3) array-like, converted to float32
+    origins, directions : (n, 3) array-like (``vectors``), converted to float32
     extent : scalar or (n,) ray extent (tmax)
     flags : scalar or (n,) ray flags (``FLAG_NO_CULL`` or 0; ``FLAG_DECODE_Q8`` is not a ray's but
         a request's: whoever puts a q8 node into a QUADBOX sets it)
     Returns an (n,) ``REQUEST_DTYPE`` array, every non-ray field zero.
-    Raises ValueError for non-finite origins/directions, an all-zero direction, or flags that are
-    not integers made of defined flag bits.
+    Raises ValueError (one line naming the argument) for origins or directions that are not
+    (n, 3) or not finite, an all-zero direction, an extent that is not a scalar or (n,), or
+    flags that are not integers made of defined flag bits.
     """
-    o = np.asarray(origins, dtype=np.float32).reshape(-1, 3)
-    d = np.asarray(directions, dtype=np.float32).reshape(-1, 3)
+    o = vectors(origins, "origins")
+    d = vectors(directions, "directions")
     if o.shape != d.shape:
         raise ValueError(f"origins {o.shape} and directions {d.shape} differ in shape")
     if not (np.isfinite(o).all() and np.isfinite(d).all()):
@@ -116,7 +146,7 @@ def prepare_rays(origins, directions, extent=np.inf, flags=0) -> np.ndarray:
     req["flags"] = np.broadcast_to(fl, (n,))
     req["origin"] = o
     req["dir"] = d
-    req["extent"] = np.broadcast_to(np.asarray(extent, np.float32), (n,))
+    req["extent"] = per_ray(extent, n, "extent")
     one = np.float32(1)
     with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
         req["inv"] = one / d
@@ -138,8 +168,8 @@ def transform_requests(m, o, d, tag=None) -> np.ndarray:
     """TRANSFORM requests (``REQUEST_DTYPE``) of rays (o, d) by 3x4 matrices m: m (n, 3, 4) or
     one (3, 4) for every ray, o and d (n, 3), converted to float32; ``tag`` (n,) defaults to the
     row index. The datapath answers o' and d' (``transform_results``; docs/transform.md)."""
-    o = np.asarray(o, np.float32).reshape(-1, 3)
-    d = np.asarray(d, np.float32).reshape(-1, 3)
+    o = vectors(o, "origins")
+    d = vectors(d, "directions")
     if o.shape != d.shape:
         raise ValueError(f"origins {o.shape} and directions {d.shape} differ in shape")
     n = len(o)

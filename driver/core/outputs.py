@@ -18,6 +18,9 @@ any format Pillow can write, chosen by extension, so ``x.jpg`` is JPEG; JSON: ``
 rename is atomic and never crosses file systems; same suffix, so writers that pick a format by
 extension see the right one) and renames them all into place only once every file is written.
 A failure (full disk, interrupt) removes every temporary file and leaves the targets untouched.
+Once every file is complete and the renames begin, ``written()`` is true: from then on the
+command line (``driver.cli.main``) lets a Ctrl-C or SIGTERM neither stop the renames half way
+nor call the outputs lost; the command ends as finished.
 This module exists because neither the standard library nor Pillow/matplotlib offer a
 multi-file, all-or-nothing write; it is the small part that has to be hand-written.
 """
@@ -28,12 +31,27 @@ import contextlib
 import json
 import os
 import tempfile
+import threading
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
 from .errors import RayflexError
+
+
+_WRITTEN = threading.Event()       # a commit of this process is renaming or has renamed its files
+
+
+def written() -> bool:
+    """True once a ``commit`` of this process has every file complete and is putting them in
+    place (renames only) or has put them."""
+    return _WRITTEN.is_set()
+
+
+def forget_written() -> None:
+    """Start a new command: ``written()`` is false until its outputs are in place."""
+    _WRITTEN.clear()
 
 
 class OutputError(RayflexError):
@@ -118,6 +136,8 @@ class Outputs:
                 os.close(fd)
                 self._temps[p] = Path(name)
             yield self
+            if self._temps:
+                _WRITTEN.set()                       # the renames: a signal waits for them
             for p, tmp in self._temps.items():
                 if p.exists():                       # keep an existing file's permissions
                     os.chmod(tmp, p.stat().st_mode & 0o7777)

@@ -273,58 +273,28 @@ def derived(s: dict, units: int = 1) -> dict:
 
 def replay_frame(waves: list[Wave], rays_in_flight: int, pipelines: int = 1, memory=None,
                  schedule: Schedule = PER_RAY_POOL, width: int | None = None,
-                 ray_order: str = "index", ray_window: int | None = None, treelets=None,
-                 turnaround: int = 1, skip_idle: bool = True, verify: bool = True,
+                 order: ray_orders.RayOrder = ray_orders.RayOrder(), turnaround: int = 1,
+                 skip_idle: bool = True, verify: bool = True,
                  datapath: str = DEFAULT_REPLAY_DATAPATH) -> FrameReplay:
     """Replay a frame's recorded batches (``Wave``s, in trace order) on ``schedule.rt_units`` RT
     units of P pipelines and R rays in flight each, in front of ``memory`` (a
     ``driver.rtunit.MemoryModel``; None: free node fetches), on the datapath the records name
     (``Record.params``). ``width``: the frame's width in pixels (threads are pixel indices;
-    None: a 1-D dispatch). ``ray_order``/``ray_window``/``treelets``: as
-    ``driver.rtunit.replay`` (a sorting order reorders a wavefront's ray queue, so it needs the
-    wavefront schedule). ``datapath`` (``REPLAY_DATAPATHS``): "timing" models each pipeline by
-    the handshake timing of its Verilated model (``harness.model_latency``) and takes the
-    functional run's responses (a record without responses replays as "rtl"); "rtl" evaluates
-    every request on the model again and compares each response with the functional run's
-    (``verify``)."""
+    None: a 1-D dispatch). ``order``: the ray order (``driver.rtunit.order.RayOrder``: policy,
+    window, treelets, as ``driver.rtunit.replay``'s ``ray_order``/``ray_window``/``treelets``;
+    a sorting order reorders a wavefront's ray queue, so it needs the wavefront schedule).
+    ``datapath`` (``REPLAY_DATAPATHS``): "timing" models each pipeline by the handshake timing
+    of its Verilated model (``harness.model_latency``) and takes the functional run's responses
+    (a record without responses replays as "rtl"); "rtl" evaluates every request on the model
+    again and compares each response with the functional run's (``verify``)."""
     r, p, ta = int(rays_in_flight), int(pipelines), int(turnaround)
     s = schedule
-    if r < 1:
-        raise ValueError(f"rays in flight must be >= 1, got {rays_in_flight}")
-    if not 1 <= p <= 64:
-        raise ValueError(f"pipelines must be in 1..64, got {pipelines}")
-    if ta < 0:
-        raise ValueError(f"turnaround must be >= 0 cycles, got {turnaround}")
-    if datapath not in REPLAY_DATAPATHS:
-        raise ValueError(f"replay datapath {datapath!r}: choose from "
-                         f"{', '.join(REPLAY_DATAPATHS)}")
-    if r % s.warp_size:
-        raise ValueError(f"rays in flight ({r}) must be a multiple of the warp size "
-                         f"({s.warp_size}): the RT unit holds whole warps")
-    pol = ray_orders.policy(ray_order)
-    window = ray_orders.check_window(ray_orders.DEFAULT_WINDOW if ray_window is None
-                                     else ray_window)
-    if pol.schedule and window < r:
-        raise ValueError(f"ray order {ray_order!r}: the window ({window} rays) must hold at "
-                         f"least the {r} rays in flight")
-    if pol.schedule and window % s.warp_size:
-        raise ValueError(f"ray order {ray_order!r}: the window ({window} rays) must be a "
-                         f"multiple of the warp size ({s.warp_size})")
-    if pol.key is not None and s.frame == "one-kernel":
-        raise ValueError(f"ray order {ray_order!r} sorts a wavefront's ray queue; in a "
-                         "one-kernel frame every ray is issued by its thread: use it with "
-                         "--frame wavefront, or a scheduling order (affinity, treelet)")
+    pol, window = _check_replay(r, p, ta, s, order, datapath)
     records = [w.record for w in waves]
     comb = combine(records)
     chains = chain_layout(comb)
-    plan, kernel_waves = build_plan(waves, comb, chains[2] > 0, s, ray_order, window, width)
-    tl = None
-    if pol.treelets and comb.ray.size:
-        parts = [ray_orders.treelet_schedule(rec, treelets or ray_orders.DEFAULT_TREELETS)
-                 for rec in records if rec.ops]
-        tl = parts[0]
-        if len(parts) > 1:
-            tl = replace(tl, request_treelet=np.concatenate([t.request_treelet for t in parts]))
+    plan, kernel_waves = build_plan(waves, comb, chains[2] > 0, s, order.policy, window, width)
+    tl = _treelet_schedule(records, order.treelets) if pol.treelets and comb.ray.size else None
     latency = int(comb.params.get("LATENCY", LATENCY))
     timing = datapath == "timing" and comb.responses is not None
     config = {"units": s.rt_units, "pipelines": p, "slots": r, "warp_size": s.warp_size,
@@ -343,20 +313,66 @@ def replay_frame(waves: list[Wave], rays_in_flight: int, pipelines: int = 1, mem
     else:
         verified = _verify(rsp, counters, comb, verify)
     cost = None
-    if ray_order != "index":
+    if order.policy != "index":
         depth = ray_orders.tree_depth(records[0]) if pol.schedule else 0
-        cost = ray_orders.cost(ray_order, window, comb.chains, r, depth,
+        cost = ray_orders.cost(order.policy, window, comb.chains, r, depth,
                                counters if pol.schedule else None,
-                               treelets=(treelets or ray_orders.DEFAULT_TREELETS, tl)
+                               treelets=(order.treelets or ray_orders.DEFAULT_TREELETS, tl)
                                if tl is not None else None)
     ptr = NodeRef.type(comb.ptr)
     ch = comb.chain.astype(np.int64)
-    per_chain = [np.bincount(ch[sel], minlength=comb.chains).astype(np.int64)
-                 for sel in (NodeRef.is_box(comb.ptr), ptr == INSTANCE_TYPE)]
-    return FrameReplay(s, r, p, ta, latency, memory, [w.kind for w in waves], comb, plan,
-                       counters, per_pipe, arrays, chains[2], *per_chain, kernel_waves,
-                       wall, verified, rsp, cost, window if pol.schedule else 0,
-                       datapath="timing" if timing else "rtl")
+    chain_box, chain_xf = [np.bincount(ch[sel], minlength=comb.chains).astype(np.int64)
+                           for sel in (NodeRef.is_box(comb.ptr), ptr == INSTANCE_TYPE)]
+    return FrameReplay(
+        schedule=s, rays_in_flight=r, pipelines=p, turnaround=ta, latency=latency,
+        memory=memory, kinds=[w.kind for w in waves], combined=comb, plan=plan,
+        counters=counters, per_pipe=per_pipe, arrays=arrays, chain_ops=chains[2],
+        chain_box=chain_box, chain_xf=chain_xf, kernel_waves=kernel_waves, wall_s=wall,
+        verified=verified, responses=rsp, order_cost=cost,
+        window=window if pol.schedule else 0, datapath="timing" if timing else "rtl")
+
+
+def _check_replay(r: int, p: int, ta: int, s: Schedule, order: ray_orders.RayOrder,
+                  datapath: str) -> tuple:
+    """``replay_frame``'s options, each a one-line ValueError when wrong; returns the order's
+    policy and its window."""
+    if r < 1:
+        raise ValueError(f"rays in flight must be >= 1, got {r}")
+    if not 1 <= p <= 64:
+        raise ValueError(f"pipelines must be in 1..64, got {p}")
+    if ta < 0:
+        raise ValueError(f"turnaround must be >= 0 cycles, got {ta}")
+    if datapath not in REPLAY_DATAPATHS:
+        raise ValueError(f"replay datapath {datapath!r}: choose from "
+                         f"{', '.join(REPLAY_DATAPATHS)}")
+    if r % s.warp_size:
+        raise ValueError(f"rays in flight ({r}) must be a multiple of the warp size "
+                         f"({s.warp_size}): the RT unit holds whole warps")
+    name = order.policy
+    pol = ray_orders.policy(name)
+    window = ray_orders.check_window(ray_orders.DEFAULT_WINDOW if order.window is None
+                                     else order.window)
+    if pol.schedule and window < r:
+        raise ValueError(f"ray order {name!r}: the window ({window} rays) must hold at "
+                         f"least the {r} rays in flight")
+    if pol.schedule and window % s.warp_size:
+        raise ValueError(f"ray order {name!r}: the window ({window} rays) must be a "
+                         f"multiple of the warp size ({s.warp_size})")
+    if pol.key is not None and s.frame == "one-kernel":
+        raise ValueError(f"ray order {name!r} sorts a wavefront's ray queue; in a "
+                         "one-kernel frame every ray is issued by its thread: use it with "
+                         "--frame wavefront, or a scheduling order (affinity, treelet)")
+    return pol, window
+
+
+def _treelet_schedule(records, treelets) -> ray_orders.TreeletSchedule:
+    """The treelet policy's schedule of the frame's records (their requests concatenated)."""
+    parts = [ray_orders.treelet_schedule(rec, treelets or ray_orders.DEFAULT_TREELETS)
+             for rec in records if rec.ops]
+    tl = parts[0]
+    if len(parts) > 1:
+        tl = replace(tl, request_treelet=np.concatenate([t.request_treelet for t in parts]))
+    return tl
 
 
 def timing_differences(a: FrameReplay, b: FrameReplay) -> list[str]:
@@ -422,7 +438,9 @@ def replay_point(waves: list[Wave], point, width: int | None = None,
              for w in waves]
     # the timing replay takes the functional run's responses: only when that run was on this
     # configuration's datapath (a sweep traces once and replays every configuration on its RTL)
-    args = dict(schedule=point.schedule(), width=width, **point.order_options(),
+    order = point.order_options()
+    args = dict(schedule=point.schedule(), width=width,
+                order=ray_orders.RayOrder(order["ray_order"], order["ray_window"]),
                 datapath=point.replay_datapath if same else "rtl")
     out = {"rtunit": None, "rtunit_memory": None,
            "by_type": {k: {"rtunit": None, "rtunit_memory": None} for k in kinds}}

@@ -81,6 +81,16 @@ POLICIES = {p.name: p for p in (
 DEFAULT_POLICY = "index"
 
 
+@dataclass(frozen=True)
+class RayOrder:
+    """How rays enter the RT unit: a policy of ``POLICIES`` with its window of rays (None: the
+    default, ``DEFAULT_WINDOW``) and, for "treelet", its ``TreeletConfig`` (None: the default)."""
+
+    policy: str = DEFAULT_POLICY
+    window: int | None = None
+    treelets: "TreeletConfig | None" = None
+
+
 def policy(name: str) -> Policy:
     if name not in POLICIES:
         raise ValueError(f"unknown ray order {name!r} (choose from {', '.join(POLICIES)})")

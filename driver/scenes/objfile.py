@@ -33,20 +33,31 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from ..core.errors import SceneError
+from ..core.words import plural
 
 DEFAULT_DIFFUSE = (0.7, 0.7, 0.7)     # the benchmark's colour of a model without materials
 
-# kernel status codes (line numbers are reported with them)
-_OK, _BAD_INDEX, _ZERO_INDEX, _BAD_NUMBER, _FEW_NUMBERS = 0, 1, 2, 3, 4
-_ERRORS = {_BAD_INDEX: "a face corner is not an integer vertex index",
-           _ZERO_INDEX: "a face corner has vertex index 0 (OBJ indices start at 1)",
-           _BAD_NUMBER: "a vertex coordinate is not a number",
-           _FEW_NUMBERS: "a vertex has fewer than 3 coordinates"}
+# kernel status codes, each reported with its line, face and the text at fault (``_problem``)
+_OK, _BAD_INDEX, _ZERO_INDEX, _BAD_NUMBER, _FEW_NUMBERS, _BEFORE_FIRST = 0, 1, 2, 3, 4, 5
+_ERRORS = {_BAD_INDEX: "face {face}: {token!r} is not a vertex index",
+           _ZERO_INDEX: "face {face}: vertex index 0 (OBJ indices start at 1)",
+           _BAD_NUMBER: "vertex {vertex}: coordinate {token!r} is not a number",
+           _FEW_NUMBERS: "vertex {vertex} has {token}; a vertex needs 3 (x y z)",
+           _BEFORE_FIRST: "face {face}: vertex index {token} counts back past the first vertex "
+                          "({read} read before it)"}
+# the scan's counters (an int64 array the kernels update) and its error record
+# (_NF: "f" lines read; _SHORT: the line, face number and corners of the first face of fewer
+# than 3 corners, line 0 when there is none)
+_NV, _NC, _NPOLY, _NU, _NL, _NF, _SHORT, _SHORT_FACE, _SHORT_CORNERS = range(9)
+_STATUS, _LINE, _FACE, _TOKEN0, _TOKEN1 = range(5)
+_V, _F, _USEMTL, _MTLLIB = (np.frombuffer(w, np.uint8) for w in (b"v", b"f", b"usemtl",
+                                                                  b"mtllib"))
 _POW10 = np.array([10.0 ** k for k in range(23)])      # exact in float64
 
 
@@ -144,12 +155,87 @@ def _parse_float(buf, i, end, pow10):
 
 
 @njit(cache=True, nogil=True)
+def _scan_vertex(buf, k, end, pow10, verts, slow, n, err):
+    """Read a ``v`` line's three coordinates from ``k`` into vertex ``n``; False (and ``err``)
+    when they are not three numbers (what follows them is ignored)."""
+    for c in range(3):
+        while k < end and _is_space(buf[k]):
+            k += 1
+        if k >= end:
+            err[_STATUS], err[_TOKEN0] = _FEW_NUMBERS, c
+            return False
+        v, k2, st = _parse_float(buf, k, end, pow10)
+        if st == 2:
+            while k2 < end and not _is_space(buf[k2]):
+                k2 += 1
+            err[_STATUS], err[_TOKEN0], err[_TOKEN1] = _BAD_NUMBER, k, k2
+            return False
+        if st == 1:
+            slow[n] = True
+        verts[n, c] = v
+        k = k2
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _scan_face(buf, k, end, corners, cnt, err):
+    """Read an ``f`` line's corners from ``k`` into ``corners`` (0-based vertex indices; the
+    ``/vt/vn`` parts read past): the number of corners read, or -1 (and ``err``) at a corner
+    that is no vertex index."""
+    nv = cnt[_NV]
+    n = 0
+    while True:
+        while k < end and _is_space(buf[k]):
+            k += 1
+        if k >= end:
+            return n
+        t0 = k
+        neg = buf[k] == 45
+        if buf[k] == 45 or buf[k] == 43:
+            k += 1
+        val = 0
+        seen = False
+        while k < end and 48 <= buf[k] <= 57:
+            seen = True
+            if val < 1 << 40:
+                val = val * 10 + (buf[k] - 48)
+            k += 1
+        status = _OK
+        if not seen or (k < end and not _is_space(buf[k]) and buf[k] != 47):
+            status = _BAD_INDEX
+        elif val == 0:
+            status = _ZERO_INDEX
+        elif neg and val > nv:
+            status = _BEFORE_FIRST
+        while k < end and not _is_space(buf[k]):                            # /vt/vn
+            k += 1
+        if status != _OK:
+            err[_STATUS], err[_TOKEN0], err[_TOKEN1] = status, t0, k
+            return -1
+        corners[cnt[_NC] + n] = nv - val if neg else val - 1
+        n += 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _starts(buf, j, end, word) -> bool:
+    """The line from ``j`` starts with ``word`` and a space."""
+    m = len(word)
+    if end - j <= m or not _is_space(buf[j + m]):
+        return False
+    for q in range(m):
+        if buf[j + q] != word[q]:
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True)
 def _scan(buf, pow10):
-    """One pass over an OBJ file's bytes. Returns (status, line of the error, vertices (nv, 3)
-    float64, slow (nv,) bool: vertices to parse again in Python, vertex line spans (nv, 2),
-    corners (total,) int64 0-based vertex indices, polygon starts (np + 1,), polygon material
-    segment (np,) (the number of ``usemtl`` lines before it, -1 before the first), usemtl name
-    spans (nu, 2), mtllib line spans (nl, 2))."""
+    """One pass over an OBJ file's bytes. Returns (err: status, line, face, token span
+    (``_STATUS`` ...), cnt: the counters (``_NV`` ...), vertices (nv, 3) float64, slow (nv,)
+    bool: vertices to parse again in Python, vertex line spans (nv, 2), corners (total,) int64
+    0-based vertex indices, polygon starts (np + 1,), polygon material segment (np,) (the
+    number of ``usemtl`` lines before it, -1 before the first), polygon line and face number
+    (np, 2), usemtl name spans (nu, 2), mtllib line spans (nl, 2))."""
     n = len(buf)
     lines = 1
     for k in range(n):
@@ -161,13 +247,12 @@ def _scan(buf, pow10):
     corners = np.empty(n // 2 + 1, np.int64)
     pstart = np.empty(lines + 1, np.int64)
     pseg = np.empty(lines, np.int64)
+    pline = np.empty((lines, 2), np.int64)
     uspan = np.empty((lines, 2), np.int64)
     lspan = np.empty((lines, 2), np.int64)
-    nv = 0
-    nc = 0
-    npoly = 0
-    nu = 0
-    nl = 0
+    cnt = np.zeros(9, np.int64)
+    err = np.zeros(5, np.int64)
+    out = (err, cnt, verts, slow, vspan, corners, pstart, pseg, pline, uspan, lspan)
     i = 0
     line = 0
     while i < n:
@@ -178,76 +263,40 @@ def _scan(buf, pow10):
         j = i
         while j < end and _is_space(buf[j]):
             j += 1
-        if j + 1 < end and buf[j] == 118 and _is_space(buf[j + 1]):          # "v "
-            vspan[nv, 0] = j + 1
-            vspan[nv, 1] = end
-            k = j + 1
-            for c in range(3):
-                while k < end and _is_space(buf[k]):
-                    k += 1
-                if k >= end:
-                    return _FEW_NUMBERS, line, verts, slow, vspan, corners, pstart, pseg, \
-                        uspan, lspan, nv, nc, npoly, nu, nl
-                v, k, st = _parse_float(buf, k, end, pow10)
-                if st == 2:
-                    return _BAD_NUMBER, line, verts, slow, vspan, corners, pstart, pseg, \
-                        uspan, lspan, nv, nc, npoly, nu, nl
-                if st == 1:
-                    slow[nv] = True
-                verts[nv, c] = v
-            nv += 1
-        elif j + 1 < end and buf[j] == 102 and _is_space(buf[j + 1]):        # "f "
-            start = nc
-            k = j + 1
-            while True:
-                while k < end and _is_space(buf[k]):
-                    k += 1
-                if k >= end:
-                    break
-                neg = False
-                if buf[k] == 45:
-                    neg = True
-                    k += 1
-                elif buf[k] == 43:
-                    k += 1
-                val = 0
-                seen = False
-                while k < end and 48 <= buf[k] <= 57:
-                    seen = True
-                    if val < 1 << 40:
-                        val = val * 10 + (buf[k] - 48)
-                    k += 1
-                if not seen or (k < end and not _is_space(buf[k]) and buf[k] != 47):
-                    return _BAD_INDEX, line, verts, slow, vspan, corners, pstart, pseg, \
-                        uspan, lspan, nv, nc, npoly, nu, nl
-                if val == 0:
-                    return _ZERO_INDEX, line, verts, slow, vspan, corners, pstart, pseg, \
-                        uspan, lspan, nv, nc, npoly, nu, nl
-                corners[nc] = nv - val if neg else val - 1
-                nc += 1
-                while k < end and not _is_space(buf[k]):                    # /vt/vn
-                    k += 1
-            if nc - start >= 3:
-                pstart[npoly] = start
-                pseg[npoly] = nu - 1
-                npoly += 1
-            else:
-                nc = start
-        elif end - j > 7 and buf[j] == 117 and buf[j + 1] == 115 and buf[j + 2] == 101 \
-                and buf[j + 3] == 109 and buf[j + 4] == 116 and buf[j + 5] == 108 \
-                and _is_space(buf[j + 6]):                                   # "usemtl "
-            uspan[nu, 0] = j + 7
-            uspan[nu, 1] = end
-            nu += 1
-        elif end - j > 7 and buf[j] == 109 and buf[j + 1] == 116 and buf[j + 2] == 108 \
-                and buf[j + 3] == 108 and buf[j + 4] == 105 and buf[j + 5] == 98 \
-                and _is_space(buf[j + 6]):                                   # "mtllib "
-            lspan[nl, 0] = j + 7
-            lspan[nl, 1] = end
-            nl += 1
         i = end + 1
-    pstart[npoly] = nc
-    return _OK, 0, verts, slow, vspan, corners, pstart, pseg, uspan, lspan, nv, nc, npoly, nu, nl
+        err[_LINE] = line
+        if _starts(buf, j, end, _V):
+            vspan[cnt[_NV], 0] = j + 1
+            vspan[cnt[_NV], 1] = end
+            if not _scan_vertex(buf, j + 1, end, pow10, verts, slow, cnt[_NV], err):
+                return out
+            cnt[_NV] += 1
+        elif _starts(buf, j, end, _F):
+            cnt[_NF] += 1
+            err[_FACE] = cnt[_NF]
+            got = _scan_face(buf, j + 1, end, corners, cnt, err)
+            if got < 0:
+                return out
+            if got >= 3:
+                pstart[cnt[_NPOLY]] = cnt[_NC]
+                pseg[cnt[_NPOLY]] = cnt[_NU] - 1
+                pline[cnt[_NPOLY], 0] = line
+                pline[cnt[_NPOLY], 1] = cnt[_NF]
+                cnt[_NPOLY] += 1
+                cnt[_NC] += got
+            elif cnt[_SHORT] == 0:
+                cnt[_SHORT], cnt[_SHORT_FACE], cnt[_SHORT_CORNERS] = line, cnt[_NF], got
+        elif _starts(buf, j, end, _USEMTL):
+            uspan[cnt[_NU], 0] = j + 7
+            uspan[cnt[_NU], 1] = end
+            cnt[_NU] += 1
+        elif _starts(buf, j, end, _MTLLIB):
+            lspan[cnt[_NL], 0] = j + 7
+            lspan[cnt[_NL], 1] = end
+            cnt[_NL] += 1
+    pstart[cnt[_NPOLY]] = cnt[_NC]
+    err[_LINE] = 0
+    return out
 
 
 def _triangulate(pos: np.ndarray, corners: np.ndarray, pstart: np.ndarray):
@@ -299,19 +348,47 @@ def read_mtl(path: Path) -> list[tuple[str, tuple]]:
     return [(n, kd) for n, kd in out]
 
 
-def read_obj(path) -> ObjModel:
-    """Read one OBJ file (module docstring). SceneError (one line) for an unreadable or
-    malformed file; MTL files it names that do not exist are listed in ``missing``."""
+class _Scan(NamedTuple):
+    """A checked scan of an OBJ file (``scan``): its bytes, float32 vertex positions, corners,
+    polygon starts and material segments, usemtl and mtllib spans."""
+
+    data: bytes
+    pos: np.ndarray
+    corners: np.ndarray
+    pstart: np.ndarray
+    pseg: np.ndarray
+    uspan: np.ndarray
+    lspan: np.ndarray
+
+
+def _problem(path: Path, data: bytes, err, cnt) -> str:
+    """The one line of a scan that stopped: file, line and what is wrong in OBJ's terms."""
+    status = int(err[_STATUS])
+    token = (plural(int(err[_TOKEN0]), "coordinate") if status == _FEW_NUMBERS else
+             data[err[_TOKEN0]:err[_TOKEN1]].decode("utf-8", "replace"))
+    what = _ERRORS[status].format(face=int(err[_FACE]), vertex=int(cnt[_NV]) + 1,
+                                  read=plural(int(cnt[_NV]), "vertex", "vertices"), token=token)
+    return f"{path}:{int(err[_LINE])}: {what}"
+
+
+def scan(path, strict: bool = False) -> _Scan:
+    """Read and check an OBJ file: SceneError (one line: the file, the line, the face or vertex
+    number and what is wrong) for a coordinate that is no number, a vertex of fewer than 3, a
+    face corner that is no vertex index or names no vertex of the file; ``strict``: also for a
+    face of fewer than 3 corners (tinyobjloader, and so ``read_obj``, skips such faces)."""
     path = Path(path)
     try:
         data = path.read_bytes()
     except OSError as e:
         raise SceneError(f"cannot read {path}: {e.strerror}") from None
-    buf = np.frombuffer(data, np.uint8)
-    (status, line, verts, slow, vspan, corners, pstart, pseg, uspan, lspan,
-     nv, nc, npoly, nu, nl) = _scan(buf, _POW10)
-    if status != _OK:
-        raise SceneError(f"{path}:{line}: {_ERRORS[status]}")
+    err, cnt, verts, slow, vspan, corners, pstart, pseg, pline, uspan, lspan = _scan(
+        np.frombuffer(data, np.uint8), _POW10)
+    if err[_STATUS] != _OK:
+        raise SceneError(_problem(path, data, err, cnt))
+    if strict and cnt[_SHORT]:
+        raise SceneError(f"{path}:{cnt[_SHORT]}: face {cnt[_SHORT_FACE]} has "
+                         f"{plural(int(cnt[_SHORT_CORNERS]), 'corner')}; a face needs at least 3")
+    nv, nc, npoly = (int(cnt[k]) for k in (_NV, _NC, _NPOLY))
     verts = verts[:nv]
     for r in np.flatnonzero(slow[:nv]):                  # numbers beyond the exact fast path
         verts[r] = [float(x) for x in data[vspan[r, 0]:vspan[r, 1]].split()[:3]]
@@ -321,13 +398,24 @@ def read_obj(path) -> ObjModel:
         r = int(np.flatnonzero(~np.isfinite(pos).all(1))[0])
         raise SceneError(f"{path}: vertex {r + 1} is not finite in float32")
     corners = corners[:nc]
-    pstart = pstart[:npoly + 1]
-    if nc and (corners.min() < 0 or corners.max() >= nv):
-        bad = int(np.flatnonzero((corners < 0) | (corners >= nv))[0])
-        poly = int(np.searchsorted(pstart, bad, side="right") - 1)
-        raise SceneError(f"{path}: face {poly + 1} names a vertex outside the {nv} read before it")
+    if nc and corners.max() >= nv:                     # negative ones are checked by the scan
+        bad = int(np.flatnonzero(corners >= nv)[0])
+        poly = int(np.searchsorted(pstart[:npoly], bad, side="right") - 1)
+        line, face = pline[poly]
+        raise SceneError(f"{path}:{line}: face {face}: vertex index {corners[bad] + 1} is "
+                         f"beyond the file's {plural(nv, 'vertex', 'vertices')}")
+    return _Scan(data, pos, corners, pstart[:npoly + 1], pseg[:npoly], uspan[:int(cnt[_NU])],
+                 lspan[:int(cnt[_NL])])
+
+
+def read_obj(path) -> ObjModel:
+    """Read one OBJ file (module docstring). SceneError (one line) for an unreadable or
+    malformed file (``scan``); MTL files it names that do not exist are listed in
+    ``missing``."""
+    path = Path(path)
+    data, pos, corners, pstart, pseg, uspan, lspan = scan(path)
     text = lambda s: data[s[0]:s[1]].decode("utf-8", "replace").strip()  # noqa: E731
-    libs = [path.parent / name for s in lspan[:nl] for name in text(s).split()]
+    libs = [path.parent / name for s in lspan for name in text(s).split()]
     materials: list = []
     missing = []
     for lib in libs:
@@ -341,12 +429,12 @@ def read_obj(path) -> ObjModel:
         index = {}
         for i, n in enumerate(names):
             index.setdefault(n, i)
-        seg_mat = np.array([index.get(text(s), 0) for s in uspan[:nu]] + [0], np.int32)
+        seg_mat = np.array([index.get(text(s), 0) for s in uspan] + [0], np.int32)
     else:
         diffuse = np.array([DEFAULT_DIFFUSE], np.float32)
         names = ["(default)"]
-        seg_mat = np.zeros(nu + 1, np.int32)
+        seg_mat = np.zeros(len(uspan) + 1, np.int32)
     tri, poly = _triangulate(pos, corners, pstart)
-    material = seg_mat[pseg[:npoly][poly]]      # segment -1 (before any usemtl) -> the last
-    material = np.where(pseg[:npoly][poly] < 0, 0, material).astype(np.int32)
+    material = seg_mat[pseg[poly]]              # segment -1 (before any usemtl) -> the last
+    material = np.where(pseg[poly] < 0, 0, material).astype(np.int32)
     return ObjModel(path, pos[tri], material, diffuse, names, libs, missing)

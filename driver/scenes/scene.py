@@ -296,6 +296,9 @@ def _read_mesh_file(path: Path) -> trimesh.Trimesh:
     if suffix not in MESH_TYPES:
         raise SceneError(f"unsupported mesh file type {path.suffix or '(none)'!r}: {path} "
                          f"(use {', '.join(t.upper() for t in MESH_TYPES)} or a .toml scene)")
+    if suffix == "obj":                 # trimesh answers a broken OBJ in numpy's words
+        from .objfile import scan
+        scan(path, strict=True)
     try:
         mesh = trimesh.load(str(path), force="mesh", process=False)
     except Exception as e:  # noqa: BLE001  (trimesh raises anything on a broken file)

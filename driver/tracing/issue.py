@@ -24,6 +24,7 @@ import time
 import numpy as np
 
 from ..backends.base import NodeBackend
+from ..backends.build import backend_params
 from ..bvh4 import request_operands
 from ..core.datapath import DatapathError
 from ..core.layout import NO_CHILD
@@ -110,7 +111,7 @@ class NodeIssue:
         """Response words (m, RSP_WORDS) of the TRANSFORM requests of ray-table rows ``rows``
         by the instance nodes ``ptr`` (extent ``ext``, unused by the operation). The harness
         does not check requests: a build without the operation is refused here."""
-        if not getattr(self.backend, "transform", False):
+        if not backend_params(self.backend)["TRANSFORM"]:
             raise DatapathError("TRANSFORM needs backend(..., transform=True)")
         return self._run(rows, ptr, ext)
 
@@ -148,8 +149,7 @@ class RequestIssue:
         req = self.rays[active]
         req["extent"] = ext
         req["tag"] = active
-        request_operands(req, self.bvh.image, ptr, bool(getattr(self.backend, "compressed",
-                                                                False)))
+        request_operands(req, self.bvh.image, ptr, bool(backend_params(self.backend)["COMPRESSED"]))
         t0 = time.perf_counter()
         rsp = self.backend.run(req)
         self.wall_s += time.perf_counter() - t0
