@@ -31,18 +31,22 @@
 //     refills, and err (its traversal met a pointer the unit cannot fetch). Register outputs.
 //   * root_i: the root node pointer, constant while rays are in the unit.
 //   * status: busy_o (some slot holds a ray), dp_issue_o (a request entered the datapath this
-//     cycle), max_depth_o (most stack entries any ray held), overflow_o / refill_o (pulses).
-// Parameters: RAYS (slots), STACK_DEPTH (entries per stack), and the datapath's own, passed through.
+//     cycle), max_depth_o (most stack entries any ray held), overflow_o / refill_o (pulses),
+//     div_busy_o (dividers holding a division).
+// Parameters: RAYS (slots), STACK_DEPTH (entries per stack), DIVIDERS (binary32 dividers,
+// rf_fp_div), and the datapath's own, passed through.
 module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   parameter int unsigned RAYS        = 16,
   parameter int unsigned STACK_DEPTH = 32,
+  parameter int unsigned DIVIDERS    = 2,
   parameter bit          EXTENDED    = 1'b0,
   parameter bit          DISJOINT    = 1'b0,
   parameter bit          COMPRESSED  = 1'b0,
   parameter bit          TRANSFORM   = 1'b0,
   parameter int unsigned LATENCY     = 11 + 32'(COMPRESSED),
   localparam int unsigned SLOT_W  = RAYS > 1 ? $clog2(RAYS) : 1,
-  localparam int unsigned COUNT_W = $clog2(STACK_DEPTH + 1)
+  localparam int unsigned COUNT_W = $clog2(STACK_DEPTH + 1),
+  localparam int unsigned DIV_W   = $clog2(DIVIDERS + 1)
 ) (
   input  logic               clk_i,
   input  logic               rst_ni,
@@ -80,7 +84,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   output logic               dp_issue_o,
   output logic [COUNT_W-1:0] max_depth_o,
   output logic               overflow_o,
-  output logic               refill_o
+  output logic               refill_o,
+  output logic [DIV_W-1:0]   div_busy_o
 );
 
   if (RAYS < 1 || RAYS > 256) begin : g_bad_rays
@@ -227,11 +232,12 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     .div_valid_o(div_in_valid), .div_ready_i(div_in_ready), .div_num_o(div_num),
     .div_den_o(div_den), .div_tag_o(div_tag_in));
 
-  rf_rtu_div #(.TAG_W(32 + SLOT_W)) u_div (
+  rf_rtu_divs #(.DIVIDERS(DIVIDERS), .TAG_W(32 + SLOT_W)) u_div (
     .clk_i, .rst_ni,
     .in_valid_i(div_in_valid), .in_ready_o(div_in_ready), .a_i(div_num), .b_i(div_den),
     .tag_i(div_tag_in),
-    .out_valid_o(div_out_valid), .out_ready_i(div_out_ready), .q_o(div_q), .tag_o(div_tag_out));
+    .out_valid_o(div_out_valid), .out_ready_i(div_out_ready), .q_o(div_q), .tag_o(div_tag_out),
+    .busy_o(div_busy_o));
 
   logic hit_next;
   rf_rtu_hit #(.RAYS(RAYS)) u_hit (

@@ -55,7 +55,7 @@ struct Run {
   int64_t image_bytes = 0;
   int64_t mem_latency = 0, max_outstanding = 0;
   rf::MemorySystem mem;
-  int64_t l1_latency = 0;
+  int64_t l1_latency = 0, dividers = 0;
   std::vector<std::vector<uint32_t>> spill;   // per slot: the spill area, a LIFO
   // results, per ray id
   uint32_t* prim = nullptr;
@@ -85,6 +85,7 @@ extern "C" {
 // the hierarchy cannot model (*err: kBadArgs or kBadGeometry).
 void* rtu_new(const uint32_t* rays, const uint8_t* any_hit, int64_t n, const uint32_t* image,
               int64_t image_bytes, uint32_t root, int64_t mem_latency, int64_t max_outstanding,
+              int64_t dividers,
               const rf_layout::MemoryConfig* mc, uint32_t* prim, uint32_t* t, uint8_t* hit,
               int64_t* ops, int64_t* err) {
   if (n < 0 || image_bytes < 0 || mem_latency < 1 || max_outstanding < 0) {
@@ -105,6 +106,7 @@ void* rtu_new(const uint32_t* rays, const uint8_t* any_hit, int64_t n, const uin
   r->mem_latency = mem_latency;
   r->max_outstanding = max_outstanding;
   r->l1_latency = mc->l1_latency;
+  r->dividers = dividers;
   r->spill.resize(256);   // RAYS <= 256 (rf_rtunit)
   r->prim = prim;
   r->t = t;
@@ -193,6 +195,8 @@ int64_t rtu_advance(void* h, int64_t cycles, int64_t* bad_ray) {
     r->st.dp_requests += u.dp_issue_o;
     r->st.overflows += u.overflow_o;
     r->st.busy_cycles += u.busy_o;
+    r->st.divider_busy_cycles += u.div_busy_o;
+    r->st.divider_full_cycles += u.div_busy_o == r->dividers;
     if (u.res_valid_o && u.res_ready_i) {
       const uint32_t id = u.res_id_o;
       if (id >= r->n) return kBadArgs;

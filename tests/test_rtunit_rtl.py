@@ -86,12 +86,23 @@ def test_one_ray_frame_cycles_by_hand(deep):
     res = deep.trace_unit(bvh, rays)
     ref = trace(bvh, [[0.2, 0.2, 0]], [[0, 0, 1]], backend="rtl", double_sided=True)
     assert res.hit[0] and res.prim[0] == 0 and res.t.view(np.uint32)[0] == ref.t.view(np.uint32)[0]
-    mem, dp = deep.mem_latency, deep.latency
+    mem, dp, div = deep.mem_latency, deep.latency, div_cycles()
     # cycle 0 the ray is taken; per node: pop (1), fetch request registered (1), memory (mem),
     # issue (1), datapath (dp), response (the box's push / the triangle's hit to the divider);
-    # then the divider (1), the empty stack's pop (1), the result register (1), taken (1)
+    # then the divider (DIV_CYCLES), the empty stack's pop (1), the result register (1), taken (1)
     per_node = 1 + 1 + mem + 1 + dp
-    assert res.stats["cycles"] == 1 + 2 * per_node + 1 + 1 + 1 + 1
+    assert res.stats["cycles"] == 1 + 2 * per_node + div + 1 + 1 + 1
+    # busy from the cycle after its handshake to the cycle its result is taken (at once)
+    assert res.stats["divider_busy_cycles"] == div
+
+
+def div_cycles() -> int:
+    """rf_fp_div_pkg::DIV_CYCLES: quotient bits / digit bits + 2."""
+    text = (RTL_DIR / "rf_fp_div_pkg.sv").read_text()
+    value = {m[1]: int(m[2]) for m in re.finditer(r"(DIV_\w+)\s*=\s*(\d+);", text)}
+    assert re.search(r"DIV_CYCLES\s*=\s*DIV_ITER_CYCLES \+ 2;", text)
+    assert re.search(r"DIV_ITER_CYCLES\s*=\s*DIV_QUOTIENT_BITS / DIV_DIGIT_BITS;", text)
+    return value["DIV_QUOTIENT_BITS"] // value["DIV_DIGIT_BITS"] + 2
     assert (res.box_ops[0], res.tri_ops[0]) == (1, 1)
 
 

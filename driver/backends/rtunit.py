@@ -22,7 +22,8 @@ from ..core.layout import BOX_TYPE, NO_CHILD, NodeRef
 from ..core.wire import RAY_WORDS, ray_words
 from . import verilate
 from .base import BackendError
-from .build import RTL_DIR, SIM_DIR, layout_header_dir, parse_source_list, rtl_sources
+from .build import (DIV_SOURCE_LIST, RTL_DIR, SIM_DIR, layout_header_dir, parse_source_list,
+                    rtl_sources)
 from .harness import HarnessBackend, MemoryConfig, memory_config
 
 UNIT_TOP = "rf_rtunit"
@@ -32,6 +33,7 @@ UNIT_HARNESS = "rtunit_rtl_harness.cpp"
 MAX_RAYS = 256                      # ray slots the unit can be built with (RAYS)
 MIN_STACK_DEPTH, MAX_STACK_DEPTH = 2, 4096
 DEFAULT_STACK_DEPTH = 32
+DEFAULT_DIVIDERS, MAX_DIVIDERS = 2, 16   # binary32 dividers (rf_fp_div: one division at a time)
 DEFAULT_MEM_LATENCY = 20            # the fixed-latency memory behind the port, cycles
 FORMATS = ("box32",)                # node images the unit reads
 UNIT_BACKEND = "rtunit"
@@ -51,6 +53,8 @@ UNIT_STATS = (
     "overflows",                # pushes onto a full stack: its oldest entry spilled to memory
     "refill_reads",             # spilled entries read back
     "max_stack_depth",          # most entries any ray's stack held
+    "divider_busy_cycles",      # sum over cycles of the dividers holding a division
+    "divider_full_cycles",      # cycles with every divider holding one
 )
 _OK, _BUDGET, _BAD_ADDRESS, _BAD_ARGS, _BAD_GEOMETRY, _RAY_ERROR = 0, -1, -2, -3, -4, -5
 ADVANCE_CYCLES = 1 << 16            # cycles per harness call (progress and Ctrl-C between calls)
@@ -70,19 +74,26 @@ def stats_header() -> str:
 
 
 def unit_sources() -> list:
-    """The datapath's RTL files then the unit's, in compile order."""
-    names = parse_source_list(UNIT_SOURCE_LIST.read_text())
-    return [*rtl_sources(), *(RTL_DIR / f for f in names)]
+    """The datapath's RTL files, the divider's and the unit's, in compile order (a file
+    once)."""
+    out = []
+    for path in [*rtl_sources(), *rtl_sources(DIV_SOURCE_LIST), *rtl_sources(UNIT_SOURCE_LIST)]:
+        if path not in out:
+            out.append(path)
+    return out
 
 
-def unit_params(datapath: dict, rays: int, stack_depth: int) -> dict:
-    """The unit's build parameters: RAYS, STACK_DEPTH and the datapath's (``rtl_params``).
-    BackendError (one line) for a ray count or stack depth the RTL cannot be built with."""
+def unit_params(datapath: dict, rays: int, stack_depth: int,
+                dividers: int = DEFAULT_DIVIDERS) -> dict:
+    """The unit's build parameters: RAYS, STACK_DEPTH, DIVIDERS and the datapath's
+    (``rtl_params``). BackendError (one line) for a value the RTL cannot be built with."""
     for name, v, lo, hi in (("--rays-in-flight", rays, 1, MAX_RAYS),
-                            ("--stack-depth", stack_depth, MIN_STACK_DEPTH, MAX_STACK_DEPTH)):
+                            ("--stack-depth", stack_depth, MIN_STACK_DEPTH, MAX_STACK_DEPTH),
+                            ("dividers", dividers, 1, MAX_DIVIDERS)):
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
             raise BackendError(f"{name} {v!r}: the RT unit in RTL is built with {lo}..{hi}")
-    return {"RAYS": int(rays), "STACK_DEPTH": int(stack_depth), **datapath}
+    return {"RAYS": int(rays), "STACK_DEPTH": int(stack_depth), "DIVIDERS": int(dividers),
+            **datapath}
 
 
 def _header_dir() -> str:
@@ -118,7 +129,7 @@ def unit_library(params: dict) -> ctypes.CDLL:
     i64, vp, u32p = ctypes.c_int64, ctypes.c_void_p, ctypes.POINTER(ctypes.c_uint32)
     i64p, u8p = ctypes.POINTER(ctypes.c_int64), ctypes.POINTER(ctypes.c_uint8)
     lib.rtu_new.restype = vp
-    lib.rtu_new.argtypes = [u32p, u8p, i64, u32p, i64, ctypes.c_uint32, i64, i64,
+    lib.rtu_new.argtypes = [u32p, u8p, i64, u32p, i64, ctypes.c_uint32, i64, i64, i64,
                             ctypes.POINTER(MemoryConfig), u32p, u32p, u8p, i64p, i64p]
     lib.rtu_free.argtypes = [vp]
     lib.rtu_advance.restype = i64
@@ -185,18 +196,20 @@ class RtUnitBackend(HarnessBackend):
     ``rays_in_flight`` (RAYS, ray slots), ``stack_depth`` (STACK_DEPTH), ``mem_latency`` (the
     fixed-latency memory's cycles; used when ``memory`` is None), ``memory`` (a
     ``MEMORY_CONFIG`` dict, ``driver.rtunit.MemoryModel.config()``: the replay's hierarchy behind
-    the port), ``max_outstanding`` (fetches the fixed-latency memory holds, 0: no limit)."""
+    the port), ``max_outstanding`` (fetches the fixed-latency memory holds, 0: no limit),
+    ``dividers`` (DIVIDERS: binary32 dividers for the triangle hits' t)."""
 
     name = UNIT_BACKEND
 
     def __init__(self, rays_in_flight: int = 64, stack_depth: int = DEFAULT_STACK_DEPTH,
                  mem_latency: int = DEFAULT_MEM_LATENCY, memory: dict | None = None,
-                 max_outstanding: int = 0, **options):
+                 max_outstanding: int = 0, dividers: int = DEFAULT_DIVIDERS, **options):
         super().__init__(**options)
         if not isinstance(mem_latency, int) or mem_latency < 1:
             raise BackendError(f"memory latency {mem_latency!r}: give a whole number of cycles "
                                ">= 1")
-        self.unit_params = unit_params(self.params, rays_in_flight, stack_depth)
+        self.unit_params = unit_params(self.params, rays_in_flight, stack_depth, dividers)
+        self.dividers = int(dividers)
         self.rays_in_flight = int(rays_in_flight)
         self.stack_depth = int(stack_depth)
         self.mem_latency = int(mem_latency)
@@ -228,7 +241,7 @@ class RtUnitBackend(HarnessBackend):
         i64 = ctypes.POINTER(ctypes.c_int64)
         h = lib.rtu_new(rw.ctypes.data_as(u32), ah.ctypes.data_as(u8), n,
                         img.ctypes.data_as(u32), img.size, int(bvh.root), self.mem_latency,
-                        self.max_outstanding, ctypes.byref(mc), prim.ctypes.data_as(u32),
+                        self.max_outstanding, self.dividers, ctypes.byref(mc), prim.ctypes.data_as(u32),
                         t.ctypes.data_as(u32), hit.ctypes.data_as(u8), ops.ctypes.data_as(i64),
                         ctypes.byref(err))
         if not h:
