@@ -175,7 +175,11 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend=DEFAULT_BACKEND, ex
 def _trace_unit(be, be_name: str, bvh, rays, any_hit, progress, cull_stack,
                 replay) -> TraceResult:
     """The whole batch through an RT unit in RTL (``driver.backends.rtunit``): the unit runs the
-    traversal itself; the statistics gain ``unit_rtl`` (docs/statistics.md)."""
+    traversal itself; the statistics gain ``unit_rtl`` (docs/statistics.md). With the backend's
+    ``compare`` the Python traversal runs too, on the unit's datapath: ``unit_rtl`` then counts
+    the rays where the unit differs from it (``traversal_mismatches``; hit, primitive, t bits and
+    op counts) and gives the RT-unit replay's cycles for the same pool and memory over the
+    unit's (``replay_cycles_ratio``)."""
     if cull_stack:
         raise ValueError("the RT unit in RTL has no culling stack yet: drop --cull-stack or use "
                          "--backend rtl")
@@ -189,9 +193,35 @@ def _trace_unit(be, be_name: str, bvh, rays, any_hit, progress, cull_stack,
     t = np.where(res.hit, res.t, np.float32(np.inf)).astype(np.float32)
     stats = frame_stats(res.box_ops, res.tri_ops, res.hit, res.stats["cycles"],
                         int(be.latency), wall, be_name)
-    stats["unit_rtl"] = unit_rtl_stats(res, be)
+    unit = unit_rtl_stats(res, be)
+    unit["traversal_mismatches"] = unit["replay_cycles"] = unit["replay_cycles_ratio"] = None
+    if be.compare:
+        issue = issuer(be, rays, bvh, be_name, record=True)
+        trav = traverse(bvh, rays["extent"], issue, any_hit=any_hit)
+        hit = trav.prim >= 0
+        t_ref = np.where(hit, trav.nearest, np.float32(np.inf)).astype(np.float32)
+        differ = ((hit != res.hit) | (trav.prim != res.prim)
+                  | (t_ref.view(np.uint32) != t.view(np.uint32))
+                  | (trav.box_ops != res.box_ops) | (trav.tri_ops != res.tri_ops))
+        unit["traversal_mismatches"] = int(np.count_nonzero(differ))
+        if be.memory is not None:
+            rec = issue.record(backend_params(be))
+            cycles = rtunit.replay(rec, rays_in_flight=be.rays_in_flight, pipelines=1,
+                                   memory=memory_model(be.memory)).cycles
+            unit["replay_cycles"] = int(cycles)
+            unit["replay_cycles_ratio"] = cycles / res.stats["cycles"]
+    stats["unit_rtl"] = unit
     steps = np.zeros(0, np.int64)
     return TraceResult(t, res.prim, res.hit, res.box_ops, res.tri_ops, steps, steps, stats)
+
+
+def memory_model(config: dict) -> rtunit.MemoryModel:
+    """The ``MemoryModel`` of a ``MEMORY_CONFIG`` dict (``MemoryModel.config()``'s inverse)."""
+    return rtunit.MemoryModel(
+        config["l1_bytes"], config["l1_ways"], config["line_bytes"], config["mem_latency"],
+        config["bytes_per_cycle"], hit_latency=config["l1_latency"],
+        sector_bytes=config["sector_bytes"], mshrs=config["mshrs"], l2_bytes=config["l2_bytes"],
+        l2_ways=config["l2_ways"], l2_latency=config["l2_latency"])
 
 
 def _set_up(scene_or_mesh_or_bvh, backend, double_sided, bvh_format, transform):

@@ -17,6 +17,7 @@ from driver.cli import main
 from driver.core import layout, wire
 from driver.core.datapath import prepare_rays
 from driver.core.wire import FLAG_NO_CULL
+from driver.rtunit import MemoryModel
 from driver.tracer import as_bvh, trace
 from support.corpus import rays as corpus_rays
 from support.meshes import soup
@@ -61,6 +62,7 @@ def test_unit_matches_the_traversal_on_the_rtl_datapath(scene, deep, any_hit, do
     assert ref.hit.sum() > 20
     _same(ref, got)
     unit = got.stats["unit_rtl"]
+    assert unit["traversal_mismatches"] == 0 and unit["replay_cycles"] is None   # fixed latency
     assert unit["stack_overflows"] == 0 and 0 < unit["max_stack_depth"] <= DEEP
     assert got.stats["ops"] == ref.stats["ops"] and unit["cycles"] == got.stats["cycles"] > 0
 
@@ -77,6 +79,19 @@ def test_a_small_stack_spills_and_keeps_every_hit_and_op(scene, deep, shallow, a
     if not any_hit:             # every spilled entry is read back unless the ray ends early
         assert unit["stack_refills"] == unit["stack_overflows"]
     assert unit["cycles"] > ref.stats["unit_rtl"]["cycles"]
+
+
+def test_the_replay_is_compared_behind_the_memory_hierarchy(scene):
+    bvh, o, d = scene
+    memory = MemoryModel(cache_bytes=4096, latency_cycles=50)
+    be = RtUnitBackend(rays_in_flight=RAYS, stack_depth=DEEP, memory=memory.config())
+    got = trace(bvh, o, d, backend=be)
+    unit = got.stats["unit_rtl"]
+    assert unit["memory"] == "hierarchy" and unit["traversal_mismatches"] == 0
+    replayed = trace(bvh, o, d, backend="rtl", rays_in_flight=RAYS, memory=memory)
+    assert unit["replay_cycles"] == replayed.stats["cycles"] > 0
+    assert unit["replay_cycles_ratio"] == unit["replay_cycles"] / unit["cycles"]
+    assert 0.5 < unit["replay_cycles_ratio"] < 1.5
 
 
 def test_one_ray_frame_cycles_by_hand(deep):

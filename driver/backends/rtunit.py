@@ -197,19 +197,23 @@ class RtUnitBackend(HarnessBackend):
     fixed-latency memory's cycles; used when ``memory`` is None), ``memory`` (a
     ``MEMORY_CONFIG`` dict, ``driver.rtunit.MemoryModel.config()``: the replay's hierarchy behind
     the port), ``max_outstanding`` (fetches the fixed-latency memory holds, 0: no limit),
-    ``dividers`` (DIVIDERS: binary32 dividers for the triangle hits' t)."""
+    ``dividers`` (DIVIDERS: binary32 dividers for the triangle hits' t), ``compare`` (``trace``
+    also runs the Python traversal on this backend's datapath, checks every ray of the unit
+    against it and replays its requests for the replay's cycles: ``driver.tracer``)."""
 
     name = UNIT_BACKEND
 
     def __init__(self, rays_in_flight: int = 64, stack_depth: int = DEFAULT_STACK_DEPTH,
                  mem_latency: int = DEFAULT_MEM_LATENCY, memory: dict | None = None,
-                 max_outstanding: int = 0, dividers: int = DEFAULT_DIVIDERS, **options):
+                 max_outstanding: int = 0, dividers: int = DEFAULT_DIVIDERS,
+                 compare: bool = True, **options):
         super().__init__(**options)
         if not isinstance(mem_latency, int) or mem_latency < 1:
             raise BackendError(f"memory latency {mem_latency!r}: give a whole number of cycles "
                                ">= 1")
         self.unit_params = unit_params(self.params, rays_in_flight, stack_depth, dividers)
         self.dividers = int(dividers)
+        self.compare = bool(compare)
         self.rays_in_flight = int(rays_in_flight)
         self.stack_depth = int(stack_depth)
         self.mem_latency = int(mem_latency)
