@@ -2,12 +2,14 @@
 //
 //   * QUADBOX: the hit children are pushed on the slot's stack farthest first, so that the
 //     nearest is popped next: for j = 3 down to 0 with box_hit[j], the child pointer
-//     child[box_index[j]] of the slot's node. One push per cycle (the stack RAM has one write
+//     child[box_index[j]] of the slot's node (a box32 or a q8 node: kind_i, the kind of slot
+//     rd_o). One push per cycle (the stack RAM has one write
 //     port): a response with k hit children takes max(k, 1) cycles; then next_o pulses (the ray
 //     pops its next node).
 //   * TRIANGLE without a hit: next_o pulses in the cycle the response is taken.
 //   * TRIANGLE with a hit: (t_num, t_den) go to the divider with tag {prim, slot} (prim: the
-//     triangle node's primitive id), in the cycle the response is taken; div_o pulses.
+//     triangle's primitive id: a triangle node's, or prim[k] of a pair leaf), in the cycle the
+//     response is taken; div_o pulses.
 //
 // Contract: dp (valid/ready) is the datapath's output; dp_ready_o depends only on registers and
 // on div_ready_i (no path from dp_valid_i or the response). node_i is the node buffer entry of
@@ -24,6 +26,7 @@ module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
   input  rsp_t              dp_rsp_i,
   output logic [SLOT_W-1:0] rd_o,
   input  logic [NODE_W-1:0] node_i,
+  input  kind_e             kind_i,
   output logic              push_o,
   output logic [SLOT_W-1:0] push_slot_o,
   output logic [31:0]       push_ptr_o,
@@ -69,7 +72,11 @@ module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign active      = busy_q | (take & ~tri_op);
   assign push_o      = active & (left != 4'b0);
   assign push_slot_o = slot;
-  assign push_ptr_o  = node_i[(BOX_NODE_CHILD_WORD + 32'(index[j])) * 32 +: 32];
+  logic [31:0] child_word, prim_word;
+  assign child_word  = kind_i == KIND_Q8 ? Q8_NODE_CHILD_WORD : BOX_NODE_CHILD_WORD;
+  assign prim_word   = kind_i == KIND_PAIR0 ? PAIR_NODE_PRIM_WORD
+                     : kind_i == KIND_PAIR1 ? PAIR_NODE_PRIM_WORD + 1 : TRI_NODE_PRIM_WORD;
+  assign push_ptr_o  = node_i[(child_word + 32'(index[j])) * 32 +: 32];
 
   assign next_o     = (active & (rest == 4'b0)) | (take & tri_op & ~tri_hit);
   assign div_o      = take & tri_hit;
@@ -78,7 +85,7 @@ module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign div_valid_o = dp_valid_i & ~busy_q & tri_hit;
   assign div_num_o   = dp_rsp_i.t_num;
   assign div_den_o   = dp_rsp_i.t_den;
-  assign div_tag_o   = {node_i[TRI_NODE_PRIM_WORD*32 +: 32], slot};
+  assign div_tag_o   = {node_i[prim_word*32 +: 32], slot};
 
   always_ff @(posedge clk_i or negedge rst_ni) begin
     if (!rst_ni) begin

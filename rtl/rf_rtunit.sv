@@ -10,12 +10,15 @@
 //     └── response processing ◄── rayflex (the datapath, unchanged)
 //
 // Each slot holds one ray and is in one state (rf_rtu_pkg::slot_e): FREE -> (ray_i) POP ->
-// (pop: the root first, then the stack's top) FETCH -> (node arrives) READY -> (scheduler) DP ->
+// (pop: the root first, then a held pointer, then the stack's top) FETCH -> (node arrives)
+// READY -> (scheduler) DP ->
 // (response: children pushed or triangle missed) POP, or (triangle hit) DIV -> (hit update) POP,
 // or DONE when an any-hit ray accepts its triangle. A POP slot with an empty stack reads its last
 // spilled entry back (FETCH, then POP with that pointer held) when its stack has overflowed, else
 // goes DONE; a DONE slot leaves through res_o and is FREE again. A pointer of a type the unit
-// cannot read ends its ray with res_err_o.
+// cannot read ends its ray with res_err_o. A pair leaf (q8 images) with two triangles holds the
+// pointer of its triangle 1 after its triangle 0 (unless an any-hit ray ended there): that pop
+// needs no fetch (the leaf is in the node buffer) and goes straight to READY.
 //
 // Handshake contract of the ports (valid/ready, a beat moves when both are high on a rising edge):
 //   * ray (in): a prepared ray (request words 1..14 of docs/datapath.md, ray_i[k] is word k), its
@@ -96,7 +99,10 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   end
 
   slot_e [RAYS-1:0] state_q;
-  logic  [RAYS-1:0] at_root_q, is_box_q, err_q, held_q;
+  kind_e [RAYS-1:0] kind_q;
+  logic  [RAYS-1:0] second_q;              // the slot's pair leaf holds a triangle 1
+  logic  [31:0]     leaf_q [RAYS];         // the pointer the slot popped last
+  logic  [RAYS-1:0] at_root_q, err_q, held_q;
   logic  [31:0]     held_ptr_q [RAYS];     // a refilled pointer, popped next
 
   // ---- per-slot state in masks ----
@@ -140,18 +146,33 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign pop_ptr    = pop_stack ? stk_top : pop_held ? held_ptr_q[pop_slot] : root_i;
   // a slot with something to fetch waits for the fetch unit; a bad pointer or an empty stack
   // with nothing spilled ends the ray
-  assign pop_err    = pop_any & pop_node & fetch_bad;
-  assign pop_fetch  = pop_any & ((pop_node & ~fetch_bad) | pop_refill) & fetch_ready;
+  // a leaf's triangle 1 needs no fetch; any other node waits for the fetch unit; a bad pointer,
+  // or an empty stack with nothing spilled, ends the ray
+  logic pop_leaf_next;
+  assign pop_leaf_next = pop_any & pop_node & pop_ptr[2:0] == LEAF_NEXT_TYPE;
+  assign pop_err    = pop_any & pop_node & ~pop_leaf_next & fetch_bad;
+  assign pop_fetch  = pop_any & ((pop_node & ~pop_leaf_next & ~fetch_bad) | pop_refill)
+                      & fetch_ready;
   assign pop_finish = pop_any & ~pop_node & ~pop_refill;
+  kind_e pop_kind;
+  always_comb begin
+    unique case (pop_ptr[2:0])
+      BOX_TYPE:       pop_kind = KIND_BOX32;
+      Q8_TYPE:        pop_kind = KIND_Q8;
+      PAIR_TYPE:      pop_kind = KIND_PAIR0;
+      LEAF_NEXT_TYPE: pop_kind = KIND_PAIR1;
+      default:        pop_kind = KIND_TRI;
+    endcase
+  end
   logic pop_moves;
-  assign pop_moves = pop_fetch | pop_err | pop_finish;
+  assign pop_moves = pop_fetch | pop_leaf_next | pop_err | pop_finish;
 
   // ---- the blocks ----
   logic              fetch_done, fetch_done_refill;
   logic [31:0]       fetch_done_ptr;
   logic [SLOT_W-1:0] fetch_done_slot, sched_rd, resp_rd;
   logic [NODE_W-1:0] node_a, node_b;
-  rf_rtu_fetch #(.RAYS(RAYS)) u_fetch (
+  rf_rtu_fetch #(.RAYS(RAYS), .Q8(COMPRESSED)) u_fetch (
     .clk_i, .rst_ni,
     .in_valid_i(pop_fetch), .in_ready_o(fetch_ready), .in_slot_i(pop_slot), .in_ptr_i(pop_ptr),
     .in_refill_i(pop_refill), .in_bad_o(fetch_bad),
@@ -206,7 +227,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   rsp_t dp_rsp;
   rf_rtu_sched #(.RAYS(RAYS)) u_sched (
     .clk_i, .rst_ni,
-    .ready_i(ready_m), .is_box_i(is_box_q), .rd_o(sched_rd), .ray_i(ray_a),
+    .ready_i(ready_m), .kind_i(kind_q), .rd_o(sched_rd), .ray_i(ray_a),
     .nearest_i(nearest_a), .node_i(node_a),
     .dp_valid_o(dp_in_valid), .dp_ready_i(dp_in_ready), .dp_req_o(dp_req),
     .issue_o(issue), .issue_slot_o(issue_slot), .issue_box_o(issue_box));
@@ -226,7 +247,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   rf_rtu_resp #(.RAYS(RAYS)) u_resp (
     .clk_i, .rst_ni,
     .dp_valid_i(dp_out_valid), .dp_ready_o(dp_out_ready), .dp_rsp_i(dp_rsp),
-    .rd_o(resp_rd), .node_i(node_b),
+    .rd_o(resp_rd), .node_i(node_b), .kind_i(kind_q[resp_rd]),
     .push_o(push), .push_slot_o(push_slot), .push_ptr_o(push_ptr),
     .next_o(resp_next), .div_o(resp_div), .evt_slot_o(resp_slot),
     .div_valid_o(div_in_valid), .div_ready_i(div_in_ready), .div_num_o(div_num),
@@ -287,13 +308,19 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   // ---- slot control ----
   always_ff @(posedge clk_i) begin
     if (fetch_done && fetch_done_refill) held_ptr_q[fetch_done_slot] <= fetch_done_ptr;
+    if (resp_next) held_ptr_q[resp_slot] <= {leaf_q[resp_slot][31:3], LEAF_NEXT_TYPE};
+    if (hit_next)  held_ptr_q[hit_rd]    <= {leaf_q[hit_rd][31:3], LEAF_NEXT_TYPE};
+    if (pop_moves) leaf_q[pop_slot] <= pop_ptr;
   end
 
   always_ff @(posedge clk_i or negedge rst_ni) begin
     if (!rst_ni) begin
-      for (int i = 0; i < RAYS; i++) state_q[i] <= SLOT_FREE;
+      for (int i = 0; i < RAYS; i++) begin
+        state_q[i] <= SLOT_FREE;
+        kind_q[i]  <= KIND_BOX32;
+      end
+      second_q   <= '0;
       at_root_q  <= '0;
-      is_box_q   <= '0;
       err_q      <= '0;
       held_q     <= '0;
       pop_next_q <= '0;
@@ -308,9 +335,11 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
         pop_next_q <= (32'(pop_slot) == RAYS - 1) ? '0 : pop_slot + 1'b1;
         at_root_q[pop_slot] <= 1'b0;
         if (pop_held) held_q[pop_slot] <= 1'b0;
-        if (pop_fetch) begin
-          state_q[pop_slot]  <= SLOT_FETCH;
-          is_box_q[pop_slot] <= pop_ptr[2:0] == BOX_TYPE;
+        if (pop_fetch & pop_refill) begin
+          state_q[pop_slot] <= SLOT_FETCH;
+        end else if (pop_fetch | pop_leaf_next) begin
+          state_q[pop_slot] <= pop_leaf_next ? SLOT_READY : SLOT_FETCH;
+          kind_q[pop_slot]  <= pop_kind;
         end else begin
           state_q[pop_slot] <= SLOT_DONE;
           err_q[pop_slot]   <= pop_err;
@@ -319,7 +348,14 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
       if (fetch_done) begin
         state_q[fetch_done_slot] <= fetch_done_refill ? SLOT_POP : SLOT_READY;
         if (fetch_done_refill) held_q[fetch_done_slot] <= 1'b1;
+        second_q[fetch_done_slot] <=
+            mem_rsp_data_i[(PAIR_NODE_PRIM_WORD + 1)*32 +: 32] != NO_CHILD;
       end
+      // a pair leaf's triangle 0 done (and the ray goes on): its triangle 1 is popped next
+      if (resp_next && kind_q[resp_slot] == KIND_PAIR0 && second_q[resp_slot])
+        held_q[resp_slot] <= 1'b1;
+      if (hit_next && kind_q[hit_rd] == KIND_PAIR0 && second_q[hit_rd])
+        held_q[hit_rd] <= 1'b1;
       if (issue)      state_q[issue_slot]      <= SLOT_DP;
       if (resp_next)  state_q[resp_slot]       <= SLOT_POP;
       if (resp_div)   state_q[resp_slot]       <= SLOT_DIV;

@@ -10,7 +10,7 @@ import re
 import numpy as np
 import pytest
 
-from driver.backends import BackendError
+from driver.backends import BackendError, backend
 from driver.backends.build import RTL_DIR, rtl_params
 from driver.backends.rtunit import RtUnitBackend, lint_unit, unit_params
 from driver.cli import main
@@ -20,9 +20,9 @@ from driver.core.wire import FLAG_NO_CULL
 from driver.rtunit import MemoryModel
 from driver.tracer import as_bvh, trace
 from support.corpus import rays as corpus_rays
-from support.meshes import soup
+from support.meshes import box_room, soup
 
-RAYS = 8            # ray slots of the test builds (two builds: stack depth 32 and 4)
+RAYS = 8            # ray slots of the test builds (two: stack depth 32; 4 with the q8 decode)
 DEEP, SHALLOW = 32, 4
 
 
@@ -40,7 +40,9 @@ def deep():
 
 @pytest.fixture(scope="module")
 def shallow():
-    return RtUnitBackend(rays_in_flight=RAYS, stack_depth=SHALLOW, mem_latency=20)
+    """A small stack, and the datapath's q8 decode stage (it reads box32 images too)."""
+    return RtUnitBackend(rays_in_flight=RAYS, stack_depth=SHALLOW, mem_latency=20,
+                         compressed=True)
 
 
 def _same(ref, got, ops=True):
@@ -92,6 +94,22 @@ def test_the_replay_is_compared_behind_the_memory_hierarchy(scene):
     assert unit["replay_cycles"] == replayed.stats["cycles"] > 0
     assert unit["replay_cycles_ratio"] == unit["replay_cycles"] / unit["cycles"]
     assert 0.5 < unit["replay_cycles_ratio"] < 1.5
+
+
+@pytest.mark.parametrize("any_hit", [False, True], ids=["closest", "any-hit"])
+def test_q8_images_with_the_decode_stage(shallow, any_hit):
+    tris = np.concatenate([box_room(4), soup(100, 4)])  # quads (pair leaves) and loose triangles
+    o, d = corpus_rays(tris, 256, 5)
+    bvh = as_bvh(tris, "q8")
+    assert bvh.stats["pair_ratio"] > 0.5                # pair leaves with two triangles
+    ref = trace(bvh, o, d, backend=backend("rtl", compressed=True), any_hit=any_hit)
+    got = trace(bvh, o, d, backend=shallow, any_hit=any_hit)
+    assert ref.hit.sum() > 20
+    _same(ref, got)
+    unit = got.stats["unit_rtl"]
+    assert unit["traversal_mismatches"] == 0 and unit["stack_overflows"] > 0
+    # a pair's second triangle is read from the leaf the ray fetched for its first
+    assert unit["mem_requests"] < got.stats["ops"]
 
 
 def test_one_ray_frame_cycles_by_hand(deep):
@@ -149,8 +167,10 @@ def test_unit_lint_clean():
 def test_unit_refuses_what_it_cannot_read(scene, deep):
     bvh, o, d = scene
     q8 = as_bvh(soup(50, 2), "q8")
-    with pytest.raises(ValueError, match="reads box32 images, not q8"):
+    with pytest.raises(ValueError, match="q8 nodes with the datapath's decode stage"):
         trace(q8, o[:4], d[:4], backend=deep)
+    with pytest.raises(ValueError, match="reads box32, q8 images, not q8g"):
+        trace(as_bvh(soup(50, 2), "q8g"), o[:4], d[:4], backend=deep)
     with pytest.raises(ValueError, match="no culling stack"):
         trace(bvh, o[:4], d[:4], backend=deep, cull_stack=True)
     with pytest.raises(ValueError, match="times the frame itself"):

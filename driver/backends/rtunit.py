@@ -5,8 +5,10 @@ batches of rays by itself, driven by ``sim/rtunit_rtl_harness.cpp`` (docs/rtunit
 ``RtUnitBackend`` is the "rtl" backend (``run``/``run_nodes`` on its datapath, for everything that
 issues single requests) plus ``trace_unit``: a frame's prepared rays in, hits, per-ray op counts
 and the unit's cycles out, with no host work per traversal step. ``driver.tracer.trace`` calls it
-in place of the Python traversal. The unit reads box32 images (box nodes and triangle nodes); any
-other node format, instances and the culling stack are refused with one line before any work.
+in place of the Python traversal. The unit reads box32 images (box nodes and triangle nodes) and,
+built with the datapath's q8 decode stage (a ``-q8`` configuration), q8 images (q8 box nodes and
+triangle-pair leaves); q8g images, instances and the culling stack are refused with one line
+before any work.
 """
 
 from __future__ import annotations
@@ -18,7 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.layout import BOX_TYPE, NO_CHILD, NodeRef
+from ..core.layout import (BOX_NODE, BOX_TYPE, NO_CHILD, NODE_BYTES, PAIR_TYPE, Q8_NODE, Q8_TYPE,
+                           TRI_TYPE, NodeRef, node_word)
 from ..core.wire import RAY_WORDS, ray_words
 from . import verilate
 from .base import BackendError
@@ -35,7 +38,7 @@ MIN_STACK_DEPTH, MAX_STACK_DEPTH = 2, 4096
 DEFAULT_STACK_DEPTH = 32
 DEFAULT_DIVIDERS, MAX_DIVIDERS = 2, 16   # binary32 dividers (rf_fp_div: one division at a time)
 DEFAULT_MEM_LATENCY = 20            # the fixed-latency memory behind the port, cycles
-FORMATS = ("box32",)                # node images the unit reads
+FORMATS = ("box32", "q8")           # node images the unit reads (q8: with the decode stage)
 UNIT_BACKEND = "rtunit"
 # the design options (driver/design.py) the unit reads: its ray slots, stack and memory hierarchy
 UNIT_OPTIONS = ("rays_in_flight", "stack_depth", "cache_kib", "cache_ways", "cache_latency",
@@ -157,9 +160,10 @@ class UnitResult:
     stats: dict
 
 
-def check_image(bvh) -> None:
+def check_image(bvh, compressed: bool = False) -> None:
     """Refuse (ValueError, one line) what the unit cannot read: a node format other than
-    ``FORMATS``, instances, or a box node whose child pointers leave the image."""
+    ``FORMATS`` (q8 only with ``compressed``, the datapath's decode stage), instances, or a node
+    pointer that leaves the image, names a node type the unit does not read, or loops."""
     if getattr(bvh, "instances", None) is not None:
         raise ValueError("the RT unit in RTL does not trace instanced scenes yet (two-level "
                          "images): use --flatten or --backend rtl")
@@ -167,27 +171,31 @@ def check_image(bvh) -> None:
     if fmt not in FORMATS:
         raise ValueError(f"the RT unit in RTL reads {', '.join(FORMATS)} images, not {fmt} "
                          f"(--bvh-format {fmt}): use --backend rtl for it")
+    if fmt == "q8" and not compressed:
+        raise ValueError("the RT unit in RTL reads q8 nodes with the datapath's decode stage: "
+                         "give a -q8 configuration (--config baseline-unified-q8)")
     img = np.asarray(bvh.image).reshape(-1).view(np.uint8)
     words = img.view("<u4")
-    size = len(img)
-    ptrs = np.array([bvh.root], np.uint32)
-    # every box node's children: a BFS over the image, bounded by its size
-    seen = 0
-    frontier = ptrs
-    limit = size // 64 + 1
-    while len(frontier):
+    readable = {BOX_TYPE, TRI_TYPE} | ({Q8_TYPE, PAIR_TYPE} if fmt == "q8" else set())
+    child_word = np.zeros(8, np.int64)
+    child_word[BOX_TYPE], child_word[Q8_TYPE] = node_word(BOX_NODE, "child"), node_word(
+        Q8_NODE, "child")
+    nbytes = np.array([NODE_BYTES.get(t, 0) for t in range(8)], np.int64)
+    frontier = np.array([bvh.root], np.uint32)
+    seen, limit = 0, len(img) // 64 + 1          # every node takes 64 bytes or more
+    while len(frontier):                          # breadth first over the box nodes' children
         seen += len(frontier)
         if seen > limit:
             raise ValueError("the BVH image's pointers form a loop")
-        off = NodeRef.offset(frontier)
         typ = NodeRef.type(frontier)
-        nbytes = np.where(typ == BOX_TYPE, 128, 64)
-        if ((off + nbytes) > size).any():
+        if not np.isin(typ, list(readable)).all():
+            raise ValueError("a BVH pointer names a node type the RT unit cannot read")
+        off = NodeRef.offset(frontier)
+        if ((off + nbytes[typ]) > len(img)).any():
             raise ValueError("a BVH pointer leaves the image")
-        box = frontier[typ == BOX_TYPE]
-        if not len(box):
-            break
-        child = words[NodeRef.word(box)[:, None] + np.arange(4)].reshape(-1)
+        box = np.isin(typ, [BOX_TYPE, Q8_TYPE])
+        child = words[(NodeRef.word(frontier[box]) + child_word[typ[box]])[:, None]
+                      + np.arange(4)].reshape(-1)
         frontier = child[child != NO_CHILD]
 
 
@@ -227,7 +235,7 @@ class RtUnitBackend(HarnessBackend):
         ``bvh`` (checked by ``check_image``). ``any_hit``: a bool or one per ray.
         ``progress(done, total)`` is called between harness calls. ``max_cycles``: the budget
         (default: 10,000 cycles + 20,000 per ray); RuntimeError when it runs out."""
-        check_image(bvh)
+        check_image(bvh, self.compressed)
         n = len(rays)
         rw = np.ascontiguousarray(ray_words(rays), np.uint32)
         assert rw.shape == (n, RAY_WORDS)
