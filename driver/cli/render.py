@@ -126,10 +126,23 @@ def summary(res) -> str:
         f"{s.get('tri_ops_per_ray', 0):.1f}"
         + (f" + {s['transform_ops_per_ray']:.2f}" if s.get("transform_ops") else "")
         + " per ray)",
-        f"wavefront (every ray in flight, one pipeline): {wf['cycles']} cycles, utilization "
-        f"{wf['utilization']:.3f}, {wf['frame_us_at_1ghz']:.1f} us at 1 GHz; simulated in "
-        f"{wf['sim_wall_s']:.2f} s ({wf['sim_cycles_per_s']:.3g} cycles/s)",
     ]
+    u = s.get("unit_rtl")
+    if u:       # the RT unit in RTL ran the traversal: its cycles are the frame's
+        ratio = u.get("replay_cycles_ratio")
+        lines.append(
+            f"RT unit in RTL R={u['rays_in_flight']}, stack {u['stack_depth']}, "
+            f"{u['dividers']} dividers ({u['memory']} memory): {u['cycles']} cycles, "
+            f"utilization {u['utilization']:.3f}, max stack depth {u['max_stack_depth']}, "
+            f"{u['stack_overflows']} stack overflows; simulated in {wf['sim_wall_s']:.2f} s"
+            + (f"; {u['traversal_mismatches']} rays differ from the traversal"
+               if u.get("traversal_mismatches") is not None else "")
+            + (f"; replay cycles {ratio:.3f} x the unit's" if ratio is not None else ""))
+    else:
+        lines.append(
+            f"wavefront (every ray in flight, one pipeline): {wf['cycles']} cycles, utilization "
+            f"{wf['utilization']:.3f}, {wf['frame_us_at_1ghz']:.1f} us at 1 GHz; simulated in "
+            f"{wf['sim_wall_s']:.2f} s ({wf['sim_cycles_per_s']:.3g} cycles/s)")
     for key, what in (("rtunit", "node fetches free"), ("rtunit_memory", "memory hierarchy")):
         r = s.get(key)
         if r:
