@@ -35,15 +35,6 @@ EXPECT = {
         ("cycles", r"\b\d+ cycles\b"),
         ("every ray classified against Embree",
          r"embree: \d+ rays compared, \d+ hit/miss mismatches, \d+ primitive mismatches")],
-    "Does a whole RT unit in RTL trace the same, and in how many cycles?": [
-        ("rays", r"\b\d+ rays\b"), ("hits", r"\b\d+ hits\b"),
-        ("box and triangle ops per ray", r"[\d.]+ box \+ [\d.]+ tri ops per ray"),
-        ("the RT unit's cycles with its stack overflows",
-         r"RT unit in RTL .*: \d+ cycles, .* \d+ stack overflows"),
-        ("the rays that differ from the Python traversal (0)", r"; 0 rays differ from the traversal"),
-        ("the replay's cycles over the unit's", r"replay cycles [\d.]+ x the unit's"),
-        ("every ray classified against Embree",
-         r"embree: \d+ rays compared, \d+ hit/miss mismatches, \d+ primitive mismatches")],
     "How does my design do on the field's benchmark?": [
         ("LumiBench's scenes (`lumibench:ID`) × its path-tracing, shadow and AO shaders",
          r"^(BATH|SHIP)_(PT|SH|AO)\s+\d", 6),
