@@ -201,3 +201,9 @@ def test_stack_depth_needs_the_unit(in_tmp, error_line):
     assert "--backend rtunit" in error_line()
     assert main(["render", "bunny", "--size", "8", "--backend", "rtunit", "--pipelines", "2"]) != 0
     assert "--pipelines" in error_line()
+    assert main(["render", "bunny", "--size", "8", "--backend", "rtunit", "--rays-in-flight",
+                 "8", "--bvh-format", "q8g"]) != 0
+    assert "not q8g" in error_line()
+    assert main(["render", "bunny", "--size", "8", "--backend", "rtunit", "--rays-in-flight",
+                 "8", "--stack-depth", "1"]) != 0
+    assert "--stack-depth" in error_line()

@@ -160,20 +160,26 @@ class UnitResult:
     stats: dict
 
 
-def check_image(bvh, compressed: bool = False) -> None:
-    """Refuse (ValueError, one line) what the unit cannot read: a node format other than
-    ``FORMATS`` (q8 only with ``compressed``, the datapath's decode stage), instances, or a node
-    pointer that leaves the image, names a node type the unit does not read, or loops."""
-    if getattr(bvh, "instances", None) is not None:
+def check_format(fmt: str, compressed: bool, instanced: bool) -> None:
+    """Refuse (ValueError, one line) a node format or an instanced scene the unit cannot read,
+    before an image is built (``check_image`` checks the image itself)."""
+    if instanced:
         raise ValueError("the RT unit in RTL does not trace instanced scenes yet (two-level "
                          "images): use --flatten or --backend rtl")
-    fmt = getattr(bvh, "format", "box32")
     if fmt not in FORMATS:
         raise ValueError(f"the RT unit in RTL reads {', '.join(FORMATS)} images, not {fmt} "
                          f"(--bvh-format {fmt}): use --backend rtl for it")
     if fmt == "q8" and not compressed:
         raise ValueError("the RT unit in RTL reads q8 nodes with the datapath's decode stage: "
                          "give a -q8 configuration (--config baseline-unified-q8)")
+
+
+def check_image(bvh, compressed: bool = False) -> None:
+    """Refuse (ValueError, one line) what the unit cannot read: a node format other than
+    ``FORMATS`` (q8 only with ``compressed``, the datapath's decode stage), instances, or a node
+    pointer that leaves the image, names a node type the unit does not read, or loops."""
+    fmt = getattr(bvh, "format", "box32")
+    check_format(fmt, compressed, getattr(bvh, "instances", None) is not None)
     img = np.asarray(bvh.image).reshape(-1).view(np.uint8)
     words = img.view("<u4")
     readable = {BOX_TYPE, TRI_TYPE} | ({Q8_TYPE, PAIR_TYPE} if fmt == "q8" else set())

@@ -10,7 +10,7 @@ from __future__ import annotations
 import sys
 
 from ..backends import resolve as resolve_backend
-from ..backends.rtunit import UNIT_BACKEND
+from ..backends.rtunit import UNIT_BACKEND, check_format
 from ..design import unit_flags
 from ..check import failed
 from ..check import summary as check_summary
@@ -79,6 +79,9 @@ def run(args) -> int:
     backend = args.backend
     with phase(f"loading {name}", not args.no_progress):
         scene = with_camera(load_scene(source, args.up_axis), **view)
+    if backend == UNIT_BACKEND:         # what the unit cannot read fails before the BVH build
+        check_format(point.bvh_format, point.compressed,
+                     getattr(scene, "instances", None) is not None and not point.flatten)
     w, h = scene.size
     if point.size is not None:
         w = h = point.size
