@@ -207,3 +207,5 @@ def test_stack_depth_needs_the_unit(in_tmp, error_line):
     assert main(["render", "bunny", "--size", "8", "--backend", "rtunit", "--rays-in-flight",
                  "8", "--stack-depth", "1"]) != 0
     assert "--stack-depth" in error_line()
+    assert main(["suite", "lumibench", "--backend", "rtunit"]) != 0
+    assert "rayflex render" in error_line()
