@@ -196,6 +196,12 @@ def test_a_corrupt_image_is_refused_before_the_run(scene, deep):
         deep.trace_unit(bad, prepare_rays(o[:4], d[:4]))
 
 
+def test_a_run_stops_at_its_cycle_budget(scene, deep):
+    bvh, o, d = scene
+    with pytest.raises(RuntimeError, match="within its budget of 50 cycles"):
+        deep.trace_unit(bvh, prepare_rays(o[:4], d[:4]), max_cycles=50)
+
+
 def test_stack_depth_needs_the_unit(in_tmp, error_line):
     assert main(["render", "bunny", "--size", "8", "--stack-depth", "8"]) != 0
     assert "--backend rtunit" in error_line()
