@@ -19,7 +19,8 @@ docs/statistics.md for what is measured):
 - rtunit (docs/rtunit.md): ``--rt-preset`` (a whole RT-unit configuration; options given with
   it override its fields), the frame schedule ``--frame``, ``--shader-cycles``,
   ``--flush-between``, warps ``--warp-size``, ``--warps-per-unit``, ``--rt-units``, each unit's
-  ``--rays-in-flight``, ``--pipelines``, node cache ``--cache-kib`` (0: none), ``--cache-ways``,
+  ``--rays-in-flight``, ``--pipelines``, the RT unit in RTL's ``--stack-depth``
+  (``--backend rtunit``, docs/rtunit_rtl.md), node cache ``--cache-kib`` (0: none), ``--cache-ways``,
   ``--cache-latency``, ``--mshrs``, the shared ``--l2-kib``, ``--l2-ways``, ``--l2-latency``,
   ``--line-bytes``, ``--sector-bytes``, DRAM ``--mem-latency``, ``--mem-bytes-per-cycle``, and
   the ray order ``--ray-order``, ``--ray-window``;
@@ -37,6 +38,8 @@ from . import timing
 from .core.configs import (ALL_CONFIGS, DESIGN_CONFIGS, FUSED_SUFFIX, Q8_SUFFIX, SHARED_SUFFIX,
                            config_name, parse_config)
 from .backends.build import MIN_LATENCY, rtl_params
+from .backends.rtunit import (DEFAULT_STACK_DEPTH, MAX_STACK_DEPTH, MIN_STACK_DEPTH,
+                              UNIT_BACKEND, UNIT_OPTIONS)
 from .bvh4 import build_scene
 from .core.datapath import LATENCY, default_latency
 from .instances import DATAPATH, TRANSFORMS
@@ -237,6 +240,11 @@ OPTIONS: tuple[Option, ...] = (
     Option("rays_in_flight", "--rays-in-flight", int, 64,
            "ray pool of each RT unit: rays with a request chain in progress (whole warps: a "
            "multiple of --warp-size)", _int_range(1), "rtunit"),
+    Option("stack_depth", "--stack-depth", int, DEFAULT_STACK_DEPTH,
+           f"traversal stack entries per ray of the RT unit in RTL (--backend rtunit), "
+           f"{MIN_STACK_DEPTH}..{MAX_STACK_DEPTH}: a push onto a full stack spills its oldest "
+           "entry to memory, read back when the stack empties (the same hits and ops, more "
+           "cycles; docs/rtunit_rtl.md)", _int_range(MIN_STACK_DEPTH, MAX_STACK_DEPTH), "rtunit"),
     Option("pipelines", "--pipelines", int, 1,
            f"datapath pipelines of the RT unit, 1..{MAX_PIPELINES}",
            _int_range(1, MAX_PIPELINES), "rtunit"),
@@ -303,6 +311,20 @@ OPTIONS: tuple[Option, ...] = (
            _int_range(0), "workload"),
 )
 BY_NAME = {o.name: o for o in OPTIONS}
+assert set(UNIT_OPTIONS) <= set(BY_NAME)
+
+
+def unit_flags(args, backend: str) -> None:
+    """Refuse (ValueError, one line) ``--stack-depth`` without ``--backend rtunit``, and an
+    RT-unit option the RT unit in RTL does not model with it."""
+    if backend == UNIT_BACKEND:
+        other = [o.flag for o in OPTIONS if o.group == "rtunit" and o.name not in UNIT_OPTIONS
+                 and getattr(args, o.name, None) is not None]
+        if other:
+            raise ValueError(f"{other[0]} is a setting of the RT-unit replay, which --backend "
+                             f"{UNIT_BACKEND} does not run (docs/rtunit_rtl.md)")
+    elif getattr(args, "stack_depth", None) is not None:
+        raise ValueError(f"--stack-depth sets the RT unit in RTL: give --backend {UNIT_BACKEND}")
 
 
 @dataclass(frozen=True)
@@ -325,6 +347,7 @@ class DesignPoint:
     warps_per_unit: int = BY_NAME["warps_per_unit"].default
     rt_units: int = BY_NAME["rt_units"].default
     rays_in_flight: int = BY_NAME["rays_in_flight"].default
+    stack_depth: int = BY_NAME["stack_depth"].default
     pipelines: int = BY_NAME["pipelines"].default
     cache_kib: int = BY_NAME["cache_kib"].default
     cache_ways: int = BY_NAME["cache_ways"].default
@@ -426,12 +449,17 @@ class DesignPoint:
             return fmax, "timing"
         return DEFAULT_CLOCK_MHZ, "default"
 
-    def backend_options(self) -> dict:
-        """Keyword options of ``driver.backends.backend`` for this datapath."""
-        return {"extended": self.extended, "disjoint": self.disjoint, "latency": self.latency,
-                "compressed": self.compressed, "transform": self.transform_op,
-                **({"fused": True} if self.fused else {}),
-                **({"shared": True} if self.shared else {})}
+    def backend_options(self, name: str | None = None) -> dict:
+        """Keyword options of ``driver.backends.backend`` for this datapath; for the RT unit in
+        RTL (``name`` "rtunit") also its ray slots, stack depth and memory hierarchy."""
+        out = {"extended": self.extended, "disjoint": self.disjoint, "latency": self.latency,
+               "compressed": self.compressed, "transform": self.transform_op,
+               **({"fused": True} if self.fused else {}),
+               **({"shared": True} if self.shared else {})}
+        if name == UNIT_BACKEND:
+            out.update(rays_in_flight=self.rays_in_flight, stack_depth=self.stack_depth,
+                       memory=self.memory().config())
+        return out
 
     def rtl_params(self) -> dict:
         """RTL build parameters (EXTENDED, DISJOINT, LATENCY, COMPRESSED, TRANSFORM, FUSED,

@@ -144,7 +144,7 @@ def _render_tiles(scene, w, h, backend, progress, check_embree, point, rtunit, t
                   workers, scheduler) -> RenderResult:
     workload = point.workload
     name = backend if isinstance(backend, str) else getattr(backend, "name", "backend")
-    spec = (backend, point.backend_options()) if isinstance(backend, str) else backend
+    spec = (backend, point.backend_options(backend)) if isinstance(backend, str) else backend
     if workers == 1 and not scheduler:
         _backend(spec)                      # fail early, before a long BVH build
     with phase(f"building {build_label(scene)}", progress):
@@ -174,7 +174,7 @@ def _render_whole(scene, w, h, backend, progress, check_embree, point,
     """The primary frame as one wavefront of every pixel."""
 
     origins, dirs = primary_rays(scene.camera, w, h)
-    be = resolve(backend, **point.backend_options())[0]    # fail early, before a long BVH build
+    be = resolve(backend, **point.backend_options(backend))[0]   # fail early, before a long BVH build
     with phase(f"building {build_label(scene)}", progress):
         bvh = point.build(scene)
     bvh_stats = dict(getattr(bvh, "stats", {}) or {})

@@ -120,8 +120,57 @@ def merge(parts: list[dict]) -> dict:
     for key in (RTUNIT, RTUNIT_MEMORY):
         if all(key in p for p in parts):
             s[key] = merge_rtunit([p[key] for p in parts])
+    if all(UNIT_RTL in p for p in parts):
+        s[UNIT_RTL] = merge_unit_rtl([p[UNIT_RTL] for p in parts], s["ops"])
     return {k: s[k] for k in parts[0] if k in s} | {k: v for k, v in s.items()
                                                    if k not in parts[0]}
+
+
+def unit_rtl_stats(res, be) -> dict:
+    """The ``unit_rtl`` object of a batch run through the RT unit in RTL
+    (``driver.backends.rtunit``: ``res`` its ``UnitResult``, ``be`` the backend)."""
+    st = res.stats
+    cycles = st["cycles"]
+    return {
+        "cycles": cycles,
+        "utilization": st["dp_requests"] / cycles if cycles else 0.0,
+        "rays_in_flight": be.rays_in_flight,
+        "stack_depth": be.stack_depth,
+        "memory": "hierarchy" if be.memory is not None else "fixed",
+        "mem_latency": None if be.memory is not None else be.mem_latency,
+        "max_stack_depth": st["max_stack_depth"],
+        "stack_overflows": st["overflows"],
+        "stack_refills": st["refill_reads"],
+        "rays_overflowed": int(np.count_nonzero(res.overflows)),
+        "mem_requests": st["mem_requests"],
+        "mem_bytes": st["mem_bytes"],
+        "mem_busy_cycles": st["mem_outstanding_cycles"],
+        "busy_cycles": st["busy_cycles"],
+        "dividers": be.dividers,
+        "divider_busy_cycles": st["divider_busy_cycles"],
+        "divider_full_cycles": st["divider_full_cycles"],
+    }
+
+
+UNIT_RTL = "unit_rtl"
+_UNIT_SUMMED = ("cycles", "stack_overflows", "stack_refills", "rays_overflowed", "mem_requests",
+                "mem_bytes", "mem_busy_cycles", "busy_cycles", "divider_busy_cycles",
+                "divider_full_cycles")
+
+
+def merge_unit_rtl(parts: list[dict], ops: int) -> dict:
+    """``unit_rtl`` objects of batches run one after another, taken together (``ops``: the
+    datapath requests of all of them)."""
+    out = dict(parts[0])
+    out.update({k: sum(p[k] for p in parts) for k in _UNIT_SUMMED})
+    out["max_stack_depth"] = max(p["max_stack_depth"] for p in parts)
+    for key in ("traversal_mismatches", "replay_cycles"):
+        values = [p[key] for p in parts]
+        out[key] = None if None in values else sum(values)
+    out["replay_cycles_ratio"] = (None if out["replay_cycles"] is None or not out["cycles"]
+                                  else out["replay_cycles"] / out["cycles"])
+    out["utilization"] = ops / out["cycles"] if out["cycles"] else 0.0
+    return out
 
 
 # ---------------------------------------------------------------------------------------------

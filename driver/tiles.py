@@ -34,6 +34,8 @@ cluster given by ``--scheduler`` keep whatever their operator configured (docs/w
 
 from __future__ import annotations
 
+import json
+
 import logging
 import resource
 import threading
@@ -95,7 +97,7 @@ def _backend(spec):
     if not isinstance(spec, (str, tuple)):
         return spec
     name, options = (spec, {}) if isinstance(spec, str) else spec
-    key = (name, tuple(sorted(options.items())))
+    key = (name, json.dumps(options, sort_keys=True))     # options may hold a dict (memory)
     made = _WORKER_BACKENDS.__dict__
     if key not in made:
         made[key] = resolve(name, **options)[0]

@@ -9,6 +9,7 @@ RT-unit timing replay (``driver.rtunit``).
 from __future__ import annotations
 
 import inspect
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,7 +24,7 @@ from .core.wire import FLAG_NO_CULL
 from .instances import DATAPATH, Instances, check_transform
 from .tracing.stepper import InstanceStepper
 from .tracing.issue import issuer
-from .stats import frame_stats, with_replay
+from .stats import frame_stats, unit_rtl_stats, with_replay
 from .traversal import traverse
 
 REPLAY_OPTIONS = inspect.signature(rtunit.replay)     # what ``trace(**rtunit_options)`` passes on
@@ -143,6 +144,9 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend=DEFAULT_BACKEND, ex
     instanced = getattr(bvh, "instances", None) is not None
     rays = prepare_rays(origins, directions, extent,
                         **({"flags": FLAG_NO_CULL} if double_sided else {}))
+    if hasattr(be, "trace_unit"):
+        return _trace_unit(be, be_name, bvh, rays, any_hit, progress, cull_stack,
+                           record or bool(replay))
     timed = "rays_in_flight" in replay
     issue = issuer(be, rays, bvh, be_name, record=bool(record) or timed)
     cycles0 = int(be.cycles)
@@ -167,6 +171,58 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend=DEFAULT_BACKEND, ex
     return TraceResult(t, trav.prim, hit, trav.box_ops, trav.tri_ops, trav.step_requests,
                        trav.step_box_requests, stats, rec, instance,
                        None if inst is None else inst.transform_ops)
+
+
+def _trace_unit(be, be_name: str, bvh, rays, any_hit, progress, cull_stack,
+                replay) -> TraceResult:
+    """The whole batch through an RT unit in RTL (``driver.backends.rtunit``): the unit runs the
+    traversal itself; the statistics gain ``unit_rtl`` (docs/statistics.md). With the backend's
+    ``compare`` the Python traversal runs too, on the unit's datapath: ``unit_rtl`` then counts
+    the rays where the unit differs from it (``traversal_mismatches``; hit, primitive, t bits and
+    op counts) and gives the RT-unit replay's cycles for the same pool and memory over the
+    unit's (``replay_cycles_ratio``)."""
+    if cull_stack:
+        raise ValueError("the RT unit in RTL has no culling stack yet: drop --cull-stack or use "
+                         "--backend rtl")
+    if replay:
+        raise ValueError("the RT unit in RTL times the frame itself: the RT-unit replay "
+                         "(--rtunit, rays_in_flight=, record=) replays the Python traversal's "
+                         "requests: use --backend rtl for it")
+    t0 = time.perf_counter()
+    res = be.trace_unit(bvh, rays, any_hit=any_hit, progress=progress)
+    wall = time.perf_counter() - t0
+    t = np.where(res.hit, res.t, np.float32(np.inf)).astype(np.float32)
+    stats = frame_stats(res.box_ops, res.tri_ops, res.hit, res.stats["cycles"],
+                        int(be.latency), wall, be_name)
+    unit = unit_rtl_stats(res, be)
+    unit["traversal_mismatches"] = unit["replay_cycles"] = unit["replay_cycles_ratio"] = None
+    if be.compare:
+        issue = issuer(be, rays, bvh, be_name, record=True)
+        trav = traverse(bvh, rays["extent"], issue, any_hit=any_hit)
+        hit = trav.prim >= 0
+        t_ref = np.where(hit, trav.nearest, np.float32(np.inf)).astype(np.float32)
+        differ = ((hit != res.hit) | (trav.prim != res.prim)
+                  | (t_ref.view(np.uint32) != t.view(np.uint32))
+                  | (trav.box_ops != res.box_ops) | (trav.tri_ops != res.tri_ops))
+        unit["traversal_mismatches"] = int(np.count_nonzero(differ))
+        if be.memory is not None:
+            rec = issue.record(backend_params(be))
+            cycles = rtunit.replay(rec, rays_in_flight=be.rays_in_flight, pipelines=1,
+                                   memory=memory_model(be.memory)).cycles
+            unit["replay_cycles"] = int(cycles)
+            unit["replay_cycles_ratio"] = cycles / res.stats["cycles"]
+    stats["unit_rtl"] = unit
+    steps = np.zeros(0, np.int64)
+    return TraceResult(t, res.prim, res.hit, res.box_ops, res.tri_ops, steps, steps, stats)
+
+
+def memory_model(config: dict) -> rtunit.MemoryModel:
+    """The ``MemoryModel`` of a ``MEMORY_CONFIG`` dict (``MemoryModel.config()``'s inverse)."""
+    return rtunit.MemoryModel(
+        config["l1_bytes"], config["l1_ways"], config["line_bytes"], config["mem_latency"],
+        config["bytes_per_cycle"], hit_latency=config["l1_latency"],
+        sector_bytes=config["sector_bytes"], mshrs=config["mshrs"], l2_bytes=config["l2_bytes"],
+        l2_ways=config["l2_ways"], l2_latency=config["l2_latency"])
 
 
 def _set_up(scene_or_mesh_or_bvh, backend, double_sided, bvh_format, transform):

@@ -17,6 +17,8 @@ DOC = Path(__file__).resolve().parent.parent / "docs" / "statistics.md"
 RUNS = {
     "render": ["render", "sphere", "--size", "8", "--check-embree", "--rtunit", "--cull-stack",
                "--out", "r.png"],
+    "render_unit": ["render", "sphere", "--size", "8", "--backend", "rtunit", "--rays-in-flight",
+                    "8", "--check-embree", "--out", "u.png"],
     "render_tiled": ["render", "cornell", "--size", "8", "--workload", "path", "--tile", "4",
                      "--check-embree", "--rtunit", "--out", "t.png"],
     "bench": ["bench", "--size", "8", "--pyverilator-requests", "50", "--sweep-rays", "1,4",

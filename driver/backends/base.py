@@ -7,7 +7,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-BACKENDS = ("golden", "rtl", "pyverilator")
+BACKENDS = ("golden", "rtl", "pyverilator", "rtunit")
 DEFAULT_BACKEND = "rtl"     # of the command line and of every API call that takes a backend
 
 

@@ -10,6 +10,8 @@ from __future__ import annotations
 import sys
 
 from ..backends import resolve as resolve_backend
+from ..backends.rtunit import UNIT_BACKEND, check_format
+from ..design import unit_flags
 from ..check import failed
 from ..check import summary as check_summary
 from ..core import outputs
@@ -42,7 +44,13 @@ def run(args) -> int:
         raise ValueError("give either --size or --width/--height, not both")
     for flag in ("width", "height"):
         check_flag_size(f"--{flag}", getattr(args, flag))
+    unit_flags(args, args.backend)
     rt = options.given(args, ("rtunit",))
+    if args.backend == UNIT_BACKEND:
+        rt = []                 # the RT unit in RTL reads them (unit_flags refused the others)
+    if args.backend == UNIT_BACKEND and args.rtunit:
+        raise ValueError(f"--rtunit replays the Python traversal's requests: --backend "
+                         f"{UNIT_BACKEND} times the frame itself (unit_rtl in the JSON)")
     if rt and not args.rtunit:
         raise ValueError(f"{rt[0]} sets the RT unit, which render models with --rtunit only")
     if args.ideal_replay and not args.rtunit:
@@ -68,10 +76,13 @@ def run(args) -> int:
     # a backend that cannot be built fails first (tiles on workers and threads make their own
     # from its name)
     if not distributed:
-        resolve_backend(args.backend, **point.backend_options())
+        resolve_backend(args.backend, **point.backend_options(args.backend))
     backend = args.backend
     with phase(f"loading {name}", not args.no_progress):
         scene = with_camera(load_scene(source, args.up_axis), **view)
+    if backend == UNIT_BACKEND:         # what the unit cannot read fails before the BVH build
+        check_format(point.bvh_format, point.compressed,
+                     getattr(scene, "instances", None) is not None and not point.flatten)
     w, h = scene.size
     if point.size is not None:
         w = h = point.size
@@ -120,10 +131,23 @@ def summary(res) -> str:
         f"{s.get('tri_ops_per_ray', 0):.1f}"
         + (f" + {s['transform_ops_per_ray']:.2f}" if s.get("transform_ops") else "")
         + " per ray)",
-        f"wavefront (every ray in flight, one pipeline): {wf['cycles']} cycles, utilization "
-        f"{wf['utilization']:.3f}, {wf['frame_us_at_1ghz']:.1f} us at 1 GHz; simulated in "
-        f"{wf['sim_wall_s']:.2f} s ({wf['sim_cycles_per_s']:.3g} cycles/s)",
     ]
+    u = s.get("unit_rtl")
+    if u:       # the RT unit in RTL ran the traversal: its cycles are the frame's
+        ratio = u.get("replay_cycles_ratio")
+        lines.append(
+            f"RT unit in RTL R={u['rays_in_flight']}, stack {u['stack_depth']}, "
+            f"{u['dividers']} dividers ({u['memory']} memory): {u['cycles']} cycles, "
+            f"utilization {u['utilization']:.3f}, max stack depth {u['max_stack_depth']}, "
+            f"{u['stack_overflows']} stack overflows; simulated in {wf['sim_wall_s']:.2f} s"
+            + (f"; {u['traversal_mismatches']} rays differ from the traversal"
+               if u.get("traversal_mismatches") is not None else "")
+            + (f"; replay cycles {ratio:.3f} x the unit's" if ratio is not None else ""))
+    else:
+        lines.append(
+            f"wavefront (every ray in flight, one pipeline): {wf['cycles']} cycles, utilization "
+            f"{wf['utilization']:.3f}, {wf['frame_us_at_1ghz']:.1f} us at 1 GHz; simulated in "
+            f"{wf['sim_wall_s']:.2f} s ({wf['sim_cycles_per_s']:.3g} cycles/s)")
     for key, what in (("rtunit", "node fetches free"), ("rtunit_memory", "memory hierarchy")):
         r = s.get(key)
         if r:

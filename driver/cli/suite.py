@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..backends.rtunit import UNIT_BACKEND
 from ..scenes.camera import MAX_SIZE
 from ..core.words import cell, plural
 from ..scenes.lumibench import root
@@ -40,6 +41,9 @@ def run(args) -> int:
         raise SuiteError("--scenes and --workloads choose LumiBench's runs; a --suite file "
                          "lists its own")
     check_backend(args.backend)
+    if args.backend == UNIT_BACKEND:
+        raise SuiteError(f"a suite replays every frame on the RT-unit model; --backend "
+                         f"{UNIT_BACKEND} (the RT unit in RTL) runs through rayflex render for now")
     check_workers(args)
     for flag in ("size", "spp"):
         v = getattr(args, flag)

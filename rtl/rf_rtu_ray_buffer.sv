@@ -1,0 +1,119 @@
+// Ray buffer: RAYS entries, one per ray slot, each holding the prepared ray (request words 1..14:
+// control word with the flags such as NO_CULL, origin, direction, inverse, extent, shear), the
+// ray's id and any-hit flag, its nearest t so far, its hit record (primitive id, hit) and its
+// counters (QUADBOX and TRIANGLE requests issued, stack overflows, refills).
+//
+// Contract (write ports act on the rising edge; the caller never writes one field of the same
+// slot from two ports in one cycle):
+//   * load_i (slot load_slot_i): a new ray: its words, id and any-hit flag; nearest t = the ray's
+//     extent (word 11), no hit, counters zero;
+//   * hit_i (slot hit_slot_i): an accepted triangle: nearest t = hit_t_i, prim = hit_prim_i, hit;
+//   * box_inc_i / tri_inc_i (slot issue_slot_i): one more QUADBOX / TRIANGLE request;
+//   * ovf_inc_i (slot ovf_slot_i), rst_inc_i (slot rst_slot_i): one more stack overflow / refill;
+//   * read ports a (scheduler), b (hit update) and c (result) are combinational.
+module rf_rtu_ray_buffer import rf_rtu_pkg::*; #(
+  parameter int unsigned RAYS = 4,
+  localparam int unsigned SLOT_W = RAYS > 1 ? $clog2(RAYS) : 1
+) (
+  input  logic              clk_i,
+  input  logic              rst_ni,
+  input  logic              load_i,
+  input  logic [SLOT_W-1:0] load_slot_i,
+  input  ray_t              load_ray_i,
+  input  logic [31:0]       load_id_i,
+  input  logic              load_any_hit_i,
+  input  logic              hit_i,
+  input  logic [SLOT_W-1:0] hit_slot_i,
+  input  logic [31:0]       hit_t_i,
+  input  logic [31:0]       hit_prim_i,
+  input  logic [SLOT_W-1:0] issue_slot_i,
+  input  logic              box_inc_i,
+  input  logic              tri_inc_i,
+  input  logic              ovf_inc_i,
+  input  logic [SLOT_W-1:0] ovf_slot_i,
+  input  logic              rst_inc_i,
+  input  logic [SLOT_W-1:0] rst_slot_i,
+  input  logic [SLOT_W-1:0] rd_a_i,
+  output ray_t              ray_a_o,
+  output logic [31:0]       nearest_a_o,
+  input  logic [SLOT_W-1:0] rd_b_i,
+  output logic [31:0]       nearest_b_o,
+  output logic              any_hit_b_o,
+  input  logic [SLOT_W-1:0] rd_c_i,
+  output logic [31:0]       id_c_o,
+  output logic              hit_c_o,
+  output logic [31:0]       prim_c_o,
+  output logic [31:0]       nearest_c_o,
+  output logic [31:0]       box_ops_c_o,
+  output logic [31:0]       tri_ops_c_o,
+  output logic [15:0]       overflows_c_o,
+  output logic [15:0]       refills_c_o
+);
+
+  ray_t        ray_q      [RAYS];
+  logic [31:0] id_q       [RAYS];
+  logic [31:0] nearest_q  [RAYS];
+  logic [31:0] prim_q     [RAYS];
+  logic [31:0] box_q      [RAYS];
+  logic [31:0] tri_q      [RAYS];
+  logic [15:0] ovf_q      [RAYS];
+  logic [15:0] rst_q      [RAYS];
+  logic [RAYS-1:0] any_hit_q, hit_q;
+
+  // Ray words and ids are only read while their slot holds a ray: no reset.
+  always_ff @(posedge clk_i) begin
+    if (load_i) begin
+      ray_q[load_slot_i] <= load_ray_i;
+      id_q[load_slot_i]  <= load_id_i;
+    end
+  end
+
+  always_ff @(posedge clk_i or negedge rst_ni) begin
+    if (!rst_ni) begin
+      any_hit_q <= '0;
+      hit_q     <= '0;
+      for (int i = 0; i < RAYS; i++) begin
+        nearest_q[i] <= '0;
+        prim_q[i]    <= NO_CHILD;
+        box_q[i]     <= '0;
+        tri_q[i]     <= '0;
+        ovf_q[i]     <= '0;
+        rst_q[i]     <= '0;
+      end
+    end else begin
+      if (load_i) begin
+        any_hit_q[load_slot_i] <= load_any_hit_i;
+        hit_q[load_slot_i]     <= 1'b0;
+        nearest_q[load_slot_i] <= load_ray_i[REQ_EXTENT_WORD];
+        prim_q[load_slot_i]    <= NO_CHILD;
+        box_q[load_slot_i]     <= '0;
+        tri_q[load_slot_i]     <= '0;
+        ovf_q[load_slot_i]     <= '0;
+        rst_q[load_slot_i]     <= '0;
+      end
+      if (hit_i) begin
+        hit_q[hit_slot_i]     <= 1'b1;
+        nearest_q[hit_slot_i] <= hit_t_i;
+        prim_q[hit_slot_i]    <= hit_prim_i;
+      end
+      if (box_inc_i) box_q[issue_slot_i] <= box_q[issue_slot_i] + 1'b1;
+      if (tri_inc_i) tri_q[issue_slot_i] <= tri_q[issue_slot_i] + 1'b1;
+      if (ovf_inc_i && ovf_q[ovf_slot_i] != '1) ovf_q[ovf_slot_i] <= ovf_q[ovf_slot_i] + 1'b1;
+      if (rst_inc_i && rst_q[rst_slot_i] != '1) rst_q[rst_slot_i] <= rst_q[rst_slot_i] + 1'b1;
+    end
+  end
+
+  assign ray_a_o       = ray_q[rd_a_i];
+  assign nearest_a_o   = nearest_q[rd_a_i];
+  assign nearest_b_o   = nearest_q[rd_b_i];
+  assign any_hit_b_o   = any_hit_q[rd_b_i];
+  assign id_c_o        = id_q[rd_c_i];
+  assign hit_c_o       = hit_q[rd_c_i];
+  assign prim_c_o      = prim_q[rd_c_i];
+  assign nearest_c_o   = nearest_q[rd_c_i];
+  assign box_ops_c_o   = box_q[rd_c_i];
+  assign tri_ops_c_o   = tri_q[rd_c_i];
+  assign overflows_c_o = ovf_q[rd_c_i];
+  assign refills_c_o  = rst_q[rd_c_i];
+
+endmodule

@@ -1,0 +1,373 @@
+// RT unit: RAYS ray slots traversing a BVH4 image through one RayFlex datapath (docs/rtunit_rtl.md).
+//
+//   ray_i ──► ray buffer ◄──────────────── hit update ◄── divider ◄──┐
+//               │  slot control (below)                              │ t_num, t_den
+//               ▼                                                    │
+//   stack ──► pop ──► node fetch ──► mem_req / mem_rsp ──► node buffer
+//     ▲                                                    │
+//     │                        scheduler ◄─────────────────┘
+//     │                            │ req_t (tag = slot)
+//     └── response processing ◄── rayflex (the datapath, unchanged)
+//
+// Each slot holds one ray and is in one state (rf_rtu_pkg::slot_e): FREE -> (ray_i) POP ->
+// (pop: the root first, then a held pointer, then the stack's top) FETCH -> (node arrives)
+// READY -> (scheduler) DP ->
+// (response: children pushed or triangle missed) POP, or (triangle hit) DIV -> (hit update) POP,
+// or DONE when an any-hit ray accepts its triangle. A POP slot with an empty stack reads its last
+// spilled entry back (FETCH, then POP with that pointer held) when its stack has overflowed, else
+// goes DONE; a DONE slot leaves through res_o and is FREE again. A pointer of a type the unit
+// cannot read ends its ray with res_err_o. A pair leaf (q8 images) with two triangles holds the
+// pointer of its triangle 1 after its triangle 0 (unless an any-hit ray ended there): that pop
+// needs no fetch (the leaf is in the node buffer) and goes straight to READY.
+//
+// Handshake contract of the ports (valid/ready, a beat moves when both are high on a rising edge):
+//   * ray (in): a prepared ray (request words 1..14 of docs/datapath.md, ray_i[k] is word k), its
+//     id and any-hit flag; ray_ready_o is high while a slot is free (from registers only);
+//   * mem_req (out) / mem_rsp (in): node fetches and spill-area reads, see rf_rtu_fetch (byte
+//     address, size, tag, refill; responses in any order, always accepted); several outstanding,
+//     one per slot at most;
+//   * spill (out, valid only: the memory takes one write per cycle): a stack overflow's oldest
+//     entry spill_ptr_o goes to the spill area of slot spill_slot_o (a per-slot LIFO in memory,
+//     read back by the refill requests);
+//   * res (out): a finished ray: id, hit, prim (0xFFFFFFFF without a hit), t bits (the nearest t:
+//     the ray's extent without a hit), its QUADBOX and TRIANGLE requests, stack overflows and
+//     refills, and err (its traversal met a pointer the unit cannot fetch). Register outputs.
+//   * root_i: the root node pointer, constant while rays are in the unit.
+//   * status: busy_o (some slot holds a ray), dp_issue_o (a request entered the datapath this
+//     cycle), max_depth_o (most stack entries any ray held), overflow_o / refill_o (pulses),
+//     div_busy_o (dividers holding a division).
+// Parameters: RAYS (slots), STACK_DEPTH (entries per stack), DIVIDERS (binary32 dividers,
+// rf_fp_div), and the datapath's own, passed through.
+module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
+  parameter int unsigned RAYS        = 16,
+  parameter int unsigned STACK_DEPTH = 32,
+  parameter int unsigned DIVIDERS    = 2,
+  parameter bit          EXTENDED    = 1'b0,
+  parameter bit          DISJOINT    = 1'b0,
+  parameter bit          COMPRESSED  = 1'b0,
+  parameter bit          TRANSFORM   = 1'b0,
+  parameter bit          FUSED       = 1'b0,
+  parameter bit          SHARED      = 1'b0,
+  parameter int unsigned LATENCY     = 11 + 32'(COMPRESSED),
+  localparam int unsigned SLOT_W  = RAYS > 1 ? $clog2(RAYS) : 1,
+  localparam int unsigned COUNT_W = $clog2(STACK_DEPTH + 1),
+  localparam int unsigned DIV_W   = $clog2(DIVIDERS + 1)
+) (
+  input  logic               clk_i,
+  input  logic               rst_ni,
+  input  logic [31:0]        root_i,
+  input  logic               ray_valid_i,
+  output logic               ray_ready_o,
+  input  ray_t               ray_i,
+  input  logic [31:0]        ray_id_i,
+  input  logic               ray_any_hit_i,
+  output logic               mem_req_valid_o,
+  input  logic               mem_req_ready_i,
+  output logic [ADDR_W-1:0]  mem_req_addr_o,
+  output logic [SIZE_W-1:0]  mem_req_size_o,
+  output logic [SLOT_W-1:0]  mem_req_tag_o,
+  output logic               mem_req_refill_o,
+  input  logic               mem_rsp_valid_i,
+  output logic               mem_rsp_ready_o,
+  input  logic [NODE_W-1:0]  mem_rsp_data_i,
+  input  logic [SLOT_W-1:0]  mem_rsp_tag_i,
+  output logic               spill_valid_o,
+  output logic [SLOT_W-1:0]  spill_slot_o,
+  output logic [31:0]        spill_ptr_o,
+  output logic               res_valid_o,
+  input  logic               res_ready_i,
+  output logic [31:0]        res_id_o,
+  output logic               res_hit_o,
+  output logic [31:0]        res_prim_o,
+  output logic [31:0]        res_t_o,
+  output logic [31:0]        res_box_ops_o,
+  output logic [31:0]        res_tri_ops_o,
+  output logic [15:0]        res_overflows_o,
+  output logic [15:0]        res_refills_o,
+  output logic               res_err_o,
+  output logic               busy_o,
+  output logic               dp_issue_o,
+  output logic [COUNT_W-1:0] max_depth_o,
+  output logic               overflow_o,
+  output logic               refill_o,
+  output logic [DIV_W-1:0]   div_busy_o
+);
+
+  if (RAYS < 1 || RAYS > 256) begin : g_bad_rays
+    $error("rf_rtunit: RAYS must be in 1..256");
+  end
+  if (STACK_DEPTH < 2) begin : g_bad_depth
+    $error("rf_rtunit: STACK_DEPTH must be at least 2");
+  end
+
+  slot_e [RAYS-1:0] state_q;
+  kind_e [RAYS-1:0] kind_q;
+  logic  [RAYS-1:0] second_q;              // the slot's pair leaf holds a triangle 1
+  logic  [31:0]     leaf_q [RAYS];         // the pointer the slot popped last
+  logic  [RAYS-1:0] at_root_q, err_q, held_q;
+  logic  [31:0]     held_ptr_q [RAYS];     // a refilled pointer, popped next
+
+  // ---- per-slot state in masks ----
+  logic [RAYS-1:0] free_m, pop_m, ready_m, done_m;
+  always_comb begin
+    for (int i = 0; i < RAYS; i++) begin
+      free_m[i]  = state_q[i] == SLOT_FREE;
+      pop_m[i]   = state_q[i] == SLOT_POP;
+      ready_m[i] = state_q[i] == SLOT_READY;
+      done_m[i]  = state_q[i] == SLOT_DONE;
+    end
+  end
+  assign busy_o = ~&free_m;
+
+  // ---- load: the lowest free slot takes the next ray ----
+  logic [32:0]       load_pick;
+  logic [SLOT_W-1:0] load_slot;
+  logic              load;
+  assign load_pick   = rr_pick(256'(free_m), RAYS, 0);
+  assign load_slot   = SLOT_W'(load_pick[31:0]);
+  assign ray_ready_o = load_pick[32];
+  assign load        = ray_valid_i & ray_ready_o;
+
+  // ---- pop: one POP slot per cycle (round robin) ----
+  logic [SLOT_W-1:0] pop_next_q, pop_slot;
+  logic [32:0]       pop_pick;
+  logic              pop_any;
+  assign pop_pick = rr_pick(256'(pop_m), RAYS, 32'(pop_next_q));
+  assign pop_slot = SLOT_W'(pop_pick[31:0]);
+  assign pop_any  = pop_pick[32];
+
+  logic [31:0] stk_top, pop_ptr;
+  logic        stk_empty, stk_spilled, stk_spill;
+  logic        fetch_ready, fetch_bad;
+  logic        pop_root, pop_held, pop_stack, pop_refill, pop_node, pop_fetch, pop_finish, pop_err;
+  assign pop_root   = at_root_q[pop_slot];
+  assign pop_held   = ~pop_root & held_q[pop_slot];
+  assign pop_stack  = ~pop_root & ~pop_held & ~stk_empty;
+  assign pop_refill = ~pop_root & ~pop_held & stk_empty & stk_spilled;
+  assign pop_node   = pop_root | pop_held | pop_stack;
+  assign pop_ptr    = pop_stack ? stk_top : pop_held ? held_ptr_q[pop_slot] : root_i;
+  // a slot with something to fetch waits for the fetch unit; a bad pointer or an empty stack
+  // with nothing spilled ends the ray
+  // a leaf's triangle 1 needs no fetch; any other node waits for the fetch unit; a bad pointer,
+  // or an empty stack with nothing spilled, ends the ray
+  logic pop_leaf_next;
+  assign pop_leaf_next = pop_any & pop_node & pop_ptr[2:0] == LEAF_NEXT_TYPE;
+  assign pop_err    = pop_any & pop_node & ~pop_leaf_next & fetch_bad;
+  assign pop_fetch  = pop_any & ((pop_node & ~pop_leaf_next & ~fetch_bad) | pop_refill)
+                      & fetch_ready;
+  assign pop_finish = pop_any & ~pop_node & ~pop_refill;
+  kind_e pop_kind;
+  always_comb begin
+    unique case (pop_ptr[2:0])
+      BOX_TYPE:       pop_kind = KIND_BOX32;
+      Q8_TYPE:        pop_kind = KIND_Q8;
+      PAIR_TYPE:      pop_kind = KIND_PAIR0;
+      LEAF_NEXT_TYPE: pop_kind = KIND_PAIR1;
+      default:        pop_kind = KIND_TRI;
+    endcase
+  end
+  logic pop_moves;
+  assign pop_moves = pop_fetch | pop_leaf_next | pop_err | pop_finish;
+
+  // ---- the blocks ----
+  logic              fetch_done, fetch_done_refill;
+  logic [31:0]       fetch_done_ptr;
+  logic [SLOT_W-1:0] fetch_done_slot, sched_rd, resp_rd;
+  logic [NODE_W-1:0] node_a, node_b;
+  rf_rtu_fetch #(.RAYS(RAYS), .Q8(COMPRESSED)) u_fetch (
+    .clk_i, .rst_ni,
+    .in_valid_i(pop_fetch), .in_ready_o(fetch_ready), .in_slot_i(pop_slot), .in_ptr_i(pop_ptr),
+    .in_refill_i(pop_refill), .in_bad_o(fetch_bad),
+    .mem_req_valid_o, .mem_req_ready_i, .mem_req_addr_o, .mem_req_size_o, .mem_req_tag_o,
+    .mem_req_refill_o, .mem_rsp_valid_i, .mem_rsp_ready_o, .mem_rsp_data_i, .mem_rsp_tag_i,
+    .done_o(fetch_done), .done_slot_o(fetch_done_slot), .done_refill_o(fetch_done_refill),
+    .done_ptr_o(fetch_done_ptr),
+    .rd_a_i(sched_rd), .node_a_o(node_a), .rd_b_i(resp_rd), .node_b_o(node_b));
+
+  logic              push;
+  logic [SLOT_W-1:0] push_slot;
+  logic [31:0]       push_ptr;
+  logic              hit_finish;
+  rf_rtu_stack #(.RAYS(RAYS), .STACK_DEPTH(STACK_DEPTH)) u_stack (
+    .clk_i, .rst_ni,
+    .clear_i(load), .clear_slot_i(load_slot),
+    .push_i(push), .push_slot_i(push_slot), .push_ptr_i(push_ptr),
+    .pop_slot_i(pop_slot), .pop_i(pop_fetch & pop_stack), .refill_i(pop_fetch & pop_refill),
+    .top_o(stk_top), .empty_o(stk_empty), .spilled_o(stk_spilled), .spill_o(stk_spill),
+    .spill_ptr_o(spill_ptr_o), .depth_o(max_depth_o));
+  assign spill_valid_o = stk_spill;
+  assign spill_slot_o  = push_slot;
+
+  ray_t        ray_a;
+  logic [31:0] nearest_a, nearest_b;
+  logic        any_hit_b;
+  logic [SLOT_W-1:0] hit_rd, res_rd;
+  logic              issue, issue_box;
+  logic [SLOT_W-1:0] issue_slot;
+  logic              hit_acc;
+  logic [SLOT_W-1:0] hit_slot;
+  logic [31:0]       hit_t, hit_prim;
+  logic [31:0] res_id_c, res_prim_c, res_t_c, res_box_c, res_tri_c;
+  logic [15:0] res_ovf_c, res_rst_c;
+  logic        res_hit_c;
+  rf_rtu_ray_buffer #(.RAYS(RAYS)) u_rays (
+    .clk_i, .rst_ni,
+    .load_i(load), .load_slot_i(load_slot), .load_ray_i(ray_i), .load_id_i(ray_id_i),
+    .load_any_hit_i(ray_any_hit_i),
+    .hit_i(hit_acc), .hit_slot_i(hit_slot), .hit_t_i(hit_t), .hit_prim_i(hit_prim),
+    .issue_slot_i(issue_slot), .box_inc_i(issue & issue_box), .tri_inc_i(issue & ~issue_box),
+    .ovf_inc_i(stk_spill), .ovf_slot_i(push_slot),
+    .rst_inc_i(pop_fetch & pop_refill), .rst_slot_i(pop_slot),
+    .rd_a_i(sched_rd), .ray_a_o(ray_a), .nearest_a_o(nearest_a),
+    .rd_b_i(hit_rd), .nearest_b_o(nearest_b), .any_hit_b_o(any_hit_b),
+    .rd_c_i(res_rd), .id_c_o(res_id_c), .hit_c_o(res_hit_c), .prim_c_o(res_prim_c),
+    .nearest_c_o(res_t_c), .box_ops_c_o(res_box_c), .tri_ops_c_o(res_tri_c),
+    .overflows_c_o(res_ovf_c), .refills_c_o(res_rst_c));
+
+  logic dp_in_valid, dp_in_ready, dp_out_valid, dp_out_ready;
+  req_t dp_req;
+  rsp_t dp_rsp;
+  rf_rtu_sched #(.RAYS(RAYS)) u_sched (
+    .clk_i, .rst_ni,
+    .ready_i(ready_m), .kind_i(kind_q), .rd_o(sched_rd), .ray_i(ray_a),
+    .nearest_i(nearest_a), .node_i(node_a),
+    .dp_valid_o(dp_in_valid), .dp_ready_i(dp_in_ready), .dp_req_o(dp_req),
+    .issue_o(issue), .issue_slot_o(issue_slot), .issue_box_o(issue_box));
+  assign dp_issue_o = issue;
+
+  rayflex #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .COMPRESSED(COMPRESSED),
+            .TRANSFORM(TRANSFORM), .FUSED(FUSED), .SHARED(SHARED), .LATENCY(LATENCY)) u_datapath (
+    .clk_i, .rst_ni,
+    .in_valid_i(dp_in_valid), .in_ready_o(dp_in_ready), .req_i(dp_req),
+    .out_valid_o(dp_out_valid), .out_ready_i(dp_out_ready), .rsp_o(dp_rsp));
+
+  logic              resp_next, resp_div;
+  logic [SLOT_W-1:0] resp_slot;
+  logic              div_in_valid, div_in_ready, div_out_valid, div_out_ready;
+  logic [31:0]       div_num, div_den, div_q;
+  logic [32+SLOT_W-1:0] div_tag_in, div_tag_out;
+  rf_rtu_resp #(.RAYS(RAYS)) u_resp (
+    .clk_i, .rst_ni,
+    .dp_valid_i(dp_out_valid), .dp_ready_o(dp_out_ready), .dp_rsp_i(dp_rsp),
+    .rd_o(resp_rd), .node_i(node_b), .kind_i(kind_q[resp_rd]),
+    .push_o(push), .push_slot_o(push_slot), .push_ptr_o(push_ptr),
+    .next_o(resp_next), .div_o(resp_div), .evt_slot_o(resp_slot),
+    .div_valid_o(div_in_valid), .div_ready_i(div_in_ready), .div_num_o(div_num),
+    .div_den_o(div_den), .div_tag_o(div_tag_in));
+
+  rf_rtu_divs #(.DIVIDERS(DIVIDERS), .TAG_W(32 + SLOT_W)) u_div (
+    .clk_i, .rst_ni,
+    .in_valid_i(div_in_valid), .in_ready_o(div_in_ready), .a_i(div_num), .b_i(div_den),
+    .tag_i(div_tag_in),
+    .out_valid_o(div_out_valid), .out_ready_i(div_out_ready), .q_o(div_q), .tag_o(div_tag_out),
+    .busy_o(div_busy_o));
+
+  logic hit_next;
+  rf_rtu_hit #(.RAYS(RAYS)) u_hit (
+    .div_valid_i(div_out_valid), .div_ready_o(div_out_ready), .div_t_i(div_q),
+    .div_tag_i(div_tag_out), .rd_o(hit_rd), .nearest_i(nearest_b), .any_hit_i(any_hit_b),
+    .hit_o(hit_acc), .hit_slot_o(hit_slot), .hit_t_o(hit_t), .hit_prim_o(hit_prim),
+    .next_o(hit_next), .finish_o(hit_finish));
+
+  // ---- result: one DONE slot per cycle (round robin) into the result register ----
+  typedef struct packed {
+    logic [31:0] id;
+    logic        hit;
+    logic [31:0] prim;
+    logic [31:0] t;
+    logic [31:0] box_ops;
+    logic [31:0] tri_ops;
+    logic [15:0] overflows;
+    logic [15:0] refills;
+    logic        err;
+  } res_t;
+  logic [SLOT_W-1:0] res_next_q;
+  logic [32:0]       res_pick;
+  logic              res_in_ready, res_take;
+  res_t              res_d, res_q;
+  assign res_pick = rr_pick(256'(done_m), RAYS, 32'(res_next_q));
+  assign res_rd   = SLOT_W'(res_pick[31:0]);
+  assign res_take = res_pick[32] & res_in_ready;
+  assign res_d = '{id: res_id_c, hit: res_hit_c, prim: res_prim_c, t: res_t_c,
+                   box_ops: res_box_c, tri_ops: res_tri_c, overflows: res_ovf_c,
+                   refills: res_rst_c, err: err_q[res_rd]};
+  rf_skid #(.T(res_t)) u_res (
+    .clk_i, .rst_ni,
+    .valid_i(res_pick[32]), .ready_o(res_in_ready), .data_i(res_d),
+    .valid_o(res_valid_o), .ready_i(res_ready_i), .data_o(res_q));
+  assign res_id_o        = res_q.id;
+  assign res_hit_o       = res_q.hit;
+  assign res_prim_o      = res_q.prim;
+  assign res_t_o         = res_q.t;
+  assign res_box_ops_o   = res_q.box_ops;
+  assign res_tri_ops_o   = res_q.tri_ops;
+  assign res_overflows_o = res_q.overflows;
+  assign res_refills_o   = res_q.refills;
+  assign res_err_o       = res_q.err;
+  assign overflow_o      = stk_spill;
+  assign refill_o        = pop_fetch & pop_refill;
+
+  // ---- slot control ----
+  always_ff @(posedge clk_i) begin
+    if (fetch_done && fetch_done_refill) held_ptr_q[fetch_done_slot] <= fetch_done_ptr;
+    if (resp_next) held_ptr_q[resp_slot] <= {leaf_q[resp_slot][31:3], LEAF_NEXT_TYPE};
+    if (hit_next)  held_ptr_q[hit_rd]    <= {leaf_q[hit_rd][31:3], LEAF_NEXT_TYPE};
+    if (pop_moves) leaf_q[pop_slot] <= pop_ptr;
+  end
+
+  always_ff @(posedge clk_i or negedge rst_ni) begin
+    if (!rst_ni) begin
+      for (int i = 0; i < RAYS; i++) begin
+        state_q[i] <= SLOT_FREE;
+        kind_q[i]  <= KIND_BOX32;
+      end
+      second_q   <= '0;
+      at_root_q  <= '0;
+      err_q      <= '0;
+      held_q     <= '0;
+      pop_next_q <= '0;
+      res_next_q <= '0;
+    end else begin
+      if (load) begin
+        state_q[load_slot]   <= SLOT_POP;
+        at_root_q[load_slot] <= 1'b1;
+        err_q[load_slot]     <= 1'b0;
+      end
+      if (pop_moves) begin
+        pop_next_q <= (32'(pop_slot) == RAYS - 1) ? '0 : pop_slot + 1'b1;
+        at_root_q[pop_slot] <= 1'b0;
+        if (pop_held) held_q[pop_slot] <= 1'b0;
+        if (pop_fetch & pop_refill) begin
+          state_q[pop_slot] <= SLOT_FETCH;
+        end else if (pop_fetch | pop_leaf_next) begin
+          state_q[pop_slot] <= pop_leaf_next ? SLOT_READY : SLOT_FETCH;
+          kind_q[pop_slot]  <= pop_kind;
+        end else begin
+          state_q[pop_slot] <= SLOT_DONE;
+          err_q[pop_slot]   <= pop_err;
+        end
+      end
+      if (fetch_done) begin
+        state_q[fetch_done_slot] <= fetch_done_refill ? SLOT_POP : SLOT_READY;
+        if (fetch_done_refill) held_q[fetch_done_slot] <= 1'b1;
+        second_q[fetch_done_slot] <=
+            mem_rsp_data_i[(PAIR_NODE_PRIM_WORD + 1)*32 +: 32] != NO_CHILD;
+      end
+      // a pair leaf's triangle 0 done (and the ray goes on): its triangle 1 is popped next
+      if (resp_next && kind_q[resp_slot] == KIND_PAIR0 && second_q[resp_slot])
+        held_q[resp_slot] <= 1'b1;
+      if (hit_next && kind_q[hit_rd] == KIND_PAIR0 && second_q[hit_rd])
+        held_q[hit_rd] <= 1'b1;
+      if (issue)      state_q[issue_slot]      <= SLOT_DP;
+      if (resp_next)  state_q[resp_slot]       <= SLOT_POP;
+      if (resp_div)   state_q[resp_slot]       <= SLOT_DIV;
+      if (hit_next)   state_q[hit_rd]          <= SLOT_POP;
+      if (hit_finish) state_q[hit_rd]          <= SLOT_DONE;
+      if (res_take) begin
+        state_q[res_rd] <= SLOT_FREE;
+        res_next_q <= (32'(res_rd) == RAYS - 1) ? '0 : res_rd + 1'b1;
+      end
+    end
+  end
+
+endmodule

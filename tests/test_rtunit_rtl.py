@@ -1,0 +1,217 @@
+"""The RT unit in RTL (rtl/rf_rtunit.sv, ``--backend rtunit``): every ray's hit, primitive, t bits
+and box/triangle op counts identical to the Python traversal on the "rtl" datapath, at a stack
+depth that never overflows and at one that spills; a one-ray frame's cycles counted by hand; its
+package constants against driver/core/layout.py; lint; bad input refused in one line."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from driver.backends import BackendError, backend
+from driver.backends.build import RTL_DIR, rtl_params
+from driver.backends.rtunit import RtUnitBackend, lint_unit, unit_params
+from driver.cli import main
+from driver.core import layout, wire
+from driver.core.datapath import prepare_rays
+from driver.core.wire import FLAG_NO_CULL
+from driver.rtunit import MemoryModel
+from driver.tracer import as_bvh, trace
+from support.corpus import rays as corpus_rays
+from support.meshes import box_room, soup
+
+RAYS = 8            # ray slots of the test builds (two: stack depth 32; 4 with the q8 decode)
+DEEP, SHALLOW = 32, 4
+
+
+@pytest.fixture(scope="module")
+def scene():
+    tris = soup(200, 1)
+    o, d = corpus_rays(tris, 256, 3)            # 16 x 16 rays aimed at the soup
+    return as_bvh(tris), o, d
+
+
+@pytest.fixture(scope="module")
+def deep():
+    return RtUnitBackend(rays_in_flight=RAYS, stack_depth=DEEP, mem_latency=20)
+
+
+@pytest.fixture(scope="module")
+def shallow():
+    """A small stack, and the datapath's q8 decode stage (it reads box32 images too)."""
+    return RtUnitBackend(rays_in_flight=RAYS, stack_depth=SHALLOW, mem_latency=20,
+                         compressed=True)
+
+
+def _same(ref, got, ops=True):
+    assert got.hit.tolist() == ref.hit.tolist()
+    assert got.prim.tolist() == ref.prim.tolist()
+    assert got.t.view(np.uint32).tolist() == ref.t.view(np.uint32).tolist()
+    if ops:
+        assert got.box_ops.tolist() == ref.box_ops.tolist()
+        assert got.tri_ops.tolist() == ref.tri_ops.tolist()
+
+
+@pytest.mark.parametrize("any_hit,double_sided", [(False, False), (True, False), (False, True),
+                                                  (True, True)],
+                         ids=["closest", "any-hit", "closest-no-cull", "any-hit-no-cull"])
+def test_unit_matches_the_traversal_on_the_rtl_datapath(scene, deep, any_hit, double_sided):
+    bvh, o, d = scene
+    ref = trace(bvh, o, d, backend="rtl", any_hit=any_hit, double_sided=double_sided)
+    got = trace(bvh, o, d, backend=deep, any_hit=any_hit, double_sided=double_sided)
+    assert ref.hit.sum() > 20
+    _same(ref, got)
+    unit = got.stats["unit_rtl"]
+    assert unit["traversal_mismatches"] == 0 and unit["replay_cycles"] is None   # fixed latency
+    assert unit["stack_overflows"] == 0 and 0 < unit["max_stack_depth"] <= DEEP
+    assert got.stats["ops"] == ref.stats["ops"] and unit["cycles"] == got.stats["cycles"] > 0
+
+
+@pytest.mark.parametrize("any_hit", [False, True], ids=["closest", "any-hit"])
+def test_a_small_stack_spills_and_keeps_every_hit_and_op(scene, deep, shallow, any_hit):
+    bvh, o, d = scene
+    ref = trace(bvh, o, d, backend=deep, any_hit=any_hit)
+    got = trace(bvh, o, d, backend=shallow, any_hit=any_hit)
+    _same(ref, got)
+    unit = got.stats["unit_rtl"]
+    assert unit["stack_overflows"] > 0 and unit["max_stack_depth"] == SHALLOW
+    assert 0 < unit["stack_refills"] <= unit["stack_overflows"]
+    if not any_hit:             # every spilled entry is read back unless the ray ends early
+        assert unit["stack_refills"] == unit["stack_overflows"]
+    assert unit["cycles"] > ref.stats["unit_rtl"]["cycles"]
+
+
+def test_the_replay_is_compared_behind_the_memory_hierarchy(scene):
+    bvh, o, d = scene
+    memory = MemoryModel(cache_bytes=4096, latency_cycles=50)
+    be = RtUnitBackend(rays_in_flight=RAYS, stack_depth=DEEP, memory=memory.config())
+    got = trace(bvh, o, d, backend=be)
+    unit = got.stats["unit_rtl"]
+    assert unit["memory"] == "hierarchy" and unit["traversal_mismatches"] == 0
+    replayed = trace(bvh, o, d, backend="rtl", rays_in_flight=RAYS, memory=memory)
+    assert unit["replay_cycles"] == replayed.stats["cycles"] > 0
+    assert unit["replay_cycles_ratio"] == unit["replay_cycles"] / unit["cycles"]
+    assert 0.5 < unit["replay_cycles_ratio"] < 1.5
+
+
+@pytest.mark.parametrize("any_hit", [False, True], ids=["closest", "any-hit"])
+def test_q8_images_with_the_decode_stage(shallow, any_hit):
+    tris = np.concatenate([box_room(4), soup(100, 4)])  # quads (pair leaves) and loose triangles
+    o, d = corpus_rays(tris, 256, 5)
+    bvh = as_bvh(tris, "q8")
+    assert bvh.stats["pair_ratio"] > 0.5                # pair leaves with two triangles
+    ref = trace(bvh, o, d, backend=backend("rtl", compressed=True), any_hit=any_hit)
+    got = trace(bvh, o, d, backend=shallow, any_hit=any_hit)
+    assert ref.hit.sum() > 20
+    _same(ref, got)
+    unit = got.stats["unit_rtl"]
+    assert unit["traversal_mismatches"] == 0 and unit["stack_overflows"] > 0
+    # a pair's second triangle is read from the leaf the ray fetched for its first
+    assert unit["mem_requests"] < got.stats["ops"]
+
+
+def test_one_ray_frame_cycles_by_hand(deep):
+    # one triangle: a root box node with one child, the triangle node; the ray hits it (NO_CULL)
+    bvh = as_bvh(np.array([[[0, 0, 5], [1, 0, 5], [0, 1, 5]]], np.float32))
+    rays = prepare_rays([[0.2, 0.2, 0]], [[0, 0, 1]], flags=FLAG_NO_CULL)
+    res = deep.trace_unit(bvh, rays)
+    ref = trace(bvh, [[0.2, 0.2, 0]], [[0, 0, 1]], backend="rtl", double_sided=True)
+    assert res.hit[0] and res.prim[0] == 0 and res.t.view(np.uint32)[0] == ref.t.view(np.uint32)[0]
+    mem, dp, div = deep.mem_latency, deep.latency, div_cycles()
+    # cycle 0 the ray is taken; per node: pop (1), fetch request registered (1), memory (mem),
+    # issue (1), datapath (dp), response (the box's push / the triangle's hit to the divider);
+    # then the divider (DIV_CYCLES), the empty stack's pop (1), the result register (1), taken (1)
+    per_node = 1 + 1 + mem + 1 + dp
+    assert res.stats["cycles"] == 1 + 2 * per_node + div + 1 + 1 + 1
+    # busy from the cycle after its handshake to the cycle its result is taken (at once)
+    assert res.stats["divider_busy_cycles"] == div
+
+
+def div_cycles() -> int:
+    """rf_fp_div_pkg::DIV_CYCLES: quotient bits / digit bits + 2."""
+    text = (RTL_DIR / "rf_fp_div_pkg.sv").read_text()
+    value = {m[1]: int(m[2]) for m in re.finditer(r"(DIV_\w+)\s*=\s*(\d+);", text)}
+    assert re.search(r"DIV_CYCLES\s*=\s*DIV_ITER_CYCLES \+ 2;", text)
+    assert re.search(r"DIV_ITER_CYCLES\s*=\s*DIV_QUOTIENT_BITS / DIV_DIGIT_BITS;", text)
+    return value["DIV_QUOTIENT_BITS"] // value["DIV_DIGIT_BITS"] + 2
+    assert (res.box_ops[0], res.tri_ops[0]) == (1, 1)
+
+
+def test_package_constants_are_the_layout():
+    text = (RTL_DIR / "rf_rtu_pkg.sv").read_text()
+    found = {}
+    for m in re.finditer(r"localparam\s+(?:int unsigned|logic \[\d+:0\])\s+(\w+)\s*=\s*"
+                         r"(?:\d+'([dh]))?([0-9A-Fa-f_]+);", text):
+        found[m[1]] = int(m[3].replace("_", ""), 16 if m[2] == "h" else 10)
+    box, tri, req = layout.BOX_NODE, layout.TRI_NODE, wire.REQUEST.field
+    expect = {
+        "PTR_SHIFT": 3, "BOX_TYPE": layout.BOX_TYPE, "TRI_TYPE": layout.TRI_TYPE,
+        "NO_CHILD": layout.NO_CHILD,
+        "BOX_NODE_WORDS": box.itemsize // 4, "BOX_NODE_CHILD_WORD": layout.node_word(box, "child"),
+        "BOX_NODE_BOX_WORD": layout.node_word(box, "box"), "TRI_NODE_WORDS": tri.itemsize // 4,
+        "TRI_NODE_TRI_WORD": layout.node_word(tri, "tri"),
+        "TRI_NODE_PRIM_WORD": layout.node_word(tri, "prim"), "RAY_WORDS": wire.RAY_WORDS,
+        "REQ_EXTENT_WORD": req["extent"].word, "REQ_BOX_WORD": req["box"].word,
+        "REQ_TRI_WORD": req["tri"].word,
+    }
+    assert {k: found.get(k) for k in expect} == expect
+    assert layout.NodeRef.offset(np.uint32(8 | layout.BOX_TYPE)) == 8 << found["PTR_SHIFT"]
+
+
+def test_unit_lint_clean():
+    assert lint_unit(unit_params(rtl_params(False, False), RAYS, DEEP)) == ""
+
+
+def test_unit_refuses_what_it_cannot_read(scene, deep):
+    bvh, o, d = scene
+    q8 = as_bvh(soup(50, 2), "q8")
+    with pytest.raises(ValueError, match="q8 nodes with the datapath's decode stage"):
+        trace(q8, o[:4], d[:4], backend=deep)
+    with pytest.raises(ValueError, match="reads box32, q8 images, not q8g"):
+        trace(as_bvh(soup(50, 2), "q8g"), o[:4], d[:4], backend=deep)
+    with pytest.raises(ValueError, match="no culling stack"):
+        trace(bvh, o[:4], d[:4], backend=deep, cull_stack=True)
+    with pytest.raises(ValueError, match="times the frame itself"):
+        trace(bvh, o[:4], d[:4], backend=deep, rays_in_flight=8)
+    for rays, depth in ((0, 8), (300, 8), (8, 1)):
+        with pytest.raises(BackendError, match="is built with"):
+            unit_params(rtl_params(False, False), rays, depth)
+
+
+def test_a_corrupt_image_is_refused_before_the_run(scene, deep):
+    bvh, o, d = scene
+    import copy
+    bad = copy.copy(bvh)
+    img = np.array(bvh.image, copy=True).reshape(-1).view("<u4")
+    root_word = int(layout.NodeRef.word(np.uint32(bvh.root)))
+    img[root_word] = np.uint32((len(img) * 4 + 64) >> 3 | layout.TRI_TYPE)   # past the end
+    bad.image = img.view(np.uint8)
+    with pytest.raises(ValueError, match="leaves the image"):
+        deep.trace_unit(bad, prepare_rays(o[:4], d[:4]))
+    img[root_word] = np.uint32(bvh.root)                                      # a loop
+    bad.image = img.view(np.uint8)
+    with pytest.raises(ValueError, match="loop"):
+        deep.trace_unit(bad, prepare_rays(o[:4], d[:4]))
+
+
+def test_a_run_stops_at_its_cycle_budget(scene, deep):
+    bvh, o, d = scene
+    with pytest.raises(RuntimeError, match="within its budget of 50 cycles"):
+        deep.trace_unit(bvh, prepare_rays(o[:4], d[:4]), max_cycles=50)
+
+
+def test_stack_depth_needs_the_unit(in_tmp, error_line):
+    assert main(["render", "bunny", "--size", "8", "--stack-depth", "8"]) != 0
+    assert "--backend rtunit" in error_line()
+    assert main(["render", "bunny", "--size", "8", "--backend", "rtunit", "--pipelines", "2"]) != 0
+    assert "--pipelines" in error_line()
+    assert main(["render", "bunny", "--size", "8", "--backend", "rtunit", "--rays-in-flight",
+                 "8", "--bvh-format", "q8g"]) != 0
+    assert "not q8g" in error_line()
+    assert main(["render", "bunny", "--size", "8", "--backend", "rtunit", "--rays-in-flight",
+                 "8", "--stack-depth", "1"]) != 0
+    assert "--stack-depth" in error_line()
+    assert main(["suite", "lumibench", "--backend", "rtunit"]) != 0
+    assert "rayflex render" in error_line()
