@@ -453,11 +453,15 @@ def _cells_by_type(sources, script: str, timeout: float | None, tool: str = "whe
             first, second = _split_native(script)
             t0 = time.monotonic()
             _run_yosys(work, first, timeout, progress=progress, label=label)
+            elab_log = (work / "yosys.log").read_bytes()
             left = None if timeout is None else max(1.0, timeout - (time.monotonic() - t0))
             _run_yosys(work, second, left, cmd=[native_yosys()], progress=progress,
                        label=label)
             if keep is not None:
                 _write_atomic(keep, (work / "generic.il").read_bytes())
+                # both Yosys logs (each ends with the time its passes took)
+                _write_atomic(keep.with_suffix(".log"),
+                              elab_log + (work / "yosys.log").read_bytes())
         stat = json.loads((work / "stat.json").read_text())
     design = stat.get("design") or next(iter(stat["modules"].values()))
     return dict(sorted(design["num_cells_by_type"].items()))
@@ -550,17 +554,27 @@ def synthesize_all(names=None, jobs: int = 1, cache: bool = True, timeout=None,
                      f"{' (cached)' if r['cached'] else ''} [{len(done)}/{len(names)}]")
         return r
 
+    results = run_each(names, one, jobs, tool)
+    rep = report(results, tool)
+    rep["rtl_sha"], rep["rtl_rev"] = rtl_sha(sources), label
+    return rep
+
+
+def run_each(names: list[str], one, jobs: int, tool: str) -> dict:
+    """``one(name)`` for each configuration, ``jobs`` at a time, the longest expected first (so
+    that the last one to start is a short one and the cores stay busy to the end); the results
+    in the order of ``names``. An interrupt or a failure stops every Yosys still running."""
+    order = sorted(names, key=lambda n: expected_seconds(n, tool)[0], reverse=True)
     pool = ThreadPoolExecutor(max_workers=max(1, jobs))
     try:
-        results = dict(zip(names, pool.map(one, names)))
+        futures = {n: pool.submit(one, n) for n in order}
+        results = {n: futures[n].result() for n in names}
     except BaseException:
         stop_all()
         pool.shutdown(wait=False, cancel_futures=True)
         raise
     pool.shutdown()
-    rep = report(results, tool)
-    rep["rtl_sha"], rep["rtl_rev"] = rtl_sha(sources), label
-    return rep
+    return results
 
 
 def is_cached(name: str, sources, tool: str) -> bool:

@@ -29,14 +29,13 @@ import shutil
 import subprocess
 import tempfile
 import time
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 from . import area
 from .backends.cache import cache_root as tool_cache
-from .core.configs import ALL_CONFIGS, BASELINE, CONFIGS, XF_CONFIGS
+from .core.configs import BASELINE, CONFIGS
 from .plotting import wrap
 from .power.liberty import DEBIAN_OSU018
 
@@ -288,6 +287,7 @@ def time_generic(generic: Path, top: str, liberty: Path, delay_ps: float,
             area._write_atomic(keep, (work / "netlist.v").read_bytes())
             area._write_atomic(keep.with_suffix(".tcl"), (work / "sta.tcl").read_bytes())
             area._write_atomic(keep.with_suffix(".sta.txt"), out)
+            area._write_atomic(keep.with_suffix(".map.log"), (work / "yosys.log").read_bytes())
     stages = stages_of(out, regs, groups)
     limiting = max(stages, key=lambda s: stages[s]["min_period_ns"])
     worst = stages[limiting]["min_period_ns"]
@@ -367,7 +367,8 @@ def time_config(name: str, sources, liberty: Path, delay_ps: float = DEFAULT_DEL
     if top == area.TOP:
         p = area.config_params(name)
         kw = dict(extended=p["EXTENDED"], disjoint=p["DISJOINT"],
-                  compressed=p.get("COMPRESSED", 0), transform=p.get("TRANSFORM", 0))
+                  compressed=p.get("COMPRESSED", 0), transform=p.get("TRANSFORM", 0),
+                  fused=p.get("FUSED", 0), shared=p.get("SHARED", 0))
     gen = area.synthesize(top=top, cache=True, timeout=timeout, name=name, sources=sources,
                           tool="native", progress=progress, **kw)
     generic = area.generic_netlist(gen)
@@ -438,15 +439,7 @@ def time_all(names, liberty: Path, delay_ps: float = DEFAULT_DELAY_PS, jobs: int
                      f"{' (cached)' if r['cached'] else ''} [{len(done)}/{len(names)}]")
         return r
 
-    pool = ThreadPoolExecutor(max_workers=max(1, jobs))
-    try:
-        results = dict(zip(names, pool.map(one, names)))
-    except BaseException:
-        area.stop_all()
-        pool.shutdown(wait=False, cancel_futures=True)
-        raise
-    pool.shutdown()
-    return report(results, sources, label)
+    return report(area.run_each(names, one, jobs, "native"), sources, label)
 
 
 def report(results: dict, sources, label: str) -> dict:
@@ -642,15 +635,3 @@ def plot_power(study: dict, path, title: str) -> None:
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
-
-def parse_configs(text: str | None) -> list[str]:
-    if not text:
-        return list(DEFAULT_CONFIGS)
-    names = list(dict.fromkeys(n.strip() for n in text.split(",") if n.strip()))
-    if not names:
-        raise TimingError("--configs: give at least one configuration")
-    for n in names:
-        if n not in ALL_CONFIGS + XF_CONFIGS:
-            raise TimingError(f"unknown configuration {n!r}; choose from "
-                              f"{', '.join(ALL_CONFIGS + XF_CONFIGS)}")
-    return names

@@ -267,6 +267,22 @@ def test_whole_datapath_all_configurations():
 
 
 def test_flip_flops_rejects_an_unknown_configuration_before_any_work(capsys):
-    assert area.main(["--flip-flops", "--configs", "baseline-unified,baseline-shared"]) == 2
+    assert main(["area", "--flip-flops", "--configs", "baseline-unified,baseline-shared"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "unknown configuration 'baseline-shared'" in err[0]
+
+
+def test_configurations_start_longest_first_and_report_in_their_order(monkeypatch):
+    """``run_each``: with one job, the configuration expected to take longest starts first; the
+    results keep the order the user gave."""
+    expected = {"baseline-unified": 10.0, "extended-disjoint": 30.0, "baseline-disjoint": 20.0}
+    monkeypatch.setattr(area, "expected_seconds", lambda n, tool: (expected[n], "estimate"))
+    started = []
+
+    def one(n):
+        started.append(n)
+        return n.upper()
+
+    got = area.run_each(list(expected), one, 1, "native")
+    assert started == ["extended-disjoint", "baseline-disjoint", "baseline-unified"]
+    assert list(got) == list(expected) and got["baseline-unified"] == "BASELINE-UNIFIED"

@@ -259,6 +259,17 @@ def test_readme_numbers_equal_their_json():
     assert not stray, f"README numbers that come from no JSON (add them to README_NUMBERS): {stray}"
 
 
+def test_the_timing_page_quotes_its_json():
+    """docs/timing.md's generated sections (the command and RTL, the tables, the text that quotes
+    them, the flow's times, power at Fmax) are what tools/figures.py makes from docs/timing.json
+    as it is; and each configuration timed there has its row."""
+    page = (ROOT / "docs" / "timing.md").read_text()
+    assert _figures().timing_page() == page, "run python tools/figures.py --timing-page"
+    timed = json.loads((ROOT / "docs" / "timing.json").read_text())["configs"]
+    for name, r in timed.items():
+        assert f"| {name} | {r['fmax_mhz']:.1f} | {r['min_period_ns']:.2f} |" in page
+
+
 def test_readme_number_check_catches_drift(tmp_path):
     figures = _figures()
     numbers = figures.readme_numbers()

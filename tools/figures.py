@@ -102,8 +102,10 @@ TRADEOFF_CONFIGS = ("baseline-unified,baseline-unified-fused,extended-unified,"
 
 # the q8 decode and TRANSFORM beside the configuration they extend (docs/power.md)
 POWER_Q8_XF = "baseline-unified,baseline-unified-q8,baseline-unified-xf"
-# the configurations rayflex timing has timed for docs/timing.md, and the area study's required delays (ps)
-TIMED = "baseline-unified,baseline-disjoint"
+# the configurations rayflex timing has timed for docs/timing.md (its default six: the paper's
+# four, the q8 decode and TRANSFORM), and the area study's required delays (ps)
+TIMED = ("baseline-unified,extended-unified,baseline-unified-q8,baseline-unified-xf,"
+         "baseline-disjoint,extended-disjoint")
 ABC_DELAYS = "2000,5000,10000,14000,20000,30000,50000"
 
 
@@ -328,7 +330,8 @@ FIGURES = [
            "the hits the FUSED datapath changes on every ray of the LumiBench runs, adjudicated "
            "(docs/tradeoffs.md)"),
     Figure("timing",
-           (*RAYFLEX, "timing", "--configs", TIMED, "--jobs", "2", "--json", "docs/timing.json",
+           (*RAYFLEX, "timing", "--configs", TIMED, "--jobs", "2", "--rev", "HEAD",
+            "--json", "docs/timing.json",
             "--plot", "images/timing_stages.png", "--power-json", "docs/power_liberty.json",
             "--power-plot", "images/timing_power.png", "--no-progress"),
            ("docs/timing.json", "images/timing_stages.png", "images/timing_power.png"), 120.0,
@@ -645,15 +648,124 @@ one run share the same conditions, so their ratios hold.
 
 def lumibench_page(root: Path = ROOT) -> str:
     """docs/lumibench.md with its generated sections made from the JSON files."""
+    return _fill(root / "docs" / "lumibench.md", lumibench_sections(root))
+
+
+def _fill(page: Path, sections: dict[str, str]) -> str:
+    """``page``'s text with each section between ``<!-- generated: NAME ... -->`` and
+    ``<!-- end: NAME -->`` replaced by ``sections[NAME]``."""
     import re
-    text = (root / "docs" / "lumibench.md").read_text()
-    for name, body in lumibench_sections(root).items():
+    text = page.read_text()
+    for name, body in sections.items():
         pattern = re.compile(rf"(<!-- generated: {name}\b[^>]*-->\n).*?(<!-- end: {name} -->)",
                              re.S)
         if not pattern.search(text):
-            raise SystemExit(f"figures: error: docs/lumibench.md has no section {name!r}")
+            raise SystemExit(f"figures: error: {page.name} has no section {name!r}")
         text = pattern.sub(lambda m: m.group(1) + body + "\n" + m.group(2), text)
     return text
+
+
+TIMING_PAGE = ROOT / "docs" / "timing.md"
+
+
+def timing_sections(root: Path = ROOT) -> dict[str, str]:
+    """The generated sections of docs/timing.md, from docs/timing.json (the ``timing`` figure):
+    the command and RTL, the tables, what they say, the flow's time, and power at Fmax."""
+    from driver import timing
+    from driver.area import PAPER_OVERHEAD
+    rep = json.loads((root / "docs" / "timing.json").read_text())
+    cfgs = rep["configs"]
+    base = cfgs.get("baseline-unified")
+    made = load_manifest().get("timing", {})
+    import textwrap
+    head = (textwrap.fill(
+        f"RTL of commit `{rep['rtl_rev']}` (`rtl_sha` {rep['rtl_sha']}), {rep['yosys']}, "
+        f"{rep['sta']}, `{Path(next(iter(cfgs.values()))['liberty']).name}`; made by `python "
+        f"tools/figures.py --only timing` (tool commit {made.get('commit', '?')}, "
+        "[figures.json](figures.json)), which runs", 100, break_on_hyphens=False,
+        break_long_words=False)
+        + f"\n\n    {BY_NAME['timing'].shown()}\n\n" + timing.markdown(rep))
+
+    def stage_text(r, s):
+        st = r["stages"][s]
+        return f"{s} ({timing.STAGE_MEANING.get(s, s)}, {st['min_period_ns']:.2f} ns)"
+
+    reading = []
+    if base:
+        lim = base["limiting_stage"]
+        st = base["stages"][lim]
+        cells = [c["cell"] for c in st["path"][1:]]
+        bufs = sum(c.startswith("BUF") for c in cells)
+        reading.append(
+            f"* **The stage that sets the clock** of baseline-unified is {lim}, the "
+            f"{timing.STAGE_MEANING.get(lim, lim)}: from `{st['start']}` to `{st['end']}`, "
+            f"{st['cells_on_path']} cells after the flip-flop ({bufs} of them buffers), "
+            f"{st['arrival_ns']:.2f} ns plus {st['setup_ns']:.2f} ns setup.")
+        fu = [f"S{k}" for k in range(1, 9) if f"S{k}" in base["stages"]]
+        per = [base["stages"][s]["min_period_ns"] for s in fu]
+        if per:
+            lo, hi, mean = min(per), max(per), sum(per) / len(per)
+            clk_q = base["stages"][lim]["path"][0]["incr_ns"]
+            split = mean / 2 + clk_q + st["setup_ns"]
+            reading.append(
+                f"* **The pipeline is balanced:** {fu[0]} to {fu[-1]} each hold one "
+                f"floating-point unit between registers and lie within {lo:.2f} to {hi:.2f} ns "
+                f"({(hi / lo - 1) * 100:.0f} %). Moving logic between them gains at most "
+                f"{(1 - mean / hi) * 100:.0f} % (eight even stages would each take their mean, "
+                f"{mean:.2f} ns), and no two of them merge without doubling the period; a faster "
+                f"clock needs every one of them split in two, each half about {mean / 2:.2f} ns "
+                f"plus a flip-flop's {clk_q:.2f} ns clock-to-Q and {st['setup_ns']:.2f} ns "
+                f"setup: up to {hi / split:.1f} × the Fmax (an estimate from these per-stage "
+                "delays, not a synthesized design).")
+        if "S9" in base["stages"] and "out" in base["stages"]:
+            s9, out = (base["stages"][k]["min_period_ns"] for k in ("S9", "out"))
+            reading.append(
+                f"* **The other way,** S9 (the sort's last layer, {s9:.2f} ns) cannot join S8 "
+                f"without lengthening the clock, but S9 and the response format (`out`, "
+                f"{out:.2f} ns) together take {s9 + out:.2f} ns, far below {hi:.2f}: by the "
+                "paper's rule (merge where the critical path does not grow) one stage and its "
+                "register could go at no cost in Fmax.")
+    for n, r in cfgs.items():
+        if n == "baseline-unified" or not base:
+            continue
+        paper = PAPER_OVERHEAD.get(n)
+        reading.append(
+            f"* **{n}**: {r['fmax_mhz']:.1f} MHz ({(r['fmax_ratio'] - 1) * 100:+.1f} % against "
+            f"baseline-unified), set by {stage_text(r, r['limiting_stage'])}; cell area "
+            f"{(r['area_ratio'] - 1) * 100:+.0f} %"
+            + (f" (the paper's: {paper * 100:+.0f} %)" if paper is not None else "") + ".")
+    left = [n for n in timing.DEFAULT_CONFIGS if n not in cfgs]
+    if left:
+        reading.append(f"* Not timed in this run: {', '.join(left)} (`rayflex timing` times "
+                       "all six by default).")
+
+    rows = ["| configuration | whole flow (s) | generic synthesis (s) | mapping (s) | "
+            "OpenSTA (s) |", "|---|---:|---:|---:|---:|"]
+    for n, r in cfgs.items():
+        flow = "cached" if r.get("flow_s") is None else f"{r['flow_s']:,.0f}"
+        rows.append(f"| {n} | {flow} | {r['synth_s']:,.0f} | {r['map_s']:,.0f} | "
+                    f"{r['sta_s']:,.0f} |")
+    flow_time = "\n".join(rows)
+
+    power = rep.get("power_vs_frequency") or {}
+    prow = ["| configuration | Fmax (MHz) | pJ per triangle op | mW at 1 GHz | mW at its Fmax | "
+            "pJ per box op | mW at 1 GHz | mW at its Fmax |", "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for n, c in power.items():
+        if not c.get("fmax_mhz"):
+            continue
+        t, b = c["ops"]["triangle"], c["ops"]["box"]
+        prow.append(f"| {n} | {c['fmax_mhz']:.1f} | {t['pj_per_op']:,.0f} | "
+                    f"{t['mw_at_1ghz']:,.0f} | {t['mw_at_fmax']:,.0f} | {b['pj_per_op']:,.0f} | "
+                    f"{b['mw_at_1ghz']:,.0f} | {b['mw_at_fmax']:,.0f} |")
+    reading = [textwrap.fill(b, 100, subsequent_indent="  ", break_on_hyphens=False,
+                             break_long_words=False) for b in reading]
+    return {"results": head, "reading": "\n".join(reading), "flow_time": flow_time,
+            "power": "\n".join(prow)}
+
+
+def timing_page(root: Path = ROOT) -> str:
+    """docs/timing.md with its generated sections made from docs/timing.json."""
+    return _fill(root / "docs" / "timing.md", timing_sections(root))
 
 
 def lookup(data, path: str):
@@ -790,6 +902,9 @@ def main(argv=None) -> int:
     p.add_argument("--lumibench-page", action="store_true",
                    help="rewrite docs/lumibench.md's generated sections from the JSON files "
                         "(done after any LumiBench figure is rebuilt)")
+    p.add_argument("--timing-page", action="store_true",
+                   help="rewrite docs/timing.md's generated sections from docs/timing.json "
+                        "(done after the timing figure is rebuilt)")
     p.add_argument("--numbers", action="store_true",
                    help="print the README's numbers as their JSON files give them")
     p.add_argument("--record-existing", action="store_true",
@@ -806,6 +921,9 @@ def main(argv=None) -> int:
     if args.lumibench_page:
         LUMIBENCH_PAGE.write_text(lumibench_page())
         return 0
+    if args.timing_page:
+        TIMING_PAGE.write_text(timing_page())
+        return 0
     if args.numbers:
         quoted = {**readme_numbers(), **readme_numbers(table=LUMIBENCH_NUMBERS)}
         for name, value in quoted.items():
@@ -820,6 +938,8 @@ def main(argv=None) -> int:
         rebuild(fig)
     if any(f.name in LUMIBENCH_FIGURES for f in chosen):
         LUMIBENCH_PAGE.write_text(lumibench_page())
+    if any(f.name == "timing" for f in chosen):
+        TIMING_PAGE.write_text(timing_page())
     return 0
 
 
