@@ -264,7 +264,8 @@ def _run_yosys(workdir: Path, script: str, timeout: float | None, cmd: list[str]
     ``progress``, one line per milestone pass as the log shows it ("LABEL: ABC after 312 s")."""
     (workdir / "synth.ys").write_text(script)
     log = workdir / "yosys.log"
-    cmd = (cmd or yosys_command()) + ["-q", "-l", "yosys.log", "-s", "synth.ys"]
+    # -d: the log ends with the time each pass took
+    cmd = (cmd or yosys_command()) + ["-d", "-q", "-l", "yosys.log", "-s", "synth.ys"]
     out = workdir / "yosys.out"
     t0 = time.monotonic()
     # relative file names only: the WebAssembly Yosys sees the working directory
