@@ -22,9 +22,10 @@ def add_parser(subparsers):
                     "required delay; default the OSU 0.18 um cells) and time it with OpenSTA: the "
                     "worst register-to-register path of each pipeline stage, the stage that "
                     "sets the clock, its cells and Fmax. Needs Debian's packages: "
-                    f"{timing.INSTALL}. A configuration takes tens of minutes the first "
-                    "time (the generic synthesis is shared with rayflex area) and answers at once from "
-                    "the cache afterwards. See docs/timing.md.")
+                    f"{timing.INSTALL}. A configuration takes about ten minutes of one core "
+                    "the first time (longer on a busy machine; the generic synthesis is shared "
+                    "with rayflex area) and answers at once from the cache afterwards. See "
+                    "docs/timing.md.")
     options.add(p, "timing")
     return p
 
