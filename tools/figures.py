@@ -725,6 +725,19 @@ def timing_sections(root: Path = ROOT) -> dict[str, str]:
                 f"{out:.2f} ns) together take {s9 + out:.2f} ns, far below {hi:.2f}: by the "
                 "paper's rule (merge where the critical path does not grow) one stage and its "
                 "register could go at no cost in Fmax.")
+    lims = {r["limiting_stage"] for r in cfgs.values()}
+    if len(cfgs) > 1 and len(lims) == 1:
+        f = sorted(r["fmax_mhz"] for r in cfgs.values())
+        reading.append(
+            f"* **One stage sets every configuration's clock,** {next(iter(lims))}: Fmax from "
+            f"{f[0]:.1f} to {f[-1]:.1f} MHz, a spread of {(f[-1] / f[0] - 1) * 100:.1f} %"
+            + ("" if not {"baseline-unified", "baseline-unified-q8"} <= set(cfgs) else
+               "; the same stage's period moves by "
+               + _moved(*(cfgs[n]["stages"][next(iter(lims))]["min_period_ns"]
+                          for n in ("baseline-unified", "baseline-unified-q8")))
+               + " between two builds where its RTL is the same (baseline-unified and "
+               "baseline-unified-q8, which adds a stage before S1): ABC maps the whole design at "
+               "once, and a configuration with more logic is not always the slower one") + ".")
     for n, r in cfgs.items():
         if n == "baseline-unified" or not base:
             continue
@@ -761,6 +774,10 @@ def timing_sections(root: Path = ROOT) -> dict[str, str]:
                              break_long_words=False) for b in reading]
     return {"results": head, "reading": "\n".join(reading), "flow_time": flow_time,
             "power": "\n".join(prow)}
+
+
+def _moved(a: float, b: float) -> str:
+    return f"{abs(b / a - 1) * 100:.1f} % ({a:.2f} and {b:.2f} ns)"
 
 
 def timing_page(root: Path = ROOT) -> str:
