@@ -211,7 +211,7 @@ _LATENCY: dict = {}
 
 
 def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, frame, chains,
-                    plan, treelets=None):
+                    plan, treelets=None, any_hit=None):
     """Run the RT-unit replay (sim/rtunit_scheduler.cpp, ``rf_replay``) of recorded request
     chains issued by warps of trace calls. ``config``: the ``REPLAY_CONFIG`` values
     (``series_capacity`` is filled in); ``memory``: the ``MEMORY_CONFIG`` values, or None (every
@@ -225,7 +225,10 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
     ``ReplayStats`` dict plus ``SCHED_STATS``, requests per pipeline (units, P) int64, per-ray
     and per-call arrays: ``ray_times`` (n, 3), ``ray_served`` (n, one column per
     ``MEMORY_LEVELS``), ``ray_wait`` (n,), ``call_times`` (calls, 3), ``call_unit`` (calls,),
-    ``series``, ``kernel_times`` (kernels, 3))."""
+    ``series``, ``kernel_times`` (kernels, 3)). With ``config["unit_costs"]`` the replay
+    charges the RT unit in RTL's costs (docs/rtunit_rtl.md#the-replay-against-the-unit); its
+    timing pipelines read the response stage's work from ``frame.responses``; ``any_hit``:
+    (chains,) bool, the any-hit rays (None: none)."""
     lib = harness_library(params)
     rw, img, r, p, e = node_arrays(frame.ray_words, frame.image, frame.ray, frame.ptr,
                                    frame.extent)
@@ -250,6 +253,15 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
     n_chains, n_calls = len(co) - 1, len(cro) - 1
     # the timing replay (timing_latency > 0) writes no responses
     rsp = np.zeros((0 if cfg.timing_latency else len(r), RSP_WORDS), np.uint32)
+    known = None                      # the functional run's responses, for the unit's costs
+    if cfg.unit_costs and cfg.timing_latency:
+        known = np.ascontiguousarray(frame.responses, np.uint32)
+        if known.shape != (len(r), RSP_WORDS):
+            raise ValueError("the unit's costs need one recorded response per request")
+    ah = None
+    if any_hit is not None:
+        ah = np.ascontiguousarray(np.broadcast_to(np.asarray(any_hit, bool), (len(co) - 1,)),
+                                  np.uint8)
     stats = ReplayStats()
     per_pipe = np.zeros((cfg.units, cfg.pipelines), np.int64)
     sched = np.zeros(len(SCHED_STATS), np.int64)
@@ -267,7 +279,8 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
         n_chains=n_chains, chain=_data(ch), before=_data(bf), n_kernels=len(ko) - 1,
         kernel_off=_data(ko), warp_call_off=_data(wo), call_ray_off=_data(cro),
         call_rays=_data(crs), treelet=_data(ids), n_treelets=n_tl,
-        **dict(zip(("tl_off", "tl_node_off", "tl_node_bytes"), map(_data, pre))))
+        **dict(zip(("tl_off", "tl_node_off", "tl_node_bytes"), map(_data, pre))),
+        responses=_data(known), any_hit=_data(ah))
     outputs = ReplayOutputs(rsp=_data(rsp), per_pipe=_data(per_pipe), sched=_data(sched),
                             **{k: _data(v) for k, v in out.items()})
     rc = lib.rf_replay(ctypes.byref(cfg), ctypes.byref(mc), ctypes.byref(inputs),
