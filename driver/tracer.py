@@ -216,11 +216,12 @@ def _trace_unit(be, be_name: str, bvh, rays, any_hit, progress, cull_stack,
 def _replay_unit(be, rec, any_hit, n: int, unit_cycles: int) -> dict:
     """The RT-unit replay of the unit's batch on its parameters (one pipeline, its rays in flight
     and memory): with the unit's costs (``rtunit.UnitCosts``: its dividers, its fixed-latency
-    memory, the any-hit rays) and, when the unit has the memory hierarchy, with the replay's
+    memory, the any-hit rays, its stack depth) and, when the unit has the memory hierarchy, with the replay's
     default costs; each as cycles and over the unit's."""
     mem = memory_model(be.memory) if be.memory is not None else None
     costs = rtunit.UnitCosts(be.dividers, fixed_latency=0 if mem else be.mem_latency,
-                             any_hit=np.broadcast_to(np.asarray(any_hit, bool), (n,)))
+                             any_hit=np.broadcast_to(np.asarray(any_hit, bool), (n,)),
+                             stack_depth=be.stack_depth)
     out = {}
     for key, uc in (("replay", costs), ("replay_default", None)):
         cycles = None

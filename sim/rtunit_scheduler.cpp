@@ -152,6 +152,10 @@ struct Engine {
   int64_t picks = 0, max_queued = 0, n_borrowed = 0;
   bool unit_costs = false;
   int64_t unit_last = -1;      // unit costs: the cycle the last result was taken
+  // unit costs, per chain: entries on its stack and spilled, a refill under way, a refilled
+  // entry held (popped next without the stack)
+  std::vector<int64_t> depth, spilled;
+  std::vector<char> refilling, held;
 
   Engine(const ReplayConfig& c, NodeSource s) : cfg(c), src(s) {}
 
@@ -236,16 +240,38 @@ struct Engine {
     if (!cfg.window) admit_waiting(u, uid, taken);
   }
 
+  // With cfg.stack_depth S > 0 each ray's stack holds S entries: a push onto a full stack spills
+  // the oldest entry to memory (at no cost: the spill port takes a write a cycle), and a pop that
+  // finds the stack empty with entries spilled reads the last one back first: a request on the
+  // memory port (served at the node cache's hit latency, or the fixed latency), the ray popping
+  // again the cycle after the response. The order of the pops is that of an unbounded stack,
+  // the recorded chain's.
   void pop(Unit& u, int64_t uid, int64_t k) {
     if (u.popq.empty() || u.popq.top().at > k) return;
     const int64_t r = u.popq.top().id;
     u.popq.pop();
-    if (pos[r] >= chain_off[r + 1] - chain_off[r]) {
+    const bool more = pos[r] < chain_off[r + 1] - chain_off[r];
+    int64_t off;
+    const int64_t bytes = more ? node_of(r, &off) : 0;
+    // the root, a refilled entry and a pair leaf's second triangle are not on the stack
+    if (cfg.stack_depth && (!more || (pos[r] > 0 && bytes)) && !held[r]) {
+      if (depth[r] > 0) {
+        depth[r]--;
+      } else if (spilled[r] > 0 && more) {
+        spilled[r]--;
+        refilling[r] = 1;
+        const int64_t lat = mem.enabled() ? std::max<int64_t>(mem.l1[uid].latency, 1)
+                                          : cfg.fixed_latency;
+        u.arrq.push({r, k + 1 + lat, seq++});
+        return;
+      }
+    }
+    held[r] = 0;
+    if (!more) {
       finish(u, uid, r, k + 1);
       return;
     }
-    int64_t off;
-    if (!node_of(r, &off)) {                  // a pair leaf's second triangle: no fetch
+    if (!bytes) {                             // a pair leaf's second triangle: no fetch
       u.ready.push({r, k + 1, seq++});
       return;
     }
@@ -255,8 +281,15 @@ struct Engine {
 
   void arrive(Unit& u, int64_t k) {
     if (u.arrq.empty() || u.arrq.top().at > k) return;
-    u.ready.push({u.arrq.top().id, k + 1, seq++});
+    const int64_t r = u.arrq.top().id;
     u.arrq.pop();
+    if (refilling[r]) {                       // a spilled entry read back: the ray pops it
+      refilling[r] = 0;
+      held[r] = 1;
+      u.popq.push({r, k + 1, seq++});
+      return;
+    }
+    u.ready.push({r, k + 1, seq++});
   }
 
   int64_t idle_divider(const Unit& u, int64_t p, int64_t k) const {
@@ -278,6 +311,11 @@ struct Engine {
     if (kind.box) {
       next = k + std::max(kind.hits, 1);
       u.resp_free[p] = next;
+      depth[r] += kind.hits;
+      if (cfg.stack_depth && depth[r] > cfg.stack_depth) {
+        spilled[r] += depth[r] - cfg.stack_depth;
+        depth[r] = cfg.stack_depth;
+      }
     } else if (kind.tri_hit) {
       u.div_free[p][idle_divider(u, p, k)] = k + cfg.div_cycles + 1;
       next = k + cfg.div_cycles + 1;
@@ -578,6 +616,7 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
   // the unit's costs: one pipeline per unit, no scheduler of its own, the dividers given, and the
   // responses (the functional run's when the pipelines are their timing)
   if (c.unit_costs && (P != 1 || c.window || treelet || c.dividers < 1 || c.div_cycles < 1 ||
+                       c.stack_depth < 0 ||
                        (c.timing_latency && !in->responses)))
     return -3;
   const int64_t D = c.timing_latency;     // > 0: the pipelines' timing, no model evaluated
@@ -659,6 +698,12 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
     kernel_times[q * 3 + 2] = 0;
   }
   e.pos.assign(n_chains, 0);
+  if (e.unit_costs) {
+    e.depth.assign(n_chains, 0);
+    e.spilled.assign(n_chains, 0);
+    e.refilling.assign(n_chains, 0);
+    e.held.assign(n_chains, 0);
+  }
   if (e.treelets) e.cur_tl.assign(n_chains, -1);
 
   e.units = std::vector<Unit>(N);      // built in place: a Unit is not copyable

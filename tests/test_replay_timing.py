@@ -12,7 +12,7 @@ from driver import rtunit, workloads
 from driver.backends import harness
 from driver.backends.harness import HarnessBackend, default_threads, model_latency
 from driver.bvh4 import build
-from driver.rtunit import MemoryModel
+from driver.rtunit import MemoryModel, UnitCosts
 from driver.rtunit.gpu import replay_frame, timing_differences, waves_of
 from driver.rtunit.order import RayOrder
 from driver.rtunit.plan import Schedule
@@ -49,6 +49,11 @@ CASES = {
     "treelets": (16, 1, MemoryModel(), Schedule("one-kernel"),
                  {"order": RayOrder("treelet", 64)}),
     "hash order": (32, 2, MemoryModel(), Schedule("wavefront"), {"order": RayOrder("hash")}),
+    "the RT unit's costs, node cache, stack 4": (
+        64, 1, MemoryModel(), Schedule("wavefront"), {"unit_costs": UnitCosts(stack_depth=4)}),
+    "the RT unit's costs, fixed latency, one divider, any-hit": (
+        32, 1, None, Schedule("one-kernel"),
+        {"unit_costs": UnitCosts(dividers=1, fixed_latency=20, any_hit=True)}),
 }
 
 

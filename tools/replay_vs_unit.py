@@ -27,31 +27,44 @@ from driver.design import DesignPoint  # noqa: E402
 from driver.render import render  # noqa: E402
 
 FIXED = 20            # the fixed-latency memory's cycles
-# name: (scene, workload, size, point options, rays in flight, stack depth, memory)
+BASE = {"scene": "bunny", "workload": "primary", "size": 64, "point": {}, "rays_in_flight": 64,
+        "stack_depth": 32, "memory": "hierarchy", "dividers": 2}
+# name: what differs from BASE (point: DesignPoint options of the frame and its datapath)
 RUNS = {
-    "bunny-primary": ("bunny", "primary", 64, {}, 64, 32, "hierarchy"),
-    "bunny-primary-stack8": ("bunny", "primary", 64, {}, 64, 8, "hierarchy"),
-    "bunny-primary-rif8": ("bunny", "primary", 64, {}, 8, 32, "hierarchy"),
-    "bunny-primary-fixed": ("bunny", "primary", 64, {}, 64, 32, "fixed"),
-    "cornell-ao-16": ("cornell", "ao", 16, {}, 8, 32, "hierarchy"),
-    "cornell-ao-16-fixed": ("cornell", "ao", 16, {}, 8, 32, "fixed"),
-    "cornell-ao-32": ("cornell", "ao", 32, {}, 64, 32, "hierarchy"),
-    "cornell-ao-32-stack8": ("cornell", "ao", 32, {}, 64, 8, "hierarchy"),
-    "bunny_floor-path-32": ("bunny_floor", "path", 32, {"spp": 1, "bounces": 2}, 64, 32,
-                            "hierarchy"),
+    "bunny-primary": {},
+    "bunny-primary-stack8": {"stack_depth": 8},
+    "bunny-primary-stack4": {"stack_depth": 4},
+    "bunny-primary-rif1-stack2": {"stack_depth": 2, "rays_in_flight": 1, "size": 16},
+    "bunny-primary-rif8": {"rays_in_flight": 8},
+    "bunny-primary-fixed": {"memory": "fixed"},
+    "bunny-primary-q8": {"point": {"config": "baseline-unified-q8", "bvh_format": "q8"}},
+    "cornell-ao-16": {"scene": "cornell", "workload": "ao", "size": 16, "rays_in_flight": 8},
+    "cornell-ao-16-fixed": {"scene": "cornell", "workload": "ao", "size": 16,
+                            "rays_in_flight": 8, "memory": "fixed"},
+    "cornell-ao-16-div1": {"scene": "cornell", "workload": "ao", "size": 16,
+                           "rays_in_flight": 8, "dividers": 1},
+    "cornell-ao-32": {"scene": "cornell", "workload": "ao", "size": 32},
+    "cornell-ao-32-rif1": {"scene": "cornell", "workload": "ao", "size": 32,
+                           "rays_in_flight": 1},
+    "bunny_floor-path-32": {"scene": "bunny_floor", "workload": "path", "size": 32,
+                            "point": {"spp": 1, "bounces": 2}},
 }
 
 
 def run(name: str) -> dict:
-    scene, workload, size, opts, rif, depth, mem = RUNS[name]
-    point = DesignPoint(workload=workload, **opts)
+    spec = {**BASE, **RUNS[name]}
+    scene, workload, size = spec["scene"], spec["workload"], spec["size"]
+    rif, depth, mem = spec["rays_in_flight"], spec["stack_depth"], spec["memory"]
+    point = DesignPoint(workload=workload, **spec["point"])
     be = RtUnitBackend(rays_in_flight=rif, stack_depth=depth, mem_latency=FIXED,
-                       memory=point.memory().config() if mem == "hierarchy" else None)
+                       memory=point.memory().config() if mem == "hierarchy" else None,
+                       dividers=spec["dividers"], **point.backend_options())
     t0 = time.perf_counter()
     res = render(scene, size, size, backend=be, progress=False, point=point)
     u = res.stats["unit_rtl"]
     return {"run": name, "scene": scene, "workload": workload, "size": size,
             "rays_in_flight": rif, "stack_depth": depth, "memory": mem,
+            "dividers": spec["dividers"], "point": spec["point"],
             "ops": res.stats["ops"], "unit_cycles": u["cycles"],
             "replay_cycles": u["replay_cycles"], "ratio": u["replay_cycles_ratio"],
             "default_cycles": u["replay_default_cycles"],

@@ -225,10 +225,9 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
     ``ReplayStats`` dict plus ``SCHED_STATS``, requests per pipeline (units, P) int64, per-ray
     and per-call arrays: ``ray_times`` (n, 3), ``ray_served`` (n, one column per
     ``MEMORY_LEVELS``), ``ray_wait`` (n,), ``call_times`` (calls, 3), ``call_unit`` (calls,),
-    ``series``, ``kernel_times`` (kernels, 3)). With ``config["unit_costs"]`` the replay
-    charges the RT unit in RTL's costs (docs/rtunit_rtl.md#the-replay-against-the-unit); its
-    timing pipelines read the response stage's work from ``frame.responses``; ``any_hit``:
-    (chains,) bool, the any-hit rays (None: none)."""
+    ``series``, ``kernel_times`` (kernels, 3)). ``config["unit_costs"]``: the RT unit in RTL's
+    costs (``driver.rtunit.UnitCosts``; timing pipelines read ``frame.responses``), any_hit:
+    (chains,) bool or None."""
     lib = harness_library(params)
     rw, img, r, p, e = node_arrays(frame.ray_words, frame.image, frame.ray, frame.ptr,
                                    frame.extent)
@@ -253,15 +252,7 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
     n_chains, n_calls = len(co) - 1, len(cro) - 1
     # the timing replay (timing_latency > 0) writes no responses
     rsp = np.zeros((0 if cfg.timing_latency else len(r), RSP_WORDS), np.uint32)
-    known = None                      # the functional run's responses, for the unit's costs
-    if cfg.unit_costs and cfg.timing_latency:
-        known = np.ascontiguousarray(frame.responses, np.uint32)
-        if known.shape != (len(r), RSP_WORDS):
-            raise ValueError("the unit's costs need one recorded response per request")
-    ah = None
-    if any_hit is not None:
-        ah = np.ascontiguousarray(np.broadcast_to(np.asarray(any_hit, bool), (len(co) - 1,)),
-                                  np.uint8)
+    known, ah = _unit_cost_inputs(cfg, frame.responses, len(r), len(co) - 1, any_hit)
     stats = ReplayStats()
     per_pipe = np.zeros((cfg.units, cfg.pipelines), np.int64)
     sched = np.zeros(len(SCHED_STATS), np.int64)
@@ -299,6 +290,21 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
     st = {**stats.as_dict(), **dict(zip(SCHED_STATS, sched.tolist()))}
     out["series"] = out["series"][:st["series_bins"]]
     return rsp, st, per_pipe, out
+
+
+def _unit_cost_inputs(cfg, responses, m: int, n_chains: int, any_hit) -> tuple:
+    """``rf_replay``'s inputs for the RT unit's costs: the functional run's responses (the
+    timing pipelines' response stage reads them; else None) and the any-hit flag per chain (or
+    None)."""
+    known = ah = None
+    if cfg.unit_costs and cfg.timing_latency:
+        known = np.ascontiguousarray(responses, np.uint32)
+        if known.shape != (m, RSP_WORDS):
+            raise ValueError("the unit's costs need one recorded response per request")
+    if any_hit is not None:
+        ah = np.ascontiguousarray(np.broadcast_to(np.asarray(any_hit, bool), (n_chains,)),
+                                  np.uint8)
+    return known, ah
 
 
 MEMORY_TRACE_COUNTS = ("l1_accesses", "l1_hits", "l1_merged", "l1_misses", "l1_bytes",

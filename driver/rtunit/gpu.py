@@ -44,18 +44,21 @@ class UnitCosts:
     ``div_cycles`` latency for the triangle hits (the RTL's DIV_CYCLES by default); the result
     port. ``fixed_latency`` > 0: the unit's fixed-latency memory (every node fetch that many
     cycles) when the replay has no memory hierarchy. ``any_hit``: the any-hit rays (a bool, or
-    one per ray of the record), which end at their accepted triangle without a last pop. Needs
+    one per ray of the record), which end at their accepted triangle without a last pop.
+    ``stack_depth`` > 0: each ray's stack holds that many entries, more spill to memory and are
+    read back when the stack empties (0: unbounded, none spill). Needs
     one pipeline and the per-ray pool's index order (the unit has no other scheduler)."""
 
     dividers: int = DEFAULT_DIVIDERS
     div_cycles: int = field(default_factory=div_cycles)
     fixed_latency: int = 0
     any_hit: object = False
+    stack_depth: int = 0
 
     def config(self) -> dict:
         """Its ``REPLAY_CONFIG`` fields."""
         return {"unit_costs": 1, "dividers": self.dividers, "div_cycles": self.div_cycles,
-                "fixed_latency": self.fixed_latency}
+                "fixed_latency": self.fixed_latency, "stack_depth": self.stack_depth}
 
 
 class ReplayMismatch(RuntimeError):
@@ -400,9 +403,11 @@ def _check_costs(costs: UnitCosts | None, pipelines: int, scheduled: bool) -> No
     if pipelines != 1 or scheduled:
         raise ValueError("the RT unit in RTL's costs need one pipeline and the index ray order "
                          "(the unit has no other scheduler)")
-    if costs.dividers < 1 or costs.div_cycles < 1 or costs.fixed_latency < 0:
+    if (costs.dividers < 1 or costs.div_cycles < 1 or costs.fixed_latency < 0
+            or costs.stack_depth < 0):
         raise ValueError(f"unit costs: {costs.dividers} dividers of {costs.div_cycles} cycles, "
-                         f"fixed latency {costs.fixed_latency}: give >= 1, >= 1, >= 0")
+                         f"fixed latency {costs.fixed_latency}, stack depth "
+                         f"{costs.stack_depth}: give >= 1, >= 1, >= 0, >= 0")
 
 
 def _treelet_schedule(records, treelets) -> ray_orders.TreeletSchedule:
