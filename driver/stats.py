@@ -199,7 +199,7 @@ def public(stats: dict) -> dict:
 # an RT-unit object's settings (the same in every part of a frame)
 _RT_CONFIG = ("rays_in_flight", "pipelines", "turnaround_cycles", "frame_schedule", "rt_units",
               "warp_size", "warps_per_unit", "shader_cycles", "flush_between",
-              "replay_datapath")
+              "replay_datapath", "unit_costs")
 # RT-unit figures added up over parts run one after another (tiles); null stays null
 _RT_SUMMED = ("rays", "ops", "cycles", "frame_cycles", "kernels", "starved_cycles",
               "sim_wall_s", "line_accesses", "line_hits", "line_misses", "bytes_from_memory",

@@ -221,6 +221,20 @@ def test_a_run_stops_at_its_cycle_budget(scene, deep):
         deep.trace_unit(bvh, prepare_rays(o[:4], d[:4]), max_cycles=50)
 
 
+def test_render_replays_with_the_unit_costs(in_tmp, error_line):
+    import json
+    for costs in ("replay", "rtl"):
+        assert main(["render", "bunny", "--size", "8", "--rtunit", "--unit-costs", costs,
+                     "--json", f"{costs}.json", "--no-progress"]) == 0
+    got = {c: json.loads(open(f"{c}.json").read())["rtunit_memory"] for c in ("replay", "rtl")}
+    assert got["replay"]["unit_costs"] == "replay" and got["rtl"]["unit_costs"] == "rtl"
+    assert got["rtl"]["ops"] == got["replay"]["ops"]
+    assert got["rtl"]["cycles"] > got["replay"]["cycles"]       # the unit's costs are higher
+    assert main(["render", "bunny", "--size", "8", "--rtunit", "--unit-costs", "rtl",
+                 "--pipelines", "2"]) != 0
+    assert "--unit-costs rtl" in error_line()
+
+
 def test_stack_depth_needs_the_unit(in_tmp, error_line):
     assert main(["render", "bunny", "--size", "8", "--stack-depth", "8"]) != 0
     assert "--backend rtunit" in error_line()

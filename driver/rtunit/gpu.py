@@ -33,6 +33,10 @@ _L1, _L2, _DRAM = (MEMORY_LEVELS.index(lvl) for lvl in LEVELS)
 # with the functional run's. Every count and time is the same (tests compare the two).
 REPLAY_DATAPATHS = ("timing", "rtl")
 DEFAULT_REPLAY_DATAPATH = "timing"
+# What the replay charges per request: "replay", its own costs (one turnaround cycle between a
+# response and the ray's next request, no divider), or "rtl", the RT unit in RTL's (``UnitCosts``)
+UNIT_COSTS = ("replay", "rtl")
+DEFAULT_UNIT_COSTS = "replay"
 
 
 @dataclass(frozen=True)
@@ -44,7 +48,8 @@ class UnitCosts:
     ``div_cycles`` latency for the triangle hits (the RTL's DIV_CYCLES by default); the result
     port. ``fixed_latency`` > 0: the unit's fixed-latency memory (every node fetch that many
     cycles) when the replay has no memory hierarchy. ``any_hit``: the any-hit rays (a bool, or
-    one per ray of the record), which end at their accepted triangle without a last pop.
+    one per ray of the frame; None: each wave's own, ``Wave.any_hit``), which end at their
+    accepted triangle without a last pop.
     ``stack_depth`` > 0: each ray's stack holds that many entries, more spill to memory and are
     read back when the stack empties (0: unbounded, none spill). Needs
     one pipeline and the per-ray pool's index order (the unit has no other scheduler)."""
@@ -52,7 +57,7 @@ class UnitCosts:
     dividers: int = DEFAULT_DIVIDERS
     div_cycles: int = field(default_factory=div_cycles)
     fixed_latency: int = 0
-    any_hit: object = False
+    any_hit: object = None
     stack_depth: int = 0
 
     def config(self) -> dict:
@@ -93,6 +98,7 @@ class FrameReplay:
     window: int = 0
     extra: dict = field(default_factory=dict)
     datapath: str = "rtl"          # how the pipelines ran (REPLAY_DATAPATHS)
+    unit_costs: str = DEFAULT_UNIT_COSTS   # what the replay charged (UNIT_COSTS)
 
     @property
     def units(self) -> int:
@@ -169,7 +175,8 @@ class FrameReplay:
                "rays": n, "ops": m, "cycles": self.cycles,
                "frame_cycles": int(c["frame_cycles"]), "kernels": len(self.kernel_waves),
                "starved_cycles": int(c["starved_cycles"]), "sim_wall_s": self.wall_s,
-               "replay_datapath": self.datapath, "responses_verified": self.verified}
+               "replay_datapath": self.datapath, "responses_verified": self.verified,
+               "unit_costs": self.unit_costs}
         called = self.plan.call_rays
         out.update(self._rays_part(called))
         if self.memory is not None:
@@ -337,7 +344,7 @@ def replay_frame(waves: list[Wave], rays_in_flight: int, pipelines: int = 1, mem
     t0 = time.perf_counter()
     rsp, counters, per_pipe, arrays = harness.replay_schedule(
         comb.params, config, None if memory is None else memory.config(), comb, chains[:2],
-        plan, tl, None if unit_costs is None else unit_costs.any_hit)
+        plan, tl, _any_hit(unit_costs, waves, comb))
     wall = time.perf_counter() - t0
     if timing:
         rsp, verified = comb.responses, None          # nothing evaluated, nothing compared
@@ -360,7 +367,8 @@ def replay_frame(waves: list[Wave], rays_in_flight: int, pipelines: int = 1, mem
         counters=counters, per_pipe=per_pipe, arrays=arrays, chain_ops=chains[2],
         chain_box=chain_box, chain_xf=chain_xf, kernel_waves=kernel_waves, wall_s=wall,
         verified=verified, responses=rsp, order_cost=cost,
-        window=window if pol.schedule else 0, datapath="timing" if timing else "rtl")
+        window=window if pol.schedule else 0, datapath="timing" if timing else "rtl",
+        unit_costs=UNIT_COSTS[unit_costs is not None])
 
 
 def _check_replay(r: int, p: int, ta: int, s: Schedule, order: ray_orders.RayOrder,
@@ -394,6 +402,15 @@ def _check_replay(r: int, p: int, ta: int, s: Schedule, order: ray_orders.RayOrd
                          "one-kernel frame every ray is issued by its thread: use it with "
                          "--frame wavefront, or a scheduling order (affinity, treelet)")
     return pol, window
+
+
+def _any_hit(costs: UnitCosts | None, waves: list[Wave], comb: Combined):
+    """The unit costs' any-hit flags per chain (None without unit costs)."""
+    if costs is None:
+        return None
+    if costs.any_hit is not None:
+        return costs.any_hit
+    return np.repeat([bool(w.any_hit) for w in waves], np.diff(comb.chain_off0))
 
 
 def _check_costs(costs: UnitCosts | None, pipelines: int, scheduled: bool) -> None:
@@ -463,7 +480,7 @@ def _verify(rsp, counters: dict, comb: Combined, verify: bool) -> bool:
 def waves_of(batches) -> list[Wave]:
     """The ``Wave``s of a workload frame's traced batches (``driver.workloads.Batch``, each
     with its recorded ``result.record``), in trace order."""
-    return [Wave(b.result.record, b.kind, b.thread, b.slot) for b in batches]
+    return [Wave(b.result.record, b.kind, b.thread, b.slot, b.any_hit) for b in batches]
 
 
 def replay_point(waves: list[Wave], point, width: int | None = None,
@@ -486,7 +503,8 @@ def replay_point(waves: list[Wave], point, width: int | None = None,
     order = point.order_options()
     args = dict(schedule=point.schedule(), width=width,
                 order=ray_orders.RayOrder(order["ray_order"], order["ray_window"]),
-                datapath=point.replay_datapath if same else "rtl")
+                datapath=point.replay_datapath if same else "rtl",
+                unit_costs=UnitCosts() if point.unit_costs == "rtl" else None)
     out = {"rtunit": None, "rtunit_memory": None,
            "by_type": {k: {"rtunit": None, "rtunit_memory": None} for k in kinds}}
     for key, memory in (("rtunit_memory", point.memory()), ("rtunit", None)):
