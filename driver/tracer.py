@@ -139,11 +139,12 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend=DEFAULT_BACKEND, ex
     record = bool(rtunit_options.pop("record", False))
     REPLAY_OPTIONS.bind(None, **rtunit_options)   # an unknown option fails here (TypeError)
     replay = {k: v for k, v in rtunit_options.items() if v is not None}
+    rays = prepare_rays(origins, directions, extent)   # bad rays fail before the BVH is built
     bvh, double_sided, where, be, be_name = _set_up(scene_or_mesh_or_bvh, backend, double_sided,
                                                     bvh_format, transform)
     instanced = getattr(bvh, "instances", None) is not None
-    rays = prepare_rays(origins, directions, extent,
-                        **({"flags": FLAG_NO_CULL} if double_sided else {}))
+    if double_sided:
+        rays["flags"] |= FLAG_NO_CULL
     if hasattr(be, "trace_unit"):
         return _trace_unit(be, be_name, bvh, rays, any_hit, progress, cull_stack,
                            record or bool(replay))

@@ -227,6 +227,18 @@ def test_a_bad_shape_names_the_argument_and_the_shape_it_wants(o, d, extent, mes
     assert str(e.value) == message
 
 
+def test_trace_checks_the_rays_before_it_builds_the_bvh(monkeypatch):
+    """Bad rays are refused before a scene's BVH is built (which takes seconds on a big mesh)."""
+    import driver.tracer
+
+    def no_build(*args, **kwargs):
+        raise AssertionError("the BVH was built before the rays were checked")
+
+    monkeypatch.setattr(driver.tracer, "_set_up", no_build)
+    with pytest.raises(ValueError, match="directions must be an"):
+        driver.trace("bunny", np.zeros((2, 3)), np.ones((2, 2)), backend="golden")
+
+
 def test_rays_of_any_leading_shape_are_rows():
     """(h, w, 3) rays (an image's) are h * w rows in C order."""
     d = np.random.default_rng(1).normal(size=(2, 5, 3))
