@@ -246,5 +246,25 @@ def test_stack_depth_needs_the_unit(in_tmp, error_line):
     assert main(["render", "bunny", "--size", "8", "--backend", "rtunit", "--rays-in-flight",
                  "8", "--stack-depth", "1"]) != 0
     assert "--stack-depth" in error_line()
-    assert main(["suite", "lumibench", "--backend", "rtunit"]) != 0
-    assert "rayflex render" in error_line()
+
+
+def test_a_lumibench_suite_through_the_unit(tmp_path, in_tmp, error_line, monkeypatch):
+    import json
+    from test_lumibench_scenes import suite_root
+    monkeypatch.setenv("RAYFLEX_SCENE_CACHE", str(tmp_path / "cache"))
+    root = suite_root(tmp_path / "lumi")
+    argv = ["suite", "lumibench", "--lumibench-root", str(root), "--scenes", "BATH",
+            "--workloads", "ao", "--size", "8", "--spp", "1", "--backend", "rtunit",
+            "--rays-in-flight", str(RAYS), "--out", "out", "--no-progress"]
+    assert main(argv) == 2 and "--flatten" in error_line()       # LumiBench's are instanced
+    assert not (in_tmp / "out").exists()
+    assert main([*argv, "--ideal-replay", "--flatten"]) == 2 and "itself" in error_line()
+    assert main([*argv, "--flatten"]) == 0
+    doc = json.loads((in_tmp / "out" / "BATH_AO.json").read_text())
+    unit = doc["unit_rtl"]
+    assert unit["traversal_mismatches"] == 0 and "rtunit_memory" not in doc
+    assert doc["embree"]["adjudicated"]["classes"]["datapath_wrong"] == 0
+    row = json.loads((in_tmp / "out" / "summary.json").read_text())["runs"][0]
+    assert row["utilization_memory"] == unit["utilization"] > 0
+    assert row["replay_cycles_ratio"] == unit["replay_cycles_ratio"]
+    assert abs(unit["replay_cycles_ratio"] - 1) <= 0.03
