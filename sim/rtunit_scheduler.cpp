@@ -558,6 +558,19 @@ extern "C" {
 // rf_latency). Nothing is evaluated and rsp is not written: the responses are the functional
 // run's. Every count and time equals the evaluated replay's (tests compare the two).
 //
+// cfg.fixed_latency > 0 with no memory model (mc->l1_bytes < 0): every node fetch takes that
+// many cycles (the RT unit in RTL's fixed-latency memory).
+//
+// cfg.unit_costs: the RT unit in RTL's costs (rtl/rf_rtunit.sv, docs/rtunit_rtl.md) replace the
+// turnaround: the ray, pop, memory and result ports, the fetch request's register, the
+// scheduler's cycle, the pipeline as its chain of skid registers (Elastic) behind a response
+// stage that holds a box response one cycle per hit child and a triangle hit until one of
+// cfg.dividers dividers (cfg.div_cycles latency) is idle, cfg.stack_depth entries per stack
+// (spills and refills), and any-hit rays (in->any_hit, per chain) ending at their hit (Engine:
+// "the RT unit's costs"). Its response stage reads the responses: the evaluated ones (D = 0) or
+// the functional run's, in->responses (m, kRspWords), with D > 0. Needs P = 1 and no window or
+// treelets. `cycles` then runs from a kernel's first ray taken to its last result taken.
+//
 // Outputs: rsp (m, kRspWords) at the record index (D = 0); stats (ReplayStats: `cycles` is the sum over
 // kernels of first accept to last response, `frame_cycles` the frame's); per_pipe (units * P):
 // requests per pipeline; sched (int64[7]): rays parked, resumed, most parked at once (one unit),

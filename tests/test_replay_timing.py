@@ -57,6 +57,13 @@ CASES = {
 }
 
 
+def test_the_unit_costs_need_one_pipeline_and_the_index_order(ao_waves):
+    for pipelines, opts in ((2, {}), (1, {"order": RayOrder("affinity", 64)})):
+        with pytest.raises(ValueError, match="one pipeline and the index ray order"):
+            replay_frame(ao_waves, 16, pipelines, MemoryModel(), Schedule("one-kernel"),
+                         unit_costs=UnitCosts(), **opts)
+
+
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_timing_replay_equals_the_evaluated_replay(ao_waves, case):
     r, p, memory, schedule, opts = CASES[case]

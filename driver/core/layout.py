@@ -383,7 +383,8 @@ def c_header() -> str:
 # RT-unit replay statistics (rf_replay's output struct; driver.rtunit reads it with ctypes)
 
 REPLAY_STATS = (
-    "cycles",           # first accept to last response, inclusive (summed over kernels)
+    "cycles",           # first accept to last response, inclusive (summed over kernels; with
+                        # the unit costs, first ray taken to last result taken)
     "model_evals",      # pipeline-cycles actually evaluated (skip_idle leaves idle ones out)
     "starved_cycles",   # unit-cycles in which a pipeline issued nothing because no ray was ready
     "full_cycles",      # unit-cycles with every pipeline of the unit issuing
