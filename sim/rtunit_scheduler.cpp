@@ -104,8 +104,11 @@ struct Unit {
   // may pop) and node responses waiting for the memory port (by the cycle the node is present);
   // the next cycle the ray port and the result port are free; per pipeline its handshakes
   // (timing pipelines), the next cycle its response stage is free and each divider's
-  MinQueue popq, arrq;
-  int64_t load_free = 0, res_free = 0;
+  MinQueue loadq, arrq;
+  // per ray slot: its ray (-1: free), the cycle it may pop, issue, leave through the result port
+  // (kNever: not waiting), the cycle it is free again; the round-robin starts
+  std::vector<int64_t> slot_ray, pop_at, ready_at, done_at, free_at;
+  int64_t pop_next = 0, sched_next = 0, res_next = 0;
   std::vector<Elastic> chain;
   std::vector<char> in_valid, out_ready;      // this cycle's handshakes of each pipeline
   std::vector<int64_t> resp_free;
@@ -154,7 +157,7 @@ struct Engine {
   int64_t unit_last = -1;      // unit costs: the cycle the last result was taken
   // unit costs, per chain: entries on its stack and spilled, a refill under way, a refilled
   // entry held (popped next without the stack)
-  std::vector<int64_t> depth, spilled;
+  std::vector<int64_t> depth, spilled, slot_of;
   std::vector<char> refilling, held;
 
   Engine(const ReplayConfig& c, NodeSource s) : cfg(c), src(s) {}
@@ -212,32 +215,61 @@ struct Engine {
   }
 
   // ------------------------------------------------------------------ the RT unit's costs
-  // (cfg.unit_costs; docs/rtunit_rtl.md#the-replay-against-the-unit). A ray is taken through the
-  // ray port (one a cycle) and pops its root the cycle after; every pop goes through the pop port
-  // (one a cycle, the ray that asked first); a pop with a node to read sends the fetch request the
-  // cycle after (its register) and the node comes back through the memory port (one response a
-  // cycle, the earliest first), the ray ready to issue the cycle after; a pop that finds the stack
+  // (cfg.unit_costs; docs/rtunit_rtl.md#the-replay-against-the-unit). Each ray holds one of the
+  // unit's `slots` ray slots, as in the RTL. A ray is taken through the ray port (one a cycle,
+  // into the lowest free slot) and pops its root the cycle after; every pop goes through the pop
+  // port (one a cycle, round robin over the slots from the one after the last popped); a pop with
+  // a node to read sends the fetch request the cycle after (its register) and the node comes back
+  // through the memory port (one response a cycle, the earliest first), the ray ready to issue
+  // the cycle after; the scheduler issues the ready slots round robin; a pop that finds the stack
   // empty ends the ray. A response is taken by the pipeline's response stage when it is free: a
   // box with h hit children holds it max(h, 1) cycles and the ray pops after them; a triangle
   // without a hit pops the cycle after; a triangle hit needs an idle divider (else the response
   // waits, and the pipeline backs up behind it), which holds it div_cycles + 1 cycles, and the ray
   // pops div_cycles + 1 cycles later, or ends there when it is an any-hit ray with nothing more
-  // to do. An ended ray's result leaves through the result port (one a cycle) the cycle after,
-  // is taken the cycle after that, and its slot takes the next ray then.
-  void load(Unit& u, int64_t r, int64_t at) {
-    const int64_t l = std::max(at, u.load_free);
-    u.load_free = l + 1;
-    u.popq.push({r, l + 1, seq++});
+  // to do. An ended ray's result leaves through the result port (one a cycle, round robin) the
+  // cycle after, is taken the cycle after that, and its slot takes the next ray then.
+  static constexpr int64_t kNever = INT64_MAX;
+
+  // The first slot from `start` (round robin) whose time has come at cycle k, or -1.
+  static int64_t rr(const std::vector<int64_t>& at, int64_t start, int64_t k) {
+    const int64_t n = static_cast<int64_t>(at.size());
+    for (int64_t i = start; i < n; i++)
+      if (at[i] <= k) return i;
+    for (int64_t i = 0; i < start; i++)
+      if (at[i] <= k) return i;
+    return -1;
   }
 
-  void finish(Unit& u, int64_t uid, int64_t r, int64_t done_at) {
-    const int64_t res = std::max(done_at, u.res_free);
-    u.res_free = res + 1;
-    const int64_t taken = res + 1;
-    if (taken > unit_last) unit_last = taken;
+  void load(Unit& u, int64_t r, int64_t at) { u.loadq.push({r, at, seq++}); }
+
+  void load_step(Unit& u, int64_t k) {          // the ray port
+    if (u.loadq.empty() || u.loadq.top().at > k) return;
+    for (size_t s = 0; s < u.slot_ray.size(); s++) {
+      if (u.slot_ray[s] >= 0 || u.free_at[s] > k) continue;
+      const int64_t r = u.loadq.top().id;
+      u.loadq.pop();
+      u.slot_ray[s] = r;
+      slot_of[r] = static_cast<int64_t>(s);
+      u.pop_at[s] = k + 1;
+      return;
+    }
+  }
+
+  void finish(Unit& u, int64_t r, int64_t done_at) { u.done_at[slot_of[r]] = done_at; }
+
+  void result_step(Unit& u, int64_t uid, int64_t k) {   // the result port
+    const int64_t s = rr(u.done_at, u.res_next, k);
+    if (s < 0) return;
+    u.res_next = s + 1 == static_cast<int64_t>(u.done_at.size()) ? 0 : s + 1;
+    const int64_t r = u.slot_ray[s];
+    u.done_at[s] = kNever;
+    u.slot_ray[s] = -1;
+    u.free_at[s] = k + 1;
+    if (k + 1 > unit_last) unit_last = k + 1;
     u.active--;
-    ray_done(u, uid, r, taken);
-    if (!cfg.window) admit_waiting(u, uid, taken);
+    ray_done(u, uid, r, k + 1);
+    if (!cfg.window) admit_waiting(u, uid, k + 1);
   }
 
   // With cfg.stack_depth S > 0 each ray's stack holds S entries: a push onto a full stack spills
@@ -247,9 +279,11 @@ struct Engine {
   // again the cycle after the response. The order of the pops is that of an unbounded stack,
   // the recorded chain's.
   void pop(Unit& u, int64_t uid, int64_t k) {
-    if (u.popq.empty() || u.popq.top().at > k) return;
-    const int64_t r = u.popq.top().id;
-    u.popq.pop();
+    const int64_t s = rr(u.pop_at, u.pop_next, k);
+    if (s < 0) return;
+    u.pop_next = s + 1 == static_cast<int64_t>(u.pop_at.size()) ? 0 : s + 1;
+    u.pop_at[s] = kNever;
+    const int64_t r = u.slot_ray[s];
     const bool more = pos[r] < chain_off[r + 1] - chain_off[r];
     int64_t off;
     const int64_t bytes = more ? node_of(r, &off) : 0;
@@ -268,11 +302,11 @@ struct Engine {
     }
     held[r] = 0;
     if (!more) {
-      finish(u, uid, r, k + 1);
+      finish(u, r, k + 1);
       return;
     }
     if (!bytes) {                             // a pair leaf's second triangle: no fetch
-      u.ready.push({r, k + 1, seq++});
+      u.ready_at[s] = k + 1;
       return;
     }
     const int64_t when = fetch_node(uid, r, k + 1, nullptr);
@@ -286,10 +320,10 @@ struct Engine {
     if (refilling[r]) {                       // a spilled entry read back: the ray pops it
       refilling[r] = 0;
       held[r] = 1;
-      u.popq.push({r, k + 1, seq++});
+      u.pop_at[slot_of[r]] = k + 1;
       return;
     }
-    u.ready.push({r, k + 1, seq++});
+    u.ready_at[slot_of[r]] = k + 1;
   }
 
   int64_t idle_divider(const Unit& u, int64_t p, int64_t k) const {
@@ -320,11 +354,11 @@ struct Engine {
       u.div_free[p][idle_divider(u, p, k)] = k + cfg.div_cycles + 1;
       next = k + cfg.div_cycles + 1;
       if (any_hit && any_hit[r] && pos[r] >= chain_off[r + 1] - chain_off[r]) {
-        finish(u, uid, r, next);             // the any-hit ray ends at its accepted triangle
+        finish(u, r, next);                  // the any-hit ray ends at its accepted triangle
         return;
       }
     }
-    u.popq.push({r, next, seq++});
+    u.pop_at[slot_of[r]] = next;
   }
 
   // ------------------------------------------------------------------ warps and trace calls
@@ -716,6 +750,7 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
     e.spilled.assign(n_chains, 0);
     e.refilling.assign(n_chains, 0);
     e.held.assign(n_chains, 0);
+    e.slot_of.assign(n_chains, -1);
   }
   if (e.treelets) e.cur_tl.assign(n_chains, -1);
 
@@ -734,6 +769,9 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
       for (auto& ch : u.chain) ch.configure(D);
       u.resp_free.assign(P, 0);
       u.in_valid.assign(P, 0);
+      u.slot_ray.assign(c.slots, -1);
+      for (auto* v : {&u.pop_at, &u.ready_at, &u.done_at}) v->assign(c.slots, Engine::kNever);
+      u.free_at.assign(c.slots, 0);
       u.out_ready.assign(P, 0);
       u.div_free.assign(P, std::vector<int64_t>(c.dividers, 0));
     }
@@ -847,18 +885,30 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
       if (e.treelets) e.fill_treelets(u, uid, k, k + c.turnaround);
       else if (e.affinity) e.fill(u, uid, k, k + c.turnaround);
       if (e.unit_costs) {
+        e.result_step(u, uid, k);
+        e.load_step(u, k);
         e.pop(u, uid, k);
         e.arrive(u, k);
       }
       int64_t issued = 0;
+      bool none_ready = false;
       for (int64_t p = 0; p < P; p++) {
         Vrayflex* t = D ? nullptr : &u.sims[p]->top;
         if (t) t->in_valid_i = 0;
         if (D && e.unit_costs) u.in_valid[p] = 0;
-        if (u.ready.empty() || u.ready.top().at > k || (t && !t->in_ready_o)) continue;
-        if (D && e.unit_costs && !u.chain[p].in_ready()) continue;
-        const int64_t r = u.ready.top().id;
-        u.ready.pop();
+        int64_t r = -1;
+        if (e.unit_costs) {                   // the unit's scheduler: round robin over slots
+          const int64_t s = Engine::rr(u.ready_at, u.sched_next, k);
+          if (s < 0) none_ready = true;
+          if (s < 0 || (t && !t->in_ready_o) || (D && !u.chain[p].in_ready())) continue;
+          u.sched_next = s + 1 == c.slots ? 0 : s + 1;
+          u.ready_at[s] = Engine::kNever;
+          r = u.slot_ray[s];
+        } else {
+          if (u.ready.empty() || u.ready.top().at > k || (t && !t->in_ready_o)) continue;
+          r = u.ready.top().id;
+          u.ready.pop();
+        }
         const int64_t i = e.index_of(r);
         if (!e.src.fill(i, t ? t->req_i.data() : scratch.data())) return -2;
         if (t && !u.ready.empty()) {                // the next ray to issue, if it is known
@@ -877,7 +927,7 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
       }
       accepts += issued;
       if (issued == P) full_cycles++;
-      if (issued < P && (u.ready.empty() || u.ready.top().at > k)) {
+      if (issued < P && (e.unit_costs ? none_ready : u.ready.empty() || u.ready.top().at > k)) {
         starved++;
         kernel_times[kernel * 3 + 2]++;
       }
@@ -889,7 +939,7 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
       for (int64_t p = 0; p < P && D && e.unit_costs; p++)
         if (u.busy[p] || u.in_valid[p]) u.chain[p].tick(u.in_valid[p], u.out_ready[p]);
       if (e.unit_costs) {
-        if (!u.popq.empty() || !u.arrq.empty() || u.res_free > k) progress = true;
+        if (u.active || !u.loadq.empty() || !u.arrq.empty()) progress = true;
         for (int64_t p = 0; p < P; p++)
           if (!u.inflight[p].empty() || u.resp_free[p] > k) progress = true;
       }
