@@ -48,7 +48,7 @@ from .backends.cache import cache_root as tool_cache
 from .backends.build import source_names
 from .core import resources
 from .core.configs import (ALL_CONFIGS, BASELINE, CONFIGS, FUSED_SUFFIX, SHARED_SUFFIX,
-                           XF_CONFIGS, build_params, parse_config)
+                           XF_CONFIGS, build_params, config_name, parse_config)
 from .core.resources import checkout, data_dir
 
 ROOT = checkout() or resources.ROOT      # the checkout (whose git history --rev reads)
@@ -378,19 +378,17 @@ def native_scripts(top: str, params: dict[str, int], files: list[str]) -> tuple[
             "write_rtlil generic.il\n")
 
 
-def synthesize(extended: int | None = 0, disjoint: int | None = 0, top: str = TOP,
-               cache: bool = True, timeout: float | None = None, name: str | None = None,
-               sources: list[tuple[str, bytes]] | None = None, compressed: int = 0,
-               transform: int = 0, fused: int = 0, shared: int = 0, tool: str = "wheel",
+def synthesize(params: dict[str, int] | None = None, top: str = TOP, cache: bool = True,
+               timeout: float | None = None, name: str | None = None,
+               sources: list[tuple[str, bytes]] | None = None, tool: str = "wheel",
                progress=None) -> dict:
-    """Synthesize one configuration (or, with ``top`` other than rayflex, one module without
-    parameters) of the RTL ``sources`` (default: a snapshot of the working tree) and return its
-    cell statistics (cached). ``tool``: "wheel" or "native" (``resolve_yosys``); ``progress``:
-    a callback for one line per Yosys phase."""
+    """Synthesize one configuration, given by its build parameters (``config_params``; None: the
+    baseline), or with ``top`` other than rayflex one module without parameters, of the RTL
+    ``sources`` (default: a snapshot of the working tree) and return its cell statistics
+    (cached). ``tool``: "wheel" or "native" (``resolve_yosys``); ``progress``: a callback for one
+    line per Yosys phase."""
     sources = sources if sources is not None else snapshot()
-    params = {}
-    if top == TOP:
-        params = build_params(extended, disjoint, compressed, transform, fused, shared)
+    params = {} if top != TOP else dict(params or build_params())
     files = [n for n, _ in sources]
     script = (synth_script(top, params, files) if tool == "wheel" else
               "".join(native_scripts(top, params, files)))
@@ -401,7 +399,7 @@ def synthesize(extended: int | None = 0, disjoint: int | None = 0, top: str = TO
         res["cached"] = True
         res["rtl_sha"] = rtl_sha(sources)
         return res
-    label = name or (top if top != TOP else _config_name(params))
+    label = name or (top if top != TOP else config_name(params))
     t0 = time.perf_counter()
     by_type = _cells_by_type(sources, script, timeout, tool, progress, label,
                              keep=entry.with_suffix(".il"))
@@ -466,12 +464,6 @@ def _cells_by_type(sources, script: str, timeout: float | None, tool: str = "whe
 def _split_native(script: str) -> tuple[str, str]:
     cut = script.index("write_verilog -noattr elab.v\n") + len("write_verilog -noattr elab.v\n")
     return script[:cut], script[cut:]
-
-
-def _config_name(params: dict) -> str:
-    names = ALL_CONFIGS + XF_CONFIGS
-    names += [n + SHARED_SUFFIX for n in names if n.startswith("extended")]
-    return next(n for n in names + [n + FUSED_SUFFIX for n in names] if config_params(n) == params)
 
 
 # seconds one configuration's synthesis takes on the reference machine (2 cores, two at a time)
@@ -540,10 +532,8 @@ def synthesize_all(names=None, jobs: int = 1, cache: bool = True, timeout=None,
 
     def one(n):
         p = params[n]
-        r = synthesize(p["EXTENDED"], p["DISJOINT"], cache=cache, timeout=timeout, name=n,
-                       sources=sources, compressed=p.get("COMPRESSED", 0),
-                       transform=p.get("TRANSFORM", 0), fused=p.get("FUSED", 0),
-                       shared=p.get("SHARED", 0), tool=tool, progress=progress)
+        r = synthesize(params[n], cache=cache, timeout=timeout, name=n, sources=sources,
+                       tool=tool, progress=progress)
         done.append(n)
         if progress:
             progress(f"{n}: {r['cells']:,} cells in {r['synth_s']} s"

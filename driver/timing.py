@@ -363,11 +363,7 @@ def time_config(name: str, sources, liberty: Path, delay_ps: float = DEFAULT_DEL
     parameters) of the RTL ``sources``: generic synthesis (the area flow's, cached), the mapped
     netlist and OpenSTA (cached)."""
     t0 = time.monotonic()
-    kw = {}
-    if top == area.TOP:
-        p = area.config_params(name)
-        kw = dict(extended=p["EXTENDED"], disjoint=p["DISJOINT"],
-                  compressed=p.get("COMPRESSED", 0), transform=p.get("TRANSFORM", 0))
+    kw = {"params": area.config_params(name)} if top == area.TOP else {}
     gen = area.synthesize(top=top, cache=True, timeout=timeout, name=name, sources=sources,
                           tool="native", progress=progress, **kw)
     generic = area.generic_netlist(gen)

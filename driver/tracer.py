@@ -143,8 +143,7 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend=DEFAULT_BACKEND, ex
     bvh, double_sided, where, be, be_name = _set_up(scene_or_mesh_or_bvh, backend, double_sided,
                                                     bvh_format, transform)
     instanced = getattr(bvh, "instances", None) is not None
-    if double_sided:
-        rays["flags"] |= FLAG_NO_CULL
+    rays["flags"] |= FLAG_NO_CULL if double_sided else 0
     if hasattr(be, "trace_unit"):
         return _trace_unit(be, be_name, bvh, rays, any_hit, progress, cull_stack,
                            record or bool(replay))

@@ -1,4 +1,4 @@
-// RayFlex package: opcodes, IO structs, the shared stage struct and the FU pools' size helper.
+// RayFlex package: opcodes, IO structs, the shared stage struct and the FU pools' operand tables.
 //
 // Everything the pipeline carries is defined here once (the paper's "Shared RayFlex Data
 // Structure"): the input stage turns a req_t into a stage_t, every inner stage reads a stage_t and
@@ -287,16 +287,40 @@ package rf_pkg;
     payload_u         pl;            // the view that the operation and stage select
   } stage_t;
 
-  // Maximum of five pool demands (one per operation).
-  function automatic int unsigned max5(int unsigned a, int unsigned b, int unsigned c,
-                                       int unsigned d, int unsigned e);
+  // ---------------------------------------------------------------------------------------------
+  // Functional-unit pools (rf_fu_pool). A stage asks its pool for units with one operand table
+  // indexed [opcode][unit]: operation o's unit k takes its operands from a[o][k] and b[o][k] and
+  // gives its sum or product at y[o][k], for k < n[o]. fu_count(.n_tri(..), ..) says how many units
+  // each operation uses (the operations it does not name, none); fu_width is a row's length.
+  // ---------------------------------------------------------------------------------------------
+  localparam int unsigned NUM_OPS = int'(OP_TRANSFORM) + 1;
+
+  typedef logic [NUM_OPS-1:0][31:0] fu_count_t;    // units per operation, indexed by opcode
+
+  function automatic fu_count_t fu_count(int unsigned n_tri = 0, int unsigned n_box = 0,
+                                         int unsigned n_euc = 0, int unsigned n_ang = 0,
+                                         int unsigned n_xfm = 0);
+    fu_count_t n;
+    n               = '0;
+    n[OP_TRIANGLE]  = n_tri;
+    n[OP_QUADBOX]   = n_box;
+    n[OP_EUCLIDEAN] = n_euc;
+    n[OP_ANGULAR]   = n_ang;
+    n[OP_TRANSFORM] = n_xfm;
+    return n;
+  endfunction
+
+  // The units a pool holds when shared: the largest demand of one operation (0: an empty pool).
+  function automatic int unsigned fu_units(fu_count_t n);
     int unsigned m;
-    m = a;
-    if (b > m) m = b;
-    if (c > m) m = c;
-    if (d > m) m = d;
-    if (e > m) m = e;
+    m = 0;
+    for (int o = 0; o < int'(NUM_OPS); o++) if (n[o] > m) m = n[o];
     return m;
+  endfunction
+
+  // The length of a row of the operand table (at least one entry, so that it can be declared).
+  function automatic int unsigned fu_width(fu_count_t n);
+    return (fu_units(n) > 0) ? fu_units(n) : 1;
   endfunction
 
 endpackage

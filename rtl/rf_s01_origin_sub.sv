@@ -18,16 +18,36 @@ module rf_s01_origin_sub import rf_pkg::*; #(
 );
   localparam int unsigned NT = 9, NB = FUSED ? 0 : 24, NE = EXTENDED ? EUC_LANES : 0;
 
-  // ---- QUADBOX: bound - origin in the adder pool, or the whole slab value (FUSED) ----
-  fp32_t [(NB > 0 ? NB : 1)-1:0] box_a, box_b, box_pool_y;
+  // ---- adder pool: operands per operation ----
+  localparam fu_count_t ADD = fu_count(.n_tri(NT), .n_box(NB), .n_euc(NE));
+  fp32_t [NUM_OPS-1:0][fu_width(ADD)-1:0] add_a, add_b, add_y;
+  always_comb begin
+    add_a = '0;
+    add_b = '0;
+    for (int v = 0; v < 3; v++) begin
+      for (int ax = 0; ax < 3; ax++) begin
+        add_a[OP_TRIANGLE][3*v+ax] = req_i.triangle[v][ax];
+        add_b[OP_TRIANGLE][3*v+ax] = fp_neg(req_i.origin[ax]);
+      end
+    end
+    for (int k = 0; k < int'(NB); k++) begin    // k = 6*i+j: box i, bound j
+      add_a[OP_QUADBOX][k] = req_i.box[k / 6][k % 6];
+      add_b[OP_QUADBOX][k] = fp_neg(req_i.origin[(k % 6) % 3]);
+    end
+    for (int l = 0; l < int'(NE); l++) begin
+      add_a[OP_EUCLIDEAN][l] = req_i.vec_a[l];
+      add_b[OP_EUCLIDEAN][l] = fp_neg(req_i.vec_b[l]);
+    end
+  end
+
+  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N(ADD))
+    u_add (.op_i(req_i.opcode), .a_i(add_a), .b_i(add_b), .y_o(add_y));
+
+  // ---- QUADBOX: bound - origin from the adder pool, or the whole slab value (FUSED) ----
   fp32_t [23:0] box_y;                      // box_y[6*i+j]: box i, bound j
   if (FUSED) begin : g_fused
     logic en;                               // operand isolation: zeros unless a QUADBOX
-    assign en    = req_i.opcode == OP_QUADBOX;
-    fp32_t unused_pool_y;                   // the pool has no QUADBOX units
-    assign box_a = '0;
-    assign box_b = '0;
-    assign unused_pool_y = box_pool_y[0];
+    assign en = req_i.opcode == OP_QUADBOX;
     for (genvar ax = 0; ax < 3; ax++) begin : g_axis
       fp32_t [7:0] bound, y;                // bound[2*i+hi]: box i, lower (hi 0) or upper bound
       for (genvar i = 0; i < 4; i++) begin : g_box
@@ -40,46 +60,8 @@ module rf_s01_origin_sub import rf_pkg::*; #(
                                   .inv_i(en ? req_i.inv[ax] : FP_POS_ZERO), .y_o(y));
     end
   end else begin : g_plain
-    always_comb begin
-      for (int i = 0; i < 4; i++) begin
-        for (int j = 0; j < 6; j++) begin
-          box_a[6*i+j] = req_i.box[i][j];
-          box_b[6*i+j] = fp_neg(req_i.origin[j % 3]);
-        end
-      end
-    end
-    assign box_y = box_pool_y;
+    assign box_y = add_y[OP_QUADBOX][23:0];
   end
-
-  // ---- adder pool: operands per operation ----
-  fp32_t [NT-1:0] tri_a, tri_b, tri_y;
-  fp32_t [(NE > 0 ? NE : 1)-1:0] euc_a, euc_b, euc_y;
-  fp32_t unused_ang_y, unused_xfm_y;
-
-  always_comb begin
-    for (int v = 0; v < 3; v++) begin
-      for (int ax = 0; ax < 3; ax++) begin
-        tri_a[3*v+ax] = req_i.triangle[v][ax];
-        tri_b[3*v+ax] = fp_neg(req_i.origin[ax]);
-      end
-    end
-    euc_a = '0;
-    euc_b = '0;
-    if (EXTENDED) begin
-      for (int l = 0; l < int'(NE); l++) begin
-        euc_a[l] = req_i.vec_a[l];
-        euc_b[l] = fp_neg(req_i.vec_b[l]);
-      end
-    end
-  end
-
-  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(NB), .N_EUC(NE), .N_ANG(0))
-    u_add (.op_i(req_i.opcode),
-           .tri_a_i(tri_a), .tri_b_i(tri_b), .tri_y_o(tri_y),
-           .box_a_i(box_a), .box_b_i(box_b), .box_y_o(box_pool_y),
-           .euc_a_i(euc_a), .euc_b_i(euc_b), .euc_y_o(euc_y),
-           .ang_a_i(FP_POS_ZERO), .ang_b_i(FP_POS_ZERO), .ang_y_o(unused_ang_y),
-           .xfm_a_i(FP_POS_ZERO), .xfm_b_i(FP_POS_ZERO), .xfm_y_o(unused_xfm_y));
 
   // ---- stage struct ----
   always_comb begin
@@ -102,14 +84,14 @@ module rf_s01_origin_sub import rf_pkg::*; #(
         st_o.pl.tri_vert.kz      = req_i.kz;
         st_o.pl.tri_vert.shear   = req_i.shear;
         for (int v = 0; v < 3; v++) begin
-          for (int ax = 0; ax < 3; ax++) st_o.pl.tri_vert.p[v][ax] = tri_y[3*v+ax];
+          for (int ax = 0; ax < 3; ax++) st_o.pl.tri_vert.p[v][ax] = add_y[OP_TRIANGLE][3*v+ax];
         end
       end
       OP_EUCLIDEAN: begin
         if (EXTENDED) begin
           st_o.last        = req_i.reset_accumulator;
           st_o.pl.euc.mask = req_i.vec_mask;
-          for (int l = 0; l < int'(NE); l++) st_o.pl.euc.e[l] = euc_y[l];
+          for (int l = 0; l < int'(NE); l++) st_o.pl.euc.e[l] = add_y[OP_EUCLIDEAN][l];
         end
       end
       OP_ANGULAR: begin

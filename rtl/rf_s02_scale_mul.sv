@@ -35,93 +35,81 @@ module rf_s02_scale_mul import rf_pkg::*; #(
   assign v_ang = st_i.pl.ang;
 
   // ---- multiplier pool: operands per operation ----
-  fp32_t [NT-1:0] tri_a, tri_b, tri_y;
-  fp32_t [(NB > 0 ? NB : 1)-1:0] box_a, box_b, box_y;
-  fp32_t [(NE > 0 ? NE : 1)-1:0] euc_a, euc_b, euc_y;
-  fp32_t [(NA > 0 ? NA : 1)-1:0] ang_a, ang_b, ang_y;
-  fp32_t [(NX > 0 ? NX : 1)-1:0] xfm_a, xfm_b, xfm_y;
+  localparam fu_count_t MUL = fu_count(.n_tri(NT), .n_box(NB), .n_euc(NE), .n_ang(NA),
+                                       .n_xfm(NX));
+  fp32_t [NUM_OPS-1:0][fu_width(MUL)-1:0] mul_a, mul_b, mul_y;
 
   always_comb begin
-    box_a = '0;
-    box_b = '0;
+    mul_a = '0;
+    mul_b = '0;
     for (int k = 0; k < int'(NB); k++) begin
-      box_a[k] = v_box.slab[k / 6][k % 6];
-      box_b[k] = v_box.inv[(k % 6) % 3];
+      mul_a[OP_QUADBOX][k] = v_box.slab[k / 6][k % 6];
+      mul_b[OP_QUADBOX][k] = v_box.inv[(k % 6) % 3];
     end
     for (int v = 0; v < 3; v++) begin
       for (int s = 0; s < 3; s++) begin
-        tri_a[3*v+s] = v_tri.shear[s];
-        tri_b[3*v+s] = pick(v_tri.p[v], v_tri.kz);
+        mul_a[OP_TRIANGLE][3*v+s] = v_tri.shear[s];
+        mul_b[OP_TRIANGLE][3*v+s] = pick(v_tri.p[v], v_tri.kz);
       end
     end
-    euc_a = '0;
-    euc_b = '0;
-    ang_a = '0;
-    ang_b = '0;
-    xfm_a = '0;
-    xfm_b = '0;
     if (TRANSFORM) begin
       for (int r = 0; r < 3; r++) begin
         for (int c = 0; c < 3; c++) begin
-          xfm_a[3*r+c]     = v_xfm.m[r][c];
-          xfm_b[3*r+c]     = v_xfm.origin[c];
-          xfm_a[9 + 3*r+c] = v_xfm.m[r][c];
-          xfm_b[9 + 3*r+c] = v_xfm.dir[c];
+          mul_a[OP_TRANSFORM][3*r+c]     = v_xfm.m[r][c];
+          mul_b[OP_TRANSFORM][3*r+c]     = v_xfm.origin[c];
+          mul_a[OP_TRANSFORM][9 + 3*r+c] = v_xfm.m[r][c];
+          mul_b[OP_TRANSFORM][9 + 3*r+c] = v_xfm.dir[c];
         end
       end
     end
     if (EXTENDED) begin
       for (int l = 0; l < int'(EUC_LANES); l++) begin
-        euc_a[l] = v_euc.e[l];
-        euc_b[l] = v_euc.e[l];
+        mul_a[OP_EUCLIDEAN][l] = v_euc.e[l];
+        mul_b[OP_EUCLIDEAN][l] = v_euc.e[l];
       end
       for (int l = 0; l < int'(ANG_LANES); l++) begin
-        ang_a[l]             = v_ang.dot[l];
-        ang_b[l]             = v_ang.norm[l];
-        ang_a[ANG_LANES + l] = v_ang.norm[l];
-        ang_b[ANG_LANES + l] = v_ang.norm[l];
+        mul_a[OP_ANGULAR][l]             = v_ang.dot[l];
+        mul_b[OP_ANGULAR][l]             = v_ang.norm[l];
+        mul_a[OP_ANGULAR][ANG_LANES + l] = v_ang.norm[l];
+        mul_b[OP_ANGULAR][ANG_LANES + l] = v_ang.norm[l];
       end
     end
   end
 
-  rf_fu_pool #(.IS_MUL(1'b1), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(NB), .N_EUC(NE), .N_ANG(NA),
-               .N_XFM(NX))
-    u_mul (.op_i(st_i.op),
-           .tri_a_i(tri_a), .tri_b_i(tri_b), .tri_y_o(tri_y),
-           .box_a_i(box_a), .box_b_i(box_b), .box_y_o(box_y),
-           .euc_a_i(euc_a), .euc_b_i(euc_b), .euc_y_o(euc_y),
-           .ang_a_i(ang_a), .ang_b_i(ang_b), .ang_y_o(ang_y),
-           .xfm_a_i(xfm_a), .xfm_b_i(xfm_b), .xfm_y_o(xfm_y));
+  rf_fu_pool #(.IS_MUL(1'b1), .DISJOINT(DISJOINT), .N(MUL))
+    u_mul (.op_i(st_i.op), .a_i(mul_a), .b_i(mul_b), .y_o(mul_y));
 
   // ---- stage struct ----
   always_comb begin
     st_o = st_i;
     unique case (st_i.op)
       OP_QUADBOX: begin
-        for (int k = 0; k < int'(NB); k++) st_o.pl.box_slab.slab[k / 6][k % 6] = box_y[k];
+        for (int k = 0; k < int'(NB); k++) begin
+          st_o.pl.box_slab.slab[k / 6][k % 6] = mul_y[OP_QUADBOX][k];
+        end
       end
       OP_TRIANGLE: begin
         st_o.pl.tri_shear.no_cull = v_tri.no_cull;
         for (int v = 0; v < 3; v++) begin
           st_o.pl.tri_shear.px[v] = pick(v_tri.p[v], v_tri.kx);
           st_o.pl.tri_shear.py[v] = pick(v_tri.p[v], v_tri.ky);
-          st_o.pl.tri_shear.sx[v] = tri_y[3*v+0];
-          st_o.pl.tri_shear.sy[v] = tri_y[3*v+1];
-          st_o.pl.tri_shear.z[v]  = tri_y[3*v+2];
+          st_o.pl.tri_shear.sx[v] = mul_y[OP_TRIANGLE][3*v+0];
+          st_o.pl.tri_shear.sy[v] = mul_y[OP_TRIANGLE][3*v+1];
+          st_o.pl.tri_shear.z[v]  = mul_y[OP_TRIANGLE][3*v+2];
         end
       end
       OP_EUCLIDEAN: begin
         if (EXTENDED) begin
           for (int l = 0; l < int'(EUC_LANES); l++) begin
-            st_o.pl.euc.e[l] = v_euc.mask[l] ? euc_y[l] : FP_POS_ZERO;
+            st_o.pl.euc.e[l] = v_euc.mask[l] ? mul_y[OP_EUCLIDEAN][l] : FP_POS_ZERO;
           end
         end
       end
       OP_ANGULAR: begin
         if (EXTENDED) begin
           for (int l = 0; l < int'(ANG_LANES); l++) begin
-            st_o.pl.ang.dot[l]  = v_ang.mask[l] ? ang_y[l]             : FP_POS_ZERO;
-            st_o.pl.ang.norm[l] = v_ang.mask[l] ? ang_y[ANG_LANES + l] : FP_POS_ZERO;
+            st_o.pl.ang.dot[l]  = v_ang.mask[l] ? mul_y[OP_ANGULAR][l]             : FP_POS_ZERO;
+            st_o.pl.ang.norm[l] = v_ang.mask[l] ? mul_y[OP_ANGULAR][ANG_LANES + l] : FP_POS_ZERO;
           end
         end
       end
@@ -129,8 +117,8 @@ module rf_s02_scale_mul import rf_pkg::*; #(
         if (TRANSFORM) begin
           for (int r = 0; r < 3; r++) begin
             for (int c = 0; c < 3; c++) begin
-              st_o.pl.xfm.po[r][c] = xfm_y[3*r+c];
-              st_o.pl.xfm.pd[r][c] = xfm_y[9 + 3*r+c];
+              st_o.pl.xfm.po[r][c] = mul_y[OP_TRANSFORM][3*r+c];
+              st_o.pl.xfm.pd[r][c] = mul_y[OP_TRANSFORM][9 + 3*r+c];
             end
             st_o.pl.xfm.t[r] = v_xfm.m[r][3];
           end

@@ -50,54 +50,41 @@ module rf_s03_nearfar_xy import rf_pkg::*; #(
   end
 
   // ---- adder pool: operands per operation ----
-  fp32_t [NT-1:0] tri_a, tri_b, tri_y;
-  fp32_t [(NE > 0 ? NE : 1)-1:0] euc_a, euc_b, euc_y;
-  fp32_t [(NA > 0 ? NA : 1)-1:0] ang_a, ang_b, ang_y;
-  fp32_t [(NX > 0 ? NX : 1)-1:0] xfm_a, xfm_b, xfm_y;
-  fp32_t unused_box_y;
+  localparam fu_count_t ADD = fu_count(.n_tri(NT), .n_euc(NE), .n_ang(NA), .n_xfm(NX));
+  fp32_t [NUM_OPS-1:0][fu_width(ADD)-1:0] add_a, add_b, add_y;
   always_comb begin
+    add_a = '0;
+    add_b = '0;
     for (int v = 0; v < 3; v++) begin
-      tri_a[v]     = v_tri.px[v];
-      tri_b[v]     = fp_neg(v_tri.sx[v]);
-      tri_a[3 + v] = v_tri.py[v];
-      tri_b[3 + v] = fp_neg(v_tri.sy[v]);
+      add_a[OP_TRIANGLE][v]     = v_tri.px[v];
+      add_b[OP_TRIANGLE][v]     = fp_neg(v_tri.sx[v]);
+      add_a[OP_TRIANGLE][3 + v] = v_tri.py[v];
+      add_b[OP_TRIANGLE][3 + v] = fp_neg(v_tri.sy[v]);
     end
-    euc_a = '0;
-    euc_b = '0;
-    ang_a = '0;
-    ang_b = '0;
-    xfm_a = '0;
-    xfm_b = '0;
     if (TRANSFORM) begin
       for (int r = 0; r < 3; r++) begin
-        xfm_a[r]     = v_xfm.po[r][0];
-        xfm_b[r]     = v_xfm.po[r][1];
-        xfm_a[3 + r] = v_xfm.pd[r][0];
-        xfm_b[3 + r] = v_xfm.pd[r][1];
+        add_a[OP_TRANSFORM][r]     = v_xfm.po[r][0];
+        add_b[OP_TRANSFORM][r]     = v_xfm.po[r][1];
+        add_a[OP_TRANSFORM][3 + r] = v_xfm.pd[r][0];
+        add_b[OP_TRANSFORM][3 + r] = v_xfm.pd[r][1];
       end
     end
     if (EXTENDED) begin
       for (int i = 0; i < 8; i++) begin
-        euc_a[i] = v_euc.e[i];
-        euc_b[i] = v_euc.e[i + 8];
+        add_a[OP_EUCLIDEAN][i] = v_euc.e[i];
+        add_b[OP_EUCLIDEAN][i] = v_euc.e[i + 8];
       end
       for (int i = 0; i < 4; i++) begin
-        ang_a[i]     = v_ang.dot[i];
-        ang_b[i]     = v_ang.dot[i + 4];
-        ang_a[4 + i] = v_ang.norm[i];
-        ang_b[4 + i] = v_ang.norm[i + 4];
+        add_a[OP_ANGULAR][i]     = v_ang.dot[i];
+        add_b[OP_ANGULAR][i]     = v_ang.dot[i + 4];
+        add_a[OP_ANGULAR][4 + i] = v_ang.norm[i];
+        add_b[OP_ANGULAR][4 + i] = v_ang.norm[i + 4];
       end
     end
   end
 
-  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(0), .N_EUC(NE), .N_ANG(NA),
-               .N_XFM(NX))
-    u_add (.op_i(st_i.op),
-           .tri_a_i(tri_a), .tri_b_i(tri_b), .tri_y_o(tri_y),
-           .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_y),
-           .euc_a_i(euc_a), .euc_b_i(euc_b), .euc_y_o(euc_y),
-           .ang_a_i(ang_a), .ang_b_i(ang_b), .ang_y_o(ang_y),
-           .xfm_a_i(xfm_a), .xfm_b_i(xfm_b), .xfm_y_o(xfm_y));
+  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N(ADD))
+    u_add (.op_i(st_i.op), .a_i(add_a), .b_i(add_b), .y_o(add_y));
 
   // ---- stage struct ----
   always_comb begin
@@ -117,28 +104,28 @@ module rf_s03_nearfar_xy import rf_pkg::*; #(
         st_o.pl.tri_edge.no_cull = v_tri.no_cull;
         st_o.pl.tri_edge.z       = v_tri.z;
         for (int v = 0; v < 3; v++) begin
-          st_o.pl.tri_edge.x[v] = tri_y[v];
-          st_o.pl.tri_edge.y[v] = tri_y[3 + v];
+          st_o.pl.tri_edge.x[v] = add_y[OP_TRIANGLE][v];
+          st_o.pl.tri_edge.y[v] = add_y[OP_TRIANGLE][3 + v];
         end
       end
       OP_EUCLIDEAN: begin
         if (EXTENDED) begin
-          for (int i = 0; i < 8; i++) st_o.pl.euc.e[i] = euc_y[i];
+          for (int i = 0; i < 8; i++) st_o.pl.euc.e[i] = add_y[OP_EUCLIDEAN][i];
         end
       end
       OP_ANGULAR: begin
         if (EXTENDED) begin
           for (int i = 0; i < 4; i++) begin
-            st_o.pl.ang.dot[i]  = ang_y[i];
-            st_o.pl.ang.norm[i] = ang_y[4 + i];
+            st_o.pl.ang.dot[i]  = add_y[OP_ANGULAR][i];
+            st_o.pl.ang.norm[i] = add_y[OP_ANGULAR][4 + i];
           end
         end
       end
       OP_TRANSFORM: begin
         if (TRANSFORM) begin
           for (int r = 0; r < 3; r++) begin
-            st_o.pl.xfm.po[r][0] = xfm_y[r];
-            st_o.pl.xfm.pd[r][0] = xfm_y[3 + r];
+            st_o.pl.xfm.po[r][0] = add_y[OP_TRANSFORM][r];
+            st_o.pl.xfm.pd[r][0] = add_y[OP_TRANSFORM][3 + r];
           end
         end
       end

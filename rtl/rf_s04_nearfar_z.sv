@@ -35,59 +35,50 @@ module rf_s04_nearfar_z import rf_pkg::*; #(
   end
 
   // ---- multiplier pool: the 2-D xprod products (vertex index 0, 1, 2 = A, B, C) ----
-  fp32_t [5:0] tri_my;
+  localparam fu_count_t MUL = fu_count(.n_tri(MT));
+  fp32_t [NUM_OPS-1:0][fu_width(MUL)-1:0] mul_a, mul_b, mul_y;
+  fp32_t [5:0] xprod;
   if (MT > 0) begin : g_xprod
-    fp32_t [MT-1:0] tri_ma, tri_mb;
-    fp32_t          unused_box_my, unused_euc_my, unused_ang_my, unused_xfm_my;
     always_comb begin
-      tri_ma[0] = v_tri.x[2];  tri_mb[0] = v_tri.y[1];   // Cx*By
-      tri_ma[1] = v_tri.y[2];  tri_mb[1] = v_tri.x[1];   // Cy*Bx
-      tri_ma[2] = v_tri.x[0];  tri_mb[2] = v_tri.y[2];   // Ax*Cy
-      tri_ma[3] = v_tri.y[0];  tri_mb[3] = v_tri.x[2];   // Ay*Cx
-      tri_ma[4] = v_tri.x[1];  tri_mb[4] = v_tri.y[0];   // Bx*Ay
-      tri_ma[5] = v_tri.y[1];  tri_mb[5] = v_tri.x[0];   // By*Ax
+      mul_a = '0;
+      mul_b = '0;
+      mul_a[OP_TRIANGLE][0] = v_tri.x[2];  mul_b[OP_TRIANGLE][0] = v_tri.y[1];   // Cx*By
+      mul_a[OP_TRIANGLE][1] = v_tri.y[2];  mul_b[OP_TRIANGLE][1] = v_tri.x[1];   // Cy*Bx
+      mul_a[OP_TRIANGLE][2] = v_tri.x[0];  mul_b[OP_TRIANGLE][2] = v_tri.y[2];   // Ax*Cy
+      mul_a[OP_TRIANGLE][3] = v_tri.y[0];  mul_b[OP_TRIANGLE][3] = v_tri.x[2];   // Ay*Cx
+      mul_a[OP_TRIANGLE][4] = v_tri.x[1];  mul_b[OP_TRIANGLE][4] = v_tri.y[0];   // Bx*Ay
+      mul_a[OP_TRIANGLE][5] = v_tri.y[1];  mul_b[OP_TRIANGLE][5] = v_tri.x[0];   // By*Ax
     end
-    rf_fu_pool #(.IS_MUL(1'b1), .DISJOINT(DISJOINT), .N_TRI(MT), .N_BOX(0), .N_EUC(0), .N_ANG(0))
-      u_mul (.op_i(st_i.op),
-             .tri_a_i(tri_ma), .tri_b_i(tri_mb), .tri_y_o(tri_my),
-             .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_my),
-             .euc_a_i(FP_POS_ZERO), .euc_b_i(FP_POS_ZERO), .euc_y_o(unused_euc_my),
-             .ang_a_i(FP_POS_ZERO), .ang_b_i(FP_POS_ZERO), .ang_y_o(unused_ang_my),
-             .xfm_a_i(FP_POS_ZERO), .xfm_b_i(FP_POS_ZERO), .xfm_y_o(unused_xfm_my));
+    assign xprod = mul_y[OP_TRIANGLE][5:0];
   end else begin : g_no_xprod
-    assign tri_my = '0;
+    assign mul_a = '0;
+    assign mul_b = '0;
+    assign xprod = '0;
   end
+  rf_fu_pool #(.IS_MUL(1'b1), .DISJOINT(DISJOINT), .N(MUL))
+    u_mul (.op_i(st_i.op), .a_i(mul_a), .b_i(mul_b), .y_o(mul_y));
 
   // ---- adder pool: reduction trees (extended only) ----
-  fp32_t [(AE > 0 ? AE : 1)-1:0] euc_ay;
-  fp32_t [(AA > 0 ? AA : 1)-1:0] ang_ay;
-  if (EXTENDED) begin : g_tree
-    fp32_t [AE-1:0] euc_aa, euc_ab;
-    fp32_t [AA-1:0] ang_aa, ang_ab;
-    fp32_t          unused_tri_ay, unused_box_ay, unused_xfm_ay;
-    always_comb begin
+  localparam fu_count_t ADD = fu_count(.n_euc(AE), .n_ang(AA));
+  fp32_t [NUM_OPS-1:0][fu_width(ADD)-1:0] add_a, add_b, add_y;
+  always_comb begin
+    add_a = '0;
+    add_b = '0;
+    if (EXTENDED) begin
       for (int i = 0; i < 4; i++) begin
-        euc_aa[i] = v_euc.e[i];
-        euc_ab[i] = v_euc.e[i + 4];
+        add_a[OP_EUCLIDEAN][i] = v_euc.e[i];
+        add_b[OP_EUCLIDEAN][i] = v_euc.e[i + 4];
       end
       for (int i = 0; i < 2; i++) begin
-        ang_aa[i]     = v_ang.dot[i];
-        ang_ab[i]     = v_ang.dot[i + 2];
-        ang_aa[2 + i] = v_ang.norm[i];
-        ang_ab[2 + i] = v_ang.norm[i + 2];
+        add_a[OP_ANGULAR][i]     = v_ang.dot[i];
+        add_b[OP_ANGULAR][i]     = v_ang.dot[i + 2];
+        add_a[OP_ANGULAR][2 + i] = v_ang.norm[i];
+        add_b[OP_ANGULAR][2 + i] = v_ang.norm[i + 2];
       end
     end
-    rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(0), .N_BOX(0), .N_EUC(AE), .N_ANG(AA))
-      u_add (.op_i(st_i.op),
-             .tri_a_i(FP_POS_ZERO), .tri_b_i(FP_POS_ZERO), .tri_y_o(unused_tri_ay),
-             .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_ay),
-             .euc_a_i(euc_aa), .euc_b_i(euc_ab), .euc_y_o(euc_ay),
-             .ang_a_i(ang_aa), .ang_b_i(ang_ab), .ang_y_o(ang_ay),
-             .xfm_a_i(FP_POS_ZERO), .xfm_b_i(FP_POS_ZERO), .xfm_y_o(unused_xfm_ay));
-  end else begin : g_no_tree
-    assign euc_ay = '0;
-    assign ang_ay = '0;
   end
+  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N(ADD))
+    u_add (.op_i(st_i.op), .a_i(add_a), .b_i(add_b), .y_o(add_y));
 
   // ---- stage struct ----
   always_comb begin
@@ -98,18 +89,18 @@ module rf_s04_nearfar_z import rf_pkg::*; #(
         st_o.pl.box_range.tfar  = far;
       end
       OP_TRIANGLE: begin
-        if (!FUSED) st_o.pl.tri_edge.xprod = tri_my;
+        if (!FUSED) st_o.pl.tri_edge.xprod = xprod;
       end
       OP_EUCLIDEAN: begin
         if (EXTENDED) begin
-          for (int i = 0; i < 4; i++) st_o.pl.euc.e[i] = euc_ay[i];
+          for (int i = 0; i < 4; i++) st_o.pl.euc.e[i] = add_y[OP_EUCLIDEAN][i];
         end
       end
       OP_ANGULAR: begin
         if (EXTENDED) begin
           for (int i = 0; i < 2; i++) begin
-            st_o.pl.ang.dot[i]  = ang_ay[i];
-            st_o.pl.ang.norm[i] = ang_ay[2 + i];
+            st_o.pl.ang.dot[i]  = add_y[OP_ANGULAR][i];
+            st_o.pl.ang.norm[i] = add_y[OP_ANGULAR][2 + i];
           end
         end
       end

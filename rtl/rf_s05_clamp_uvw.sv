@@ -38,14 +38,42 @@ module rf_s05_clamp_uvw import rf_pkg::*; #(
                          .min_o(tmax[i]), .max_o(unused_max));
   end
 
-  // ---- TRIANGLE: U, V, W (FUSED: one rounding each; else from the adder pool below) ----
-  fp32_t [(NT > 0 ? NT : 1)-1:0] tri_a, tri_b, tri_y;
+  // ---- adder pool: operands per operation ----
+  localparam fu_count_t ADD = fu_count(.n_tri(NT), .n_euc(NE), .n_ang(NA), .n_xfm(NX));
+  fp32_t [NUM_OPS-1:0][fu_width(ADD)-1:0] add_a, add_b, add_y;
+  always_comb begin
+    add_a = '0;
+    add_b = '0;
+    for (int k = 0; k < int'(NT); k++) begin
+      add_a[OP_TRIANGLE][k] = v_tri.xprod[2*k];
+      add_b[OP_TRIANGLE][k] = fp_neg(v_tri.xprod[2*k+1]);
+    end
+    if (TRANSFORM) begin
+      for (int r = 0; r < 3; r++) begin
+        add_a[OP_TRANSFORM][r] = v_xfm.pd[r][0];
+        add_b[OP_TRANSFORM][r] = v_xfm.pd[r][2];
+      end
+    end
+    if (EXTENDED) begin
+      for (int i = 0; i < 2; i++) begin
+        add_a[OP_EUCLIDEAN][i] = v_euc.e[i];
+        add_b[OP_EUCLIDEAN][i] = v_euc.e[i + 2];
+      end
+      add_a[OP_ANGULAR][0] = v_ang.dot[0];
+      add_b[OP_ANGULAR][0] = v_ang.dot[1];
+      add_a[OP_ANGULAR][1] = v_ang.norm[0];
+      add_b[OP_ANGULAR][1] = v_ang.norm[1];
+    end
+  end
+
+  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N(ADD))
+    u_add (.op_i(st_i.op), .a_i(add_a), .b_i(add_b), .y_o(add_y));
+
+  // ---- TRIANGLE: U, V, W (FUSED: one rounding each; else from the adder pool) ----
   fp32_t [2:0] uvw;
   if (FUSED) begin : g_fused
     logic en;                               // operand isolation: zeros unless a TRIANGLE
     fp32_t [2:0] x, y;
-    fp32_t unused_pool_y;                   // the pool has no TRIANGLE units
-    assign unused_pool_y = tri_y[0];
     assign en = st_i.op == OP_TRIANGLE;
     assign x  = en ? v_tri.x : '0;
     assign y  = en ? v_tri.y : '0;
@@ -53,53 +81,8 @@ module rf_s05_clamp_uvw import rf_pkg::*; #(
     rf_fp_dot2 u_v (.a_i(x[0]), .b_i(y[2]), .c_i(fp_neg(y[0])), .d_i(x[2]), .y_o(uvw[1]));
     rf_fp_dot2 u_w (.a_i(x[1]), .b_i(y[0]), .c_i(fp_neg(y[1])), .d_i(x[0]), .y_o(uvw[2]));
   end else begin : g_plain
-    assign uvw = tri_y;
+    assign uvw = add_y[OP_TRIANGLE][2:0];
   end
-
-  // ---- adder pool: operands per operation ----
-  fp32_t [(NE > 0 ? NE : 1)-1:0] euc_a, euc_b, euc_y;
-  fp32_t [(NA > 0 ? NA : 1)-1:0] ang_a, ang_b, ang_y;
-  fp32_t [(NX > 0 ? NX : 1)-1:0] xfm_a, xfm_b, xfm_y;
-  fp32_t unused_box_y;
-  always_comb begin
-    tri_a = '0;
-    tri_b = '0;
-    for (int k = 0; k < int'(NT); k++) begin
-      tri_a[k] = v_tri.xprod[2*k];
-      tri_b[k] = fp_neg(v_tri.xprod[2*k+1]);
-    end
-    euc_a = '0;
-    euc_b = '0;
-    ang_a = '0;
-    ang_b = '0;
-    xfm_a = '0;
-    xfm_b = '0;
-    if (TRANSFORM) begin
-      for (int r = 0; r < 3; r++) begin
-        xfm_a[r] = v_xfm.pd[r][0];
-        xfm_b[r] = v_xfm.pd[r][2];
-      end
-    end
-    if (EXTENDED) begin
-      for (int i = 0; i < 2; i++) begin
-        euc_a[i] = v_euc.e[i];
-        euc_b[i] = v_euc.e[i + 2];
-      end
-      ang_a[0] = v_ang.dot[0];
-      ang_b[0] = v_ang.dot[1];
-      ang_a[1] = v_ang.norm[0];
-      ang_b[1] = v_ang.norm[1];
-    end
-  end
-
-  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(0), .N_EUC(NE), .N_ANG(NA),
-               .N_XFM(NX))
-    u_add (.op_i(st_i.op),
-           .tri_a_i(tri_a), .tri_b_i(tri_b), .tri_y_o(tri_y),
-           .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_y),
-           .euc_a_i(euc_a), .euc_b_i(euc_b), .euc_y_o(euc_y),
-           .ang_a_i(ang_a), .ang_b_i(ang_b), .ang_y_o(ang_y),
-           .xfm_a_i(xfm_a), .xfm_b_i(xfm_b), .xfm_y_o(xfm_y));
 
   // ---- stage struct ----
   always_comb begin
@@ -116,19 +99,19 @@ module rf_s05_clamp_uvw import rf_pkg::*; #(
       end
       OP_EUCLIDEAN: begin
         if (EXTENDED) begin
-          st_o.pl.euc.e[0] = euc_y[0];
-          st_o.pl.euc.e[1] = euc_y[1];
+          st_o.pl.euc.e[0] = add_y[OP_EUCLIDEAN][0];
+          st_o.pl.euc.e[1] = add_y[OP_EUCLIDEAN][1];
         end
       end
       OP_ANGULAR: begin
         if (EXTENDED) begin
-          st_o.pl.ang.dot[0]  = ang_y[0];
-          st_o.pl.ang.norm[0] = ang_y[1];
+          st_o.pl.ang.dot[0]  = add_y[OP_ANGULAR][0];
+          st_o.pl.ang.norm[0] = add_y[OP_ANGULAR][1];
         end
       end
       OP_TRANSFORM: begin
         if (TRANSFORM) begin
-          for (int r = 0; r < 3; r++) st_o.pl.xfm.pd[r][0] = xfm_y[r];
+          for (int r = 0; r < 3; r++) st_o.pl.xfm.pd[r][0] = add_y[OP_TRANSFORM][r];
         end
       end
       default: ;

@@ -31,34 +31,33 @@ module rf_s06_slab_hit import rf_pkg::*; #(
   end
 
   // ---- multiplier pool ----
-  fp32_t [MT-1:0] tri_ma, tri_mb, tri_my;
-  fp32_t          unused_box_my, unused_euc_my, unused_ang_my, unused_xfm_my;
+  localparam fu_count_t MUL = fu_count(.n_tri(MT));
+  fp32_t [NUM_OPS-1:0][fu_width(MUL)-1:0] mul_a, mul_b, mul_y;
   always_comb begin
-    tri_ma[0] = v_tri.u;  tri_mb[0] = v_tri.z[0];   // U*Az
-    tri_ma[1] = v_tri.v;  tri_mb[1] = v_tri.z[1];   // V*Bz
-    tri_ma[2] = v_tri.w;  tri_mb[2] = v_tri.z[2];   // W*Cz
+    mul_a = '0;
+    mul_b = '0;
+    mul_a[OP_TRIANGLE][0] = v_tri.u;  mul_b[OP_TRIANGLE][0] = v_tri.z[0];   // U*Az
+    mul_a[OP_TRIANGLE][1] = v_tri.v;  mul_b[OP_TRIANGLE][1] = v_tri.z[1];   // V*Bz
+    mul_a[OP_TRIANGLE][2] = v_tri.w;  mul_b[OP_TRIANGLE][2] = v_tri.z[2];   // W*Cz
   end
-  rf_fu_pool #(.IS_MUL(1'b1), .DISJOINT(DISJOINT), .N_TRI(MT), .N_BOX(0), .N_EUC(0), .N_ANG(0))
-    u_mul (.op_i(st_i.op),
-           .tri_a_i(tri_ma), .tri_b_i(tri_mb), .tri_y_o(tri_my),
-           .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_my),
-           .euc_a_i(FP_POS_ZERO), .euc_b_i(FP_POS_ZERO), .euc_y_o(unused_euc_my),
-           .ang_a_i(FP_POS_ZERO), .ang_b_i(FP_POS_ZERO), .ang_y_o(unused_ang_my),
-           .xfm_a_i(FP_POS_ZERO), .xfm_b_i(FP_POS_ZERO), .xfm_y_o(unused_xfm_my));
+  rf_fu_pool #(.IS_MUL(1'b1), .DISJOINT(DISJOINT), .N(MUL))
+    u_mul (.op_i(st_i.op), .a_i(mul_a), .b_i(mul_b), .y_o(mul_y));
 
   // ---- adder pool ----
-  fp32_t tri_ay, euc_aa, euc_ab, euc_ay;
-  fp32_t unused_box_ay, unused_ang_ay, xfm_ay;
-  assign euc_aa = EXTENDED ? v_euc.e[0] : FP_POS_ZERO;
-  assign euc_ab = EXTENDED ? v_euc.e[1] : FP_POS_ZERO;
-  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(AT), .N_BOX(0), .N_EUC(AE), .N_ANG(0),
-               .N_XFM(AX))
-    u_add (.op_i(st_i.op),
-           .tri_a_i(v_tri.u), .tri_b_i(v_tri.v), .tri_y_o(tri_ay),
-           .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_ay),
-           .euc_a_i(euc_aa), .euc_b_i(euc_ab), .euc_y_o(euc_ay),
-           .ang_a_i(FP_POS_ZERO), .ang_b_i(FP_POS_ZERO), .ang_y_o(unused_ang_ay),
-           .xfm_a_i(v_xfm.po[0][0]), .xfm_b_i(v_xfm.po[0][2]), .xfm_y_o(xfm_ay));
+  localparam fu_count_t ADD = fu_count(.n_tri(AT), .n_euc(AE), .n_xfm(AX));
+  fp32_t [NUM_OPS-1:0][fu_width(ADD)-1:0] add_a, add_b, add_y;
+  always_comb begin
+    add_a = '0;
+    add_b = '0;
+    add_a[OP_TRIANGLE][0]  = v_tri.u;                                  // U + V
+    add_b[OP_TRIANGLE][0]  = v_tri.v;
+    add_a[OP_EUCLIDEAN][0] = EXTENDED ? v_euc.e[0] : FP_POS_ZERO;
+    add_b[OP_EUCLIDEAN][0] = EXTENDED ? v_euc.e[1] : FP_POS_ZERO;
+    add_a[OP_TRANSFORM][0] = v_xfm.po[0][0];
+    add_b[OP_TRANSFORM][0] = v_xfm.po[0][2];
+  end
+  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N(ADD))
+    u_add (.op_i(st_i.op), .a_i(add_a), .b_i(add_b), .y_o(add_y));
 
   // ---- stage struct ----
   always_comb begin
@@ -72,14 +71,14 @@ module rf_s06_slab_hit import rf_pkg::*; #(
         end
       end
       OP_TRIANGLE: begin
-        st_o.pl.tri_edge.uvw_z = tri_my;
-        st_o.pl.tri_edge.uv    = tri_ay;
+        st_o.pl.tri_edge.uvw_z = mul_y[OP_TRIANGLE][2:0];
+        st_o.pl.tri_edge.uv    = add_y[OP_TRIANGLE][0];
       end
       OP_EUCLIDEAN: begin
-        if (EXTENDED) st_o.pl.euc.e[0] = euc_ay;
+        if (EXTENDED) st_o.pl.euc.e[0] = add_y[OP_EUCLIDEAN][0];
       end
       OP_TRANSFORM: begin
-        if (TRANSFORM) st_o.pl.xfm.po[0][0] = xfm_ay;
+        if (TRANSFORM) st_o.pl.xfm.po[0][0] = add_y[OP_TRANSFORM][0];
       end
       default: ;
     endcase

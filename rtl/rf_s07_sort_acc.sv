@@ -41,43 +41,33 @@ module rf_s07_sort_acc import rf_pkg::*; #(
   fp32_t euc_acc_q, dot_acc_q, norm_acc_q;
 
   // ---- adder pool ----
-  fp32_t [NT-1:0] tri_a, tri_b, tri_y;
-  fp32_t [(NA > 0 ? NA : 1)-1:0] ang_a, ang_b, ang_y;
-  fp32_t [(NX > 0 ? NX : 1)-1:0] xfm_a, xfm_b, xfm_y;
-  fp32_t euc_a, euc_b, euc_y, unused_box_y;
+  localparam fu_count_t ADD = fu_count(.n_tri(NT), .n_euc(NE), .n_ang(NA), .n_xfm(NX));
+  fp32_t [NUM_OPS-1:0][fu_width(ADD)-1:0] add_a, add_b, add_y;
   always_comb begin
-    tri_a[0] = v_tri.uvw_z[0];
-    tri_b[0] = v_tri.uvw_z[1];
-    tri_a[1] = v_tri.uv;
-    tri_b[1] = v_tri.w;
-    euc_a    = euc_acc_q;
-    euc_b    = EXTENDED ? v_euc.e[0] : FP_POS_ZERO;
-    ang_a    = '0;
-    ang_b    = '0;
-    xfm_a    = '0;
-    xfm_b    = '0;
+    add_a = '0;
+    add_b = '0;
+    add_a[OP_TRIANGLE][0] = v_tri.uvw_z[0];
+    add_b[OP_TRIANGLE][0] = v_tri.uvw_z[1];
+    add_a[OP_TRIANGLE][1] = v_tri.uv;
+    add_b[OP_TRIANGLE][1] = v_tri.w;
+    add_a[OP_EUCLIDEAN][0] = euc_acc_q;
+    add_b[OP_EUCLIDEAN][0] = EXTENDED ? v_euc.e[0] : FP_POS_ZERO;
     if (TRANSFORM) begin
       for (int k = 0; k < 2; k++) begin
-        xfm_a[k] = v_xfm.po[k+1][0];
-        xfm_b[k] = v_xfm.po[k+1][2];
+        add_a[OP_TRANSFORM][k] = v_xfm.po[k+1][0];
+        add_b[OP_TRANSFORM][k] = v_xfm.po[k+1][2];
       end
     end
     if (EXTENDED) begin
-      ang_a[0] = dot_acc_q;
-      ang_b[0] = v_ang.dot[0];
-      ang_a[1] = norm_acc_q;
-      ang_b[1] = v_ang.norm[0];
+      add_a[OP_ANGULAR][0] = dot_acc_q;
+      add_b[OP_ANGULAR][0] = v_ang.dot[0];
+      add_a[OP_ANGULAR][1] = norm_acc_q;
+      add_b[OP_ANGULAR][1] = v_ang.norm[0];
     end
   end
 
-  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(NT), .N_BOX(0), .N_EUC(NE), .N_ANG(NA),
-               .N_XFM(NX))
-    u_add (.op_i(st_i.op),
-           .tri_a_i(tri_a), .tri_b_i(tri_b), .tri_y_o(tri_y),
-           .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_y),
-           .euc_a_i(euc_a), .euc_b_i(euc_b), .euc_y_o(euc_y),
-           .ang_a_i(ang_a), .ang_b_i(ang_b), .ang_y_o(ang_y),
-           .xfm_a_i(xfm_a), .xfm_b_i(xfm_b), .xfm_y_o(xfm_y));
+  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N(ADD))
+    u_add (.op_i(st_i.op), .a_i(add_a), .b_i(add_b), .y_o(add_y));
 
   if (EXTENDED) begin : g_acc
     always_ff @(posedge clk_i or negedge rst_ni) begin
@@ -87,11 +77,11 @@ module rf_s07_sort_acc import rf_pkg::*; #(
         norm_acc_q <= FP_POS_ZERO;
       end else if (fire_i) begin
         if (st_i.op == OP_EUCLIDEAN) begin
-          euc_acc_q <= st_i.last ? FP_POS_ZERO : euc_y;
+          euc_acc_q <= st_i.last ? FP_POS_ZERO : add_y[OP_EUCLIDEAN][0];
         end
         if (st_i.op == OP_ANGULAR) begin
-          dot_acc_q  <= st_i.last ? FP_POS_ZERO : ang_y[0];
-          norm_acc_q <= st_i.last ? FP_POS_ZERO : ang_y[1];
+          dot_acc_q  <= st_i.last ? FP_POS_ZERO : add_y[OP_ANGULAR][0];
+          norm_acc_q <= st_i.last ? FP_POS_ZERO : add_y[OP_ANGULAR][1];
         end
       end
     end
@@ -109,21 +99,21 @@ module rf_s07_sort_acc import rf_pkg::*; #(
     unique case (st_i.op)
       OP_QUADBOX:  st_o.pl.box_sort = box_sorted;
       OP_TRIANGLE: begin
-        st_o.pl.tri_edge.num_part = tri_y[0];
-        st_o.pl.tri_edge.den      = tri_y[1];
+        st_o.pl.tri_edge.num_part = add_y[OP_TRIANGLE][0];
+        st_o.pl.tri_edge.den      = add_y[OP_TRIANGLE][1];
       end
       OP_EUCLIDEAN: begin
-        if (EXTENDED) st_o.pl.euc.acc = euc_y;
+        if (EXTENDED) st_o.pl.euc.acc = add_y[OP_EUCLIDEAN][0];
       end
       OP_ANGULAR: begin
         if (EXTENDED) begin
-          st_o.pl.ang.dot_acc  = ang_y[0];
-          st_o.pl.ang.norm_acc = ang_y[1];
+          st_o.pl.ang.dot_acc  = add_y[OP_ANGULAR][0];
+          st_o.pl.ang.norm_acc = add_y[OP_ANGULAR][1];
         end
       end
       OP_TRANSFORM: begin
         if (TRANSFORM) begin
-          for (int k = 0; k < 2; k++) st_o.pl.xfm.po[k+1][0] = xfm_y[k];
+          for (int k = 0; k < 2; k++) st_o.pl.xfm.po[k+1][0] = add_y[OP_TRANSFORM][k];
         end
       end
       default: ;

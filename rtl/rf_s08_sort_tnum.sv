@@ -22,35 +22,32 @@ module rf_s08_sort_tnum import rf_pkg::*; #(
   box_sort_t box_sorted;
   rf_sort_layer #(.LAYER(1)) u_sort (.box_i(v_box), .box_o(box_sorted));
 
-  fp32_t tri_y, unused_box_y, unused_euc_y, unused_ang_y;
-  fp32_t [(NX > 0 ? NX : 1)-1:0] xfm_a, xfm_b, xfm_y;
+  // ---- adder pool ----
+  localparam fu_count_t ADD = fu_count(.n_tri(1), .n_xfm(NX));
+  fp32_t [NUM_OPS-1:0][fu_width(ADD)-1:0] add_a, add_b, add_y;
   always_comb begin
-    xfm_a = '0;
-    xfm_b = '0;
+    add_a = '0;
+    add_b = '0;
+    add_a[OP_TRIANGLE][0] = v_tri.num_part;
+    add_b[OP_TRIANGLE][0] = v_tri.uvw_z[2];
     if (TRANSFORM) begin
       for (int r = 0; r < 3; r++) begin
-        xfm_a[r] = v_xfm.po[r][0];
-        xfm_b[r] = v_xfm.t[r];
+        add_a[OP_TRANSFORM][r] = v_xfm.po[r][0];
+        add_b[OP_TRANSFORM][r] = v_xfm.t[r];
       end
     end
   end
-  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N_TRI(1), .N_BOX(0), .N_EUC(0), .N_ANG(0),
-               .N_XFM(NX))
-    u_add (.op_i(st_i.op),
-           .tri_a_i(v_tri.num_part), .tri_b_i(v_tri.uvw_z[2]), .tri_y_o(tri_y),
-           .box_a_i(FP_POS_ZERO), .box_b_i(FP_POS_ZERO), .box_y_o(unused_box_y),
-           .euc_a_i(FP_POS_ZERO), .euc_b_i(FP_POS_ZERO), .euc_y_o(unused_euc_y),
-           .ang_a_i(FP_POS_ZERO), .ang_b_i(FP_POS_ZERO), .ang_y_o(unused_ang_y),
-           .xfm_a_i(xfm_a), .xfm_b_i(xfm_b), .xfm_y_o(xfm_y));
+  rf_fu_pool #(.IS_MUL(1'b0), .DISJOINT(DISJOINT), .N(ADD))
+    u_add (.op_i(st_i.op), .a_i(add_a), .b_i(add_b), .y_o(add_y));
 
   always_comb begin
     st_o = st_i;
     unique case (st_i.op)
       OP_QUADBOX:  st_o.pl.box_sort = box_sorted;
-      OP_TRIANGLE: st_o.pl.tri_edge.num = tri_y;
+      OP_TRIANGLE: st_o.pl.tri_edge.num = add_y[OP_TRIANGLE][0];
       OP_TRANSFORM: begin
         if (TRANSFORM) begin
-          for (int r = 0; r < 3; r++) st_o.pl.xfm.po[r][0] = xfm_y[r];
+          for (int r = 0; r < 3; r++) st_o.pl.xfm.po[r][0] = add_y[OP_TRANSFORM][r];
         end
       end
       default: ;

@@ -267,6 +267,6 @@ def test_whole_datapath_all_configurations():
 
 
 def test_flip_flops_rejects_an_unknown_configuration_before_any_work(capsys):
-    assert area.main(["--flip-flops", "--configs", "baseline-unified,baseline-shared"]) == 2
+    assert main(["area", "--flip-flops", "--configs", "baseline-unified,baseline-shared"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "unknown configuration 'baseline-shared'" in err[0]

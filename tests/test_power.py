@@ -262,6 +262,7 @@ def test_a_model_build_reports_before_the_progress_bar_is_drawn(monkeypatch):
     """power's bar and a first build's lines once shared one stderr line: the bar was drawn,
     then the model built under it. The model is made first now."""
     import driver.power as power
+    from driver.power import run as power_run
     events = []
 
     class Model:
@@ -278,9 +279,9 @@ def test_a_model_build_reports_before_the_progress_bar_is_drawn(monkeypatch):
         def close(self):
             events.append("closed")
     monkeypatch.setattr(activity, "SignalModel", Model)
-    monkeypatch.setattr(power, "_Bar", Bar)
-    monkeypatch.setattr(power, "measure", lambda *a, **k: {})
-    power.run_level("signals", ["baseline-unified", "baseline-disjoint"], progress=True)
+    monkeypatch.setattr(power_run, "_Bar", Bar)
+    monkeypatch.setattr(power_run, "measure", lambda *a, **k: {})
+    power_run.run_level("signals", ["baseline-unified", "baseline-disjoint"], progress=True)
     assert events == ["model", "bar", "closed"] * 2
 
 

@@ -111,7 +111,8 @@ def _build_pyverilator(params: dict[str, int]) -> Path:
     """The cached pyverilator shared object (driver.backends.verilate.build_pyverilator)."""
     try:
         return verilate.build_pyverilator(
-            TOP, RTL_DIR / f"{TOP}.sv", rtl_sources(), [RTL_DIR / "rf_pkg.sv"], [RTL_DIR], params,
+            TOP, RTL_DIR / f"{TOP}.sv", rtl_sources(),
+            [f for f in rtl_sources() if f.stem.endswith("_pkg")], [RTL_DIR], params,
             defines=["RF_ASSERTIONS"],            # the skid buffers' protocol assertions
             verilator_args=["--assert"])
     except verilate.BuildError as e:

@@ -407,10 +407,12 @@ def build_pyverilator(top: str, top_file: Path, sv_sources: Sequence[Path],
         gen = work / "obj"
         env = _tool_env(vbin)
         env["PATH"] = f"{vbin.parent}{os.pathsep}{env.get('PATH', '')}"   # pyverilator looks it up
-        spec = {"top_file": str(top_file), "preceding": " ".join(map(str, preceding)),
+        # pyverilator passes one preceding file, after the arguments: the others go first
+        spec = {"top_file": str(top_file), "preceding": str(preceding[-1]) if preceding else "",
                 "path": [str(d) for d in include_dirs], "build_dir": str(gen),
                 "defines": list(defines), "cargs": cargs,
-                "args": ["--top-module", top, *verilator_args, *_param_args(params)]}
+                "args": [*map(str, preceding[:-1]), "--top-module", top, *verilator_args,
+                         *_param_args(params)]}
         step = _steps(PYVERILATOR_STEPS)
         with open(work / "build.log", "w") as log, step("generate"):
             _run([sys.executable, "-c", _PYVERILATOR_GEN, json.dumps(spec)], work, log,
