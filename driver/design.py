@@ -46,7 +46,7 @@ from .instances import DATAPATH, TRANSFORMS
 from .core.layout import DEFAULT_FORMAT, IMAGE_FORMATS
 from .rtunit import MemoryModel
 from .rtunit.order import DEFAULT_POLICY, DEFAULT_WINDOW, POLICIES
-from .rtunit.gpu import DEFAULT_REPLAY_DATAPATH, REPLAY_DATAPATHS
+from .rtunit.gpu import DEFAULT_REPLAY_DATAPATH, DEFAULT_UNIT_COSTS, REPLAY_DATAPATHS, UNIT_COSTS
 from .rtunit.plan import FRAMES, MAX_RT_UNITS, MAX_WARP_SIZE, Schedule
 from .rtunit.presets import DEFAULT_PRESET, PRESETS
 from .scenes.camera import MAX_SIZE
@@ -290,6 +290,13 @@ OPTIONS: tuple[Option, ...] = (
            "functional pass's, bit for bit: slower); counts and cycles are the same "
            "(docs/rtunit.md)", _choice(REPLAY_DATAPATHS), "rtunit", "HOW", REPLAY_DATAPATHS,
            listable=False),
+    Option("unit_costs", "--unit-costs", str, DEFAULT_UNIT_COSTS,
+           "what the RT-unit replay charges per request: replay (one turnaround cycle from a "
+           "response to the ray's next request, no divider) or rtl (the RT unit in RTL's ray, "
+           "pop, memory and result ports, fetch register, scheduler cycle, response stage and "
+           "dividers, the cycles --backend rtunit counts; one pipeline, index ray order; "
+           "docs/rtunit_rtl.md)", _choice(UNIT_COSTS), "rtunit",
+           "COSTS", UNIT_COSTS),
     Option("scene", "--scene", str, DEFAULT_SCENE, _scene_help(),
            lambda flag, v: _resolve_scene(v), "workload", "SCENE", listable=False),
     Option("workload", "--workload", str, "primary",
@@ -363,6 +370,7 @@ class DesignPoint:
     ray_order: str = BY_NAME["ray_order"].default
     ray_window: int = BY_NAME["ray_window"].default
     replay_datapath: str = BY_NAME["replay_datapath"].default
+    unit_costs: str = BY_NAME["unit_costs"].default
     scene: str = BY_NAME["scene"].default
     workload: str = BY_NAME["workload"].default
     size: int | None = BY_NAME["size"].default
@@ -401,6 +409,10 @@ class DesignPoint:
         if POLICIES[self.ray_order].schedule and self.ray_window % self.warp_size:
             raise ValueError(f"--ray-window {self.ray_window} must be a multiple of "
                              f"--warp-size {self.warp_size}")
+        if self.unit_costs == "rtl" and (self.pipelines != 1 or self.ray_order != DEFAULT_POLICY):
+            raise ValueError("--unit-costs rtl charges the RT unit in RTL's costs: it has one "
+                             "pipeline and takes rays in index order (give --pipelines 1 "
+                             "--ray-order index)")
         if POLICIES[self.ray_order].key is not None and self.frame_schedule == "one-kernel":
             raise ValueError(f"--ray-order {self.ray_order} sorts a wavefront's ray queue: use "
                              "it with --frame wavefront (in a one-kernel frame threads issue "

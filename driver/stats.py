@@ -164,11 +164,12 @@ def merge_unit_rtl(parts: list[dict], ops: int) -> dict:
     out = dict(parts[0])
     out.update({k: sum(p[k] for p in parts) for k in _UNIT_SUMMED})
     out["max_stack_depth"] = max(p["max_stack_depth"] for p in parts)
-    for key in ("traversal_mismatches", "replay_cycles"):
+    for key in ("traversal_mismatches", "replay_cycles", "replay_default_cycles"):
         values = [p[key] for p in parts]
         out[key] = None if None in values else sum(values)
-    out["replay_cycles_ratio"] = (None if out["replay_cycles"] is None or not out["cycles"]
-                                  else out["replay_cycles"] / out["cycles"])
+    for key in ("replay_cycles", "replay_default_cycles"):
+        out[f"{key}_ratio"] = (None if out[key] is None or not out["cycles"]
+                               else out[key] / out["cycles"])
     out["utilization"] = ops / out["cycles"] if out["cycles"] else 0.0
     return out
 
@@ -198,7 +199,7 @@ def public(stats: dict) -> dict:
 # an RT-unit object's settings (the same in every part of a frame)
 _RT_CONFIG = ("rays_in_flight", "pipelines", "turnaround_cycles", "frame_schedule", "rt_units",
               "warp_size", "warps_per_unit", "shader_cycles", "flush_between",
-              "replay_datapath")
+              "replay_datapath", "unit_costs")
 # RT-unit figures added up over parts run one after another (tiles); null stays null
 _RT_SUMMED = ("rays", "ops", "cycles", "frame_cycles", "kernels", "starved_cycles",
               "sim_wall_s", "line_accesses", "line_hits", "line_misses", "bytes_from_memory",

@@ -10,7 +10,8 @@ Every run (``execute``) loads its scene (a LumiBench scene from its cache after 
 time), builds its BVH, traces the frame on the backend with the design point's datapath, checks
 every ray against Embree (adjudicated, ``driver.adjudicate``) and replays the frame on the
 point's RT units (``rtunit_memory``; with ``ideal`` also with free node fetches, ``rtunit``;
-docs/rtunit.md). Runs are independent tasks: in this process, or on Dask workers
+docs/rtunit.md); on the RT unit in RTL (backend "rtunit") the unit times the frame itself
+(``unit_rtl``, its replay compared: docs/rtunit_rtl.md). Runs are independent tasks: in this process, or on Dask workers
 (``--workers``, ``--scheduler``, the cluster code of ``driver.tiles``), scene by scene, the
 most expensive first (a worker keeps its last scene and BVH for its next run of that scene); a
 suite of one run spreads that run's tiles over the workers instead. Each finished run is
@@ -38,6 +39,7 @@ from pathlib import Path
 from PIL import Image
 
 from . import suite_report
+from .backends.rtunit import UNIT_BACKEND
 from .core.errors import RayflexError
 from .core.outputs import jsonable
 from .core.progress import bar as progress_bar
@@ -199,7 +201,8 @@ def execute(run: Run, point, backend: str = "rtl", root=None, ideal: bool = Fals
     t_load = time.perf_counter() - t0
     split = workers > 1 or bool(scheduler)
     res = render(scene, point.size, point.size, backend=backend, progress=False,
-                 check_embree=True, point=point, rtunit="ideal" if ideal else True,
+                 check_embree=True, point=point,
+                 rtunit=backend != UNIT_BACKEND and ("ideal" if ideal else True),
                  tile=SPLIT_TILE if split else max(point.size, 1),
                  workers=workers, scheduler=scheduler)
     stats = res.stats

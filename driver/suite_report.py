@@ -20,14 +20,17 @@ from .plotting import describe, wrap
 
 ROW_KEYS = ("name", "scene", "workload", "size", "spp", "partial", "rays", "hits",
             "ops_per_ray", "box_ops_per_ray", "tri_ops_per_ray", "utilization_memory",
-            "utilization", "hit_rate", "bytes_per_ray", "energy_per_ray_signals", "agree",
+            "utilization", "hit_rate", "bytes_per_ray", "energy_per_ray_signals",
+            "replay_cycles_ratio", "agree",
             "edge_tie",
             "embree_wrong", "datapath_wrong", "wall_s")
 
 
 def row(name: str, doc: dict) -> dict:
-    """One run's summary row (``ROW_KEYS``)."""
-    mem = doc.get("rtunit_memory") or {}
+    """One run's summary row (``ROW_KEYS``). A run on the RT unit in RTL (``unit_rtl``) gives
+    the unit's utilization and its replay's cycles over the unit's."""
+    unit = doc.get("unit_rtl") or {}
+    mem = doc.get("rtunit_memory") or {"utilization": unit.get("utilization")}
     plain = doc.get("rtunit") or {}
     cls = ((doc.get("embree") or {}).get("adjudicated") or {}).get("classes", {})
     rays = doc.get("rays", 0)
@@ -41,6 +44,7 @@ def row(name: str, doc: dict) -> dict:
             "utilization_memory": mem.get("utilization"), "utilization": plain.get("utilization"),
             "hit_rate": mem.get("hit_rate"), "bytes_per_ray": mem.get("bytes_per_ray"),
             "energy_per_ray_signals": (doc.get("energy_per_ray") or {}).get("signals"),
+            "replay_cycles_ratio": unit.get("replay_cycles_ratio"),
             **{c: cls.get(c) for c in ("agree", "edge_tie", "embree_wrong", "datapath_wrong")},
             "wall_s": doc.get("timing", {}).get("wall_s")}
 

@@ -195,7 +195,8 @@ def _trace_unit(be, be_name: str, bvh, rays, any_hit, progress, cull_stack,
     stats = frame_stats(res.box_ops, res.tri_ops, res.hit, res.stats["cycles"],
                         int(be.latency), wall, be_name)
     unit = unit_rtl_stats(res, be)
-    unit["traversal_mismatches"] = unit["replay_cycles"] = unit["replay_cycles_ratio"] = None
+    unit.update(dict.fromkeys(("traversal_mismatches", "replay_cycles", "replay_cycles_ratio",
+                               "replay_default_cycles", "replay_default_cycles_ratio")))
     if be.compare:
         issue = issuer(be, rays, bvh, be_name, record=True)
         trav = traverse(bvh, rays["extent"], issue, any_hit=any_hit)
@@ -205,15 +206,31 @@ def _trace_unit(be, be_name: str, bvh, rays, any_hit, progress, cull_stack,
                   | (t_ref.view(np.uint32) != t.view(np.uint32))
                   | (trav.box_ops != res.box_ops) | (trav.tri_ops != res.tri_ops))
         unit["traversal_mismatches"] = int(np.count_nonzero(differ))
-        if be.memory is not None:
-            rec = issue.record(backend_params(be))
-            cycles = rtunit.replay(rec, rays_in_flight=be.rays_in_flight, pipelines=1,
-                                   memory=memory_model(be.memory)).cycles
-            unit["replay_cycles"] = int(cycles)
-            unit["replay_cycles_ratio"] = cycles / res.stats["cycles"]
+        unit.update(_replay_unit(be, issue.record(backend_params(be)), any_hit, len(rays),
+                                 res.stats["cycles"]))
     stats["unit_rtl"] = unit
     steps = np.zeros(0, np.int64)
     return TraceResult(t, res.prim, res.hit, res.box_ops, res.tri_ops, steps, steps, stats)
+
+
+def _replay_unit(be, rec, any_hit, n: int, unit_cycles: int) -> dict:
+    """The RT-unit replay of the unit's batch on its parameters (one pipeline, its rays in flight
+    and memory): with the unit's costs (``rtunit.UnitCosts``: its dividers, its fixed-latency
+    memory, the any-hit rays, its stack depth) and, when the unit has the memory hierarchy, with the replay's
+    default costs; each as cycles and over the unit's."""
+    mem = memory_model(be.memory) if be.memory is not None else None
+    costs = rtunit.UnitCosts(be.dividers, fixed_latency=0 if mem else be.mem_latency,
+                             any_hit=np.broadcast_to(np.asarray(any_hit, bool), (n,)),
+                             stack_depth=be.stack_depth)
+    out = {}
+    for key, uc in (("replay", costs), ("replay_default", None)):
+        cycles = None
+        if uc is not None or mem is not None:
+            cycles = int(rtunit.replay(rec, rays_in_flight=be.rays_in_flight, pipelines=1,
+                                       memory=mem, unit_costs=uc).cycles)
+        out[f"{key}_cycles"] = cycles
+        out[f"{key}_cycles_ratio"] = None if cycles is None else cycles / unit_cycles
+    return out
 
 
 def memory_model(config: dict) -> rtunit.MemoryModel:

@@ -24,6 +24,63 @@ struct Ready {
 };
 using MinQueue = std::priority_queue<Ready, std::vector<Ready>, std::greater<Ready>>;
 
+// A pipeline as its handshakes (the unit costs with timing pipelines): a chain of `n` skid-buffer
+// registers (rtl/rf_skid.sv), as rtl/rayflex.sv is, each a main and a skid slot. Only the valid
+// bits are kept (the beats leave in order: the pipeline's in-flight queue names them). A beat
+// moves one register per cycle while the next can take it; a stalled output backs the beats up
+// into the skid slots, and the input stops taking beats when the first register's skid slot is
+// full, cycle for cycle as the RTL.
+struct Elastic {
+  std::vector<char> main, skid;
+  int64_t n = 0;
+
+  void configure(int64_t stages) {
+    n = stages;
+    main.assign(n, 0);
+    skid.assign(n, 0);
+  }
+  bool in_ready() const { return !skid[0]; }
+  bool out_valid() const { return main[n - 1]; }
+  // one clock edge: a beat offered at the input (in_valid), the output taken when out_ready
+  void tick(bool in_valid, bool out_ready) {
+    bool ready = out_ready;                       // the ready_i of register k (its consumer's)
+    for (int64_t k = n - 1; k >= 0; k--) {
+      const bool ready_o = !skid[k];
+      const bool in_fire = (k ? main[k - 1] : in_valid) && ready_o;
+      const bool out_fire = main[k] && ready;
+      if (skid[k]) {
+        if (out_fire) skid[k] = 0;
+      } else if (in_fire) {
+        if (main[k] && !ready) skid[k] = 1;
+        else main[k] = 1;
+      } else if (out_fire) {
+        main[k] = 0;
+      }
+      ready = ready_o;
+    }
+  }
+};
+
+// What a response asks of the RT unit's response stage (rtl/rf_rtu_resp.sv): the hit children of
+// a box response (pushed one per cycle), or whether a triangle response hit (a division).
+struct RspKind {
+  bool box;
+  int hits;        // box: hit children
+  bool tri_hit;
+};
+
+RspKind rsp_kind(const uint32_t* w) {
+  const uint32_t op = (w[rf_layout::kRspOpcodeWord] >> rf_layout::kRspOpcodeLsb) &
+                      ((1u << rf_layout::kRspOpcodeBits) - 1);
+  RspKind k{op == rf_layout::kOpQuadbox, 0, false};
+  for (int j = 0; j < rf_layout::kRspBoxHitCount; j++)
+    k.hits += (w[rf_layout::kRspBoxHitWord] >> (rf_layout::kRspBoxHitLsb +
+                                                j * rf_layout::kRspBoxHitBits)) & 1;
+  k.tri_hit = op == rf_layout::kOpTriangle &&
+              ((w[rf_layout::kRspTriHitWord] >> rf_layout::kRspTriHitLsb) & 1);
+  return k;
+}
+
 struct Unit {
   std::vector<std::unique_ptr<Sim>> sims;
   std::vector<std::deque<int64_t>> inflight;   // per pipeline: record indices, in request order
@@ -43,6 +100,19 @@ struct Unit {
   std::vector<char> tl_active;
   std::vector<int64_t> act;
   int64_t queued = 0;
+  // the RT unit in RTL's costs (cfg.unit_costs): rays waiting for the pop port (by the cycle they
+  // may pop) and node responses waiting for the memory port (by the cycle the node is present);
+  // the next cycle the ray port and the result port are free; per pipeline its handshakes
+  // (timing pipelines), the next cycle its response stage is free and each divider's
+  MinQueue loadq, arrq;
+  // per ray slot: its ray (-1: free), the cycle it may pop, issue, leave through the result port
+  // (kNever: not waiting), the cycle it is free again; the round-robin starts
+  std::vector<int64_t> slot_ray, pop_at, ready_at, done_at, free_at;
+  int64_t pop_next = 0, sched_next = 0, res_next = 0;
+  std::vector<Elastic> chain;
+  std::vector<char> in_valid, out_ready;      // this cycle's handshakes of each pipeline
+  std::vector<int64_t> resp_free;
+  std::vector<std::vector<int64_t>> div_free;
 };
 
 struct Engine {
@@ -64,6 +134,8 @@ struct Engine {
   const int64_t* tl_off;
   const int64_t* tl_node_off;
   const int64_t* tl_node_bytes;
+  const uint32_t* responses;   // the functional run's responses (unit costs, timing pipelines)
+  const uint8_t* any_hit;      // (n_chains,) or null: any-hit rays (unit costs)
   // outputs
   int64_t* ray_times;    // (n_chains, 3): call issued, call admitted, last response
   int64_t* ray_served;   // (n_chains, kMemoryLevels): node bytes supplied by each memory level
@@ -81,6 +153,12 @@ struct Engine {
   int64_t node_wait = 0, level_wait[kMemoryLevels] = {};
   int64_t n_parked = 0, n_resumed = 0, max_parked = 0, max_held = 0;
   int64_t picks = 0, max_queued = 0, n_borrowed = 0;
+  bool unit_costs = false;
+  int64_t unit_last = -1;      // unit costs: the cycle the last result was taken
+  // unit costs, per chain: entries on its stack and spilled, a refill under way, a refilled
+  // entry held (popped next without the stack)
+  std::vector<int64_t> depth, spilled, slot_of;
+  std::vector<char> refilling, held;
 
   Engine(const ReplayConfig& c, NodeSource s) : cfg(c), src(s) {}
 
@@ -92,25 +170,40 @@ struct Engine {
     return static_cast<int64_t>(kNodeBytes[p & kTypeMask]);  // 0: the node the ray holds
   }
 
-  // Ray r's next request is known at cycle `at`: its node is fetched (and, first, the instance
-  // node it reads on entering an instance); it becomes ready when the node is present, or parks.
-  void wait(Unit& u, int64_t uid, int64_t r, int64_t at) {
+  // Ray r's next node (and, first, the instance node it reads on entering an instance) asked for
+  // at cycle `at`: the cycle it is present (through the memory hierarchy; without one, at once,
+  // or cfg.fixed_latency cycles later). *park (or null): whether the ray parks (its node is not in
+  // its L1, the scheduler has parking on).
+  int64_t fetch_node(int64_t uid, int64_t r, int64_t at, bool* park) {
     const uint32_t b = before[index_of(r)];
     int64_t* served = ray_served + r * kMemoryLevels;
+    const int64_t fixed = mem.enabled() ? 0 : cfg.fixed_latency;
     Access ab{at, kLevelNone, kLevelNone};
     if (b != kNoChild)
-      ab = mem.fetch(uid, NodeSource::node_word(b) * 4, kNodeBytes[b & kTypeMask], at, served);
+      ab = fixed ? Access{at + fixed, kLevelNone, kLevelNone}
+                 : mem.fetch(uid, NodeSource::node_word(b) * 4, kNodeBytes[b & kTypeMask], at,
+                             served);
     const int64_t after = ab.ready;
     int64_t off;
     const int64_t bytes = node_of(r, &off);
-    const bool park = parking && bytes && !mem.present(uid, off, bytes, after);
-    const Access an = bytes ? mem.fetch(uid, off, bytes, after, served)
-                            : Access{after, kLevelNone, kLevelNone};
+    if (park) *park = parking && bytes && !mem.present(uid, off, bytes, after);
+    Access an{after, kLevelNone, kLevelNone};
+    if (bytes)
+      an = fixed ? Access{after + fixed, kLevelNone, kLevelNone}
+                 : mem.fetch(uid, off, bytes, after, served);
     const int64_t when = an.ready;
     const int level = when > after ? an.level : ab.level;
     node_wait += when - at;
     level_wait[level] += when - at;
     ray_wait[r] += when - at;
+    return when;
+  }
+
+  // Ray r's next request is known at cycle `at`: its node is fetched; it becomes ready when the
+  // node is present, or parks.
+  void wait(Unit& u, int64_t uid, int64_t r, int64_t at) {
+    bool park = false;
+    const int64_t when = fetch_node(uid, r, at, &park);
     if (!park) {
       u.ready.push({r, when, seq++});
       return;
@@ -119,6 +212,153 @@ struct Engine {
     u.active--;
     n_parked++;
     if (static_cast<int64_t>(u.parked.size()) > max_parked) max_parked = u.parked.size();
+  }
+
+  // ------------------------------------------------------------------ the RT unit's costs
+  // (cfg.unit_costs; docs/rtunit_rtl.md#the-replay-against-the-unit). Each ray holds one of the
+  // unit's `slots` ray slots, as in the RTL. A ray is taken through the ray port (one a cycle,
+  // into the lowest free slot) and pops its root the cycle after; every pop goes through the pop
+  // port (one a cycle, round robin over the slots from the one after the last popped); a pop with
+  // a node to read sends the fetch request the cycle after (its register) and the node comes back
+  // through the memory port (one response a cycle, the earliest first), the ray ready to issue
+  // the cycle after; the scheduler issues the ready slots round robin; a pop that finds the stack
+  // empty ends the ray. A response is taken by the pipeline's response stage when it is free: a
+  // box with h hit children holds it max(h, 1) cycles and the ray pops after them; a triangle
+  // without a hit pops the cycle after; a triangle hit needs an idle divider (else the response
+  // waits, and the pipeline backs up behind it), which holds it div_cycles + 1 cycles, and the ray
+  // pops div_cycles + 1 cycles later, or ends there when it is an any-hit ray with nothing more
+  // to do. An ended ray's result leaves through the result port (one a cycle, round robin) the
+  // cycle after, is taken the cycle after that, and its slot takes the next ray then.
+  static constexpr int64_t kNever = INT64_MAX;
+
+  // The first slot from `start` (round robin) whose time has come at cycle k, or -1.
+  static int64_t rr(const std::vector<int64_t>& at, int64_t start, int64_t k) {
+    const int64_t n = static_cast<int64_t>(at.size());
+    for (int64_t i = start; i < n; i++)
+      if (at[i] <= k) return i;
+    for (int64_t i = 0; i < start; i++)
+      if (at[i] <= k) return i;
+    return -1;
+  }
+
+  void load(Unit& u, int64_t r, int64_t at) { u.loadq.push({r, at, seq++}); }
+
+  void load_step(Unit& u, int64_t k) {          // the ray port
+    if (u.loadq.empty() || u.loadq.top().at > k) return;
+    for (size_t s = 0; s < u.slot_ray.size(); s++) {
+      if (u.slot_ray[s] >= 0 || u.free_at[s] > k) continue;
+      const int64_t r = u.loadq.top().id;
+      u.loadq.pop();
+      u.slot_ray[s] = r;
+      slot_of[r] = static_cast<int64_t>(s);
+      u.pop_at[s] = k + 1;
+      return;
+    }
+  }
+
+  void finish(Unit& u, int64_t r, int64_t done_at) { u.done_at[slot_of[r]] = done_at; }
+
+  void result_step(Unit& u, int64_t uid, int64_t k) {   // the result port
+    const int64_t s = rr(u.done_at, u.res_next, k);
+    if (s < 0) return;
+    u.res_next = s + 1 == static_cast<int64_t>(u.done_at.size()) ? 0 : s + 1;
+    const int64_t r = u.slot_ray[s];
+    u.done_at[s] = kNever;
+    u.slot_ray[s] = -1;
+    u.free_at[s] = k + 1;
+    if (k + 1 > unit_last) unit_last = k + 1;
+    u.active--;
+    ray_done(u, uid, r, k + 1);
+    if (!cfg.window) admit_waiting(u, uid, k + 1);
+  }
+
+  // With cfg.stack_depth S > 0 each ray's stack holds S entries: a push onto a full stack spills
+  // the oldest entry to memory (at no cost: the spill port takes a write a cycle), and a pop that
+  // finds the stack empty with entries spilled reads the last one back first: a request on the
+  // memory port (served at the node cache's hit latency, or the fixed latency), the ray popping
+  // again the cycle after the response. The order of the pops is that of an unbounded stack,
+  // the recorded chain's.
+  void pop(Unit& u, int64_t uid, int64_t k) {
+    const int64_t s = rr(u.pop_at, u.pop_next, k);
+    if (s < 0) return;
+    u.pop_next = s + 1 == static_cast<int64_t>(u.pop_at.size()) ? 0 : s + 1;
+    u.pop_at[s] = kNever;
+    const int64_t r = u.slot_ray[s];
+    const bool more = pos[r] < chain_off[r + 1] - chain_off[r];
+    int64_t off;
+    const int64_t bytes = more ? node_of(r, &off) : 0;
+    // the root, a refilled entry and a pair leaf's second triangle are not on the stack
+    if (cfg.stack_depth && (!more || (pos[r] > 0 && bytes)) && !held[r]) {
+      if (depth[r] > 0) {
+        depth[r]--;
+      } else if (spilled[r] > 0 && more) {
+        spilled[r]--;
+        refilling[r] = 1;
+        const int64_t lat = mem.enabled() ? std::max<int64_t>(mem.l1[uid].latency, 1)
+                                          : cfg.fixed_latency;
+        u.arrq.push({r, k + 1 + lat, seq++});
+        return;
+      }
+    }
+    held[r] = 0;
+    if (!more) {
+      finish(u, r, k + 1);
+      return;
+    }
+    if (!bytes) {                             // a pair leaf's second triangle: no fetch
+      u.ready_at[s] = k + 1;
+      return;
+    }
+    const int64_t when = fetch_node(uid, r, k + 1, nullptr);
+    u.arrq.push({r, std::max(when, k + 2), seq++});
+  }
+
+  void arrive(Unit& u, int64_t k) {
+    if (u.arrq.empty() || u.arrq.top().at > k) return;
+    const int64_t r = u.arrq.top().id;
+    u.arrq.pop();
+    if (refilling[r]) {                       // a spilled entry read back: the ray pops it
+      refilling[r] = 0;
+      held[r] = 1;
+      u.pop_at[slot_of[r]] = k + 1;
+      return;
+    }
+    u.ready_at[slot_of[r]] = k + 1;
+  }
+
+  int64_t idle_divider(const Unit& u, int64_t p, int64_t k) const {
+    const auto& d = u.div_free[p];
+    for (size_t j = 0; j < d.size(); j++)
+      if (d[j] <= k) return static_cast<int64_t>(j);
+    return -1;
+  }
+
+  bool can_take(const Unit& u, int64_t p, int64_t k, const uint32_t* w) const {
+    return k >= u.resp_free[p] && (!rsp_kind(w).tri_hit || idle_divider(u, p, k) >= 0);
+  }
+
+  // Pipeline p's response w to ray r's request is taken at cycle k (pos[r] already past it).
+  void respond(Unit& u, int64_t uid, int64_t p, int64_t r, int64_t k, const uint32_t* w) {
+    const RspKind kind = rsp_kind(w);
+    int64_t next = k + 1;
+    u.resp_free[p] = k + 1;
+    if (kind.box) {
+      next = k + std::max(kind.hits, 1);
+      u.resp_free[p] = next;
+      depth[r] += kind.hits;
+      if (cfg.stack_depth && depth[r] > cfg.stack_depth) {
+        spilled[r] += depth[r] - cfg.stack_depth;
+        depth[r] = cfg.stack_depth;
+      }
+    } else if (kind.tri_hit) {
+      u.div_free[p][idle_divider(u, p, k)] = k + cfg.div_cycles + 1;
+      next = k + cfg.div_cycles + 1;
+      if (any_hit && any_hit[r] && pos[r] >= chain_off[r + 1] - chain_off[r]) {
+        finish(u, r, next);                  // the any-hit ray ends at its accepted triangle
+        return;
+      }
+    }
+    u.pop_at[slot_of[r]] = next;
   }
 
   // ------------------------------------------------------------------ warps and trace calls
@@ -152,7 +392,8 @@ struct Engine {
         u.fresh.push_back(r);
       } else {
         u.active++;
-        wait(u, uid, r, now);
+        if (unit_costs) load(u, r, now);
+        else wait(u, uid, r, now);
       }
     }
   }
@@ -351,6 +592,19 @@ extern "C" {
 // rf_latency). Nothing is evaluated and rsp is not written: the responses are the functional
 // run's. Every count and time equals the evaluated replay's (tests compare the two).
 //
+// cfg.fixed_latency > 0 with no memory model (mc->l1_bytes < 0): every node fetch takes that
+// many cycles (the RT unit in RTL's fixed-latency memory).
+//
+// cfg.unit_costs: the RT unit in RTL's costs (rtl/rf_rtunit.sv, docs/rtunit_rtl.md) replace the
+// turnaround: the ray, pop, memory and result ports, the fetch request's register, the
+// scheduler's cycle, the pipeline as its chain of skid registers (Elastic) behind a response
+// stage that holds a box response one cycle per hit child and a triangle hit until one of
+// cfg.dividers dividers (cfg.div_cycles latency) is idle, cfg.stack_depth entries per stack
+// (spills and refills), and any-hit rays (in->any_hit, per chain) ending at their hit (Engine:
+// "the RT unit's costs"). Its response stage reads the responses: the evaluated ones (D = 0) or
+// the functional run's, in->responses (m, kRspWords), with D > 0. Needs P = 1 and no window or
+// treelets. `cycles` then runs from a kernel's first ray taken to its last result taken.
+//
 // Outputs: rsp (m, kRspWords) at the record index (D = 0); stats (ReplayStats: `cycles` is the sum over
 // kernels of first accept to last response, `frame_cycles` the frame's); per_pipe (units * P):
 // requests per pipeline; sched (int64[7]): rays parked, resumed, most parked at once (one unit),
@@ -405,7 +659,13 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
     return -3;
   if (c.window < 0 || (c.window > 0 && (c.window < c.slots || c.window % c.warp_size)))
     return -3;
-  if (c.timing_latency < 0) return -3;
+  if (c.timing_latency < 0 || c.fixed_latency < 0) return -3;
+  // the unit's costs: one pipeline per unit, no scheduler of its own, the dividers given, and the
+  // responses (the functional run's when the pipelines are their timing)
+  if (c.unit_costs && (P != 1 || c.window || treelet || c.dividers < 1 || c.div_cycles < 1 ||
+                       c.stack_depth < 0 ||
+                       (c.timing_latency && !in->responses)))
+    return -3;
   const int64_t D = c.timing_latency;     // > 0: the pipelines' timing, no model evaluated
   std::vector<uint32_t> scratch(kReqWords, 0);   // the timing model's request (checked, unused)
   if (D) NodeSource{rays, image, image_words, ray, ptr, ext}.begin(scratch.data());
@@ -431,6 +691,9 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
   e.tl_off = tl_off;
   e.tl_node_off = tl_node_off;
   e.tl_node_bytes = tl_node_bytes;
+  e.responses = in->responses;
+  e.any_hit = in->any_hit;
+  e.unit_costs = c.unit_costs != 0;
   e.ray_times = ray_times;
   e.ray_served = ray_served;
   e.ray_wait = ray_wait;
@@ -482,6 +745,13 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
     kernel_times[q * 3 + 2] = 0;
   }
   e.pos.assign(n_chains, 0);
+  if (e.unit_costs) {
+    e.depth.assign(n_chains, 0);
+    e.spilled.assign(n_chains, 0);
+    e.refilling.assign(n_chains, 0);
+    e.held.assign(n_chains, 0);
+    e.slot_of.assign(n_chains, -1);
+  }
   if (e.treelets) e.cur_tl.assign(n_chains, -1);
 
   e.units = std::vector<Unit>(N);      // built in place: a Unit is not copyable
@@ -494,6 +764,17 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
     u.inflight.resize(P);
     u.due.resize(P);
     u.busy.assign(P, 0);
+    if (e.unit_costs) {
+      u.chain.resize(D ? P : 0);
+      for (auto& ch : u.chain) ch.configure(D);
+      u.resp_free.assign(P, 0);
+      u.in_valid.assign(P, 0);
+      u.slot_ray.assign(c.slots, -1);
+      for (auto* v : {&u.pop_at, &u.ready_at, &u.done_at}) v->assign(c.slots, Engine::kNever);
+      u.free_at.assign(c.slots, 0);
+      u.out_ready.assign(P, 0);
+      u.div_free.assign(P, std::vector<int64_t>(c.dividers, 0));
+    }
     if (e.treelets) {
       u.tq.resize(n_treelets);
       u.tl_members.assign(n_treelets, 0);
@@ -520,6 +801,7 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
   while (true) {
     bool progress = false;
     if (kernel < 0 || e.kernel_calls_left == 0) {        // a kernel boundary
+      if (e.unit_costs && kernel >= 0 && kfirst >= 0) last = klast = e.unit_last;
       if (kernel >= 0 && kfirst >= 0) {
         span_cycles += klast - kfirst + 1;
         kernel_times[kernel * 3] = kfirst;
@@ -530,6 +812,10 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
         if (++kernel >= n_kernels) break;
         if (kernel > 0 && c.flush) e.mem.flush();
         start_kernel(kernel, k);
+        if (e.unit_costs) {                   // the unit's cycles start with its first ray
+          kfirst = k;
+          if (first < 0) first = k;
+        }
       } while (e.kernel_calls_left == 0);
       if (kernel >= n_kernels) break;
       progress = true;
@@ -540,7 +826,22 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
       if (!c.window) e.admit_waiting(u, uid, k);
       for (int64_t p = 0; p < P; p++) {
         u.busy[p] = !u.inflight[p].empty();
-        if (D) {
+        const uint32_t* w = nullptr;               // the response at the output (unit costs)
+        if (e.unit_costs) {
+          bool out = false;
+          if (D) {
+            out = u.busy[p] && u.chain[p].out_valid();
+            if (out) w = e.responses + u.inflight[p].front() * kRspWords;
+          } else {
+            Vrayflex& t = u.sims[p]->top;
+            out = u.busy[p] && t.out_valid_o;
+            if (out) w = t.rsp_o.data();
+          }
+          const bool take = out && e.can_take(u, p, k, w);
+          if (!D) u.sims[p]->top.out_ready_i = take;
+          u.out_ready[p] = take;
+          if (!take) continue;
+        } else if (D) {
           if (!(u.busy[p] && u.due[p].front() <= k)) continue;
           u.due[p].pop_front();
         } else {
@@ -555,11 +856,13 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
           if (rsp[i * kRspWords] != ray[i]) bad_tags++;
         }
         taken++;
-        last = klast = k;
+        if (!e.unit_costs) last = klast = k;
         progress = true;
         const int64_t r = chain[i];
         const bool more = ++e.pos[r] < chain_off[r + 1] - chain_off[r];
-        if (e.treelets) {
+        if (e.unit_costs) {
+          e.respond(u, uid, p, r, k, w);
+        } else if (e.treelets) {
           u.tl_members[e.cur_tl[r]]--;
           const int64_t nt = more ? treelet[e.index_of(r)] : -1;
           if (more && u.tl_active[nt]) {              // stays in its slot
@@ -581,13 +884,31 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
       }
       if (e.treelets) e.fill_treelets(u, uid, k, k + c.turnaround);
       else if (e.affinity) e.fill(u, uid, k, k + c.turnaround);
+      if (e.unit_costs) {
+        e.result_step(u, uid, k);
+        e.load_step(u, k);
+        e.pop(u, uid, k);
+        e.arrive(u, k);
+      }
       int64_t issued = 0;
+      bool none_ready = false;
       for (int64_t p = 0; p < P; p++) {
         Vrayflex* t = D ? nullptr : &u.sims[p]->top;
         if (t) t->in_valid_i = 0;
-        if (u.ready.empty() || u.ready.top().at > k || (t && !t->in_ready_o)) continue;
-        const int64_t r = u.ready.top().id;
-        u.ready.pop();
+        if (D && e.unit_costs) u.in_valid[p] = 0;
+        int64_t r = -1;
+        if (e.unit_costs) {                   // the unit's scheduler: round robin over slots
+          const int64_t s = Engine::rr(u.ready_at, u.sched_next, k);
+          if (s < 0) none_ready = true;
+          if (s < 0 || (t && !t->in_ready_o) || (D && !u.chain[p].in_ready())) continue;
+          u.sched_next = s + 1 == c.slots ? 0 : s + 1;
+          u.ready_at[s] = Engine::kNever;
+          r = u.slot_ray[s];
+        } else {
+          if (u.ready.empty() || u.ready.top().at > k || (t && !t->in_ready_o)) continue;
+          r = u.ready.top().id;
+          u.ready.pop();
+        }
         const int64_t i = e.index_of(r);
         if (!e.src.fill(i, t ? t->req_i.data() : scratch.data())) return -2;
         if (t && !u.ready.empty()) {                // the next ray to issue, if it is known
@@ -595,6 +916,7 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
           if (e.pos[nx] < chain_off[nx + 1] - chain_off[nx]) e.src.prefetch(e.index_of(nx));
         }
         if (t) t->in_valid_i = 1;
+        else if (e.unit_costs) u.in_valid[p] = 1;
         else u.due[p].push_back(k + D);
         u.inflight[p].push_back(i);
         per_pipe[uid * P + p]++;
@@ -605,7 +927,7 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
       }
       accepts += issued;
       if (issued == P) full_cycles++;
-      if (issued < P && (u.ready.empty() || u.ready.top().at > k)) {
+      if (issued < P && (e.unit_costs ? none_ready : u.ready.empty() || u.ready.top().at > k)) {
         starved++;
         kernel_times[kernel * 3 + 2]++;
       }
@@ -613,6 +935,13 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
         if (c.skip_idle && !u.busy[p] && !u.sims[p]->top.in_valid_i) continue;
         tick(u.sims[p].get());
         evals++;
+      }
+      for (int64_t p = 0; p < P && D && e.unit_costs; p++)
+        if (u.busy[p] || u.in_valid[p]) u.chain[p].tick(u.in_valid[p], u.out_ready[p]);
+      if (e.unit_costs) {
+        if (u.active || !u.loadq.empty() || !u.arrq.empty()) progress = true;
+        for (int64_t p = 0; p < P; p++)
+          if (!u.inflight[p].empty() || u.resp_free[p] > k) progress = true;
       }
       if (!u.ready.empty() && u.ready.top().at > k) progress = true;   // waiting on a fetch
       if (!u.parked.empty() && u.parked.top().at > k) progress = true;

@@ -12,7 +12,7 @@ from driver import rtunit, workloads
 from driver.backends import harness
 from driver.backends.harness import HarnessBackend, default_threads, model_latency
 from driver.bvh4 import build
-from driver.rtunit import MemoryModel
+from driver.rtunit import MemoryModel, UnitCosts
 from driver.rtunit.gpu import replay_frame, timing_differences, waves_of
 from driver.rtunit.order import RayOrder
 from driver.rtunit.plan import Schedule
@@ -49,7 +49,19 @@ CASES = {
     "treelets": (16, 1, MemoryModel(), Schedule("one-kernel"),
                  {"order": RayOrder("treelet", 64)}),
     "hash order": (32, 2, MemoryModel(), Schedule("wavefront"), {"order": RayOrder("hash")}),
+    "the RT unit's costs, node cache, stack 4": (
+        64, 1, MemoryModel(), Schedule("wavefront"), {"unit_costs": UnitCosts(stack_depth=4)}),
+    "the RT unit's costs, fixed latency, one divider, any-hit": (
+        32, 1, None, Schedule("one-kernel"),
+        {"unit_costs": UnitCosts(dividers=1, fixed_latency=20, any_hit=True)}),
 }
+
+
+def test_the_unit_costs_need_one_pipeline_and_the_index_order(ao_waves):
+    for pipelines, opts in ((2, {}), (1, {"order": RayOrder("affinity", 64)})):
+        with pytest.raises(ValueError, match="one pipeline and the index ray order"):
+            replay_frame(ao_waves, 16, pipelines, MemoryModel(), Schedule("one-kernel"),
+                         unit_costs=UnitCosts(), **opts)
 
 
 @pytest.mark.parametrize("case", sorted(CASES))

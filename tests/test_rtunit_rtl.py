@@ -13,11 +13,12 @@ import pytest
 from driver.backends import BackendError, backend
 from driver.backends.build import RTL_DIR, rtl_params
 from driver.backends.rtunit import RtUnitBackend, lint_unit, unit_params
+from driver.backends.rtunit import div_cycles as driver_div_cycles
 from driver.cli import main
 from driver.core import layout, wire
 from driver.core.datapath import prepare_rays
 from driver.core.wire import FLAG_NO_CULL
-from driver.rtunit import MemoryModel
+from driver.rtunit import MemoryModel, UnitCosts
 from driver.tracer import as_bvh, trace
 from support.corpus import rays as corpus_rays
 from support.meshes import box_room, soup
@@ -64,8 +65,12 @@ def test_unit_matches_the_traversal_on_the_rtl_datapath(scene, deep, any_hit, do
     assert ref.hit.sum() > 20
     _same(ref, got)
     unit = got.stats["unit_rtl"]
-    assert unit["traversal_mismatches"] == 0 and unit["replay_cycles"] is None   # fixed latency
-    assert unit["stack_overflows"] == 0 and 0 < unit["max_stack_depth"] <= DEEP
+    assert unit["traversal_mismatches"] == 0 and unit["stack_overflows"] == 0
+    assert 0 < unit["max_stack_depth"] <= DEEP
+    # the replay with the unit's costs, on its fixed-latency memory, within 3 % of the unit;
+    # the default replay has no fixed-latency memory
+    assert abs(unit["replay_cycles_ratio"] - 1) <= 0.03
+    assert unit["replay_default_cycles"] is None
     assert got.stats["ops"] == ref.stats["ops"] and unit["cycles"] == got.stats["cycles"] > 0
 
 
@@ -81,6 +86,7 @@ def test_a_small_stack_spills_and_keeps_every_hit_and_op(scene, deep, shallow, a
     if not any_hit:             # every spilled entry is read back unless the ray ends early
         assert unit["stack_refills"] == unit["stack_overflows"]
     assert unit["cycles"] > ref.stats["unit_rtl"]["cycles"]
+    assert abs(unit["replay_cycles_ratio"] - 1) <= 0.03      # the spills and refills charged
 
 
 def test_the_replay_is_compared_behind_the_memory_hierarchy(scene):
@@ -91,9 +97,14 @@ def test_the_replay_is_compared_behind_the_memory_hierarchy(scene):
     unit = got.stats["unit_rtl"]
     assert unit["memory"] == "hierarchy" and unit["traversal_mismatches"] == 0
     replayed = trace(bvh, o, d, backend="rtl", rays_in_flight=RAYS, memory=memory)
-    assert unit["replay_cycles"] == replayed.stats["cycles"] > 0
+    assert unit["replay_default_cycles"] == replayed.stats["cycles"] > 0
+    assert unit["replay_default_cycles_ratio"] == unit["replay_default_cycles"] / unit["cycles"]
+    costs = UnitCosts(stack_depth=DEEP)
+    charged = trace(bvh, o, d, backend="rtl", rays_in_flight=RAYS, memory=memory,
+                    unit_costs=costs)
+    assert unit["replay_cycles"] == charged.stats["cycles"] > replayed.stats["cycles"]
     assert unit["replay_cycles_ratio"] == unit["replay_cycles"] / unit["cycles"]
-    assert 0.5 < unit["replay_cycles_ratio"] < 1.5
+    assert abs(unit["replay_cycles_ratio"] - 1) <= 0.03
 
 
 @pytest.mark.parametrize("any_hit", [False, True], ids=["closest", "any-hit"])
@@ -127,6 +138,13 @@ def test_one_ray_frame_cycles_by_hand(deep):
     assert res.stats["cycles"] == 1 + 2 * per_node + div + 1 + 1 + 1
     # busy from the cycle after its handshake to the cycle its result is taken (at once)
     assert res.stats["divider_busy_cycles"] == div
+    assert (res.box_ops[0], res.tri_ops[0]) == (1, 1)
+    # the replay with the unit's costs counts the same cycles; an any-hit ray ends at its hit,
+    # without the last pop
+    for any_hit, cycles in ((False, 1 + 2 * per_node + div + 3), (True, 1 + 2 * per_node + div + 2)):
+        got = trace(bvh, [[0.2, 0.2, 0]], [[0, 0, 1]], backend=deep, double_sided=True,
+                    any_hit=any_hit)
+        assert got.stats["unit_rtl"]["cycles"] == got.stats["unit_rtl"]["replay_cycles"] == cycles
 
 
 def div_cycles() -> int:
@@ -135,8 +153,9 @@ def div_cycles() -> int:
     value = {m[1]: int(m[2]) for m in re.finditer(r"(DIV_\w+)\s*=\s*(\d+);", text)}
     assert re.search(r"DIV_CYCLES\s*=\s*DIV_ITER_CYCLES \+ 2;", text)
     assert re.search(r"DIV_ITER_CYCLES\s*=\s*DIV_QUOTIENT_BITS / DIV_DIGIT_BITS;", text)
-    return value["DIV_QUOTIENT_BITS"] // value["DIV_DIGIT_BITS"] + 2
-    assert (res.box_ops[0], res.tri_ops[0]) == (1, 1)
+    cycles = value["DIV_QUOTIENT_BITS"] // value["DIV_DIGIT_BITS"] + 2
+    assert cycles == driver_div_cycles()      # what the replay's unit costs read
+    return cycles
 
 
 def test_package_constants_are_the_layout():
@@ -202,6 +221,20 @@ def test_a_run_stops_at_its_cycle_budget(scene, deep):
         deep.trace_unit(bvh, prepare_rays(o[:4], d[:4]), max_cycles=50)
 
 
+def test_render_replays_with_the_unit_costs(in_tmp, error_line):
+    import json
+    for costs in ("replay", "rtl"):
+        assert main(["render", "bunny", "--size", "8", "--rtunit", "--unit-costs", costs,
+                     "--json", f"{costs}.json", "--no-progress"]) == 0
+    got = {c: json.loads(open(f"{c}.json").read())["rtunit_memory"] for c in ("replay", "rtl")}
+    assert got["replay"]["unit_costs"] == "replay" and got["rtl"]["unit_costs"] == "rtl"
+    assert got["rtl"]["ops"] == got["replay"]["ops"]
+    assert got["rtl"]["cycles"] > got["replay"]["cycles"]       # the unit's costs are higher
+    assert main(["render", "bunny", "--size", "8", "--rtunit", "--unit-costs", "rtl",
+                 "--pipelines", "2"]) != 0
+    assert "--unit-costs rtl" in error_line()
+
+
 def test_stack_depth_needs_the_unit(in_tmp, error_line):
     assert main(["render", "bunny", "--size", "8", "--stack-depth", "8"]) != 0
     assert "--backend rtunit" in error_line()
@@ -213,5 +246,25 @@ def test_stack_depth_needs_the_unit(in_tmp, error_line):
     assert main(["render", "bunny", "--size", "8", "--backend", "rtunit", "--rays-in-flight",
                  "8", "--stack-depth", "1"]) != 0
     assert "--stack-depth" in error_line()
-    assert main(["suite", "lumibench", "--backend", "rtunit"]) != 0
-    assert "rayflex render" in error_line()
+
+
+def test_a_lumibench_suite_through_the_unit(tmp_path, in_tmp, error_line, monkeypatch):
+    import json
+    from test_lumibench_scenes import suite_root
+    monkeypatch.setenv("RAYFLEX_SCENE_CACHE", str(tmp_path / "cache"))
+    root = suite_root(tmp_path / "lumi")
+    argv = ["suite", "lumibench", "--lumibench-root", str(root), "--scenes", "BATH",
+            "--workloads", "ao", "--size", "8", "--spp", "1", "--backend", "rtunit",
+            "--rays-in-flight", str(RAYS), "--out", "out", "--no-progress"]
+    assert main(argv) == 2 and "--flatten" in error_line()       # LumiBench's are instanced
+    assert not (in_tmp / "out").exists()
+    assert main([*argv, "--ideal-replay", "--flatten"]) == 2 and "itself" in error_line()
+    assert main([*argv, "--flatten"]) == 0
+    doc = json.loads((in_tmp / "out" / "BATH_AO.json").read_text())
+    unit = doc["unit_rtl"]
+    assert unit["traversal_mismatches"] == 0 and "rtunit_memory" not in doc
+    assert doc["embree"]["adjudicated"]["classes"]["datapath_wrong"] == 0
+    row = json.loads((in_tmp / "out" / "summary.json").read_text())["runs"][0]
+    assert row["utilization_memory"] == unit["utilization"] > 0
+    assert row["replay_cycles_ratio"] == unit["replay_cycles_ratio"]
+    assert abs(unit["replay_cycles_ratio"] - 1) <= 0.03

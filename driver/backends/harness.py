@@ -211,7 +211,7 @@ _LATENCY: dict = {}
 
 
 def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, frame, chains,
-                    plan, treelets=None):
+                    plan, treelets=None, any_hit=None):
     """Run the RT-unit replay (sim/rtunit_scheduler.cpp, ``rf_replay``) of recorded request
     chains issued by warps of trace calls. ``config``: the ``REPLAY_CONFIG`` values
     (``series_capacity`` is filled in); ``memory``: the ``MEMORY_CONFIG`` values, or None (every
@@ -225,7 +225,9 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
     ``ReplayStats`` dict plus ``SCHED_STATS``, requests per pipeline (units, P) int64, per-ray
     and per-call arrays: ``ray_times`` (n, 3), ``ray_served`` (n, one column per
     ``MEMORY_LEVELS``), ``ray_wait`` (n,), ``call_times`` (calls, 3), ``call_unit`` (calls,),
-    ``series``, ``kernel_times`` (kernels, 3))."""
+    ``series``, ``kernel_times`` (kernels, 3)). ``config["unit_costs"]``: the RT unit in RTL's
+    costs (``driver.rtunit.UnitCosts``; timing pipelines read ``frame.responses``), any_hit:
+    (chains,) bool or None."""
     lib = harness_library(params)
     rw, img, r, p, e = node_arrays(frame.ray_words, frame.image, frame.ray, frame.ptr,
                                    frame.extent)
@@ -250,6 +252,7 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
     n_chains, n_calls = len(co) - 1, len(cro) - 1
     # the timing replay (timing_latency > 0) writes no responses
     rsp = np.zeros((0 if cfg.timing_latency else len(r), RSP_WORDS), np.uint32)
+    known, ah = _unit_cost_inputs(cfg, frame.responses, len(r), len(co) - 1, any_hit)
     stats = ReplayStats()
     per_pipe = np.zeros((cfg.units, cfg.pipelines), np.int64)
     sched = np.zeros(len(SCHED_STATS), np.int64)
@@ -267,7 +270,8 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
         n_chains=n_chains, chain=_data(ch), before=_data(bf), n_kernels=len(ko) - 1,
         kernel_off=_data(ko), warp_call_off=_data(wo), call_ray_off=_data(cro),
         call_rays=_data(crs), treelet=_data(ids), n_treelets=n_tl,
-        **dict(zip(("tl_off", "tl_node_off", "tl_node_bytes"), map(_data, pre))))
+        **dict(zip(("tl_off", "tl_node_off", "tl_node_bytes"), map(_data, pre))),
+        responses=_data(known), any_hit=_data(ah))
     outputs = ReplayOutputs(rsp=_data(rsp), per_pipe=_data(per_pipe), sched=_data(sched),
                             **{k: _data(v) for k, v in out.items()})
     rc = lib.rf_replay(ctypes.byref(cfg), ctypes.byref(mc), ctypes.byref(inputs),
@@ -286,6 +290,21 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
     st = {**stats.as_dict(), **dict(zip(SCHED_STATS, sched.tolist()))}
     out["series"] = out["series"][:st["series_bins"]]
     return rsp, st, per_pipe, out
+
+
+def _unit_cost_inputs(cfg, responses, m: int, n_chains: int, any_hit) -> tuple:
+    """``rf_replay``'s inputs for the RT unit's costs: the functional run's responses (the
+    timing pipelines' response stage reads them; else None) and the any-hit flag per chain (or
+    None)."""
+    known = ah = None
+    if cfg.unit_costs and cfg.timing_latency:
+        known = np.ascontiguousarray(responses, np.uint32)
+        if known.shape != (m, RSP_WORDS):
+            raise ValueError("the unit's costs need one recorded response per request")
+    if any_hit is not None:
+        ah = np.ascontiguousarray(np.broadcast_to(np.asarray(any_hit, bool), (n_chains,)),
+                                  np.uint8)
+    return known, ah
 
 
 MEMORY_TRACE_COUNTS = ("l1_accesses", "l1_hits", "l1_merged", "l1_misses", "l1_bytes",

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..backends.rtunit import UNIT_BACKEND
+from ..scenes.lumibench import PREFIX as LUMIBENCH_PREFIX
 from ..scenes.camera import MAX_SIZE
 from ..core.words import cell, plural
 from ..scenes.lumibench import root
@@ -41,9 +42,9 @@ def run(args) -> int:
         raise SuiteError("--scenes and --workloads choose LumiBench's runs; a --suite file "
                          "lists its own")
     check_backend(args.backend)
-    if args.backend == UNIT_BACKEND:
-        raise SuiteError(f"a suite replays every frame on the RT-unit model; --backend "
-                         f"{UNIT_BACKEND} (the RT unit in RTL) runs through rayflex render for now")
+    if args.backend == UNIT_BACKEND and args.ideal_replay:
+        raise SuiteError(f"--backend {UNIT_BACKEND}: the RT unit in RTL times every frame "
+                         "itself; --ideal-replay replays the rtl backend's frames")
     check_workers(args)
     for flag in ("size", "spp"):
         v = getattr(args, flag)
@@ -65,6 +66,10 @@ def run(args) -> int:
     runs = [Run(r.name, r.scene, r.workload, args.size or r.size, args.spp or r.spp,
                 r.bounces, r.ao_rays, r.seed) for r in runs]
     check_runs(runs, base)
+    if args.backend == UNIT_BACKEND and not base.flatten and any(
+            r.scene.startswith(LUMIBENCH_PREFIX) for r in runs):
+        raise SuiteError(f"--backend {UNIT_BACKEND}: the RT unit in RTL does not trace "
+                         "instanced scenes yet, and LumiBench's are: give --flatten")
     from ..scenes.scene import resolve
     for r in runs:                          # every scene exists before any work
         try:

@@ -383,7 +383,8 @@ def c_header() -> str:
 # RT-unit replay statistics (rf_replay's output struct; driver.rtunit reads it with ctypes)
 
 REPLAY_STATS = (
-    "cycles",           # first accept to last response, inclusive (summed over kernels)
+    "cycles",           # first accept to last response, inclusive (summed over kernels; with
+                        # the unit costs, first ray taken to last result taken)
     "model_evals",      # pipeline-cycles actually evaluated (skip_idle leaves idle ones out)
     "starved_cycles",   # unit-cycles in which a pipeline issued nothing because no ray was ready
     "full_cycles",      # unit-cycles with every pipeline of the unit issuing
@@ -426,6 +427,11 @@ REPLAY_CONFIG = (
     "active_treelets", "treelet_flags",
     "series_capacity",  # bins of the rays-in-flight series the caller provides
     "timing_latency",   # > 0: pipelines as their handshake timing (this latency), not evaluated
+    "fixed_latency",    # > 0 without a memory model: every node fetch takes this many cycles
+    "unit_costs",       # 1: the RT unit in RTL's costs (ports, response stage, dividers)
+    "dividers",         # unit costs: binary32 dividers per pipeline
+    "div_cycles",       # unit costs: a division's latency (rf_fp_div_pkg::DIV_CYCLES)
+    "stack_depth",      # unit costs: entries per ray's stack (0: unbounded; more spill)
 )
 
 # the memory hierarchy's configuration (rf_memory.h; l1_bytes < 0: no memory model)
@@ -450,6 +456,8 @@ REPLAY_INPUTS = (
     ("treelet", "const int32_t*"), ("n_treelets", "int64_t"),  # treelet schedule (or null)
     ("tl_off", "const int64_t*"), ("tl_node_off", "const int64_t*"),
     ("tl_node_bytes", "const int64_t*"),
+    ("responses", "const uint32_t*"),   # unit costs: the functional run's responses (or null)
+    ("any_hit", "const uint8_t*"),      # unit costs: per chain, an any-hit ray (or null)
 )
 REPLAY_OUTPUTS = (
     ("rsp", "uint32_t*"), ("per_pipe", "int64_t*"), ("sched", "int64_t*"),

@@ -9,10 +9,11 @@ package's API.
 """
 
 from ..tracing.record import Record
-from .gpu import ReplayMismatch
+from .gpu import ReplayMismatch, UnitCosts
 from .unit import (DEFAULT_RAYS_IN_FLIGHT, DEFAULT_TURNAROUND, SWEEP_PIPELINES,
                    SWEEP_RAYS_IN_FLIGHT, MemoryModel, ReplayResult, plot_sweep, replay, sweep)
 
-__all__ = ["Record", "MemoryModel", "ReplayResult", "ReplayMismatch", "replay", "sweep",
+__all__ = ["Record", "MemoryModel", "ReplayResult", "ReplayMismatch", "UnitCosts", "replay",
+           "sweep",
            "plot_sweep", "DEFAULT_RAYS_IN_FLIGHT", "DEFAULT_TURNAROUND", "SWEEP_RAYS_IN_FLIGHT",
            "SWEEP_PIPELINES"]

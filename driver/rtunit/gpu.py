@@ -15,6 +15,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..backends import harness
+from ..backends.rtunit import DEFAULT_DIVIDERS, div_cycles
 from ..core.datapath import LATENCY
 from ..core.layout import INSTANCE_TYPE, MEMORY_LEVELS, NodeRef
 from . import order as ray_orders
@@ -32,6 +33,37 @@ _L1, _L2, _DRAM = (MEMORY_LEVELS.index(lvl) for lvl in LEVELS)
 # with the functional run's. Every count and time is the same (tests compare the two).
 REPLAY_DATAPATHS = ("timing", "rtl")
 DEFAULT_REPLAY_DATAPATH = "timing"
+# What the replay charges per request: "replay", its own costs (one turnaround cycle between a
+# response and the ray's next request, no divider), or "rtl", the RT unit in RTL's (``UnitCosts``)
+UNIT_COSTS = ("replay", "rtl")
+DEFAULT_UNIT_COSTS = "replay"
+
+
+@dataclass(frozen=True)
+class UnitCosts:
+    """The RT unit in RTL's costs, charged by the replay in place of its one ``turnaround``
+    cycle per request (docs/rtunit_rtl.md#the-replay-against-the-unit): the ray port, the pop
+    port, the fetch request's register, the memory port and the scheduler's cycle per node; the
+    response stage's cycle per hit child of a box; ``dividers`` binary32 dividers of
+    ``div_cycles`` latency for the triangle hits (the RTL's DIV_CYCLES by default); the result
+    port. ``fixed_latency`` > 0: the unit's fixed-latency memory (every node fetch that many
+    cycles) when the replay has no memory hierarchy. ``any_hit``: the any-hit rays (a bool, or
+    one per ray of the frame; None: each wave's own, ``Wave.any_hit``), which end at their
+    accepted triangle without a last pop.
+    ``stack_depth`` > 0: each ray's stack holds that many entries, more spill to memory and are
+    read back when the stack empties (0: unbounded, none spill). Needs
+    one pipeline and the per-ray pool's index order (the unit has no other scheduler)."""
+
+    dividers: int = DEFAULT_DIVIDERS
+    div_cycles: int = field(default_factory=div_cycles)
+    fixed_latency: int = 0
+    any_hit: object = None
+    stack_depth: int = 0
+
+    def config(self) -> dict:
+        """Its ``REPLAY_CONFIG`` fields."""
+        return {"unit_costs": 1, "dividers": self.dividers, "div_cycles": self.div_cycles,
+                "fixed_latency": self.fixed_latency, "stack_depth": self.stack_depth}
 
 
 class ReplayMismatch(RuntimeError):
@@ -66,6 +98,7 @@ class FrameReplay:
     window: int = 0
     extra: dict = field(default_factory=dict)
     datapath: str = "rtl"          # how the pipelines ran (REPLAY_DATAPATHS)
+    unit_costs: str = DEFAULT_UNIT_COSTS   # what the replay charged (UNIT_COSTS)
 
     @property
     def units(self) -> int:
@@ -142,7 +175,8 @@ class FrameReplay:
                "rays": n, "ops": m, "cycles": self.cycles,
                "frame_cycles": int(c["frame_cycles"]), "kernels": len(self.kernel_waves),
                "starved_cycles": int(c["starved_cycles"]), "sim_wall_s": self.wall_s,
-               "replay_datapath": self.datapath, "responses_verified": self.verified}
+               "replay_datapath": self.datapath, "responses_verified": self.verified,
+               "unit_costs": self.unit_costs}
         called = self.plan.call_rays
         out.update(self._rays_part(called))
         if self.memory is not None:
@@ -275,7 +309,8 @@ def replay_frame(waves: list[Wave], rays_in_flight: int, pipelines: int = 1, mem
                  schedule: Schedule = PER_RAY_POOL, width: int | None = None,
                  order: ray_orders.RayOrder = ray_orders.RayOrder(), turnaround: int = 1,
                  skip_idle: bool = True, verify: bool = True,
-                 datapath: str = DEFAULT_REPLAY_DATAPATH) -> FrameReplay:
+                 datapath: str = DEFAULT_REPLAY_DATAPATH,
+                 unit_costs: UnitCosts | None = None) -> FrameReplay:
     """Replay a frame's recorded batches (``Wave``s, in trace order) on ``schedule.rt_units`` RT
     units of P pipelines and R rays in flight each, in front of ``memory`` (a
     ``driver.rtunit.MemoryModel``; None: free node fetches), on the datapath the records name
@@ -286,10 +321,12 @@ def replay_frame(waves: list[Wave], rays_in_flight: int, pipelines: int = 1, mem
     ``datapath`` (``REPLAY_DATAPATHS``): "timing" models each pipeline by the handshake timing
     of its Verilated model (``harness.model_latency``) and takes the functional run's responses
     (a record without responses replays as "rtl"); "rtl" evaluates every request on the model
-    again and compares each response with the functional run's (``verify``)."""
+    again and compares each response with the functional run's (``verify``). ``unit_costs``
+    (``UnitCosts``): charge the RT unit in RTL's costs instead of ``turnaround``."""
     r, p, ta = int(rays_in_flight), int(pipelines), int(turnaround)
     s = schedule
     pol, window = _check_replay(r, p, ta, s, order, datapath)
+    _check_costs(unit_costs, p, pol.schedule or pol.treelets)
     records = [w.record for w in waves]
     comb = combine(records)
     chains = chain_layout(comb)
@@ -302,11 +339,12 @@ def replay_frame(waves: list[Wave], rays_in_flight: int, pipelines: int = 1, mem
               "shader_cycles": s.shader_cycles, "skip_idle": int(bool(skip_idle)),
               "max_idle": 100 * latency + 1000, "window": window if pol.schedule else 0,
               "flush": int(bool(s.flush_between)), "active_treelets": 0, "treelet_flags": 0,
-              "timing_latency": harness.model_latency(comb.params) if timing else 0}
+              "timing_latency": harness.model_latency(comb.params) if timing else 0,
+              **(unit_costs.config() if unit_costs is not None else {})}
     t0 = time.perf_counter()
     rsp, counters, per_pipe, arrays = harness.replay_schedule(
         comb.params, config, None if memory is None else memory.config(), comb, chains[:2],
-        plan, tl)
+        plan, tl, _any_hit(unit_costs, waves, comb))
     wall = time.perf_counter() - t0
     if timing:
         rsp, verified = comb.responses, None          # nothing evaluated, nothing compared
@@ -329,7 +367,8 @@ def replay_frame(waves: list[Wave], rays_in_flight: int, pipelines: int = 1, mem
         counters=counters, per_pipe=per_pipe, arrays=arrays, chain_ops=chains[2],
         chain_box=chain_box, chain_xf=chain_xf, kernel_waves=kernel_waves, wall_s=wall,
         verified=verified, responses=rsp, order_cost=cost,
-        window=window if pol.schedule else 0, datapath="timing" if timing else "rtl")
+        window=window if pol.schedule else 0, datapath="timing" if timing else "rtl",
+        unit_costs=UNIT_COSTS[unit_costs is not None])
 
 
 def _check_replay(r: int, p: int, ta: int, s: Schedule, order: ray_orders.RayOrder,
@@ -363,6 +402,29 @@ def _check_replay(r: int, p: int, ta: int, s: Schedule, order: ray_orders.RayOrd
                          "one-kernel frame every ray is issued by its thread: use it with "
                          "--frame wavefront, or a scheduling order (affinity, treelet)")
     return pol, window
+
+
+def _any_hit(costs: UnitCosts | None, waves: list[Wave], comb: Combined):
+    """The unit costs' any-hit flags per chain (None without unit costs)."""
+    if costs is None:
+        return None
+    if costs.any_hit is not None:
+        return costs.any_hit
+    return np.repeat([bool(w.any_hit) for w in waves], np.diff(comb.chain_off0))
+
+
+def _check_costs(costs: UnitCosts | None, pipelines: int, scheduled: bool) -> None:
+    """A one-line ValueError for unit costs the replay cannot charge."""
+    if costs is None:
+        return
+    if pipelines != 1 or scheduled:
+        raise ValueError("the RT unit in RTL's costs need one pipeline and the index ray order "
+                         "(the unit has no other scheduler)")
+    if (costs.dividers < 1 or costs.div_cycles < 1 or costs.fixed_latency < 0
+            or costs.stack_depth < 0):
+        raise ValueError(f"unit costs: {costs.dividers} dividers of {costs.div_cycles} cycles, "
+                         f"fixed latency {costs.fixed_latency}, stack depth "
+                         f"{costs.stack_depth}: give >= 1, >= 1, >= 0, >= 0")
 
 
 def _treelet_schedule(records, treelets) -> ray_orders.TreeletSchedule:
@@ -418,7 +480,7 @@ def _verify(rsp, counters: dict, comb: Combined, verify: bool) -> bool:
 def waves_of(batches) -> list[Wave]:
     """The ``Wave``s of a workload frame's traced batches (``driver.workloads.Batch``, each
     with its recorded ``result.record``), in trace order."""
-    return [Wave(b.result.record, b.kind, b.thread, b.slot) for b in batches]
+    return [Wave(b.result.record, b.kind, b.thread, b.slot, b.any_hit) for b in batches]
 
 
 def replay_point(waves: list[Wave], point, width: int | None = None,
@@ -441,7 +503,8 @@ def replay_point(waves: list[Wave], point, width: int | None = None,
     order = point.order_options()
     args = dict(schedule=point.schedule(), width=width,
                 order=ray_orders.RayOrder(order["ray_order"], order["ray_window"]),
-                datapath=point.replay_datapath if same else "rtl")
+                datapath=point.replay_datapath if same else "rtl",
+                unit_costs=UnitCosts() if point.unit_costs == "rtl" else None)
     out = {"rtunit": None, "rtunit_memory": None,
            "by_type": {k: {"rtunit": None, "rtunit_memory": None} for k in kinds}}
     for key, memory in (("rtunit_memory", point.memory()), ("rtunit", None)):

@@ -94,13 +94,15 @@ PER_RAY_POOL = Schedule()            # the replay of one batch before warps
 
 @dataclass
 class Wave:
-    """One traced batch as the replay sees it: its ``Record``, its ray type, and per ray its
-    thread and slot (``driver.workloads.Batch``; None: thread = ray index, slot = 0)."""
+    """One traced batch as the replay sees it: its ``Record``, its ray type, per ray its
+    thread and slot (``driver.workloads.Batch``; None: thread = ray index, slot = 0), and
+    whether its rays are any-hit rays."""
 
     record: object
     kind: str = "primary"
     thread: np.ndarray | None = None
     slot: np.ndarray | None = None
+    any_hit: bool = False           # the batch's rays are any-hit rays
 
 
 @dataclass

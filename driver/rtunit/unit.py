@@ -57,7 +57,7 @@ import numpy as np
 
 from ..core.words import wrap
 from ..tracing.record import Record
-from .gpu import DEFAULT_REPLAY_DATAPATH, ReplayMismatch, replay_frame
+from .gpu import DEFAULT_REPLAY_DATAPATH, ReplayMismatch, UnitCosts, replay_frame
 from .plan import PER_RAY_POOL, Wave
 from .order import RayOrder
 
@@ -200,7 +200,8 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
            turnaround: int = DEFAULT_TURNAROUND, skip_idle: bool = True,
            verify: bool = True, memory: MemoryModel | None = None,
            ray_order: str = "index", ray_window: int | None = None,
-           treelets=None, datapath: str = DEFAULT_REPLAY_DATAPATH) -> ReplayResult:
+           treelets=None, datapath: str = DEFAULT_REPLAY_DATAPATH,
+           unit_costs: UnitCosts | None = None) -> ReplayResult:
     """Replay a traversal ``Record`` through P Verilated pipelines with R rays in flight (see the
     module docstring). ``verify``: compare every response with the functional run's (raises
     ``ReplayMismatch``); without recorded responses only the tags are checked. ``memory``: a
@@ -210,10 +211,13 @@ def replay(record: Record, rays_in_flight: int = DEFAULT_RAYS_IN_FLIGHT, pipelin
     least R); the result's ``order`` holds the policy and its cost. ``treelets``: the
     ``order.TreeletConfig`` of the "treelet" policy (default ``order.DEFAULT_TREELETS``).
     ``datapath``: "timing" (the pipelines' handshake timing, the functional run's responses) or
-    "rtl" (every request evaluated again and checked; ``gpu.REPLAY_DATAPATHS``)."""
+    "rtl" (every request evaluated again and checked; ``gpu.REPLAY_DATAPATHS``).
+    ``unit_costs``: a ``UnitCosts``, the RT unit in RTL's costs charged instead of
+    ``turnaround`` (docs/rtunit_rtl.md#the-replay-against-the-unit; cycles then run from the
+    first ray taken to the last result taken)."""
     fr = replay_frame([Wave(record)], rays_in_flight, pipelines, memory, PER_RAY_POOL,
                       order=RayOrder(ray_order, ray_window, treelets), turnaround=turnaround, skip_idle=skip_idle, verify=verify,
-                      datapath=datapath)
+                      datapath=datapath, unit_costs=unit_costs)
     c = fr.counters
     mem = None
     if memory:

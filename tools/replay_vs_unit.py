@@ -1,0 +1,117 @@
+#!/usr/bin/env python3
+"""The RT-unit replay's frame cycles against the RT unit in RTL's (docs/rtunit_rtl.md#the-replay-
+against-the-unit): a set of small frames, each traced through ``--backend rtunit`` with the replay
+run on the same parameters (``unit_rtl.replay_cycles_ratio``, replay cycles over the unit's),
+printed as a Markdown table.
+
+    python tools/replay_vs_unit.py                       # every run, the table on stdout
+    python tools/replay_vs_unit.py --runs bunny-primary,cornell-ao-16 --json runs.json
+
+Each run names its scene, workload, size, rays in flight, stack depth and memory (the default
+design point's hierarchy, or a fixed latency of 20 cycles). Progress on stderr; the JSON is
+written all or nothing. tools/ is not part of the installed package; this script needs a checkout.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from driver.backends.rtunit import RtUnitBackend  # noqa: E402
+from driver.core import outputs  # noqa: E402
+from driver.design import DesignPoint  # noqa: E402
+from driver.render import render  # noqa: E402
+
+FIXED = 20            # the fixed-latency memory's cycles
+BASE = {"scene": "bunny", "workload": "primary", "size": 64, "point": {}, "rays_in_flight": 64,
+        "stack_depth": 32, "memory": "hierarchy", "dividers": 2}
+# name: what differs from BASE (point: DesignPoint options of the frame and its datapath)
+RUNS = {
+    "bunny-primary": {},
+    "bunny-primary-stack8": {"stack_depth": 8},
+    "bunny-primary-stack4": {"stack_depth": 4},
+    "bunny-primary-rif1-stack2": {"stack_depth": 2, "rays_in_flight": 1, "size": 16},
+    "bunny-primary-rif8": {"rays_in_flight": 8},
+    "bunny-primary-fixed": {"memory": "fixed"},
+    "bunny-primary-q8": {"point": {"config": "baseline-unified-q8", "bvh_format": "q8"}},
+    "cornell-ao-16": {"scene": "cornell", "workload": "ao", "size": 16, "rays_in_flight": 8},
+    "cornell-ao-16-fixed": {"scene": "cornell", "workload": "ao", "size": 16,
+                            "rays_in_flight": 8, "memory": "fixed"},
+    "cornell-ao-16-div1": {"scene": "cornell", "workload": "ao", "size": 16,
+                           "rays_in_flight": 8, "dividers": 1},
+    "cornell-ao-32": {"scene": "cornell", "workload": "ao", "size": 32},
+    "cornell-ao-32-rif1": {"scene": "cornell", "workload": "ao", "size": 32,
+                           "rays_in_flight": 1},
+    "bunny_floor-path-32": {"scene": "bunny_floor", "workload": "path", "size": 32,
+                            "point": {"spp": 1, "bounces": 2}},
+}
+
+
+def run(name: str) -> dict:
+    spec = {**BASE, **RUNS[name]}
+    scene, workload, size = spec["scene"], spec["workload"], spec["size"]
+    rif, depth, mem = spec["rays_in_flight"], spec["stack_depth"], spec["memory"]
+    point = DesignPoint(workload=workload, **spec["point"])
+    be = RtUnitBackend(rays_in_flight=rif, stack_depth=depth, mem_latency=FIXED,
+                       memory=point.memory().config() if mem == "hierarchy" else None,
+                       dividers=spec["dividers"], **point.backend_options())
+    t0 = time.perf_counter()
+    res = render(scene, size, size, backend=be, progress=False, point=point)
+    u = res.stats["unit_rtl"]
+    return {"run": name, "scene": scene, "workload": workload, "size": size,
+            "rays_in_flight": rif, "stack_depth": depth, "memory": mem,
+            "dividers": spec["dividers"], "point": spec["point"],
+            "ops": res.stats["ops"], "unit_cycles": u["cycles"],
+            "replay_cycles": u["replay_cycles"], "ratio": u["replay_cycles_ratio"],
+            "default_cycles": u["replay_default_cycles"],
+            "default_ratio": u["replay_default_cycles_ratio"],
+            "mismatches": u["traversal_mismatches"], "divider_full_cycles":
+            u["divider_full_cycles"], "stack_overflows": u["stack_overflows"],
+            "wall_s": time.perf_counter() - t0}
+
+
+def table(rows: list[dict]) -> str:
+    head = ("| run | rays in flight | stack | memory | ops | unit cycles | replay, default "
+            "costs | ratio | replay, unit costs | ratio |\n|---|---|---|---|---|---|---|---|---|---|")
+    lines = [head]
+
+    def num(v, fmt):
+        return "—" if v is None else format(v, fmt)
+    for r in rows:
+        lines.append(f"| {r['run']} | {r['rays_in_flight']} | {r['stack_depth']} | "
+                     f"{r['memory']} | {r['ops']:,} | {r['unit_cycles']:,} | "
+                     f"{num(r['default_cycles'], ',')} | {num(r['default_ratio'], '.3f')} | "
+                     f"{num(r['replay_cycles'], ',')} | {num(r['ratio'], '.3f')} |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--runs", default=",".join(RUNS), help="comma-separated run names: "
+                    + ", ".join(RUNS))
+    ap.add_argument("--json", help="write the rows here")
+    a = ap.parse_args(argv)
+    names = [n for n in a.runs.split(",") if n]
+    bad = [n for n in names if n not in RUNS]
+    if bad:
+        print(f"replay_vs_unit: unknown run {bad[0]!r}; choose from {', '.join(RUNS)}",
+              file=sys.stderr)
+        return 2
+    rows = []
+    for n in names:
+        print(f"  {n} ...", file=sys.stderr, flush=True)
+        rows.append(run(n))
+        r = rows[-1]
+        print(f"  {n}: ratio {r['ratio']} ({r['wall_s']:.1f} s)", file=sys.stderr, flush=True)
+    print(table(rows))
+    if a.json:
+        outputs.write_json({"runs": rows}, a.json)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
