@@ -1,16 +1,18 @@
 // rf_fp_slab: y[k] = (bound[k] - origin) * inv with one rounding each (binary32, round to nearest
 // even): the FUSED build's slab values of one axis of the box test.
 //
-// Contract (bit-exact with driver.core.golden.slab): the exact real value rounded once, with the
-// special values of the IEEE expression (bound - origin) * inv: a NaN operand, inf - inf and
-// 0 * inf give the canonical quiet NaN; an infinity or a zero takes the sign IEEE gives it
-// (bound - origin is -0 only for (-0) - (+0)).
+// Contract (bit-exact with driver.core.golden.slab): the exact (unrounded) result rounded once,
+// with the special values of the IEEE expression (bound - origin) * inv: a NaN operand,
+// inf - inf and 0 * inf give the canonical quiet NaN; an infinity or a zero takes the sign IEEE
+// gives it (bound - origin is -0 only for (-0) - (+0)).
 //
-// Structure: a finite non-zero value is bound*inv - origin*inv, the same real number: the exact
-// product origin*inv (rf_fp_pkg::fp_xprod) is formed once for the N bounds, each bound's exact
-// product bound*inv is added to its negation and rounded once (rf_fp_pkg::fp_sum_round). The
-// other classes (a non-finite operand, a zero difference or a zero inv) are selected from the
-// operands' classes and signs, as the two-rounding datapath would produce them.
+// Structure: a finite non-zero value is bound*inv - origin*inv, mathematically the same value:
+// the exact product origin*inv (rf_fp_pkg::fp_xprod) is formed once for the N bounds, each
+// bound's exact product bound*inv is added to its negation and rounded once
+// (rf_fp_pkg::fp_sum_round). The other classes (a non-finite operand, a zero difference or a
+// zero inv) are selected from the operands' classes and signs, as the two-rounding datapath
+// would produce them.
+// Integer logic only: synthesizable (docs/tradeoffs.md counts its cells with Yosys).
 module rf_fp_slab
   import rf_fp_pkg::*;
 #(
