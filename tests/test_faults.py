@@ -249,6 +249,28 @@ def test_sigint_during_a_large_q8_build_ends_the_command_at_once(tmp_path):
     assert not list(work.iterdir())
 
 
+def test_an_interrupt_raised_in_a_c_callback_prints_no_traceback(monkeypatch):
+    """Ctrl-C while numba compiles raises KeyboardInterrupt inside llvmlite's ctypes callback,
+    where it cannot propagate: Python printed "Exception ignored ... Traceback" through
+    ``sys.unraisablehook``. Inside ``watch`` that hook hears nothing of it (the watcher ends the
+    process with its one line); another exception from a callback still reaches it."""
+    import ctypes
+    import sys
+
+    from driver.cli.interrupt import watch
+    heard = []
+    monkeypatch.setattr(sys, "unraisablehook", lambda info: heard.append(type(info.exc_value)))
+
+    def raising(exc):
+        return ctypes.CFUNCTYPE(None)(lambda: (_ for _ in ()).throw(exc()))
+
+    with watch("callback", {2: ("interrupted", 130)}, SystemExit):
+        raising(KeyboardInterrupt)()
+        raising(ZeroDivisionError)()
+    raising(KeyboardInterrupt)()                 # outside the block: the hook hears it again
+    assert heard == [ZeroDivisionError, KeyboardInterrupt]
+
+
 def _cpu_seconds(pid: int) -> float:
     """User + system CPU time of a process (Linux /proc)."""
     fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()

@@ -36,6 +36,7 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
+import sys
 import threading
 import time
 from pathlib import Path
@@ -164,9 +165,20 @@ def watch(prog: str, codes: dict, sigterm_exception: type[BaseException],
         return
     threading.Thread(target=_follow, args=(r, state, prog, codes), name="rayflex-signals",
                      daemon=True).start()
+    old_hook = sys.unraisablehook
+
+    def unraisable(info):
+        # the signal's exception raised inside a C callback (e.g. llvmlite's while numba
+        # compiles) cannot propagate: Python would print it with a traceback. Say nothing: the
+        # watcher thread ends the process with the signal's one line (``_follow``).
+        if not isinstance(info.exc_value, (KeyboardInterrupt, sigterm_exception)):
+            old_hook(info)
+
+    sys.unraisablehook = unraisable
     try:
         yield state
     finally:
+        sys.unraisablehook = old_hook
         signal.set_wakeup_fd(old_fd)
         signal.signal(signal.SIGINT, old_int)
         signal.signal(signal.SIGTERM, old_term)
