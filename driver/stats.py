@@ -149,13 +149,14 @@ def unit_rtl_stats(res, be) -> dict:
         "dividers": be.dividers,
         "divider_busy_cycles": st["divider_busy_cycles"],
         "divider_full_cycles": st["divider_full_cycles"],
+        "setup_busy_cycles": st["setup_busy_cycles"],
     }
 
 
 UNIT_RTL = "unit_rtl"
 _UNIT_SUMMED = ("cycles", "stack_overflows", "stack_refills", "rays_overflowed", "mem_requests",
                 "mem_bytes", "mem_busy_cycles", "busy_cycles", "divider_busy_cycles",
-                "divider_full_cycles")
+                "divider_full_cycles", "setup_busy_cycles")
 
 
 def merge_unit_rtl(parts: list[dict], ops: int) -> dict:

@@ -192,25 +192,36 @@ def _trace_unit(be, be_name: str, bvh, rays, any_hit, progress, cull_stack,
     res = be.trace_unit(bvh, rays, any_hit=any_hit, progress=progress)
     wall = time.perf_counter() - t0
     t = np.where(res.hit, res.t, np.float32(np.inf)).astype(np.float32)
+    instanced = getattr(bvh, "instances", None) is not None
+    entered = res.xf_ops if instanced else None     # every instance entered is a TRANSFORM
     stats = frame_stats(res.box_ops, res.tri_ops, res.hit, res.stats["cycles"],
-                        int(be.latency), wall, be_name)
+                        int(be.latency), wall, be_name, instance_ops=entered,
+                        transform_ops=entered)
     unit = unit_rtl_stats(res, be)
     unit.update(dict.fromkeys(("traversal_mismatches", "replay_cycles", "replay_cycles_ratio",
                                "replay_default_cycles", "replay_default_cycles_ratio")))
     if be.compare:
         issue = issuer(be, rays, bvh, be_name, record=True)
-        trav = traverse(bvh, rays["extent"], issue, any_hit=any_hit)
+        inst = InstanceStepper(bvh, rays, issue, DATAPATH) if instanced else None
+        trav = traverse(bvh, rays["extent"], issue, any_hit=any_hit, instances=inst)
         hit = trav.prim >= 0
         t_ref = np.where(hit, trav.nearest, np.float32(np.inf)).astype(np.float32)
         differ = ((hit != res.hit) | (trav.prim != res.prim)
                   | (t_ref.view(np.uint32) != t.view(np.uint32))
                   | (trav.box_ops != res.box_ops) | (trav.tri_ops != res.tri_ops))
+        if inst is not None:
+            differ |= ((inst.hit_instance != res.instance)
+                       | (inst.transform_ops != res.xf_ops))
         unit["traversal_mismatches"] = int(np.count_nonzero(differ))
         unit.update(_replay_unit(be, issue.record(backend_params(be)), any_hit, len(rays),
                                  res.stats["cycles"]))
     stats["unit_rtl"] = unit
     steps = np.zeros(0, np.int64)
-    return TraceResult(t, res.prim, res.hit, res.box_ops, res.tri_ops, steps, steps, stats)
+    prim = res.prim.copy()
+    if instanced:          # the primitive in the flattened triangle list, as ``trace`` gives it
+        prim[res.hit] += bvh.instances.prim_base[res.instance[res.hit]]
+    return TraceResult(t, prim, res.hit, res.box_ops, res.tri_ops, steps, steps, stats, None,
+                       res.instance, res.xf_ops if instanced else None)
 
 
 def _replay_unit(be, rec, any_hit, n: int, unit_cycles: int) -> dict:

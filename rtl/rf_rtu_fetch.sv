@@ -5,7 +5,8 @@
 // Contract:
 //   * in (valid/ready, slot in_slot_i, pointer in_ptr_i): a pointer of a node type the unit reads
 //     (box32 box node: 128 bytes; triangle node, pair leaf: 64 bytes; with Q8, the datapath's
-//     decode stage being there, a q8 box node: 64 bytes) is accepted when in_ready_o is high and
+//     decode stage being there, a q8 box node: 64 bytes; with XF, the datapath's TRANSFORM being
+//     there, an instance node: 128 bytes) is accepted when in_ready_o is high and
 //     becomes one memory request; in_bad_o is high, combinationally, while in_ptr_i names no such
 //     type (the caller must not then raise in_valid_i: it finishes the ray with an error). With
 //     in_refill_i the request is instead a read of the slot's last spilled stack entry (4 bytes
@@ -23,6 +24,7 @@
 module rf_rtu_fetch import rf_rtu_pkg::*; #(
   parameter int unsigned RAYS = 4,
   parameter bit          Q8   = 1'b0,
+  parameter bit          XF   = 1'b0,
   localparam int unsigned SLOT_W = RAYS > 1 ? $clog2(RAYS) : 1
 ) (
   input  logic              clk_i,
@@ -64,11 +66,12 @@ module rf_rtu_fetch import rf_rtu_pkg::*; #(
   mreq_t      req_d, req_q;
   assign in_type  = in_ptr_i[2:0];
   assign in_bad_o = !(in_type == BOX_TYPE || in_type == TRI_TYPE || in_type == PAIR_TYPE
-                     || (Q8 && in_type == Q8_TYPE));
+                     || (Q8 && in_type == Q8_TYPE) || (XF && in_type == INSTANCE_TYPE));
   assign req_d.addr = in_refill_i ? '0 : ADDR_W'({in_ptr_i[31:3], 3'b000}) << PTR_SHIFT;
   assign req_d.size = in_refill_i ? SIZE_W'(4)
                     : in_type == BOX_TYPE  ? SIZE_W'(BOX_NODE_WORDS * 4)
                     : in_type == Q8_TYPE   ? SIZE_W'(Q8_NODE_WORDS * 4)
+                    : in_type == INSTANCE_TYPE ? SIZE_W'(INST_NODE_WORDS * 4)
                     : in_type == PAIR_TYPE ? SIZE_W'(PAIR_NODE_WORDS * 4)
                     :                        SIZE_W'(TRI_NODE_WORDS * 4);
   assign req_d.tag    = in_slot_i;

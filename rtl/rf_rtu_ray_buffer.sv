@@ -1,14 +1,22 @@
 // Ray buffer: RAYS entries, one per ray slot, each holding the prepared ray (request words 1..14:
 // control word with the flags such as NO_CULL, origin, direction, inverse, extent, shear), the
-// ray's id and any-hit flag, its nearest t so far, its hit record (primitive id, hit) and its
-// counters (QUADBOX and TRIANGLE requests issued, stack overflows, refills).
+// ray's id and any-hit flag, its nearest t so far, its hit record (primitive id, instance, hit)
+// and its counters (QUADBOX, TRIANGLE and TRANSFORM requests issued, stack overflows, refills).
+// A second register set holds the object-space ray of the instance the ray is in (two-level
+// images, docs/instances.md): while the slot is inside an instance, read port a gives that ray.
 //
 // Contract (write ports act on the rising edge; the caller never writes one field of the same
 // slot from two ports in one cycle):
 //   * load_i (slot load_slot_i): a new ray: its words, id and any-hit flag; nearest t = the ray's
 //     extent (word 11), no hit, counters zero;
-//   * hit_i (slot hit_slot_i): an accepted triangle: nearest t = hit_t_i, prim = hit_prim_i, hit;
-//   * box_inc_i / tri_inc_i (slot issue_slot_i): one more QUADBOX / TRIANGLE request;
+//   * hit_i (slot hit_slot_i): an accepted triangle: nearest t = hit_t_i, prim = hit_prim_i, hit,
+//     and the hit's instance is the one the ray is in (none outside instances);
+//   * enter_i (slot enter_slot_i): the ray enters instance enter_inst_i: its object-space ray is
+//     enter_ray_i (rf_rtu_setup's words; the flags are kept from the world ray), read from then
+//     on by port a;
+//   * leave_i (slot leave_slot_i): the ray returns to its world ray (no instance);
+//   * box_inc_i / tri_inc_i / xf_inc_i (slot issue_slot_i): one more QUADBOX / TRIANGLE /
+//     TRANSFORM request;
 //   * ovf_inc_i (slot ovf_slot_i), rst_inc_i (slot rst_slot_i): one more stack overflow / refill;
 //   * read ports a (scheduler), b (hit update) and c (result) are combinational.
 module rf_rtu_ray_buffer import rf_rtu_pkg::*; #(
@@ -26,9 +34,16 @@ module rf_rtu_ray_buffer import rf_rtu_pkg::*; #(
   input  logic [SLOT_W-1:0] hit_slot_i,
   input  logic [31:0]       hit_t_i,
   input  logic [31:0]       hit_prim_i,
+  input  logic              enter_i,
+  input  logic [SLOT_W-1:0] enter_slot_i,
+  input  ray_t              enter_ray_i,
+  input  logic [31:0]       enter_inst_i,
+  input  logic              leave_i,
+  input  logic [SLOT_W-1:0] leave_slot_i,
   input  logic [SLOT_W-1:0] issue_slot_i,
   input  logic              box_inc_i,
   input  logic              tri_inc_i,
+  input  logic              xf_inc_i,
   input  logic              ovf_inc_i,
   input  logic [SLOT_W-1:0] ovf_slot_i,
   input  logic              rst_inc_i,
@@ -43,14 +58,21 @@ module rf_rtu_ray_buffer import rf_rtu_pkg::*; #(
   output logic [31:0]       id_c_o,
   output logic              hit_c_o,
   output logic [31:0]       prim_c_o,
+  output logic [31:0]       inst_c_o,
   output logic [31:0]       nearest_c_o,
   output logic [31:0]       box_ops_c_o,
   output logic [31:0]       tri_ops_c_o,
+  output logic [31:0]       xf_ops_c_o,
   output logic [15:0]       overflows_c_o,
   output logic [15:0]       refills_c_o
 );
 
   ray_t        ray_q      [RAYS];
+  ray_t        obj_q      [RAYS];     // the object-space ray while inside an instance
+  logic [31:0] inst_q     [RAYS];     // the instance the ray is in (NO_CHILD: none)
+  logic [31:0] hit_inst_q [RAYS];
+  logic [31:0] xf_q       [RAYS];
+  logic [RAYS-1:0] inside_q;
   logic [31:0] id_q       [RAYS];
   logic [31:0] nearest_q  [RAYS];
   logic [31:0] prim_q     [RAYS];
@@ -66,13 +88,21 @@ module rf_rtu_ray_buffer import rf_rtu_pkg::*; #(
       ray_q[load_slot_i] <= load_ray_i;
       id_q[load_slot_i]  <= load_id_i;
     end
+    if (enter_i) begin
+      obj_q[enter_slot_i] <= enter_ray_i;
+      obj_q[enter_slot_i][1][16:9] <= ray_q[enter_slot_i][1][16:9];     // the ray's flags
+    end
   end
 
   always_ff @(posedge clk_i or negedge rst_ni) begin
     if (!rst_ni) begin
       any_hit_q <= '0;
       hit_q     <= '0;
+      inside_q  <= '0;
       for (int i = 0; i < RAYS; i++) begin
+        inst_q[i]     <= NO_CHILD;
+        hit_inst_q[i] <= NO_CHILD;
+        xf_q[i]       <= '0;
         nearest_q[i] <= '0;
         prim_q[i]    <= NO_CHILD;
         box_q[i]     <= '0;
@@ -88,6 +118,10 @@ module rf_rtu_ray_buffer import rf_rtu_pkg::*; #(
         prim_q[load_slot_i]    <= NO_CHILD;
         box_q[load_slot_i]     <= '0;
         tri_q[load_slot_i]     <= '0;
+        xf_q[load_slot_i]      <= '0;
+        inside_q[load_slot_i]  <= 1'b0;
+        inst_q[load_slot_i]    <= NO_CHILD;
+        hit_inst_q[load_slot_i] <= NO_CHILD;
         ovf_q[load_slot_i]     <= '0;
         rst_q[load_slot_i]     <= '0;
       end
@@ -95,15 +129,25 @@ module rf_rtu_ray_buffer import rf_rtu_pkg::*; #(
         hit_q[hit_slot_i]     <= 1'b1;
         nearest_q[hit_slot_i] <= hit_t_i;
         prim_q[hit_slot_i]    <= hit_prim_i;
+        hit_inst_q[hit_slot_i] <= inst_q[hit_slot_i];
+      end
+      if (enter_i) begin
+        inside_q[enter_slot_i] <= 1'b1;
+        inst_q[enter_slot_i]   <= enter_inst_i;
+      end
+      if (leave_i) begin
+        inside_q[leave_slot_i] <= 1'b0;
+        inst_q[leave_slot_i]   <= NO_CHILD;
       end
       if (box_inc_i) box_q[issue_slot_i] <= box_q[issue_slot_i] + 1'b1;
       if (tri_inc_i) tri_q[issue_slot_i] <= tri_q[issue_slot_i] + 1'b1;
+      if (xf_inc_i)  xf_q[issue_slot_i]  <= xf_q[issue_slot_i] + 1'b1;
       if (ovf_inc_i && ovf_q[ovf_slot_i] != '1) ovf_q[ovf_slot_i] <= ovf_q[ovf_slot_i] + 1'b1;
       if (rst_inc_i && rst_q[rst_slot_i] != '1) rst_q[rst_slot_i] <= rst_q[rst_slot_i] + 1'b1;
     end
   end
 
-  assign ray_a_o       = ray_q[rd_a_i];
+  assign ray_a_o       = inside_q[rd_a_i] ? obj_q[rd_a_i] : ray_q[rd_a_i];
   assign nearest_a_o   = nearest_q[rd_a_i];
   assign nearest_b_o   = nearest_q[rd_b_i];
   assign any_hit_b_o   = any_hit_q[rd_b_i];
@@ -113,6 +157,8 @@ module rf_rtu_ray_buffer import rf_rtu_pkg::*; #(
   assign nearest_c_o   = nearest_q[rd_c_i];
   assign box_ops_c_o   = box_q[rd_c_i];
   assign tri_ops_c_o   = tri_q[rd_c_i];
+  assign xf_ops_c_o    = xf_q[rd_c_i];
+  assign inst_c_o      = hit_inst_q[rd_c_i];
   assign overflows_c_o = ovf_q[rd_c_i];
   assign refills_c_o  = rst_q[rd_c_i];
 

@@ -3,15 +3,17 @@
 // extent = the ray's nearest t, tag = the slot, and by the node's kind (rf_rtu_pkg::kind_e):
 // QUADBOX with a box32 node's four child boxes, or with a q8 node as stored (the request's qnode)
 // and the flag DECODE_Q8; TRIANGLE with a triangle node's triangle, a pair leaf's triangle 0
-// (v0, v1, v2) or its triangle 1 (v[i0], v[i1], v[i2], the selectors in idx bits 5:0).
+// (v0, v1, v2) or its triangle 1 (v[i0], v[i1], v[i2], the selectors in idx bits 5:0);
+// TRANSFORM of the ray (outside instances: its world ray) by an instance node's world_to_object
+// (the request's matrix, box words 0..11).
 //
 // Contract:
 //   * ready_i: one bit per slot whose request may issue; kind_i: per slot, its node's kind;
 //   * rd_o names the slot offered this cycle; ray_i, nearest_i and node_i are that slot's ray,
 //     nearest t and node (the buffers' combinational read ports);
 //   * dp (valid/ready) drives the datapath's input: dp_valid_o = some slot is ready; a request
-//     moves when dp_ready_i is high, and then issue_o pulses with issue_slot_o and issue_box_o
-//     (the caller moves the slot on and counts the op).
+//     moves when dp_ready_i is high, and then issue_o pulses with issue_slot_o, issue_box_o and
+//     issue_xf_o (the caller moves the slot on and counts the op).
 module rf_rtu_sched import rf_pkg::*; import rf_rtu_pkg::*; #(
   parameter int unsigned RAYS = 4,
   localparam int unsigned SLOT_W = RAYS > 1 ? $clog2(RAYS) : 1
@@ -29,7 +31,8 @@ module rf_rtu_sched import rf_pkg::*; import rf_rtu_pkg::*; #(
   output req_t              dp_req_o,
   output logic              issue_o,
   output logic [SLOT_W-1:0] issue_slot_o,
-  output logic              issue_box_o
+  output logic              issue_box_o,
+  output logic              issue_xf_o
 );
 
   localparam int unsigned REQ_W = $bits(req_t);
@@ -41,17 +44,18 @@ module rf_rtu_sched import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign dp_valid_o = pick[32];
 
   logic [REQ_W-1:0] w;
-  logic             box;
+  logic             box, xf;
   kind_e            kind;
   logic [5:0]       sel;
   assign kind = kind_i[rd_o];
   assign box  = kind == KIND_BOX32 || kind == KIND_Q8;
+  assign xf   = kind == KIND_XF;
   assign sel  = node_i[PAIR_NODE_IDX_WORD*32 +: 6];
   always_comb begin
     w = '0;
     w[RAY_WORDS*32-1:32] = ray_i;
     w[31:0] = 32'(rd_o);                                       // tag = slot
-    w[32+:3] = box ? OP_QUADBOX : OP_TRIANGLE;                 // opcode (word 1 bits 2:0)
+    w[32+:3] = box ? OP_QUADBOX : xf ? OP_TRANSFORM : OP_TRIANGLE;  // opcode (word 1 bits 2:0)
     w[REQ_EXTENT_WORD*32+:32] = nearest_i;
     unique case (kind)
       KIND_BOX32: w[REQ_BOX_WORD*32+:24*32] = node_i[BOX_NODE_BOX_WORD*32+:24*32];
@@ -59,6 +63,9 @@ module rf_rtu_sched import rf_pkg::*; import rf_rtu_pkg::*; #(
         w[REQ_BOX_WORD*32+:Q8_NODE_WORDS*32] = node_i[0+:Q8_NODE_WORDS*32];
         w[REQ_FLAGS_LSB + FLAG_DECODE_Q8_BIT] = 1'b1;
       end
+      KIND_XF:
+        w[REQ_BOX_WORD*32+:MATRIX_WORDS*32] =
+            node_i[INST_NODE_M_WORD*32+:MATRIX_WORDS*32];
       KIND_PAIR1:
         for (int j = 0; j < 3; j++)
           w[(REQ_TRI_WORD + 3*j)*32+:3*32] =
@@ -71,6 +78,7 @@ module rf_rtu_sched import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign issue_o      = dp_valid_o & dp_ready_i;
   assign issue_slot_o = rd_o;
   assign issue_box_o  = box;
+  assign issue_xf_o   = xf;
 
   always_ff @(posedge clk_i or negedge rst_ni) begin
     if (!rst_ni) next_q <= '0;

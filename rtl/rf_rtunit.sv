@@ -8,6 +8,8 @@
 //     │                        scheduler ◄─────────────────┘
 //     │                            │ req_t (tag = slot)
 //     └── response processing ◄── rayflex (the datapath, unchanged)
+//                 │ TRANSFORM: o', d'
+//                 └──► ray setup ──► ray buffer (object-space ray), BLAS root held
 //
 // Each slot holds one ray and is in one state (rf_rtu_pkg::slot_e): FREE -> (ray_i) POP ->
 // (pop: the root first, then a held pointer, then the stack's top) FETCH -> (node arrives)
@@ -19,6 +21,12 @@
 // cannot read ends its ray with res_err_o. A pair leaf (q8 images) with two triangles holds the
 // pointer of its triangle 1 after its triangle 0 (unless an any-hit ray ended there): that pop
 // needs no fetch (the leaf is in the node buffer) and goes straight to READY.
+// Instances (two-level images, TRANSFORM built in): an instance node popped is fetched and
+// becomes a TRANSFORM request of the world ray (KIND_XF); its response pushes the return marker
+// (RETURN_PTR) and goes to the ray setup (SETUP), which prepares the object-space ray into the
+// ray buffer's second set and holds the BLAS root as the next pop; a ray whose transformed ray is
+// not finite skips the instance (nothing held). Popping the marker returns the ray to its world
+// ray and pops again. The nearest t is the ray's in both spaces (directions are not normalised).
 //
 // Handshake contract of the ports (valid/ready, a beat moves when both are high on a rising edge):
 //   * ray (in): a prepared ray (request words 1..14 of docs/datapath.md, ray_i[k] is word k), its
@@ -29,13 +37,14 @@
 //   * spill (out, valid only: the memory takes one write per cycle): a stack overflow's oldest
 //     entry spill_ptr_o goes to the spill area of slot spill_slot_o (a per-slot LIFO in memory,
 //     read back by the refill requests);
-//   * res (out): a finished ray: id, hit, prim (0xFFFFFFFF without a hit), t bits (the nearest t:
-//     the ray's extent without a hit), its QUADBOX and TRIANGLE requests, stack overflows and
-//     refills, and err (its traversal met a pointer the unit cannot fetch). Register outputs.
+//   * res (out): a finished ray: id, hit, prim (0xFFFFFFFF without a hit: the primitive id in its
+//     BLAS), instance (of the hit; 0xFFFFFFFF: none), t bits (the nearest t: the ray's extent
+//     without a hit), its QUADBOX, TRIANGLE and TRANSFORM requests, stack overflows and refills,
+//     and err (its traversal met a pointer the unit cannot fetch). Register outputs.
 //   * root_i: the root node pointer, constant while rays are in the unit.
 //   * status: busy_o (some slot holds a ray), dp_issue_o (a request entered the datapath this
 //     cycle), max_depth_o (most stack entries any ray held), overflow_o / refill_o (pulses),
-//     div_busy_o (dividers holding a division).
+//     div_busy_o (dividers holding a division), setup_busy_o (the ray setup holds a ray).
 // Parameters: RAYS (slots), STACK_DEPTH (entries per stack), DIVIDERS (binary32 dividers,
 // rf_fp_div), and the datapath's own, passed through.
 module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
@@ -82,6 +91,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   output logic [31:0]        res_t_o,
   output logic [31:0]        res_box_ops_o,
   output logic [31:0]        res_tri_ops_o,
+  output logic [31:0]        res_inst_o,
+  output logic [31:0]        res_xf_ops_o,
   output logic [15:0]        res_overflows_o,
   output logic [15:0]        res_refills_o,
   output logic               res_err_o,
@@ -90,7 +101,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   output logic [COUNT_W-1:0] max_depth_o,
   output logic               overflow_o,
   output logic               refill_o,
-  output logic [DIV_W-1:0]   div_busy_o
+  output logic [DIV_W-1:0]   div_busy_o,
+  output logic               setup_busy_o
 );
 
   if (RAYS < 1 || RAYS > 256) begin : g_bad_rays
@@ -140,20 +152,21 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   logic        stk_empty, stk_spilled, stk_spill;
   logic        fetch_ready, fetch_bad;
   logic        pop_root, pop_held, pop_stack, pop_refill, pop_node, pop_fetch, pop_finish, pop_err;
+  logic        pop_ret;
   assign pop_root   = at_root_q[pop_slot];
   assign pop_held   = ~pop_root & held_q[pop_slot];
   assign pop_stack  = ~pop_root & ~pop_held & ~stk_empty;
   assign pop_refill = ~pop_root & ~pop_held & stk_empty & stk_spilled;
   assign pop_node   = pop_root | pop_held | pop_stack;
   assign pop_ptr    = pop_stack ? stk_top : pop_held ? held_ptr_q[pop_slot] : root_i;
-  // a slot with something to fetch waits for the fetch unit; a bad pointer or an empty stack
-  // with nothing spilled ends the ray
-  // a leaf's triangle 1 needs no fetch; any other node waits for the fetch unit; a bad pointer,
-  // or an empty stack with nothing spilled, ends the ray
+  // a leaf's triangle 1 needs no fetch; the return marker brings the ray back to its world ray
+  // (and it pops again); any other node waits for the fetch unit; a bad pointer, or an empty
+  // stack with nothing spilled, ends the ray
   logic pop_leaf_next;
   assign pop_leaf_next = pop_any & pop_node & pop_ptr[2:0] == LEAF_NEXT_TYPE;
-  assign pop_err    = pop_any & pop_node & ~pop_leaf_next & fetch_bad;
-  assign pop_fetch  = pop_any & ((pop_node & ~pop_leaf_next & ~fetch_bad) | pop_refill)
+  assign pop_ret    = pop_any & pop_node & pop_ptr[2:0] == RETURN_TYPE;
+  assign pop_err    = pop_any & pop_node & ~pop_leaf_next & ~pop_ret & fetch_bad;
+  assign pop_fetch  = pop_any & ((pop_node & ~pop_leaf_next & ~pop_ret & ~fetch_bad) | pop_refill)
                       & fetch_ready;
   assign pop_finish = pop_any & ~pop_node & ~pop_refill;
   kind_e pop_kind;
@@ -163,18 +176,19 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
       Q8_TYPE:        pop_kind = KIND_Q8;
       PAIR_TYPE:      pop_kind = KIND_PAIR0;
       LEAF_NEXT_TYPE: pop_kind = KIND_PAIR1;
+      INSTANCE_TYPE:  pop_kind = KIND_XF;
       default:        pop_kind = KIND_TRI;
     endcase
   end
   logic pop_moves;
-  assign pop_moves = pop_fetch | pop_leaf_next | pop_err | pop_finish;
+  assign pop_moves = pop_fetch | pop_leaf_next | pop_ret | pop_err | pop_finish;
 
   // ---- the blocks ----
   logic              fetch_done, fetch_done_refill;
   logic [31:0]       fetch_done_ptr;
   logic [SLOT_W-1:0] fetch_done_slot, sched_rd, resp_rd;
   logic [NODE_W-1:0] node_a, node_b;
-  rf_rtu_fetch #(.RAYS(RAYS), .Q8(COMPRESSED)) u_fetch (
+  rf_rtu_fetch #(.RAYS(RAYS), .Q8(COMPRESSED), .XF(TRANSFORM)) u_fetch (
     .clk_i, .rst_ni,
     .in_valid_i(pop_fetch), .in_ready_o(fetch_ready), .in_slot_i(pop_slot), .in_ptr_i(pop_ptr),
     .in_refill_i(pop_refill), .in_bad_o(fetch_bad),
@@ -192,7 +206,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     .clk_i, .rst_ni,
     .clear_i(load), .clear_slot_i(load_slot),
     .push_i(push), .push_slot_i(push_slot), .push_ptr_i(push_ptr),
-    .pop_slot_i(pop_slot), .pop_i(pop_fetch & pop_stack), .refill_i(pop_fetch & pop_refill),
+    .pop_slot_i(pop_slot), .pop_i((pop_fetch | pop_ret) & pop_stack),
+    .refill_i(pop_fetch & pop_refill),
     .top_o(stk_top), .empty_o(stk_empty), .spilled_o(stk_spilled), .spill_o(stk_spill),
     .spill_ptr_o(spill_ptr_o), .depth_o(max_depth_o));
   assign spill_valid_o = stk_spill;
@@ -202,12 +217,17 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   logic [31:0] nearest_a, nearest_b;
   logic        any_hit_b;
   logic [SLOT_W-1:0] hit_rd, res_rd;
-  logic              issue, issue_box;
+  logic              issue, issue_box, issue_xf;
   logic [SLOT_W-1:0] issue_slot;
   logic              hit_acc;
   logic [SLOT_W-1:0] hit_slot;
   logic [31:0]       hit_t, hit_prim;
-  logic [31:0] res_id_c, res_prim_c, res_t_c, res_box_c, res_tri_c;
+  logic [31:0] res_id_c, res_prim_c, res_t_c, res_box_c, res_tri_c, res_inst_c, res_xf_c;
+  logic              setup_valid, setup_ok;
+  ray_t              setup_ray;
+  logic [64+SLOT_W-1:0] setup_tag;
+  logic [SLOT_W-1:0] setup_slot;
+  assign setup_slot = setup_tag[SLOT_W-1:0];
   logic [15:0] res_ovf_c, res_rst_c;
   logic        res_hit_c;
   rf_rtu_ray_buffer #(.RAYS(RAYS)) u_rays (
@@ -215,13 +235,18 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     .load_i(load), .load_slot_i(load_slot), .load_ray_i(ray_i), .load_id_i(ray_id_i),
     .load_any_hit_i(ray_any_hit_i),
     .hit_i(hit_acc), .hit_slot_i(hit_slot), .hit_t_i(hit_t), .hit_prim_i(hit_prim),
-    .issue_slot_i(issue_slot), .box_inc_i(issue & issue_box), .tri_inc_i(issue & ~issue_box),
+    .enter_i(setup_valid & setup_ok), .enter_slot_i(setup_slot), .enter_ray_i(setup_ray),
+    .enter_inst_i(setup_tag[SLOT_W+32 +: 32]),
+    .leave_i(pop_ret), .leave_slot_i(pop_slot),
+    .issue_slot_i(issue_slot), .box_inc_i(issue & issue_box),
+    .tri_inc_i(issue & ~issue_box & ~issue_xf), .xf_inc_i(issue & issue_xf),
     .ovf_inc_i(stk_spill), .ovf_slot_i(push_slot),
     .rst_inc_i(pop_fetch & pop_refill), .rst_slot_i(pop_slot),
     .rd_a_i(sched_rd), .ray_a_o(ray_a), .nearest_a_o(nearest_a),
     .rd_b_i(hit_rd), .nearest_b_o(nearest_b), .any_hit_b_o(any_hit_b),
     .rd_c_i(res_rd), .id_c_o(res_id_c), .hit_c_o(res_hit_c), .prim_c_o(res_prim_c),
-    .nearest_c_o(res_t_c), .box_ops_c_o(res_box_c), .tri_ops_c_o(res_tri_c),
+    .inst_c_o(res_inst_c), .nearest_c_o(res_t_c), .box_ops_c_o(res_box_c),
+    .tri_ops_c_o(res_tri_c), .xf_ops_c_o(res_xf_c),
     .overflows_c_o(res_ovf_c), .refills_c_o(res_rst_c));
 
   logic dp_in_valid, dp_in_ready, dp_out_valid, dp_out_ready;
@@ -232,7 +257,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     .ready_i(ready_m), .kind_i(kind_q), .rd_o(sched_rd), .ray_i(ray_a),
     .nearest_i(nearest_a), .node_i(node_a),
     .dp_valid_o(dp_in_valid), .dp_ready_i(dp_in_ready), .dp_req_o(dp_req),
-    .issue_o(issue), .issue_slot_o(issue_slot), .issue_box_o(issue_box));
+    .issue_o(issue), .issue_slot_o(issue_slot), .issue_box_o(issue_box),
+    .issue_xf_o(issue_xf));
   assign dp_issue_o = issue;
 
   rayflex #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .COMPRESSED(COMPRESSED),
@@ -241,7 +267,10 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     .in_valid_i(dp_in_valid), .in_ready_o(dp_in_ready), .req_i(dp_req),
     .out_valid_o(dp_out_valid), .out_ready_i(dp_out_ready), .rsp_o(dp_rsp));
 
-  logic              resp_next, resp_div;
+  logic              resp_next, resp_div, resp_xf;
+  logic              xf_valid, xf_ready;
+  logic [2:0][31:0]  xf_origin, xf_dir;
+  logic [64+SLOT_W-1:0] xf_tag;
   logic [SLOT_W-1:0] resp_slot;
   logic              div_in_valid, div_in_ready, div_out_valid, div_out_ready;
   logic [31:0]       div_num, div_den, div_q;
@@ -253,7 +282,16 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     .push_o(push), .push_slot_o(push_slot), .push_ptr_o(push_ptr),
     .next_o(resp_next), .div_o(resp_div), .evt_slot_o(resp_slot),
     .div_valid_o(div_in_valid), .div_ready_i(div_in_ready), .div_num_o(div_num),
-    .div_den_o(div_den), .div_tag_o(div_tag_in));
+    .div_den_o(div_den), .div_tag_o(div_tag_in),
+    .xf_o(resp_xf), .xf_valid_o(xf_valid), .xf_ready_i(xf_ready), .xf_origin_o(xf_origin),
+    .xf_dir_o(xf_dir), .xf_tag_o(xf_tag));
+
+  rf_rtu_setup #(.TAG_W(64 + SLOT_W)) u_setup (
+    .clk_i, .rst_ni,
+    .in_valid_i(xf_valid), .in_ready_o(xf_ready), .origin_i(xf_origin), .dir_i(xf_dir),
+    .tag_i(xf_tag),
+    .out_valid_o(setup_valid), .out_ready_i(1'b1), .ok_o(setup_ok), .ray_o(setup_ray),
+    .tag_o(setup_tag), .busy_o(setup_busy_o));
 
   rf_rtu_divs #(.DIVIDERS(DIVIDERS), .TAG_W(32 + SLOT_W)) u_div (
     .clk_i, .rst_ni,
@@ -277,6 +315,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     logic [31:0] t;
     logic [31:0] box_ops;
     logic [31:0] tri_ops;
+    logic [31:0] inst;
+    logic [31:0] xf_ops;
     logic [15:0] overflows;
     logic [15:0] refills;
     logic        err;
@@ -289,7 +329,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign res_rd   = SLOT_W'(res_pick[31:0]);
   assign res_take = res_pick[32] & res_in_ready;
   assign res_d = '{id: res_id_c, hit: res_hit_c, prim: res_prim_c, t: res_t_c,
-                   box_ops: res_box_c, tri_ops: res_tri_c, overflows: res_ovf_c,
+                   box_ops: res_box_c, tri_ops: res_tri_c, inst: res_inst_c, xf_ops: res_xf_c,
+                   overflows: res_ovf_c,
                    refills: res_rst_c, err: err_q[res_rd]};
   rf_skid #(.T(res_t)) u_res (
     .clk_i, .rst_ni,
@@ -301,6 +342,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign res_t_o         = res_q.t;
   assign res_box_ops_o   = res_q.box_ops;
   assign res_tri_ops_o   = res_q.tri_ops;
+  assign res_inst_o      = res_q.inst;
+  assign res_xf_ops_o    = res_q.xf_ops;
   assign res_overflows_o = res_q.overflows;
   assign res_refills_o   = res_q.refills;
   assign res_err_o       = res_q.err;
@@ -312,6 +355,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     if (fetch_done && fetch_done_refill) held_ptr_q[fetch_done_slot] <= fetch_done_ptr;
     if (resp_next) held_ptr_q[resp_slot] <= {leaf_q[resp_slot][31:3], LEAF_NEXT_TYPE};
     if (hit_next)  held_ptr_q[hit_rd]    <= {leaf_q[hit_rd][31:3], LEAF_NEXT_TYPE};
+    if (setup_valid) held_ptr_q[setup_slot] <= setup_tag[SLOT_W +: 32];     // the BLAS root
     if (pop_moves) leaf_q[pop_slot] <= pop_ptr;
   end
 
@@ -339,6 +383,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
         if (pop_held) held_q[pop_slot] <= 1'b0;
         if (pop_fetch & pop_refill) begin
           state_q[pop_slot] <= SLOT_FETCH;
+        end else if (pop_ret) begin
+          state_q[pop_slot] <= SLOT_POP;
         end else if (pop_fetch | pop_leaf_next) begin
           state_q[pop_slot] <= pop_leaf_next ? SLOT_READY : SLOT_FETCH;
           kind_q[pop_slot]  <= pop_kind;
@@ -363,6 +409,12 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
       if (resp_div)   state_q[resp_slot]       <= SLOT_DIV;
       if (hit_next)   state_q[hit_rd]          <= SLOT_POP;
       if (hit_finish) state_q[hit_rd]          <= SLOT_DONE;
+      if (resp_xf)    state_q[resp_slot]       <= SLOT_SETUP;
+      // the ray setup done: the BLAS root is popped next, or (not prepared) the marker
+      if (setup_valid) begin
+        state_q[setup_slot] <= SLOT_POP;
+        held_q[setup_slot]  <= setup_ok;
+      end
       if (res_take) begin
         state_q[res_rd] <= SLOT_FREE;
         res_next_q <= (32'(res_rd) == RAYS - 1) ? '0 : res_rd + 1'b1;

@@ -59,9 +59,10 @@ struct Run {
   std::vector<std::vector<uint32_t>> spill;   // per slot: the spill area, a LIFO
   // results, per ray id
   uint32_t* prim = nullptr;
+  uint32_t* inst = nullptr;            // the hit's instance (0xFFFFFFFF: none)
   uint32_t* t = nullptr;
   uint8_t* hit = nullptr;
-  int64_t* ops = nullptr;              // (n, 4): box, triangle, overflows, refills
+  int64_t* ops = nullptr;              // (n, 5): box, triangle, overflows, refills, transform
   std::priority_queue<Pending, std::vector<Pending>, std::greater<Pending>> queue;
   int64_t next_ray = 0, done = 0, cycle = 0, seq = 0, outstanding = 0;
   rf_rtunit_stats::RtuStats st{};
@@ -80,13 +81,15 @@ void tick(Run* r) {
 extern "C" {
 
 // A unit for one frame: n rays (ray words (n, kRayWords), any_hit (n,) 0/1) through the BVH image
-// (image_bytes bytes, root pointer `root`); results go to prim, t, hit (n,) and ops (n, 4). The
+// (image_bytes bytes, root pointer `root`); results go to prim, inst, t, hit (n,) and ops
+// (n, 5). The
 // arrays must outlive the handle. Returns null for inconsistent arguments or a memory geometry
 // the hierarchy cannot model (*err: kBadArgs or kBadGeometry).
 void* rtu_new(const uint32_t* rays, const uint8_t* any_hit, int64_t n, const uint32_t* image,
               int64_t image_bytes, uint32_t root, int64_t mem_latency, int64_t max_outstanding,
               int64_t dividers,
-              const rf_layout::MemoryConfig* mc, uint32_t* prim, uint32_t* t, uint8_t* hit,
+              const rf_layout::MemoryConfig* mc, uint32_t* prim, uint32_t* inst, uint32_t* t,
+              uint8_t* hit,
               int64_t* ops, int64_t* err) {
   if (n < 0 || image_bytes < 0 || mem_latency < 1 || max_outstanding < 0) {
     *err = kBadArgs;
@@ -109,6 +112,7 @@ void* rtu_new(const uint32_t* rays, const uint8_t* any_hit, int64_t n, const uin
   r->dividers = dividers;
   r->spill.resize(256);   // RAYS <= 256 (rf_rtunit)
   r->prim = prim;
+  r->inst = inst;
   r->t = t;
   r->hit = hit;
   r->ops = ops;
@@ -197,17 +201,20 @@ int64_t rtu_advance(void* h, int64_t cycles, int64_t* bad_ray) {
     r->st.busy_cycles += u.busy_o;
     r->st.divider_busy_cycles += u.div_busy_o;
     r->st.divider_full_cycles += u.div_busy_o == r->dividers;
+    r->st.setup_busy_cycles += u.setup_busy_o;
     if (u.res_valid_o && u.res_ready_i) {
       const uint32_t id = u.res_id_o;
       if (id >= r->n) return kBadArgs;
       r->prim[id] = u.res_prim_o;
+      r->inst[id] = u.res_inst_o;
       r->t[id] = u.res_t_o;
       r->hit[id] = u.res_hit_o;
-      int64_t* o = r->ops + 4 * static_cast<int64_t>(id);
+      int64_t* o = r->ops + 5 * static_cast<int64_t>(id);
       o[0] = u.res_box_ops_o;
       o[1] = u.res_tri_ops_o;
       o[2] = u.res_overflows_o;
       o[3] = u.res_refills_o;
+      o[4] = u.res_xf_ops_o;
       r->done++;
       r->st.cycles = r->cycle + 1;
       if (u.res_err_o) {

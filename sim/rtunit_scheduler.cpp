@@ -62,12 +62,18 @@ struct Elastic {
 };
 
 // What a response asks of the RT unit's response stage (rtl/rf_rtu_resp.sv): the hit children of
-// a box response (pushed one per cycle), or whether a triangle response hit (a division).
+// a box response (pushed one per cycle), whether a triangle response hit (a division), or a
+// TRANSFORM's (the ray enters an instance: the ray setup, rtl/rf_rtu_setup.sv) and whether its
+// transformed ray is prepared (finite, with a non-zero direction) or skips the instance.
 struct RspKind {
   bool box;
   int hits;        // box: hit children
   bool tri_hit;
+  bool xf;
+  bool xf_ok;
 };
+
+bool finite_word(uint32_t w) { return ((w >> 23) & 0xFF) != 0xFF; }
 
 RspKind rsp_kind(const uint32_t* w) {
   const uint32_t op = (w[rf_layout::kRspOpcodeWord] >> rf_layout::kRspOpcodeLsb) &
@@ -78,6 +84,16 @@ RspKind rsp_kind(const uint32_t* w) {
                                                 j * rf_layout::kRspBoxHitBits)) & 1;
   k.tri_hit = op == rf_layout::kOpTriangle &&
               ((w[rf_layout::kRspTriHitWord] >> rf_layout::kRspTriHitLsb) & 1);
+  k.xf = op == rf_layout::kOpTransform;
+  if (k.xf) {
+    bool finite = true, nonzero = false;
+    for (int a = 0; a < rf_layout::kRspXfOriginCount; a++) {
+      finite = finite && finite_word(w[rf_layout::kRspXfOriginWord + a]) &&
+               finite_word(w[rf_layout::kRspXfDirWord + a]);
+      nonzero = nonzero || (w[rf_layout::kRspXfDirWord + a] & 0x7FFFFFFFu) != 0;
+    }
+    k.xf_ok = finite && nonzero;
+  }
   return k;
 }
 
@@ -111,7 +127,7 @@ struct Unit {
   int64_t pop_next = 0, sched_next = 0, res_next = 0;
   std::vector<Elastic> chain;
   std::vector<char> in_valid, out_ready;      // this cycle's handshakes of each pipeline
-  std::vector<int64_t> resp_free;
+  std::vector<int64_t> resp_free, setup_free;  // per pipeline: the ray setup's next idle cycle
   std::vector<std::vector<int64_t>> div_free;
 };
 
@@ -156,9 +172,11 @@ struct Engine {
   bool unit_costs = false;
   int64_t unit_last = -1;      // unit costs: the cycle the last result was taken
   // unit costs, per chain: entries on its stack and spilled, a refill under way, a refilled
-  // entry held (popped next without the stack)
+  // entry held (popped next without the stack; 2: the return marker); instances: a return marker
+  // on its stack, and the world ray's row (that of its TRANSFORM requests)
   std::vector<int64_t> depth, spilled, slot_of;
-  std::vector<char> refilling, held;
+  std::vector<char> refilling, held, marker;
+  std::vector<uint32_t> world_row;
 
   Engine(const ReplayConfig& c, NodeSource s) : cfg(c), src(s) {}
 
@@ -229,6 +247,12 @@ struct Engine {
   // pops div_cycles + 1 cycles later, or ends there when it is an any-hit ray with nothing more
   // to do. An ended ray's result leaves through the result port (one a cycle, round robin) the
   // cycle after, is taken the cycle after that, and its slot takes the next ray then.
+  // Instances (TRANSFORM requests in the chain): a TRANSFORM response pushes the return marker
+  // (one cycle of the response stage) and needs the ray setup idle (else it waits, as for a
+  // divider); the setup holds it div_cycles + 1 cycles (its dividers) and the ray pops its BLAS
+  // root then, held, not from the stack; a transformed ray that is not finite (or has a zero
+  // direction) skips the instance: the setup holds it 2 cycles. The marker is popped (a pop of
+  // its own) before the ray's first request on its world row after it, or before it ends.
   static constexpr int64_t kNever = INT64_MAX;
 
   // The first slot from `start` (round robin) whose time has come at cycle k, or -1.
@@ -278,6 +302,14 @@ struct Engine {
   // memory port (served at the node cache's hit latency, or the fixed latency), the ray popping
   // again the cycle after the response. The order of the pops is that of an unbounded stack,
   // the recorded chain's.
+  void refill(Unit& u, int64_t uid, int64_t r, int64_t k) {   // read the last spilled entry back
+    spilled[r]--;
+    refilling[r] = 1;
+    const int64_t lat = mem.enabled() ? std::max<int64_t>(mem.l1[uid].latency, 1)
+                                      : cfg.fixed_latency;
+    u.arrq.push({r, k + 1 + lat, seq++});
+  }
+
   void pop(Unit& u, int64_t uid, int64_t k) {
     const int64_t s = rr(u.pop_at, u.pop_next, k);
     if (s < 0) return;
@@ -287,16 +319,29 @@ struct Engine {
     const bool more = pos[r] < chain_off[r + 1] - chain_off[r];
     int64_t off;
     const int64_t bytes = more ? node_of(r, &off) : 0;
+    if (held[r] == 2) {                       // the return marker, read back from the spill area
+      held[r] = 0;
+      marker[r] = 0;
+      u.pop_at[s] = k + 1;
+      return;
+    }
+    if (marker[r] && !held[r] && (!more || ray[index_of(r)] == world_row[r])) {
+      // the return marker: the ray goes back to its world ray and pops again
+      if (cfg.stack_depth && depth[r] == 0 && spilled[r] > 0) {
+        refill(u, uid, r, k);
+        return;
+      }
+      if (depth[r] > 0) depth[r]--;
+      marker[r] = 0;
+      u.pop_at[s] = k + 1;
+      return;
+    }
     // the root, a refilled entry and a pair leaf's second triangle are not on the stack
     if (cfg.stack_depth && (!more || (pos[r] > 0 && bytes)) && !held[r]) {
       if (depth[r] > 0) {
         depth[r]--;
       } else if (spilled[r] > 0 && more) {
-        spilled[r]--;
-        refilling[r] = 1;
-        const int64_t lat = mem.enabled() ? std::max<int64_t>(mem.l1[uid].latency, 1)
-                                          : cfg.fixed_latency;
-        u.arrq.push({r, k + 1 + lat, seq++});
+        refill(u, uid, r, k);
         return;
       }
     }
@@ -319,7 +364,8 @@ struct Engine {
     u.arrq.pop();
     if (refilling[r]) {                       // a spilled entry read back: the ray pops it
       refilling[r] = 0;
-      held[r] = 1;
+      const bool more = pos[r] < chain_off[r + 1] - chain_off[r];
+      held[r] = marker[r] && (!more || ray[index_of(r)] == world_row[r]) ? 2 : 1;
       u.pop_at[slot_of[r]] = k + 1;
       return;
     }
@@ -334,7 +380,9 @@ struct Engine {
   }
 
   bool can_take(const Unit& u, int64_t p, int64_t k, const uint32_t* w) const {
-    return k >= u.resp_free[p] && (!rsp_kind(w).tri_hit || idle_divider(u, p, k) >= 0);
+    const RspKind kind = rsp_kind(w);
+    return k >= u.resp_free[p] && (!kind.tri_hit || idle_divider(u, p, k) >= 0) &&
+           (!kind.xf || u.setup_free[p] <= k);
   }
 
   // Pipeline p's response w to ray r's request is taken at cycle k (pos[r] already past it).
@@ -350,6 +398,17 @@ struct Engine {
         spilled[r] += depth[r] - cfg.stack_depth;
         depth[r] = cfg.stack_depth;
       }
+    } else if (kind.xf) {                     // the marker pushed; the ray setup
+      depth[r] += 1;
+      if (cfg.stack_depth && depth[r] > cfg.stack_depth) {
+        spilled[r] += depth[r] - cfg.stack_depth;
+        depth[r] = cfg.stack_depth;
+      }
+      marker[r] = 1;
+      world_row[r] = ray[chain_idx[chain_off[r] + pos[r] - 1]];
+      next = k + (kind.xf_ok ? cfg.div_cycles + 1 : 2);
+      u.setup_free[p] = next;
+      held[r] = kind.xf_ok;                  // the BLAS root, popped next
     } else if (kind.tri_hit) {
       u.div_free[p][idle_divider(u, p, k)] = k + cfg.div_cycles + 1;
       next = k + cfg.div_cycles + 1;
@@ -750,6 +809,8 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
     e.spilled.assign(n_chains, 0);
     e.refilling.assign(n_chains, 0);
     e.held.assign(n_chains, 0);
+    e.marker.assign(n_chains, 0);
+    e.world_row.assign(n_chains, 0);
     e.slot_of.assign(n_chains, -1);
   }
   if (e.treelets) e.cur_tl.assign(n_chains, -1);
@@ -768,6 +829,7 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
       u.chain.resize(D ? P : 0);
       for (auto& ch : u.chain) ch.configure(D);
       u.resp_free.assign(P, 0);
+      u.setup_free.assign(P, 0);
       u.in_valid.assign(P, 0);
       u.slot_ray.assign(c.slots, -1);
       for (auto* v : {&u.pop_at, &u.ready_at, &u.done_at}) v->assign(c.slots, Engine::kNever);

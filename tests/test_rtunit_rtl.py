@@ -1,7 +1,9 @@
 """The RT unit in RTL (rtl/rf_rtunit.sv, ``--backend rtunit``): every ray's hit, primitive, t bits
 and box/triangle op counts identical to the Python traversal on the "rtl" datapath, at a stack
-depth that never overflows and at one that spills; a one-ray frame's cycles counted by hand; its
-package constants against driver/core/layout.py; lint; bad input refused in one line."""
+depth that never overflows and at one that spills; instanced scenes (two-level images) entered
+through the datapath's TRANSFORM, instance and transform ops included; a one-ray frame's cycles
+counted by hand; its package constants against driver/core/layout.py; lint; bad input refused in
+one line."""
 
 from __future__ import annotations
 
@@ -9,21 +11,26 @@ import re
 
 import numpy as np
 import pytest
+import trimesh
 
 from driver.backends import BackendError, backend
 from driver.backends.build import RTL_DIR, rtl_params
-from driver.backends.rtunit import RtUnitBackend, lint_unit, unit_params
+from driver.backends.rtunit import RtUnitBackend, check_image, lint_unit, unit_params
+from driver.bvh.instances import build_two_level
+from driver.check import check, failed
 from driver.backends.rtunit import div_cycles as driver_div_cycles
 from driver.cli import main
 from driver.core import layout, wire
 from driver.core.datapath import prepare_rays
 from driver.core.wire import FLAG_NO_CULL
+from driver.instances import Instances
 from driver.rtunit import MemoryModel, UnitCosts
 from driver.tracer import as_bvh, trace
 from support.corpus import rays as corpus_rays
-from support.meshes import box_room, soup
+from support.meshes import box_room, reuse_glb, soup
 
-RAYS = 8            # ray slots of the test builds (two: stack depth 32; 4 with the q8 decode)
+RAYS = 8            # ray slots of the test builds (two: stack depth 32; 4 with the q8 decode
+                    # and TRANSFORM)
 DEEP, SHALLOW = 32, 4
 
 
@@ -41,9 +48,10 @@ def deep():
 
 @pytest.fixture(scope="module")
 def shallow():
-    """A small stack, and the datapath's q8 decode stage (it reads box32 images too)."""
+    """A small stack, the datapath's q8 decode stage and its TRANSFORM (it reads box32 and
+    one-level images too)."""
     return RtUnitBackend(rays_in_flight=RAYS, stack_depth=SHALLOW, mem_latency=20,
-                         compressed=True)
+                         compressed=True, transform=True)
 
 
 def _same(ref, got, ops=True):
@@ -123,6 +131,66 @@ def test_q8_images_with_the_decode_stage(shallow, any_hit):
     assert unit["mem_requests"] < got.stats["ops"]
 
 
+def small_instances() -> Instances:
+    """Five overlapping instances of two tiny meshes (an icosahedron, 20 triangles; a box, 12),
+    side by side along x, 0.8 apart at unit size; instance 3 turned about z and scaled
+    non-uniformly."""
+    ico = trimesh.creation.icosphere(0).triangles
+    box = trimesh.creation.box().triangles
+    a = 0.7
+    turn = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+    mats = []
+    for i in range(5):
+        m = turn @ np.diag([1.5, 0.7, 1.2]) if i == 3 else np.eye(3)
+        mats.append(np.hstack([m, [[i * 0.8 - 1.6], [0.3 * (i % 2)], [0.0]]]))
+    return Instances([ico, box], np.array([0, 1, 0, 1, 0]), np.array(mats))
+
+
+def instance_rays(n=256, seed=0):
+    """Rays from the plane z = -5 towards +z, over the instances."""
+    rng = np.random.default_rng(seed)
+    o = np.column_stack([rng.uniform(-3, 3, n), rng.uniform(-2, 2, n), np.full(n, -5.0)])
+    d = np.column_stack([rng.uniform(-0.3, 0.3, n), rng.uniform(-0.3, 0.3, n), np.ones(n)])
+    return o.astype(np.float32), d.astype(np.float32)
+
+
+@pytest.mark.parametrize("fmt", ["box32", "q8"])
+@pytest.mark.parametrize("any_hit", [False, True], ids=["closest", "any-hit"])
+def test_instances_enter_their_blas_through_the_transform(shallow, fmt, any_hit):
+    inst = small_instances()
+    bvh = build_two_level(inst, fmt)
+    o, d = instance_rays()
+    ref = trace(bvh, o, d, backend=backend("rtl", compressed=True, transform=True),
+                transform="datapath", any_hit=any_hit)
+    got = trace(bvh, o, d, backend=shallow, any_hit=any_hit)
+    assert ref.hit.sum() > 50 and set(ref.instance[ref.hit]) == set(range(5))
+    _same(ref, got)
+    assert got.instance.tolist() == ref.instance.tolist()
+    assert got.transform_ops.tolist() == ref.transform_ops.tolist()
+    # rays that enter several instances (fewer when the first hit ends the ray)
+    assert (got.transform_ops > 1).sum() >= (3 if any_hit else 20)
+    assert got.stats["transform_ops"] == ref.stats["transform_ops"]
+    assert got.stats["ops"] == ref.stats["ops"]
+    unit = got.stats["unit_rtl"]
+    assert unit["traversal_mismatches"] == 0 and unit["stack_overflows"] > 0
+    assert unit["setup_busy_cycles"] > 0
+    # the replay with the unit's costs charges the return marker's pop and the ray setup
+    assert unit["replay_cycles"] == unit["cycles"]
+    if not any_hit:
+        emb = check(inst.flatten(), o, d, got.t, got.prim)
+        assert not failed(emb) and emb["hit_mismatch"] == 0
+
+
+def test_instances_need_the_transform(deep):
+    bvh = build_two_level(small_instances())
+    o, d = instance_rays(8)
+    for be in (deep, backend("rtunit", rays_in_flight=RAYS)):
+        with pytest.raises(ValueError, match="give --transform datapath"):
+            trace(bvh, o, d, backend=be)
+    with pytest.raises(ValueError, match="TRANSFORM"):
+        check_image(bvh, compressed=True)
+
+
 def test_one_ray_frame_cycles_by_hand(deep):
     # one triangle: a root box node with one child, the triangle node; the ray hits it (NO_CULL)
     bvh = as_bvh(np.array([[[0, 0, 5], [1, 0, 5], [0, 1, 5]]], np.float32))
@@ -181,6 +249,8 @@ def test_package_constants_are_the_layout():
 
 def test_unit_lint_clean():
     assert lint_unit(unit_params(rtl_params(False, False), RAYS, DEEP)) == ""
+    assert lint_unit(unit_params(rtl_params(False, False, compressed=True, transform=True), RAYS,
+                                 SHALLOW)) == ""
 
 
 def test_unit_refuses_what_it_cannot_read(scene, deep):
@@ -248,6 +318,22 @@ def test_stack_depth_needs_the_unit(in_tmp, error_line):
     assert "--stack-depth" in error_line()
 
 
+def test_render_an_instanced_scene(in_tmp, error_line):
+    import json
+    glb = str(reuse_glb(in_tmp / "reuse.glb"))         # three instances of one icosphere
+    argv = ["render", glb, "--size", "16", "--backend", "rtunit", "--rays-in-flight", str(RAYS),
+            "--no-progress"]
+    assert main(argv) != 0 and "--transform datapath" in error_line()
+    # the build of ``shallow``: the q8 decode stage and TRANSFORM
+    assert main([*argv, "--transform", "datapath", "--config", "baseline-unified-q8",
+                 "--stack-depth", str(SHALLOW), "--check-embree", "--json", "f.json"]) == 0
+    doc = json.loads(open("f.json").read())
+    assert doc["instances"] == 3 and doc["transform_ops"] > 0
+    assert doc["unit_rtl"]["traversal_mismatches"] == 0
+    assert doc["embree"]["adjudicated"]["classes"]["datapath_wrong"] == 0
+    assert doc["unit_rtl"]["replay_cycles"] == doc["unit_rtl"]["cycles"]
+
+
 def test_a_lumibench_suite_through_the_unit(tmp_path, in_tmp, error_line, monkeypatch):
     import json
     from test_lumibench_scenes import suite_root
@@ -256,7 +342,8 @@ def test_a_lumibench_suite_through_the_unit(tmp_path, in_tmp, error_line, monkey
     argv = ["suite", "lumibench", "--lumibench-root", str(root), "--scenes", "BATH",
             "--workloads", "ao", "--size", "8", "--spp", "1", "--backend", "rtunit",
             "--rays-in-flight", str(RAYS), "--out", "out", "--no-progress"]
-    assert main(argv) == 2 and "--flatten" in error_line()       # LumiBench's are instanced
+    # LumiBench's scenes are instanced: the unit needs the datapath's TRANSFORM
+    assert main(argv) == 2 and "--transform datapath" in error_line()
     assert not (in_tmp / "out").exists()
     assert main([*argv, "--ideal-replay", "--flatten"]) == 2 and "itself" in error_line()
     assert main([*argv, "--flatten"]) == 0
@@ -268,3 +355,11 @@ def test_a_lumibench_suite_through_the_unit(tmp_path, in_tmp, error_line, monkey
     assert row["utilization_memory"] == unit["utilization"] > 0
     assert row["replay_cycles_ratio"] == unit["replay_cycles_ratio"]
     assert abs(unit["replay_cycles_ratio"] - 1) <= 0.03
+    # instanced, through the TRANSFORM (the q8 decode and TRANSFORM build of ``shallow``)
+    assert main([*argv, "--transform", "datapath", "--config", "baseline-unified-q8",
+                 "--stack-depth", str(SHALLOW), "--out", "inst"]) == 0
+    inst = json.loads((in_tmp / "inst" / "BATH_AO.json").read_text())
+    assert inst["unit_rtl"]["traversal_mismatches"] == 0
+    assert inst["transform_ops"] > 0 and inst["instances"] > 1
+    assert inst["embree"]["adjudicated"]["classes"]["datapath_wrong"] == 0
+    assert abs(inst["unit_rtl"]["replay_cycles_ratio"] - 1) <= 0.03

@@ -7,8 +7,9 @@ issues single requests) plus ``trace_unit``: a frame's prepared rays in, hits, p
 and the unit's cycles out, with no host work per traversal step. ``driver.tracer.trace`` calls it
 in place of the Python traversal. The unit reads box32 images (box nodes and triangle nodes) and,
 built with the datapath's q8 decode stage (a ``-q8`` configuration), q8 images (q8 box nodes and
-triangle-pair leaves); q8g images, instances and the culling stack are refused with one line
-before any work.
+triangle-pair leaves); built with the datapath's TRANSFORM (``--transform datapath``), two-level
+images (instance nodes: each ray entering an instance sends a TRANSFORM request); q8g images,
+instances without TRANSFORM and the culling stack are refused with one line before any work.
 """
 
 from __future__ import annotations
@@ -21,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.layout import (BOX_NODE, BOX_TYPE, NO_CHILD, NODE_BYTES, PAIR_TYPE, Q8_NODE, Q8_TYPE,
-                           TRI_TYPE, NodeRef, node_word)
+from ..core.layout import (BOX_NODE, BOX_TYPE, INSTANCE_NODE, INSTANCE_TYPE, NO_CHILD, NODE_BYTES,
+                           PAIR_TYPE, Q8_NODE, Q8_TYPE, TRI_TYPE, NodeRef, node_word)
 from ..core.wire import RAY_WORDS, ray_words
 from . import verilate
 from .base import BackendError
@@ -59,6 +60,7 @@ UNIT_STATS = (
     "max_stack_depth",          # most entries any ray's stack held
     "divider_busy_cycles",      # sum over cycles of the dividers holding a division
     "divider_full_cycles",      # cycles with every divider holding one
+    "setup_busy_cycles",        # cycles the ray setup holds a ray entering an instance
 )
 _OK, _BUDGET, _BAD_ADDRESS, _BAD_ARGS, _BAD_GEOMETRY, _RAY_ERROR = 0, -1, -2, -3, -4, -5
 ADVANCE_CYCLES = 1 << 16            # cycles per harness call (progress and Ctrl-C between calls)
@@ -146,7 +148,7 @@ def unit_library(params: dict) -> ctypes.CDLL:
     i64p, u8p = ctypes.POINTER(ctypes.c_int64), ctypes.POINTER(ctypes.c_uint8)
     lib.rtu_new.restype = vp
     lib.rtu_new.argtypes = [u32p, u8p, i64, u32p, i64, ctypes.c_uint32, i64, i64, i64,
-                            ctypes.POINTER(MemoryConfig), u32p, u32p, u8p, i64p, i64p]
+                            ctypes.POINTER(MemoryConfig), u32p, u32p, u32p, u8p, i64p, i64p]
     lib.rtu_free.argtypes = [vp]
     lib.rtu_advance.restype = i64
     lib.rtu_advance.argtypes = [vp, i64, i64p]
@@ -159,8 +161,11 @@ def unit_library(params: dict) -> ctypes.CDLL:
 class UnitResult:
     """Per-ray results of a batch through the RT unit.
 
-    prim : (n,) int64 (-1: no hit); t : (n,) float32 (the ray's extent without a hit); hit (n,)
-    box_ops, tri_ops, overflows, refills : (n,) int64; stats : {``UNIT_STATS``} of the run
+    prim : (n,) int64 (-1: no hit; in a two-level image the primitive id in the hit's BLAS);
+    instance : (n,) int64, the hit's instance (-1: none, or a one-level image);
+    t : (n,) float32 (the ray's extent without a hit); hit (n,)
+    box_ops, tri_ops, xf_ops, overflows, refills : (n,) int64 (xf_ops: TRANSFORM requests);
+    stats : {``UNIT_STATS``} of the run
     """
 
     prim: np.ndarray
@@ -171,14 +176,17 @@ class UnitResult:
     overflows: np.ndarray
     refills: np.ndarray
     stats: dict
+    instance: np.ndarray
+    xf_ops: np.ndarray
 
 
-def check_format(fmt: str, compressed: bool, instanced: bool) -> None:
+def check_format(fmt: str, compressed: bool, transform: bool, instanced: bool) -> None:
     """Refuse (ValueError, one line) a node format or an instanced scene the unit cannot read,
-    before an image is built (``check_image`` checks the image itself)."""
-    if instanced:
-        raise ValueError("the RT unit in RTL does not trace instanced scenes yet (two-level "
-                         "images): use --flatten or --backend rtl")
+    before an image is built (``check_image`` checks the image itself): instances need the
+    datapath's TRANSFORM (``transform``)."""
+    if instanced and not transform:
+        raise ValueError("the RT unit in RTL enters instances with the datapath's TRANSFORM: "
+                         "give --transform datapath (or --flatten)")
     if fmt not in FORMATS:
         raise ValueError(f"the RT unit in RTL reads {', '.join(FORMATS)} images, not {fmt} "
                          f"(--bvh-format {fmt}): use --backend rtl for it")
@@ -187,12 +195,14 @@ def check_format(fmt: str, compressed: bool, instanced: bool) -> None:
                          "give a -q8 configuration (--config baseline-unified-q8)")
 
 
-def check_image(bvh, compressed: bool = False) -> None:
+def check_image(bvh, compressed: bool = False, transform: bool = False) -> None:
     """Refuse (ValueError, one line) what the unit cannot read: a node format other than
-    ``FORMATS`` (q8 only with ``compressed``, the datapath's decode stage), instances, or a node
-    pointer that leaves the image, names a node type the unit does not read, or loops."""
+    ``FORMATS`` (q8 only with ``compressed``, the datapath's decode stage), instances without
+    ``transform`` (the datapath's TRANSFORM), or a node pointer that leaves the image, names a
+    node type the unit does not read (an instance node inside a BLAS among them), or loops."""
     fmt = getattr(bvh, "format", "box32")
-    check_format(fmt, compressed, getattr(bvh, "instances", None) is not None)
+    instanced = getattr(bvh, "instances", None) is not None
+    check_format(fmt, compressed, transform, instanced)
     img = np.asarray(bvh.image).reshape(-1).view(np.uint8)
     words = img.view("<u4")
     readable = {BOX_TYPE, TRI_TYPE} | ({Q8_TYPE, PAIR_TYPE} if fmt == "q8" else set())
@@ -200,22 +210,32 @@ def check_image(bvh, compressed: bool = False) -> None:
     child_word[BOX_TYPE], child_word[Q8_TYPE] = node_word(BOX_NODE, "child"), node_word(
         Q8_NODE, "child")
     nbytes = np.array([NODE_BYTES.get(t, 0) for t in range(8)], np.int64)
-    frontier = np.array([bvh.root], np.uint32)
+    # the TLAS (instance nodes allowed), then each BLAS once (however many instances name it)
+    levels = [(np.array([bvh.root], np.uint32), readable | ({INSTANCE_TYPE} if instanced
+                                                             else set()))]
     seen, limit = 0, len(img) // 64 + 1          # every node takes 64 bytes or more
-    while len(frontier):                          # breadth first over the box nodes' children
-        seen += len(frontier)
-        if seen > limit:
-            raise ValueError("the BVH image's pointers form a loop")
-        typ = NodeRef.type(frontier)
-        if not np.isin(typ, list(readable)).all():
-            raise ValueError("a BVH pointer names a node type the RT unit cannot read")
-        off = NodeRef.offset(frontier)
-        if ((off + nbytes[typ]) > len(img)).any():
-            raise ValueError("a BVH pointer leaves the image")
-        box = np.isin(typ, [BOX_TYPE, Q8_TYPE])
-        child = words[(NodeRef.word(frontier[box]) + child_word[typ[box]])[:, None]
-                      + np.arange(4)].reshape(-1)
-        frontier = child[child != NO_CHILD]
+    while levels:
+        frontier, types = levels.pop(0)
+        blas = []
+        while len(frontier):                      # breadth first over the box nodes' children
+            seen += len(frontier)
+            if seen > limit:
+                raise ValueError("the BVH image's pointers form a loop")
+            typ = NodeRef.type(frontier)
+            if not np.isin(typ, list(types)).all():
+                raise ValueError("a BVH pointer names a node type the RT unit cannot read")
+            off = NodeRef.offset(frontier)
+            if ((off + nbytes[typ]) > len(img)).any():
+                raise ValueError("a BVH pointer leaves the image")
+            box = np.isin(typ, [BOX_TYPE, Q8_TYPE])
+            inst = typ == INSTANCE_TYPE
+            blas.append(words[NodeRef.word(frontier[inst]) + node_word(INSTANCE_NODE, "blas")])
+            child = words[(NodeRef.word(frontier[box]) + child_word[typ[box]])[:, None]
+                          + np.arange(4)].reshape(-1)
+            frontier = child[child != NO_CHILD]
+        roots = np.unique(np.concatenate(blas))
+        if len(roots):
+            levels.append((roots, readable))
 
 
 class RtUnitBackend(HarnessBackend):
@@ -254,16 +274,17 @@ class RtUnitBackend(HarnessBackend):
         ``bvh`` (checked by ``check_image``). ``any_hit``: a bool or one per ray.
         ``progress(done, total)`` is called between harness calls. ``max_cycles``: the budget
         (default: 10,000 cycles + 20,000 per ray); RuntimeError when it runs out."""
-        check_image(bvh, self.compressed)
+        check_image(bvh, self.compressed, self.transform)
         n = len(rays)
         rw = np.ascontiguousarray(ray_words(rays), np.uint32)
         assert rw.shape == (n, RAY_WORDS)
         ah = np.ascontiguousarray(np.broadcast_to(np.asarray(any_hit, bool), (n,)), np.uint8)
         img = np.ascontiguousarray(np.asarray(bvh.image).reshape(-1).view(np.uint8))
         prim = np.full(n, NO_CHILD, np.uint32)
+        inst = np.full(n, NO_CHILD, np.uint32)
         t = np.zeros(n, np.uint32)
         hit = np.zeros(n, np.uint8)
-        ops = np.zeros((n, 4), np.int64)
+        ops = np.zeros((n, 5), np.int64)
         err = ctypes.c_int64(0)
         mc = memory_config(self.memory)
         lib = self._unit
@@ -272,8 +293,8 @@ class RtUnitBackend(HarnessBackend):
         i64 = ctypes.POINTER(ctypes.c_int64)
         h = lib.rtu_new(rw.ctypes.data_as(u32), ah.ctypes.data_as(u8), n,
                         img.ctypes.data_as(u32), img.size, int(bvh.root), self.mem_latency,
-                        self.max_outstanding, self.dividers, ctypes.byref(mc), prim.ctypes.data_as(u32),
-                        t.ctypes.data_as(u32), hit.ctypes.data_as(u8), ops.ctypes.data_as(i64),
+                        self.max_outstanding, self.dividers, ctypes.byref(mc),
+                        prim.ctypes.data_as(u32), inst.ctypes.data_as(u32), t.ctypes.data_as(u32), hit.ctypes.data_as(u8), ops.ctypes.data_as(i64),
                         ctypes.byref(err))
         if not h:
             raise ValueError("memory geometry cannot be modelled" if err.value == _BAD_GEOMETRY
@@ -309,8 +330,11 @@ class RtUnitBackend(HarnessBackend):
         self.requests += stats["dp_requests"]
         prim64 = prim.astype(np.int64)
         prim64[prim == NO_CHILD] = -1
+        inst64 = inst.astype(np.int64)
+        inst64[inst == NO_CHILD] = -1
         return UnitResult(prim64, t.view(np.float32), hit.astype(bool), ops[:, 0].copy(),
-                          ops[:, 1].copy(), ops[:, 2].copy(), ops[:, 3].copy(), stats)
+                          ops[:, 1].copy(), ops[:, 2].copy(), ops[:, 3].copy(), stats, inst64,
+                          ops[:, 4].copy())
 
 
 def lint_unit(params: dict | None = None) -> str:

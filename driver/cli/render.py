@@ -81,7 +81,7 @@ def run(args) -> int:
     with phase(f"loading {name}", not args.no_progress):
         scene = with_camera(load_scene(source, args.up_axis), **view)
     if backend == UNIT_BACKEND:         # what the unit cannot read fails before the BVH build
-        check_format(point.bvh_format, point.compressed,
+        check_format(point.bvh_format, point.compressed, point.transform_op,
                      getattr(scene, "instances", None) is not None and not point.flatten)
     w, h = scene.size
     if point.size is not None:

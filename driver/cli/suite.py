@@ -66,10 +66,11 @@ def run(args) -> int:
     runs = [Run(r.name, r.scene, r.workload, args.size or r.size, args.spp or r.spp,
                 r.bounces, r.ao_rays, r.seed) for r in runs]
     check_runs(runs, base)
-    if args.backend == UNIT_BACKEND and not base.flatten and any(
+    if args.backend == UNIT_BACKEND and not (base.flatten or base.transform_op) and any(
             r.scene.startswith(LUMIBENCH_PREFIX) for r in runs):
-        raise SuiteError(f"--backend {UNIT_BACKEND}: the RT unit in RTL does not trace "
-                         "instanced scenes yet, and LumiBench's are: give --flatten")
+        raise SuiteError(f"--backend {UNIT_BACKEND}: the RT unit in RTL enters instances "
+                         "with the datapath's TRANSFORM, and LumiBench's scenes are instanced: "
+                         "give --transform datapath (or --flatten)")
     from ..scenes.scene import resolve
     for r in runs:                          # every scene exists before any work
         try:
