@@ -181,6 +181,30 @@ def test_instances_enter_their_blas_through_the_transform(shallow, fmt, any_hit)
         assert not failed(emb) and emb["hit_mismatch"] == 0
 
 
+@pytest.mark.parametrize("any_hit", [False, True], ids=["closest", "any-hit"])
+def test_an_instance_whose_transformed_ray_overflows_is_skipped(shallow, any_hit):
+    # a sixth instance scaled by 1e-20 at (0, 5, 0): its world_to_object (1e20) takes these
+    # rays' long directions past the float32 range, so they skip it; the second then hits
+    # instance 2
+    base = small_instances()
+    tiny = np.hstack([np.diag([1e-20] * 3), [[0.0], [5.0], [0.0]]])
+    inst = Instances(base.meshes, np.append(base.mesh, 0),
+                     np.concatenate([base.object_to_world, tiny[None]]))
+    bvh = build_two_level(inst)
+    o, d = instance_rays(32)
+    o = np.concatenate([[[0, 5, -2e-20], [0, 5, -2e-20]], o]).astype(np.float32)
+    d = np.concatenate([[[0, 0, 1e19], [0, -1e19, 1e18]], d]).astype(np.float32)
+    ref = trace(bvh, o, d, backend=backend("rtl", compressed=True, transform=True),
+                transform="datapath", any_hit=any_hit)
+    got = trace(bvh, o, d, backend=shallow, any_hit=any_hit)
+    assert ref.transform_ops[:2].tolist() == [1, 2] and ref.instance[:2].tolist() == [-1, 2]
+    _same(ref, got)
+    assert got.instance.tolist() == ref.instance.tolist()
+    assert got.transform_ops.tolist() == ref.transform_ops.tolist()
+    unit = got.stats["unit_rtl"]
+    assert unit["traversal_mismatches"] == 0 and unit["replay_cycles"] == unit["cycles"]
+
+
 def test_instances_need_the_transform(deep):
     bvh = build_two_level(small_instances())
     o, d = instance_rays(8)
