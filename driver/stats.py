@@ -149,6 +149,7 @@ def unit_rtl_stats(res, be) -> dict:
         "dividers": be.dividers,
         "divider_busy_cycles": st["divider_busy_cycles"],
         "divider_full_cycles": st["divider_full_cycles"],
+        "setups": be.setups,
         "setup_busy_cycles": st["setup_busy_cycles"],
     }
 

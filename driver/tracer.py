@@ -232,7 +232,7 @@ def _replay_unit(be, rec, any_hit, n: int, unit_cycles: int) -> dict:
     mem = memory_model(be.memory) if be.memory is not None else None
     costs = rtunit.UnitCosts(be.dividers, fixed_latency=0 if mem else be.mem_latency,
                              any_hit=np.broadcast_to(np.asarray(any_hit, bool), (n,)),
-                             stack_depth=be.stack_depth)
+                             stack_depth=be.stack_depth, setups=be.setups)
     out = {}
     for key, uc in (("replay", costs), ("replay_default", None)):
         cycles = None

@@ -9,7 +9,7 @@
 //     │                            │ req_t (tag = slot)
 //     └── response processing ◄── rayflex (the datapath, unchanged)
 //                 │ TRANSFORM: o', d'
-//                 └──► ray setup ──► ray buffer (object-space ray), BLAS root held
+//                 └──► ray setups ──► ray buffer (object-space ray), BLAS root held
 //
 // Each slot holds one ray and is in one state (rf_rtu_pkg::slot_e): FREE -> (ray_i) POP ->
 // (pop: the root first, then a held pointer, then the stack's top) FETCH -> (node arrives)
@@ -44,13 +44,14 @@
 //   * root_i: the root node pointer, constant while rays are in the unit.
 //   * status: busy_o (some slot holds a ray), dp_issue_o (a request entered the datapath this
 //     cycle), max_depth_o (most stack entries any ray held), overflow_o / refill_o (pulses),
-//     div_busy_o (dividers holding a division), setup_busy_o (the ray setup holds a ray).
+//     div_busy_o (dividers holding a division), setup_busy_o (ray setups holding a ray).
 // Parameters: RAYS (slots), STACK_DEPTH (entries per stack), DIVIDERS (binary32 dividers,
-// rf_fp_div), and the datapath's own, passed through.
+// rf_fp_div), SETUPS (ray setups, rf_rtu_setup), and the datapath's own, passed through.
 module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   parameter int unsigned RAYS        = 16,
   parameter int unsigned STACK_DEPTH = 32,
   parameter int unsigned DIVIDERS    = 2,
+  parameter int unsigned SETUPS      = 2,
   parameter bit          EXTENDED    = 1'b0,
   parameter bit          DISJOINT    = 1'b0,
   parameter bit          COMPRESSED  = 1'b0,
@@ -60,7 +61,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   parameter int unsigned LATENCY     = 11 + 32'(COMPRESSED),
   localparam int unsigned SLOT_W  = RAYS > 1 ? $clog2(RAYS) : 1,
   localparam int unsigned COUNT_W = $clog2(STACK_DEPTH + 1),
-  localparam int unsigned DIV_W   = $clog2(DIVIDERS + 1)
+  localparam int unsigned DIV_W   = $clog2(DIVIDERS + 1),
+  localparam int unsigned SETUP_W = $clog2(SETUPS + 1)
 ) (
   input  logic               clk_i,
   input  logic               rst_ni,
@@ -102,7 +104,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   output logic               overflow_o,
   output logic               refill_o,
   output logic [DIV_W-1:0]   div_busy_o,
-  output logic               setup_busy_o
+  output logic [SETUP_W-1:0] setup_busy_o
 );
 
   if (RAYS < 1 || RAYS > 256) begin : g_bad_rays
@@ -286,7 +288,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     .xf_o(resp_xf), .xf_valid_o(xf_valid), .xf_ready_i(xf_ready), .xf_origin_o(xf_origin),
     .xf_dir_o(xf_dir), .xf_tag_o(xf_tag));
 
-  rf_rtu_setup #(.TAG_W(64 + SLOT_W)) u_setup (
+  rf_rtu_setups #(.SETUPS(SETUPS), .TAG_W(64 + SLOT_W)) u_setup (
     .clk_i, .rst_ni,
     .in_valid_i(xf_valid), .in_ready_o(xf_ready), .origin_i(xf_origin), .dir_i(xf_dir),
     .tag_i(xf_tag),

@@ -127,8 +127,8 @@ struct Unit {
   int64_t pop_next = 0, sched_next = 0, res_next = 0;
   std::vector<Elastic> chain;
   std::vector<char> in_valid, out_ready;      // this cycle's handshakes of each pipeline
-  std::vector<int64_t> resp_free, setup_free;  // per pipeline: the ray setup's next idle cycle
-  std::vector<std::vector<int64_t>> div_free;
+  std::vector<int64_t> resp_free;
+  std::vector<std::vector<int64_t>> div_free, setup_free;  // per pipeline: each one's next idle
 };
 
 struct Engine {
@@ -249,7 +249,8 @@ struct Engine {
   // cycle after, is taken the cycle after that, and its slot takes the next ray then.
   // Instances (TRANSFORM requests in the chain): a TRANSFORM response pushes the return marker
   // (one cycle of the response stage) and needs the ray setup idle (else it waits, as for a
-  // divider); the setup holds it div_cycles + 1 cycles (its dividers) and the ray pops its BLAS
+  // divider; the lowest idle of cfg.setups takes it); the setup holds it div_cycles + 1 cycles
+  // (its dividers) and the ray pops its BLAS
   // root then, held, not from the stack; a transformed ray that is not finite (or has a zero
   // direction) skips the instance: the setup holds it 2 cycles. The marker is popped (a pop of
   // its own) before the ray's first request on its world row after it, or before it ends.
@@ -372,17 +373,21 @@ struct Engine {
     u.ready_at[slot_of[r]] = k + 1;
   }
 
-  int64_t idle_divider(const Unit& u, int64_t p, int64_t k) const {
-    const auto& d = u.div_free[p];
-    for (size_t j = 0; j < d.size(); j++)
-      if (d[j] <= k) return static_cast<int64_t>(j);
+  // the first unit of `free_at` (each one's next idle cycle) idle at cycle k, or -1
+  static int64_t idle(const std::vector<int64_t>& free_at, int64_t k) {
+    for (size_t j = 0; j < free_at.size(); j++)
+      if (free_at[j] <= k) return static_cast<int64_t>(j);
     return -1;
+  }
+
+  int64_t idle_divider(const Unit& u, int64_t p, int64_t k) const {
+    return idle(u.div_free[p], k);
   }
 
   bool can_take(const Unit& u, int64_t p, int64_t k, const uint32_t* w) const {
     const RspKind kind = rsp_kind(w);
     return k >= u.resp_free[p] && (!kind.tri_hit || idle_divider(u, p, k) >= 0) &&
-           (!kind.xf || u.setup_free[p] <= k);
+           (!kind.xf || idle(u.setup_free[p], k) >= 0);
   }
 
   // Pipeline p's response w to ray r's request is taken at cycle k (pos[r] already past it).
@@ -407,7 +412,7 @@ struct Engine {
       marker[r] = 1;
       world_row[r] = ray[chain_idx[chain_off[r] + pos[r] - 1]];
       next = k + (kind.xf_ok ? cfg.div_cycles + 1 : 2);
-      u.setup_free[p] = next;
+      u.setup_free[p][idle(u.setup_free[p], k)] = next;
       held[r] = kind.xf_ok;                  // the BLAS root, popped next
     } else if (kind.tri_hit) {
       u.div_free[p][idle_divider(u, p, k)] = k + cfg.div_cycles + 1;
@@ -721,7 +726,8 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
   if (c.timing_latency < 0 || c.fixed_latency < 0) return -3;
   // the unit's costs: one pipeline per unit, no scheduler of its own, the dividers given, and the
   // responses (the functional run's when the pipelines are their timing)
-  if (c.unit_costs && (P != 1 || c.window || treelet || c.dividers < 1 || c.div_cycles < 1 ||
+  if (c.unit_costs && (P != 1 || c.window || treelet || c.dividers < 1 || c.setups < 1 ||
+                       c.div_cycles < 1 ||
                        c.stack_depth < 0 ||
                        (c.timing_latency && !in->responses)))
     return -3;
@@ -829,7 +835,7 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
       u.chain.resize(D ? P : 0);
       for (auto& ch : u.chain) ch.configure(D);
       u.resp_free.assign(P, 0);
-      u.setup_free.assign(P, 0);
+      u.setup_free.assign(P, std::vector<int64_t>(c.setups, 0));
       u.in_valid.assign(P, 0);
       u.slot_ray.assign(c.slots, -1);
       for (auto* v : {&u.pop_at, &u.ready_at, &u.done_at}) v->assign(c.slots, Engine::kNever);

@@ -173,7 +173,7 @@ def test_instances_enter_their_blas_through_the_transform(shallow, fmt, any_hit)
     assert got.stats["ops"] == ref.stats["ops"]
     unit = got.stats["unit_rtl"]
     assert unit["traversal_mismatches"] == 0 and unit["stack_overflows"] > 0
-    assert unit["setup_busy_cycles"] > 0
+    assert unit["setups"] == 2 and unit["setup_busy_cycles"] > 0
     # the replay with the unit's costs charges the return marker's pop and the ray setup
     assert unit["replay_cycles"] == unit["cycles"]
     if not any_hit:

@@ -39,6 +39,7 @@ MAX_RAYS = 256                      # ray slots the unit can be built with (RAYS
 MIN_STACK_DEPTH, MAX_STACK_DEPTH = 2, 4096
 DEFAULT_STACK_DEPTH = 32
 DEFAULT_DIVIDERS, MAX_DIVIDERS = 2, 16   # binary32 dividers (rf_fp_div: one division at a time)
+DEFAULT_SETUPS, MAX_SETUPS = 2, 16       # ray setups (rf_rtu_setup: one ray entering an instance)
 DEFAULT_MEM_LATENCY = 20            # the fixed-latency memory behind the port, cycles
 FORMATS = ("box32", "q8")           # node images the unit reads (q8: with the decode stage)
 UNIT_BACKEND = "rtunit"
@@ -60,7 +61,7 @@ UNIT_STATS = (
     "max_stack_depth",          # most entries any ray's stack held
     "divider_busy_cycles",      # sum over cycles of the dividers holding a division
     "divider_full_cycles",      # cycles with every divider holding one
-    "setup_busy_cycles",        # cycles the ray setup holds a ray entering an instance
+    "setup_busy_cycles",        # sum over cycles of the ray setups holding a ray
 )
 _OK, _BUDGET, _BAD_ADDRESS, _BAD_ARGS, _BAD_GEOMETRY, _RAY_ERROR = 0, -1, -2, -3, -4, -5
 ADVANCE_CYCLES = 1 << 16            # cycles per harness call (progress and Ctrl-C between calls)
@@ -102,16 +103,17 @@ def unit_sources() -> list:
 
 
 def unit_params(datapath: dict, rays: int, stack_depth: int,
-                dividers: int = DEFAULT_DIVIDERS) -> dict:
-    """The unit's build parameters: RAYS, STACK_DEPTH, DIVIDERS and the datapath's
+                dividers: int = DEFAULT_DIVIDERS, setups: int = DEFAULT_SETUPS) -> dict:
+    """The unit's build parameters: RAYS, STACK_DEPTH, DIVIDERS, SETUPS and the datapath's
     (``rtl_params``). BackendError (one line) for a value the RTL cannot be built with."""
     for name, v, lo, hi in (("--rays-in-flight", rays, 1, MAX_RAYS),
                             ("--stack-depth", stack_depth, MIN_STACK_DEPTH, MAX_STACK_DEPTH),
-                            ("dividers", dividers, 1, MAX_DIVIDERS)):
+                            ("dividers", dividers, 1, MAX_DIVIDERS),
+                            ("setups", setups, 1, MAX_SETUPS)):
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
             raise BackendError(f"{name} {v!r}: the RT unit in RTL is built with {lo}..{hi}")
     return {"RAYS": int(rays), "STACK_DEPTH": int(stack_depth), "DIVIDERS": int(dividers),
-            **datapath}
+            "SETUPS": int(setups), **datapath}
 
 
 def _header_dir() -> str:
@@ -244,7 +246,8 @@ class RtUnitBackend(HarnessBackend):
     fixed-latency memory's cycles; used when ``memory`` is None), ``memory`` (a
     ``MEMORY_CONFIG`` dict, ``driver.rtunit.MemoryModel.config()``: the replay's hierarchy behind
     the port), ``max_outstanding`` (fetches the fixed-latency memory holds, 0: no limit),
-    ``dividers`` (DIVIDERS: binary32 dividers for the triangle hits' t), ``compare`` (``trace``
+    ``dividers`` (DIVIDERS: binary32 dividers for the triangle hits' t), ``setups`` (SETUPS:
+    ray setups for the rays entering instances), ``compare`` (``trace``
     also runs the Python traversal on this backend's datapath, checks every ray of the unit
     against it and replays its requests for the replay's cycles: ``driver.tracer``)."""
 
@@ -253,13 +256,15 @@ class RtUnitBackend(HarnessBackend):
     def __init__(self, rays_in_flight: int = 64, stack_depth: int = DEFAULT_STACK_DEPTH,
                  mem_latency: int = DEFAULT_MEM_LATENCY, memory: dict | None = None,
                  max_outstanding: int = 0, dividers: int = DEFAULT_DIVIDERS,
-                 compare: bool = True, **options):
+                 setups: int = DEFAULT_SETUPS, compare: bool = True, **options):
         super().__init__(**options)
         if not isinstance(mem_latency, int) or mem_latency < 1:
             raise BackendError(f"memory latency {mem_latency!r}: give a whole number of cycles "
                                ">= 1")
-        self.unit_params = unit_params(self.params, rays_in_flight, stack_depth, dividers)
+        self.unit_params = unit_params(self.params, rays_in_flight, stack_depth, dividers,
+                                       setups)
         self.dividers = int(dividers)
+        self.setups = int(setups)
         self.compare = bool(compare)
         self.rays_in_flight = int(rays_in_flight)
         self.stack_depth = int(stack_depth)

@@ -432,6 +432,7 @@ REPLAY_CONFIG = (
     "dividers",         # unit costs: binary32 dividers per pipeline
     "div_cycles",       # unit costs: a division's latency (rf_fp_div_pkg::DIV_CYCLES)
     "stack_depth",      # unit costs: entries per ray's stack (0: unbounded; more spill)
+    "setups",           # unit costs: ray setups (a ray entering an instance) per pipeline
 )
 
 # the memory hierarchy's configuration (rf_memory.h; l1_bytes < 0: no memory model)

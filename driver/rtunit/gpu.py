@@ -15,7 +15,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..backends import harness
-from ..backends.rtunit import DEFAULT_DIVIDERS, div_cycles
+from ..backends.rtunit import DEFAULT_DIVIDERS, DEFAULT_SETUPS, div_cycles
 from ..core.datapath import LATENCY
 from ..core.layout import INSTANCE_TYPE, MEMORY_LEVELS, NodeRef
 from . import order as ray_orders
@@ -51,7 +51,8 @@ class UnitCosts:
     one per ray of the frame; None: each wave's own, ``Wave.any_hit``), which end at their
     accepted triangle without a last pop.
     ``stack_depth`` > 0: each ray's stack holds that many entries, more spill to memory and are
-    read back when the stack empties (0: unbounded, none spill). Needs
+    read back when the stack empties (0: unbounded, none spill). ``setups``: the ray setups
+    (``div_cycles`` each) of rays entering instances after their TRANSFORM. Needs
     one pipeline and the per-ray pool's index order (the unit has no other scheduler)."""
 
     dividers: int = DEFAULT_DIVIDERS
@@ -59,11 +60,13 @@ class UnitCosts:
     fixed_latency: int = 0
     any_hit: object = None
     stack_depth: int = 0
+    setups: int = DEFAULT_SETUPS
 
     def config(self) -> dict:
         """Its ``REPLAY_CONFIG`` fields."""
         return {"unit_costs": 1, "dividers": self.dividers, "div_cycles": self.div_cycles,
-                "fixed_latency": self.fixed_latency, "stack_depth": self.stack_depth}
+                "fixed_latency": self.fixed_latency, "stack_depth": self.stack_depth,
+                "setups": self.setups}
 
 
 class ReplayMismatch(RuntimeError):
@@ -421,10 +424,11 @@ def _check_costs(costs: UnitCosts | None, pipelines: int, scheduled: bool) -> No
         raise ValueError("the RT unit in RTL's costs need one pipeline and the index ray order "
                          "(the unit has no other scheduler)")
     if (costs.dividers < 1 or costs.div_cycles < 1 or costs.fixed_latency < 0
-            or costs.stack_depth < 0):
+            or costs.stack_depth < 0 or costs.setups < 1):
         raise ValueError(f"unit costs: {costs.dividers} dividers of {costs.div_cycles} cycles, "
                          f"fixed latency {costs.fixed_latency}, stack depth "
-                         f"{costs.stack_depth}: give >= 1, >= 1, >= 0, >= 0")
+                         f"{costs.stack_depth}, {costs.setups} ray setups: give >= 1, >= 1, "
+                         ">= 0, >= 0, >= 1")
 
 
 def _treelet_schedule(records, treelets) -> ray_orders.TreeletSchedule:
