@@ -205,6 +205,22 @@ def test_an_instance_whose_transformed_ray_overflows_is_skipped(shallow, any_hit
     assert unit["traversal_mismatches"] == 0 and unit["replay_cycles"] == unit["cycles"]
 
 
+def test_instances_keep_no_cull_in_object_space(shallow):
+    # rays from inside the instances: only back faces lie ahead, hit with NO_CULL alone
+    rng = np.random.default_rng(1)
+    o = np.column_stack([rng.integers(0, 5, 64) * 0.8 - 1.6, np.zeros(64), np.zeros(64)])
+    o, d = o.astype(np.float32), rng.normal(size=(64, 3)).astype(np.float32)
+    bvh = build_two_level(small_instances(), "q8")
+    ref = trace(bvh, o, d, backend=backend("rtl", compressed=True, transform=True),
+                transform="datapath", double_sided=True)
+    got = trace(bvh, o, d, backend=shallow, double_sided=True)
+    culled = trace(bvh, o, d, backend=shallow)
+    assert ref.hit.all() and culled.hit.sum() < len(o) // 2
+    _same(ref, got)
+    assert got.instance.tolist() == ref.instance.tolist()
+    assert got.stats["unit_rtl"]["traversal_mismatches"] == 0
+
+
 def test_instances_need_the_transform(deep):
     bvh = build_two_level(small_instances())
     o, d = instance_rays(8)
