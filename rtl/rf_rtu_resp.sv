@@ -12,12 +12,12 @@
 //     response is taken; div_o pulses.
 //   * TRANSFORM (the ray enters an instance): the return marker RETURN_PTR is pushed on the
 //     slot's stack (below the BLAS, so that popping it brings the ray back to its world ray), and
-//     (o', d') go to the ray setup (rf_rtu_setup) with tag {instance, BLAS root, slot} read from
-//     the slot's instance node, in the cycle the response is taken; xf_o pulses.
+//     (o', d') go to the ray setups (rf_rtu_setups) with tag {instance, BLAS root, slot} read
+//     from the slot's instance node, in the cycle the response is taken; xf_o pulses.
 //
 // Contract: dp (valid/ready) is the datapath's output; dp_ready_o depends only on registers, on
-// div_ready_i and on xf_ready_i (no path from dp_valid_i or the response). node_i is the node buffer entry of
-// slot rd_o (combinational read port). push_o/push_slot_o/push_ptr_o drive the stack's push
+// div_ready_i and on xf_ready_i (no path from dp_valid_i or the response). node_i is the node
+// buffer entry of slot rd_o (combinational read port). push_o/push_slot_o/push_ptr_o drive the stack's push
 // port; next_o/div_o/xf_o name the slot in evt_slot_o (at most one of them per cycle).
 module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
   parameter int unsigned RAYS = 4,
