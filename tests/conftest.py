@@ -48,7 +48,7 @@ MODULE_MARKERS = {
 PREBUILD = Path(__file__).parent / "support" / "prebuild.py"
 _B = "baseline-unified"
 RTL_BUILDS = {
-    "test_rtl": (_B, _B + "@14", "pyverilator:" + _B),
+    "test_rtl": (_B, _B + "@10", _B + "@14", "pyverilator:" + _B),
     "test_rtl_extended": tuple(CONFIG_NAMES),
     "test_no_cull": tuple(CONFIG_NAMES),
     "test_q8_datapath": (_B, *(n + "-q8" for n in CONFIG_NAMES), f"pyverilator:{_B}-q8"),
