@@ -28,7 +28,7 @@ MODULE_MARKERS = {
     "bvh": ("test_bvh4", "test_q8_image", "test_geometry_corpus", "test_instances",
             "test_traversal"),
     "rtunit": ("test_rtunit", "test_gpu", "test_gpu_pin", "test_memory", "test_rayorder",
-               "test_replay_timing"),
+               "test_replay_timing", "test_rtunit_rtl", "test_rtunit_modules"),
     "scenes": ("test_scene", "test_lumibench_scenes", "test_camera_options"),
     "frame": ("test_render", "test_workloads", "test_tiles", "test_default_tiling",
               "test_double_sided", "test_lumibench_shaders", "test_check", "test_adjudicate"),
