@@ -39,7 +39,7 @@ from .core.configs import (ALL_CONFIGS, DESIGN_CONFIGS, FUSED_SUFFIX, Q8_SUFFIX,
                            config_name, parse_config)
 from .backends.build import MIN_LATENCY, rtl_params
 from .backends.rtunit import (DEFAULT_STACK_DEPTH, MAX_STACK_DEPTH, MIN_STACK_DEPTH,
-                              UNIT_BACKEND, UNIT_OPTIONS)
+                              UNIT_BACKEND, UNIT_OPTIONS, unit_params)
 from .bvh4 import build_scene
 from .core.datapath import LATENCY, default_latency
 from .instances import DATAPATH, TRANSFORMS
@@ -469,6 +469,7 @@ class DesignPoint:
                **({"fused": True} if self.fused else {}),
                **({"shared": True} if self.shared else {})}
         if name == UNIT_BACKEND:
+            unit_params({}, self.rays_in_flight, self.stack_depth)   # one line, before any work
             out.update(rays_in_flight=self.rays_in_flight, stack_depth=self.stack_depth,
                        memory=self.memory().config())
         return out
