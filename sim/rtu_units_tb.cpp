@@ -1,8 +1,7 @@
 // Test benches of the RT unit's modules alone, driven cycle by cycle from stimulus arrays that the
-// Python test writes (tests/test_rtunit_modules.py: its reference models and scoreboards); each
-// library is built with one top: RTU_TB_STACK: rf_rtu_stack; RTU_TB_UNITS: rtu_units_tb_top
-// (sim/rtu_units_tb_top.sv: fetch, scheduler, response processing, ray buffer, hit update side by
-// side); otherwise rf_rtu_divs.
+// Python test writes (tests/test_rtunit_modules.py: its reference models and scoreboards). The
+// model is rtu_units_tb_top (sim/rtu_units_tb_top.sv): the modules side by side, one build; each
+// function below drives one of them and leaves the others idle.
 //
 // The handshake ports follow one pattern: a driver offers the next transaction of its stream
 // after a random gap and holds it (valid and data stable) until it is taken; the consumer's ready
@@ -12,17 +11,9 @@
 #include <cstring>
 #include <vector>
 
-#include "verilated.h"
-#if defined(RTU_TB_STACK)
-#include "Vrf_rtu_stack.h"
-using Top = Vrf_rtu_stack;
-#elif defined(RTU_TB_UNITS)
 #include "Vrtu_units_tb_top.h"
+#include "verilated.h"
 using Top = Vrtu_units_tb_top;
-#else
-#include "Vrf_rtu_divs.h"
-using Top = Vrf_rtu_divs;
-#endif
 
 namespace {
 void tick(Top& t) {
@@ -41,7 +32,6 @@ void reset(Top& t) {
   t.eval();
 }
 
-#if defined(RTU_TB_UNITS)
 constexpr int kRays = 4;        // rtu_units_tb_top's RAYS
 constexpr int kNodeWords = 32;  // rf_rtu_pkg::NODE_W / 32
 constexpr int kRayWords = 14;   // ray_t: request words 1..14
@@ -54,13 +44,12 @@ uint32_t mem_word(uint64_t addr, uint32_t i) {
   return (static_cast<uint32_t>(addr) * 0x9E3779B1u + i * 0x85EBCA77u +
           static_cast<uint32_t>(addr >> 32) * 0xC2B2AE3Du) ^ (i << 16);
 }
-#endif
 }  // namespace
 
 #pragma GCC visibility push(default)
 extern "C" {
 
-#if defined(RTU_TB_STACK)
+// ---- rf_rtu_stack ----
 // Per cycle k: inputs ctl[k] (bit 0 clear, 1 push, 2 pop, 3 refill), clear/push/pop slots, the
 // pushed pointer; outputs sampled before the clock edge: top, empty | spilled << 1 | spill << 2,
 // the spilled pointer, and the depth output.
@@ -69,26 +58,26 @@ void stack_run(int64_t n, const uint8_t* ctl, const uint32_t* clear_slot, const 
                uint32_t* spill_ptr, uint32_t* depth) {
   VerilatedContext ctx;
   Top t{&ctx};
-  t.clear_i = t.push_i = t.pop_i = t.refill_i = 0;
+  t.k_clear_i = t.k_push_i = t.k_pop_i = t.k_refill_i = 0;
   reset(t);
   for (int64_t k = 0; k < n; k++) {
-    t.clear_i = ctl[k] & 1;
-    t.push_i = (ctl[k] >> 1) & 1;
-    t.pop_i = (ctl[k] >> 2) & 1;
-    t.refill_i = (ctl[k] >> 3) & 1;
-    t.clear_slot_i = clear_slot[k];
-    t.push_slot_i = push_slot[k];
-    t.push_ptr_i = push_ptr[k];
-    t.pop_slot_i = pop_slot[k];
+    t.k_clear_i = ctl[k] & 1;
+    t.k_push_i = (ctl[k] >> 1) & 1;
+    t.k_pop_i = (ctl[k] >> 2) & 1;
+    t.k_refill_i = (ctl[k] >> 3) & 1;
+    t.k_clear_slot_i = clear_slot[k];
+    t.k_push_slot_i = push_slot[k];
+    t.k_push_ptr_i = push_ptr[k];
+    t.k_pop_slot_i = pop_slot[k];
     t.eval();
-    top[k] = t.top_o;
-    flags[k] = t.empty_o | t.spilled_o << 1 | t.spill_o << 2;
-    spill_ptr[k] = t.spill_ptr_o;
-    depth[k] = t.depth_o;
+    top[k] = t.k_top_o;
+    flags[k] = t.k_empty_o | t.k_spilled_o << 1 | t.k_spill_o << 2;
+    spill_ptr[k] = t.k_spill_ptr_o;
+    depth[k] = t.k_depth_o;
     tick(t);
   }
 }
-#elif defined(RTU_TB_UNITS)
+
 // ---- rf_rtu_fetch ----
 // Driver (in): command j (slot, pointer, refill) after a gap (in_gap[k]) once no fetch of its
 // slot is outstanding (the caller's rule: one per slot), held until taken; in_cycle[j] records
@@ -127,12 +116,14 @@ void fetch_run(int64_t cycles, int64_t n, const uint8_t* slot, const uint32_t* p
     t.f_in_ptr_i = probe_ptr[k];
     t.eval();
     bad[k] = t.f_in_bad_o | t.f_in_bad_box32_o << 1;
-    const uint32_t r0 = t.f_in_ready_o, v0 = t.f_mem_req_valid_o;
+    const uint32_t r0 = t.f_in_ready_o, v0 = t.f_mem_req_valid_o, s0 = t.f_mem_req_size_o,
+                   g0 = t.f_mem_req_tag_o << 1 | t.f_mem_req_refill_o;
     const uint64_t a0 = t.f_mem_req_addr_o;
     t.f_in_valid_i = 1;
     t.f_mem_req_ready_i = 1;
     t.eval();
-    errs[0] += r0 != t.f_in_ready_o || v0 != t.f_mem_req_valid_o || a0 != t.f_mem_req_addr_o;
+    errs[0] += r0 != t.f_in_ready_o || v0 != t.f_mem_req_valid_o || a0 != t.f_mem_req_addr_o ||
+               s0 != t.f_mem_req_size_o || g0 != (t.f_mem_req_tag_o << 1 | t.f_mem_req_refill_o);
     // driver
     if (!offering && next < n && in_gap[k] && busy_cmd[slot[next]] < 0) offering = true;
     t.f_in_valid_i = offering;
@@ -398,7 +389,8 @@ void hit_run(int64_t cycles, const uint8_t* valid, const uint32_t* t_bits, const
     hit_prim[k] = t.h_hit_prim_o;
   }
 }
-#else
+
+// ---- rf_rtu_divs ----
 // Per cycle k: in_valid[k] (offer the next division a[i], b[i], tag i while any is left) and
 // out_ready[k]; each result taken is written to q[tag] and its cycle to taken[tag]. Returns the
 // results taken.
@@ -406,23 +398,23 @@ int64_t divs_run(int64_t cycles, const uint8_t* in_valid, const uint8_t* out_rea
                  const uint32_t* a, const uint32_t* b, uint32_t* q, int64_t* taken) {
   VerilatedContext ctx;
   Top t{&ctx};
-  t.in_valid_i = t.out_ready_i = 0;
+  t.d_in_valid_i = t.d_out_ready_i = 0;
   reset(t);
   int64_t next = 0, got = 0;
   for (int64_t k = 0; k < cycles; k++) {
-    t.in_valid_i = next < n && in_valid[k];
-    if (t.in_valid_i) {
-      t.a_i = a[next];
-      t.b_i = b[next];
-      t.tag_i = static_cast<uint32_t>(next);
+    t.d_in_valid_i = next < n && in_valid[k];
+    if (t.d_in_valid_i) {
+      t.d_a_i = a[next];
+      t.d_b_i = b[next];
+      t.d_tag_i = static_cast<uint32_t>(next);
     }
-    t.out_ready_i = out_ready[k];
+    t.d_out_ready_i = out_ready[k];
     t.eval();
-    if (t.in_valid_i && t.in_ready_o) next++;
-    if (t.out_valid_o && t.out_ready_i) {
-      const uint32_t tag = t.tag_o;
+    if (t.d_in_valid_i && t.d_in_ready_o) next++;
+    if (t.d_out_valid_o && t.d_out_ready_i) {
+      const uint32_t tag = t.d_tag_o;
       if (tag < n) {
-        q[tag] = t.q_o;
+        q[tag] = t.d_q_o;
         taken[tag] = k;
       }
       got++;
@@ -431,7 +423,6 @@ int64_t divs_run(int64_t cycles, const uint8_t* in_valid, const uint8_t* out_rea
   }
   return got;
 }
-#endif
 
 }  // extern "C"
 #pragma GCC visibility pop

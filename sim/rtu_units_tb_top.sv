@@ -1,19 +1,51 @@
-// rtu_units_tb_top: five RT-unit modules side by side, each alone (no wire between them), for
-// their tests under random back-pressure (tests/test_rtunit_modules.py, driven cycle by cycle by
-// sim/rtu_units_tb.cpp built with RTU_TB_UNITS): node fetch (rf_rtu_fetch, with the q8 decode
-// stage; a second one without it, of which only in_bad_o is read), scheduler (rf_rtu_sched),
-// response processing (rf_rtu_resp), ray buffer (rf_rtu_ray_buffer) and hit update (rf_rtu_hit).
-// Each module's ports are the wrapper's under a prefix (f_, s_, r_, b_, h_); the struct ports
-// (req_t, rsp_t, kind_e) are flat bit vectors here, word 0 at the low end.
+// rtu_units_tb_top: the RT unit's modules side by side, each alone (no wire between them), for
+// their tests (tests/test_rtunit_modules.py, driven cycle by cycle by sim/rtu_units_tb.cpp; one
+// build for all): traversal stacks (rf_rtu_stack), divider pool (rf_rtu_divs), node fetch
+// (rf_rtu_fetch, with the q8 decode stage; a second one without it, of which only in_bad_o is
+// read), scheduler (rf_rtu_sched), response processing (rf_rtu_resp), ray buffer
+// (rf_rtu_ray_buffer) and hit update (rf_rtu_hit). Each module's ports are the wrapper's under a
+// prefix (k_, d_, f_, s_, r_, b_, h_); the struct ports (req_t, rsp_t, kind_e) are flat bit
+// vectors here, word 0 at the low end. The testbench assumes RAYS = 4.
 module rtu_units_tb_top import rf_pkg::*; import rf_rtu_pkg::*; #(
-  parameter int unsigned RAYS = 4,
+  parameter int unsigned RAYS        = 4,
+  parameter int unsigned STACK_DEPTH = 3,
+  parameter int unsigned DIVIDERS    = 3,
+  localparam int unsigned DIV_TAG_W  = 16,
   localparam int unsigned SLOT_W = RAYS > 1 ? $clog2(RAYS) : 1,
+  localparam int unsigned DEPTH_W = $clog2(STACK_DEPTH + 1),
+  localparam int unsigned DIV_W   = $clog2(DIVIDERS + 1),
   localparam int unsigned REQ_W  = $bits(req_t),
   localparam int unsigned RSP_W  = $bits(rsp_t),
   localparam int unsigned RAY_W  = $bits(ray_t)
 ) (
   input  logic               clk_i,
   input  logic               rst_ni,
+  // ---- rf_rtu_stack ----
+  input  logic               k_clear_i,
+  input  logic [SLOT_W-1:0]  k_clear_slot_i,
+  input  logic               k_push_i,
+  input  logic [SLOT_W-1:0]  k_push_slot_i,
+  input  logic [31:0]        k_push_ptr_i,
+  input  logic [SLOT_W-1:0]  k_pop_slot_i,
+  input  logic               k_pop_i,
+  input  logic               k_refill_i,
+  output logic [31:0]        k_top_o,
+  output logic               k_empty_o,
+  output logic               k_spilled_o,
+  output logic               k_spill_o,
+  output logic [31:0]        k_spill_ptr_o,
+  output logic [DEPTH_W-1:0] k_depth_o,
+  // ---- rf_rtu_divs ----
+  input  logic               d_in_valid_i,
+  output logic               d_in_ready_o,
+  input  logic [31:0]        d_a_i,
+  input  logic [31:0]        d_b_i,
+  input  logic [DIV_TAG_W-1:0] d_tag_i,
+  output logic               d_out_valid_o,
+  input  logic               d_out_ready_i,
+  output logic [31:0]        d_q_o,
+  output logic [DIV_TAG_W-1:0] d_tag_o,
+  output logic [DIV_W-1:0]   d_busy_o,
   // ---- rf_rtu_fetch (Q8) ----
   input  logic               f_in_valid_i,
   output logic               f_in_ready_o,
@@ -118,6 +150,20 @@ module rtu_units_tb_top import rf_pkg::*; import rf_rtu_pkg::*; #(
   output logic               h_next_o,
   output logic               h_finish_o
 );
+
+  rf_rtu_stack #(.RAYS(RAYS), .STACK_DEPTH(STACK_DEPTH)) u_stack (
+    .clk_i, .rst_ni,
+    .clear_i(k_clear_i), .clear_slot_i(k_clear_slot_i), .push_i(k_push_i),
+    .push_slot_i(k_push_slot_i), .push_ptr_i(k_push_ptr_i), .pop_slot_i(k_pop_slot_i),
+    .pop_i(k_pop_i), .refill_i(k_refill_i), .top_o(k_top_o), .empty_o(k_empty_o),
+    .spilled_o(k_spilled_o), .spill_o(k_spill_o), .spill_ptr_o(k_spill_ptr_o),
+    .depth_o(k_depth_o));
+
+  rf_rtu_divs #(.DIVIDERS(DIVIDERS), .TAG_W(DIV_TAG_W)) u_divs (
+    .clk_i, .rst_ni,
+    .in_valid_i(d_in_valid_i), .in_ready_o(d_in_ready_o), .a_i(d_a_i), .b_i(d_b_i),
+    .tag_i(d_tag_i), .out_valid_o(d_out_valid_o), .out_ready_i(d_out_ready_i), .q_o(d_q_o),
+    .tag_o(d_tag_o), .busy_o(d_busy_o));
 
   rf_rtu_fetch #(.RAYS(RAYS), .Q8(1'b1)) u_fetch (
     .clk_i, .rst_ni,

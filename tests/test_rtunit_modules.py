@@ -24,14 +24,19 @@ from driver.core import layout, wire
 U8, U32, I64 = (np.ctypeslib.ndpointer(t, flags="C") for t in (np.uint8, np.uint32, np.int64))
 
 
-def _lib(top: str, define: str, params: dict) -> ctypes.CDLL:
-    path = verilate.build_library(top, unit_sources(), [SIM_DIR / "rtu_units_tb.cpp"],
-                                  params=params, name=f"{top}_tb",
-                                  verilator_args=["-CFLAGS", f"-D{define}"])
-    return ctypes.CDLL(str(path))
+RAYS, DEPTH, DIVIDERS = 4, 3, 3     # the testbench's slots (it assumes 4), stack depth, dividers
+_LIB = []
 
 
-RAYS, DEPTH = 4, 3
+def _lib() -> ctypes.CDLL:
+    """The modules side by side (sim/rtu_units_tb_top.sv) with the testbench: one build."""
+    if not _LIB:
+        path = verilate.build_library(
+            "rtu_units_tb_top", [*unit_sources(), SIM_DIR / "rtu_units_tb_top.sv"],
+            [SIM_DIR / "rtu_units_tb.cpp"], name="rtu_units_tb",
+            params={"RAYS": RAYS, "STACK_DEPTH": DEPTH, "DIVIDERS": DIVIDERS})
+        _LIB.append(ctypes.CDLL(str(path)))
+    return _LIB[0]
 
 
 class StackRef:
@@ -46,7 +51,7 @@ class StackRef:
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_stack_against_its_reference(seed):
-    lib = _lib("rf_rtu_stack", "RTU_TB_STACK", {"RAYS": RAYS, "STACK_DEPTH": DEPTH})
+    lib = _lib()
     rng = np.random.default_rng(seed)
     n = 4000
     ref = StackRef()
@@ -107,7 +112,7 @@ def test_stack_against_its_reference(seed):
 
 @pytest.mark.parametrize("valid,ready", [(0.9, 0.9), (0.5, 0.3), (1.0, 0.1), (0.2, 1.0)])
 def test_divider_pool_under_back_pressure(valid, ready):
-    lib = _lib("rf_rtu_divs", "RTU_TB_DIVS", {"DIVIDERS": 3, "TAG_W": 16})
+    lib = _lib()
     rng = np.random.default_rng(int(10 * valid + 100 * ready))
     n = 600
     special = np.array([0, 0x80000000, 0x7F800000, 0xFF800000, 0x7FC00000, 1, 0x807FFFFF,
@@ -133,27 +138,14 @@ def test_divider_pool_under_back_pressure(valid, ready):
 
 
 # ---- fetch, scheduler, response processing, ray buffer, hit update ----------------------------
-# sim/rtu_units_tb_top.sv puts the five side by side (RAYS = 4, one build); each test drives one
-# of them through sim/rtu_units_tb.cpp: a driver per input stream (random gaps, each transaction
-# held until taken), random ready on every output with a ready input, a monitor recording every
-# transaction that moves; here a reference model of the module's header contract predicts them
-# and a scoreboard compares: every transaction, none lost, none extra, within the cycles run.
+# Each test drives one module through sim/rtu_units_tb.cpp: a driver per input stream (random
+# gaps, each transaction held until taken), random ready on every output with a ready input, a
+# monitor recording every transaction that moves; here a reference model of the module's header
+# contract predicts them and a scoreboard compares: every transaction, none lost, none extra,
+# within the cycles run.
 
-UNIT_RAYS = 4                           # rtu_units_tb_top's RAYS (and the testbench's kRays)
 NODE_WORDS = 32                         # rf_rtu_pkg::NODE_W / 32: one memory response beat
-I8 = np.ctypeslib.ndpointer(np.int8, flags="C")
 U64 = np.ctypeslib.ndpointer(np.uint64, flags="C")
-_UNITS = []
-
-
-def _units() -> ctypes.CDLL:
-    if not _UNITS:
-        path = verilate.build_library(
-            "rtu_units_tb_top", [*unit_sources(), SIM_DIR / "rtu_units_tb_top.sv"],
-            [SIM_DIR / "rtu_units_tb.cpp"], name="rtu_units_tb",
-            verilator_args=["-CFLAGS", "-DRTU_TB_UNITS"])
-        _UNITS.append(ctypes.CDLL(str(path)))
-    return _UNITS[0]
 
 
 def _kinds() -> dict:
@@ -183,7 +175,7 @@ def mem_words(addr) -> np.ndarray:
 
 def rr_pick(mask: int, start: int) -> int | None:
     """The first set bit of mask at or after start, round robin over the slots."""
-    for i in [*range(start, UNIT_RAYS), *range(start)]:
+    for i in [*range(start, RAYS), *range(start)]:
         if mask >> i & 1:
             return i
     return None
@@ -191,11 +183,11 @@ def rr_pick(mask: int, start: int) -> int | None:
 
 @pytest.mark.parametrize("seed,valid,ready", [(1, 0.9, 0.9), (2, 0.5, 0.3), (3, 1.0, 0.1)])
 def test_fetch_under_back_pressure(seed, valid, ready):
-    lib = _units()
+    lib = _lib()
     rng = np.random.default_rng(seed)
     n, cycles = 400, 12000
     readable = [layout.BOX_TYPE, layout.TRI_TYPE, layout.PAIR_TYPE, layout.Q8_TYPE]
-    slot = rng.integers(0, UNIT_RAYS, n).astype(np.uint8)
+    slot = rng.integers(0, RAYS, n).astype(np.uint8)
     refill = (rng.random(n) < 0.2).astype(np.uint8)
     typ = rng.choice(readable, n)
     ptr = (_rand_u32(rng, n) & np.uint32(~7 & 0xFFFFFFFF)) | typ.astype(np.uint32)
@@ -206,7 +198,7 @@ def test_fetch_under_back_pressure(seed, valid, ready):
     rsp_go = (rng.random(cycles) < 0.5).astype(np.uint8)
     rsp_pick = _rand_u32(rng, cycles)
     probe = _rand_u32(rng, cycles)
-    rd = rng.integers(0, UNIT_RAYS, (2, cycles)).astype(np.uint8)
+    rd = rng.integers(0, RAYS, (2, cycles)).astype(np.uint8)
     in_cycle, req_cycle, rsp_cycle, rsp_req, done_cycle = (np.full(n, -1, np.int64)
                                                            for _ in range(5))
     req_addr = np.zeros(n, np.uint64)
@@ -275,11 +267,11 @@ def _ray_rows(rng, n) -> np.ndarray:
 
 @pytest.mark.parametrize("seed,valid,ready", [(4, 0.9, 0.9), (5, 0.5, 0.3), (6, 1.0, 0.1)])
 def test_scheduler_under_back_pressure(seed, valid, ready):
-    lib = _units()
+    lib = _lib()
     kinds = _kinds()
     rng = np.random.default_rng(seed)
     n, cycles = 500, 12000
-    job_slot = rng.integers(0, UNIT_RAYS, n).astype(np.uint8)
+    job_slot = rng.integers(0, RAYS, n).astype(np.uint8)
     job_kind = rng.choice(list(kinds.values()), n).astype(np.uint8)
     rays = _ray_rows(rng, n)
     job_ray = np.ascontiguousarray(wire.REQUEST.pack(rays)[:, 1:wire.RAY_WORDS])
@@ -302,7 +294,7 @@ def test_scheduler_under_back_pressure(seed, valid, ready):
     assert issued == n and (load_cycle >= 0).all() and errs[0] == 0
     # reference, cycle by cycle on the monitored ready bits: round robin from the slot after the
     # last one issued; a request moves when dp_ready_i is high
-    held = [-1] * UNIT_RAYS
+    held = [-1] * RAYS
     nxt, e, jobs, want = 0, 0, [], []
     for k in range(cycles):
         while e < n and load_cycle[e] == k:
@@ -316,7 +308,7 @@ def test_scheduler_under_back_pressure(seed, valid, ready):
         if dp_ready[k]:
             want.append((k, pick))
             jobs.append(held[pick])
-            nxt = (pick + 1) % UNIT_RAYS
+            nxt = (pick + 1) % RAYS
     assert list(zip(issue_cycle.tolist(), issue_slot.tolist())) == want
     assert ((pick_log >> 7 == 1) & (dp_ready == 0)).sum() > 50      # requests held back
     jobs = np.array(jobs)
@@ -348,16 +340,16 @@ def test_scheduler_under_back_pressure(seed, valid, ready):
 
 def _pair_slots(rng, n) -> np.ndarray:
     """n slots, none the same as the one before (a slot has one response in flight)."""
-    s = rng.integers(0, UNIT_RAYS, n)
+    s = rng.integers(0, RAYS, n)
     for i in range(1, n):
         if s[i] == s[i - 1]:
-            s[i] = (s[i] + rng.integers(1, UNIT_RAYS)) % UNIT_RAYS
+            s[i] = (s[i] + rng.integers(1, RAYS)) % RAYS
     return s.astype(np.uint8)
 
 
 @pytest.mark.parametrize("seed,valid,ready", [(7, 0.9, 0.9), (8, 0.5, 0.3), (9, 1.0, 0.1)])
 def test_response_processing_under_back_pressure(seed, valid, ready):
-    lib = _units()
+    lib = _lib()
     kinds = _kinds()
     rng = np.random.default_rng(seed)
     n, cycles = 600, 12000
@@ -426,16 +418,16 @@ def test_response_processing_under_back_pressure(seed, valid, ready):
 
 
 def test_ray_buffer_against_its_reference():
-    lib = _units()
+    lib = _lib()
     rng = np.random.default_rng(10)
     cycles = 4000
     ctl = ((rng.random((cycles, 6)) < [0.15, 0.3, 0.3, 0.3, 0.2, 0.2]) << np.arange(6)).sum(1)
     ctl = ctl.astype(np.uint8)
-    slots = rng.integers(0, UNIT_RAYS, (cycles, 8))
+    slots = rng.integers(0, RAYS, (cycles, 8))
     load = (ctl & 1) == 1
     for port in range(1, 5):            # a slot being loaded gets no other write this cycle
         same = load & (slots[:, port] == slots[:, 0])
-        slots[same, port] = (slots[same, 0] + rng.integers(1, UNIT_RAYS, same.sum())) % UNIT_RAYS
+        slots[same, port] = (slots[same, 0] + rng.integers(1, RAYS, same.sum())) % RAYS
     slots = np.ascontiguousarray(slots, np.uint8)
     ray = _rand_u32(rng, (cycles, wire.RAY_WORDS - 1))
     ids, hit_t, hit_prim = (_rand_u32(rng, cycles) for _ in range(3))
@@ -448,7 +440,7 @@ def test_ray_buffer_against_its_reference():
     # load: the ray, its id and any-hit flag, nearest = its extent, no hit, counters zero
     extent = wire.REQUEST.field["extent"].word - 1
     st = [dict(ray=None, id=None, any=0, near=0, prim=layout.NO_CHILD, hit=0, box=0, tri=0,
-               ovf=0, rst=0) for _ in range(UNIT_RAYS)]
+               ovf=0, rst=0) for _ in range(RAYS)]
     checked = 0
     for k in range(cycles):
         a, b, c = (st[int(s)] for s in slots[k, 5:8])
@@ -481,16 +473,16 @@ F32_SPECIAL = np.array([0, 0x80000000, 0x7F800000, 0xFF800000, 0x7FC00000, 0xFFC
 
 
 def test_hit_update_against_its_reference():
-    lib = _units()
+    lib = _lib()
     rng = np.random.default_rng(11)
     cycles = 6000
     valid = (rng.random(cycles) < 0.7).astype(np.uint8)
-    slot = rng.integers(0, UNIT_RAYS, cycles)
+    slot = rng.integers(0, RAYS, cycles)
     prim = _rand_u32(rng, cycles)
     tag = np.ascontiguousarray(prim.astype(np.uint64) << np.uint64(2) | slot.astype(np.uint64))
-    nearest = np.where(rng.random((cycles, UNIT_RAYS)) < 0.2,
-                       rng.choice(F32_SPECIAL, (cycles, UNIT_RAYS)),
-                       (rng.random((cycles, UNIT_RAYS)) * 100).astype(np.float32).view(np.uint32))
+    nearest = np.where(rng.random((cycles, RAYS)) < 0.2,
+                       rng.choice(F32_SPECIAL, (cycles, RAYS)),
+                       (rng.random((cycles, RAYS)) * 100).astype(np.float32).view(np.uint32))
     nearest = np.ascontiguousarray(nearest, np.uint32)
     near = nearest[np.arange(cycles), slot]
     # t: the ray's nearest t (a tie), one ulp either side, a special value, or anything
@@ -499,7 +491,7 @@ def test_hit_update_against_its_reference():
                   [near, near + np.uint32(1), near - np.uint32(1),
                    rng.choice(F32_SPECIAL, cycles)],
                   (rng.random(cycles) * 100).astype(np.float32).view(np.uint32)).astype(np.uint32)
-    any_hit = rng.integers(0, 2, (cycles, UNIT_RAYS)).astype(np.uint8)
+    any_hit = rng.integers(0, 2, (cycles, RAYS)).astype(np.uint8)
     out = np.zeros(cycles, np.uint8)
     hit_t, hit_prim = np.zeros(cycles, np.uint32), np.zeros(cycles, np.uint32)
     lib.hit_run.argtypes = [ctypes.c_int64, U8, U32, U64, U32, U8, U8, U32, U32]
