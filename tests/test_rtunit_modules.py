@@ -16,26 +16,22 @@ import re
 import numpy as np
 import pytest
 
-from driver.backends import verilate
-from driver.backends.build import RTL_DIR, SIM_DIR
-from driver.backends.rtunit import unit_sources
+from driver.backends.build import RTL_DIR
 from driver.core import layout, wire
+from support.prebuild import RTU_UNITS_PARAMS, rtu_units_library
 
 U8, U32, I64 = (np.ctypeslib.ndpointer(t, flags="C") for t in (np.uint8, np.uint32, np.int64))
 
 
-RAYS, DEPTH, DIVIDERS = 4, 3, 3     # the testbench's slots (it assumes 4), stack depth, dividers
+RAYS, DEPTH = RTU_UNITS_PARAMS["RAYS"], RTU_UNITS_PARAMS["STACK_DEPTH"]   # the testbench's
 _LIB = []
 
 
 def _lib() -> ctypes.CDLL:
-    """The modules side by side (sim/rtu_units_tb_top.sv) with the testbench: one build."""
+    """The modules side by side (sim/rtu_units_tb_top.sv) with the testbench: one build (made
+    before the first test by the suite's prebuild, tests/conftest.py)."""
     if not _LIB:
-        path = verilate.build_library(
-            "rtu_units_tb_top", [*unit_sources(), SIM_DIR / "rtu_units_tb_top.sv"],
-            [SIM_DIR / "rtu_units_tb.cpp"], name="rtu_units_tb",
-            params={"RAYS": RAYS, "STACK_DEPTH": DEPTH, "DIVIDERS": DIVIDERS})
-        _LIB.append(ctypes.CDLL(str(path)))
+        _LIB.append(ctypes.CDLL(str(rtu_units_library())))
     return _LIB[0]
 
 
