@@ -259,7 +259,7 @@ def test_the_unit_stops_on_a_corrupt_image_the_host_let_through(deep, monkeypatc
     assert "\n" not in str(info.value)
 
 
-def test_a_unit_the_rtl_cannot_build_is_refused_before_any_work(in_tmp, error_line, monkeypatch):
+def test_what_the_unit_cannot_build_or_read_is_refused_before_any_work(in_tmp, error_line, monkeypatch):
     from driver.backends import harness, rtunit
     from driver.design import DesignPoint
 
@@ -275,6 +275,12 @@ def test_a_unit_the_rtl_cannot_build_is_refused_before_any_work(in_tmp, error_li
         assert main(["render", "bunny", "--size", "8", "--backend", "rtunit", "--rays-in-flight",
                      "300", "--workers", workers, "--no-progress"]) == 2
         assert "--rays-in-flight 300: the RT unit in RTL is built with 1..256" in error_line()
+        # a node format it cannot read
+        for fmt, message in (("q8g", "reads box32, q8 images, not q8g"),
+                             ("q8", "q8 nodes with the datapath's decode stage")):
+            assert main(["render", "bunny", "--size", "8", "--backend", "rtunit", "--bvh-format",
+                         fmt, "--workers", workers, "--no-progress"]) == 2
+            assert message in error_line()
     assert not list(in_tmp.iterdir())                                # nothing written
 
 
@@ -322,6 +328,10 @@ def test_a_lumibench_suite_through_the_unit(tmp_path, in_tmp, error_line, monkey
     assert main(argv) == 2 and "--flatten" in error_line()       # LumiBench's are instanced
     assert not (in_tmp / "out").exists()
     assert main([*argv, "--ideal-replay", "--flatten"]) == 2 and "itself" in error_line()
+    for bad, message in ((["--rays-in-flight", "300"], "built with 1..256"),
+                         (["--bvh-format", "q8g"], "not q8g")):
+        assert main([*argv, "--flatten", *bad]) == 2 and message in error_line()
+        assert not (in_tmp / "out").exists()
     assert main([*argv, "--flatten"]) == 0
     doc = json.loads((in_tmp / "out" / "BATH_AO.json").read_text())
     unit = doc["unit_rtl"]
