@@ -20,8 +20,8 @@ from driver.backends.build import RTL_DIR
 from driver.core import layout, wire
 from support.prebuild import RTU_UNITS_PARAMS, rtu_units_library
 
-U8, U32, I64 = (np.ctypeslib.ndpointer(t, flags="C") for t in (np.uint8, np.uint32, np.int64))
-
+U8, U32, I64, U64 = (np.ctypeslib.ndpointer(t, flags="C")
+                     for t in (np.uint8, np.uint32, np.int64, np.uint64))
 
 RAYS, DEPTH = RTU_UNITS_PARAMS["RAYS"], RTU_UNITS_PARAMS["STACK_DEPTH"]   # the testbench's
 _LIB = []
@@ -140,8 +140,7 @@ def test_divider_pool_under_back_pressure(valid, ready):
 # contract predicts them and a scoreboard compares: every transaction, none lost, none extra,
 # within the cycles run.
 
-NODE_WORDS = 32                         # rf_rtu_pkg::NODE_W / 32: one memory response beat
-U64 = np.ctypeslib.ndpointer(np.uint64, flags="C")
+NODE_WORDS = layout.BOX_BYTES // 4      # rf_rtu_pkg::NODE_W / 32: the widest node, one beat
 
 
 def _kinds() -> dict:
