@@ -73,8 +73,6 @@ def run(args) -> int:
             pixels, point.workload, point.spp, args.tile, args.workers, args.scheduler))
 
     distributed = args.workers > 1 or args.scheduler
-    if args.backend == UNIT_BACKEND:    # a node format the unit cannot read, before any build
-        check_format(point.bvh_format, point.compressed, False)
     # a backend that cannot be built fails first (tiles on workers and threads make their own
     # from its name)
     if not distributed:

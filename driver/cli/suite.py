@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..backends.rtunit import UNIT_BACKEND, check_format
+from ..backends.rtunit import UNIT_BACKEND
 from ..scenes.lumibench import PREFIX as LUMIBENCH_PREFIX
 from ..scenes.camera import MAX_SIZE
 from ..core.words import cell, plural
@@ -68,7 +68,6 @@ def run(args) -> int:
     check_runs(runs, base)
     if args.backend == UNIT_BACKEND:    # what the unit cannot be built with or read, at once
         base.backend_options(UNIT_BACKEND)
-        check_format(base.bvh_format, base.compressed, False)
     if args.backend == UNIT_BACKEND and not base.flatten and any(
             r.scene.startswith(LUMIBENCH_PREFIX) for r in runs):
         raise SuiteError(f"--backend {UNIT_BACKEND}: the RT unit in RTL does not trace "
