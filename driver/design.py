@@ -39,7 +39,7 @@ from .core.configs import (ALL_CONFIGS, DESIGN_CONFIGS, FUSED_SUFFIX, Q8_SUFFIX,
                            config_name, parse_config)
 from .backends.build import MIN_LATENCY, rtl_params
 from .backends.rtunit import (DEFAULT_STACK_DEPTH, MAX_STACK_DEPTH, MIN_STACK_DEPTH,
-                              UNIT_BACKEND, UNIT_OPTIONS)
+                              UNIT_BACKEND, UNIT_OPTIONS, check_format, unit_params)
 from .bvh4 import build_scene
 from .core.datapath import LATENCY, MAX_LATENCY, default_latency, least_latency
 from .instances import DATAPATH, TRANSFORMS
@@ -462,12 +462,16 @@ class DesignPoint:
 
     def backend_options(self, name: str | None = None) -> dict:
         """Keyword options of ``driver.backends.backend`` for this datapath; for the RT unit in
-        RTL (``name`` "rtunit") also its ray slots, stack depth and memory hierarchy."""
+        RTL (``name`` "rtunit") also its ray slots, stack depth and memory hierarchy, after
+        refusing (ValueError, one line) a ray count, stack depth or node format it cannot take."""
         out = {"extended": self.extended, "disjoint": self.disjoint, "latency": self.latency,
                "compressed": self.compressed, "transform": self.transform_op,
                **({"fused": True} if self.fused else {}),
                **({"shared": True} if self.shared else {})}
         if name == UNIT_BACKEND:
+            # what the unit cannot be built with or read: one line, before any work
+            unit_params({}, self.rays_in_flight, self.stack_depth)
+            check_format(self.bvh_format, self.compressed, False)
             out.update(rays_in_flight=self.rays_in_flight, stack_depth=self.stack_depth,
                        memory=self.memory().config())
         return out
