@@ -122,7 +122,8 @@ def synthesize_unit(params: dict[str, int], srcs=None, cache: bool = True,
         row["memory_bits"] = int(words.get(name, {}).get("num_memory_bits", 0))
         row["module"] = name.lstrip("\\").split("$", 1)[0]
         modules[inst or "top"] = row
-    res = {"modules": modules, "design_cells": design, "synth_s": round(time.perf_counter() - t0, 1),
+    res = {"modules": modules, "design_cells": design,
+           "synth_s": round(time.perf_counter() - t0, 1),
            "yosys": area.yosys_version("wheel"), "script": text.splitlines()[1:], "key": key,
            "rtl_sha": area.rtl_sha(srcs)}
     area.write_atomic(entry, json.dumps(res, indent=1) + "\n")
@@ -176,7 +177,7 @@ def report(config: str = BASELINE, rays: int = BY_NAME["rays_in_flight"].default
     total["ge"] = round(total["ge"], 1)
     for r in rows.values():
         r["ge_share"] = round(r["ge"] / total["ge"], 4) if total["ge"] else None
-    return {"top": TOP, "config": config, "rays": rays, "stack_depth": stack_depth,
+    return {"top": TOP, "config": config, "rays_in_flight": rays, "stack_depth": stack_depth,
             "dividers": dividers, "datapath_source": dp_source,
             "yosys": unit["yosys"], "flow": "read_slang --keep-hierarchy; blackbox rayflex; "
             "proc; stat (memories); synth -flatten -noshare, the top's instances kept; stat",
@@ -188,8 +189,8 @@ def report(config: str = BASELINE, rays: int = BY_NAME["rays_in_flight"].default
 def markdown(rep: dict) -> str:
     """The report as a markdown table, a row per module and the total."""
     what = {name: text for name, text in INSTANCES.values()} | {CONTROL[0]: CONTROL[1]}
-    head = (f"RT unit {rep['config']}, RAYS {rep['rays']}, STACK_DEPTH {rep['stack_depth']}, "
-            f"DIVIDERS {rep['dividers']}; datapath: {rep['datapath_source']}\n\n")
+    head = (f"RT unit {rep['config']}, RAYS {rep['rays_in_flight']}, "
+            f"STACK_DEPTH {rep['stack_depth']}, DIVIDERS {rep['dividers']}; datapath: {rep['datapath_source']}\n\n")
     rows = ["| module | instance | cells | flip-flops | logic | est. GE | GE share | "
             "RAM bits (SRAM) | what |", "|---|---|---:|---:|---:|---:|---:|---:|---|"]
     for name, r in [*rep["modules"].items(), ("total", {**rep["total"], "instance": "",
