@@ -628,13 +628,35 @@ def elaborate(extended: int = 0, disjoint: int = 0, timeout: float | None = 300,
               sources=None, compressed: int = 0, transform: int = 0, fused: int = 0,
               shared: int = 0) -> dict:
     """Elaborate one configuration without synthesis (seconds, not minutes): the word-level cell
-    counts by type after ``read_slang`` (e.g. how many ``$mul`` / ``$add`` operators)."""
+    counts by type after ``read_slang`` (e.g. how many ``$mul`` / ``$add`` operators); cached."""
     sources = sources if sources is not None else snapshot()
     params = build_params(extended, disjoint, compressed, transform, fused, shared)
     g = " ".join(f"-G {k}={v}" for k, v in params.items())
     script = (f"read_slang -j 1 --top {TOP} {g} {' '.join(n for n, _ in sources)}\n"
               f"hierarchy -top {TOP}\ntee -q -o stat.json stat -json\n")
-    return _cells_by_type(sources, script, timeout)
+    entry = _script_entry("elab", script, sources)
+    if entry.is_file():
+        return json.loads(entry.read_text())
+    res = _cells_by_type(sources, script, timeout)
+    _write_entry(entry, res)
+    return res
+
+
+def _script_entry(kind: str, script: str, sources) -> Path:
+    """The cache file of a Yosys ``script``'s result on ``sources`` (keyed by both, this flow's
+    recipe and the wheel's Yosys version)."""
+    h = hashlib.sha256(f"{kind}{RECIPE}\n{yosys_version()}\n{script}".encode())
+    for n, b in sources:
+        h.update(n.encode() + b"\0" + b)
+    return cache_root() / f"{kind}-{h.hexdigest()[:24]}.json"
+
+
+def _write_entry(entry: Path, res: dict) -> None:
+    """Write a cache entry whole or not at all (concurrent runs may race)."""
+    entry.parent.mkdir(parents=True, exist_ok=True)
+    tmp = entry.with_name(f".{entry.name}.{os.getpid()}")
+    tmp.write_text(json.dumps(res) + "\n")
+    os.replace(tmp, entry)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -655,18 +677,14 @@ def flip_flops(name: str, sources=None, timeout: float | None = None) -> dict:
     script = (f"read_slang -j 1 --top {TOP} {g} {' '.join(n for n, _ in sources)}\n"
               f"hierarchy -top {TOP}\n" + "\n".join(FF_FLOW.split(" (")[0].split("; "))
               + "\ntee -q -o stat.json stat -json\n")
-    h = hashlib.sha256(f"ff{RECIPE}\n{yosys_version()}\n{script}".encode())
-    for n, b in sources:
-        h.update(n.encode() + b"\0" + b)
-    entry = cache_root() / f"ff-{h.hexdigest()[:24]}.json"
+    entry = _script_entry("ff", script, sources)
     if entry.is_file():
         return json.loads(entry.read_text())
     t0 = time.perf_counter()
     by_type = _cells_by_type(sources, script, timeout)
     res = {"config": name, "flip_flops": sum(v for k, v in by_type.items() if "DFF" in k),
            "seconds": round(time.perf_counter() - t0, 1), "rtl_sha": rtl_sha(sources)}
-    entry.parent.mkdir(parents=True, exist_ok=True)
-    entry.write_text(json.dumps(res) + "\n")
+    _write_entry(entry, res)
     return res
 
 

@@ -55,7 +55,6 @@ def embree_closest_front(triangles, origins, dirs):
     if n == 0 or len(tri) == 0:
         return t.astype(np.float32), prim
     scene = _embree_scene(triangles if isinstance(triangles, np.ndarray) else tri)
-    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]).astype(np.float64)
 
     rows = np.arange(n)                   # rays still being cast
     base = np.zeros(n)                    # t (units of d) of the current cast origin
@@ -70,7 +69,9 @@ def embree_closest_front(triangles, origins, dirs):
         tt = base[rows] + r["tfar"].astype(np.float64)
         hit = p >= 0
         front = np.zeros(len(rows), bool)
-        front[hit] = np.einsum("ij,ij->i", d[rows[hit]].astype(np.float64), normal[p[hit]]) < 0
+        hp = tri[p[hit]]                  # the faces hit: their normals (float32 cross product)
+        normal = np.cross(hp[:, 1] - hp[:, 0], hp[:, 2] - hp[:, 0]).astype(np.float64)
+        front[hit] = np.einsum("ij,ij->i", d[rows[hit]].astype(np.float64), normal) < 0
         done = ~hit | front
         t[rows[done & hit]] = tt[done & hit]
         prim[rows[done & hit]] = p[done & hit]

@@ -62,6 +62,11 @@ def check_transform(transform: str) -> str:
     return transform
 
 
+# Instances.flatten transforms each instance's triangles as one block when instances average at
+# least this many triangles (a loop over instances), else gathers them all at once
+FLATTEN_BLOCK = 64
+
+
 def affine(m) -> np.ndarray:
     """(..., 4, 4) float64 homogeneous matrices of (..., 3, 4) transforms."""
     m = np.asarray(m, np.float64)
@@ -144,8 +149,20 @@ class Instances:
         return out
 
     def flatten(self) -> np.ndarray:
-        """(triangles_total, 3, 3) float32: every instance's triangles in world space."""
-        return self.world_triangles(np.arange(self.triangles_total))
+        """(triangles_total, 3, 3) float32: every instance's triangles in world space, as
+        ``world_triangles`` gives them (the same arithmetic: float64, rounded once)."""
+        total = self.triangles_total
+        if len(self.mesh) * FLATTEN_BLOCK > total:   # many small instances: one gather
+            return self.world_triangles(np.arange(total))
+        out = np.empty((total, 3, 3), np.float32)    # few large ones: a block per instance
+        m = self.object_to_world.astype(np.float64)
+        wide: dict[int, np.ndarray] = {}
+        for k, j in enumerate(self.mesh.tolist()):
+            if j not in wide:
+                wide[j] = self.meshes[j].astype(np.float64)
+            b = self.prim_base[k]
+            out[b:b + len(wide[j])] = np.einsum("rc,svc->svr", m[k, :, :3], wide[j]) + m[k, :, 3]
+        return out
 
 
 def world_boxes(instances: Instances, local_boxes: np.ndarray) -> np.ndarray:

@@ -40,43 +40,38 @@ MODULE_MARKERS = {
 }
 
 
-# The harness builds ("rtl" backend) each test module needs, by configuration name
-# (driver/core/configs.py; "@N": latency N): the suite builds those of the collected tests before
-# the first test, on every core, each without profile guidance (RAYFLEX_PGO=0 above). A build
-# missing here is made by the first test that needs it; one listed but not needed costs its time.
+# The Verilator builds each test module needs (tests/support/prebuild.py names them: a
+# configuration name for the "rtl" harness, "pgo:", "pyverilator:", "signals:" and "rtunit:" for
+# the others): the suite builds those of the collected tests before the first test, on every
+# core, the harnesses without profile guidance (RAYFLEX_PGO=0 above). A build missing here is
+# made by the first test that needs it; one listed but not needed costs its time.
+PREBUILD = Path(__file__).parent / "support" / "prebuild.py"
 _B = "baseline-unified"
 RTL_BUILDS = {
-    "test_rtl": (_B, _B + "@14"),
+    "test_rtl": (_B, _B + "@14", "pyverilator:" + _B),
     "test_rtl_extended": tuple(CONFIG_NAMES),
     "test_no_cull": tuple(CONFIG_NAMES),
-    "test_q8_datapath": (_B, *(n + "-q8" for n in CONFIG_NAMES)),
-    "test_transform": (_B, _B + "-xf", "extended-disjoint-q8-xf"),
+    "test_q8_datapath": (_B, *(n + "-q8" for n in CONFIG_NAMES), f"pyverilator:{_B}-q8"),
+    "test_transform": (_B, _B + "-xf", "extended-disjoint-q8-xf", f"pyverilator:{_B}-xf"),
     "test_knn": ("extended-unified",),
     "test_instances": (_B, _B + "-q8", _B + "-xf"),
     "test_q8_image": (_B, _B + "-q8"),
     "test_sweep": (_B, "baseline-disjoint"),
     "test_fused": (_B + "-fused", "extended-unified-fused", "extended-disjoint-fused"),
     "test_shared": ("extended-unified-shared", "extended-disjoint-q8-shared"),
-    **{m: (_B,) for m in ("test_rtunit", "test_gpu", "test_gpu_pin", "test_memory",
+    "test_pgo": ("pgo:" + _B,),
+    "test_power": ("signals:" + _B, "signals:baseline-disjoint"),
+    "test_power_ops": (f"signals:{_B}-q8",),
+    "test_gpu": (_B, "signals:" + _B),
+    "test_bench": (_B, "pyverilator:" + _B),
+    "test_rtunit_rtl": (_B, f"rtunit:{_B}:8:32", f"rtunit:{_B}-q8:8:4"),
+    "test_readme_questions": (_B, _B + "-xf"),
+    **{m: (_B,) for m in ("test_rtunit", "test_gpu_pin", "test_memory",
                           "test_rayorder", "test_replay_timing", "test_traversal",
-                          "test_workloads", "test_cli", "test_bench", "test_export",
+                          "test_workloads", "test_cli", "test_export",
                           "test_double_sided", "test_tiles", "test_statistics_doc",
-                          "test_readme_questions", "test_api")},
+                          "test_api")},
 }
-
-
-def rtl_build_params(name: str) -> dict:
-    """The harness build parameters of a ``RTL_BUILDS`` entry."""
-    from driver.backends.build import rtl_params
-    config, _, latency = name.partition("@")
-    p = parse_config(config)
-    return rtl_params(p["EXTENDED"], p["DISJOINT"], int(latency) if latency else None,
-                      p.get("COMPRESSED", 0), p.get("TRANSFORM", 0), p.get("FUSED", 0),
-                      p.get("SHARED", 0))
-
-
-_BUILD = ("import json, sys; from driver.backends import build; "
-          "build.build_harness(json.loads(sys.argv[1]))")
 
 
 def pytest_collection_finish(session):
@@ -85,13 +80,13 @@ def pytest_collection_finish(session):
     if session.config.option.collectonly or not session.items:
         return
     names = sorted({n for item in session.items
-                    for n in RTL_BUILDS.get(Path(str(item.fspath)).stem, ())})
+                    for n in RTL_BUILDS.get(Path(str(item.fspath)).stem, ())},
+                   key=lambda n: (":" not in n, n))    # the longer, non-harness builds first
     if names:
         _prebuild(names, session.config.pluginmanager.get_plugin("terminalreporter"))
 
 
 def _prebuild(names: list[str], term) -> None:
-    import json
     import signal
     import subprocess
     import sys
@@ -106,7 +101,7 @@ def _prebuild(names: list[str], term) -> None:
             while waiting and len(running) < jobs:
                 name = waiting.pop(0)
                 running[name] = (time.monotonic(), subprocess.Popen(
-                    [sys.executable, "-c", _BUILD, json.dumps(rtl_build_params(name))],
+                    [sys.executable, str(PREBUILD), name],
                     stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                     start_new_session=True))
             for name, (start, proc) in list(running.items()):

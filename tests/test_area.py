@@ -163,6 +163,12 @@ def test_parameters_reach_the_design():
     assert add[1, 0] > add[0, 0] and add[1, 1] > add[0, 1]
 
 
+def test_elaboration_is_cached(monkeypatch):
+    first = area.elaborate(0, 0)
+    monkeypatch.setattr(area, "_cells_by_type", lambda *a: pytest.fail("elaborated again"))
+    assert area.elaborate(0, 0) == first and first["$mul"] > 0
+
+
 def test_synthesize_piece_and_cache(cache):
     r = area.synthesize(top="rf_fp_add")
     assert not r["cached"] and r["top"] == "rf_fp_add"

@@ -8,6 +8,7 @@ import re
 from pathlib import Path
 
 import conftest
+from support import prebuild
 
 ROOT = Path(__file__).resolve().parent.parent
 MAX_LINES, MAX_LINES_NUMBA, MAX_PARAMS = 80, 90, 12
@@ -59,8 +60,10 @@ def test_marker_table_names_test_modules_and_declared_markers(pytestconfig):
             else set(table)
         assert named <= modules, sorted(named - modules)
     for builds in conftest.RTL_BUILDS.values():
-        for name in builds:
-            assert conftest.rtl_build_params(name)["LATENCY"] >= 11
+        for spec in builds:                  # every spec names a kind and a configuration
+            kind, config, extra = prebuild.split(spec)
+            assert prebuild.harness_params(config)["LATENCY"] >= 11
+            assert all(int(n) > 0 for n in extra)
 
 
 def _constant_asserts(path: Path) -> list[str]:

@@ -24,14 +24,17 @@ from driver.scenes.scene import load_scene
 
 
 def dump(path, scene, w, h, workload="primary", **options):
+    """Export ``scene`` (a name or a loaded scene) to ``path``; (requests, the file read back)."""
     sink = ex.NpzSink(path)
-    n = ex.export(load_scene(scene), w, h, [sink], workload, options, tile=16)
+    scene = load_scene(scene) if isinstance(scene, str) else scene
+    n = ex.export(scene, w, h, [sink], workload, options, tile=16)
     return n, ex.load(path)
 
 
 @pytest.mark.parametrize("scene, workload", [("sphere", "primary"), ("cornell", "path"),
                                              ("bunny_grid", "ao")])
 def test_dump_round_trip_golden_and_rtl(tmp_path, scene, workload):
+    scene = load_scene(scene)                   # once: bunny_grid's instances take seconds
     n, d = dump(tmp_path / "d.npz", scene, 24, 20, workload)
     req, rsp = d["requests"], d["responses"]
     assert req.dtype == REQUEST_DTYPE and rsp.dtype == RESPONSE_DTYPE

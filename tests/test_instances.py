@@ -6,6 +6,7 @@ import trimesh
 from PIL import Image
 
 from driver.bvh.instances import _box_node, build_two_level, tlas_format
+from driver import instances as instances_mod
 from driver.instances import world_boxes
 from driver.bvh4 import box_operands
 from driver.instances import Instances, affine, transform_ray
@@ -355,6 +356,18 @@ def test_instances_reject_bad_input():
 
 
 # ---- hits ---------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("count, size", [(5, 300), (400, 3)])   # a block each; one gather
+def test_flatten_is_world_triangles_bit_for_bit(count, size):
+    rng = np.random.default_rng(count)
+    meshes = [rng.normal(size=(size + j, 3, 3)).astype(np.float32) * 10 for j in range(3)]
+    m = rng.normal(size=(count, 3, 4)) * [1, 1, 1, 50]
+    inst = Instances(meshes, rng.integers(0, 3, count), m.astype(np.float32))
+    flat = inst.flatten()
+    assert (len(inst.mesh) * instances_mod.FLATTEN_BLOCK > len(flat)) == (size < 64)
+    ref = inst.world_triangles(np.arange(inst.triangles_total))
+    assert flat.dtype == np.float32 and flat.tobytes() == ref.tobytes()
+
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_instanced_hits_equal_flattened(seed):

@@ -146,7 +146,7 @@ def bunny_grid(bunny, count: int = 21) -> Built:
     identity = np.eye(3, 4)[None]
     inst = Instances(grid.meshes + [floor.astype(np.float32)], np.append(grid.mesh, 1),
                      np.concatenate([grid.object_to_world, identity]))
-    tris = inst.flatten()
+    tris = np.concatenate([bunnies, inst.meshes[-1]])    # inst.flatten(): the floor's is identity
     albedo = np.full((len(tris), 3), (0.80, 0.76, 0.70))
     albedo[-2:] = (0.55, 0.60, 0.65)
     return Built(tris, albedo, np.zeros((len(tris), 3)), [light], _framing(bunnies), False,

@@ -1,0 +1,62 @@
+"""The Verilator builds the suite makes before its first test (``RTL_BUILDS`` in
+tests/conftest.py), named by one string each:
+
+  ``CONFIG``                    the "rtl" harness of configuration CONFIG (driver/core/configs.py;
+                                ``CONFIG@N``: latency N), without profile guidance
+  ``pgo:CONFIG``                the same with profile guidance (the build `rayflex` makes)
+  ``pyverilator:CONFIG``        the pyverilator model of CONFIG
+  ``signals:CONFIG``            the power flow's traced model of CONFIG (``rayflex power``)
+  ``rtunit:CONFIG:RAYS:DEPTH``  the RT unit in RTL with RAYS slots and stacks of DEPTH entries
+
+``build(spec)`` makes (or finds in the cache) exactly the library the tests then load, through
+the same functions they use, so a spec that drifts from what a test asks for only costs time."""
+
+from __future__ import annotations
+
+import os
+
+from driver.core.configs import parse_config
+
+KINDS = ("harness", "pgo", "pyverilator", "signals", "rtunit")
+
+
+def split(spec: str) -> tuple[str, str, list[str]]:
+    """``(kind, configuration, extra fields)`` of a build spec; ValueError if malformed."""
+    head, sep, rest = spec.partition(":")
+    kind, fields = (head, rest.split(":")) if sep else ("harness", [spec])
+    if kind not in KINDS or len(fields) != (3 if kind == "rtunit" else 1):
+        raise ValueError(f"build spec {spec!r}: see tests/support/prebuild.py")
+    return kind, fields[0], fields[1:]
+
+
+def harness_params(config: str) -> dict:
+    """The "rtl" harness build parameters of ``CONFIG`` or ``CONFIG@N``."""
+    from driver.backends.build import rtl_params
+    name, _, latency = config.partition("@")
+    p = parse_config(name)
+    return rtl_params(p["EXTENDED"], p["DISJOINT"], int(latency) if latency else None,
+                      p.get("COMPRESSED", 0), p.get("TRANSFORM", 0), p.get("FUSED", 0),
+                      p.get("SHARED", 0))
+
+
+def build(spec: str) -> None:
+    kind, config, extra = split(spec)
+    params = harness_params(config)
+    if kind in ("harness", "pgo"):
+        from driver.backends import build as harness_build
+        os.environ["RAYFLEX_PGO"] = "1" if kind == "pgo" else "0"
+        harness_build.build_harness(params)
+    elif kind == "pyverilator":
+        from driver.backends.pyverilator import _build_pyverilator
+        _build_pyverilator(params)
+    elif kind == "signals":
+        from driver.power import activity, run
+        activity.SignalModel.library(run.params_of(config.partition("@")[0]))
+    else:
+        from driver.backends.rtunit import unit_library, unit_params
+        unit_library(unit_params(params, int(extra[0]), int(extra[1])))
+
+
+if __name__ == "__main__":
+    import sys
+    build(sys.argv[1])
