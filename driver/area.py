@@ -49,6 +49,7 @@ from .backends.build import source_names
 from .core import resources
 from .core.configs import (ALL_CONFIGS, BASELINE, CONFIGS, FUSED_SUFFIX, SHARED_SUFFIX,
                            XF_CONFIGS, build_params, config_name, parse_config)
+from .core.datapath import MAX_LATENCY, least_latency
 from .core.resources import checkout, data_dir
 
 ROOT = checkout() or resources.ROOT      # the checkout (whose git history --rev reads)
@@ -61,12 +62,22 @@ RECIPE = 2             # bump when the script below changes meaning
 
 def config_params(name: str) -> dict[str, int]:
     """The top-level parameters of a configuration name (``CONFIGS``, or one of them + ``-q8``,
-    either + ``-xf``, any of those + ``-fused``: ``driver.core.configs.parse_config``)."""
-    params = parse_config(name)
+    either + ``-xf``, any of those + ``-fused``: ``driver.core.configs.parse_config``), optionally
+    + ``@N``: a pipeline of N stages (LATENCY; e.g. ``baseline-unified@10``, the balanced
+    pipeline of docs/timing.md)."""
+    base, at, latency = name.partition("@")
+    params = parse_config(base)
     if params is None:
         raise AreaError(f"unknown configuration {name!r}; choose from "
                         f"{', '.join(ALL_CONFIGS + XF_CONFIGS)} (an extended one also "
-                        f"NAME{SHARED_SUFFIX}, each also NAME{FUSED_SUFFIX})")
+                        f"NAME{SHARED_SUFFIX}, each also NAME{FUSED_SUFFIX}; any NAME@N: N "
+                        "stages)")
+    if at:
+        least = least_latency(bool(params.get("COMPRESSED")))
+        if not latency.isdigit() or not least <= int(latency) <= MAX_LATENCY:
+            raise AreaError(f"configuration {name!r}: @N takes {least} to {MAX_LATENCY} "
+                            "pipeline stages")
+        params["LATENCY"] = int(latency)
     return params
 
 

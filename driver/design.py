@@ -39,9 +39,9 @@ from .core.configs import (ALL_CONFIGS, DESIGN_CONFIGS, FUSED_SUFFIX, Q8_SUFFIX,
                            config_name, parse_config)
 from .backends.build import MIN_LATENCY, rtl_params
 from .backends.rtunit import (DEFAULT_STACK_DEPTH, MAX_STACK_DEPTH, MIN_STACK_DEPTH,
-                              UNIT_BACKEND, UNIT_OPTIONS)
+                              UNIT_BACKEND, UNIT_OPTIONS, check_format, unit_params)
 from .bvh4 import build_scene
-from .core.datapath import LATENCY, default_latency
+from .core.datapath import LATENCY, MAX_LATENCY, default_latency, least_latency
 from .instances import DATAPATH, TRANSFORMS
 from .core.layout import DEFAULT_FORMAT, IMAGE_FORMATS
 from .rtunit import MemoryModel
@@ -59,7 +59,6 @@ GROUPS = {
               "(docs/rtunit.md)",
     "workload": "workload (docs/workloads.md)",
 }
-MAX_LATENCY = 64
 MAX_PIPELINES = 64
 MAX_CLOCK_MHZ = 100_000.0
 # the clock when neither --clock-mhz nor the timing cache gives one: the paper's 1 GHz
@@ -161,8 +160,8 @@ class Option:
 
     def describe_default(self) -> str:
         if self.name == "latency":
-            return (f"the configuration's least: {LATENCY}, {default_latency(True)} with the "
-                    "q8 decode")
+            return (f"the paper's {LATENCY}, {default_latency(True)} with the q8 decode; "
+                    f"{least_latency()} puts S9 beside the output format, docs/timing.md")
         if self.name == "size":
             return "the scene's size, 256 for the built-in scenes"
         if self.name == "clock_mhz":
@@ -184,8 +183,8 @@ OPTIONS: tuple[Option, ...] = (
            "rounded once, build parameter FUSED (other results); docs/tradeoffs.md",
            _choice(tuple(DESIGN_CONFIGS)), "datapath", "NAME", tuple(DESIGN_CONFIGS)),
     Option("latency", "--latency", int, None,
-           f"pipeline stages of the datapath, up to {MAX_LATENCY}, at least the "
-           "configuration's own", _latency, "datapath"),
+           f"pipeline stages of the datapath, {MIN_LATENCY} to {MAX_LATENCY} (one more with "
+           "the q8 decode)", _latency, "datapath"),
     Option("transform", "--transform", str, "driver",
            "where an instanced scene's ray transform runs: "
            + "; ".join(f"{k}: {v}" for k, v in TRANSFORMS.items())
@@ -382,9 +381,9 @@ class DesignPoint:
     def __post_init__(self):
         for o in OPTIONS:
             o.check(o.flag, getattr(self, o.name))
-        least = default_latency(self.compressed)
-        if self.latency is None:
-            object.__setattr__(self, "latency", least)      # the configuration's own
+        least = least_latency(self.compressed)
+        if self.latency is None:                            # the configuration's own
+            object.__setattr__(self, "latency", default_latency(self.compressed))
         elif self.latency < least:
             raise ValueError(f"--latency must be at least {least} for --config {self.config}, "
                              f"got {self.latency}")
@@ -463,12 +462,16 @@ class DesignPoint:
 
     def backend_options(self, name: str | None = None) -> dict:
         """Keyword options of ``driver.backends.backend`` for this datapath; for the RT unit in
-        RTL (``name`` "rtunit") also its ray slots, stack depth and memory hierarchy."""
+        RTL (``name`` "rtunit") also its ray slots, stack depth and memory hierarchy, after
+        refusing (ValueError, one line) a ray count, stack depth or node format it cannot take."""
         out = {"extended": self.extended, "disjoint": self.disjoint, "latency": self.latency,
                "compressed": self.compressed, "transform": self.transform_op,
                **({"fused": True} if self.fused else {}),
                **({"shared": True} if self.shared else {})}
         if name == UNIT_BACKEND:
+            # what the unit cannot be built with or read: one line, before any work
+            unit_params({}, self.rays_in_flight, self.stack_depth)
+            check_format(self.bvh_format, self.compressed, False)
             out.update(rays_in_flight=self.rays_in_flight, stack_depth=self.stack_depth,
                        memory=self.memory().config())
         return out

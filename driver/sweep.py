@@ -129,7 +129,7 @@ def energy_tables(points, progress: bool = True) -> dict:
         with phase(f"energy per op of {cfg} (signals)", progress):
             r = power.run_level("signals", [cfg], latency=lat, ops=ops)
         entry["signals"] = _per_op(r["configs"][cfg], UNITS["signals"])
-        if lat == power.least_latency(cfg) and power.netlist_cached(cfg):
+        if lat == power.own_latency(cfg) and power.netlist_cached(cfg):
             with phase(f"energy per op of {cfg} (gates)", progress):
                 r = power.run_level("gates", [cfg], ops=ops)
             entry["gates"] = _per_op(r["configs"][cfg], UNITS["gates"])

@@ -4,6 +4,10 @@
 //   req_i -> [R_in] -> S1 origin_sub -> [R1] -> S2 scale_mul -> [R2] -> ... -> S9 -> [R9]
 //         -> (LATENCY - 11 pass-through registers) -> output format -> [R_out] -> rsp_o
 //
+// LATENCY 10 (the balanced pipeline, docs/timing.md): S9, the sort's last layer, and the output
+// format share the last stage (no R9), a few ns of logic against the ~17 ns of S1..S8:
+//   ... -> S8 -> [R8] -> S9 -> output format -> [R_out] -> rsp_o
+//
 // With COMPRESSED, the q8 decode stage S0 and its register (a req_t) come first:
 //   req_i -> [R_in] -> S0 q8_decode -> [R_dec] -> S1 origin_sub -> ...
 // one more cycle of latency (LATENCY >= 12), the same throughput.
@@ -20,7 +24,7 @@
 // S5..S8, two adders more in S8), FUSED rounds the box slab value (bound - origin) * inv and the
 // triangle's edge functions once each (docs/tradeoffs.md: in S1 and S5), SHARED carries an
 // extended beat's vectors on the box and triangle words of the request registers (R_in, R_dec;
-// rf_pkg::req_share), LATENCY >= 11 + COMPRESSED (the paper's design has 11).
+// rf_pkg::req_share), LATENCY >= 10 + COMPRESSED (the paper's design has 11).
 module rayflex import rf_pkg::*; #(
   parameter bit          EXTENDED   = 1'b0,
   parameter bit          DISJOINT   = 1'b0,
@@ -43,9 +47,10 @@ module rayflex import rf_pkg::*; #(
   localparam int unsigned NUM_STAGES = 9;                    // compute stages S1..S9
   localparam int unsigned NUM_DECODE = COMPRESSED ? 1 : 0;   // the decode register R_dec
   localparam int unsigned NUM_REGS   = LATENCY - 2 - NUM_DECODE;   // stage_t registers R1..
+  localparam bit          MERGED_OUT = NUM_REGS < NUM_STAGES;   // no R9: S9 feeds the output
 
-  if (LATENCY < 11 + NUM_DECODE) begin : g_bad_latency
-    $error("rayflex: LATENCY must be >= 11 (+1 with COMPRESSED: the decode stage)");
+  if (LATENCY < 10 + NUM_DECODE) begin : g_bad_latency
+    $error("rayflex: LATENCY must be >= 10 (+1 with COMPRESSED: the decode stage)");
   end
 
   // ---- input register ----
@@ -101,7 +106,11 @@ module rayflex import rf_pkg::*; #(
     .clk_i, .rst_ni, .fire_i(d_valid[6] & d_ready[6]), .st_i(q_st[5]), .st_o(d_st[6]));
   rf_s08_sort_tnum #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .TRANSFORM(TRANSFORM)) u_s8 (
     .st_i(q_st[6]), .st_o(d_st[7]));
-  rf_s09_sort_trihit u_s9 (.st_i(q_st[7]), .st_o(d_st[8]));
+  stage_t s9_st;                 // into R9, or with MERGED_OUT straight into the output format
+  rf_s09_sort_trihit u_s9 (.st_i(q_st[7]), .st_o(s9_st));
+  if (!MERGED_OUT) begin : g_r9
+    assign d_st[NUM_STAGES-1] = s9_st;
+  end
 
   // ---- pass-through stages (pad the latency) ----
   for (genvar k = NUM_STAGES; k < NUM_REGS; k++) begin : g_pass
@@ -124,7 +133,9 @@ module rayflex import rf_pkg::*; #(
 
   // ---- output stage ----
   rsp_t rsp_d;
-  rf_output #(.EXTENDED(EXTENDED), .TRANSFORM(TRANSFORM)) u_out (.st_i(q_st[NUM_REGS-1]), .rsp_o(rsp_d));
+  stage_t out_st;
+  assign out_st = MERGED_OUT ? s9_st : q_st[NUM_REGS-1];
+  rf_output #(.EXTENDED(EXTENDED), .TRANSFORM(TRANSFORM)) u_out (.st_i(out_st), .rsp_o(rsp_d));
   rf_skid #(.T(rsp_t)) u_out_reg (
     .clk_i, .rst_ni,
     .valid_i(q_valid[NUM_REGS-1]), .ready_o(q_ready[NUM_REGS-1]), .data_i(rsp_d),

@@ -11,10 +11,11 @@
 //     triangle's primitive id: a triangle node's, or prim[k] of a pair leaf), in the cycle the
 //     response is taken; div_o pulses.
 //
-// Contract: dp (valid/ready) is the datapath's output; dp_ready_o depends only on registers and
-// on div_ready_i (no path from dp_valid_i or the response). node_i is the node buffer entry of
-// slot rd_o (combinational read port). push_o/push_slot_o/push_ptr_o drive the stack's push
-// port; next_o/div_o name the slot in evt_slot_o (at most one of them per cycle).
+// Contract: dp (valid/ready) is the datapath's output; dp_ready_o depends only on registers, on
+// div_ready_i and on the response's opcode and tri_hit (a triangle hit waits for the divider; no
+// path from dp_valid_i; the datapath's response is a register output). node_i is the node
+// buffer entry of slot rd_o (combinational read port). push_o/push_slot_o/push_ptr_o drive the
+// stack's push port; next_o/div_o name the slot in evt_slot_o (at most one of them per cycle).
 module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
   parameter int unsigned RAYS = 4,
   localparam int unsigned SLOT_W = RAYS > 1 ? $clog2(RAYS) : 1

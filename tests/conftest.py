@@ -28,7 +28,7 @@ MODULE_MARKERS = {
     "bvh": ("test_bvh4", "test_q8_image", "test_geometry_corpus", "test_instances",
             "test_traversal"),
     "rtunit": ("test_rtunit", "test_gpu", "test_gpu_pin", "test_memory", "test_rayorder",
-               "test_replay_timing"),
+               "test_replay_timing", "test_rtunit_rtl", "test_rtunit_modules"),
     "scenes": ("test_scene", "test_lumibench_scenes", "test_camera_options"),
     "frame": ("test_render", "test_workloads", "test_tiles", "test_default_tiling",
               "test_double_sided", "test_lumibench_shaders", "test_check", "test_adjudicate"),
@@ -41,14 +41,14 @@ MODULE_MARKERS = {
 
 
 # The Verilator builds each test module needs (tests/support/prebuild.py names them: a
-# configuration name for the "rtl" harness, "pgo:", "pyverilator:", "signals:" and "rtunit:" for
-# the others): the suite builds those of the collected tests before the first test, on every
+# configuration name for the "rtl" harness, "pgo:", "pyverilator:", "signals:", "rtunit:" and
+# "tb:" for the others): the suite builds those of the collected tests before the first test, on every
 # core, the harnesses without profile guidance (RAYFLEX_PGO=0 above). A build missing here is
 # made by the first test that needs it; one listed but not needed costs its time.
 PREBUILD = Path(__file__).parent / "support" / "prebuild.py"
 _B = "baseline-unified"
 RTL_BUILDS = {
-    "test_rtl": (_B, _B + "@14", "pyverilator:" + _B),
+    "test_rtl": (_B, _B + "@10", _B + "@14", "pyverilator:" + _B),
     "test_rtl_extended": tuple(CONFIG_NAMES),
     "test_no_cull": tuple(CONFIG_NAMES),
     "test_q8_datapath": (_B, *(n + "-q8" for n in CONFIG_NAMES), f"pyverilator:{_B}-q8"),
@@ -65,6 +65,7 @@ RTL_BUILDS = {
     "test_gpu": (_B, "signals:" + _B),
     "test_bench": (_B, "pyverilator:" + _B),
     "test_rtunit_rtl": (_B, f"rtunit:{_B}:8:32", f"rtunit:{_B}-q8:8:4"),
+    "test_rtunit_modules": ("tb:rtu_units",),
     "test_readme_questions": (_B, _B + "-xf"),
     **{m: (_B,) for m in ("test_rtunit", "test_gpu_pin", "test_memory",
                           "test_rayorder", "test_replay_timing", "test_traversal",

@@ -133,8 +133,8 @@ def test_reserved_flag_bits_stay_reserved():
 def test_latency_one_more_and_checked():
     assert default_latency(False) == driver.LATENCY == 11 and default_latency(True) == 12
     assert driver.backend("golden", compressed=True).latency == 12
-    with pytest.raises(BackendError, match="at least 12"):
-        driver.backend("rtl", compressed=True, latency=11)
+    with pytest.raises(BackendError, match="at least 11"):
+        driver.backend("rtl", compressed=True, latency=10)
 
 
 # ----------------------------------------------------------------------------------------------

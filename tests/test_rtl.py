@@ -104,7 +104,7 @@ def test_rtl_and_pyverilator_agree(gaps, stalls, seed):
 # ----------------------------------------------------------------------------------------------
 # cycles: N back-to-back requests with the output always ready take N + LATENCY
 
-@pytest.mark.parametrize("latency", [11, 14])
+@pytest.mark.parametrize("latency", [10, 11, 14])
 def test_cycles_n_plus_latency(latency):
     req = mixed_stream(30, 700, 600)
     be = driver.backend("rtl", latency=latency)
@@ -139,16 +139,18 @@ def test_cycles_under_pressure_add_up():
 
 
 @pytest.mark.parametrize("gaps,stalls", [(0, 0), (0.5, 0.5)], ids=["steady", "gaps0.5-stalls0.5"])
-def test_latency_14_bit_exact(gaps, stalls):
-    tb = Testbench("rtl", latency=14, gaps=gaps, stalls=stalls, seed=14)
-    tb.run(mixed_stream(14, 3000, 2000))
+@pytest.mark.parametrize("latency", [10, 14])
+def test_other_latency_bit_exact(latency, gaps, stalls):
+    """The balanced pipeline (10: S9 beside the output format) and pass-through stages (14)."""
+    tb = Testbench("rtl", latency=latency, gaps=gaps, stalls=stalls, seed=latency)
+    tb.run(mixed_stream(latency, 3000, 2000))
 
 
 # ----------------------------------------------------------------------------------------------
 # errors
 
-@pytest.mark.parametrize("latency", [10, 5, 0, -1])
-def test_latency_below_11_is_a_backend_error(latency, tmp_path, monkeypatch):
+@pytest.mark.parametrize("latency", [9, 5, 0, -1])
+def test_latency_below_10_is_a_backend_error(latency, tmp_path, monkeypatch):
     monkeypatch.setenv("RAYFLEX_CACHE", str(tmp_path))   # a refused build leaves nothing behind
     with pytest.raises(driver.BackendError, match="(?i)latency") as e:
         driver.backend("rtl", latency=latency)

@@ -17,10 +17,11 @@ from driver.backends.verilate import BuildError
     (False, False, 11, False), (False, True, 11, False), (True, False, 11, False),
     (True, True, 11, False), (False, False, 14, False), (True, True, 14, False),
     (False, False, 12, True), (False, True, 12, True), (True, False, 12, True),
-    (True, True, 14, True)],
+    (True, True, 14, True), (False, False, 10, False), (True, True, 11, True)],
     ids=["baseline-unified", "baseline-disjoint", "extended-unified", "extended-disjoint",
          "baseline-latency14", "extended-disjoint-latency14", "baseline-unified-q8",
-         "baseline-disjoint-q8", "extended-unified-q8", "extended-disjoint-q8-latency14"])
+         "baseline-disjoint-q8", "extended-unified-q8", "extended-disjoint-q8-latency14",
+         "baseline-latency10", "extended-disjoint-q8-latency11"])
 def test_lint_clean(extended, disjoint, latency, compressed):
     assert rtl.lint(extended, disjoint, latency, compressed) == ""
 
@@ -38,19 +39,19 @@ def test_lint_clean_fused(extended, disjoint, compressed, transform):
         assert rtl.lint(extended, disjoint, None, compressed, transform, shared=True) == ""
 
 
-def test_rtl_rejects_latency_below_12_with_the_decode():
-    with pytest.raises(BackendError, match="at least 12"):
-        rtl.lint(latency=11, compressed=True)
-    params = {"EXTENDED": 0, "DISJOINT": 0, "COMPRESSED": 1, "LATENCY": 11}
+def test_rtl_rejects_latency_below_11_with_the_decode():
+    with pytest.raises(BackendError, match="at least 11"):
+        rtl.lint(latency=10, compressed=True)
+    params = {"EXTENDED": 0, "DISJOINT": 0, "COMPRESSED": 1, "LATENCY": 10}
     with pytest.raises(BuildError, match="(?i)latency"):
         verilate.lint(rtl.TOP, [rtl.RTL_DIR / rtl.LINT_WAIVERS, *rtl.rtl_sources()], params)
 
 
-def test_rtl_rejects_latency_below_11():
+def test_rtl_rejects_latency_below_10():
     """The top's own elaboration check, independent of the driver's parameter check."""
-    with pytest.raises(BackendError, match="at least 11"):
-        rtl.lint(latency=10)                       # the driver's check
-    params = {"EXTENDED": 0, "DISJOINT": 0, "LATENCY": 10}
+    with pytest.raises(BackendError, match="at least 10"):
+        rtl.lint(latency=9)                        # the driver's check
+    params = {"EXTENDED": 0, "DISJOINT": 0, "LATENCY": 9}
     with pytest.raises(BuildError, match="(?i)latency"):   # the RTL's own elaboration check
         verilate.lint(rtl.TOP, [rtl.RTL_DIR / rtl.LINT_WAIVERS, *rtl.rtl_sources()], params)
 

@@ -1,30 +1,38 @@
-"""Two modules of the RT unit alone (sim/rtu_units_tb.cpp drives them cycle by cycle): the
-traversal stacks (rf_rtu_stack) under random pushes, pops, clears and refills against a reference
-model of unbounded stacks with spills, and the divider pool (rf_rtu_divs) under random input gaps
-and output stalls against numpy, every division's result taken exactly once."""
+"""The RT unit's modules alone (sim/rtu_units_tb.cpp drives them cycle by cycle), each against a
+reference model of its header's contract: the traversal stacks (rf_rtu_stack) under random
+pushes, pops, clears and refills against unbounded stacks with spills; the divider pool
+(rf_rtu_divs) under random input gaps and output stalls against numpy, every division's result
+taken exactly once; node fetch (rf_rtu_fetch), the scheduler (rf_rtu_sched) and response
+processing (rf_rtu_resp) under random gaps on their inputs and random ready on their outputs,
+every transaction checked, none lost or extra, and the cycles their headers promise; the ray
+buffer (rf_rtu_ray_buffer) under random writes on all its ports, and the hit update (rf_rtu_hit)
+on ties, NaNs, zeros and infinities."""
 
 from __future__ import annotations
 
 import ctypes
+import re
 
 import numpy as np
 import pytest
 
-from driver.backends import verilate
-from driver.backends.build import SIM_DIR
-from driver.backends.rtunit import unit_sources
+from driver.backends.build import RTL_DIR
+from driver.core import layout, wire
+from support.prebuild import RTU_UNITS_PARAMS, rtu_units_library
 
-U8, U32, I64 = (np.ctypeslib.ndpointer(t, flags="C") for t in (np.uint8, np.uint32, np.int64))
+U8, U32, I64, U64 = (np.ctypeslib.ndpointer(t, flags="C")
+                     for t in (np.uint8, np.uint32, np.int64, np.uint64))
 
-
-def _lib(top: str, define: str, params: dict) -> ctypes.CDLL:
-    path = verilate.build_library(top, unit_sources(), [SIM_DIR / "rtu_units_tb.cpp"],
-                                  params=params, name=f"{top}_tb",
-                                  verilator_args=["-CFLAGS", f"-D{define}"])
-    return ctypes.CDLL(str(path))
+RAYS, DEPTH = RTU_UNITS_PARAMS["RAYS"], RTU_UNITS_PARAMS["STACK_DEPTH"]   # the testbench's
+_LIB = []
 
 
-RAYS, DEPTH = 4, 3
+def _lib() -> ctypes.CDLL:
+    """The modules side by side (sim/rtu_units_tb_top.sv) with the testbench: one build (made
+    before the first test by the suite's prebuild, tests/conftest.py)."""
+    if not _LIB:
+        _LIB.append(ctypes.CDLL(str(rtu_units_library())))
+    return _LIB[0]
 
 
 class StackRef:
@@ -39,7 +47,7 @@ class StackRef:
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_stack_against_its_reference(seed):
-    lib = _lib("rf_rtu_stack", "RTU_TB_STACK", {"RAYS": RAYS, "STACK_DEPTH": DEPTH})
+    lib = _lib()
     rng = np.random.default_rng(seed)
     n = 4000
     ref = StackRef()
@@ -100,7 +108,7 @@ def test_stack_against_its_reference(seed):
 
 @pytest.mark.parametrize("valid,ready", [(0.9, 0.9), (0.5, 0.3), (1.0, 0.1), (0.2, 1.0)])
 def test_divider_pool_under_back_pressure(valid, ready):
-    lib = _lib("rf_rtu_divs", "RTU_TB_DIVS", {"DIVIDERS": 3, "TAG_W": 16})
+    lib = _lib()
     rng = np.random.default_rng(int(10 * valid + 100 * ready))
     n = 600
     special = np.array([0, 0x80000000, 0x7F800000, 0xFF800000, 0x7FC00000, 1, 0x807FFFFF,
@@ -123,3 +131,378 @@ def test_divider_pool_under_back_pressure(valid, ready):
     nan = np.isnan(want.view(np.float32))
     assert (q[nan] == 0x7FC00000).all()
     assert q[~nan].tolist() == want[~nan].tolist()
+
+
+# ---- fetch, scheduler, response processing, ray buffer, hit update ----------------------------
+# Each test drives one module through sim/rtu_units_tb.cpp: a driver per input stream (random
+# gaps, each transaction held until taken), random ready on every output with a ready input, a
+# monitor recording every transaction that moves; here a reference model of the module's header
+# contract predicts them and a scoreboard compares: every transaction, none lost, none extra,
+# within the cycles run.
+
+NODE_WORDS = layout.BOX_BYTES // 4      # rf_rtu_pkg::NODE_W / 32: the widest node, one beat
+
+
+def _kinds() -> dict:
+    """rf_rtu_pkg::kind_e, read from the package: {name: value}."""
+    text = (RTL_DIR / "rf_rtu_pkg.sv").read_text()
+    kinds = {m[1]: int(m[2]) for m in re.finditer(r"(KIND_\w+)\s*=\s*3'd(\d+)", text)}
+    assert set(kinds) == {"KIND_BOX32", "KIND_Q8", "KIND_TRI", "KIND_PAIR0", "KIND_PAIR1"}
+    return kinds
+
+
+def _rand_u32(rng, shape) -> np.ndarray:
+    return rng.integers(0, 2 ** 32, shape, dtype=np.uint64).astype(np.uint32)
+
+
+def _f32(bits) -> np.ndarray:
+    return np.ascontiguousarray(bits, np.uint32).view(np.float32)
+
+
+def mem_words(addr) -> np.ndarray:
+    """The testbench memory's NODE_WORDS data words for each byte address (its mem_word)."""
+    a = np.asarray(addr, np.uint64).reshape(-1, 1)
+    i = np.arange(NODE_WORDS, dtype=np.uint64)
+    w = ((a & np.uint64(0xFFFFFFFF)) * np.uint64(0x9E3779B1) + i * np.uint64(0x85EBCA77)
+         + (a >> np.uint64(32)) * np.uint64(0xC2B2AE3D)) & np.uint64(0xFFFFFFFF)
+    return (w ^ (i << np.uint64(16))).astype(np.uint32)
+
+
+def rr_pick(mask: int, start: int) -> int | None:
+    """The first set bit of mask at or after start, round robin over the slots."""
+    for i in [*range(start, RAYS), *range(start)]:
+        if mask >> i & 1:
+            return i
+    return None
+
+
+@pytest.mark.parametrize("seed,valid,ready", [(1, 0.9, 0.9), (2, 0.5, 0.3), (3, 1.0, 0.1)])
+def test_fetch_under_back_pressure(seed, valid, ready):
+    lib = _lib()
+    rng = np.random.default_rng(seed)
+    n, cycles = 400, 12000
+    readable = [layout.BOX_TYPE, layout.TRI_TYPE, layout.PAIR_TYPE, layout.Q8_TYPE]
+    slot = rng.integers(0, RAYS, n).astype(np.uint8)
+    refill = (rng.random(n) < 0.2).astype(np.uint8)
+    typ = rng.choice(readable, n)
+    ptr = (_rand_u32(rng, n) & np.uint32(~7 & 0xFFFFFFFF)) | typ.astype(np.uint32)
+    refill_val = _rand_u32(rng, n)
+    in_gap = (rng.random(cycles) < valid).astype(np.uint8)
+    req_ready = (rng.random(cycles) < ready).astype(np.uint8)
+    lat = rng.integers(0, 16, cycles).astype(np.int64)
+    rsp_go = (rng.random(cycles) < 0.5).astype(np.uint8)
+    rsp_pick = _rand_u32(rng, cycles)
+    probe = _rand_u32(rng, cycles)
+    rd = rng.integers(0, RAYS, (2, cycles)).astype(np.uint8)
+    in_cycle, req_cycle, rsp_cycle, rsp_req, done_cycle = (np.full(n, -1, np.int64)
+                                                           for _ in range(5))
+    req_addr = np.zeros(n, np.uint64)
+    req_size, done_ptr = np.zeros(n, np.uint32), np.zeros(n, np.uint32)
+    req_tag, req_refill, done_slot, done_refill = (np.zeros(n, np.uint8) for _ in range(4))
+    nodes = np.zeros((cycles, 2, NODE_WORDS), np.uint32)
+    bad = np.zeros(cycles, np.uint8)
+    errs, counts = np.zeros(2, np.int64), np.zeros(4, np.int64)
+    lib.fetch_run.argtypes = [ctypes.c_int64, ctypes.c_int64, U8, U32, U8, U32, U8, U8, I64, U8,
+                              U32, U32, U8, U8, I64, I64, U64, U32, U8, U8, I64, I64, I64, U8,
+                              U8, U32, U32, U8, I64, I64]
+    lib.fetch_run(cycles, n, slot, ptr, refill, refill_val, in_gap, req_ready, lat, rsp_go,
+                  rsp_pick, probe, rd[0], rd[1], in_cycle, req_cycle, req_addr, req_size,
+                  req_tag, req_refill, rsp_cycle, rsp_req, done_cycle, done_slot, done_refill,
+                  done_ptr, nodes, bad, errs, counts)
+    # every command taken, one request each, one response each, one done pulse each
+    assert counts.tolist() == [n, n, n, n]
+    assert errs.tolist() == [0, 0]      # register outputs; the response port always ready
+    # reference: command j is request j: (pointer & ~7) << 3 and the node's size, or a 4-byte
+    # spill-area read; tag = the slot; a register output, so a cycle after the command at least
+    size = np.array([layout.NODE_BYTES.get(t, 0) for t in range(8)])
+    assert req_addr.tolist() == np.where(refill, 0, layout.NodeRef.offset(ptr)).tolist()
+    assert req_size.tolist() == np.where(refill, 4, size[typ]).tolist()
+    assert req_tag.tolist() == slot.tolist() and req_refill.tolist() == refill.tolist()
+    assert (req_cycle > in_cycle).all() and (in_cycle[1:] > in_cycle[:-1]).all()
+    # a done pulse in the cycle of each response, naming its slot; a refill gives its pointer
+    assert sorted(rsp_req.tolist()) == list(range(n))               # each request answered once
+    assert (np.diff(rsp_req) < 0).sum() > 20 and refill.sum() > 40   # out of order; refills
+    assert done_cycle.tolist() == rsp_cycle.tolist()
+    assert done_slot.tolist() == slot[rsp_req].tolist()
+    assert done_refill.tolist() == refill[rsp_req].tolist()
+    got_refill = done_refill == 1
+    assert done_ptr[got_refill].tolist() == refill_val[rsp_req[got_refill]].tolist()
+    # the node buffer: each response's data in its slot's entry from the next cycle on
+    data = mem_words(req_addr[rsp_req])
+    data[got_refill, 0] = refill_val[rsp_req[got_refill]]
+    entry, e, checked = {}, 0, 0
+    for k in range(cycles):
+        while e < n and rsp_cycle[e] < k:
+            entry[int(slot[rsp_req[e]])] = data[e]
+            e += 1
+        for port in (0, 1):
+            s = int(rd[port, k])
+            if s in entry:
+                assert (nodes[k, port] == entry[s]).all(), (k, port, s)
+                checked += 1
+    assert checked > cycles
+    # in_bad_o: a type the fetch does not read (the q8 node only with Q8)
+    t = layout.NodeRef.type(probe)
+    assert (bad & 1).tolist() == (~np.isin(t, readable)).tolist()
+    assert (bad >> 1).tolist() == (~np.isin(t, readable[:3])).tolist()
+
+
+def _ray_rows(rng, n) -> np.ndarray:
+    """n random prepared rays as REQUEST rows (the ray fields only; flags: NO_CULL or none)."""
+    rows = np.zeros(n, wire.REQUEST_DTYPE)
+    for f in ("origin", "dir", "inv", "shear"):
+        rows[f] = rng.normal(size=rows[f].shape).astype(np.float32)
+    rows["extent"] = rng.random(n).astype(np.float32) * 100
+    for f in ("kx", "ky", "kz"):
+        rows[f] = rng.integers(0, 3, n)
+    rows["flags"] = rng.integers(0, 2, n) * wire.FLAG_NO_CULL
+    rows["opcode"] = rng.integers(0, 8, n)        # the scheduler writes its own
+    return rows
+
+
+@pytest.mark.parametrize("seed,valid,ready", [(4, 0.9, 0.9), (5, 0.5, 0.3), (6, 1.0, 0.1)])
+def test_scheduler_under_back_pressure(seed, valid, ready):
+    lib = _lib()
+    kinds = _kinds()
+    rng = np.random.default_rng(seed)
+    n, cycles = 500, 12000
+    job_slot = rng.integers(0, RAYS, n).astype(np.uint8)
+    job_kind = rng.choice(list(kinds.values()), n).astype(np.uint8)
+    rays = _ray_rows(rng, n)
+    job_ray = np.ascontiguousarray(wire.REQUEST.pack(rays)[:, 1:wire.RAY_WORDS])
+    job_nearest = _rand_u32(rng, n)
+    job_node = _rand_u32(rng, (n, NODE_WORDS))
+    arm = (rng.random(cycles) < valid).astype(np.uint8)
+    dp_ready = (rng.random(cycles) < ready).astype(np.uint8)
+    load_cycle = np.full(n, -1, np.int64)
+    ready_log, pick_log = np.zeros(cycles, np.uint8), np.zeros(cycles, np.uint8)
+    issue_cycle = np.full(n, -1, np.int64)
+    issue_slot, issue_box = np.zeros(n, np.uint8), np.zeros(n, np.uint8)
+    issue_req = np.zeros((n, wire.REQ_WORDS), np.uint32)
+    errs = np.zeros(1, np.int64)
+    lib.sched_run.argtypes = [ctypes.c_int64, ctypes.c_int64, U8, U8, U32, U32, U32, U8, U8,
+                              I64, U8, U8, I64, U8, U8, U32, I64]
+    lib.sched_run.restype = ctypes.c_int64
+    issued = lib.sched_run(cycles, n, job_slot, job_kind, job_ray, job_nearest, job_node, arm,
+                           dp_ready, load_cycle, ready_log, pick_log, issue_cycle, issue_slot,
+                           issue_box, issue_req, errs)
+    assert issued == n and (load_cycle >= 0).all() and errs[0] == 0
+    # reference, cycle by cycle on the monitored ready bits: round robin from the slot after the
+    # last one issued; a request moves when dp_ready_i is high
+    held = [-1] * RAYS
+    nxt, e, jobs, want = 0, 0, [], []
+    for k in range(cycles):
+        while e < n and load_cycle[e] == k:
+            held[job_slot[e]] = e
+            e += 1
+        pick = rr_pick(int(ready_log[k]), nxt)
+        assert bool(pick_log[k] >> 7) == (pick is not None), k
+        if pick is None:
+            continue
+        assert pick_log[k] & 0x7F == pick, k
+        if dp_ready[k]:
+            want.append((k, pick))
+            jobs.append(held[pick])
+            nxt = (pick + 1) % RAYS
+    assert list(zip(issue_cycle.tolist(), issue_slot.tolist())) == want
+    assert ((pick_log >> 7 == 1) & (dp_ready == 0)).sum() > 50      # requests held back
+    jobs = np.array(jobs)
+    assert sorted(jobs.tolist()) == list(range(n))                  # each job issued once
+    # the request each issued job becomes: its ray, tag = slot, extent = nearest t, and by the
+    # node's kind the op and its operands (driver/core/wire.py, driver/core/layout.py)
+    kind = job_kind[jobs]
+    node = job_node[jobs]
+    exp = rays[jobs].copy()
+    exp["tag"] = issue_slot
+    box = np.isin(kind, [kinds["KIND_BOX32"], kinds["KIND_Q8"]])
+    exp["opcode"] = np.where(box, wire.QUADBOX, wire.TRIANGLE)
+    exp["extent"] = _f32(job_nearest[jobs])
+    b32, q8 = kind == kinds["KIND_BOX32"], kind == kinds["KIND_Q8"]
+    exp["box"][b32] = node[b32].copy().view(layout.BOX_NODE)["box"][:, 0]
+    exp["flags"][q8] |= wire.FLAG_DECODE_Q8
+    exp["qnode"][q8] = node[q8, :wire.QNODE_WORDS]
+    tri = kind == kinds["KIND_TRI"]
+    exp["tri"][tri] = node[tri, :16].copy().view(layout.TRI_NODE)["tri"][:, 0]
+    pair = node[:, :16].copy().view(layout.PAIR_NODE)[:, 0]
+    p0, p1 = kind == kinds["KIND_PAIR0"], kind == kinds["KIND_PAIR1"]
+    exp["tri"][p0] = pair["v"][p0, :3]
+    sel = (pair["idx"][:, None] >> np.array([0, 2, 4], np.uint32)) & 3
+    exp["tri"][p1] = np.take_along_axis(pair["v"], sel[:, :, None].astype(np.int64), 1)[p1]
+    assert issue_box.tolist() == box.tolist()
+    assert (issue_req == wire.REQUEST.pack(exp)).all(axis=1).tolist() == [True] * n
+    assert p1.sum() > 50 and q8.sum() > 50
+
+
+def _pair_slots(rng, n) -> np.ndarray:
+    """n slots, none the same as the one before (a slot has one response in flight)."""
+    s = rng.integers(0, RAYS, n)
+    for i in range(1, n):
+        if s[i] == s[i - 1]:
+            s[i] = (s[i] + rng.integers(1, RAYS)) % RAYS
+    return s.astype(np.uint8)
+
+
+@pytest.mark.parametrize("seed,valid,ready", [(7, 0.9, 0.9), (8, 0.5, 0.3), (9, 1.0, 0.1)])
+def test_response_processing_under_back_pressure(seed, valid, ready):
+    lib = _lib()
+    kinds = _kinds()
+    rng = np.random.default_rng(seed)
+    n, cycles = 600, 12000
+    slot = _pair_slots(rng, n)
+    kind = rng.choice(list(kinds.values()), n).astype(np.uint8)
+    box = np.isin(kind, [kinds["KIND_BOX32"], kinds["KIND_Q8"]])
+    rows = np.zeros(n, wire.RESPONSE_DTYPE)
+    rows["opcode"] = np.where(box, wire.QUADBOX, wire.TRIANGLE)
+    rows["box_hit"] = rng.integers(0, 2, (n, 4))          # a triangle's box fields: ignored
+    rows["box_index"] = rng.integers(0, 4, (n, 4))
+    rows["tri_hit"] = rng.integers(0, 2, n)               # a box's tri_hit: ignored
+    rows["t_num"], rows["t_den"] = _f32(_rand_u32(rng, n)), _f32(_rand_u32(rng, n))
+    rows["box_tmin"] = rng.random((n, 4))
+    rows["tag"] = slot
+    rsp = wire.RESPONSE.pack(rows)
+    node = _rand_u32(rng, (n, NODE_WORDS))
+    in_gap = (rng.random(cycles) < valid).astype(np.uint8)
+    div_ready = (rng.random(cycles) < ready).astype(np.uint8)
+    take = np.full(n, -1, np.int64)
+    m = 4 * n
+    push_cycle, evt_cycle, div_cycle = (np.full(m, -1, np.int64) for _ in range(3))
+    push_slot, evt_slot, evt_what = (np.zeros(m, np.uint8) for _ in range(3))
+    push_ptr, div_num, div_den = (np.zeros(m, np.uint32) for _ in range(3))
+    div_tag = np.zeros(m, np.uint64)
+    errs, counts = np.zeros(1, np.int64), np.zeros(4, np.int64)
+    lib.resp_run.argtypes = [ctypes.c_int64, ctypes.c_int64, U32, U8, U8, U32, U8, U8, I64, I64,
+                             U8, U32, I64, U8, U8, I64, U32, U32, U64, I64, I64]
+    lib.resp_run(cycles, n, rsp, slot, kind, node, in_gap, div_ready, take, push_cycle,
+                 push_slot, push_ptr, evt_cycle, evt_slot, evt_what, div_cycle, div_num, div_den,
+                 div_tag, errs, counts)
+    assert counts[0] == n and errs[0] == 0      # all taken; dp_ready_o not from dp_valid_i
+    # reference: per response taken in cycle c, what its header says, cycle by cycle
+    child = {kinds["KIND_BOX32"]: layout.node_word(layout.BOX_NODE, "child"),
+             kinds["KIND_Q8"]: layout.node_word(layout.Q8_NODE, "child")}
+    prim = {kinds["KIND_TRI"]: layout.node_word(layout.TRI_NODE, "prim"),
+            kinds["KIND_PAIR0"]: layout.node_word(layout.PAIR_NODE, "prim"),
+            kinds["KIND_PAIR1"]: layout.node_word(layout.PAIR_NODE, "prim") + 1}
+    pushes, events, divs = [], [], []
+    next_ok = 0
+    for i in range(n):
+        c, s, r = int(take[i]), int(slot[i]), rows[i]
+        assert c >= next_ok, i                  # held back while the last one's pushes go out
+        if box[i]:
+            hits = [j for j in (3, 2, 1, 0) if r["box_hit"][j]]
+            for q, j in enumerate(hits):
+                pushes.append((c + q, s, int(node[i, child[kind[i]] + r["box_index"][j]])))
+            events.append((c + max(len(hits), 1) - 1, s, 2))
+            next_ok = c + max(len(hits), 1)
+        elif r["tri_hit"]:
+            events.append((c, s, 1))
+            divs.append((c, int(rsp[i, wire.RESPONSE.field["t_num"].word]),
+                         int(rsp[i, wire.RESPONSE.field["t_den"].word]),
+                         int(node[i, prim[kind[i]]]) << 2 | s))
+            next_ok = c + 1
+        else:
+            events.append((c, s, 2))
+            next_ok = c + 1
+    got_push = list(zip(push_cycle[:counts[1]].tolist(), push_slot[:counts[1]].tolist(),
+                        push_ptr[:counts[1]].tolist()))
+    got_evt = list(zip(evt_cycle[:counts[2]].tolist(), evt_slot[:counts[2]].tolist(),
+                       evt_what[:counts[2]].tolist()))
+    got_div = list(zip(div_cycle[:counts[3]].tolist(), div_num[:counts[3]].tolist(),
+                       div_den[:counts[3]].tolist(), div_tag[:counts[3]].tolist()))
+    assert got_push == pushes and got_evt == events and got_div == divs
+    assert len(pushes) > n // 2 and len(divs) > 50 and max(c for c, *_ in events) < cycles - 1
+
+
+def test_ray_buffer_against_its_reference():
+    lib = _lib()
+    rng = np.random.default_rng(10)
+    cycles = 4000
+    ctl = ((rng.random((cycles, 6)) < [0.15, 0.3, 0.3, 0.3, 0.2, 0.2]) << np.arange(6)).sum(1)
+    ctl = ctl.astype(np.uint8)
+    slots = rng.integers(0, RAYS, (cycles, 8))
+    load = (ctl & 1) == 1
+    for port in range(1, 5):            # a slot being loaded gets no other write this cycle
+        same = load & (slots[:, port] == slots[:, 0])
+        slots[same, port] = (slots[same, 0] + rng.integers(1, RAYS, same.sum())) % RAYS
+    slots = np.ascontiguousarray(slots, np.uint8)
+    ray = _rand_u32(rng, (cycles, wire.RAY_WORDS - 1))
+    ids, hit_t, hit_prim = (_rand_u32(rng, cycles) for _ in range(3))
+    any_hit = rng.integers(0, 2, cycles).astype(np.uint8)
+    ray_a = np.zeros((cycles, wire.RAY_WORDS - 1), np.uint32)
+    words = np.zeros((cycles, 10), np.uint32)
+    lib.raybuf_run.argtypes = [ctypes.c_int64, U8, U8, U32, U32, U8, U32, U32, U32, U32]
+    lib.raybuf_run(cycles, ctl, slots, ray, ids, any_hit, hit_t, hit_prim, ray_a, words)
+    # reference: per slot the header's fields; reset: no hit, prim NO_CHILD, the rest zero; a
+    # load: the ray, its id and any-hit flag, nearest = its extent, no hit, counters zero
+    extent = wire.REQUEST.field["extent"].word - 1
+    st = [dict(ray=None, id=None, any=0, near=0, prim=layout.NO_CHILD, hit=0, box=0, tri=0,
+               ovf=0, rst=0) for _ in range(RAYS)]
+    checked = 0
+    for k in range(cycles):
+        a, b, c = (st[int(s)] for s in slots[k, 5:8])
+        want = [a["near"], b["near"], b["any"], c["id"], c["hit"], c["prim"], c["near"],
+                c["box"], c["tri"], c["ovf"] | c["rst"] << 16]
+        got = words[k].tolist()
+        if c["id"] is None:             # ray words and ids: only read while a ray is there
+            want[3] = got[3]
+        assert got == want, k
+        if a["ray"] is not None:
+            assert ray_a[k].tolist() == a["ray"], k
+            checked += 1
+        bits = int(ctl[k])
+        s = [int(x) for x in slots[k, :5]]
+        if bits & 1:
+            st[s[0]] = dict(ray=ray[k].tolist(), id=int(ids[k]), any=int(any_hit[k]),
+                            near=int(ray[k, extent]), prim=layout.NO_CHILD, hit=0, box=0,
+                            tri=0, ovf=0, rst=0)
+        if bits & 2:
+            st[s[1]].update(near=int(hit_t[k]), prim=int(hit_prim[k]), hit=1)
+        for bit, port, field in ((4, 2, "box"), (8, 2, "tri"), (16, 3, "ovf"), (32, 4, "rst")):
+            if bits & bit:
+                st[s[port]][field] += 1
+    assert checked > cycles // 2
+
+
+F32_SPECIAL = np.array([0, 0x80000000, 0x7F800000, 0xFF800000, 0x7FC00000, 0xFFC00001,
+                        0x7F800001, 1, 0x80000001, 0x007FFFFF, 0x00800000, 0x7F7FFFFF,
+                        0x3F800000, 0xBF800000], np.uint32)
+
+
+def test_hit_update_against_its_reference():
+    lib = _lib()
+    rng = np.random.default_rng(11)
+    cycles = 6000
+    valid = (rng.random(cycles) < 0.7).astype(np.uint8)
+    slot = rng.integers(0, RAYS, cycles)
+    prim = _rand_u32(rng, cycles)
+    tag = np.ascontiguousarray(prim.astype(np.uint64) << np.uint64(2) | slot.astype(np.uint64))
+    nearest = np.where(rng.random((cycles, RAYS)) < 0.2,
+                       rng.choice(F32_SPECIAL, (cycles, RAYS)),
+                       (rng.random((cycles, RAYS)) * 100).astype(np.float32).view(np.uint32))
+    nearest = np.ascontiguousarray(nearest, np.uint32)
+    near = nearest[np.arange(cycles), slot]
+    # t: the ray's nearest t (a tie), one ulp either side, a special value, or anything
+    way = rng.integers(0, 5, cycles)
+    t = np.select([way == 0, way == 1, way == 2, way == 3],
+                  [near, near + np.uint32(1), near - np.uint32(1),
+                   rng.choice(F32_SPECIAL, cycles)],
+                  (rng.random(cycles) * 100).astype(np.float32).view(np.uint32)).astype(np.uint32)
+    any_hit = rng.integers(0, 2, (cycles, RAYS)).astype(np.uint8)
+    out = np.zeros(cycles, np.uint8)
+    hit_t, hit_prim = np.zeros(cycles, np.uint32), np.zeros(cycles, np.uint32)
+    lib.hit_run.argtypes = [ctypes.c_int64, U8, U32, U64, U32, U8, U8, U32, U32]
+    lib.hit_run(cycles, valid, t, tag, nearest, any_hit, out, hit_t, hit_prim)
+    # reference: accepted when t < nearest (IEEE, strictly; NaN never); an accepted triangle of
+    # an any-hit ray finishes it, anything else sends the ray on; always ready
+    with np.errstate(invalid="ignore"):
+        lt = _f32(t) < _f32(near)
+    v = valid == 1
+    hit = v & lt
+    finish = hit & (any_hit[np.arange(cycles), slot] == 1)
+    assert ((out & 1) == 1).all()
+    assert ((out >> 1) & 1).tolist() == hit.tolist()
+    assert ((out >> 2) & 1).tolist() == (v & ~finish).tolist()
+    assert ((out >> 3) & 1).tolist() == finish.tolist()
+    assert ((out[v] >> 4) & 3).tolist() == slot[v].tolist()
+    assert ((out[hit] >> 6) & 3).tolist() == slot[hit].tolist()
+    assert hit_t[hit].tolist() == t[hit].tolist() and hit_prim[hit].tolist() == prim[hit].tolist()
+    assert hit.sum() > 500 and finish.sum() > 200 and (v & (way == 0) & ~hit).sum() > 300

@@ -1,7 +1,9 @@
 """The RT unit in RTL (rtl/rf_rtunit.sv, ``--backend rtunit``): every ray's hit, primitive, t bits
 and box/triangle op counts identical to the Python traversal on the "rtl" datapath, at a stack
 depth that never overflows and at one that spills; a one-ray frame's cycles counted by hand; its
-package constants against driver/core/layout.py; lint; bad input refused in one line."""
+package constants against driver/core/layout.py; lint; bad input refused in one line before any
+work; a corrupt image that gets past the host's check stopped by the harness, the unit or the
+cycle budget."""
 
 from __future__ import annotations
 
@@ -125,8 +127,7 @@ def test_q8_images_with_the_decode_stage(shallow, any_hit):
 
 def test_one_ray_frame_cycles_by_hand(deep):
     # one triangle: a root box node with one child, the triangle node; the ray hits it (NO_CULL)
-    bvh = as_bvh(np.array([[[0, 0, 5], [1, 0, 5], [0, 1, 5]]], np.float32))
-    rays = prepare_rays([[0.2, 0.2, 0]], [[0, 0, 1]], flags=FLAG_NO_CULL)
+    bvh, rays = _one_triangle()
     res = deep.trace_unit(bvh, rays)
     ref = trace(bvh, [[0.2, 0.2, 0]], [[0, 0, 1]], backend="rtl", double_sided=True)
     assert res.hit[0] and res.prim[0] == 0 and res.t.view(np.uint32)[0] == ref.t.view(np.uint32)[0]
@@ -215,6 +216,74 @@ def test_a_corrupt_image_is_refused_before_the_run(scene, deep):
         deep.trace_unit(bad, prepare_rays(o[:4], d[:4]))
 
 
+def test_a_node_type_the_unit_cannot_read_is_refused_before_the_run(scene, deep):
+    bvh, o, d = scene
+    import copy
+    bad = copy.copy(bvh)
+    img = np.array(bvh.image, copy=True).reshape(-1).view("<u4")
+    root_word = int(layout.NodeRef.word(np.uint32(bvh.root)))
+    img[root_word] = layout.NodeRef.retype(img[root_word], layout.GROUP_TYPE)   # a q8g leaf
+    bad.image = img.view(np.uint8)
+    with pytest.raises(ValueError, match="names a node type the RT unit cannot read"):
+        deep.trace_unit(bad, prepare_rays(o[:4], d[:4]))
+
+
+def _one_triangle():
+    """A root box node whose one child is a triangle node, and a ray that hits the triangle."""
+    bvh = as_bvh(np.array([[[0, 0, 5], [1, 0, 5], [0, 1, 5]]], np.float32))
+    return bvh, prepare_rays([[0.2, 0.2, 0]], [[0, 0, 1]], flags=FLAG_NO_CULL)
+
+
+@pytest.mark.parametrize("corrupt", ["past the end", "node type", "loop"])
+def test_the_unit_stops_on_a_corrupt_image_the_host_let_through(deep, monkeypatch, corrupt):
+    # the host's check (check_image) bypassed: the harness and the unit stop the run themselves,
+    # in one line, within the frame's cycle budget (10,000 + 20,000 per ray)
+    import copy
+    from driver.backends import rtunit
+    bvh, rays = _one_triangle()
+    assert deep.trace_unit(bvh, rays).hit[0]
+    monkeypatch.setattr(rtunit, "check_image", lambda *a, **k: None)
+    img = np.array(bvh.image, copy=True).reshape(-1).view("<u4")
+    child = int(layout.NodeRef.word(np.uint32(bvh.root)))        # the root's child 0: the hit one
+    img[child] = {"past the end": np.uint32((len(img) * 4 + 64) >> 3 | layout.TRI_TYPE),
+                  "node type": layout.NodeRef.retype(img[child], layout.GROUP_TYPE),
+                  "loop": np.uint32(bvh.root)}[corrupt]
+    bad = copy.copy(bvh)
+    bad.image = img.view(np.uint8)
+    expect = {"past the end": (ValueError, "leaves the image .the unit fetched past it"),
+              "node type": (ValueError, "ray 0 met a node pointer the RT unit cannot read"),
+              "loop": (RuntimeError, "did not finish 1 rays within its budget of 30,000 cycles")}
+    error, message = expect[corrupt]
+    with pytest.raises(error, match=message) as info:
+        deep.trace_unit(bad, rays)
+    assert "\n" not in str(info.value)
+
+
+def test_what_the_unit_cannot_build_or_read_is_refused_before_any_work(in_tmp, error_line, monkeypatch):
+    from driver.backends import harness, rtunit
+    from driver.design import DesignPoint
+
+    def long_work(*args, **kwargs):
+        raise AssertionError("long work before the options were checked")
+    monkeypatch.setattr(harness, "harness_library", long_work)     # the datapath's build
+    monkeypatch.setattr(rtunit, "unit_library", long_work)         # the unit's build
+    monkeypatch.setattr(DesignPoint, "build", long_work)           # the BVH build
+    for rays in (0, 257):
+        with pytest.raises(BackendError, match=f"--rays-in-flight {rays}: .* built with 1..256"):
+            backend("rtunit", rays_in_flight=rays)
+    for workers in ("1", "2"):
+        assert main(["render", "bunny", "--size", "8", "--backend", "rtunit", "--rays-in-flight",
+                     "300", "--workers", workers, "--no-progress"]) == 2
+        assert "--rays-in-flight 300: the RT unit in RTL is built with 1..256" in error_line()
+        # a node format it cannot read
+        for fmt, message in (("q8g", "reads box32, q8 images, not q8g"),
+                             ("q8", "q8 nodes with the datapath's decode stage")):
+            assert main(["render", "bunny", "--size", "8", "--backend", "rtunit", "--bvh-format",
+                         fmt, "--workers", workers, "--no-progress"]) == 2
+            assert message in error_line()
+    assert not list(in_tmp.iterdir())                                # nothing written
+
+
 def test_a_run_stops_at_its_cycle_budget(scene, deep):
     bvh, o, d = scene
     with pytest.raises(RuntimeError, match="within its budget of 50 cycles"):
@@ -259,6 +328,10 @@ def test_a_lumibench_suite_through_the_unit(tmp_path, in_tmp, error_line, monkey
     assert main(argv) == 2 and "--flatten" in error_line()       # LumiBench's are instanced
     assert not (in_tmp / "out").exists()
     assert main([*argv, "--ideal-replay", "--flatten"]) == 2 and "itself" in error_line()
+    for bad, message in ((["--rays-in-flight", "300"], "built with 1..256"),
+                         (["--bvh-format", "q8g"], "not q8g")):
+        assert main([*argv, "--flatten", *bad]) == 2 and message in error_line()
+        assert not (in_tmp / "out").exists()
     assert main([*argv, "--flatten"]) == 0
     doc = json.loads((in_tmp / "out" / "BATH_AO.json").read_text())
     unit = doc["unit_rtl"]

@@ -20,7 +20,7 @@ from pathlib import Path
 from ..core import layout
 from . import verilate
 from ..core.resources import ROOT, data_dir
-from ..core.datapath import LATENCY, default_latency
+from ..core.datapath import LEAST_LATENCY, default_latency, least_latency
 from .base import BackendError
 
 RTL_DIR = data_dir("rtl")
@@ -35,7 +35,7 @@ HARNESS_SOURCES = ("rayflex_harness.cpp", "rtunit_scheduler.cpp")
 # included by the harness sources from their own directory: their text is hashed into the name of
 # the generated header's directory, which is part of the build's cache key
 HARNESS_HEADERS = ("rf_sim.h", "rf_memory.h")
-MIN_LATENCY = LATENCY                 # input register, 9 compute stages, output register
+MIN_LATENCY = LEAST_LATENCY           # input register, S1..S8, S9 with the output format
 
 
 def source_names(list_file: Path = SOURCE_LIST) -> list[str]:
@@ -68,13 +68,14 @@ def rtl_params(extended: bool, disjoint: bool, latency: int | None = None,
                compressed: bool = False, transform: bool = False,
                fused: bool = False, shared: bool = False) -> dict[str, int]:
     """The top-level parameters of a configuration (``-G`` overrides); ``latency`` None: the
-    configuration's least (``driver.core.datapath.default_latency``); FUSED and SHARED only when
-    set (the other builds keep their names in the build cache)."""
-    least = default_latency(compressed)
-    latency = least if latency is None else latency
+    configuration's default (``driver.core.datapath.default_latency``; at least
+    ``least_latency``); FUSED and SHARED only when set (the other builds keep their names in the
+    build cache)."""
+    least = least_latency(compressed)
+    latency = default_latency(compressed) if latency is None else latency
     if int(latency) < least:
-        raise BackendError(f"latency {latency}: the RTL needs at least {least} stages (input "
-                           "register, 9 compute stages, output register"
+        raise BackendError(f"latency {latency}: the RTL needs at least {least} stages (the input "
+                           "register, S1 to S8, S9 with the output format"
                            f"{', the q8 decode stage' if compressed else ''})")
     return {"EXTENDED": int(bool(extended)), "DISJOINT": int(bool(disjoint)),
             "COMPRESSED": int(bool(compressed)), "TRANSFORM": int(bool(transform)),

@@ -234,10 +234,12 @@ class RtUnitBackend(HarnessBackend):
                  mem_latency: int = DEFAULT_MEM_LATENCY, memory: dict | None = None,
                  max_outstanding: int = 0, dividers: int = DEFAULT_DIVIDERS,
                  compare: bool = True, **options):
-        super().__init__(**options)
+        # what the RTL cannot be built with is refused before the datapath's harness is built
+        unit_params({}, rays_in_flight, stack_depth, dividers)
         if not isinstance(mem_latency, int) or mem_latency < 1:
             raise BackendError(f"memory latency {mem_latency!r}: give a whole number of cycles "
                                ">= 1")
+        super().__init__(**options)
         self.unit_params = unit_params(self.params, rays_in_flight, stack_depth, dividers)
         self.dividers = int(dividers)
         self.compare = bool(compare)

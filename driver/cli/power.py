@@ -9,6 +9,7 @@ import time
 
 from .. import power
 from ..core import outputs
+from ..core.datapath import least_latency
 from ..core.configs import CONFIGS, FUSED_SUFFIX, Q8_SUFFIX, SHARED_SUFFIX, XF_SUFFIX
 from ..core.outputs import JSON, PNG, Outputs
 from ..power import liberty, report
@@ -54,9 +55,10 @@ def run(args) -> int:
         power.check_ops(ops, cfgs)
     if args.latency is not None:
         for c in cfgs:
-            least = power.least_latency(c)
-            if args.level != "signals" and args.latency != least:
-                raise ValueError(f"--latency: the gate netlist of {c} has {least} "
+            own = power.own_latency(c)
+            least = least_latency(bool(power.build_params(c).get("COMPRESSED")))
+            if args.level != "signals" and args.latency != own:
+                raise ValueError(f"--latency: the gate netlist of {c} has {own} "
                                  "stages; other latencies are measured at --level signals")
             if args.latency < least:
                 raise ValueError(f"--latency must be at least {least} for --config "

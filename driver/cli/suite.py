@@ -66,6 +66,8 @@ def run(args) -> int:
     runs = [Run(r.name, r.scene, r.workload, args.size or r.size, args.spp or r.spp,
                 r.bounces, r.ao_rays, r.seed) for r in runs]
     check_runs(runs, base)
+    if args.backend == UNIT_BACKEND:    # what the unit cannot be built with or read, at once
+        base.backend_options(UNIT_BACKEND)
     if args.backend == UNIT_BACKEND and not base.flatten and any(
             r.scene.startswith(LUMIBENCH_PREFIX) for r in runs):
         raise SuiteError(f"--backend {UNIT_BACKEND}: the RT unit in RTL does not trace "

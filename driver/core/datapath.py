@@ -20,6 +20,8 @@ from .wire import (ANGULAR, EUCLIDEAN, FLAG_DECODE_Q8, FLAG_NAMES, FLAG_NO_CULL,
 from .layout import Q8_EXP_MAX, Q8_EXP_MIN, Q8_NODE, node_word
 
 LATENCY = 11
+LEAST_LATENCY = 10        # the balanced pipeline: S9 and the output format in one stage (no R9)
+MAX_LATENCY = 64          # the longest pipeline the tools build (pass-through registers pad it)
 DECODE_STAGES = 1         # pipeline stages the q8 decode adds in a COMPRESSED build
 CANONICAL_NAN = np.uint32(0x7FC00000)
 
@@ -33,6 +35,12 @@ def default_latency(compressed: bool = False) -> int:
     """The pipeline depth of a build when none is asked for: 11 (the paper's), plus the decode
     stage in a COMPRESSED build."""
     return LATENCY + (DECODE_STAGES if compressed else 0)
+
+
+def least_latency(compressed: bool = False) -> int:
+    """The shortest pipeline the RTL builds: 10, S9 (the sort's last layer) sharing the output
+    stage (docs/timing.md#a-balanced-pipeline), plus the decode stage in a COMPRESSED build."""
+    return LEAST_LATENCY + (DECODE_STAGES if compressed else 0)
 
 
 def check_requests(req: np.ndarray, extended: bool, compressed: bool = False,

@@ -30,5 +30,5 @@ liberty reader and per-net energies), ``report`` (JSON, tables, plot, per-ray en
 from . import activity, liberty, netlist, stimulus
 from .run import (DEFAULT_OPS, IDLE_CYCLES, LEVELS, _have_yosys, _lanes, _measure_net,
                   _measure_nets, _netlists, all_configs, announce_builds, build_params,
-                  check_ops, configs, least_latency, measure, netlist_cached, params_of,
+                  check_ops, configs, own_latency, measure, netlist_cached, params_of,
                   parse_configs, run_level, uncached_models)

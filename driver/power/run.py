@@ -52,14 +52,14 @@ def build_params(cfg: str) -> dict[str, int]:
     return _area().config_params(cfg)
 
 
-def least_latency(cfg: str) -> int:
+def own_latency(cfg: str) -> int:
     """The configuration's own pipeline depth (11, 12 with the q8 decode): its gate netlist's."""
     return default_latency(bool(build_params(cfg).get("COMPRESSED")))
 
 
 def params_of(cfg: str, latency: int | None = None) -> dict[str, int]:
     """The build parameters of the traced model of ``cfg`` (``latency`` None: its own)."""
-    return {**build_params(cfg), "LATENCY": least_latency(cfg) if latency is None else latency}
+    return {**build_params(cfg), "LATENCY": own_latency(cfg) if latency is None else latency}
 
 
 def netlist_cached(cfg: str) -> bool:
@@ -172,7 +172,7 @@ def _measure_net(level, cfg, net, n, seed, liberty_path, step=None, ops=None) ->
         model = liberty.price(model, net, liberty_path)
     out = measure(model, params_of(cfg), n, seed, ops=ops,
                   progress=(lambda op: step(cfg, op)) if step else None)
-    out["latency"] = least_latency(cfg)
+    out["latency"] = own_latency(cfg)
     out["seconds"] = round(time.perf_counter() - t0, 1)
     if level == "liberty":
         out["leakage"] = model.leakage

@@ -7,6 +7,8 @@ tests/conftest.py), named by one string each:
   ``pyverilator:CONFIG``        the pyverilator model of CONFIG
   ``signals:CONFIG``            the power flow's traced model of CONFIG (``rayflex power``)
   ``rtunit:CONFIG:RAYS:DEPTH``  the RT unit in RTL with RAYS slots and stacks of DEPTH entries
+  ``tb:NAME``                   a module testbench, ``TESTBENCHES[NAME]`` (rtu_units: the RT
+                                unit's modules side by side, tests/test_rtunit_modules.py)
 
 ``build(spec)`` makes (or finds in the cache) exactly the library the tests then load, through
 the same functions they use, so a spec that drifts from what a test asks for only costs time."""
@@ -17,14 +19,33 @@ import os
 
 from driver.core.configs import parse_config
 
-KINDS = ("harness", "pgo", "pyverilator", "signals", "rtunit")
+KINDS = ("harness", "pgo", "pyverilator", "signals", "rtunit", "tb")
+# sim/rtu_units_tb_top.sv's parameters in tests/test_rtunit_modules.py (its testbench, sim/
+# rtu_units_tb.cpp, assumes RAYS 4)
+RTU_UNITS_PARAMS = {"RAYS": 4, "STACK_DEPTH": 3, "DIVIDERS": 3}
+
+
+def rtu_units_library():
+    """The path of the RT unit's modules side by side (sim/rtu_units_tb_top.sv) with their
+    testbench (sim/rtu_units_tb.cpp), built on first use."""
+    from driver.backends import verilate
+    from driver.backends.build import SIM_DIR
+    from driver.backends.rtunit import unit_sources
+    return verilate.build_library(
+        "rtu_units_tb_top", [*unit_sources(), SIM_DIR / "rtu_units_tb_top.sv"],
+        [SIM_DIR / "rtu_units_tb.cpp"], params=RTU_UNITS_PARAMS, name="rtu_units_tb")
+
+
+TESTBENCHES = {"rtu_units": rtu_units_library}
 
 
 def split(spec: str) -> tuple[str, str, list[str]]:
-    """``(kind, configuration, extra fields)`` of a build spec; ValueError if malformed."""
+    """``(kind, configuration, extra fields)`` of a build spec (a ``tb`` spec: the testbench's
+    name for the configuration); ValueError if malformed."""
     head, sep, rest = spec.partition(":")
     kind, fields = (head, rest.split(":")) if sep else ("harness", [spec])
-    if kind not in KINDS or len(fields) != (3 if kind == "rtunit" else 1):
+    if (kind not in KINDS or len(fields) != (3 if kind == "rtunit" else 1)
+            or (kind == "tb" and fields[0] not in TESTBENCHES)):
         raise ValueError(f"build spec {spec!r}: see tests/support/prebuild.py")
     return kind, fields[0], fields[1:]
 
@@ -41,6 +62,9 @@ def harness_params(config: str) -> dict:
 
 def build(spec: str) -> None:
     kind, config, extra = split(spec)
+    if kind == "tb":
+        TESTBENCHES[config]()
+        return
     params = harness_params(config)
     if kind in ("harness", "pgo"):
         from driver.backends import build as harness_build

@@ -1,0 +1,232 @@
+// rtu_units_tb_top: the RT unit's modules side by side, each alone (no wire between them), for
+// their tests (tests/test_rtunit_modules.py, driven cycle by cycle by sim/rtu_units_tb.cpp; one
+// build for all): traversal stacks (rf_rtu_stack), divider pool (rf_rtu_divs), node fetch
+// (rf_rtu_fetch, with the q8 decode stage; a second one without it, of which only in_bad_o is
+// read), scheduler (rf_rtu_sched), response processing (rf_rtu_resp), ray buffer
+// (rf_rtu_ray_buffer) and hit update (rf_rtu_hit). Each module's ports are the wrapper's under a
+// prefix (k_, d_, f_, s_, r_, b_, h_); the struct ports (req_t, rsp_t, kind_e) are flat bit
+// vectors here, word 0 at the low end. The testbench assumes RAYS = 4.
+module rtu_units_tb_top import rf_pkg::*; import rf_rtu_pkg::*; #(
+  parameter int unsigned RAYS        = 4,
+  parameter int unsigned STACK_DEPTH = 3,
+  parameter int unsigned DIVIDERS    = 3,
+  localparam int unsigned DIV_TAG_W  = 16,
+  localparam int unsigned SLOT_W = RAYS > 1 ? $clog2(RAYS) : 1,
+  localparam int unsigned DEPTH_W = $clog2(STACK_DEPTH + 1),
+  localparam int unsigned DIV_W   = $clog2(DIVIDERS + 1),
+  localparam int unsigned REQ_W  = $bits(req_t),
+  localparam int unsigned RSP_W  = $bits(rsp_t),
+  localparam int unsigned RAY_W  = $bits(ray_t)
+) (
+  input  logic               clk_i,
+  input  logic               rst_ni,
+  // ---- rf_rtu_stack ----
+  input  logic               k_clear_i,
+  input  logic [SLOT_W-1:0]  k_clear_slot_i,
+  input  logic               k_push_i,
+  input  logic [SLOT_W-1:0]  k_push_slot_i,
+  input  logic [31:0]        k_push_ptr_i,
+  input  logic [SLOT_W-1:0]  k_pop_slot_i,
+  input  logic               k_pop_i,
+  input  logic               k_refill_i,
+  output logic [31:0]        k_top_o,
+  output logic               k_empty_o,
+  output logic               k_spilled_o,
+  output logic               k_spill_o,
+  output logic [31:0]        k_spill_ptr_o,
+  output logic [DEPTH_W-1:0] k_depth_o,
+  // ---- rf_rtu_divs ----
+  input  logic               d_in_valid_i,
+  output logic               d_in_ready_o,
+  input  logic [31:0]        d_a_i,
+  input  logic [31:0]        d_b_i,
+  input  logic [DIV_TAG_W-1:0] d_tag_i,
+  output logic               d_out_valid_o,
+  input  logic               d_out_ready_i,
+  output logic [31:0]        d_q_o,
+  output logic [DIV_TAG_W-1:0] d_tag_o,
+  output logic [DIV_W-1:0]   d_busy_o,
+  // ---- rf_rtu_fetch (Q8) ----
+  input  logic               f_in_valid_i,
+  output logic               f_in_ready_o,
+  input  logic [SLOT_W-1:0]  f_in_slot_i,
+  input  logic [31:0]        f_in_ptr_i,
+  input  logic               f_in_refill_i,
+  output logic               f_in_bad_o,
+  output logic               f_in_bad_box32_o,     // the same pointer, a fetch without Q8
+  output logic               f_mem_req_valid_o,
+  input  logic               f_mem_req_ready_i,
+  output logic [ADDR_W-1:0]  f_mem_req_addr_o,
+  output logic [SIZE_W-1:0]  f_mem_req_size_o,
+  output logic [SLOT_W-1:0]  f_mem_req_tag_o,
+  output logic               f_mem_req_refill_o,
+  input  logic               f_mem_rsp_valid_i,
+  output logic               f_mem_rsp_ready_o,
+  input  logic [NODE_W-1:0]  f_mem_rsp_data_i,
+  input  logic [SLOT_W-1:0]  f_mem_rsp_tag_i,
+  output logic               f_done_o,
+  output logic [SLOT_W-1:0]  f_done_slot_o,
+  output logic               f_done_refill_o,
+  output logic [31:0]        f_done_ptr_o,
+  input  logic [SLOT_W-1:0]  f_rd_a_i,
+  output logic [NODE_W-1:0]  f_node_a_o,
+  input  logic [SLOT_W-1:0]  f_rd_b_i,
+  output logic [NODE_W-1:0]  f_node_b_o,
+  // ---- rf_rtu_sched ----
+  input  logic [RAYS-1:0]    s_ready_i,
+  input  logic [3*RAYS-1:0]  s_kind_i,
+  output logic [SLOT_W-1:0]  s_rd_o,
+  input  logic [RAY_W-1:0]   s_ray_i,
+  input  logic [31:0]        s_nearest_i,
+  input  logic [NODE_W-1:0]  s_node_i,
+  output logic               s_dp_valid_o,
+  input  logic               s_dp_ready_i,
+  output logic [REQ_W-1:0]   s_dp_req_o,
+  output logic               s_issue_o,
+  output logic [SLOT_W-1:0]  s_issue_slot_o,
+  output logic               s_issue_box_o,
+  // ---- rf_rtu_resp ----
+  input  logic               r_dp_valid_i,
+  output logic               r_dp_ready_o,
+  input  logic [RSP_W-1:0]   r_dp_rsp_i,
+  output logic [SLOT_W-1:0]  r_rd_o,
+  input  logic [NODE_W-1:0]  r_node_i,
+  input  logic [2:0]         r_kind_i,
+  output logic               r_push_o,
+  output logic [SLOT_W-1:0]  r_push_slot_o,
+  output logic [31:0]        r_push_ptr_o,
+  output logic               r_next_o,
+  output logic               r_div_o,
+  output logic [SLOT_W-1:0]  r_evt_slot_o,
+  output logic               r_div_valid_o,
+  input  logic               r_div_ready_i,
+  output logic [31:0]        r_div_num_o,
+  output logic [31:0]        r_div_den_o,
+  output logic [32+SLOT_W-1:0] r_div_tag_o,
+  // ---- rf_rtu_ray_buffer ----
+  input  logic               b_load_i,
+  input  logic [SLOT_W-1:0]  b_load_slot_i,
+  input  logic [RAY_W-1:0]   b_load_ray_i,
+  input  logic [31:0]        b_load_id_i,
+  input  logic               b_load_any_hit_i,
+  input  logic               b_hit_i,
+  input  logic [SLOT_W-1:0]  b_hit_slot_i,
+  input  logic [31:0]        b_hit_t_i,
+  input  logic [31:0]        b_hit_prim_i,
+  input  logic [SLOT_W-1:0]  b_issue_slot_i,
+  input  logic               b_box_inc_i,
+  input  logic               b_tri_inc_i,
+  input  logic               b_ovf_inc_i,
+  input  logic [SLOT_W-1:0]  b_ovf_slot_i,
+  input  logic               b_rst_inc_i,
+  input  logic [SLOT_W-1:0]  b_rst_slot_i,
+  input  logic [SLOT_W-1:0]  b_rd_a_i,
+  output logic [RAY_W-1:0]   b_ray_a_o,
+  output logic [31:0]        b_nearest_a_o,
+  input  logic [SLOT_W-1:0]  b_rd_b_i,
+  output logic [31:0]        b_nearest_b_o,
+  output logic               b_any_hit_b_o,
+  input  logic [SLOT_W-1:0]  b_rd_c_i,
+  output logic [31:0]        b_id_c_o,
+  output logic               b_hit_c_o,
+  output logic [31:0]        b_prim_c_o,
+  output logic [31:0]        b_nearest_c_o,
+  output logic [31:0]        b_box_ops_c_o,
+  output logic [31:0]        b_tri_ops_c_o,
+  output logic [15:0]        b_overflows_c_o,
+  output logic [15:0]        b_refills_c_o,
+  // ---- rf_rtu_hit ----
+  input  logic               h_div_valid_i,
+  output logic               h_div_ready_o,
+  input  logic [31:0]        h_div_t_i,
+  input  logic [32+SLOT_W-1:0] h_div_tag_i,
+  output logic [SLOT_W-1:0]  h_rd_o,
+  input  logic [31:0]        h_nearest_i,
+  input  logic               h_any_hit_i,
+  output logic               h_hit_o,
+  output logic [SLOT_W-1:0]  h_hit_slot_o,
+  output logic [31:0]        h_hit_t_o,
+  output logic [31:0]        h_hit_prim_o,
+  output logic               h_next_o,
+  output logic               h_finish_o
+);
+
+  rf_rtu_stack #(.RAYS(RAYS), .STACK_DEPTH(STACK_DEPTH)) u_stack (
+    .clk_i, .rst_ni,
+    .clear_i(k_clear_i), .clear_slot_i(k_clear_slot_i), .push_i(k_push_i),
+    .push_slot_i(k_push_slot_i), .push_ptr_i(k_push_ptr_i), .pop_slot_i(k_pop_slot_i),
+    .pop_i(k_pop_i), .refill_i(k_refill_i), .top_o(k_top_o), .empty_o(k_empty_o),
+    .spilled_o(k_spilled_o), .spill_o(k_spill_o), .spill_ptr_o(k_spill_ptr_o),
+    .depth_o(k_depth_o));
+
+  rf_rtu_divs #(.DIVIDERS(DIVIDERS), .TAG_W(DIV_TAG_W)) u_divs (
+    .clk_i, .rst_ni,
+    .in_valid_i(d_in_valid_i), .in_ready_o(d_in_ready_o), .a_i(d_a_i), .b_i(d_b_i),
+    .tag_i(d_tag_i), .out_valid_o(d_out_valid_o), .out_ready_i(d_out_ready_i), .q_o(d_q_o),
+    .tag_o(d_tag_o), .busy_o(d_busy_o));
+
+  rf_rtu_fetch #(.RAYS(RAYS), .Q8(1'b1)) u_fetch (
+    .clk_i, .rst_ni,
+    .in_valid_i(f_in_valid_i), .in_ready_o(f_in_ready_o), .in_slot_i(f_in_slot_i),
+    .in_ptr_i(f_in_ptr_i), .in_refill_i(f_in_refill_i), .in_bad_o(f_in_bad_o),
+    .mem_req_valid_o(f_mem_req_valid_o), .mem_req_ready_i(f_mem_req_ready_i),
+    .mem_req_addr_o(f_mem_req_addr_o), .mem_req_size_o(f_mem_req_size_o),
+    .mem_req_tag_o(f_mem_req_tag_o), .mem_req_refill_o(f_mem_req_refill_o),
+    .mem_rsp_valid_i(f_mem_rsp_valid_i), .mem_rsp_ready_o(f_mem_rsp_ready_o),
+    .mem_rsp_data_i(f_mem_rsp_data_i), .mem_rsp_tag_i(f_mem_rsp_tag_i),
+    .done_o(f_done_o), .done_slot_o(f_done_slot_o), .done_refill_o(f_done_refill_o),
+    .done_ptr_o(f_done_ptr_o),
+    .rd_a_i(f_rd_a_i), .node_a_o(f_node_a_o), .rd_b_i(f_rd_b_i), .node_b_o(f_node_b_o));
+
+  /* verilator lint_off PINCONNECTEMPTY */
+  rf_rtu_fetch #(.RAYS(RAYS), .Q8(1'b0)) u_fetch_box32 (
+    .clk_i, .rst_ni,
+    .in_valid_i(1'b0), .in_ready_o(), .in_slot_i(f_in_slot_i), .in_ptr_i(f_in_ptr_i),
+    .in_refill_i(1'b0), .in_bad_o(f_in_bad_box32_o),
+    .mem_req_valid_o(), .mem_req_ready_i(1'b0), .mem_req_addr_o(), .mem_req_size_o(),
+    .mem_req_tag_o(), .mem_req_refill_o(), .mem_rsp_valid_i(1'b0), .mem_rsp_ready_o(),
+    .mem_rsp_data_i('0), .mem_rsp_tag_i('0), .done_o(), .done_slot_o(), .done_refill_o(),
+    .done_ptr_o(), .rd_a_i('0), .node_a_o(), .rd_b_i('0), .node_b_o());
+  /* verilator lint_on PINCONNECTEMPTY */
+
+  req_t s_req;
+  rf_rtu_sched #(.RAYS(RAYS)) u_sched (
+    .clk_i, .rst_ni,
+    .ready_i(s_ready_i), .kind_i(kind_e [RAYS-1:0]'(s_kind_i)), .rd_o(s_rd_o),
+    .ray_i(ray_t'(s_ray_i)), .nearest_i(s_nearest_i), .node_i(s_node_i),
+    .dp_valid_o(s_dp_valid_o), .dp_ready_i(s_dp_ready_i), .dp_req_o(s_req),
+    .issue_o(s_issue_o), .issue_slot_o(s_issue_slot_o), .issue_box_o(s_issue_box_o));
+  assign s_dp_req_o = s_req;
+
+  rf_rtu_resp #(.RAYS(RAYS)) u_resp (
+    .clk_i, .rst_ni,
+    .dp_valid_i(r_dp_valid_i), .dp_ready_o(r_dp_ready_o), .dp_rsp_i(rsp_t'(r_dp_rsp_i)),
+    .rd_o(r_rd_o), .node_i(r_node_i), .kind_i(kind_e'(r_kind_i)),
+    .push_o(r_push_o), .push_slot_o(r_push_slot_o), .push_ptr_o(r_push_ptr_o),
+    .next_o(r_next_o), .div_o(r_div_o), .evt_slot_o(r_evt_slot_o),
+    .div_valid_o(r_div_valid_o), .div_ready_i(r_div_ready_i), .div_num_o(r_div_num_o),
+    .div_den_o(r_div_den_o), .div_tag_o(r_div_tag_o));
+
+  ray_t b_ray_a;
+  rf_rtu_ray_buffer #(.RAYS(RAYS)) u_rays (
+    .clk_i, .rst_ni,
+    .load_i(b_load_i), .load_slot_i(b_load_slot_i), .load_ray_i(ray_t'(b_load_ray_i)),
+    .load_id_i(b_load_id_i), .load_any_hit_i(b_load_any_hit_i),
+    .hit_i(b_hit_i), .hit_slot_i(b_hit_slot_i), .hit_t_i(b_hit_t_i), .hit_prim_i(b_hit_prim_i),
+    .issue_slot_i(b_issue_slot_i), .box_inc_i(b_box_inc_i), .tri_inc_i(b_tri_inc_i),
+    .ovf_inc_i(b_ovf_inc_i), .ovf_slot_i(b_ovf_slot_i),
+    .rst_inc_i(b_rst_inc_i), .rst_slot_i(b_rst_slot_i),
+    .rd_a_i(b_rd_a_i), .ray_a_o(b_ray_a), .nearest_a_o(b_nearest_a_o),
+    .rd_b_i(b_rd_b_i), .nearest_b_o(b_nearest_b_o), .any_hit_b_o(b_any_hit_b_o),
+    .rd_c_i(b_rd_c_i), .id_c_o(b_id_c_o), .hit_c_o(b_hit_c_o), .prim_c_o(b_prim_c_o),
+    .nearest_c_o(b_nearest_c_o), .box_ops_c_o(b_box_ops_c_o), .tri_ops_c_o(b_tri_ops_c_o),
+    .overflows_c_o(b_overflows_c_o), .refills_c_o(b_refills_c_o));
+  assign b_ray_a_o = b_ray_a;
+
+  rf_rtu_hit #(.RAYS(RAYS)) u_hit (
+    .div_valid_i(h_div_valid_i), .div_ready_o(h_div_ready_o), .div_t_i(h_div_t_i),
+    .div_tag_i(h_div_tag_i), .rd_o(h_rd_o), .nearest_i(h_nearest_i), .any_hit_i(h_any_hit_i),
+    .hit_o(h_hit_o), .hit_slot_o(h_hit_slot_o), .hit_t_o(h_hit_t_o), .hit_prim_o(h_hit_prim_o),
+    .next_o(h_next_o), .finish_o(h_finish_o));
+
+endmodule
