@@ -477,6 +477,12 @@ def _cells_by_type(sources, script: str, timeout: float | None, tool: str = "whe
     return dict(sorted(design["num_cells_by_type"].items()))
 
 
+# for the unit's flow (driver/unit_area.py): the same runner, sources and cache writes
+materialize = _materialize
+run_yosys = _run_yosys
+write_atomic = _write_atomic
+
+
 def _split_native(script: str) -> tuple[str, str]:
     cut = script.index("write_verilog -noattr elab.v\n") + len("write_verilog -noattr elab.v\n")
     return script[:cut], script[cut:]

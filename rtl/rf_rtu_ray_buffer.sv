@@ -3,7 +3,8 @@
 // ray's id and any-hit flag, its nearest t so far, its hit record (primitive id, instance, hit)
 // and its counters (QUADBOX, TRIANGLE and TRANSFORM requests issued, stack overflows, refills).
 // A second register set holds the object-space ray of the instance the ray is in (two-level
-// images, docs/instances.md): while the slot is inside an instance, read port a gives that ray.
+// images, docs/instances.md; built with XF, the datapath's TRANSFORM): while the slot is inside
+// an instance, read port a gives that ray.
 //
 // Contract (write ports act on the rising edge; the caller never writes one field of the same
 // slot from two ports in one cycle):
@@ -21,6 +22,7 @@
 //   * read ports a (scheduler), b (hit update) and c (result) are combinational.
 module rf_rtu_ray_buffer import rf_rtu_pkg::*; #(
   parameter int unsigned RAYS = 4,
+  parameter bit          XF   = 1'b0,
   localparam int unsigned SLOT_W = RAYS > 1 ? $clog2(RAYS) : 1
 ) (
   input  logic              clk_i,
@@ -88,7 +90,7 @@ module rf_rtu_ray_buffer import rf_rtu_pkg::*; #(
       ray_q[load_slot_i] <= load_ray_i;
       id_q[load_slot_i]  <= load_id_i;
     end
-    if (enter_i) begin
+    if (XF && enter_i) begin
       obj_q[enter_slot_i] <= enter_ray_i;
       obj_q[enter_slot_i][1][16:9] <= ray_q[enter_slot_i][1][16:9];     // the ray's flags
     end
@@ -147,7 +149,7 @@ module rf_rtu_ray_buffer import rf_rtu_pkg::*; #(
     end
   end
 
-  assign ray_a_o       = inside_q[rd_a_i] ? obj_q[rd_a_i] : ray_q[rd_a_i];
+  assign ray_a_o       = XF && inside_q[rd_a_i] ? obj_q[rd_a_i] : ray_q[rd_a_i];
   assign nearest_a_o   = nearest_q[rd_a_i];
   assign nearest_b_o   = nearest_q[rd_b_i];
   assign any_hit_b_o   = any_hit_q[rd_b_i];

@@ -232,7 +232,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign setup_slot = setup_tag[SLOT_W-1:0];
   logic [15:0] res_ovf_c, res_rst_c;
   logic        res_hit_c;
-  rf_rtu_ray_buffer #(.RAYS(RAYS)) u_rays (
+  rf_rtu_ray_buffer #(.RAYS(RAYS), .XF(TRANSFORM)) u_rays (
     .clk_i, .rst_ni,
     .load_i(load), .load_slot_i(load_slot), .load_ray_i(ray_i), .load_id_i(ray_id_i),
     .load_any_hit_i(ray_any_hit_i),
@@ -288,12 +288,25 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     .xf_o(resp_xf), .xf_valid_o(xf_valid), .xf_ready_i(xf_ready), .xf_origin_o(xf_origin),
     .xf_dir_o(xf_dir), .xf_tag_o(xf_tag));
 
-  rf_rtu_setups #(.SETUPS(SETUPS), .TAG_W(64 + SLOT_W)) u_setup (
-    .clk_i, .rst_ni,
-    .in_valid_i(xf_valid), .in_ready_o(xf_ready), .origin_i(xf_origin), .dir_i(xf_dir),
-    .tag_i(xf_tag),
-    .out_valid_o(setup_valid), .out_ready_i(1'b1), .ok_o(setup_ok), .ray_o(setup_ray),
-    .tag_o(setup_tag), .busy_o(setup_busy_o));
+  // the ray setups exist with TRANSFORM only (without it no instance node is fetched, so no
+  // TRANSFORM response ever comes)
+  if (TRANSFORM) begin : g_setups
+    rf_rtu_setups #(.SETUPS(SETUPS), .TAG_W(64 + SLOT_W)) u_setup (
+      .clk_i, .rst_ni,
+      .in_valid_i(xf_valid), .in_ready_o(xf_ready), .origin_i(xf_origin), .dir_i(xf_dir),
+      .tag_i(xf_tag),
+      .out_valid_o(setup_valid), .out_ready_i(1'b1), .ok_o(setup_ok), .ray_o(setup_ray),
+      .tag_o(setup_tag), .busy_o(setup_busy_o));
+  end else begin : g_no_setups
+    assign xf_ready     = 1'b0;
+    assign setup_valid  = 1'b0;
+    assign setup_ok     = 1'b0;
+    assign setup_ray    = '0;
+    assign setup_tag    = '0;
+    assign setup_busy_o = '0;
+    logic unused_xf;
+    assign unused_xf = ^{xf_valid, xf_origin, xf_dir, xf_tag};
+  end
 
   rf_rtu_divs #(.DIVIDERS(DIVIDERS), .TAG_W(32 + SLOT_W)) u_div (
     .clk_i, .rst_ni,

