@@ -320,3 +320,15 @@ def test_figures_command_lists_and_rejects_unknown_names(capsys):
     assert all(f.name in out for f in figures.FIGURES)
     with pytest.raises(SystemExit):
         figures.main(["--only", "no_such_figure"])
+
+
+def test_the_tradeoffs_page_quotes_the_timing_of_its_builds():
+    """docs/tradeoffs.md's Fmax and area of the shared-register build are those of
+    docs/timing_tradeoffs.json (the ``timing_tradeoffs`` figure)."""
+    page = (ROOT / "docs" / "tradeoffs.md").read_text()
+    cfgs = json.loads((ROOT / "docs" / "timing_tradeoffs.json").read_text())["configs"]
+    base, shared = cfgs["extended-unified"], cfgs["extended-unified-shared"]
+    for r in (base, shared):
+        assert f"{r['fmax_mhz']:.1f} MHz" in page or f"against {r['fmax_mhz']:.1f}" in page
+        assert f"{r['area_um2'] / 1e6:.2f}" in page and f"{r['flip_flops']:,}" in page
+    assert f"({(shared['fmax_mhz'] / base['fmax_mhz'] - 1) * 100:.1f} %)".replace("-", "−") in page
