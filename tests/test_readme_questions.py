@@ -88,6 +88,11 @@ EXPECT = {
     "Does the extended datapath pay off on kNN?": [
         ("beats, cycles, utilization", r"\d+ beats \(ops\) in \d+ cycles, utilization [\d.]+"),
         ("agreement with float64", r"agreement with exact float64 search: [\d.]+ %")],
+    "Does the timing model hold against an RT unit in RTL?": [
+        ("cycles, utilization and deepest stack",
+         r"RT unit in RTL .*: \d+ cycles, utilization [\d.]+, max stack depth \d+"),
+        ("every ray compared with the Python traversal", r"\b0 rays differ from the traversal"),
+        ("the replay's cycles as a ratio of the unit's", r"replay cycles [\d.]+ x the unit's")],
     "Should the instance transform run on the datapath?": [
         ("TRANSFORM ops per ray beside box and triangle ops", r"box/ray\s+tri/ray\s+xf/ray"),
         ("per ray type", TYPE_ROW.format(t="primary")),
