@@ -135,6 +135,8 @@ def small(argv: list[str], lumibench_root: Path | None = None) -> list[str]:
         argv += ["--size", SMALL]
     if argv[:2] == ["rayflex", "knn"]:
         argv += ["--queries", "4"]
+    if "rtunit" in argv and "--rays-in-flight" not in argv:
+        argv += ["--rays-in-flight", "8"]             # the RT unit the suite builds anyway
     if argv[0] == "rayflex":
         argv.append("--no-progress")
     return argv
