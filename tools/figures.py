@@ -337,6 +337,12 @@ FIGURES = [
            ("docs/timing.json", "images/timing_stages.png", "images/timing_power.png"), 120.0,
            "Fmax and each pipeline stage's least period (OSU 0.18 um, OpenSTA); power against "
            "the clock"),
+    Figure("rtunit_replay_full",
+           (sys.executable, "tools/replay_vs_unit.py", "--runs", "full", "--json",
+            "docs/rtunit_replay_full.json"),
+           ("docs/rtunit_replay_full.json",), 1.5,
+           "the full-size frames through the RT unit in RTL, every ray checked against the "
+           "traversal and Embree, the replay's cycles against the unit's (docs/rtunit_rtl.md)"),
     Figure("timing_balanced",
            (*RAYFLEX, "timing", "--configs", "baseline-unified,baseline-unified@10", "--jobs",
             "2", "--rev", "HEAD", "--json", "docs/timing_balanced.json", "--no-progress"),
