@@ -361,6 +361,10 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
              help="ABC's required delay in ps, abc -D (default "
                   f"{timing.DEFAULT_DELAY_PS:g}: the paper's 1 GHz, out of reach in 0.18 um, "
                   "so each cone is mapped for its least delay)"),
+        flag("--abc-script", choices=tuple(timing.ABC_SCRIPTS), default="default",
+             help="ABC's mapping script: default (Yosys's: equivalence sweeping and choices "
+                  "before the delay mapping) or fast (the delay mapping alone, for a design "
+                  "whose sweep does not finish; compare configurations on one script)"),
         flag("--liberty", metavar="PATH",
              help="standard-cell liberty to map to (default: Debian's qflow-tech-osu018, "
                   "OSU 0.18 um)"),
