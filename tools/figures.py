@@ -348,6 +348,13 @@ FIGURES = [
             "2", "--rev", "HEAD", "--json", "docs/timing_balanced.json", "--no-progress"),
            ("docs/timing_balanced.json",), 40.0,
            "the balanced pipeline (10 stages: S9 beside the output format) against the paper's 11"),
+    Figure("timing_fused",
+           (*RAYFLEX, "timing", "--configs", "baseline-unified,baseline-unified-fused",
+            "--abc-script", "fast", "--jobs", "2", "--rev", "ae4b17a", "--json",
+            "docs/timing_fused.json", "--no-progress"),
+           ("docs/timing_fused.json",), 10.0,
+           "Fmax, area and flip-flops of the fused build beside the baseline, both mapped by "
+           "ABC's fast script (docs/tradeoffs.md)"),
     Figure("timing_tradeoffs",
            (*RAYFLEX, "timing", "--configs", "extended-unified,extended-unified-shared",
             "--jobs", "2", "--rev", "ae4b17a", "--json", "docs/timing_tradeoffs.json",
