@@ -348,3 +348,19 @@ def test_the_rt_unit_page_quotes_its_full_size_runs():
     for r in rows:
         assert r["mismatches"] == 0 and r["embree_datapath_wrong"] == 0
         assert abs(r["ratio"] - 1) < 0.005
+
+
+def test_the_tradeoffs_page_quotes_the_timing_of_the_fused_build():
+    """docs/tradeoffs.md's Fmax and area of the fused build are docs/timing_fused.json's (the
+    ``timing_fused`` figure: both builds mapped by ABC's fast script)."""
+    page = (ROOT / "docs" / "tradeoffs.md").read_text()
+    doc = json.loads((ROOT / "docs" / "timing_fused.json").read_text())
+    base, fused = doc["configs"]["baseline-unified"], doc["configs"]["baseline-unified-fused"]
+    assert base["abc_script"] == fused["abc_script"] == "fast"
+    flat = " ".join(page.split())
+    assert f"reaches {fused['fmax_mhz']:.1f} MHz against the baseline's {base['fmax_mhz']:.1f}" \
+        in flat
+    assert f"({(fused['fmax_mhz'] / base['fmax_mhz'] - 1) * 100:.1f} %)".replace("-", "−") in flat
+    assert (f"{fused['area_um2'] / 1e6:.2f} against {base['area_um2'] / 1e6:.2f} mm²" in flat
+            and f"{fused['flip_flops']:,} against {base['flip_flops']:,}" in flat)
+    assert f"{fused['stages']['S1']['min_period_ns']:.2f} ns" in flat
