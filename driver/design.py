@@ -38,8 +38,9 @@ from . import timing
 from .core.configs import (ALL_CONFIGS, DESIGN_CONFIGS, FUSED_SUFFIX, Q8_SUFFIX, SHARED_SUFFIX,
                            config_name, parse_config)
 from .backends.build import MIN_LATENCY, rtl_params
-from .backends.rtunit import (DEFAULT_STACK_DEPTH, MAX_STACK_DEPTH, MIN_STACK_DEPTH,
-                              UNIT_BACKEND, UNIT_OPTIONS, check_format, unit_params)
+from .backends.rtunit import (DEFAULT_STACK_DEPTH, MAX_STACK_DEPTH, MAX_UNIT_PIPELINES,
+                              MIN_STACK_DEPTH, UNIT_BACKEND, UNIT_OPTIONS, check_format,
+                              unit_params)
 from .bvh4 import build_scene
 from .core.datapath import LATENCY, MAX_LATENCY, default_latency, least_latency
 from .instances import DATAPATH, TRANSFORMS
@@ -245,7 +246,8 @@ OPTIONS: tuple[Option, ...] = (
            "entry to memory, read back when the stack empties (the same hits and ops, more "
            "cycles; docs/rtunit_rtl.md)", _int_range(MIN_STACK_DEPTH, MAX_STACK_DEPTH), "rtunit"),
     Option("pipelines", "--pipelines", int, 1,
-           f"datapath pipelines of the RT unit, 1..{MAX_PIPELINES}",
+           f"datapath pipelines of the RT unit, 1..{MAX_PIPELINES} (the RT unit in RTL, "
+           f"--backend rtunit: 1..{MAX_UNIT_PIPELINES}, each with its response stage)",
            _int_range(1, MAX_PIPELINES), "rtunit"),
     Option("cache_kib", "--cache-kib", int, 32,
            "node cache (L1) of each RT unit in KiB, set-associative LRU (0: none, every node "
@@ -293,7 +295,8 @@ OPTIONS: tuple[Option, ...] = (
            "what the RT-unit replay charges per request: replay (one turnaround cycle from a "
            "response to the ray's next request, no divider) or rtl (the RT unit in RTL's ray, "
            "pop, memory and result ports, fetch register, scheduler cycle, response stage and "
-           "dividers, the cycles --backend rtunit counts; one pipeline, index ray order; "
+           f"dividers, the cycles --backend rtunit counts; 1..{MAX_UNIT_PIPELINES} pipelines, "
+           "index ray order; "
            "docs/rtunit_rtl.md)", _choice(UNIT_COSTS), "rtunit",
            "COSTS", UNIT_COSTS),
     Option("scene", "--scene", str, DEFAULT_SCENE, _scene_help(),
@@ -408,10 +411,11 @@ class DesignPoint:
         if POLICIES[self.ray_order].schedule and self.ray_window % self.warp_size:
             raise ValueError(f"--ray-window {self.ray_window} must be a multiple of "
                              f"--warp-size {self.warp_size}")
-        if self.unit_costs == "rtl" and (self.pipelines != 1 or self.ray_order != DEFAULT_POLICY):
-            raise ValueError("--unit-costs rtl charges the RT unit in RTL's costs: it has one "
-                             "pipeline and takes rays in index order (give --pipelines 1 "
-                             "--ray-order index)")
+        if self.unit_costs == "rtl" and (self.pipelines > MAX_UNIT_PIPELINES
+                                         or self.ray_order != DEFAULT_POLICY):
+            raise ValueError("--unit-costs rtl charges the RT unit in RTL's costs: it has "
+                             f"1..{MAX_UNIT_PIPELINES} pipelines and takes rays in index order "
+                             f"(give --pipelines 1..{MAX_UNIT_PIPELINES} --ray-order index)")
         if POLICIES[self.ray_order].key is not None and self.frame_schedule == "one-kernel":
             raise ValueError(f"--ray-order {self.ray_order} sorts a wavefront's ray queue: use "
                              "it with --frame wavefront (in a one-kernel frame threads issue "
@@ -462,18 +466,19 @@ class DesignPoint:
 
     def backend_options(self, name: str | None = None) -> dict:
         """Keyword options of ``driver.backends.backend`` for this datapath; for the RT unit in
-        RTL (``name`` "rtunit") also its ray slots, stack depth and memory hierarchy, after
-        refusing (ValueError, one line) a ray count, stack depth or node format it cannot take."""
+        RTL (``name`` "rtunit") also its ray slots, stack depth, pipelines and memory hierarchy,
+        after refusing (ValueError, one line) a ray count, stack depth, pipeline count or node
+        format it cannot take."""
         out = {"extended": self.extended, "disjoint": self.disjoint, "latency": self.latency,
                "compressed": self.compressed, "transform": self.transform_op,
                **({"fused": True} if self.fused else {}),
                **({"shared": True} if self.shared else {})}
         if name == UNIT_BACKEND:
             # what the unit cannot be built with or read: one line, before any work
-            unit_params({}, self.rays_in_flight, self.stack_depth)
+            unit_params({}, self.rays_in_flight, self.stack_depth, pipelines=self.pipelines)
             check_format(self.bvh_format, self.compressed, self.transform_op, False)
             out.update(rays_in_flight=self.rays_in_flight, stack_depth=self.stack_depth,
-                       memory=self.memory().config())
+                       pipelines=self.pipelines, memory=self.memory().config())
         return out
 
     def rtl_params(self) -> dict:

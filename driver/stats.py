@@ -133,7 +133,7 @@ def unit_rtl_stats(res, be) -> dict:
     cycles = st["cycles"]
     return {
         "cycles": cycles,
-        "utilization": st["dp_requests"] / cycles if cycles else 0.0,
+        "utilization": st["dp_requests"] / (be.pipelines * cycles) if cycles else 0.0,
         "rays_in_flight": be.rays_in_flight,
         "stack_depth": be.stack_depth,
         "memory": "hierarchy" if be.memory is not None else "fixed",
@@ -151,6 +151,10 @@ def unit_rtl_stats(res, be) -> dict:
         "divider_full_cycles": st["divider_full_cycles"],
         "setups": be.setups,
         "setup_busy_cycles": st["setup_busy_cycles"],
+        "pipelines": be.pipelines,
+        "pipeline_requests": list(st["pipeline_requests"]),
+        "pipeline_utilization": [n / cycles if cycles else 0.0
+                                 for n in st["pipeline_requests"]],
     }
 
 
@@ -166,13 +170,17 @@ def merge_unit_rtl(parts: list[dict], ops: int) -> dict:
     out = dict(parts[0])
     out.update({k: sum(p[k] for p in parts) for k in _UNIT_SUMMED})
     out["max_stack_depth"] = max(p["max_stack_depth"] for p in parts)
+    out["pipeline_requests"] = [sum(n) for n in zip(*(p["pipeline_requests"] for p in parts))]
+    out["pipeline_utilization"] = [n / out["cycles"] if out["cycles"] else 0.0
+                                   for n in out["pipeline_requests"]]
     for key in ("traversal_mismatches", "replay_cycles", "replay_default_cycles"):
         values = [p[key] for p in parts]
         out[key] = None if None in values else sum(values)
     for key in ("replay_cycles", "replay_default_cycles"):
         out[f"{key}_ratio"] = (None if out[key] is None or not out["cycles"]
                                else out[key] / out["cycles"])
-    out["utilization"] = ops / out["cycles"] if out["cycles"] else 0.0
+    out["utilization"] = (ops / (out["pipelines"] * out["cycles"]) if out["cycles"]
+                          else 0.0)
     return out
 
 

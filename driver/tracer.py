@@ -225,7 +225,7 @@ def _trace_unit(be, be_name: str, bvh, rays, any_hit, progress, cull_stack,
 
 
 def _replay_unit(be, rec, any_hit, n: int, unit_cycles: int) -> dict:
-    """The RT-unit replay of the unit's batch on its parameters (one pipeline, its rays in flight
+    """The RT-unit replay of the unit's batch on its parameters (its pipelines, its rays in flight
     and memory): with the unit's costs (``rtunit.UnitCosts``: its dividers, its fixed-latency
     memory, the any-hit rays, its stack depth) and, when the unit has the memory hierarchy, with the replay's
     default costs; each as cycles and over the unit's."""
@@ -237,7 +237,8 @@ def _replay_unit(be, rec, any_hit, n: int, unit_cycles: int) -> dict:
     for key, uc in (("replay", costs), ("replay_default", None)):
         cycles = None
         if uc is not None or mem is not None:
-            cycles = int(rtunit.replay(rec, rays_in_flight=be.rays_in_flight, pipelines=1,
+            cycles = int(rtunit.replay(rec, rays_in_flight=be.rays_in_flight,
+                                       pipelines=be.pipelines,
                                        memory=mem, unit_costs=uc).cycles)
         out[f"{key}_cycles"] = cycles
         out[f"{key}_cycles_ratio"] = None if cycles is None else cycles / unit_cycles

@@ -19,12 +19,13 @@
 //     node's size are ignored) for the request tagged mem_rsp_tag_i, in any order. It is written
 //     into the slot's node buffer entry and done_o pulses with done_slot_o in the same cycle, with
 //     done_refill_o and done_ptr_o (data word 0: the spilled pointer) for a refill;
-//   * node_a_o / node_b_o: the node buffer entries of slots rd_a_i / rd_b_i (combinational read
-//     ports, for the scheduler and the response processing).
+//   * node_a_o[p] / node_b_o[p]: the node buffer entries of slots rd_a_i[p] / rd_b_i[p], p < PORTS
+//     (combinational read ports: per pipeline, for the scheduler and its response stage).
 module rf_rtu_fetch import rf_rtu_pkg::*; #(
   parameter int unsigned RAYS = 4,
   parameter bit          Q8   = 1'b0,
   parameter bit          XF   = 1'b0,
+  parameter int unsigned PORTS = 1,
   localparam int unsigned SLOT_W = RAYS > 1 ? $clog2(RAYS) : 1
 ) (
   input  logic              clk_i,
@@ -49,10 +50,10 @@ module rf_rtu_fetch import rf_rtu_pkg::*; #(
   output logic [SLOT_W-1:0] done_slot_o,
   output logic              done_refill_o,
   output logic [31:0]       done_ptr_o,
-  input  logic [SLOT_W-1:0] rd_a_i,
-  output logic [NODE_W-1:0] node_a_o,
-  input  logic [SLOT_W-1:0] rd_b_i,
-  output logic [NODE_W-1:0] node_b_o
+  input  logic [PORTS-1:0][SLOT_W-1:0] rd_a_i,
+  output logic [PORTS-1:0][NODE_W-1:0] node_a_o,
+  input  logic [PORTS-1:0][SLOT_W-1:0] rd_b_i,
+  output logic [PORTS-1:0][NODE_W-1:0] node_b_o
 );
 
   typedef struct packed {
@@ -103,7 +104,9 @@ module rf_rtu_fetch import rf_rtu_pkg::*; #(
   always_ff @(posedge clk_i) begin
     if (mem_rsp_valid_i) node_q[mem_rsp_tag_i] <= mem_rsp_data_i;
   end
-  assign node_a_o = node_q[rd_a_i];
-  assign node_b_o = node_q[rd_b_i];
+  for (genvar p = 0; p < PORTS; p++) begin : g_read
+    assign node_a_o[p] = node_q[rd_a_i[p]];
+    assign node_b_o[p] = node_q[rd_b_i[p]];
+  end
 
 endmodule

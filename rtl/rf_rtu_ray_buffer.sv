@@ -16,13 +16,16 @@
 //     enter_ray_i (rf_rtu_setup's words; the flags are kept from the world ray), read from then
 //     on by port a;
 //   * leave_i (slot leave_slot_i): the ray returns to its world ray (no instance);
-//   * box_inc_i / tri_inc_i / xf_inc_i (slot issue_slot_i): one more QUADBOX / TRIANGLE /
-//     TRANSFORM request;
-//   * ovf_inc_i (slot ovf_slot_i), rst_inc_i (slot rst_slot_i): one more stack overflow / refill;
-//   * read ports a (scheduler), b (hit update) and c (result) are combinational.
+//   * box_inc_i[p] / tri_inc_i[p] / xf_inc_i[p] (slot issue_slot_i[p], p < PORTS: one port per
+//     pipeline, each its own slot): one more QUADBOX / TRIANGLE / TRANSFORM request;
+//   * ovf_inc_i[p] (slot ovf_slot_i[p], p < PORTS, each its own slot), rst_inc_i (slot
+//     rst_slot_i): one more stack overflow / refill;
+//   * read ports a[p] (the scheduler's, one per pipeline), b (hit update) and c (result) are
+//     combinational.
 module rf_rtu_ray_buffer import rf_rtu_pkg::*; #(
   parameter int unsigned RAYS = 4,
   parameter bit          XF   = 1'b0,
+  parameter int unsigned PORTS = 1,
   localparam int unsigned SLOT_W = RAYS > 1 ? $clog2(RAYS) : 1
 ) (
   input  logic              clk_i,
@@ -42,17 +45,17 @@ module rf_rtu_ray_buffer import rf_rtu_pkg::*; #(
   input  logic [31:0]       enter_inst_i,
   input  logic              leave_i,
   input  logic [SLOT_W-1:0] leave_slot_i,
-  input  logic [SLOT_W-1:0] issue_slot_i,
-  input  logic              box_inc_i,
-  input  logic              tri_inc_i,
-  input  logic              xf_inc_i,
-  input  logic              ovf_inc_i,
-  input  logic [SLOT_W-1:0] ovf_slot_i,
+  input  logic [PORTS-1:0][SLOT_W-1:0] issue_slot_i,
+  input  logic [PORTS-1:0]  box_inc_i,
+  input  logic [PORTS-1:0]  tri_inc_i,
+  input  logic [PORTS-1:0]  xf_inc_i,
+  input  logic [PORTS-1:0]  ovf_inc_i,
+  input  logic [PORTS-1:0][SLOT_W-1:0] ovf_slot_i,
   input  logic              rst_inc_i,
   input  logic [SLOT_W-1:0] rst_slot_i,
-  input  logic [SLOT_W-1:0] rd_a_i,
-  output ray_t              ray_a_o,
-  output logic [31:0]       nearest_a_o,
+  input  logic [PORTS-1:0][SLOT_W-1:0] rd_a_i,
+  output ray_t [PORTS-1:0]  ray_a_o,
+  output logic [PORTS-1:0][31:0] nearest_a_o,
   input  logic [SLOT_W-1:0] rd_b_i,
   output logic [31:0]       nearest_b_o,
   output logic              any_hit_b_o,
@@ -141,16 +144,21 @@ module rf_rtu_ray_buffer import rf_rtu_pkg::*; #(
         inside_q[leave_slot_i] <= 1'b0;
         inst_q[leave_slot_i]   <= NO_CHILD;
       end
-      if (box_inc_i) box_q[issue_slot_i] <= box_q[issue_slot_i] + 1'b1;
-      if (tri_inc_i) tri_q[issue_slot_i] <= tri_q[issue_slot_i] + 1'b1;
-      if (xf_inc_i)  xf_q[issue_slot_i]  <= xf_q[issue_slot_i] + 1'b1;
-      if (ovf_inc_i && ovf_q[ovf_slot_i] != '1) ovf_q[ovf_slot_i] <= ovf_q[ovf_slot_i] + 1'b1;
+      for (int p = 0; p < PORTS; p++) begin
+        if (box_inc_i[p]) box_q[issue_slot_i[p]] <= box_q[issue_slot_i[p]] + 1'b1;
+        if (tri_inc_i[p]) tri_q[issue_slot_i[p]] <= tri_q[issue_slot_i[p]] + 1'b1;
+        if (xf_inc_i[p])  xf_q[issue_slot_i[p]]  <= xf_q[issue_slot_i[p]] + 1'b1;
+        if (ovf_inc_i[p] && ovf_q[ovf_slot_i[p]] != '1)
+          ovf_q[ovf_slot_i[p]] <= ovf_q[ovf_slot_i[p]] + 1'b1;
+      end
       if (rst_inc_i && rst_q[rst_slot_i] != '1) rst_q[rst_slot_i] <= rst_q[rst_slot_i] + 1'b1;
     end
   end
 
-  assign ray_a_o       = XF && inside_q[rd_a_i] ? obj_q[rd_a_i] : ray_q[rd_a_i];
-  assign nearest_a_o   = nearest_q[rd_a_i];
+  for (genvar p = 0; p < PORTS; p++) begin : g_port_a
+    assign ray_a_o[p]     = XF && inside_q[rd_a_i[p]] ? obj_q[rd_a_i[p]] : ray_q[rd_a_i[p]];
+    assign nearest_a_o[p] = nearest_q[rd_a_i[p]];
+  end
   assign nearest_b_o   = nearest_q[rd_b_i];
   assign any_hit_b_o   = any_hit_q[rd_b_i];
   assign id_c_o        = id_q[rd_c_i];

@@ -1,11 +1,11 @@
-// Response processing: what a datapath response does to its ray (tag = the ray's slot).
+// Response processing: what a datapath response does to its ray (tag = the ray's slot); one
+// per datapath pipeline (rf_rtu_pipes).
 //
 //   * QUADBOX: the hit children are pushed on the slot's stack farthest first, so that the
 //     nearest is popped next: for j = 3 down to 0 with box_hit[j], the child pointer
-//     child[box_index[j]] of the slot's node (a box32 or a q8 node: kind_i, the kind of slot
-//     rd_o). One push per cycle (the stack RAM has one write
-//     port): a response with k hit children takes max(k, 1) cycles; then next_o pulses (the ray
-//     pops its next node).
+//     child[box_index[j]] of the slot's node (a box32 or a q8 node: kind_i, the kind of slot rd_o).
+//     One push per cycle (the stack RAM has one write port per response stage): a response with k
+//     hit children takes max(k, 1) cycles; then next_o pulses (the ray pops its next node).
 //   * TRIANGLE without a hit: next_o pulses in the cycle the response is taken.
 //   * TRIANGLE with a hit: (t_num, t_den) go to the divider with tag {prim, slot} (prim: the
 //     triangle's primitive id: a triangle node's, or prim[k] of a pair leaf), in the cycle the

@@ -1,5 +1,6 @@
-// Scheduler: each cycle picks one ray slot whose node is in the node buffer (round robin from the
-// slot after the last one issued) and offers the datapath its request: the slot's prepared ray,
+// Scheduler: each cycle picks up to PIPELINES ray slots whose node is in the node buffer, one per
+// pipeline, no slot twice (round robin from the slot after the last one issued), and offers each
+// pipeline its slot's request: the slot's prepared ray,
 // extent = the ray's nearest t, tag = the slot, and by the node's kind (rf_rtu_pkg::kind_e):
 // QUADBOX with a box32 node's four child boxes, or with a q8 node as stored (the request's qnode)
 // and the flag DECODE_Q8; TRIANGLE with a triangle node's triangle, a pair leaf's triangle 0
@@ -7,82 +8,123 @@
 // TRANSFORM of the ray (outside instances: its world ray) by an instance node's world_to_object
 // (the request's matrix, box words 0..11).
 //
-// Contract:
+// Contract (p < PIPELINES; with one pipeline every port is one wide):
 //   * ready_i: one bit per slot whose request may issue; kind_i: per slot, its node's kind;
-//   * rd_o names the slot offered this cycle; ray_i, nearest_i and node_i are that slot's ray,
-//     nearest t and node (the buffers' combinational read ports);
-//   * dp (valid/ready) drives the datapath's input: dp_valid_o = some slot is ready; a request
-//     moves when dp_ready_i is high, and then issue_o pulses with issue_slot_o, issue_box_o and
-//     issue_xf_o (the caller moves the slot on and counts the op).
+//   * the pipelines are served in turn, round robin too: from the pipeline after the last one
+//     that took a request, each is offered the first ready slot (round robin from the slot after
+//     the last one issued) that no pipeline served before it takes this cycle; rd_o[p] names
+//     pipeline p's, and ray_i[p], nearest_i[p] and node_i[p] are that slot's ray, nearest t and
+//     node (the buffers' combinational read ports, one per pipeline). Consecutive requests thus
+//     go to different pipelines, and so to different response stages;
+//   * dp[p] (valid/ready) drives pipeline p's input: dp_valid_o[p] = such a slot exists (it
+//     depends on dp_ready_i of the pipelines served before p, never on its own: the datapath's
+//     in_ready is a register output); a request moves when dp_ready_i[p] is high, and then
+//     issue_o[p] pulses with issue_slot_o[p], issue_box_o[p] and issue_xf_o[p] (the caller moves
+//     the slot on and counts the op). Both round robins start the next cycle after the last
+//     slot issued and the last pipeline that took it.
 module rf_rtu_sched import rf_pkg::*; import rf_rtu_pkg::*; #(
   parameter int unsigned RAYS = 4,
-  localparam int unsigned SLOT_W = RAYS > 1 ? $clog2(RAYS) : 1
+  parameter int unsigned PIPELINES = 1,
+  localparam int unsigned SLOT_W = RAYS > 1 ? $clog2(RAYS) : 1,
+  localparam int unsigned PIPE_W = PIPELINES > 1 ? $clog2(PIPELINES) : 1
 ) (
-  input  logic              clk_i,
-  input  logic              rst_ni,
-  input  logic [RAYS-1:0]   ready_i,
-  input  kind_e [RAYS-1:0]  kind_i,
-  output logic [SLOT_W-1:0] rd_o,
-  input  ray_t              ray_i,
-  input  logic [31:0]       nearest_i,
-  input  logic [NODE_W-1:0] node_i,
-  output logic              dp_valid_o,
-  input  logic              dp_ready_i,
-  output req_t              dp_req_o,
-  output logic              issue_o,
-  output logic [SLOT_W-1:0] issue_slot_o,
-  output logic              issue_box_o,
-  output logic              issue_xf_o
+  input  logic                 clk_i,
+  input  logic                 rst_ni,
+  input  logic [RAYS-1:0]      ready_i,
+  input  kind_e [RAYS-1:0]     kind_i,
+  output logic [PIPELINES-1:0][SLOT_W-1:0] rd_o,
+  input  ray_t [PIPELINES-1:0] ray_i,
+  input  logic [PIPELINES-1:0][31:0]       nearest_i,
+  input  logic [PIPELINES-1:0][NODE_W-1:0] node_i,
+  output logic [PIPELINES-1:0] dp_valid_o,
+  input  logic [PIPELINES-1:0] dp_ready_i,
+  output req_t [PIPELINES-1:0] dp_req_o,
+  output logic [PIPELINES-1:0] issue_o,
+  output logic [PIPELINES-1:0][SLOT_W-1:0] issue_slot_o,
+  output logic [PIPELINES-1:0] issue_box_o,
+  output logic [PIPELINES-1:0] issue_xf_o
 );
 
   localparam int unsigned REQ_W = $bits(req_t);
 
-  logic [SLOT_W-1:0] next_q;      // round-robin start
+  function automatic logic [SLOT_W-1:0] after(input logic [SLOT_W-1:0] slot);
+    return (32'(slot) == RAYS - 1) ? '0 : slot + 1'b1;
+  endfunction
+
+  logic [SLOT_W-1:0] next_q;      // round-robin start over the slots
+  logic [PIPE_W-1:0] pipe_q;      // and over the pipelines
+  // each pipeline's pick, in turn from pipe_q: from the slots the pipelines served before it
+  // left, after the last one they took
+  logic [RAYS-1:0]   left;
+  logic [SLOT_W-1:0] start, next_d;
+  logic [PIPE_W-1:0] pipe_d;
   logic [32:0]       pick;
-  assign pick       = rr_pick(256'(ready_i), RAYS, 32'(next_q));
-  assign rd_o       = SLOT_W'(pick[31:0]);
-  assign dp_valid_o = pick[32];
-
-  logic [REQ_W-1:0] w;
-  logic             box, xf;
-  kind_e            kind;
-  logic [5:0]       sel;
-  assign kind = kind_i[rd_o];
-  assign box  = kind == KIND_BOX32 || kind == KIND_Q8;
-  assign xf   = kind == KIND_XF;
-  assign sel  = node_i[PAIR_NODE_IDX_WORD*32 +: 6];
+  int unsigned       q;      // the pipeline served j-th
   always_comb begin
-    w = '0;
-    w[RAY_WORDS*32-1:32] = ray_i;
-    w[31:0] = 32'(rd_o);                                       // tag = slot
-    w[32+:3] = box ? OP_QUADBOX : xf ? OP_TRANSFORM : OP_TRIANGLE;  // opcode (word 1 bits 2:0)
-    w[REQ_EXTENT_WORD*32+:32] = nearest_i;
-    unique case (kind)
-      KIND_BOX32: w[REQ_BOX_WORD*32+:24*32] = node_i[BOX_NODE_BOX_WORD*32+:24*32];
-      KIND_Q8: begin
-        w[REQ_BOX_WORD*32+:Q8_NODE_WORDS*32] = node_i[0+:Q8_NODE_WORDS*32];
-        w[REQ_FLAGS_LSB + FLAG_DECODE_Q8_BIT] = 1'b1;
+    left   = ready_i;
+    start  = next_q;
+    next_d = next_q;
+    pipe_d = pipe_q;
+    for (int unsigned j = 0; j < PIPELINES; j++) begin
+      q = 32'(pipe_q) + j >= PIPELINES ? 32'(pipe_q) + j - PIPELINES : 32'(pipe_q) + j;
+      pick          = rr_pick(256'(left), RAYS, 32'(start));
+      rd_o[q]       = SLOT_W'(pick[31:0]);
+      dp_valid_o[q] = pick[32];
+      issue_o[q]    = pick[32] & dp_ready_i[q];
+      if (issue_o[q]) begin
+        left[rd_o[q]] = 1'b0;
+        start  = after(rd_o[q]);
+        next_d = start;
+        pipe_d = q + 1 == PIPELINES ? '0 : PIPE_W'(q + 1);
       end
-      KIND_XF:
-        w[REQ_BOX_WORD*32+:MATRIX_WORDS*32] =
-            node_i[INST_NODE_M_WORD*32+:MATRIX_WORDS*32];
-      KIND_PAIR1:
-        for (int j = 0; j < 3; j++)
-          w[(REQ_TRI_WORD + 3*j)*32+:3*32] =
-              node_i[(PAIR_NODE_V_WORD + 3*32'(sel[2*j+:2]))*32+:3*32];
-      default: w[REQ_TRI_WORD*32+:9*32] = node_i[TRI_NODE_TRI_WORD*32+:9*32];  // = v0, v1, v2
-    endcase
+    end
   end
-  assign dp_req_o = req_t'(w);
 
-  assign issue_o      = dp_valid_o & dp_ready_i;
-  assign issue_slot_o = rd_o;
-  assign issue_box_o  = box;
-  assign issue_xf_o   = xf;
+  for (genvar p = 0; p < PIPELINES; p++) begin : g_req
+    logic [REQ_W-1:0] w;
+    logic             box, xf;
+    kind_e            kind;
+    logic [5:0]       sel;
+    assign kind = kind_i[rd_o[p]];
+    assign box  = kind == KIND_BOX32 || kind == KIND_Q8;
+    assign xf   = kind == KIND_XF;
+    assign sel  = node_i[p][PAIR_NODE_IDX_WORD*32 +: 6];
+    always_comb begin
+      w = '0;
+      w[RAY_WORDS*32-1:32] = ray_i[p];
+      w[31:0] = 32'(rd_o[p]);                                    // tag = slot
+      w[32+:3] = box ? OP_QUADBOX : xf ? OP_TRANSFORM : OP_TRIANGLE;  // opcode (word 1 bits 2:0)
+      w[REQ_EXTENT_WORD*32+:32] = nearest_i[p];
+      unique case (kind)
+        KIND_BOX32: w[REQ_BOX_WORD*32+:24*32] = node_i[p][BOX_NODE_BOX_WORD*32+:24*32];
+        KIND_Q8: begin
+          w[REQ_BOX_WORD*32+:Q8_NODE_WORDS*32] = node_i[p][0+:Q8_NODE_WORDS*32];
+          w[REQ_FLAGS_LSB + FLAG_DECODE_Q8_BIT] = 1'b1;
+        end
+        KIND_XF:
+          w[REQ_BOX_WORD*32+:MATRIX_WORDS*32] =
+              node_i[p][INST_NODE_M_WORD*32+:MATRIX_WORDS*32];
+        KIND_PAIR1:
+          for (int j = 0; j < 3; j++)
+            w[(REQ_TRI_WORD + 3*j)*32+:3*32] =
+                node_i[p][(PAIR_NODE_V_WORD + 3*32'(sel[2*j+:2]))*32+:3*32];
+        default: w[REQ_TRI_WORD*32+:9*32] = node_i[p][TRI_NODE_TRI_WORD*32+:9*32];  // v0..v2
+      endcase
+    end
+    assign dp_req_o[p]     = req_t'(w);
+    assign issue_slot_o[p] = rd_o[p];
+    assign issue_box_o[p]  = box;
+    assign issue_xf_o[p]   = xf;
+  end
 
   always_ff @(posedge clk_i or negedge rst_ni) begin
-    if (!rst_ni) next_q <= '0;
-    else if (issue_o) next_q <= (32'(rd_o) == RAYS - 1) ? '0 : rd_o + 1'b1;
+    if (!rst_ni) begin
+      next_q <= '0;
+      pipe_q <= '0;
+    end else begin
+      next_q <= next_d;
+      pipe_q <= pipe_d;
+    end
   end
 
 endmodule

@@ -1,15 +1,16 @@
 // Traversal stacks: one circular stack of STACK_DEPTH node pointers per ray slot, in one RAM of
-// RAYS x STACK_DEPTH entries (one write port: push; one read port: the top of the slot being
-// popped).
+// RAYS x STACK_DEPTH entries (PUSHES write ports: push, one per response stage; one read port:
+// the top of the slot being popped).
 //
 // Contract (all ports act on the rising edge; the caller never pushes and pops, or clears, the
-// same slot in one cycle):
+// same slot in one cycle, nor pushes one slot on two push ports):
 //   * clear_i (slot clear_slot_i): empties the slot's stack and forgets its spilled entries (a
 //     new ray; a finished ray's stack is left as it is until then);
-//   * push_i (slot push_slot_i, pointer push_ptr_i): the entry goes on top. When the stack already
-//     holds STACK_DEPTH entries it overwrites the oldest (bottom) one, which leaves in the same
-//     cycle on spill_o (overflow: spill_ptr_o, for slot push_slot_i) to the slot's spill area in
-//     memory; the slot's count of spilled entries goes up by one;
+//   * push_i[p] (slot push_slot_i[p], pointer push_ptr_i[p]; p < PUSHES, each port its own
+//     slot): the entry goes on top. When the stack already holds STACK_DEPTH entries it
+//     overwrites the oldest (bottom) one, which leaves in the same cycle on spill_o[p] (overflow:
+//     spill_ptr_o[p], for slot push_slot_i[p]) to the slot's spill area in memory; the slot's
+//     count of spilled entries goes up by one;
 //   * top_o / empty_o / spilled_o describe the slot pop_slot_i (combinational from the RAM and the
 //     slot's pointers: a read port with no latency); pop_i removes that top entry;
 //   * refill_i (slot pop_slot_i, only while its stack is empty and spilled_o): the caller reads
@@ -21,6 +22,7 @@
 module rf_rtu_stack #(
   parameter int unsigned RAYS        = 4,
   parameter int unsigned STACK_DEPTH = 8,
+  parameter int unsigned PUSHES      = 1,
   localparam int unsigned SLOT_W  = RAYS > 1 ? $clog2(RAYS) : 1,
   localparam int unsigned IDX_W   = STACK_DEPTH > 1 ? $clog2(STACK_DEPTH) : 1,
   localparam int unsigned COUNT_W = $clog2(STACK_DEPTH + 1)
@@ -29,17 +31,17 @@ module rf_rtu_stack #(
   input  logic              rst_ni,
   input  logic              clear_i,
   input  logic [SLOT_W-1:0] clear_slot_i,
-  input  logic              push_i,
-  input  logic [SLOT_W-1:0] push_slot_i,
-  input  logic [31:0]       push_ptr_i,
+  input  logic [PUSHES-1:0]             push_i,
+  input  logic [PUSHES-1:0][SLOT_W-1:0] push_slot_i,
+  input  logic [PUSHES-1:0][31:0]       push_ptr_i,
   input  logic [SLOT_W-1:0] pop_slot_i,
   input  logic              pop_i,
   input  logic              refill_i,
   output logic [31:0]       top_o,
   output logic              empty_o,
   output logic              spilled_o,
-  output logic              spill_o,
-  output logic [31:0]       spill_ptr_o,
+  output logic [PUSHES-1:0]       spill_o,
+  output logic [PUSHES-1:0][31:0] spill_ptr_o,
   output logic [COUNT_W-1:0] depth_o
 );
 
@@ -61,9 +63,20 @@ module rf_rtu_stack #(
   assign top_o      = ram_q[pop_slot_i][top_idx];
   assign empty_o    = count_q[pop_slot_i] == '0;
   assign spilled_o  = spilled_q[pop_slot_i] != '0;
-  assign spill_o    = push_i && 32'(count_q[push_slot_i]) == STACK_DEPTH;
-  assign spill_ptr_o = ram_q[push_slot_i][next_q[push_slot_i]];
+  for (genvar p = 0; p < PUSHES; p++) begin : g_spill
+    assign spill_o[p]     = push_i[p] && 32'(count_q[push_slot_i[p]]) == STACK_DEPTH;
+    assign spill_ptr_o[p] = ram_q[push_slot_i[p]][next_q[push_slot_i[p]]];
+  end
   assign depth_o    = depth_q;
+
+  // the deepest stack after this cycle's pushes (each onto its own slot)
+  logic [COUNT_W-1:0] depth_d;
+  always_comb begin
+    depth_d = depth_q;
+    for (int p = 0; p < PUSHES; p++)
+      if (push_i[p] && !spill_o[p] && count_q[push_slot_i[p]] + 1'b1 > depth_d)
+        depth_d = count_q[push_slot_i[p]] + 1'b1;
+  end
 
   always_ff @(posedge clk_i or negedge rst_ni) begin
     if (!rst_ni) begin
@@ -83,20 +96,20 @@ module rf_rtu_stack #(
         count_q[pop_slot_i] <= count_q[pop_slot_i] - 1'b1;
       end
       if (refill_i) spilled_q[pop_slot_i] <= spilled_q[pop_slot_i] - 1'b1;
-      if (push_i) begin
-        next_q[push_slot_i] <= wrap_inc(next_q[push_slot_i]);
-        if (spill_o) begin
-          spilled_q[push_slot_i] <= spilled_q[push_slot_i] + 1'b1;
-        end else begin
-          count_q[push_slot_i] <= count_q[push_slot_i] + 1'b1;
-          if (count_q[push_slot_i] + 1'b1 > depth_q) depth_q <= count_q[push_slot_i] + 1'b1;
+      for (int p = 0; p < PUSHES; p++) begin
+        if (push_i[p]) begin
+          next_q[push_slot_i[p]] <= wrap_inc(next_q[push_slot_i[p]]);
+          if (spill_o[p]) spilled_q[push_slot_i[p]] <= spilled_q[push_slot_i[p]] + 1'b1;
+          else            count_q[push_slot_i[p]]   <= count_q[push_slot_i[p]] + 1'b1;
         end
       end
+      depth_q <= depth_d;
     end
   end
 
   always_ff @(posedge clk_i) begin
-    if (push_i) ram_q[push_slot_i][next_q[push_slot_i]] <= push_ptr_i;
+    for (int p = 0; p < PUSHES; p++)
+      if (push_i[p]) ram_q[push_slot_i[p]][next_q[push_slot_i[p]]] <= push_ptr_i[p];
   end
 
 endmodule

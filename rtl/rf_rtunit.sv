@@ -1,4 +1,5 @@
-// RT unit: RAYS ray slots traversing a BVH4 image through one RayFlex datapath (docs/rtunit_rtl.md).
+// RT unit: RAYS ray slots traversing a BVH4 image through PIPELINES RayFlex datapaths
+// (docs/rtunit_rtl.md).
 //
 //   ray_i ──► ray buffer ◄──────────────── hit update ◄── divider ◄──┐
 //               │  slot control (below)                              │ t_num, t_den
@@ -6,8 +7,9 @@
 //   stack ──► pop ──► node fetch ──► mem_req / mem_rsp ──► node buffer
 //     ▲                                                    │
 //     │                        scheduler ◄─────────────────┘
-//     │                            │ req_t (tag = slot)
-//     └── response processing ◄── rayflex (the datapath, unchanged)
+//     │                            │ req_t (tag = slot), one per pipeline
+//     └── response processing ◄── rayflex (the datapath, unchanged)   } PIPELINES times
+//          (one per pipeline)     (rf_rtu_pipes)                      }
 //                 │ TRANSFORM: o', d'
 //                 └──► ray setups ──► ray buffer (object-space ray), BLAS root held
 //
@@ -34,24 +36,29 @@
 //   * mem_req (out) / mem_rsp (in): node fetches and spill-area reads, see rf_rtu_fetch (byte
 //     address, size, tag, refill; responses in any order, always accepted); several outstanding,
 //     one per slot at most;
-//   * spill (out, valid only: the memory takes one write per cycle): a stack overflow's oldest
-//     entry spill_ptr_o goes to the spill area of slot spill_slot_o (a per-slot LIFO in memory,
+//   * spill (out, valid only: the memory takes PIPELINES writes per cycle, one per response
+//     stage p, each for its own slot): with spill_valid_o[p] a stack overflow's oldest entry
+//     spill_ptr_o[p] goes to the spill area of slot spill_slot_o[p] (a per-slot LIFO in memory,
 //     read back by the refill requests);
 //   * res (out): a finished ray: id, hit, prim (0xFFFFFFFF without a hit: the primitive id in its
 //     BLAS), instance (of the hit; 0xFFFFFFFF: none), t bits (the nearest t: the ray's extent
 //     without a hit), its QUADBOX, TRIANGLE and TRANSFORM requests, stack overflows and refills,
 //     and err (its traversal met a pointer the unit cannot fetch). Register outputs.
 //   * root_i: the root node pointer, constant while rays are in the unit.
-//   * status: busy_o (some slot holds a ray), dp_issue_o (a request entered the datapath this
-//     cycle), max_depth_o (most stack entries any ray held), overflow_o / refill_o (pulses),
-//     div_busy_o (dividers holding a division), setup_busy_o (ray setups holding a ray).
+//   * status: busy_o (some slot holds a ray), dp_issue_o[p] (a request entered pipeline p this
+//     cycle), max_depth_o (most stack entries any ray held), overflow_o[p] (response stage p's
+//     push spilled) / refill_o (pulses), div_busy_o (dividers holding a division), setup_busy_o
+//     (ray setups holding a ray).
 // Parameters: RAYS (slots), STACK_DEPTH (entries per stack), DIVIDERS (binary32 dividers,
-// rf_fp_div), SETUPS (ray setups, rf_rtu_setup), and the datapath's own, passed through.
+// rf_fp_div), SETUPS (ray setups, rf_rtu_setup), PIPELINES (datapaths, each with its response
+// stage: rf_rtu_pipes; the pop port, the fetch, the memory port, the divider and setup ports and
+// the result port stay one each), and the datapath's own, passed through.
 module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   parameter int unsigned RAYS        = 16,
   parameter int unsigned STACK_DEPTH = 32,
   parameter int unsigned DIVIDERS    = 2,
   parameter int unsigned SETUPS      = 2,
+  parameter int unsigned PIPELINES   = 1,
   parameter bit          EXTENDED    = 1'b0,
   parameter bit          DISJOINT    = 1'b0,
   parameter bit          COMPRESSED  = 1'b0,
@@ -82,9 +89,9 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   output logic               mem_rsp_ready_o,
   input  logic [NODE_W-1:0]  mem_rsp_data_i,
   input  logic [SLOT_W-1:0]  mem_rsp_tag_i,
-  output logic               spill_valid_o,
-  output logic [SLOT_W-1:0]  spill_slot_o,
-  output logic [31:0]        spill_ptr_o,
+  output logic [PIPELINES-1:0]       spill_valid_o,
+  output logic [PIPELINES-1:0][7:0]  spill_slot_o,
+  output logic [PIPELINES-1:0][31:0] spill_ptr_o,
   output logic               res_valid_o,
   input  logic               res_ready_i,
   output logic [31:0]        res_id_o,
@@ -99,9 +106,9 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   output logic [15:0]        res_refills_o,
   output logic               res_err_o,
   output logic               busy_o,
-  output logic               dp_issue_o,
+  output logic [PIPELINES-1:0] dp_issue_o,
   output logic [COUNT_W-1:0] max_depth_o,
-  output logic               overflow_o,
+  output logic [PIPELINES-1:0] overflow_o,
   output logic               refill_o,
   output logic [DIV_W-1:0]   div_busy_o,
   output logic [SETUP_W-1:0] setup_busy_o
@@ -113,6 +120,10 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   if (STACK_DEPTH < 2) begin : g_bad_depth
     $error("rf_rtunit: STACK_DEPTH must be at least 2");
   end
+  if (PIPELINES < 1 || PIPELINES > 4) begin : g_bad_pipelines
+    $error("rf_rtunit: PIPELINES must be in 1..4");
+  end
+  localparam int unsigned P = PIPELINES;
 
   slot_e [RAYS-1:0] state_q;
   kind_e [RAYS-1:0] kind_q;
@@ -151,7 +162,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign pop_any  = pop_pick[32];
 
   logic [31:0] stk_top, pop_ptr;
-  logic        stk_empty, stk_spilled, stk_spill;
+  logic        stk_empty, stk_spilled;
+  logic [P-1:0] stk_spill;
   logic        fetch_ready, fetch_bad;
   logic        pop_root, pop_held, pop_stack, pop_refill, pop_node, pop_fetch, pop_finish, pop_err;
   logic        pop_ret;
@@ -188,9 +200,10 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   // ---- the blocks ----
   logic              fetch_done, fetch_done_refill;
   logic [31:0]       fetch_done_ptr;
-  logic [SLOT_W-1:0] fetch_done_slot, sched_rd, resp_rd;
-  logic [NODE_W-1:0] node_a, node_b;
-  rf_rtu_fetch #(.RAYS(RAYS), .Q8(COMPRESSED), .XF(TRANSFORM)) u_fetch (
+  logic [SLOT_W-1:0] fetch_done_slot;
+  logic [P-1:0][SLOT_W-1:0] sched_rd, resp_rd;
+  logic [P-1:0][NODE_W-1:0] node_a, node_b;
+  rf_rtu_fetch #(.RAYS(RAYS), .Q8(COMPRESSED), .XF(TRANSFORM), .PORTS(P)) u_fetch (
     .clk_i, .rst_ni,
     .in_valid_i(pop_fetch), .in_ready_o(fetch_ready), .in_slot_i(pop_slot), .in_ptr_i(pop_ptr),
     .in_refill_i(pop_refill), .in_bad_o(fetch_bad),
@@ -200,11 +213,11 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     .done_ptr_o(fetch_done_ptr),
     .rd_a_i(sched_rd), .node_a_o(node_a), .rd_b_i(resp_rd), .node_b_o(node_b));
 
-  logic              push;
-  logic [SLOT_W-1:0] push_slot;
-  logic [31:0]       push_ptr;
+  logic [P-1:0]              push;
+  logic [P-1:0][SLOT_W-1:0]  push_slot;
+  logic [P-1:0][31:0]        push_ptr;
   logic              hit_finish;
-  rf_rtu_stack #(.RAYS(RAYS), .STACK_DEPTH(STACK_DEPTH)) u_stack (
+  rf_rtu_stack #(.RAYS(RAYS), .STACK_DEPTH(STACK_DEPTH), .PUSHES(P)) u_stack (
     .clk_i, .rst_ni,
     .clear_i(load), .clear_slot_i(load_slot),
     .push_i(push), .push_slot_i(push_slot), .push_ptr_i(push_ptr),
@@ -213,14 +226,17 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     .top_o(stk_top), .empty_o(stk_empty), .spilled_o(stk_spilled), .spill_o(stk_spill),
     .spill_ptr_o(spill_ptr_o), .depth_o(max_depth_o));
   assign spill_valid_o = stk_spill;
-  assign spill_slot_o  = push_slot;
+  for (genvar p = 0; p < P; p++) begin : g_spill_slot
+    assign spill_slot_o[p] = 8'(push_slot[p]);
+  end
 
-  ray_t        ray_a;
-  logic [31:0] nearest_a, nearest_b;
+  ray_t [P-1:0]       ray_a;
+  logic [P-1:0][31:0] nearest_a;
+  logic [31:0] nearest_b;
   logic        any_hit_b;
   logic [SLOT_W-1:0] hit_rd, res_rd;
-  logic              issue, issue_box, issue_xf;
-  logic [SLOT_W-1:0] issue_slot;
+  logic [P-1:0]      issue, issue_box, issue_xf;
+  logic [P-1:0][SLOT_W-1:0] issue_slot;
   logic              hit_acc;
   logic [SLOT_W-1:0] hit_slot;
   logic [31:0]       hit_t, hit_prim;
@@ -232,7 +248,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign setup_slot = setup_tag[SLOT_W-1:0];
   logic [15:0] res_ovf_c, res_rst_c;
   logic        res_hit_c;
-  rf_rtu_ray_buffer #(.RAYS(RAYS), .XF(TRANSFORM)) u_rays (
+  rf_rtu_ray_buffer #(.RAYS(RAYS), .XF(TRANSFORM), .PORTS(P)) u_rays (
     .clk_i, .rst_ni,
     .load_i(load), .load_slot_i(load_slot), .load_ray_i(ray_i), .load_id_i(ray_id_i),
     .load_any_hit_i(ray_any_hit_i),
@@ -251,10 +267,9 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     .tri_ops_c_o(res_tri_c), .xf_ops_c_o(res_xf_c),
     .overflows_c_o(res_ovf_c), .refills_c_o(res_rst_c));
 
-  logic dp_in_valid, dp_in_ready, dp_out_valid, dp_out_ready;
-  req_t dp_req;
-  rsp_t dp_rsp;
-  rf_rtu_sched #(.RAYS(RAYS)) u_sched (
+  logic [P-1:0] dp_in_valid, dp_in_ready;
+  req_t [P-1:0] dp_req;
+  rf_rtu_sched #(.RAYS(RAYS), .PIPELINES(P)) u_sched (
     .clk_i, .rst_ni,
     .ready_i(ready_m), .kind_i(kind_q), .rd_o(sched_rd), .ray_i(ray_a),
     .nearest_i(nearest_a), .node_i(node_a),
@@ -263,24 +278,24 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     .issue_xf_o(issue_xf));
   assign dp_issue_o = issue;
 
-  rayflex #(.EXTENDED(EXTENDED), .DISJOINT(DISJOINT), .COMPRESSED(COMPRESSED),
-            .TRANSFORM(TRANSFORM), .FUSED(FUSED), .SHARED(SHARED), .LATENCY(LATENCY)) u_datapath (
-    .clk_i, .rst_ni,
-    .in_valid_i(dp_in_valid), .in_ready_o(dp_in_ready), .req_i(dp_req),
-    .out_valid_o(dp_out_valid), .out_ready_i(dp_out_ready), .rsp_o(dp_rsp));
-
-  logic              resp_next, resp_div, resp_xf;
+  logic [P-1:0]      resp_next, resp_div, resp_xf;
   logic              xf_valid, xf_ready;
   logic [2:0][31:0]  xf_origin, xf_dir;
   logic [64+SLOT_W-1:0] xf_tag;
-  logic [SLOT_W-1:0] resp_slot;
+  logic [P-1:0][SLOT_W-1:0] resp_slot;
+  kind_e [P-1:0]     resp_kind;
   logic              div_in_valid, div_in_ready, div_out_valid, div_out_ready;
   logic [31:0]       div_num, div_den, div_q;
   logic [32+SLOT_W-1:0] div_tag_in, div_tag_out;
-  rf_rtu_resp #(.RAYS(RAYS)) u_resp (
+  for (genvar p = 0; p < P; p++) begin : g_resp_kind
+    assign resp_kind[p] = kind_q[resp_rd[p]];
+  end
+  rf_rtu_pipes #(.RAYS(RAYS), .PIPELINES(P), .EXTENDED(EXTENDED), .DISJOINT(DISJOINT),
+                 .COMPRESSED(COMPRESSED), .TRANSFORM(TRANSFORM), .FUSED(FUSED), .SHARED(SHARED),
+                 .LATENCY(LATENCY)) u_pipes (
     .clk_i, .rst_ni,
-    .dp_valid_i(dp_out_valid), .dp_ready_o(dp_out_ready), .dp_rsp_i(dp_rsp),
-    .rd_o(resp_rd), .node_i(node_b), .kind_i(kind_q[resp_rd]),
+    .in_valid_i(dp_in_valid), .in_ready_o(dp_in_ready), .req_i(dp_req),
+    .rd_o(resp_rd), .node_i(node_b), .kind_i(resp_kind),
     .push_o(push), .push_slot_o(push_slot), .push_ptr_o(push_ptr),
     .next_o(resp_next), .div_o(resp_div), .evt_slot_o(resp_slot),
     .div_valid_o(div_in_valid), .div_ready_i(div_in_ready), .div_num_o(div_num),
@@ -368,7 +383,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   // ---- slot control ----
   always_ff @(posedge clk_i) begin
     if (fetch_done && fetch_done_refill) held_ptr_q[fetch_done_slot] <= fetch_done_ptr;
-    if (resp_next) held_ptr_q[resp_slot] <= {leaf_q[resp_slot][31:3], LEAF_NEXT_TYPE};
+    for (int p = 0; p < P; p++)
+      if (resp_next[p]) held_ptr_q[resp_slot[p]] <= {leaf_q[resp_slot[p]][31:3], LEAF_NEXT_TYPE};
     if (hit_next)  held_ptr_q[hit_rd]    <= {leaf_q[hit_rd][31:3], LEAF_NEXT_TYPE};
     if (setup_valid) held_ptr_q[setup_slot] <= setup_tag[SLOT_W +: 32];     // the BLAS root
     if (pop_moves) leaf_q[pop_slot] <= pop_ptr;
@@ -415,16 +431,19 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
             mem_rsp_data_i[(PAIR_NODE_PRIM_WORD + 1)*32 +: 32] != NO_CHILD;
       end
       // a pair leaf's triangle 0 done (and the ray goes on): its triangle 1 is popped next
-      if (resp_next && kind_q[resp_slot] == KIND_PAIR0 && second_q[resp_slot])
-        held_q[resp_slot] <= 1'b1;
+      for (int p = 0; p < P; p++)
+        if (resp_next[p] && kind_q[resp_slot[p]] == KIND_PAIR0 && second_q[resp_slot[p]])
+          held_q[resp_slot[p]] <= 1'b1;
       if (hit_next && kind_q[hit_rd] == KIND_PAIR0 && second_q[hit_rd])
         held_q[hit_rd] <= 1'b1;
-      if (issue)      state_q[issue_slot]      <= SLOT_DP;
-      if (resp_next)  state_q[resp_slot]       <= SLOT_POP;
-      if (resp_div)   state_q[resp_slot]       <= SLOT_DIV;
+      for (int p = 0; p < P; p++) begin
+        if (issue[p])     state_q[issue_slot[p]] <= SLOT_DP;
+        if (resp_next[p]) state_q[resp_slot[p]]  <= SLOT_POP;
+        if (resp_div[p])  state_q[resp_slot[p]]  <= SLOT_DIV;
+        if (resp_xf[p])   state_q[resp_slot[p]]  <= SLOT_SETUP;
+      end
       if (hit_next)   state_q[hit_rd]          <= SLOT_POP;
       if (hit_finish) state_q[hit_rd]          <= SLOT_DONE;
-      if (resp_xf)    state_q[resp_slot]       <= SLOT_SETUP;
       // the ray setup done: the BLAS root is popped next, or (not prepared) the marker
       if (setup_valid) begin
         state_q[setup_slot] <= SLOT_POP;

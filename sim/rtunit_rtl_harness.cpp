@@ -9,9 +9,10 @@
 // first (ties: request order).
 //
 // Stack spills: the unit writes a stack overflow's oldest entry on its spill port (one write per
-// cycle, always taken) and reads it back with a refill request on the memory port; here each ray
-// slot's spill area is a LIFO, and a refill is served after `mem_latency` cycles (fixed latency)
-// or the node cache's hit latency (with the hierarchy: a ray's spill area stays in its L1).
+// cycle and pipeline, always taken) and reads it back with a refill request on the memory port;
+// here each ray slot's spill area is a LIFO, and a refill is served after `mem_latency` cycles
+// (fixed latency) or the node cache's hit latency (with the hierarchy: a ray's spill area stays in
+// its L1).
 //
 // Cycles: cycle 0 is the first cycle a ray is offered (the unit takes one at once); `cycles` is
 // the cycle after the last result is taken. Every run has a cycle budget: a corrupt image (a loop
@@ -31,6 +32,24 @@
 namespace {
 
 using rf_layout::kRayWords;
+
+// The unit's pipelines (its PIPELINES parameter), read from the model: spill_ptr_o holds 32 bits
+// per pipeline (IData, QData or VlWide<N>: 4 bytes each).
+constexpr int kPipelines = static_cast<int>(sizeof(Vrf_rtunit::spill_ptr_o) / 4);
+static_assert(kPipelines >= 1 && kPipelines <= rf_rtunit_stats::kMaxPipelines,
+              "rf_rtunit: PIPELINES out of range");
+
+// Bits [lsb, lsb + width) of a Verilated port (width <= 32, not crossing a 32-bit word).
+template <typename T>
+uint32_t port_bits(const T& v, int lsb, int width) {
+  const uint64_t x = static_cast<uint64_t>(v) >> lsb;
+  return static_cast<uint32_t>(width == 32 ? x : x & ((uint64_t{1} << width) - 1));
+}
+template <std::size_t N>
+uint32_t port_bits(const VlWide<N>& v, int lsb, int width) {
+  const uint32_t x = v[lsb / 32] >> (lsb % 32);
+  return width == 32 ? x : x & ((1u << width) - 1);
+}
 
 constexpr int64_t kOk = 0, kBudget = -1, kBadAddress = -2, kBadArgs = -3, kBadGeometry = -4,
                   kRayError = -5;
@@ -192,12 +211,16 @@ int64_t rtu_advance(void* h, int64_t cycles, int64_t* bad_ray) {
       }
       r->outstanding++;
     }
-    if (u.spill_valid_o) {
-      r->spill[u.spill_slot_o].push_back(u.spill_ptr_o);
+    for (int p = 0; p < kPipelines; p++) {
+      if (port_bits(u.spill_valid_o, p, 1))
+        r->spill[port_bits(u.spill_slot_o, 8 * p, 8)].push_back(
+            port_bits(u.spill_ptr_o, 32 * p, 32));
+      const uint32_t issued = port_bits(u.dp_issue_o, p, 1);
+      r->st.dp_requests += issued;
+      r->st.pipeline_requests[p] += issued;
+      r->st.overflows += port_bits(u.overflow_o, p, 1);
     }
     r->st.mem_outstanding_cycles += r->outstanding > 0;
-    r->st.dp_requests += u.dp_issue_o;
-    r->st.overflows += u.overflow_o;
     r->st.busy_cycles += u.busy_o;
     r->st.divider_busy_cycles += u.div_busy_o;
     r->st.divider_full_cycles += u.div_busy_o == r->dividers;

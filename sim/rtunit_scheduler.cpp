@@ -119,7 +119,9 @@ struct Unit {
   // the RT unit in RTL's costs (cfg.unit_costs): rays waiting for the pop port (by the cycle they
   // may pop) and node responses waiting for the memory port (by the cycle the node is present);
   // the next cycle the ray port and the result port are free; per pipeline its handshakes
-  // (timing pipelines), the next cycle its response stage is free and each divider's
+  // (timing pipelines) and the next cycle its response stage is free; each divider's and ray
+  // setup's next idle cycle (the unit's pools, shared by the pipelines' response stages through
+  // one port each, granted round robin from div_next / xf_next); this cycle's grants (-1: none)
   MinQueue loadq, arrq;
   // per ray slot: its ray (-1: free), the cycle it may pop, issue, leave through the result port
   // (kNever: not waiting), the cycle it is free again; the round-robin starts
@@ -128,7 +130,8 @@ struct Unit {
   std::vector<Elastic> chain;
   std::vector<char> in_valid, out_ready;      // this cycle's handshakes of each pipeline
   std::vector<int64_t> resp_free;
-  std::vector<std::vector<int64_t>> div_free, setup_free;  // per pipeline: each one's next idle
+  std::vector<int64_t> div_free, setup_free;
+  int64_t div_next = 0, xf_next = 0, div_grant = -1, xf_grant = -1, pipe_next = 0;
 };
 
 struct Engine {
@@ -239,21 +242,24 @@ struct Engine {
   // port (one a cycle, round robin over the slots from the one after the last popped); a pop with
   // a node to read sends the fetch request the cycle after (its register) and the node comes back
   // through the memory port (one response a cycle, the earliest first), the ray ready to issue
-  // the cycle after; the scheduler issues the ready slots round robin; a pop that finds the stack
-  // empty ends the ray. A response is taken by the pipeline's response stage when it is free: a
+  // the cycle after; the scheduler issues the ready slots round robin, up to one slot per
+  // pipeline whose input is ready, the pipelines in turn from the one after the last that took a
+  // request (rtl/rf_rtu_sched.sv); a pop that finds the stack empty ends the ray. A
+  // response is taken by its pipeline's response stage when it is free: a
   // box with h hit children holds it max(h, 1) cycles and the ray pops after them; a triangle
-  // without a hit pops the cycle after; a triangle hit needs an idle divider (else the response
-  // waits, and the pipeline backs up behind it), which holds it div_cycles + 1 cycles, and the ray
+  // without a hit pops the cycle after; a triangle hit needs an idle divider and the divider
+  // port's grant (one hit a cycle, round robin over the pipelines; else the response waits, and
+  // the pipeline backs up behind it), which holds it div_cycles + 1 cycles, and the ray
   // pops div_cycles + 1 cycles later, or ends there when it is an any-hit ray with nothing more
   // to do. An ended ray's result leaves through the result port (one a cycle, round robin) the
   // cycle after, is taken the cycle after that, and its slot takes the next ray then.
-  // Instances (TRANSFORM requests in the chain): a TRANSFORM response pushes the return marker
-  // (one cycle of the response stage) and needs the ray setup idle (else it waits, as for a
-  // divider; the lowest idle of cfg.setups takes it); the setup holds it div_cycles + 1 cycles
-  // (its dividers) and the ray pops its BLAS
-  // root then, held, not from the stack; a transformed ray that is not finite (or has a zero
-  // direction) skips the instance: the setup holds it 2 cycles. The marker is popped (a pop of
-  // its own) before the ray's first request on its world row after it, or before it ends.
+  // Instances (TRANSFORM requests in the chain): a TRANSFORM response pushes the return marker (one
+  // cycle of the response stage) and needs the ray setup idle and the setup port's grant (else it
+  // waits, as for a divider; the lowest idle of cfg.setups takes it); the setup holds it div_cycles
+  // + 1 cycles (its dividers) and the ray pops its BLAS root then, held, not from the stack; a
+  // transformed ray that is not finite (or has a zero direction) skips the instance: the setup
+  // holds it 2 cycles. The marker is popped (a pop of its own) before the ray's first request on
+  // its world row after it, or before it ends.
   static constexpr int64_t kNever = INT64_MAX;
 
   // The first slot from `start` (round robin) whose time has come at cycle k, or -1.
@@ -380,14 +386,34 @@ struct Engine {
     return -1;
   }
 
-  int64_t idle_divider(const Unit& u, int64_t p, int64_t k) const {
-    return idle(u.div_free[p], k);
+  // This cycle's grants of the divider port and the ray-setup port (rtl/rf_rtu_pipes.sv): among
+  // the pipelines whose response stage is free with a triangle hit (a TRANSFORM) at its output
+  // (w[p], null: none), the first from div_next (xf_next) round robin, when a divider (a ray
+  // setup) is idle; -1: none.
+  void grant(Unit& u, int64_t k, const std::vector<const uint32_t*>& w) const {
+    const int64_t n = static_cast<int64_t>(w.size());
+    u.div_grant = u.xf_grant = -1;
+    const bool div_idle = idle(u.div_free, k) >= 0, xf_idle = idle(u.setup_free, k) >= 0;
+    for (int64_t j = 0; j < n; j++) {
+      const int64_t p = (u.div_next + j) % n;
+      if (w[p] && k >= u.resp_free[p] && rsp_kind(w[p]).tri_hit) {
+        if (div_idle) u.div_grant = p;
+        break;
+      }
+    }
+    for (int64_t j = 0; j < n; j++) {
+      const int64_t p = (u.xf_next + j) % n;
+      if (w[p] && k >= u.resp_free[p] && rsp_kind(w[p]).xf) {
+        if (xf_idle) u.xf_grant = p;
+        break;
+      }
+    }
   }
 
   bool can_take(const Unit& u, int64_t p, int64_t k, const uint32_t* w) const {
     const RspKind kind = rsp_kind(w);
-    return k >= u.resp_free[p] && (!kind.tri_hit || idle_divider(u, p, k) >= 0) &&
-           (!kind.xf || idle(u.setup_free[p], k) >= 0);
+    return k >= u.resp_free[p] && (!kind.tri_hit || u.div_grant == p) &&
+           (!kind.xf || u.xf_grant == p);
   }
 
   // Pipeline p's response w to ray r's request is taken at cycle k (pos[r] already past it).
@@ -412,10 +438,12 @@ struct Engine {
       marker[r] = 1;
       world_row[r] = ray[chain_idx[chain_off[r] + pos[r] - 1]];
       next = k + (kind.xf_ok ? cfg.div_cycles + 1 : 2);
-      u.setup_free[p][idle(u.setup_free[p], k)] = next;
+      u.setup_free[idle(u.setup_free, k)] = next;
+      u.xf_next = (p + 1) % static_cast<int64_t>(u.resp_free.size());
       held[r] = kind.xf_ok;                  // the BLAS root, popped next
     } else if (kind.tri_hit) {
-      u.div_free[p][idle_divider(u, p, k)] = k + cfg.div_cycles + 1;
+      u.div_free[idle(u.div_free, k)] = k + cfg.div_cycles + 1;
+      u.div_next = (p + 1) % static_cast<int64_t>(u.resp_free.size());
       next = k + cfg.div_cycles + 1;
       if (any_hit && any_hit[r] && pos[r] >= chain_off[r + 1] - chain_off[r]) {
         finish(u, r, next);                  // the any-hit ray ends at its accepted triangle
@@ -660,14 +688,15 @@ extern "C" {
 // many cycles (the RT unit in RTL's fixed-latency memory).
 //
 // cfg.unit_costs: the RT unit in RTL's costs (rtl/rf_rtunit.sv, docs/rtunit_rtl.md) replace the
-// turnaround: the ray, pop, memory and result ports, the fetch request's register, the
-// scheduler's cycle, the pipeline as its chain of skid registers (Elastic) behind a response
-// stage that holds a box response one cycle per hit child and a triangle hit until one of
-// cfg.dividers dividers (cfg.div_cycles latency) is idle, cfg.stack_depth entries per stack
-// (spills and refills), and any-hit rays (in->any_hit, per chain) ending at their hit (Engine:
-// "the RT unit's costs"). Its response stage reads the responses: the evaluated ones (D = 0) or
-// the functional run's, in->responses (m, kRspWords), with D > 0. Needs P = 1 and no window or
-// treelets. `cycles` then runs from a kernel's first ray taken to its last result taken.
+// turnaround: the ray, pop, memory and result ports, the fetch request's register, the scheduler's
+// cycle (up to P slots a cycle, one per pipeline, round robin), each pipeline as its chain of skid
+// registers (Elastic) behind its response stage, which holds a box response one cycle per hit child
+// and a triangle hit until one of cfg.dividers dividers (cfg.div_cycles latency, shared by the P
+// stages through one port, granted round robin) is idle, cfg.stack_depth entries per stack (spills
+// and refills), and any-hit rays (in->any_hit, per chain) ending at their hit (Engine: "the RT
+// unit's costs"). Its response stages read the responses: the evaluated ones (D = 0) or the
+// functional run's, in->responses (m, kRspWords), with D > 0. Needs no window or treelets. `cycles`
+// then runs from a kernel's first ray taken to its last result taken.
 //
 // Outputs: rsp (m, kRspWords) at the record index (D = 0); stats (ReplayStats: `cycles` is the sum over
 // kernels of first accept to last response, `frame_cycles` the frame's); per_pipe (units * P):
@@ -724,9 +753,9 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
   if (c.window < 0 || (c.window > 0 && (c.window < c.slots || c.window % c.warp_size)))
     return -3;
   if (c.timing_latency < 0 || c.fixed_latency < 0) return -3;
-  // the unit's costs: one pipeline per unit, no scheduler of its own, the dividers given, and the
-  // responses (the functional run's when the pipelines are their timing)
-  if (c.unit_costs && (P != 1 || c.window || treelet || c.dividers < 1 || c.setups < 1 ||
+  // the unit's costs: no scheduler of its own, the dividers given, and the responses (the
+  // functional run's when the pipelines are their timing)
+  if (c.unit_costs && (c.window || treelet || c.dividers < 1 || c.setups < 1 ||
                        c.div_cycles < 1 ||
                        c.stack_depth < 0 ||
                        (c.timing_latency && !in->responses)))
@@ -835,13 +864,13 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
       u.chain.resize(D ? P : 0);
       for (auto& ch : u.chain) ch.configure(D);
       u.resp_free.assign(P, 0);
-      u.setup_free.assign(P, std::vector<int64_t>(c.setups, 0));
+      u.setup_free.assign(c.setups, 0);
       u.in_valid.assign(P, 0);
       u.slot_ray.assign(c.slots, -1);
       for (auto* v : {&u.pop_at, &u.ready_at, &u.done_at}) v->assign(c.slots, Engine::kNever);
       u.free_at.assign(c.slots, 0);
       u.out_ready.assign(P, 0);
-      u.div_free.assign(P, std::vector<int64_t>(c.dividers, 0));
+      u.div_free.assign(c.dividers, 0);
     }
     if (e.treelets) {
       u.tq.resize(n_treelets);
@@ -851,6 +880,7 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
   }
   for (int64_t i = 0; i < N * P; i++) per_pipe[i] = 0;
 
+  std::vector<const uint32_t*> outs(P, nullptr);   // unit costs: each pipeline's response out
   int64_t taken = 0, k = 0, first = -1, last = -1, idle = 0, evals = 0, starved = 0;
   int64_t full_cycles = 0, bad_tags = 0, accepts = 0, span_cycles = 0;
   int64_t kfirst = -1, klast = -1, kernel = -1, bin_cycles = 1, bin = 0, in_bin = 0;
@@ -892,6 +922,17 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
     for (int64_t uid = 0; uid < N; uid++) {
       Unit& u = e.units[uid];
       if (!c.window) e.admit_waiting(u, uid, k);
+      if (e.unit_costs) {                  // the responses at the outputs: the ports' grants
+        for (int64_t p = 0; p < P; p++) {
+          outs[p] = nullptr;
+          if (u.inflight[p].empty()) continue;
+          if (D && u.chain[p].out_valid())
+            outs[p] = e.responses + u.inflight[p].front() * kRspWords;
+          else if (!D && u.sims[p]->top.out_valid_o)
+            outs[p] = u.sims[p]->top.rsp_o.data();
+        }
+        e.grant(u, k, outs);
+      }
       for (int64_t p = 0; p < P; p++) {
         u.busy[p] = !u.inflight[p].empty();
         const uint32_t* w = nullptr;               // the response at the output (unit costs)
@@ -960,7 +1001,10 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
       }
       int64_t issued = 0;
       bool none_ready = false;
-      for (int64_t p = 0; p < P; p++) {
+      // the unit's costs: the pipelines in turn from the one after the last that took a request
+      const int64_t p0 = e.unit_costs ? u.pipe_next : 0;
+      for (int64_t j = 0; j < P; j++) {
+        const int64_t p = (p0 + j) % P;
         Vrayflex* t = D ? nullptr : &u.sims[p]->top;
         if (t) t->in_valid_i = 0;
         if (D && e.unit_costs) u.in_valid[p] = 0;
@@ -970,6 +1014,7 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
           if (s < 0) none_ready = true;
           if (s < 0 || (t && !t->in_ready_o) || (D && !u.chain[p].in_ready())) continue;
           u.sched_next = s + 1 == c.slots ? 0 : s + 1;
+          u.pipe_next = (p + 1) % P;
           u.ready_at[s] = Engine::kNever;
           r = u.slot_ray[s];
         } else {

@@ -409,14 +409,14 @@ def test_render_replays_with_the_unit_costs(in_tmp, error_line):
     assert got["rtl"]["ops"] == got["replay"]["ops"]
     assert got["rtl"]["cycles"] > got["replay"]["cycles"]       # the unit's costs are higher
     assert main(["render", "bunny", "--size", "8", "--rtunit", "--unit-costs", "rtl",
-                 "--pipelines", "2"]) != 0
+                 "--pipelines", "5"]) != 0
     assert "--unit-costs rtl" in error_line()
 
 
 def test_stack_depth_needs_the_unit(in_tmp, error_line):
     assert main(["render", "bunny", "--size", "8", "--stack-depth", "8"]) != 0
     assert "--backend rtunit" in error_line()
-    assert main(["render", "bunny", "--size", "8", "--backend", "rtunit", "--pipelines", "2"]) != 0
+    assert main(["render", "bunny", "--size", "8", "--backend", "rtunit", "--pipelines", "5"]) != 0
     assert "--pipelines" in error_line()
     assert main(["render", "bunny", "--size", "8", "--backend", "rtunit", "--rays-in-flight",
                  "8", "--bvh-format", "q8g"]) != 0

@@ -52,8 +52,10 @@ class UnitCosts:
     accepted triangle without a last pop.
     ``stack_depth`` > 0: each ray's stack holds that many entries, more spill to memory and are
     read back when the stack empties (0: unbounded, none spill). ``setups``: the ray setups
-    (``div_cycles`` each) of rays entering instances after their TRANSFORM. Needs
-    one pipeline and the per-ray pool's index order (the unit has no other scheduler)."""
+    (``div_cycles`` each) of rays entering instances after their TRANSFORM. With several
+    pipelines each has its response stage, the dividers and the ray setups are shared through
+    one port each (granted round robin), as in the unit's RTL (``rtl/rf_rtu_pipes.sv``). Needs
+    the per-ray pool's index order (the unit has no other scheduler)."""
 
     dividers: int = DEFAULT_DIVIDERS
     div_cycles: int = field(default_factory=div_cycles)
@@ -329,7 +331,7 @@ def replay_frame(waves: list[Wave], rays_in_flight: int, pipelines: int = 1, mem
     r, p, ta = int(rays_in_flight), int(pipelines), int(turnaround)
     s = schedule
     pol, window = _check_replay(r, p, ta, s, order, datapath)
-    _check_costs(unit_costs, p, pol.schedule or pol.treelets)
+    _check_costs(unit_costs, pol.schedule or pol.treelets)
     records = [w.record for w in waves]
     comb = combine(records)
     chains = chain_layout(comb)
@@ -416,13 +418,13 @@ def _any_hit(costs: UnitCosts | None, waves: list[Wave], comb: Combined):
     return np.repeat([bool(w.any_hit) for w in waves], np.diff(comb.chain_off0))
 
 
-def _check_costs(costs: UnitCosts | None, pipelines: int, scheduled: bool) -> None:
+def _check_costs(costs: UnitCosts | None, scheduled: bool) -> None:
     """A one-line ValueError for unit costs the replay cannot charge."""
     if costs is None:
         return
-    if pipelines != 1 or scheduled:
-        raise ValueError("the RT unit in RTL's costs need one pipeline and the index ray order "
-                         "(the unit has no other scheduler)")
+    if scheduled:
+        raise ValueError("the RT unit in RTL's costs need the index ray order (the unit has no "
+                         "other scheduler)")
     if (costs.dividers < 1 or costs.div_cycles < 1 or costs.fixed_latency < 0
             or costs.stack_depth < 0 or costs.setups < 1):
         raise ValueError(f"unit costs: {costs.dividers} dividers of {costs.div_cycles} cycles, "

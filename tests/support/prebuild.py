@@ -7,6 +7,7 @@ tests/conftest.py), named by one string each:
   ``pyverilator:CONFIG``        the pyverilator model of CONFIG
   ``signals:CONFIG``            the power flow's traced model of CONFIG (``rayflex power``)
   ``rtunit:CONFIG:RAYS:DEPTH``  the RT unit in RTL with RAYS slots and stacks of DEPTH entries
+  ``rtunit:CONFIG:RAYS:DEPTH:P``  the same with P datapath pipelines (1 without the field)
   ``tb:NAME``                   a module testbench, ``TESTBENCHES[NAME]`` (rtu_units: the RT
                                 unit's modules side by side, tests/test_rtunit_modules.py)
 
@@ -44,7 +45,7 @@ def split(spec: str) -> tuple[str, str, list[str]]:
     name for the configuration); ValueError if malformed."""
     head, sep, rest = spec.partition(":")
     kind, fields = (head, rest.split(":")) if sep else ("harness", [spec])
-    if (kind not in KINDS or len(fields) != (3 if kind == "rtunit" else 1)
+    if (kind not in KINDS or len(fields) not in ((3, 4) if kind == "rtunit" else (1,))
             or (kind == "tb" and fields[0] not in TESTBENCHES)):
         raise ValueError(f"build spec {spec!r}: see tests/support/prebuild.py")
     return kind, fields[0], fields[1:]
@@ -78,7 +79,8 @@ def build(spec: str) -> None:
         activity.SignalModel.library(run.params_of(config.partition("@")[0]))
     else:
         from driver.backends.rtunit import unit_library, unit_params
-        unit_library(unit_params(params, int(extra[0]), int(extra[1])))
+        pipelines = int(extra[2]) if len(extra) > 2 else 1
+        unit_library(unit_params(params, int(extra[0]), int(extra[1]), pipelines=pipelines))
 
 
 if __name__ == "__main__":

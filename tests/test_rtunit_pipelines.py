@@ -1,0 +1,85 @@
+"""The RT unit in RTL with several datapath pipelines (``PIPELINES``, ``--pipelines`` with
+``--backend rtunit``; rtl/rf_rtu_pipes.sv): every ray's hit, primitive, t bits and op counts
+identical to the Python traversal on the "rtl" datapath with two pipelines, closest and any-hit;
+fewer cycles than one pipeline on a frame that keeps the datapath busy, each pipeline taking
+requests; the replay with the unit's costs counting the same cycles; lint; bad pipeline counts
+refused in one line before any build."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from driver.backends import BackendError
+from driver.backends.build import rtl_params
+from driver.backends.rtunit import RtUnitBackend, lint_unit, unit_params
+from driver.cli import main
+from driver.tracer import as_bvh, trace
+from support.corpus import rays as corpus_rays
+from support.meshes import soup
+
+RAYS, DEPTH = 16, 32        # the test builds (tests/conftest.py: rtunit:...:16:32 and :16:32:2)
+FAST = 2                    # fixed memory latency: the datapath, not the memory, decides
+
+
+@pytest.fixture(scope="module")
+def scene():
+    tris = soup(200, 1)
+    o, d = corpus_rays(tris, 256, 3)            # 16 x 16 rays aimed at the soup
+    return as_bvh(tris), o, d
+
+
+@pytest.fixture(scope="module")
+def units():
+    return {p: RtUnitBackend(rays_in_flight=RAYS, stack_depth=DEPTH, mem_latency=FAST,
+                             pipelines=p) for p in (1, 2)}
+
+
+@pytest.mark.parametrize("any_hit", [False, True], ids=["closest", "any-hit"])
+def test_two_pipelines_match_the_traversal(scene, units, any_hit):
+    bvh, o, d = scene
+    ref = trace(bvh, o, d, backend="rtl", any_hit=any_hit)
+    got = trace(bvh, o, d, backend=units[2], any_hit=any_hit)
+    assert ref.hit.sum() > 20
+    assert got.hit.tolist() == ref.hit.tolist()
+    assert got.prim.tolist() == ref.prim.tolist()
+    assert got.t.view(np.uint32).tolist() == ref.t.view(np.uint32).tolist()
+    assert got.box_ops.tolist() == ref.box_ops.tolist()
+    assert got.tri_ops.tolist() == ref.tri_ops.tolist()
+    unit = got.stats["unit_rtl"]
+    assert unit["traversal_mismatches"] == 0
+    assert unit["pipelines"] == 2 and len(unit["pipeline_requests"]) == 2
+    assert sum(unit["pipeline_requests"]) == int(ref.box_ops.sum() + ref.tri_ops.sum())
+    assert min(unit["pipeline_requests"]) > 0            # both pipelines took requests
+    assert unit["utilization"] == pytest.approx(
+        sum(unit["pipeline_requests"]) / (2 * unit["cycles"]))
+    # the replay with the unit's costs on the same two pipelines counts the unit's cycles
+    assert unit["replay_cycles_ratio"] == 1.0
+
+
+def test_two_pipelines_take_fewer_cycles_on_a_busy_datapath(scene, units):
+    bvh, o, d = scene
+    one, two = (trace(bvh, o, d, backend=units[p]).stats["unit_rtl"] for p in (1, 2))
+    assert one["pipeline_requests"] == [sum(two["pipeline_requests"])]   # the same requests
+    assert one["utilization"] > 0.5                   # one pipeline is kept busy
+    assert two["cycles"] < 0.95 * one["cycles"]
+    assert one["replay_cycles_ratio"] == 1.0 and two["replay_cycles_ratio"] == 1.0
+
+
+def test_pipelines_lint_clean():
+    for p in (2, 4):
+        assert lint_unit(unit_params(rtl_params(False, False), 4, 4, pipelines=p)) == ""
+    assert lint_unit(unit_params(rtl_params(False, False, compressed=True, transform=True), 4,
+                                 4, pipelines=3)) == ""
+
+
+def test_bad_pipeline_counts_are_refused_before_any_build(in_tmp, error_line):
+    for bad in (0, 5, True, 1.5):
+        with pytest.raises(BackendError, match="--pipelines"):
+            RtUnitBackend(rays_in_flight=RAYS, pipelines=bad)
+    assert main(["render", "bunny", "--size", "8", "--backend", "rtunit", "--pipelines",
+                 "5"]) != 0
+    assert "--pipelines 5" in error_line()
+    assert main(["render", "bunny", "--size", "8", "--rtunit", "--unit-costs", "rtl",
+                 "--pipelines", "5"]) != 0
+    assert "--unit-costs rtl" in error_line()
