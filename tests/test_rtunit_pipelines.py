@@ -3,9 +3,13 @@
 identical to the Python traversal on the "rtl" datapath with two pipelines, closest and any-hit;
 fewer cycles than one pipeline on a frame that keeps the datapath busy, each pipeline taking
 requests; the replay with the unit's costs counting the same cycles; lint; bad pipeline counts
-refused in one line before any build."""
+refused in one line before any build; docs/rtunit_rtl.md's measured table."""
 
 from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -83,3 +87,25 @@ def test_bad_pipeline_counts_are_refused_before_any_build(in_tmp, error_line):
     assert main(["render", "bunny", "--size", "8", "--rtunit", "--unit-costs", "rtl",
                  "--pipelines", "5"]) != 0
     assert "--unit-costs rtl" in error_line()
+
+
+def test_the_rt_unit_page_quotes_its_pipeline_runs():
+    """docs/rtunit_rtl.md's table of the unit with 1, 2 and 4 pipelines is
+    tools/unit_pipelines.py's table of docs/rtunit_pipelines.json, and that JSON holds what the
+    page says of it: every ray equal to the traversal, the replay within 0.2 %, the bunny's
+    fixed-latency frame at the pop port's ceiling with two pipelines."""
+    root = Path(__file__).resolve().parent.parent
+    spec = importlib.util.spec_from_file_location("unit_pipelines",
+                                                  root / "tools" / "unit_pipelines.py")
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    rows = json.loads((root / "docs" / "rtunit_pipelines.json").read_text())["runs"]
+    assert {(r["frame"], r["pipelines"]) for r in rows} == {
+        (f, p) for f in tool.FRAMES for p in (1, 2, 4)}
+    assert tool.table(rows) in (root / "docs" / "rtunit_rtl.md").read_text()
+    for r in rows:
+        assert r["mismatches"] == 0 and abs(r["ratio"] - 1) < 0.002
+        assert len(r["pipeline_utilization"]) == r["pipelines"]
+    pops = {r["pipelines"]: r for r in rows if r["frame"] == "bunny-64-fixed"}
+    assert pops[2]["cycles"] - (pops[2]["ops"] + pops[2]["rays"]) < 10 and \
+        pops[4]["cycles"] == pops[2]["cycles"]
