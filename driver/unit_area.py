@@ -76,6 +76,9 @@ def script(params: dict[str, int], files: list[str]) -> str:
             "proc\nopt_clean\n"
             "tee -q -o words.json stat -json\n"
             "setattr -mod -set keep_hierarchy 1 rf_rtu_*\n"
+            # the pipelines' wrapper (rf_rtu_pipes) dissolves: its datapaths are the black boxes,
+            # its response stages keep their boundary, its arbiters count with the top's control
+            "setattr -mod -unset keep_hierarchy rf_rtu_pipes*\n"
             f"synth -top {TOP} -flatten -noshare\n"
             "tee -q -o stat.json stat -json\n")
 
