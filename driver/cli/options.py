@@ -319,6 +319,11 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
         flag("--ideal-replay", action="store_true",
              help="also replay every point with free node fetches (rtunit): a second timing "
                   "replay per point"),
+        flag("--backend", choices=("rtl", "rtunit"), default="rtl",
+             help="rtl: trace the workload on the datapath in RTL and replay each point "
+                  "(default); rtunit: also run each point's frame through the RT unit in RTL "
+                  "(unit_rtl per point: its cycles, every ray checked against the traversal, "
+                  "the replay's ratio; docs/rtunit_rtl.md)"),
     )), (DESIGN, ()), (None, (SHARED["progress"],))),
     "power": ((None, (
         flag("--ops", type=int, default=DEFAULT_OPS, metavar="N",
