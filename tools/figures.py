@@ -343,6 +343,11 @@ FIGURES = [
            ("docs/rtunit_replay_full.json",), 1.5,
            "the full-size frames through the RT unit in RTL, every ray checked against the "
            "traversal and Embree, the replay's cycles against the unit's (docs/rtunit_rtl.md)"),
+    Figure("rtunit_pipelines",
+           (sys.executable, "tools/unit_pipelines.py", "--json", "docs/rtunit_pipelines.json"),
+           ("docs/rtunit_pipelines.json",), 2.0,
+           "the RT unit in RTL with 1, 2 and 4 datapath pipelines: cycles, utilization per "
+           "pipeline, the replay's cycles against the unit's (docs/rtunit_rtl.md)"),
     Figure("timing_balanced",
            (*RAYFLEX, "timing", "--configs", "baseline-unified,baseline-unified@10", "--jobs",
             "2", "--rev", "HEAD", "--json", "docs/timing_balanced.json", "--no-progress"),
