@@ -335,6 +335,7 @@ class RtUnitBackend(HarnessBackend):
         self.max_outstanding = int(max_outstanding)
         self.activity = bool(activity)
         self._nets = None                               # (codes, rows, weight) once read
+        self.net_names: list[list[str]] = []            # the traced nets' names, once read
         self._unit = unit_library(self.unit_params, self.activity)   # build now: fail early
 
     def _count(self, h) -> dict:
@@ -348,6 +349,7 @@ class RtUnitBackend(HarnessBackend):
                 with open(decl) as f:
                     codes, names = toggles.declarations(f)
                 self._nets = (codes, *net_rows(names))
+                self.net_names = names
             codes, rows, weight = self._nets
             per_net = toggles.read_counts(cnt, codes) * weight
         by_row = np.bincount(rows, weights=per_net, minlength=len(UNIT_ROWS))

@@ -16,10 +16,11 @@ import numpy as np
 from .build import SIM_DIR
 
 HEADER = SIM_DIR / "rf_toggles.h"
-# Verilator traces arrays up to --trace-max-array elements and vectors up to --trace-max-width
-# bits (defaults 32 and 256): the RT unit's stack RAM, ray records and node buffer are bigger
+# Verilator traces arrays up to --trace-max-array elements and variables up to --trace-max-width
+# bits (defaults 32 and 256; an array's width is all its elements' bits): the RT unit's stack
+# RAM, ray records and node buffer are far bigger (RAYS 256 x STACK_DEPTH 4096 x 32 bits: 2**25)
 TRACE_MAX_ARRAY = 1 << 20
-TRACE_MAX_WIDTH = 1 << 12
+TRACE_MAX_WIDTH = 1 << 26
 
 
 def trace_args(every_net: bool = True) -> list[str]:

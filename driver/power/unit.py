@@ -61,7 +61,7 @@ def _row(stats: dict, per_op: dict) -> dict:
             "tri_ops": int(stats["tri_ops"]), "transform_ops": xf,
             "energy": energy, "energy_per_ray": energy / rays if rays else 0.0,
             "modules": modules,
-            "datapath_check": {"unit": dp, "alone": alone,
+            "datapath_check": {"in_unit": dp, "alone": alone,
                                "ratio": dp / alone if alone else None}}
 
 
@@ -82,7 +82,7 @@ def measure_unit(point, n: int = DEFAULT_OPS, seed: int = 0, progress: bool = Fa
     idle_total = sum(idle["toggles"].values())
     return {
         "provenance": provenance(point), "level": LEVEL, "unit": UNIT, "backend": UNIT_BACKEND,
-        "unit_params": be.unit_params, "modules": list(UNIT_ROWS), "nets": idle["nets"],
+        "unit_params": be.unit_params, "nets": idle["nets"],
         "ops_per_type": n, "stimulus_seed": seed,
         "idle_per_cycle": {"energy": idle_total / idle["cycles"], "cycles": idle["cycles"],
                            "modules": {m: v / idle["cycles"]
@@ -105,7 +105,7 @@ def markdown(rep: dict) -> str:
              f"{dp['spp']}); RAYS {u['RAYS']}, STACK_DEPTH {u['STACK_DEPTH']}, DIVIDERS "
              f"{u['DIVIDERS']}, {dp['config']}:", "",
              "| module | " + " | ".join(kinds) + " |", "|---|" + "---:|" * len(kinds)]
-    for m in rep["modules"]:
+    for m in UNIT_ROWS:
         if not any(rows[k]["modules"][m]["energy_per_ray"] for k in kinds):
             continue
         lines.append(f"| {m} | " + " | ".join(
