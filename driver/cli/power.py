@@ -12,6 +12,7 @@ from ..core import outputs
 from ..core.datapath import least_latency
 from ..core.configs import CONFIGS, FUSED_SUFFIX, Q8_SUFFIX, SHARED_SUFFIX, XF_SUFFIX
 from ..core.outputs import JSON, PNG, Outputs
+from ..design import unit_flags
 from ..backends.rtunit import UNIT_BACKEND
 from ..power import liberty, report, unit
 from ..scenes.scene import resolve
@@ -136,6 +137,7 @@ def run_unit(args) -> int:
         raise ValueError(f"--ops must be >= 1, got {args.ops}")
     if args.stimulus_seed < 0:
         raise ValueError(f"--stimulus-seed must be >= 0, got {args.stimulus_seed}")
+    unit_flags(args, UNIT_BACKEND)                # a setting of the replay only: refused
     point = options.from_args(args)
     point.backend_options(UNIT_BACKEND)           # what the unit cannot build or read: now
     source = resolve(point.scene)                 # an unknown scene fails now
