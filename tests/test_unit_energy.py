@@ -7,6 +7,7 @@ datapath alone, and the command's one-line refusals before any build."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -168,3 +169,19 @@ def test_command_refuses_in_one_line(argv, message, capsys, tmp_path):
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1, err
     assert not out.exists()
+
+
+def test_the_page_quotes_its_measurements():
+    """docs/rtunit_rtl.md#energy's table is that of the figures' JSON (tools/figures.py
+    unit_energy_*): every energy per ray of every ray type and module."""
+    root = Path(__file__).resolve().parent.parent
+    page = (root / "docs" / "rtunit_rtl.md").read_text()
+    table = page[page.index("## Energy"):page.index("## What it models")]
+    rows = {line.split("|")[1].strip().strip("*"): line for line in table.splitlines()
+            if line.startswith("| ")}
+    for stem in ("bunny64", "cornell_ao32", "bunny_floor_path32"):
+        rep = json.loads((root / "docs" / f"unit_energy_{stem}.json").read_text())
+        for kind, row in rep["per_ray"].items():
+            assert f"**{row['energy_per_ray']:,.0f}**" in rows["total per ray"]
+            for m in USED:
+                assert f" {row['modules'][m]['energy_per_ray']:,.0f} (" in rows[m], (stem, m)
