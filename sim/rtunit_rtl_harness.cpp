@@ -18,9 +18,16 @@
 // the cycle after the last result is taken. Every run has a cycle budget: a corrupt image (a loop
 // of pointers) stops with an error instead of hanging. Statistics: RtuStats (rf_rtunit_stats.h,
 // generated from driver/backends/rtunit.py's UNIT_STATS).
+//
+// Switching activity (the power flow's level "signals", docs/power.md): built with RF_TOGGLES
+// (Verilator --trace, driver/backends/rtunit.py's traced build, made only for rayflex power),
+// rtu_toggles_start has every clock cycle's values streamed into the VCD toggle counter of
+// sim/rf_toggles.h (no file is written) until rtu_toggles_write saves the counts.
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <queue>
+#include <string>
 #include <vector>
 
 #include "Vrf_rtunit.h"
@@ -28,6 +35,10 @@
 #include "rf_memory.h"
 #include "rf_rtunit_stats.h"
 #include "verilated.h"
+#ifdef RF_TOGGLES
+#include "verilated_vcd_c.h"
+#include "rf_toggles.h"
+#endif
 
 namespace {
 
@@ -64,8 +75,15 @@ struct Pending {
   }
 };
 
+// A context that allows tracing before the model (built from it) is constructed.
+struct Context : VerilatedContext {
+#ifdef RF_TOGGLES
+  Context() { traceEverOn(true); }
+#endif
+};
+
 struct Run {
-  VerilatedContext ctx;
+  Context ctx;
   Vrf_rtunit top{&ctx};
   const uint32_t* rays = nullptr;      // (n, kRayWords)
   const uint8_t* any_hit = nullptr;    // (n,)
@@ -85,6 +103,17 @@ struct Run {
   std::priority_queue<Pending, std::vector<Pending>, std::greater<Pending>> queue;
   int64_t next_ray = 0, done = 0, cycle = 0, seq = 0, outstanding = 0;
   rf_rtunit_stats::RtuStats st{};
+#ifdef RF_TOGGLES
+  rf_toggles::Counter counter;
+  rf_toggles::CountingFile* file = nullptr;
+  VerilatedVcdC* vcd = nullptr;
+  uint64_t time = 0;
+  ~Run() {
+    if (vcd) vcd->close();
+    delete vcd;
+    delete file;
+  }
+#endif
 };
 
 void tick(Run* r) {
@@ -92,6 +121,9 @@ void tick(Run* r) {
   r->top.eval();
   r->top.clk_i = 0;
   r->top.eval();
+#ifdef RF_TOGGLES
+  if (r->vcd) r->vcd->dump(++r->time);  // one sample per cycle: zero-delay, no glitches
+#endif
 }
 
 }  // namespace
@@ -250,6 +282,70 @@ int64_t rtu_advance(void* h, int64_t cycles, int64_t* bad_ray) {
   }
   r->st.max_stack_depth = u.max_depth_o;
   return r->done == r->n ? 1 : 0;
+}
+
+// Clock the unit `cycles` cycles with no ray offered, no memory response and results taken
+// (an idle unit, or one draining).
+void rtu_idle(void* h, int64_t cycles) {
+  Run* r = static_cast<Run*>(h);
+  Vrf_rtunit& u = r->top;
+  u.ray_valid_i = 0;
+  u.mem_req_ready_i = 0;
+  u.mem_rsp_valid_i = 0;
+  u.res_ready_i = 1;
+  for (int64_t k = 0; k < cycles; k++) tick(r);
+}
+
+// Whether this build counts switching activity (RF_TOGGLES).
+int64_t rtu_can_count() {
+#ifdef RF_TOGGLES
+  return 1;
+#else
+  return 0;
+#endif
+}
+
+// Start counting bit toggles from the current state (sim/rf_toggles.h). Returns 0, or -1 in a
+// build without RF_TOGGLES.
+int64_t rtu_toggles_start(void* h) {
+#ifdef RF_TOGGLES
+  Run* r = static_cast<Run*>(h);
+  if (!r->vcd) {
+    r->file = new rf_toggles::CountingFile(&r->counter);
+    r->vcd = new VerilatedVcdC(r->file);
+    r->top.trace(r->vcd, 99);
+    r->vcd->open("counted");
+  } else {
+    r->counter.reset_counts();
+  }
+  r->vcd->dump(r->time);
+  return 0;
+#else
+  (void)h;
+  return -1;
+#endif
+}
+
+// Stop counting; write the declarations (the VCD header) to `decl` and "identifier toggles"
+// lines to `counts`. Returns the number of identifiers, or -1 (a file, or no RF_TOGGLES).
+int64_t rtu_toggles_write(void* h, const char* decl, const char* counts) {
+#ifdef RF_TOGGLES
+  Run* r = static_cast<Run*>(h);
+  if (!r->vcd) return -1;
+  r->vcd->flush();
+  r->counter.finish();
+  FILE* d = std::fopen(decl, "w");
+  if (!d) return -1;
+  const std::string& text = r->counter.declarations();
+  const bool ok = std::fwrite(text.data(), 1, text.size(), d) == text.size();
+  if (std::fclose(d) != 0 || !ok || !r->counter.write(counts)) return -1;
+  return static_cast<int64_t>(r->counter.size());
+#else
+  (void)h;
+  (void)decl;
+  (void)counts;
+  return -1;
+#endif
 }
 
 // The run's statistics so far (RtuStats: cycles, requests, ...; docs/statistics.md, unit_rtl).
