@@ -160,7 +160,7 @@ def test_command_writes_the_report(tmp_path, capsys):
     (["--rays-in-flight", "300"], "--rays-in-flight"),
     (["--bvh-format", "q8g"], "q8g"),
     (["--ops", "0"], "--ops"),
-    (["--pipelines", "2"], "--pipelines"),
+    (["--pipelines", "5"], "--pipelines"),
 ])
 def test_command_refuses_in_one_line(argv, message, capsys, tmp_path):
     out = tmp_path / "u.json"
