@@ -58,7 +58,7 @@ RTL_BUILDS = {
     "test_instances": (_B, _B + "-q8", _B + "-xf"),
     "test_q8_image": (_B, _B + "-q8"),
     "test_sweep": (_B, "baseline-disjoint", "signals:" + _B, "signals:baseline-disjoint",
-                   f"rtunit:{_B}:8:2", f"rtunit:{_B}:8:32"),
+                   f"rtunit:{_B}:8:32"),
     "test_fused": (_B + "-fused", "extended-unified-fused", "extended-disjoint-fused"),
     "test_shared": ("extended-unified-shared", "extended-disjoint-q8-shared"),
     "test_pgo": ("pgo:" + _B,),

@@ -186,21 +186,21 @@ def test_points_through_the_rt_unit_in_rtl(tmp_path):
     with the unit's costs counts its cycles; a results file of points measured without the
     unit is measured again."""
     argv = ["sweep", "--scene", "sphere", "--workload", "ao", "--size", "8",
-            "--rays-in-flight", "8", "--stack-depth", "2,32", "--csv", str(tmp_path / "u.csv"),
-            "--json", str(tmp_path / "u.json"), "--no-progress"]
+            "--rays-in-flight", "8", "--stack-depth", "32", "--cache-kib", "0,16",
+            "--csv", str(tmp_path / "u.csv"), "--json", str(tmp_path / "u.json"), "--no-progress"]
     assert main(argv[:-5] + ["--json", str(tmp_path / "u.json"), "--no-progress"]) == 0
     assert all("unit_rtl" not in e for e in json.loads((tmp_path / "u.json").read_text())
                ["points"])
     assert main([*argv, "--backend", "rtunit"]) == 0
     doc = json.loads((tmp_path / "u.json").read_text())
     assert doc["bit_exact"] == {"baseline-unified": True}
-    shallow, deep = (e["unit_rtl"] for e in doc["points"])
-    assert (shallow["stack_depth"], deep["stack_depth"]) == (2, 32)
-    assert shallow["rays_in_flight"] == deep["rays_in_flight"] == 8
-    for u in (shallow, deep):
+    uncached, cached = (e["unit_rtl"] for e in doc["points"])
+    assert [e["design_point"]["cache_kib"] for e in doc["points"]] == [0, 16]
+    for u in (uncached, cached):
+        assert (u["rays_in_flight"], u["stack_depth"]) == (8, 32)
         assert u["traversal_mismatches"] == 0 and u["cycles"] > 0
         assert u["replay_cycles_ratio"] == pytest.approx(1, abs=0.01)
-    assert shallow["stack_overflows"] > 0 == deep["stack_overflows"]
+    assert uncached["cycles"] > cached["cycles"]          # every node from DRAM without a cache
     with open(tmp_path / "u.csv") as f:
         rows = list(csv.DictReader(f))
-    assert {int(r["unit_rtl_cycles"]) for r in rows} == {shallow["cycles"], deep["cycles"]}
+    assert {int(r["unit_rtl_cycles"]) for r in rows} == {uncached["cycles"], cached["cycles"]}
