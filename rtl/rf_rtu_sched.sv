@@ -38,10 +38,8 @@ module rf_rtu_sched import rf_pkg::*; import rf_rtu_pkg::*; #(
   localparam int unsigned REQ_W = $bits(req_t);
 
   logic [SLOT_W-1:0] next_q;      // round-robin start
-  logic [32:0]       pick;
-  assign pick       = rr_pick(256'(ready_i), RAYS, 32'(next_q));
-  assign rd_o       = SLOT_W'(pick[31:0]);
-  assign dp_valid_o = pick[32];
+  rf_rr_pick #(.N(RAYS)) u_pick (
+    .req_i(ready_i), .start_i(next_q), .valid_o(dp_valid_o), .idx_o(rd_o));
 
   logic [REQ_W-1:0] w;
   logic             box, xf;
