@@ -426,6 +426,34 @@ def test_stack_depth_needs_the_unit(in_tmp, error_line):
     assert "--stack-depth" in error_line()
 
 
+def test_unit_check_none_runs_the_unit_alone(in_tmp, error_line, monkeypatch):
+    """--unit-check none: the unit's frame without the Python traversal and the replays (their
+    figures null), the same cycles and hits; tiles on two threads, each with its own unit, give
+    the frame of one thread."""
+    import json
+    argv = ["render", "cornell", "--workload", "ao", "--size", "8", "--tile", "4", "--backend",
+            "rtunit", "--rays-in-flight", str(RAYS), "--check-embree", "--no-progress"]
+    docs = {}
+    for check, threads in (("traversal", "1"), ("none", "1"), ("none", "2")):
+        monkeypatch.setenv("RAYFLEX_THREADS", threads)
+        out = f"{check}{threads}.json"
+        assert main([*argv, "--unit-check", check, "--json", out]) == 0
+        docs[check, threads] = json.loads(open(out).read())
+    ref = docs["traversal", "1"]
+    assert ref["unit_rtl"]["traversal_mismatches"] == 0
+    for key in (("none", "1"), ("none", "2")):
+        doc = docs[key]
+        unit = doc["unit_rtl"]
+        assert unit["traversal_mismatches"] is None and unit["replay_cycles_ratio"] is None
+        assert {k: v for k, v in unit.items() if "replay" not in k and "traversal" not in k} \
+            == {k: v for k, v in ref["unit_rtl"].items() if "replay" not in k
+                and "traversal" not in k}
+        assert doc["embree"]["adjudicated"]["classes"] == ref["embree"]["adjudicated"]["classes"]
+        assert doc["provenance"]["design_point"]["unit_check"] == "none"
+    assert main(["render", "bunny", "--size", "8", "--unit-check", "none"]) != 0
+    assert "--backend rtunit" in error_line()
+
+
 def test_render_an_instanced_scene(in_tmp, error_line):
     import json
     glb = str(reuse_glb(in_tmp / "reuse.glb"))         # three instances of one icosphere

@@ -42,9 +42,13 @@ DEFAULT_DIVIDERS, MAX_DIVIDERS = 2, 16   # binary32 dividers (rf_fp_div: one div
 DEFAULT_SETUPS, MAX_SETUPS = 2, 16       # ray setups (rf_rtu_setup: one ray entering an instance)
 DEFAULT_MEM_LATENCY = 20            # the fixed-latency memory behind the port, cycles
 FORMATS = ("box32", "q8")           # node images the unit reads (q8: with the decode stage)
+# what checks the unit's rays besides Embree (``--unit-check``): the Python traversal on the unit's
+# datapath and the replay of its requests (the backend's ``compare``), or nothing
+UNIT_CHECKS = ("traversal", "none")
 UNIT_BACKEND = "rtunit"
-# the design options (driver/design.py) the unit reads: its ray slots, stack and memory hierarchy
-UNIT_OPTIONS = ("rays_in_flight", "stack_depth", "cache_kib", "cache_ways", "cache_latency",
+# the design options (driver/design.py) the unit reads: its ray slots, stack, check and memory
+# hierarchy
+UNIT_OPTIONS = ("rays_in_flight", "stack_depth", "unit_check", "cache_kib", "cache_ways", "cache_latency",
                 "mshrs", "l2_kib", "l2_ways", "l2_latency", "line_bytes", "sector_bytes",
                 "mem_latency", "mem_bytes_per_cycle")
 # the unit's statistics, in the order of rf_rtunit_stats::RtuStats (generated from this tuple)
@@ -274,14 +278,19 @@ class RtUnitBackend(HarnessBackend):
         self.memory = memory
         self.max_outstanding = int(max_outstanding)
         self._unit = unit_library(self.unit_params)    # build (or load) now: fail early
+        self._checked = None        # the last image check_image passed: (image, root)
 
     def trace_unit(self, bvh, rays: np.ndarray, any_hit=False, progress=None,
                    max_cycles: int | None = None) -> UnitResult:
         """Run prepared rays (``driver.core.datapath.prepare_rays``) through the unit over
-        ``bvh`` (checked by ``check_image``). ``any_hit``: a bool or one per ray.
+        ``bvh`` (checked by ``check_image``, once for the batches of a frame: again when the
+        image object or the root changes). ``any_hit``: a bool or one per ray.
         ``progress(done, total)`` is called between harness calls. ``max_cycles``: the budget
         (default: 10,000 cycles + 20,000 per ray); RuntimeError when it runs out."""
-        check_image(bvh, self.compressed, self.transform)
+        if self._checked is None or self._checked[0] is not bvh.image or \
+                self._checked[1] != int(bvh.root):
+            check_image(bvh, self.compressed, self.transform)
+            self._checked = (bvh.image, int(bvh.root))
         n = len(rays)
         rw = np.ascontiguousarray(ray_words(rays), np.uint32)
         assert rw.shape == (n, RAY_WORDS)
