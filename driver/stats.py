@@ -151,13 +151,14 @@ def unit_rtl_stats(res, be) -> dict:
         "divider_full_cycles": st["divider_full_cycles"],
         "setups": be.setups,
         "setup_busy_cycles": st["setup_busy_cycles"],
+        "skipped_cycles": st["skipped_cycles"],
     }
 
 
 UNIT_RTL = "unit_rtl"
 _UNIT_SUMMED = ("cycles", "stack_overflows", "stack_refills", "rays_overflowed", "mem_requests",
                 "mem_bytes", "mem_busy_cycles", "busy_cycles", "divider_busy_cycles",
-                "divider_full_cycles", "setup_busy_cycles")
+                "divider_full_cycles", "setup_busy_cycles", "skipped_cycles")
 
 
 def merge_unit_rtl(parts: list[dict], ops: int) -> dict:

@@ -44,7 +44,11 @@
 //   * root_i: the root node pointer, constant while rays are in the unit.
 //   * status: busy_o (some slot holds a ray), dp_issue_o (a request entered the datapath this
 //     cycle), max_depth_o (most stack entries any ray held), overflow_o / refill_o (pulses),
-//     div_busy_o (dividers holding a division), setup_busy_o (ray setups holding a ray).
+//     div_busy_o (dividers holding a division), setup_busy_o (ray setups holding a ray), wait_o
+//     (every ray in the unit waits for its node from memory, its request sent, and nothing else
+//     is in flight: no request in the datapath or the response stage, no division, no ray
+//     setup, no result; until a memory response or a new ray comes, no register that a later
+//     output depends on changes). All from registers only.
 // Parameters: RAYS (slots), STACK_DEPTH (entries per stack), DIVIDERS (binary32 dividers,
 // rf_fp_div), SETUPS (ray setups, rf_rtu_setup), and the datapath's own, passed through.
 module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
@@ -104,7 +108,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   output logic               overflow_o,
   output logic               refill_o,
   output logic [DIV_W-1:0]   div_busy_o,
-  output logic [SETUP_W-1:0] setup_busy_o
+  output logic [SETUP_W-1:0] setup_busy_o,
+  output logic               wait_o
 );
 
   if (RAYS < 1 || RAYS > 256) begin : g_bad_rays
@@ -126,7 +131,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   logic  [31:0]     held_ptr_q [RAYS];     // a refilled pointer, popped next
 
   // ---- per-slot state in masks ----
-  logic [RAYS-1:0] free_m, pop_m, ready_m, done_m;
+  logic [RAYS-1:0] free_m, pop_m, ready_m, done_m, fetch_m;
   function automatic logic [RAYS-1:0] in_state(input logic [2:0][RAYS-1:0] p, input slot_e s);
     return (s[2] ? p[2] : ~p[2]) & (s[1] ? p[1] : ~p[1]) & (s[0] ? p[0] : ~p[0]);
   endfunction
@@ -134,6 +139,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign pop_m   = in_state(st_q, SLOT_POP);
   assign ready_m = in_state(st_q, SLOT_READY);
   assign done_m  = in_state(st_q, SLOT_DONE);
+  assign fetch_m = in_state(st_q, SLOT_FETCH);
   assign busy_o = ~&free_m;
 
   // ---- load: the lowest free slot takes the next ray ----
@@ -360,6 +366,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign res_overflows_o = res_q.overflows;
   assign res_refills_o   = res_q.refills;
   assign res_err_o       = res_q.err;
+  // a slot in DP, DIV or SETUP has its request, division or ray setup in flight
+  assign wait_o          = (free_m | fetch_m) == '1 && !mem_req_valid_o && !res_valid_o;
   assign overflow_o      = stk_spill;
   assign refill_o        = pop_fetch & pop_refill;
 

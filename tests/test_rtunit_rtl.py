@@ -244,6 +244,9 @@ def test_one_ray_frame_cycles_by_hand(deep):
     # then the divider (DIV_CYCLES), the empty stack's pop (1), the result register (1), taken (1)
     per_node = 1 + 1 + mem + 1 + dp
     assert res.stats["cycles"] == 1 + 2 * per_node + div + 1 + 1 + 1
+    # while the ray waits for a node, the harness counts the cycles without clocking the unit:
+    # from the cycle after the request's handshake to the cycle before the response
+    assert res.stats["skipped_cycles"] == 2 * (mem - 2)
     # busy from the cycle after its handshake to the cycle its result is taken (at once)
     assert res.stats["divider_busy_cycles"] == div
     assert (res.box_ops[0], res.tri_ops[0]) == (1, 1)
@@ -441,6 +444,7 @@ def test_unit_check_none_runs_the_unit_alone(in_tmp, error_line, monkeypatch):
         docs[check, threads] = json.loads(open(out).read())
     ref = docs["traversal", "1"]
     assert ref["unit_rtl"]["traversal_mismatches"] == 0
+    assert 0 < ref["unit_rtl"]["skipped_cycles"] < ref["unit_rtl"]["cycles"]
     for key in (("none", "1"), ("none", "2")):
         doc = docs[key]
         unit = doc["unit_rtl"]

@@ -66,6 +66,7 @@ UNIT_STATS = (
     "divider_busy_cycles",      # sum over cycles of the dividers holding a division
     "divider_full_cycles",      # cycles with every divider holding one
     "setup_busy_cycles",        # sum over cycles of the ray setups holding a ray
+    "skipped_cycles",           # cycles counted without clocking the model (every ray waited)
 )
 _OK, _BUDGET, _BAD_ADDRESS, _BAD_ARGS, _BAD_GEOMETRY, _RAY_ERROR = 0, -1, -2, -3, -4, -5
 ADVANCE_CYCLES = 1 << 16            # cycles per harness call (progress and Ctrl-C between calls)
