@@ -16,6 +16,11 @@ combination. What each point costs:
    ``gates`` when that configuration's gate netlist is in the cache (a synthesis takes minutes);
    and the node fetches' energy per memory level (``memory_pj``, ``driver.rtunit.energy``).
 
+4. With ``unit`` (``rayflex sweep --backend rtunit``) each point's frame also runs through the
+   RT unit in RTL (``driver.backends.rtunit``) with the point's ray slots, stack depth and
+   memory hierarchy: its ``unit_rtl`` (docs/rtunit_rtl.md), every ray checked against the Python
+   traversal and the replay with the unit's costs timed beside it (``replay_cycles_ratio``).
+
 Points are independent tasks: with ``workers`` > 1 or a Dask ``scheduler`` they run on the
 cluster code of ``driver.tiles`` (records scattered once). Each finished point is appended to a
 results file (JSON lines keyed by the point and the source tree's version and commit,
@@ -41,6 +46,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 
 from . import backends, design, power, workloads
+from .backends.rtunit import UNIT_BACKEND, UNIT_OPTIONS
 from .core.outputs import jsonable
 from .design import DesignPoint
 from .plotting import describe, wrap
@@ -105,12 +111,45 @@ def trace_workload(point: DesignPoint, progress: bool = True) -> Trace:
                  time.perf_counter() - t0)
 
 
-def measure_point(point: DesignPoint, waves: list, width: int, ideal: bool = False) -> dict:
+def measure_point(point: DesignPoint, waves: list, width: int, ideal: bool = False,
+                  unit: bool = False) -> dict:
     """The RT-unit figures of one design point (a task: pure in its inputs): the frame's and
-    each ray type's (``driver.rtunit.gpu.replay_point``), and the point's wall time."""
+    each ray type's (``driver.rtunit.gpu.replay_point``), with ``unit`` the frame through the
+    RT unit in RTL (``unit_frame``), and the point's wall time."""
     t0 = time.perf_counter()
     out = replay_point(waves, point, width, ideal)
+    if unit:
+        out["unit_rtl"] = unit_frame(point, width)
     return {**out, "wall_s": time.perf_counter() - t0}
+
+
+def unit_frame(point: DesignPoint, width: int) -> dict:
+    """``point``'s frame (``width`` square) through the RT unit in RTL: its ``unit_rtl``
+    (docs/rtunit_rtl.md), every ray checked against the Python traversal on the same datapath."""
+    from .render import render
+
+    be = backends.backend(UNIT_BACKEND, **point.backend_options(UNIT_BACKEND))
+    res = render(point.scene, width, width, backend=be, progress=False, point=point)
+    return res.stats["unit_rtl"]
+
+
+# the RT-unit options the replay models and the unit in RTL does not (one RT unit, one-kernel
+# order of rays by index): a unit point keeps their defaults; the replay's own switches aside
+_REPLAY_ONLY = ("rt_preset", "ray_window", "replay_datapath", "unit_costs")
+
+
+def check_unit_points(points) -> None:
+    """Refuse (ValueError, one line, before any work) a point the RT unit in RTL cannot run:
+    a ray count, stack depth or node format it cannot take, or a setting only the replay
+    models."""
+    for p in points:
+        p.backend_options(UNIT_BACKEND)
+        for o in design.OPTIONS:
+            if (o.group == "rtunit" and o.name not in UNIT_OPTIONS and o.name not in _REPLAY_ONLY
+                    and getattr(p, o.name) != o.default):
+                raise ValueError(f"{o.flag} {getattr(p, o.name)} is a setting of the RT-unit "
+                                 f"replay, which the RT unit in RTL does not model: drop it or "
+                                 f"--backend {UNIT_BACKEND} (docs/rtunit_rtl.md)")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -213,11 +252,16 @@ def _append(path: Path, key: str, result: dict) -> None:
 # the sweep
 
 def sweep(points: list[DesignPoint], workers: int = 1, scheduler: str | None = None,
-          results: Path | None = None, progress: bool = True, ideal: bool = False) -> dict:
-    """Measure every design point (see the module docstring); returns the document."""
+          results: Path | None = None, progress: bool = True, ideal: bool = False,
+          unit: bool = False) -> dict:
+    """Measure every design point (see the module docstring); returns the document. ``unit``:
+    also each point's frame through the RT unit in RTL (points measured without it are measured
+    again)."""
     t0 = time.perf_counter()
     results = Path(results) if results else None
     done = load_results(results)
+    if unit:                            # a point measured without the unit is measured again
+        done = {k: r for k, r in done.items() if "unit_rtl" in r}
     todo = [p for p in points if p.key() not in done]
     if done and progress:
         print(f"rayflex: sweep: {len(points) - len(todo)} of {plural(len(points), 'point')} "
@@ -232,7 +276,7 @@ def sweep(points: list[DesignPoint], workers: int = 1, scheduler: str | None = N
     energies = energy_tables(points, progress)
     bar = progress_bar(len(todo), f"sweep: {len(points)} design points", "point", progress)
     bar.hook(0, len(todo))
-    for n, (p, result) in enumerate(_run(todo, traces, workers, scheduler, ideal), 1):
+    for n, (p, result) in enumerate(_run(todo, traces, workers, scheduler, ideal, unit), 1):
         done[p.key()] = result
         if results:
             _append(results, p.key(), result)
@@ -254,6 +298,7 @@ def sweep(points: list[DesignPoint], workers: int = 1, scheduler: str | None = N
         "bit_exact": {c: all(e["rtunit_memory"]["responses_verified"] is not False
                              and (e["rtunit"] is None
                                   or e["rtunit"]["responses_verified"] is not False)
+                             and not (e.get("unit_rtl") or {}).get("traversal_mismatches")
                              for e in entries if e["design_point"]["config"] == c)
                       for c in sorted({p.config for p in points})},
         "traced_on": first.config,
@@ -266,20 +311,20 @@ def _stderr():
     return sys.stderr
 
 
-def _run(todo, traces, workers, scheduler, ideal=False):
+def _run(todo, traces, workers, scheduler, ideal=False, unit=False):
     """(point, result) of every point to measure, in this process or on Dask."""
     if not todo:
         return
     if workers == 1 and not scheduler:
         for p in todo:
             t = traces[functional_key(p)]
-            yield p, measure_point(p, t.waves, t.width, ideal)
+            yield p, measure_point(p, t.waves, t.width, ideal, unit)
         return
     with _client(workers, scheduler) as client:
         recs = {k: client.scatter(t.waves, broadcast=True) for k, t in traces.items()}
         run_id = uuid.uuid4().hex[:12]
         futures = {client.submit(measure_point, p, recs[functional_key(p)],
-                                 traces[functional_key(p)].width, ideal,
+                                 traces[functional_key(p)].width, ideal, unit,
                                  key=f"rayflex-sweep-{run_id}-{i}", retries=3): p
                    for i, p in enumerate(todo)}
         from distributed import as_completed
@@ -308,6 +353,8 @@ def _entry(p: DesignPoint, result: dict, trace: Trace, energies: dict) -> dict:
     total["energy_per_ray"] = {lvl: energy_per_ray(total, energies[key][lvl], bop)
                                for lvl in ENERGY_LEVELS}
     total["energy_per_ray"]["memory_pj"] = _memory_pj(total["rtunit_memory"])
+    if "unit_rtl" in result:
+        total["unit_rtl"] = result["unit_rtl"]
     return {"design_point": p.as_dict(), **total, "by_type": by_type, "wall_s": result["wall_s"]}
 
 
@@ -336,7 +383,8 @@ ROW_FIELDS = ("ray_type", "rays", "hits", "box_ops", "tri_ops", "transform_ops",
               "frame_cycles", "frame_utilization", "latency_mean", "latency_p95",
               "hit_rate", "bytes_per_ray", "l1_bytes_per_ray", "l2_bytes_per_ray",
               "dram_bytes_per_ray", "energy_per_ray_signals", "energy_per_ray_gates",
-              "energy_per_ray_memory_pj", "responses_verified", "wall_s")
+              "energy_per_ray_memory_pj", "unit_rtl_cycles", "unit_rtl_utilization",
+              "unit_rtl_replay_cycles_ratio", "responses_verified", "wall_s")
 
 
 def rows(doc: dict) -> list[dict]:
@@ -346,6 +394,7 @@ def rows(doc: dict) -> list[dict]:
     out = []
     for e in doc["points"]:
         fm = e["rtunit_memory"] or {}
+        u = e.get("unit_rtl") or {}
         for kind, t in e["by_type"].items():
             r, m = t["rtunit"] or {}, t["rtunit_memory"] or {}
             served = m.get("bytes_served_per_ray", {})
@@ -370,6 +419,9 @@ def rows(doc: dict) -> list[dict]:
                         "energy_per_ray_signals": t["energy_per_ray"]["signals"],
                         "energy_per_ray_gates": t["energy_per_ray"]["gates"],
                         "energy_per_ray_memory_pj": t["energy_per_ray"]["memory_pj"],
+                        "unit_rtl_cycles": u.get("cycles"),
+                        "unit_rtl_utilization": u.get("utilization"),
+                        "unit_rtl_replay_cycles_ratio": u.get("replay_cycles_ratio"),
                         "responses_verified": (not r or r["responses_verified"])
                         and (not m or m["responses_verified"]),
                         "wall_s": e["wall_s"]})
@@ -469,9 +521,11 @@ def table(doc: dict) -> str:
     frame; with free node fetches when replayed, ``--ideal-replay``), mean latency, bytes from
     DRAM per ray, the datapath's energy and the node fetches' energy per ray."""
     keys = list(doc["grid"])
+    unit = any("unit_rtl" in e for e in doc["points"])
     head = " ".join(f"{k:>18}" for k in keys) + \
         f" {'type':>8} {'rays':>6} {'ops/ray':>7} {'util':>6} {'ideal':>6} {'latency':>8} " \
-        f"{'B/ray':>6} {'E/ray':>9} {'mem pJ/ray':>10}"
+        f"{'B/ray':>6} {'E/ray':>9} {'mem pJ/ray':>10}" + \
+        (f" {'unit cycles':>11} {'unit util':>9} {'replay/unit':>11}" if unit else "")
     out = [head]
     for e in doc["points"]:
         cells = " ".join(f"{str(e['design_point'][k]):>18}" for k in keys)
@@ -484,11 +538,20 @@ def table(doc: dict) -> str:
                        f"{cell(m.get('latency_mean'), '.0f'):>8} "
                        f"{cell(m.get('bytes_per_ray'), '.0f'):>6} "
                        f"{cell(energy['signals'], '.0f'):>9} "
-                       f"{cell(energy['memory_pj'], '.0f'):>10}")
+                       f"{cell(energy['memory_pj'], '.0f'):>10}" + (_unit_cells(t) if unit else ""))
     out.append("(per ray type, then all rays of the point; util / ideal: utilization with the "
                "memory hierarchy / with free node fetches (--ideal-replay), a ray type's only "
                "in a wavefront frame; -: none; latency: mean cycles from the trace call to the "
                "ray's last response; B/ray: bytes from DRAM per ray; E/ray: datapath energy "
                "per ray in bit toggles; mem pJ/ray: node fetches, docs/rtunit.md; "
-               "docs/statistics.md)")
+               + ("unit cycles, unit util: the frame on the RT unit in RTL, replay/unit: the "
+                  "replay's cycles with the unit's costs over the unit's, docs/rtunit_rtl.md; "
+                  if unit else "") + "docs/statistics.md)")
     return "\n".join(out)
+
+
+def _unit_cells(t: dict) -> str:
+    """The RT unit in RTL's columns of a table line (the frame's line only)."""
+    u = t.get("unit_rtl") or {}
+    return (f" {cell(u.get('cycles'), ','):>11} {cell(u.get('utilization'), '.3f'):>9} "
+            f"{cell(u.get('replay_cycles_ratio'), '.3f'):>11}")

@@ -53,6 +53,16 @@ PERIOD_NS = 1000.0
 # ABC's view of the boundary: inputs driven by a small inverter, each output a small load (pF)
 CONSTRAINTS = "set_driving_cell INVX1\nset_load 0.02\n"
 CLOCK_PORT = "clk_i"
+# ABC's mapping scripts (``abc -D``'s required delay in each): "default" is Yosys's own for a
+# liberty with a delay target (equivalence sweeping, choices, then delay mapping, buffering and
+# sizing); "fast" maps the structurally hashed logic directly (no sweeping, no choices), for a
+# design whose sweep does not finish (exact wide multipliers): compare like with like, not against
+# the default script's figures
+ABC_SCRIPTS = {
+    "default": None,
+    "fast": "strash\n&get -n\n&st\n&nf -D {D}\n&put\nbuffer\nupsize -D {D}\ndnsize -D {D}\n"
+            "stime -p\n",
+}
 
 
 class TimingError(RuntimeError):
@@ -174,15 +184,26 @@ def registers(netlist: str, seq: set[str]) -> dict[str, tuple[str, str]]:
 # ------------------------------------------------------------------------------------------------
 # mapping and STA
 
-def map_script(top: str, liberty: Path, delay_ps: float) -> str:
+def map_script(top: str, liberty: Path, delay_ps: float, script: str = "default") -> str:
+    """The Yosys script that maps ``generic.il``; with an ABC ``script`` other than "default"
+    its ``abc`` reads ``map.abc`` (``abc_script``)."""
     lib = liberty.name
+    abc = (f"abc -D {delay_ps:g}" if ABC_SCRIPTS[script] is None else "abc -script map.abc")
     return ("read_rtlil generic.il\n"
             f"hierarchy -top {top}\n"
             f"dfflibmap -liberty {lib}\n"
-            f"abc -D {delay_ps:g} -constr constr.txt -liberty {lib}\n"
+            f"{abc} -constr constr.txt -liberty {lib}\n"
             "opt_clean\n"
             f"tee -q -o stat.txt stat -liberty {lib}\n"
             "write_verilog -noattr -noexpr netlist.v\n")
+
+
+def abc_script(script: str, delay_ps: float) -> str | None:
+    """The text of ABC script ``script`` at required delay ``delay_ps`` (None: Yosys's own)."""
+    if script not in ABC_SCRIPTS:
+        raise TimingError(f"ABC script {script!r}: choose from {', '.join(ABC_SCRIPTS)}")
+    text = ABC_SCRIPTS[script]
+    return None if text is None else text.replace("{D}", f"{delay_ps:g}")
 
 
 def _sta_tcl(top: str, liberty: Path, groups: dict[str, list[str]], clocked: bool) -> str:
@@ -259,7 +280,7 @@ def _run(cmd, cwd: Path, timeout: float | None, what: str) -> str:
 
 def time_generic(generic: Path, top: str, liberty: Path, delay_ps: float,
                  timeout: float | None = None, progress=None, label: str = "timing",
-                 keep: Path | None = None) -> dict:
+                 keep: Path | None = None, script: str = "default") -> dict:
     """Map the generic netlist ``generic`` (RTLIL) to ``liberty`` with ABC's required delay
     ``delay_ps`` and time it with OpenSTA: the report of one configuration (uncached).
     ``keep``: where to keep the mapped netlist (``keep``) and OpenSTA's script and report (the
@@ -269,8 +290,11 @@ def time_generic(generic: Path, top: str, liberty: Path, delay_ps: float,
         shutil.copyfile(generic, work / "generic.il")
         shutil.copyfile(liberty, work / liberty.name)
         (work / "constr.txt").write_text(CONSTRAINTS)
+        text = abc_script(script, delay_ps)
+        if text is not None:
+            (work / "map.abc").write_text(text)
         t0 = time.monotonic()
-        area._run_yosys(work, map_script(top, liberty, delay_ps), timeout,
+        area._run_yosys(work, map_script(top, liberty, delay_ps, script), timeout,
                         cmd=[area.native_yosys()], progress=progress, label=label)
         map_s = time.monotonic() - t0
         stat = (work / "stat.txt").read_text()
@@ -293,7 +317,8 @@ def time_generic(generic: Path, top: str, liberty: Path, delay_ps: float,
     worst = stages[limiting]["min_period_ns"]
     area_um2 = re.search(r"Chip area for module .*?:\s*([\d.]+)", stat)
     cells = re.search(r"Number of cells:\s*(\d+)", stat)
-    return {"abc_delay_ps": delay_ps, "liberty": str(liberty), "liberty_sha": _file_sha(liberty),
+    return {"abc_delay_ps": delay_ps, "abc_script": script,
+            "liberty": str(liberty), "liberty_sha": _file_sha(liberty),
             "min_period_ns": worst, "fmax_mhz": round(1000.0 / worst, 1),
             "limiting_stage": limiting, "stages": stages,
             "area_um2": float(area_um2[1]) if area_um2 else None,
@@ -358,10 +383,11 @@ def _cells_by_type(stat: str) -> dict[str, int]:
 
 def time_config(name: str, sources, liberty: Path, delay_ps: float = DEFAULT_DELAY_PS,
                 cache: bool = True, timeout: float | None = None, progress=None,
-                top: str = area.TOP) -> dict:
+                top: str = area.TOP, script: str = "default") -> dict:
     """The timing report of configuration ``name`` (or, with ``top``, of one module without
     parameters) of the RTL ``sources``: generic synthesis (the area flow's, cached), the mapped
-    netlist and OpenSTA (cached)."""
+    netlist and OpenSTA (cached). ``script``: ABC's mapping script (``ABC_SCRIPTS``)."""
+    abc_script(script, delay_ps)                 # an unknown script: refused before any work
     t0 = time.monotonic()
     kw = {"params": area.config_params(name)} if top == area.TOP else {}
     gen = area.synthesize(top=top, cache=True, timeout=timeout, name=name, sources=sources,
@@ -374,6 +400,8 @@ def time_config(name: str, sources, liberty: Path, delay_ps: float = DEFAULT_DEL
         generic = area.generic_netlist(gen)
     h = hashlib.sha256(f"{RECIPE}\n{gen['key']}\n{_file_sha(liberty)}\n{delay_ps:g}\n"
                        f"{CONSTRAINTS}\n{area.native_version()}\n{sta_version()}".encode())
+    if script != "default":                      # the default script's keys stay as they were
+        h.update(f"\n{abc_script(script, delay_ps)}".encode())
     key = h.hexdigest()[:24]
     entry = cache_root() / f"{top}-{name}-{key}.json"
     if cache and entry.is_file():
@@ -381,9 +409,10 @@ def time_config(name: str, sources, liberty: Path, delay_ps: float = DEFAULT_DEL
         res["cached"] = True
         return res
     if progress:
-        progress(f"{name}: mapping to {liberty.name} (abc -D {delay_ps:g}) and timing")
+        progress(f"{name}: mapping to {liberty.name} (abc -D {delay_ps:g}, {script} script) "
+                 "and timing")
     res = time_generic(generic, top, liberty, delay_ps, timeout, progress, name,
-                       keep=entry.with_suffix(".v"))
+                       keep=entry.with_suffix(".v"), script=script)
     res = {"config": name, "top": top, "rtl_sha": area.rtl_sha(sources),
            "generic_cells": gen["cells"], "synth_s": gen["synth_s"],
            "synth_cached": gen["cached"], **res,
@@ -409,6 +438,7 @@ def cached_fmax(name: str, sources=None) -> float | None:
         except (OSError, ValueError):
             continue
         if (r.get("rtl_sha") == sha and r.get("abc_delay_ps") == DEFAULT_DELAY_PS
+                and r.get("abc_script", "default") == "default"
                 and r.get("liberty") == str(DEBIAN_OSU018)):
             m = entry.stat().st_mtime
             if best is None or m > best[0]:
@@ -417,7 +447,8 @@ def cached_fmax(name: str, sources=None) -> float | None:
 
 
 def time_all(names, liberty: Path, delay_ps: float = DEFAULT_DELAY_PS, jobs: int = 1,
-             cache: bool = True, timeout=None, progress=None, rev: str | None = None) -> dict:
+             cache: bool = True, timeout=None, progress=None, rev: str | None = None,
+             script: str = "default") -> dict:
     """Time the named configurations of one RTL snapshot, ``jobs`` at a time: the report."""
     names = list(names)
     label = area.rev_label(rev)
@@ -427,7 +458,7 @@ def time_all(names, liberty: Path, delay_ps: float = DEFAULT_DELAY_PS, jobs: int
     done = []
 
     def one(n):
-        r = time_config(n, sources, liberty, delay_ps, cache, timeout, progress)
+        r = time_config(n, sources, liberty, delay_ps, cache, timeout, progress, script=script)
         done.append(n)
         if progress:
             progress(f"{n}: Fmax {r['fmax_mhz']:.1f} MHz, limited by {r['limiting_stage']}"

@@ -332,3 +332,35 @@ def test_the_tradeoffs_page_quotes_the_timing_of_its_builds():
         assert f"{r['fmax_mhz']:.1f} MHz" in page or f"against {r['fmax_mhz']:.1f}" in page
         assert f"{r['area_um2'] / 1e6:.2f}" in page and f"{r['flip_flops']:,}" in page
     assert f"({(shared['fmax_mhz'] / base['fmax_mhz'] - 1) * 100:.1f} %)".replace("-", "−") in page
+
+
+def test_the_rt_unit_page_quotes_its_full_size_runs():
+    """docs/rtunit_rtl.md's table of the full-size frames is tools/replay_vs_unit.py's table of
+    docs/rtunit_replay_full.json, and that JSON holds what the page says of it: every ray equal
+    to the traversal, none wrong by Embree's adjudication, the replay within 0.5 %."""
+    spec = importlib.util.spec_from_file_location("replay_vs_unit",
+                                                  ROOT / "tools" / "replay_vs_unit.py")
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    rows = json.loads((ROOT / "docs" / "rtunit_replay_full.json").read_text())["runs"]
+    assert [r["run"] for r in rows] == tool.FULL
+    assert tool.table(rows) in (ROOT / "docs" / "rtunit_rtl.md").read_text()
+    for r in rows:
+        assert r["mismatches"] == 0 and r["embree_datapath_wrong"] == 0
+        assert abs(r["ratio"] - 1) < 0.005
+
+
+def test_the_tradeoffs_page_quotes_the_timing_of_the_fused_build():
+    """docs/tradeoffs.md's Fmax and area of the fused build are docs/timing_fused.json's (the
+    ``timing_fused`` figure: both builds mapped by ABC's fast script)."""
+    page = (ROOT / "docs" / "tradeoffs.md").read_text()
+    doc = json.loads((ROOT / "docs" / "timing_fused.json").read_text())
+    base, fused = doc["configs"]["baseline-unified"], doc["configs"]["baseline-unified-fused"]
+    assert base["abc_script"] == fused["abc_script"] == "fast"
+    flat = " ".join(page.split())
+    assert f"reaches {fused['fmax_mhz']:.1f} MHz against the baseline's {base['fmax_mhz']:.1f}" \
+        in flat
+    assert f"({(fused['fmax_mhz'] / base['fmax_mhz'] - 1) * 100:.1f} %)".replace("-", "−") in flat
+    assert (f"{fused['area_um2'] / 1e6:.2f} against {base['area_um2'] / 1e6:.2f} mm²" in flat
+            and f"{fused['flip_flops']:,} against {base['flip_flops']:,}" in flat)
+    assert f"{fused['stages']['S1']['min_period_ns']:.2f} ns" in flat

@@ -349,7 +349,7 @@ def _one_triangle():
 @pytest.mark.parametrize("corrupt", ["past the end", "node type", "loop"])
 def test_the_unit_stops_on_a_corrupt_image_the_host_let_through(deep, monkeypatch, corrupt):
     # the host's check (check_image) bypassed: the harness and the unit stop the run themselves,
-    # in one line, within the frame's cycle budget (10,000 + 20,000 per ray)
+    # in one line: a loop once the rays have made more requests than the image has nodes for
     import copy
     from driver.backends import rtunit
     bvh, rays = _one_triangle()
@@ -364,7 +364,8 @@ def test_the_unit_stops_on_a_corrupt_image_the_host_let_through(deep, monkeypatc
     bad.image = img.view(np.uint8)
     expect = {"past the end": (ValueError, "leaves the image .the unit fetched past it"),
               "node type": (ValueError, "ray 0 met a node pointer the RT unit cannot read"),
-              "loop": (RuntimeError, "did not finish 1 rays within its budget of 30,000 cycles")}
+              "loop": (ValueError, r"requests for 1 rays, more than this image has nodes for "
+                                   r"\(\d+\): its pointers loop")}
     error, message = expect[corrupt]
     with pytest.raises(error, match=message) as info:
         deep.trace_unit(bad, rays)
@@ -507,3 +508,22 @@ def test_a_lumibench_suite_through_the_unit(tmp_path, in_tmp, error_line, monkey
     assert inst["transform_ops"] > 0 and inst["instances"] > 1
     assert inst["embree"]["adjudicated"]["classes"]["datapath_wrong"] == 0
     assert abs(inst["unit_rtl"]["replay_cycles_ratio"] - 1) <= 0.03
+
+
+def test_the_budget_grows_with_the_requests_a_frame_makes(scene, deep, monkeypatch):
+    """Rays with thousands of nodes each (LumiBench's spring) outrun a budget per ray: the
+    budget grows by BUDGET_PER_REQUEST per request made, so a frame that keeps making requests
+    is not stopped, and one that stops making them is."""
+    from driver.backends import rtunit
+    bvh, o, d = scene
+    rays = prepare_rays(o[:16], d[:16])
+    whole = deep.trace_unit(bvh, rays)
+    assert whole.stats["cycles"] > 10 + 10 * len(rays)
+    monkeypatch.setattr(rtunit, "BUDGET_BASE", 10)
+    monkeypatch.setattr(rtunit, "BUDGET_PER_RAY", 10)
+    again = deep.trace_unit(bvh, rays)              # the requests carry it to the end
+    assert again.stats["cycles"] == whole.stats["cycles"]
+    monkeypatch.setattr(rtunit, "BUDGET_PER_REQUEST", 0)
+    with pytest.raises(RuntimeError, match="within its budget of 170 cycles"):
+        deep.trace_unit(bvh, rays)
+    assert rtunit.request_bound(bvh, 2) == 2 * (np.asarray(bvh.image).nbytes // 64 + 1)

@@ -143,6 +143,9 @@ def test_points_on_dask_workers_equal_one_process(tmp_path):
     ["--workers", "0"],
     ["--size", "0"],
     ["--workers", "2", "--scheduler", "tcp://127.0.0.1:9"],   # was accepted, failed 5 s later
+    ["--backend", "rtunit", "--rt-units", "1,2"],             # the unit is one RT unit
+    ["--backend", "rtunit", "--stack-depth", "1"],            # a depth the RTL cannot build
+    ["--backend", "rtunit", "--bvh-format", "q8g"],           # a format the unit cannot read
 ])
 def test_errors_before_any_work(argv, tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
@@ -175,3 +178,29 @@ def test_the_table_marks_a_missing_value_as_bench_does(swept):
     for r in rows:
         util, ideal = r[6], r[7]       # after the 3 varied options, type, rays and ops/ray
         assert (util == ideal == "-") == (r[3] != "all"), r
+
+
+def test_points_through_the_rt_unit_in_rtl(tmp_path):
+    """``--backend rtunit``: every point's frame also runs through the RT unit in RTL with the
+    point's ray slots, stack depth and memory; every ray agrees with the traversal, the replay
+    with the unit's costs counts its cycles; a results file of points measured without the
+    unit is measured again."""
+    argv = ["sweep", "--scene", "sphere", "--workload", "ao", "--size", "8",
+            "--rays-in-flight", "8", "--stack-depth", "2,32", "--csv", str(tmp_path / "u.csv"),
+            "--json", str(tmp_path / "u.json"), "--no-progress"]
+    assert main(argv[:-5] + ["--json", str(tmp_path / "u.json"), "--no-progress"]) == 0
+    assert all("unit_rtl" not in e for e in json.loads((tmp_path / "u.json").read_text())
+               ["points"])
+    assert main([*argv, "--backend", "rtunit"]) == 0
+    doc = json.loads((tmp_path / "u.json").read_text())
+    assert doc["bit_exact"] == {"baseline-unified": True}
+    shallow, deep = (e["unit_rtl"] for e in doc["points"])
+    assert (shallow["stack_depth"], deep["stack_depth"]) == (2, 32)
+    assert shallow["rays_in_flight"] == deep["rays_in_flight"] == 8
+    for u in (shallow, deep):
+        assert u["traversal_mismatches"] == 0 and u["cycles"] > 0
+        assert u["replay_cycles_ratio"] == pytest.approx(1, abs=0.01)
+    assert shallow["stack_overflows"] > 0 == deep["stack_overflows"]
+    with open(tmp_path / "u.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert {int(r["unit_rtl_cycles"]) for r in rows} == {shallow["cycles"], deep["cycles"]}

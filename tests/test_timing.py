@@ -194,3 +194,26 @@ def test_required_delay_sweep(cache, tmp_path, capsys):
     assert len(list((cache / "timing").glob("rf_fp_cmp-*.json"))) == 2
     assert main(["timing", "--top", "rf_fp_cmp", "--abc-delays", "0,5"]) == 2
     assert "--abc-delays: give delays > 0 ps" in capsys.readouterr().err
+
+
+@needs_tools
+def test_the_fast_abc_script_maps_and_is_cached_apart(cache, tmp_path):
+    """``--abc-script fast``: ABC's delay mapping without the equivalence sweep, cached apart from
+    the default script's mapping of the same generic netlist, named in the JSON."""
+    assert timing.abc_script("default", 1000) is None
+    fast = timing.abc_script("fast", 800)
+    assert "&nf -D 800" in fast and "{D}" not in fast and "fraig" not in fast
+    assert "abc -script map.abc" in timing.map_script("m", timing.DEBIAN_OSU018, 800, "fast")
+    with pytest.raises(timing.TimingError, match="choose from default, fast"):
+        timing.abc_script("slow", 1000)
+    runs = {}
+    for script in ("default", "fast"):
+        out = tmp_path / f"{script}.json"
+        assert main(["timing", "--top", "rf_fp_cmp", "--abc-script", script, "--json", str(out),
+                     "--no-progress"]) == 0
+        runs[script] = json.loads(out.read_text())["configs"]["rf_fp_cmp"]
+    assert [runs[s]["abc_script"] for s in runs] == ["default", "fast"]
+    assert runs["default"]["key"] != runs["fast"]["key"]
+    assert all(r["fmax_mhz"] > 0 and r["cells"] > 0 for r in runs.values())
+    assert len(list((cache / "area").glob("rf_fp_cmp-*.il"))) == 1
+    assert len(list((cache / "timing").glob("rf_fp_cmp-*.json"))) == 2

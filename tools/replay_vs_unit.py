@@ -48,7 +48,18 @@ RUNS = {
                            "rays_in_flight": 1},
     "bunny_floor-path-32": {"scene": "bunny_floor", "workload": "path", "size": 32,
                             "point": {"spp": 1, "bounces": 2}},
+    # the full-size frames: every ray checked against Embree too (--runs full)
+    "bunny-primary-256": {"size": 256},
+    "bunny-primary-256-stack8": {"size": 256, "stack_depth": 8},
+    "bunny_floor-path-64": {"scene": "bunny_floor", "workload": "path",
+                            "point": {"spp": 2, "bounces": 2}},
+    "bunny_floor-path-64-stack8": {"scene": "bunny_floor", "workload": "path", "stack_depth": 8,
+                                   "point": {"spp": 2, "bounces": 2}},
+    "cornell-ao-64": {"scene": "cornell", "workload": "ao"},
+    "cornell-ao-64-stack8": {"scene": "cornell", "workload": "ao", "stack_depth": 8},
 }
+FULL = ["bunny-primary-256", "bunny-primary-256-stack8", "bunny_floor-path-64",
+        "bunny_floor-path-64-stack8", "cornell-ao-64", "cornell-ao-64-stack8"]
 
 
 def run(name: str) -> dict:
@@ -60,8 +71,10 @@ def run(name: str) -> dict:
                        memory=point.memory().config() if mem == "hierarchy" else None,
                        dividers=spec["dividers"], **point.backend_options())
     t0 = time.perf_counter()
-    res = render(scene, size, size, backend=be, progress=False, point=point)
+    res = render(scene, size, size, backend=be, progress=False, point=point,
+                 check_embree=name in FULL)
     u = res.stats["unit_rtl"]
+    emb = res.stats.get("embree")
     return {"run": name, "scene": scene, "workload": workload, "size": size,
             "rays_in_flight": rif, "stack_depth": depth, "memory": mem,
             "dividers": spec["dividers"], "point": spec["point"],
@@ -69,21 +82,31 @@ def run(name: str) -> dict:
             "replay_cycles": u["replay_cycles"], "ratio": u["replay_cycles_ratio"],
             "default_cycles": u["replay_default_cycles"],
             "default_ratio": u["replay_default_cycles_ratio"],
+            "rays": res.stats["rays"],
             "mismatches": u["traversal_mismatches"], "divider_full_cycles":
             u["divider_full_cycles"], "stack_overflows": u["stack_overflows"],
+            "max_stack_depth": u["max_stack_depth"], "stack_refills": u["stack_refills"],
+            "rays_overflowed": u["rays_overflowed"],
+            "embree_datapath_wrong": (None if emb is None else
+                                      emb["adjudicated"]["classes"]["datapath_wrong"]
+                                      if "adjudicated" in emb else
+                                      emb["hit_mismatch"] + emb["prim_mismatch"]),
             "wall_s": time.perf_counter() - t0}
 
 
 def table(rows: list[dict]) -> str:
-    head = ("| run | rays in flight | stack | memory | ops | unit cycles | replay, default "
-            "costs | ratio | replay, unit costs | ratio |\n|---|---|---|---|---|---|---|---|---|---|")
+    head = ("| run | rays | rays in flight | stack | memory | ops | unit cycles | max stack depth "
+            "| refills | rays ≠ traversal | Embree `datapath_wrong` | replay, default costs | "
+            "ratio | replay, unit costs | ratio |\n|" + "---|" * 15)
     lines = [head]
 
     def num(v, fmt):
         return "—" if v is None else format(v, fmt)
     for r in rows:
-        lines.append(f"| {r['run']} | {r['rays_in_flight']} | {r['stack_depth']} | "
-                     f"{r['memory']} | {r['ops']:,} | {r['unit_cycles']:,} | "
+        lines.append(f"| {r['run']} | {r['rays']:,} | {r['rays_in_flight']} | "
+                     f"{r['stack_depth']} | {r['memory']} | {r['ops']:,} | "
+                     f"{r['unit_cycles']:,} | {r['max_stack_depth']} | {r['stack_refills']:,} | "
+                     f"{r['mismatches']} | {num(r['embree_datapath_wrong'], ',')} | "
                      f"{num(r['default_cycles'], ',')} | {num(r['default_ratio'], '.3f')} | "
                      f"{num(r['replay_cycles'], ',')} | {num(r['ratio'], '.3f')} |")
     return "\n".join(lines)
@@ -91,11 +114,12 @@ def table(rows: list[dict]) -> str:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--runs", default=",".join(RUNS), help="comma-separated run names: "
-                    + ", ".join(RUNS))
+    ap.add_argument("--runs", default=",".join(n for n in RUNS if n not in FULL),
+                    help="comma-separated run names, or 'full' (the full-size frames, each "
+                    "checked against Embree): " + ", ".join(RUNS))
     ap.add_argument("--json", help="write the rows here")
     a = ap.parse_args(argv)
-    names = [n for n in a.runs.split(",") if n]
+    names = FULL if a.runs == "full" else [n for n in a.runs.split(",") if n]
     bad = [n for n in names if n not in RUNS]
     if bad:
         print(f"replay_vs_unit: unknown run {bad[0]!r}; choose from {', '.join(RUNS)}",

@@ -48,9 +48,9 @@ UNIT_CHECKS = ("traversal", "none")
 UNIT_BACKEND = "rtunit"
 # the design options (driver/design.py) the unit reads: its ray slots, stack, check and memory
 # hierarchy
-UNIT_OPTIONS = ("rays_in_flight", "stack_depth", "unit_check", "cache_kib", "cache_ways", "cache_latency",
-                "mshrs", "l2_kib", "l2_ways", "l2_latency", "line_bytes", "sector_bytes",
-                "mem_latency", "mem_bytes_per_cycle")
+UNIT_OPTIONS = ("rays_in_flight", "stack_depth", "unit_check", "cache_kib", "cache_ways",
+                "cache_latency", "mshrs", "l2_kib", "l2_ways", "l2_latency", "line_bytes",
+                "sector_bytes", "mem_latency", "mem_bytes_per_cycle")
 # the unit's statistics, in the order of rf_rtunit_stats::RtuStats (generated from this tuple)
 UNIT_STATS = (
     "cycles",                   # first ray offered to the last result taken
@@ -70,6 +70,11 @@ UNIT_STATS = (
 )
 _OK, _BUDGET, _BAD_ADDRESS, _BAD_ARGS, _BAD_GEOMETRY, _RAY_ERROR = 0, -1, -2, -3, -4, -5
 ADVANCE_CYCLES = 1 << 16            # cycles per harness call (progress and Ctrl-C between calls)
+# a run's cycle budget: BUDGET_BASE + BUDGET_PER_RAY per ray + BUDGET_PER_REQUEST per datapath
+# request made so far (so a correct frame of rays with thousands of nodes each never meets it,
+# and a unit that stops making requests does), with the requests bounded by the image: a ray
+# fetches each node at most once per instance it enters, so more requests than that mean a loop
+BUDGET_BASE, BUDGET_PER_RAY, BUDGET_PER_REQUEST = 10_000, 20_000, 2_000
 _LIBS: dict = {}
 
 
@@ -287,7 +292,9 @@ class RtUnitBackend(HarnessBackend):
         ``bvh`` (checked by ``check_image``, once for the batches of a frame: again when the
         image object or the root changes). ``any_hit``: a bool or one per ray.
         ``progress(done, total)`` is called between harness calls. ``max_cycles``: the budget
-        (default: 10,000 cycles + 20,000 per ray); RuntimeError when it runs out."""
+        (default: ``BUDGET_BASE`` + ``BUDGET_PER_RAY`` per ray + ``BUDGET_PER_REQUEST`` per
+        datapath request made); RuntimeError when it runs out; ValueError when the rays make
+        more requests than the image has nodes for (``request_bound``: a loop)."""
         if self._checked is None or self._checked[0] is not bvh.image or \
                 self._checked[1] != int(bvh.root):
             check_image(bvh, self.compressed, self.transform)
@@ -316,13 +323,14 @@ class RtUnitBackend(HarnessBackend):
         if not h:
             raise ValueError("memory geometry cannot be modelled" if err.value == _BAD_GEOMETRY
                              else "RT unit: inconsistent arguments")
-        budget = 10_000 + 20_000 * n if max_cycles is None else int(max_cycles)
+        budget = BUDGET_BASE + BUDGET_PER_RAY * n if max_cycles is None else int(max_cycles)
+        most = request_bound(bvh, n)
         st = RtuStats()
         try:
             bad = ctypes.c_int64(-1)
-            ran = 0
+            ran, grown = 0, budget
             while True:
-                step = min(ADVANCE_CYCLES, budget - ran)
+                step = min(ADVANCE_CYCLES, max(1, grown - ran))
                 rc = lib.rtu_advance(h, step, ctypes.byref(bad))
                 lib.rtu_stats(h, ctypes.byref(st))
                 ran = st.cycles_simulated
@@ -337,9 +345,15 @@ class RtUnitBackend(HarnessBackend):
                                      "read (a corrupt image)")
                 if rc < 0:
                     raise RuntimeError(f"RT unit harness failed ({rc})")
-                if ran >= budget:
+                if st.dp_requests > most:
+                    raise ValueError(f"the RT unit made {st.dp_requests:,} requests for {n} rays, "
+                                     f"more than this image has nodes for ({most:,}): its "
+                                     "pointers loop")
+                if max_cycles is None:
+                    grown = budget + BUDGET_PER_REQUEST * st.dp_requests
+                if ran >= grown:
                     raise RuntimeError(f"the RT unit did not finish {n} rays within its budget "
-                                       f"of {budget:,} cycles (a corrupt image?)")
+                                       f"of {grown:,} cycles (a corrupt image?)")
         finally:
             lib.rtu_free(h)
         stats = {name: int(getattr(st, name)) for name in UNIT_STATS}
@@ -352,6 +366,14 @@ class RtUnitBackend(HarnessBackend):
         return UnitResult(prim64, t.view(np.float32), hit.astype(bool), ops[:, 0].copy(),
                           ops[:, 1].copy(), ops[:, 2].copy(), ops[:, 3].copy(), stats, inst64,
                           ops[:, 4].copy())
+
+
+def request_bound(bvh, rays: int) -> int:
+    """The most datapath requests ``rays`` rays can make over ``bvh`` without a loop: each node
+    (64 bytes or more) once per ray, once more per instance (a ray enters each at most once)."""
+    nodes = np.asarray(bvh.image).nbytes // 64 + 1
+    instances = getattr(bvh, "instances", None)
+    return rays * nodes * (1 + (len(instances) if instances is not None else 0))
 
 
 def lint_unit(params: dict | None = None) -> str:

@@ -321,6 +321,11 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
         flag("--ideal-replay", action="store_true",
              help="also replay every point with free node fetches (rtunit): a second timing "
                   "replay per point"),
+        flag("--backend", choices=("rtl", "rtunit"), default="rtl",
+             help="rtl: trace the workload on the datapath in RTL and replay each point "
+                  "(default); rtunit: also run each point's frame through the RT unit in RTL "
+                  "(unit_rtl per point: its cycles, every ray checked against the traversal, "
+                  "the replay's ratio; docs/rtunit_rtl.md)"),
     )), (DESIGN, ()), (None, (SHARED["progress"],))),
     "power": ((None, (
         flag("--ops", type=int, default=DEFAULT_OPS, metavar="N",
@@ -363,6 +368,10 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
              help="ABC's required delay in ps, abc -D (default "
                   f"{timing.DEFAULT_DELAY_PS:g}: the paper's 1 GHz, out of reach in 0.18 um, "
                   "so each cone is mapped for its least delay)"),
+        flag("--abc-script", choices=tuple(timing.ABC_SCRIPTS), default="default",
+             help="ABC's mapping script: default (Yosys's: equivalence sweeping and choices "
+                  "before the delay mapping) or fast (the delay mapping alone, for a design "
+                  "whose sweep does not finish; compare configurations on one script)"),
         flag("--liberty", metavar="PATH",
              help="standard-cell liberty to map to (default: Debian's qflow-tech-osu018, "
                   "OSU 0.18 um)"),

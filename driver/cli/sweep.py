@@ -9,7 +9,7 @@ from .. import design
 from ..core import outputs
 from ..core.outputs import JSON, PNG, TABLE, Outputs
 from ..power import announce_builds
-from ..sweep import models, plot, sweep, table, write_csv
+from ..sweep import check_unit_points, models, plot, sweep, table, write_csv
 from . import options
 from .common import check_workers, note, wrote
 
@@ -45,6 +45,9 @@ def run(args) -> int:
     from ..render import check_memory
 
     points = options.grid_from_args(args)
+    unit = args.backend == "rtunit"
+    if unit:
+        check_unit_points(points)
     check_workers(args)
     for size in {p.size for p in points if p.size}:
         check_memory(size * size)
@@ -69,7 +72,7 @@ def run(args) -> int:
              f"({', '.join(design.varied(points)) or 'one point'} varied) on "
              f"{points[0].scene} {points[0].workload}")
     announce_builds("sweep", models(points))
-    doc = sweep(points, args.workers, args.scheduler, res, progress, args.ideal_replay)
+    doc = sweep(points, args.workers, args.scheduler, res, progress, args.ideal_replay, unit)
     with outs.commit():
         if csv_path:
             write_csv(doc, outs.temp(csv_path))

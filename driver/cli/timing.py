@@ -63,11 +63,11 @@ def run(args) -> int:
         if args.top:
             src = area.snapshot(args.rev, area.source_list_for(args.top))
             r = timing.time_config(args.top, src, lib, args.abc_delay, not args.no_cache,
-                                   args.timeout, log, top=args.top)
+                                   args.timeout, log, top=args.top, script=args.abc_script)
             rep = timing.report({args.top: r}, src, area.rev_label(args.rev))
         else:
             rep = timing.time_all(names, lib, args.abc_delay, jobs, not args.no_cache,
-                                  args.timeout, log, rev=args.rev)
+                                  args.timeout, log, rev=args.rev, script=args.abc_script)
     except (area.AreaError, timing.TimingError) as e:
         raise ValueError(str(e)) from None
     rep["provenance"] = provenance()
