@@ -131,7 +131,7 @@ def unit_rtl_stats(res, be) -> dict:
     (``driver.backends.rtunit``: ``res`` its ``UnitResult``, ``be`` the backend)."""
     st = res.stats
     cycles = st["cycles"]
-    return {
+    out = {
         "cycles": cycles,
         "utilization": st["dp_requests"] / cycles if cycles else 0.0,
         "rays_in_flight": be.rays_in_flight,
@@ -153,9 +153,13 @@ def unit_rtl_stats(res, be) -> dict:
         "setup_busy_cycles": st["setup_busy_cycles"],
         "skipped_cycles": st["skipped_cycles"],
     }
+    if getattr(res, "activity", None) is not None:     # the traced unit (rayflex power)
+        out[ACTIVITY] = res.activity
+    return out
 
 
 UNIT_RTL = "unit_rtl"
+ACTIVITY = "activity"          # a traced unit's bit toggles per module, and its cycles
 _UNIT_SUMMED = ("cycles", "stack_overflows", "stack_refills", "rays_overflowed", "mem_requests",
                 "mem_bytes", "mem_busy_cycles", "busy_cycles", "divider_busy_cycles",
                 "divider_full_cycles", "setup_busy_cycles", "skipped_cycles")
@@ -174,6 +178,11 @@ def merge_unit_rtl(parts: list[dict], ops: int) -> dict:
         out[f"{key}_ratio"] = (None if out[key] is None or not out["cycles"]
                                else out[key] / out["cycles"])
     out["utilization"] = ops / out["cycles"] if out["cycles"] else 0.0
+    if all(ACTIVITY in p for p in parts):
+        acts = [p[ACTIVITY] for p in parts]
+        out[ACTIVITY] = {"toggles": {k: sum(a["toggles"][k] for a in acts)
+                                     for k in acts[0]["toggles"]},
+                         "nets": acts[0]["nets"], "cycles": sum(a["cycles"] for a in acts)}
     return out
 
 

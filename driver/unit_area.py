@@ -36,18 +36,10 @@ from .design import BY_NAME
 
 TOP = rtunit.UNIT_TOP
 RECIPE = 1             # bump when the script below changes meaning
-# the top's instances, in the order of the report: instance -> (row name, what it is)
-INSTANCES = {
-    "u_datapath": ("datapath", "rayflex, the configuration's datapath (the area flow's count)"),
-    "u_rays": ("ray buffer", "prepared rays, ids, nearest t, hit records, op counters"),
-    "u_stack": ("stack", "RAYS x STACK_DEPTH pointers, per-slot counts and spill counts"),
-    "u_fetch": ("fetch", "node requests and the node buffer (RAYS x 128 B)"),
-    "u_sched": ("scheduler", "picks a ready slot, assembles its request"),
-    "u_resp": ("response", "pushes hit children, hands triangle hits to the dividers"),
-    "u_div": ("dividers", "DIVIDERS binary32 dividers for t = t_num / t_den"),
-    "u_hit": ("hit", "nearest-t compare, any-hit termination"),
-}
-CONTROL = ("control", "the top: slot states, arbiters, result register")
+# the top's instances, in the order of the report: instance -> (row name, what it is), and the
+# top's own logic (one table with the unit's energy per module, driver/backends/rtunit.py)
+INSTANCES = rtunit.UNIT_INSTANCES
+CONTROL = rtunit.UNIT_CONTROL
 unit_params = rtunit.unit_params
 NUMBERS = ("cells", "sequential", "inverter", "buffer", "logic", "ge", "memory_bits")
 

@@ -1,21 +1,19 @@
 // Power measurement harness (driver/power/activity.py, level "signals"): streams request words
 // back to back through the Verilated RTL built with --trace, writes a VCD of a run, and counts
-// the bit toggles of every VCD identifier (pw_vcd_count). Verilator gives every net one
-// identifier, shared by its aliases (the same net seen through ports and continuous assignments
-// in several scopes), so counting per identifier counts each net once (Verilator's toggle
-// coverage would count it once per scope it appears in). Counting in C++ keeps a run in
-// fractions of a second (a 300-request run writes ~25 MB of VCD).
-#include <algorithm>
+// the bit toggles of every VCD identifier (pw_vcd_count, the counter of sim/rf_toggles.h).
+// Verilator gives every net one identifier, shared by its aliases (the same net seen through
+// ports and continuous assignments in several scopes), so counting per identifier counts each
+// net once (Verilator's toggle coverage would count it once per scope it appears in). Counting
+// in C++ keeps a run in fractions of a second (a 300-request run writes ~25 MB of VCD).
 #include <cstdint>
 #include <cstring>
 
 #include "Vrayflex.h"
 #include "verilated.h"
 #include <cstdio>
-#include <string>
-#include <unordered_map>
 
 #include "verilated_vcd_c.h"
+#include "rf_toggles.h"
 
 namespace {
 
@@ -113,56 +111,9 @@ void pw_trace_close(void* h) {
 }
 
 // Count the bit toggles of every identifier in the VCD at `vcd` (after each identifier's first
-// value) and write "identifier toggles" lines to `out`. Values x/z count as 0. Returns the number
-// of identifiers, or -1 if a file cannot be opened.
-int64_t pw_vcd_count(const char* vcd, const char* out) {
-  FILE* f = std::fopen(vcd, "r");
-  if (!f) return -1;
-  std::unordered_map<std::string, std::pair<std::string, uint64_t>> sig;  // last value, toggles
-  auto change = [&](const std::string& code, const std::string& value) {
-    auto it = sig.find(code);
-    if (it == sig.end()) {
-      sig.emplace(code, std::make_pair(value, uint64_t{0}));
-      return;
-    }
-    std::string& old = it->second.first;
-    const size_t n = std::max(old.size(), value.size());
-    uint64_t t = 0;
-    for (size_t i = 0; i < n; i++) {  // right-aligned; missing leading digits are 0
-      const char a = i < old.size() ? old[old.size() - 1 - i] : '0';
-      const char b = i < value.size() ? value[value.size() - 1 - i] : '0';
-      t += (a == '1') != (b == '1');
-    }
-    it->second.second += t;
-    old = value;
-  };
-  char* line = nullptr;
-  size_t cap = 0;
-  ssize_t len;
-  bool body = false;
-  while ((len = getline(&line, &cap, f)) > 0) {
-    while (len > 0 && (line[len - 1] == '\n' || line[len - 1] == '\r')) line[--len] = 0;
-    if (!body) {
-      body = std::strstr(line, "$enddefinitions") != nullptr;
-      continue;
-    }
-    const char c = line[0];
-    if (c == 'b' || c == 'B') {
-      const char* sp = std::strchr(line, ' ');
-      if (sp) change(std::string(sp + 1), std::string(line + 1, sp - line - 1));
-    } else if (c == '0' || c == '1' || c == 'x' || c == 'X' || c == 'z' || c == 'Z') {
-      change(std::string(line + 1), std::string(1, c));
-    }  // '#' times, $dumpvars/$end and reals ('r') are not bit changes
-  }
-  std::free(line);
-  std::fclose(f);
-  FILE* o = std::fopen(out, "w");
-  if (!o) return -1;
-  for (const auto& kv : sig)
-    std::fprintf(o, "%s %llu\n", kv.first.c_str(), static_cast<unsigned long long>(kv.second.second));
-  std::fclose(o);
-  return static_cast<int64_t>(sig.size());
-}
+// value; sim/rf_toggles.h) and write "identifier toggles" lines to `out`. Returns the number of
+// identifiers, or -1 if a file cannot be opened.
+int64_t pw_vcd_count(const char* vcd, const char* out) { return rf_toggles::count_file(vcd, out); }
 
 }  // extern "C"
 #pragma GCC visibility pop

@@ -16,12 +16,19 @@
 // Cycles: cycle 0 is the first cycle a ray is offered (the unit takes one at once); `cycles` is
 // the cycle after the last result is taken. While every ray waits for memory (the unit's wait_o)
 // and no response or new ray is due, the unit's outputs cannot change: those cycles are counted
-// (skipped_cycles) without clocking the model. Every run has a cycle budget: a corrupt image (a loop
+// (skipped_cycles; not in the RF_TOGGLES build) without clocking the model. Every run has a cycle budget: a corrupt image (a loop
 // of pointers) stops with an error instead of hanging. Statistics: RtuStats (rf_rtunit_stats.h,
 // generated from driver/backends/rtunit.py's UNIT_STATS).
+//
+// Switching activity (the power flow's level "signals", docs/power.md): built with RF_TOGGLES
+// (Verilator --trace, driver/backends/rtunit.py's traced build, made only for rayflex power),
+// rtu_toggles_start has every clock cycle's values streamed into the VCD toggle counter of
+// sim/rf_toggles.h (no file is written) until rtu_toggles_write saves the counts.
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <queue>
+#include <string>
 #include <vector>
 
 #include "Vrf_rtunit.h"
@@ -29,11 +36,20 @@
 #include "rf_memory.h"
 #include "rf_rtunit_stats.h"
 #include "verilated.h"
+#ifdef RF_TOGGLES
+#include "verilated_vcd_c.h"
+#include "rf_toggles.h"
+#endif
 
 namespace {
 
 using rf_layout::kRayWords;
 
+#ifdef RF_TOGGLES
+constexpr bool kCountsToggles = true;
+#else
+constexpr bool kCountsToggles = false;
+#endif
 constexpr int64_t kOk = 0, kBudget = -1, kBadAddress = -2, kBadArgs = -3, kBadGeometry = -4,
                   kRayError = -5;
 
@@ -47,8 +63,15 @@ struct Pending {
   }
 };
 
+// A context that allows tracing before the model (built from it) is constructed.
+struct Context : VerilatedContext {
+#ifdef RF_TOGGLES
+  Context() { traceEverOn(true); }
+#endif
+};
+
 struct Run {
-  VerilatedContext ctx;
+  Context ctx;
   Vrf_rtunit top{&ctx};
   const uint32_t* rays = nullptr;      // (n, kRayWords)
   const uint8_t* any_hit = nullptr;    // (n,)
@@ -68,6 +91,17 @@ struct Run {
   std::priority_queue<Pending, std::vector<Pending>, std::greater<Pending>> queue;
   int64_t next_ray = 0, done = 0, cycle = 0, seq = 0, outstanding = 0;
   rf_rtunit_stats::RtuStats st{};
+#ifdef RF_TOGGLES
+  rf_toggles::Counter counter;
+  rf_toggles::CountingFile* file = nullptr;
+  VerilatedVcdC* vcd = nullptr;
+  uint64_t time = 0;
+  ~Run() {
+    if (vcd) vcd->close();
+    delete vcd;
+    delete file;
+  }
+#endif
 };
 
 void tick(Run* r) {
@@ -75,6 +109,9 @@ void tick(Run* r) {
   r->top.eval();
   r->top.clk_i = 0;
   r->top.eval();
+#ifdef RF_TOGGLES
+  if (r->vcd) r->vcd->dump(++r->time);  // one sample per cycle: zero-delay, no glitches
+#endif
 }
 
 }  // namespace
@@ -147,7 +184,8 @@ int64_t rtu_advance(void* h, int64_t cycles, int64_t* bad_ray) {
     // Every ray waits for memory (wait_o) and no response or new ray can come before the
     // earliest response is due: clocking the unit until then changes nothing it will show, so
     // those cycles are counted without being simulated (the statistics as if they had been).
-    if (u.wait_o && !u.div_busy_o && !u.setup_busy_o && !r->queue.empty() &&
+    // The build that counts switching activity clocks every cycle (idle registers toggle too).
+    if (!kCountsToggles && u.wait_o && !u.div_busy_o && !u.setup_busy_o && !r->queue.empty() &&
         r->queue.top().ready > r->cycle + 1 && !(r->next_ray < r->n && u.ray_ready_o)) {
       const int64_t skip = std::min(r->queue.top().ready - r->cycle - 1, cycles - k - 1);
       if (skip > 0) {
@@ -243,6 +281,70 @@ int64_t rtu_advance(void* h, int64_t cycles, int64_t* bad_ray) {
   }
   r->st.max_stack_depth = u.max_depth_o;
   return r->done == r->n ? 1 : 0;
+}
+
+// Clock the unit `cycles` cycles with no ray offered, no memory response and results taken
+// (an idle unit, or one draining).
+void rtu_idle(void* h, int64_t cycles) {
+  Run* r = static_cast<Run*>(h);
+  Vrf_rtunit& u = r->top;
+  u.ray_valid_i = 0;
+  u.mem_req_ready_i = 0;
+  u.mem_rsp_valid_i = 0;
+  u.res_ready_i = 1;
+  for (int64_t k = 0; k < cycles; k++) tick(r);
+}
+
+// Whether this build counts switching activity (RF_TOGGLES).
+int64_t rtu_can_count() {
+#ifdef RF_TOGGLES
+  return 1;
+#else
+  return 0;
+#endif
+}
+
+// Start counting bit toggles from the current state (sim/rf_toggles.h). Returns 0, or -1 in a
+// build without RF_TOGGLES.
+int64_t rtu_toggles_start(void* h) {
+#ifdef RF_TOGGLES
+  Run* r = static_cast<Run*>(h);
+  if (!r->vcd) {
+    r->file = new rf_toggles::CountingFile(&r->counter);
+    r->vcd = new VerilatedVcdC(r->file);
+    r->top.trace(r->vcd, 99);
+    r->vcd->open("counted");
+  } else {
+    r->counter.reset_counts();
+  }
+  r->vcd->dump(r->time);
+  return 0;
+#else
+  (void)h;
+  return -1;
+#endif
+}
+
+// Stop counting; write the declarations (the VCD header) to `decl` and "identifier toggles"
+// lines to `counts`. Returns the number of identifiers, or -1 (a file, or no RF_TOGGLES).
+int64_t rtu_toggles_write(void* h, const char* decl, const char* counts) {
+#ifdef RF_TOGGLES
+  Run* r = static_cast<Run*>(h);
+  if (!r->vcd) return -1;
+  r->vcd->flush();
+  r->counter.finish();
+  FILE* d = std::fopen(decl, "w");
+  if (!d) return -1;
+  const std::string& text = r->counter.declarations();
+  const bool ok = std::fwrite(text.data(), 1, text.size(), d) == text.size();
+  if (std::fclose(d) != 0 || !ok || !r->counter.write(counts)) return -1;
+  return static_cast<int64_t>(r->counter.size());
+#else
+  (void)h;
+  (void)decl;
+  (void)counts;
+  return -1;
+#endif
 }
 
 // The run's statistics so far (RtuStats: cycles, requests, ...; docs/statistics.md, unit_rtl).

@@ -68,13 +68,14 @@ RTL_BUILDS = {
     "test_rtunit_rtl": (_B, _B + "-q8", _B + "-q8-xf", f"rtunit:{_B}:8:32",
                         f"rtunit:{_B}-q8-xf:8:4"),
     "test_rtunit_modules": ("tb:rtu_units",),
+    "test_unit_energy": (_B, f"rtunit:{_B}:4:8", f"activity:{_B}:4:8", f"signals-all:{_B}"),
     "test_readme_questions": (_B, _B + "-xf", f"rtunit:{_B}:8:32", "signals:" + _B,
                               "signals:baseline-disjoint"),
     **{m: (_B,) for m in ("test_rtunit", "test_gpu_pin", "test_memory",
                           "test_rayorder", "test_replay_timing", "test_traversal",
                           "test_workloads", "test_cli", "test_export",
-                          "test_double_sided", "test_tiles", "test_statistics_doc",
-                          "test_api")},
+                          "test_double_sided", "test_tiles", "test_api")},
+    "test_statistics_doc": (_B, f"activity:{_B}:4:8", f"signals-all:{_B}"),
 }
 
 

@@ -212,7 +212,7 @@ def test_energy_per_ray_of_every_ray_type(tmp_path):
     (["--workload", "bunny:x"], "--workload"),
     (["--scene", "no_such_scene"], "unknown scene"),
     (["--size", "0"], "--size"),
-    (["--rays-in-flight", "8"], "does not model the RT unit"),
+    (["--rays-in-flight", "8"], "--backend rtunit measures the whole unit"),
     (["--level", "gates", "--latency", "12"], "--latency"),
     (["--json", "/nonexistent-dir/p.json"], "directory"),
     (["--stimulus-seed", "-1"], "--stimulus-seed"),

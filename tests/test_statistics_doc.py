@@ -36,6 +36,9 @@ RUNS = {
               "--rays-in-flight", "2,8", "--cache-kib", "0,16"],
     "power": ["power", "--config", "baseline-unified", "--ops", "10", "--scene", "sphere",
               "--workload", "shadow", "--size", "8"],
+    "power_unit": ["power", "--backend", "rtunit", "--rays-in-flight", "4", "--stack-depth",
+                   "8", "--ops", "10", "--scene", "sphere", "--workload", "shadow", "--size",
+                   "4"],
 }
 
 

@@ -18,14 +18,16 @@ import ctypes
 import hashlib
 import os
 import re
+import tempfile
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from ..core.layout import (BOX_NODE, BOX_TYPE, INSTANCE_NODE, INSTANCE_TYPE, NO_CHILD, NODE_BYTES,
                            PAIR_TYPE, Q8_NODE, Q8_TYPE, TRI_TYPE, NodeRef, node_word)
 from ..core.wire import RAY_WORDS, ray_words
-from . import verilate
+from . import toggles, verilate
 from .base import BackendError
 from .build import (DIV_SOURCE_LIST, RTL_DIR, SIM_DIR, layout_header_dir, parse_source_list,
                     rtl_sources)
@@ -68,6 +70,21 @@ UNIT_STATS = (
     "setup_busy_cycles",        # sum over cycles of the ray setups holding a ray
     "skipped_cycles",           # cycles counted without clocking the model (every ray waited)
 )
+# the top's instances, one row each in the unit's area and energy tables: instance -> (row name,
+# what it is); the top's own logic (slot states, arbiters, result register) is the row CONTROL
+UNIT_INSTANCES = {
+    "u_datapath": ("datapath", "rayflex, the configuration's datapath (the area flow's count)"),
+    "u_rays": ("ray buffer", "prepared rays, ids, nearest t, hit records, op counters"),
+    "u_stack": ("stack", "RAYS x STACK_DEPTH pointers, per-slot counts and spill counts"),
+    "u_fetch": ("fetch", "node requests and the node buffer (RAYS x 128 B)"),
+    "u_sched": ("scheduler", "picks a ready slot, assembles its request"),
+    "u_resp": ("response", "pushes hit children, hands triangle hits to the dividers"),
+    "u_div": ("dividers", "DIVIDERS binary32 dividers for t = t_num / t_den"),
+    "u_hit": ("hit", "nearest-t compare, any-hit termination"),
+    "u_setup": ("ray setups", "SETUPS ray setups of the rays entering instances (TRANSFORM)"),
+}
+UNIT_CONTROL = ("control", "the top: slot states, arbiters, result register")
+UNIT_ROWS = tuple(name for name, _ in UNIT_INSTANCES.values()) + (UNIT_CONTROL[0],)
 _OK, _BUDGET, _BAD_ADDRESS, _BAD_ARGS, _BAD_GEOMETRY, _RAY_ERROR = 0, -1, -2, -3, -4, -5
 ADVANCE_CYCLES = 1 << 16            # cycles per harness call (progress and Ctrl-C between calls)
 # a run's cycle budget: BUDGET_BASE + BUDGET_PER_RAY per ray + BUDGET_PER_REQUEST per datapath
@@ -141,18 +158,21 @@ def _header_dir() -> str:
     return str(out)
 
 
-def unit_library(params: dict) -> ctypes.CDLL:
+def unit_library(params: dict, activity: bool = False) -> ctypes.CDLL:
     """The harness over the Verilated RT unit with these parameters (built on first use, cached;
-    loaded once per process)."""
-    key = tuple(sorted(params.items()))
+    loaded once per process); ``activity``: the traced build that counts switching activity
+    (``toggles.trace_args``; built only for ``rayflex power``)."""
+    key = (tuple(sorted(params.items())), bool(activity))
     if key in _LIBS:
         return _LIBS[key]
-    name = "rtunit_" + "_".join(f"{k[0].lower()}{v}" for k, v in params.items())
+    name = ("rtunit_" + ("act_" if activity else "")
+            + "_".join(f"{k[0].lower()}{v}" for k, v in params.items()))
     try:
         path = verilate.build_library(
             UNIT_TOP, unit_sources(), [SIM_DIR / UNIT_HARNESS], params=params, name=name,
             verilator_args=["-CFLAGS", f"-I{layout_header_dir()}", "-CFLAGS",
-                            f"-I{_header_dir()}", "-CFLAGS", f"-I{SIM_DIR}"])
+                            f"-I{_header_dir()}", "-CFLAGS", f"-I{SIM_DIR}",
+                            *(toggles.trace_args() if activity else [])])
     except verilate.BuildError as e:
         raise BackendError(f"cannot build the RT unit: {e}") from None
     lib = ctypes.CDLL(str(path))
@@ -165,8 +185,44 @@ def unit_library(params: dict) -> ctypes.CDLL:
     lib.rtu_advance.restype = i64
     lib.rtu_advance.argtypes = [vp, i64, i64p]
     lib.rtu_stats.argtypes = [vp, ctypes.POINTER(RtuStats)]
+    lib.rtu_idle.argtypes = [vp, i64]
+    lib.rtu_can_count.restype = i64
+    lib.rtu_toggles_start.restype = i64
+    lib.rtu_toggles_start.argtypes = [vp]
+    lib.rtu_toggles_write.restype = i64
+    lib.rtu_toggles_write.argtypes = [vp, ctypes.c_char_p, ctypes.c_char_p]
     _LIBS[key] = lib
     return lib
+
+
+def net_rows(names: list[list[str]]) -> tuple[np.ndarray, np.ndarray]:
+    """(row index in ``UNIT_ROWS`` per net, weight per net) of the traced unit's nets (every
+    name of each, ``toggles.declarations``). A net belongs to the module that drives it: by the
+    RTL's port names, a name ending in ``_i`` is a module's input (driven elsewhere), one ending
+    in ``_o`` its output; a net seen only as inputs of the unit's modules is the top's logic
+    (``control``); the unit's own inputs (``TOP.<port>_i``: what the harness drives) weigh 0,
+    as the test bench's inputs do in the datapath's measurement."""
+    rows = np.zeros(len(names), np.int64)
+    weight = np.ones(len(names))
+    control = UNIT_ROWS.index(UNIT_CONTROL[0])
+    for k, paths in enumerate(names):
+        driven = []                      # (row, name) of the names that are not inputs
+        tb_input = False
+        for p in paths:
+            parts = p.split(".")
+            if len(parts) == 2:          # TOP.<port> of the harness's model
+                tb_input |= parts[1].endswith("_i")
+                continue
+            row = next((UNIT_ROWS.index(UNIT_INSTANCES[q][0]) for q in parts[2:-1]
+                        if q in UNIT_INSTANCES), control)
+            if not parts[-1].endswith("_i"):
+                driven.append((row, parts[-1]))
+        if tb_input:
+            weight[k] = 0.0
+        outputs = [r for r, leaf in driven if leaf.endswith("_o") and r != control]
+        internal = [r for r, _ in driven if r != control]
+        rows[k] = outputs[0] if outputs else internal[0] if internal else control
+    return rows, weight
 
 
 @dataclass
@@ -190,6 +246,7 @@ class UnitResult:
     stats: dict
     instance: np.ndarray
     xf_ops: np.ndarray
+    activity: dict | None = None       # a traced backend's: ``RtUnitBackend.activity_of``
 
 
 def check_format(fmt: str, compressed: bool, transform: bool, instanced: bool) -> None:
@@ -257,7 +314,9 @@ class RtUnitBackend(HarnessBackend):
     ``MEMORY_CONFIG`` dict, ``driver.rtunit.MemoryModel.config()``: the replay's hierarchy behind
     the port), ``max_outstanding`` (fetches the fixed-latency memory holds, 0: no limit),
     ``dividers`` (DIVIDERS: binary32 dividers for the triangle hits' t), ``setups`` (SETUPS:
-    ray setups for the rays entering instances), ``compare`` (``trace``
+    ray setups for the rays entering instances), ``activity`` (the traced build: every batch's
+    switching activity per module, ``UnitResult.activity``; for ``rayflex power``), ``compare``
+    (``trace``
     also runs the Python traversal on this backend's datapath, checks every ray of the unit
     against it and replays its requests for the replay's cycles: ``driver.tracer``)."""
 
@@ -266,7 +325,8 @@ class RtUnitBackend(HarnessBackend):
     def __init__(self, rays_in_flight: int = 64, stack_depth: int = DEFAULT_STACK_DEPTH,
                  mem_latency: int = DEFAULT_MEM_LATENCY, memory: dict | None = None,
                  max_outstanding: int = 0, dividers: int = DEFAULT_DIVIDERS,
-                 setups: int = DEFAULT_SETUPS, compare: bool = True, **options):
+                 setups: int = DEFAULT_SETUPS, compare: bool = True, activity: bool = False,
+                 **options):
         # what the RTL cannot be built with is refused before the datapath's harness is built
         unit_params({}, rays_in_flight, stack_depth, dividers, setups)
         if not isinstance(mem_latency, int) or mem_latency < 1:
@@ -283,8 +343,63 @@ class RtUnitBackend(HarnessBackend):
         self.mem_latency = int(mem_latency)
         self.memory = memory
         self.max_outstanding = int(max_outstanding)
-        self._unit = unit_library(self.unit_params)    # build (or load) now: fail early
+        self.activity = bool(activity)
         self._checked = None        # the last image check_image passed: (image, root)
+        self._nets = None                               # (codes, rows, weight) once read
+        self.net_names: list[list[str]] = []            # the traced nets' names, once read
+        self._unit = unit_library(self.unit_params, self.activity)   # build now: fail early
+
+    def _count(self, h) -> dict:
+        """The bit toggles counted since ``rtu_toggles_start`` per row of ``UNIT_ROWS`` (each
+        net's toggles times its weight, ``net_rows``) and the nets counted."""
+        with tempfile.TemporaryDirectory(prefix="rayflex-unit-") as tmp:
+            decl, cnt = Path(tmp) / "decl.vcd", Path(tmp) / "counts.txt"
+            if self._unit.rtu_toggles_write(h, str(decl).encode(), str(cnt).encode()) < 0:
+                raise OSError(f"cannot write the RT unit's toggle counts in {tmp}")
+            if self._nets is None:
+                with open(decl) as f:
+                    codes, names = toggles.declarations(f)
+                self._nets = (codes, *net_rows(names))
+                self.net_names = names
+            codes, rows, weight = self._nets
+            per_net = toggles.read_counts(cnt, codes) * weight
+        by_row = np.bincount(rows, weights=per_net, minlength=len(UNIT_ROWS))
+        return {"toggles": {r: float(v) for r, v in zip(UNIT_ROWS, by_row)},
+                "nets": len(codes)}
+
+    def idle_activity(self, cycles: int) -> dict:
+        """The switching activity of the unit (traced: ``activity``) clocked ``cycles`` cycles
+        after reset with no ray: ``_count``'s dict and ``cycles``."""
+        if not self.activity:
+            raise ValueError("idle_activity needs the traced unit (activity=True)")
+        none = np.zeros(0, np.uint32)
+        h = self._new(np.zeros((0, RAY_WORDS), np.uint32), np.zeros(0, np.uint8),
+                      np.zeros(1, np.uint8), 0, none, none, none, np.zeros(0, np.uint8),
+                      np.zeros((0, 5), np.int64))
+        try:
+            self._unit.rtu_toggles_start(h)
+            self._unit.rtu_idle(h, int(cycles))
+            return {**self._count(h), "cycles": int(cycles)}
+        finally:
+            self._unit.rtu_free(h)
+
+    def _new(self, rw, ah, img, root, prim, inst, t, hit, ops):
+        """A harness run (``rtu_new``) over these arrays (which must outlive it)."""
+        err = ctypes.c_int64(0)
+        mc = memory_config(self.memory)
+        u32 = ctypes.POINTER(ctypes.c_uint32)
+        u8 = ctypes.POINTER(ctypes.c_uint8)
+        i64 = ctypes.POINTER(ctypes.c_int64)
+        h = self._unit.rtu_new(rw.ctypes.data_as(u32), ah.ctypes.data_as(u8), len(rw),
+                               img.ctypes.data_as(u32), img.size, int(root), self.mem_latency,
+                               self.max_outstanding, self.dividers, ctypes.byref(mc),
+                               prim.ctypes.data_as(u32), inst.ctypes.data_as(u32),
+                               t.ctypes.data_as(u32), hit.ctypes.data_as(u8),
+                               ops.ctypes.data_as(i64), ctypes.byref(err))
+        if not h:
+            raise ValueError("memory geometry cannot be modelled" if err.value == _BAD_GEOMETRY
+                             else "RT unit: inconsistent arguments")
+        return h
 
     def trace_unit(self, bvh, rays: np.ndarray, any_hit=False, progress=None,
                    max_cycles: int | None = None) -> UnitResult:
@@ -309,20 +424,11 @@ class RtUnitBackend(HarnessBackend):
         t = np.zeros(n, np.uint32)
         hit = np.zeros(n, np.uint8)
         ops = np.zeros((n, 5), np.int64)
-        err = ctypes.c_int64(0)
-        mc = memory_config(self.memory)
         lib = self._unit
-        u32 = ctypes.POINTER(ctypes.c_uint32)
-        u8 = ctypes.POINTER(ctypes.c_uint8)
-        i64 = ctypes.POINTER(ctypes.c_int64)
-        h = lib.rtu_new(rw.ctypes.data_as(u32), ah.ctypes.data_as(u8), n,
-                        img.ctypes.data_as(u32), img.size, int(bvh.root), self.mem_latency,
-                        self.max_outstanding, self.dividers, ctypes.byref(mc),
-                        prim.ctypes.data_as(u32), inst.ctypes.data_as(u32), t.ctypes.data_as(u32), hit.ctypes.data_as(u8), ops.ctypes.data_as(i64),
-                        ctypes.byref(err))
-        if not h:
-            raise ValueError("memory geometry cannot be modelled" if err.value == _BAD_GEOMETRY
-                             else "RT unit: inconsistent arguments")
+        h = self._new(rw, ah, img, bvh.root, prim, inst, t, hit, ops)
+        if self.activity:
+            lib.rtu_toggles_start(h)
+        activity = None
         budget = BUDGET_BASE + BUDGET_PER_RAY * n if max_cycles is None else int(max_cycles)
         most = request_bound(bvh, n)
         st = RtuStats()
@@ -354,6 +460,8 @@ class RtUnitBackend(HarnessBackend):
                 if ran >= grown:
                     raise RuntimeError(f"the RT unit did not finish {n} rays within its budget "
                                        f"of {grown:,} cycles (a corrupt image?)")
+            if self.activity:
+                activity = {**self._count(h), "cycles": int(st.cycles_simulated)}
         finally:
             lib.rtu_free(h)
         stats = {name: int(getattr(st, name)) for name in UNIT_STATS}
@@ -365,7 +473,7 @@ class RtUnitBackend(HarnessBackend):
         inst64[inst == NO_CHILD] = -1
         return UnitResult(prim64, t.view(np.float32), hit.astype(bool), ops[:, 0].copy(),
                           ops[:, 1].copy(), ops[:, 2].copy(), ops[:, 3].copy(), stats, inst64,
-                          ops[:, 4].copy())
+                          ops[:, 4].copy(), activity)
 
 
 def request_bound(bvh, rays: int) -> int:

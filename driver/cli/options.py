@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from .. import area, bench, knn, render, timing, unit_area
-from ..backends.rtunit import DEFAULT_DIVIDERS, MAX_DIVIDERS
+from ..backends.rtunit import DEFAULT_DIVIDERS, MAX_DIVIDERS, UNIT_BACKEND
 from ..backends import BACKENDS, DEFAULT_BACKEND
 from ..design import BY_NAME, GROUPS, OPTIONS, DesignPoint, Option, _bool
 from ..export import HEX_FILES, MAX_VCD_REQUESTS
@@ -328,6 +328,12 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
                   "the replay's ratio; docs/rtunit_rtl.md)"),
     )), (DESIGN, ()), (None, (SHARED["progress"],))),
     "power": ((None, (
+        flag("--backend", choices=("golden", UNIT_BACKEND), default="golden",
+             help="golden: energy per ray = each ray type's datapath ops (the frame traced on "
+                  f"the golden model) x energy per op; {UNIT_BACKEND}: the whole RT unit in RTL "
+                  "(one configuration, level signals): its switching activity over each ray "
+                  "type's batch, per module, with its ray slots, stack and memory options "
+                  "(docs/rtunit_rtl.md#energy) (default: golden)"),
         flag("--ops", type=int, default=DEFAULT_OPS, metavar="N",
              help=f"operations per type in the steady-state window (default {DEFAULT_OPS})"),
         flag("--level", choices=LEVELS, default="signals",

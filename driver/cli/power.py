@@ -12,7 +12,9 @@ from ..core import outputs
 from ..core.datapath import least_latency
 from ..core.configs import CONFIGS, FUSED_SUFFIX, Q8_SUFFIX, SHARED_SUFFIX, XF_SUFFIX
 from ..core.outputs import JSON, PNG, Outputs
-from ..power import liberty, report
+from ..design import unit_flags
+from ..backends.rtunit import UNIT_BACKEND
+from ..power import liberty, report, unit
 from ..scenes.scene import resolve
 from . import options
 from .common import wrote
@@ -39,13 +41,16 @@ def add_parser(subparsers):
                     "energy per ray of every ray type of the workload (its datapath ops on the "
                     "golden model times the energy per op). See docs/power.md.")
     options.add(p, "power", lists=("config",), defaults={"config": "all"},
-                notes={"rtunit": "not used: energy per op and per ray do not depend on the RT "
-                                 "unit; see rayflex sweep"},
+                notes={"rtunit": "used with --backend rtunit only: energy per op and per ray "
+                                 "of the datapath do not depend on the RT unit; see rayflex "
+                                 "sweep"},
                 helps={"config": config_help()})
     return p
 
 
 def run(args) -> int:
+    if args.backend == UNIT_BACKEND:
+        return run_unit(args)
     cfgs = power.parse_configs(args.config or "all")
     ops = None
     if args.op is not None:
@@ -68,8 +73,8 @@ def run(args) -> int:
     point = options.from_args(argparse_copy(args, config=cfgs[0].replace(XF_SUFFIX, "", 1)))
     rt = options.given(args, ("rtunit",))
     if rt:
-        raise ValueError(f"{rt[0]}: power does not model the RT unit (energy per op and per "
-                         "ray do not depend on it); rayflex sweep measures both")
+        raise ValueError(f"{rt[0]}: the datapath's energy per op and per ray do not depend on "
+                         f"the RT unit; --backend {UNIT_BACKEND} measures the whole unit")
     if args.ops < 1:
         raise ValueError(f"--ops must be >= 1, got {args.ops}")
     if args.stimulus_seed < 0:
@@ -110,6 +115,39 @@ def run(args) -> int:
             outputs.write_json(rep, outs.temp(js))
         if png:
             report.plot(rep, outs.temp(png))
+    wrote(outs.paths())
+    return 0
+
+
+def run_unit(args) -> int:
+    """``--backend rtunit``: the whole RT unit's energy per ray (``driver.power.unit``); every
+    mistake is one line before any build."""
+    cfgs = power.parse_configs(args.config) if args.config else None
+    if cfgs is not None and (len(cfgs) != 1 or args.config.strip() == "all"):
+        raise ValueError(f"--config: --backend {UNIT_BACKEND} measures one configuration (the "
+                         "unit's datapath), not a list")
+    if args.level != unit.LEVEL:
+        raise ValueError(f"--level {args.level}: --backend {UNIT_BACKEND} is measured at level "
+                         f"{unit.LEVEL} (the unit's gate netlist is not simulated)")
+    for flag_, value in (("--op", args.op), ("--plot", args.plot), ("--liberty", args.liberty)):
+        if value is not None:
+            raise ValueError(f"{flag_}: not used with --backend {UNIT_BACKEND} (the datapath's "
+                             "operations are the frame's)")
+    if args.ops < 1:
+        raise ValueError(f"--ops must be >= 1, got {args.ops}")
+    if args.stimulus_seed < 0:
+        raise ValueError(f"--stimulus-seed must be >= 0, got {args.stimulus_seed}")
+    unit_flags(args, UNIT_BACKEND)                # a setting of the replay only: refused
+    point = options.from_args(args)
+    point.backend_options(UNIT_BACKEND)           # what the unit cannot build or read: now
+    source = resolve(point.scene)                 # an unknown scene fails now
+    outs = Outputs(inputs=[source.ref] if source.kind != "builtin" else [])
+    js = outs.add("--json", args.json, JSON) if args.json else None
+    rep = unit.measure_unit(point, args.ops, args.stimulus_seed, progress=not args.no_progress)
+    print(unit.markdown(rep))
+    with outs.commit():
+        if js:
+            outputs.write_json(rep, outs.temp(js))
     wrote(outs.paths())
     return 0
 

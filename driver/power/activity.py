@@ -3,7 +3,7 @@ request streams run through them.
 
 * ``SignalModel`` (level ``signals``): the RTL built by Verilator with ``--trace``
   (sim/power_harness.cpp); a run writes a VCD and the harness counts bit toggles per VCD
-  identifier, in C++ (a 300-request run: ~25 MB, ~0.1 s). Verilator gives each net one
+  identifier, in C++ (sim/rf_toggles.h, the counter the RT unit's harness uses too) (a 300-request run: ~25 MB, ~0.1 s). Verilator gives each net one
   identifier however many scopes it appears in (ports, continuous assignments), so each net
   counts once. Built once per configuration and cached by ``driver.backends.verilate``.
 * ``GateModel`` (level ``gates``): the generic-gate netlist (``netlist.py``) on the 64-lane
@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..backends import verilate
+from ..backends import toggles, verilate
 from ..backends.build import LINT_WAIVERS, RTL_DIR, SIM_DIR, rtl_sources
 from ..core.wire import REQ_WORDS
 from . import gatesim
@@ -66,19 +66,22 @@ class SignalModel:
     unit = "bit toggles"
     streams = 1
 
-    def __init__(self, params: dict[str, int]):
+    def __init__(self, params: dict[str, int], every_net: bool = False):
         self._tmp = tempfile.TemporaryDirectory(prefix="rayflex-power-")
         self.tmp = Path(self._tmp.name)
-        self.lib = _load(self.library(params))
+        self.lib = _load(self.library(params, every_net))
         self.codes: dict[str, int] | None = None
         self.names: list[list[str]] = []
         self.run(np.zeros((0, REQ_WORDS), np.uint32), idle=1)    # reads the net declarations
 
     @staticmethod
-    def library(params: dict[str, int]) -> Path:
-        """The traced model of ``params`` (built on a cache miss)."""
+    def library(params: dict[str, int], every_net: bool = False) -> Path:
+        """The traced model of ``params`` (built on a cache miss); ``every_net``: with every
+        array and vector traced (``toggles.trace_args``), as the RT unit's measurement traces
+        its datapath."""
         name = "rayflex_power_" + "_".join(f"{k[0].lower()}{v}" for k, v in params.items())
-        return _build([RTL_DIR / LINT_WAIVERS, *rtl_sources()], params, name, ["--trace"])
+        return _build([RTL_DIR / LINT_WAIVERS, *rtl_sources()], params,
+                      name + ("_all" if every_net else ""), toggles.trace_args(every_net))
 
     def run(self, words: np.ndarray, idle: int = 0, only_idle: bool = False):
         """Stream ``words`` ((n, REQ_WORDS) uint32) back to back in a fresh model, then ``idle``
@@ -120,39 +123,17 @@ class SignalModel:
             self._header(vcd)
         if self.lib.pw_vcd_count(str(vcd).encode(), str(cnt).encode()) < 0:
             raise OSError(f"cannot read the waveform {vcd}")
-        out = np.zeros(len(self.codes))
-        for line in cnt.read_text().splitlines():
-            code, n = line.rsplit(" ", 1)
-            out[self.codes[code]] = float(n)
+        out = toggles.read_counts(cnt, self.codes)
         vcd.unlink()
         return out
 
     def _header(self, vcd: Path) -> None:
         """Net index, names, weights and stages from the VCD's declarations."""
-        codes: dict[str, int] = {}
-        names: list[list[str]] = []
-        scope: list[str] = []
         with open(vcd) as f:
-            for line in f:
-                w = line.split()
-                if not w:
-                    continue
-                if w[0] == "$scope":
-                    scope.append(w[2])
-                elif w[0] == "$upscope":
-                    scope.pop()
-                elif w[0] == "$var":
-                    code, name = w[3], w[4]
-                    if code not in codes:
-                        codes[code] = len(codes)
-                        names.append([])
-                    names[codes[code]].append(".".join([*scope, name]))
-                elif w[0] == "$enddefinitions":
-                    break
-        self.codes, self.names = codes, names
+            self.codes, self.names = toggles.declarations(f)
         self.weight = np.array([0.0 if any(_is_tb_input(p) for p in ps) else 1.0
-                                for ps in names])
-        self.stage = np.array([_signal_stage(ps) for ps in names], np.int8)
+                                for ps in self.names])
+        self.stage = np.array([_signal_stage(ps) for ps in self.names], np.int8)
 
 
 def _check(cycles: int) -> int:

@@ -6,7 +6,10 @@ tests/conftest.py), named by one string each:
   ``pgo:CONFIG``                the same with profile guidance (the build `rayflex` makes)
   ``pyverilator:CONFIG``        the pyverilator model of CONFIG
   ``signals:CONFIG``            the power flow's traced model of CONFIG (``rayflex power``)
+  ``signals-all:CONFIG``        the same with every net traced (beside the traced RT unit)
   ``rtunit:CONFIG:RAYS:DEPTH``  the RT unit in RTL with RAYS slots and stacks of DEPTH entries
+  ``activity:CONFIG:RAYS:DEPTH`` the same traced, counting its switching activity
+                                (``rayflex power --backend rtunit``)
   ``tb:NAME``                   a module testbench, ``TESTBENCHES[NAME]`` (rtu_units: the RT
                                 unit's modules side by side, tests/test_rtunit_modules.py)
 
@@ -19,7 +22,8 @@ import os
 
 from driver.core.configs import parse_config
 
-KINDS = ("harness", "pgo", "pyverilator", "signals", "rtunit", "tb")
+KINDS = ("harness", "pgo", "pyverilator", "signals", "signals-all", "rtunit", "activity", "tb")
+UNIT_KINDS = ("rtunit", "activity")      # CONFIG:RAYS:DEPTH
 # sim/rtu_units_tb_top.sv's parameters in tests/test_rtunit_modules.py (its testbench, sim/
 # rtu_units_tb.cpp, assumes RAYS 4)
 RTU_UNITS_PARAMS = {"RAYS": 4, "STACK_DEPTH": 3, "DIVIDERS": 3}
@@ -44,7 +48,7 @@ def split(spec: str) -> tuple[str, str, list[str]]:
     name for the configuration); ValueError if malformed."""
     head, sep, rest = spec.partition(":")
     kind, fields = (head, rest.split(":")) if sep else ("harness", [spec])
-    if (kind not in KINDS or len(fields) != (3 if kind == "rtunit" else 1)
+    if (kind not in KINDS or len(fields) != (3 if kind in UNIT_KINDS else 1)
             or (kind == "tb" and fields[0] not in TESTBENCHES)):
         raise ValueError(f"build spec {spec!r}: see tests/support/prebuild.py")
     return kind, fields[0], fields[1:]
@@ -76,9 +80,12 @@ def build(spec: str) -> None:
     elif kind == "signals":
         from driver.power import activity, run
         activity.SignalModel.library(run.params_of(config.partition("@")[0]))
+    elif kind == "signals-all":
+        from driver.power import activity
+        activity.SignalModel.library(params, every_net=True)
     else:
         from driver.backends.rtunit import unit_library, unit_params
-        unit_library(unit_params(params, int(extra[0]), int(extra[1])))
+        unit_library(unit_params(params, int(extra[0]), int(extra[1])), kind == "activity")
 
 
 if __name__ == "__main__":
