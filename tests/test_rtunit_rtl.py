@@ -455,8 +455,9 @@ def test_unit_check_none_runs_the_unit_alone(in_tmp, error_line, monkeypatch):
                 and "traversal" not in k}
         assert doc["embree"]["adjudicated"]["classes"] == ref["embree"]["adjudicated"]["classes"]
         assert doc["provenance"]["design_point"]["unit_check"] == "none"
-    assert main(["render", "bunny", "--size", "8", "--unit-check", "none"]) != 0
-    assert "--backend rtunit" in error_line()
+    for command in ("render", "sweep"):
+        assert main([command, "--size", "8", "--unit-check", "none"]) != 0
+        assert "--backend rtunit" in error_line()
 
 
 def test_render_an_instanced_scene(in_tmp, error_line):
