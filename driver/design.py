@@ -19,8 +19,8 @@ docs/statistics.md for what is measured):
 - rtunit (docs/rtunit.md): ``--rt-preset`` (a whole RT-unit configuration; options given with
   it override its fields), the frame schedule ``--frame``, ``--shader-cycles``,
   ``--flush-between``, warps ``--warp-size``, ``--warps-per-unit``, ``--rt-units``, each unit's
-  ``--rays-in-flight``, ``--pipelines``, the RT unit in RTL's ``--stack-depth``
-  (``--backend rtunit``, docs/rtunit_rtl.md), node cache ``--cache-kib`` (0: none), ``--cache-ways``,
+  ``--rays-in-flight``, ``--pipelines``, the RT unit in RTL's ``--stack-depth`` and
+  ``--unit-check`` (``--backend rtunit``, docs/rtunit_rtl.md), node cache ``--cache-kib`` (0: none), ``--cache-ways``,
   ``--cache-latency``, ``--mshrs``, the shared ``--l2-kib``, ``--l2-ways``, ``--l2-latency``,
   ``--line-bytes``, ``--sector-bytes``, DRAM ``--mem-latency``, ``--mem-bytes-per-cycle``, and
   the ray order ``--ray-order``, ``--ray-window``;
@@ -39,8 +39,8 @@ from .core.configs import (ALL_CONFIGS, DESIGN_CONFIGS, FUSED_SUFFIX, Q8_SUFFIX,
                            config_name, parse_config)
 from .backends.build import MIN_LATENCY, rtl_params
 from .backends.rtunit import (DEFAULT_STACK_DEPTH, MAX_STACK_DEPTH, MAX_UNIT_PIPELINES,
-                              MIN_STACK_DEPTH, UNIT_BACKEND, UNIT_OPTIONS, check_format,
-                              unit_params)
+                              MIN_STACK_DEPTH, UNIT_BACKEND, UNIT_CHECKS, UNIT_OPTIONS,
+                              check_format, unit_params)
 from .bvh4 import build_scene
 from .core.datapath import LATENCY, MAX_LATENCY, default_latency, least_latency
 from .instances import DATAPATH, TRANSFORMS
@@ -245,6 +245,13 @@ OPTIONS: tuple[Option, ...] = (
            f"{MIN_STACK_DEPTH}..{MAX_STACK_DEPTH}: a push onto a full stack spills its oldest "
            "entry to memory, read back when the stack empties (the same hits and ops, more "
            "cycles; docs/rtunit_rtl.md)", _int_range(MIN_STACK_DEPTH, MAX_STACK_DEPTH), "rtunit"),
+    Option("unit_check", "--unit-check", str, UNIT_CHECKS[0],
+           "what checks every ray of the RT unit in RTL (--backend rtunit) besides "
+           "--check-embree: traversal (the Python traversal on the unit's datapath, each ray "
+           "compared, and the RT-unit replay of its requests: unit_rtl's "
+           "traversal_mismatches and replay ratios) or none (the unit alone, faster; those "
+           "figures null)", _choice(UNIT_CHECKS), "rtunit", "CHECK", UNIT_CHECKS,
+           listable=False),
     Option("pipelines", "--pipelines", int, 1,
            f"datapath pipelines of the RT unit, 1..{MAX_PIPELINES} (the RT unit in RTL, "
            f"--backend rtunit: 1..{MAX_UNIT_PIPELINES}, each with its response stage)",
@@ -324,7 +331,8 @@ assert set(UNIT_OPTIONS) <= set(BY_NAME)
 
 
 def unit_flags(args, backend: str) -> None:
-    """Refuse (ValueError, one line) ``--stack-depth`` without ``--backend rtunit``, and an
+    """Refuse (ValueError, one line) ``--stack-depth`` or ``--unit-check`` without ``--backend
+    rtunit``, and an
     RT-unit option the RT unit in RTL does not model with it."""
     if backend == UNIT_BACKEND:
         other = [o.flag for o in OPTIONS if o.group == "rtunit" and o.name not in UNIT_OPTIONS
@@ -332,8 +340,11 @@ def unit_flags(args, backend: str) -> None:
         if other:
             raise ValueError(f"{other[0]} is a setting of the RT-unit replay, which --backend "
                              f"{UNIT_BACKEND} does not run (docs/rtunit_rtl.md)")
-    elif getattr(args, "stack_depth", None) is not None:
-        raise ValueError(f"--stack-depth sets the RT unit in RTL: give --backend {UNIT_BACKEND}")
+    else:
+        for name in ("stack_depth", "unit_check"):
+            if getattr(args, name, None) is not None:
+                raise ValueError(f"{BY_NAME[name].flag} sets the RT unit in RTL: give --backend "
+                                 f"{UNIT_BACKEND}")
 
 
 @dataclass(frozen=True)
@@ -357,6 +368,7 @@ class DesignPoint:
     rt_units: int = BY_NAME["rt_units"].default
     rays_in_flight: int = BY_NAME["rays_in_flight"].default
     stack_depth: int = BY_NAME["stack_depth"].default
+    unit_check: str = BY_NAME["unit_check"].default
     pipelines: int = BY_NAME["pipelines"].default
     cache_kib: int = BY_NAME["cache_kib"].default
     cache_ways: int = BY_NAME["cache_ways"].default
@@ -478,7 +490,8 @@ class DesignPoint:
             unit_params({}, self.rays_in_flight, self.stack_depth, pipelines=self.pipelines)
             check_format(self.bvh_format, self.compressed, self.transform_op, False)
             out.update(rays_in_flight=self.rays_in_flight, stack_depth=self.stack_depth,
-                       pipelines=self.pipelines, memory=self.memory().config())
+                       pipelines=self.pipelines, memory=self.memory().config(),
+                       compare=self.unit_check == UNIT_CHECKS[0])
         return out
 
     def rtl_params(self) -> dict:

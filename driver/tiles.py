@@ -257,8 +257,8 @@ def render_tiles(setup, bvh, width: int, height: int, workload: str = "primary",
 def tile_lanes(backend, tiles: int) -> int:
     """Tiles one process traces at once, each on a thread with its own backend: the CPUs it may
     use (``driver.backends.harness.default_threads``: ``RAYFLEX_THREADS``), at most the tiles,
-    for the "rtl" and "golden" backends named (``THREAD_SAFE_BACKENDS``); else 1 (a backend
-    object has one model; pyverilator's runs in the interpreter)."""
+    for the "rtl", "rtunit" and "golden" backends named (``THREAD_SAFE_BACKENDS``); else 1 (a
+    backend object has one model; pyverilator's runs in the interpreter)."""
     name = backend if isinstance(backend, str) else \
         backend[0] if isinstance(backend, tuple) else None
     if name not in THREAD_SAFE_BACKENDS:
@@ -266,7 +266,7 @@ def tile_lanes(backend, tiles: int) -> int:
     return max(1, min(default_threads(), tiles))
 
 
-THREAD_SAFE_BACKENDS = ("rtl", "golden")
+THREAD_SAFE_BACKENDS = ("rtl", "rtunit", "golden")
 
 
 def _tiles_on_threads(asm, tiles, lanes, frame, workload, options, backend, check_embree,

@@ -48,7 +48,10 @@
 //   * status: busy_o (some slot holds a ray), dp_issue_o[p] (a request entered pipeline p this
 //     cycle), max_depth_o (most stack entries any ray held), overflow_o[p] (response stage p's
 //     push spilled) / refill_o (pulses), div_busy_o (dividers holding a division), setup_busy_o
-//     (ray setups holding a ray).
+//     (ray setups holding a ray), wait_o (every ray in the unit waits for its node from memory,
+//     its request sent, and nothing else is in flight: no request in a datapath or a response
+//     stage, no division, no ray setup, no result; until a memory response or a new ray comes,
+//     no register that a later output depends on changes). All from registers only.
 // Parameters: RAYS (slots), STACK_DEPTH (entries per stack), DIVIDERS (binary32 dividers,
 // rf_fp_div), SETUPS (ray setups, rf_rtu_setup), PIPELINES (datapaths, each with its response
 // stage: rf_rtu_pipes; the pop port, the fetch, the memory port, the divider and setup ports and
@@ -111,7 +114,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   output logic [PIPELINES-1:0] overflow_o,
   output logic               refill_o,
   output logic [DIV_W-1:0]   div_busy_o,
-  output logic [SETUP_W-1:0] setup_busy_o
+  output logic [SETUP_W-1:0] setup_busy_o,
+  output logic               wait_o
 );
 
   if (RAYS < 1 || RAYS > 256) begin : g_bad_rays
@@ -125,7 +129,11 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   end
   localparam int unsigned P = PIPELINES;
 
-  slot_e [RAYS-1:0] state_q;
+  // The slots' states (slot_e) as three bit planes, RAYS bits each: slot i is in state
+  // {st_q[2][i], st_q[1][i], st_q[0][i]}, so that the masks of the slots in one state are a few
+  // word operations. STATE(i) is slot i's state, written as one value.
+  logic [2:0][RAYS-1:0] st_q;
+`define STATE(i) {st_q[2][i], st_q[1][i], st_q[0][i]}
   kind_e [RAYS-1:0] kind_q;
   logic  [RAYS-1:0] second_q;              // the slot's pair leaf holds a triangle 1
   logic  [31:0]     leaf_q [RAYS];         // the pointer the slot popped last
@@ -133,33 +141,29 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   logic  [31:0]     held_ptr_q [RAYS];     // a refilled pointer, popped next
 
   // ---- per-slot state in masks ----
-  logic [RAYS-1:0] free_m, pop_m, ready_m, done_m;
-  always_comb begin
-    for (int i = 0; i < RAYS; i++) begin
-      free_m[i]  = state_q[i] == SLOT_FREE;
-      pop_m[i]   = state_q[i] == SLOT_POP;
-      ready_m[i] = state_q[i] == SLOT_READY;
-      done_m[i]  = state_q[i] == SLOT_DONE;
-    end
-  end
+  logic [RAYS-1:0] free_m, pop_m, ready_m, done_m, fetch_m;
+  function automatic logic [RAYS-1:0] in_state(input logic [2:0][RAYS-1:0] p, input slot_e s);
+    return (s[2] ? p[2] : ~p[2]) & (s[1] ? p[1] : ~p[1]) & (s[0] ? p[0] : ~p[0]);
+  endfunction
+  assign free_m  = in_state(st_q, SLOT_FREE);
+  assign pop_m   = in_state(st_q, SLOT_POP);
+  assign ready_m = in_state(st_q, SLOT_READY);
+  assign done_m  = in_state(st_q, SLOT_DONE);
+  assign fetch_m = in_state(st_q, SLOT_FETCH);
   assign busy_o = ~&free_m;
 
   // ---- load: the lowest free slot takes the next ray ----
-  logic [32:0]       load_pick;
   logic [SLOT_W-1:0] load_slot;
   logic              load;
-  assign load_pick   = rr_pick(256'(free_m), RAYS, 0);
-  assign load_slot   = SLOT_W'(load_pick[31:0]);
-  assign ray_ready_o = load_pick[32];
+  rf_rr_pick #(.N(RAYS)) u_load_pick (
+    .req_i(free_m), .start_i('0), .valid_o(ray_ready_o), .idx_o(load_slot));
   assign load        = ray_valid_i & ray_ready_o;
 
   // ---- pop: one POP slot per cycle (round robin) ----
   logic [SLOT_W-1:0] pop_next_q, pop_slot;
-  logic [32:0]       pop_pick;
   logic              pop_any;
-  assign pop_pick = rr_pick(256'(pop_m), RAYS, 32'(pop_next_q));
-  assign pop_slot = SLOT_W'(pop_pick[31:0]);
-  assign pop_any  = pop_pick[32];
+  rf_rr_pick #(.N(RAYS)) u_pop_pick (
+    .req_i(pop_m), .start_i(pop_next_q), .valid_o(pop_any), .idx_o(pop_slot));
 
   logic [31:0] stk_top, pop_ptr;
   logic        stk_empty, stk_spilled;
@@ -352,19 +356,18 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     logic        err;
   } res_t;
   logic [SLOT_W-1:0] res_next_q;
-  logic [32:0]       res_pick;
-  logic              res_in_ready, res_take;
+  logic              res_any, res_in_ready, res_take;
   res_t              res_d, res_q;
-  assign res_pick = rr_pick(256'(done_m), RAYS, 32'(res_next_q));
-  assign res_rd   = SLOT_W'(res_pick[31:0]);
-  assign res_take = res_pick[32] & res_in_ready;
+  rf_rr_pick #(.N(RAYS)) u_res_pick (
+    .req_i(done_m), .start_i(res_next_q), .valid_o(res_any), .idx_o(res_rd));
+  assign res_take = res_any & res_in_ready;
   assign res_d = '{id: res_id_c, hit: res_hit_c, prim: res_prim_c, t: res_t_c,
                    box_ops: res_box_c, tri_ops: res_tri_c, inst: res_inst_c, xf_ops: res_xf_c,
                    overflows: res_ovf_c,
                    refills: res_rst_c, err: err_q[res_rd]};
   rf_skid #(.T(res_t)) u_res (
     .clk_i, .rst_ni,
-    .valid_i(res_pick[32]), .ready_o(res_in_ready), .data_i(res_d),
+    .valid_i(res_any), .ready_o(res_in_ready), .data_i(res_d),
     .valid_o(res_valid_o), .ready_i(res_ready_i), .data_o(res_q));
   assign res_id_o        = res_q.id;
   assign res_hit_o       = res_q.hit;
@@ -377,6 +380,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign res_overflows_o = res_q.overflows;
   assign res_refills_o   = res_q.refills;
   assign res_err_o       = res_q.err;
+  // a slot in DP, DIV or SETUP has its request, division or ray setup in flight
+  assign wait_o          = (free_m | fetch_m) == '1 && !mem_req_valid_o && !res_valid_o;
   assign overflow_o      = stk_spill;
   assign refill_o        = pop_fetch & pop_refill;
 
@@ -392,10 +397,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
 
   always_ff @(posedge clk_i or negedge rst_ni) begin
     if (!rst_ni) begin
-      for (int i = 0; i < RAYS; i++) begin
-        state_q[i] <= SLOT_FREE;
-        kind_q[i]  <= KIND_BOX32;
-      end
+      st_q <= '0;                                  // every slot SLOT_FREE
+      for (int i = 0; i < RAYS; i++) kind_q[i] <= KIND_BOX32;
       second_q   <= '0;
       at_root_q  <= '0;
       err_q      <= '0;
@@ -404,7 +407,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
       res_next_q <= '0;
     end else begin
       if (load) begin
-        state_q[load_slot]   <= SLOT_POP;
+        `STATE(load_slot)   <= SLOT_POP;
         at_root_q[load_slot] <= 1'b1;
         err_q[load_slot]     <= 1'b0;
       end
@@ -413,19 +416,19 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
         at_root_q[pop_slot] <= 1'b0;
         if (pop_held) held_q[pop_slot] <= 1'b0;
         if (pop_fetch & pop_refill) begin
-          state_q[pop_slot] <= SLOT_FETCH;
+          `STATE(pop_slot) <= SLOT_FETCH;
         end else if (pop_ret) begin
-          state_q[pop_slot] <= SLOT_POP;
+          `STATE(pop_slot) <= SLOT_POP;
         end else if (pop_fetch | pop_leaf_next) begin
-          state_q[pop_slot] <= pop_leaf_next ? SLOT_READY : SLOT_FETCH;
+          `STATE(pop_slot) <= pop_leaf_next ? SLOT_READY : SLOT_FETCH;
           kind_q[pop_slot]  <= pop_kind;
         end else begin
-          state_q[pop_slot] <= SLOT_DONE;
+          `STATE(pop_slot) <= SLOT_DONE;
           err_q[pop_slot]   <= pop_err;
         end
       end
       if (fetch_done) begin
-        state_q[fetch_done_slot] <= fetch_done_refill ? SLOT_POP : SLOT_READY;
+        `STATE(fetch_done_slot) <= fetch_done_refill ? SLOT_POP : SLOT_READY;
         if (fetch_done_refill) held_q[fetch_done_slot] <= 1'b1;
         second_q[fetch_done_slot] <=
             mem_rsp_data_i[(PAIR_NODE_PRIM_WORD + 1)*32 +: 32] != NO_CHILD;
@@ -437,23 +440,25 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
       if (hit_next && kind_q[hit_rd] == KIND_PAIR0 && second_q[hit_rd])
         held_q[hit_rd] <= 1'b1;
       for (int p = 0; p < P; p++) begin
-        if (issue[p])     state_q[issue_slot[p]] <= SLOT_DP;
-        if (resp_next[p]) state_q[resp_slot[p]]  <= SLOT_POP;
-        if (resp_div[p])  state_q[resp_slot[p]]  <= SLOT_DIV;
-        if (resp_xf[p])   state_q[resp_slot[p]]  <= SLOT_SETUP;
+        if (issue[p])     `STATE(issue_slot[p]) <= SLOT_DP;
+        if (resp_next[p]) `STATE(resp_slot[p])  <= SLOT_POP;
+        if (resp_div[p])  `STATE(resp_slot[p])  <= SLOT_DIV;
+        if (resp_xf[p])   `STATE(resp_slot[p])  <= SLOT_SETUP;
       end
-      if (hit_next)   state_q[hit_rd]          <= SLOT_POP;
-      if (hit_finish) state_q[hit_rd]          <= SLOT_DONE;
+      if (hit_next)   `STATE(hit_rd)          <= SLOT_POP;
+      if (hit_finish) `STATE(hit_rd)          <= SLOT_DONE;
       // the ray setup done: the BLAS root is popped next, or (not prepared) the marker
       if (setup_valid) begin
-        state_q[setup_slot] <= SLOT_POP;
+        `STATE(setup_slot) <= SLOT_POP;
         held_q[setup_slot]  <= setup_ok;
       end
       if (res_take) begin
-        state_q[res_rd] <= SLOT_FREE;
+        `STATE(res_rd) <= SLOT_FREE;
         res_next_q <= (32'(res_rd) == RAYS - 1) ? '0 : res_rd + 1'b1;
       end
     end
   end
 
 endmodule
+
+`undef STATE

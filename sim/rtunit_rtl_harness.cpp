@@ -15,7 +15,9 @@
 // its L1).
 //
 // Cycles: cycle 0 is the first cycle a ray is offered (the unit takes one at once); `cycles` is
-// the cycle after the last result is taken. Every run has a cycle budget: a corrupt image (a loop
+// the cycle after the last result is taken. While every ray waits for memory (the unit's wait_o)
+// and no response or new ray is due, the unit's outputs cannot change: those cycles are counted
+// (skipped_cycles; not in the RF_TOGGLES build) without clocking the model. Every run has a cycle budget: a corrupt image (a loop
 // of pointers) stops with an error instead of hanging. Statistics: RtuStats (rf_rtunit_stats.h,
 // generated from driver/backends/rtunit.py's UNIT_STATS).
 //
@@ -62,6 +64,11 @@ uint32_t port_bits(const VlWide<N>& v, int lsb, int width) {
   return width == 32 ? x : x & ((1u << width) - 1);
 }
 
+#ifdef RF_TOGGLES
+constexpr bool kCountsToggles = true;
+#else
+constexpr bool kCountsToggles = false;
+#endif
 constexpr int64_t kOk = 0, kBudget = -1, kBadAddress = -2, kBadArgs = -3, kBadGeometry = -4,
                   kRayError = -5;
 
@@ -193,6 +200,21 @@ int64_t rtu_advance(void* h, int64_t cycles, int64_t* bad_ray) {
   Vrf_rtunit& u = r->top;
   for (int64_t k = 0; k < cycles; k++) {
     if (r->done == r->n) return 1;
+    // Every ray waits for memory (wait_o) and no response or new ray can come before the
+    // earliest response is due: clocking the unit until then changes nothing it will show, so
+    // those cycles are counted without being simulated (the statistics as if they had been).
+    // The build that counts switching activity clocks every cycle (idle registers toggle too).
+    if (!kCountsToggles && u.wait_o && !u.div_busy_o && !u.setup_busy_o && !r->queue.empty() &&
+        r->queue.top().ready > r->cycle + 1 && !(r->next_ray < r->n && u.ray_ready_o)) {
+      const int64_t skip = std::min(r->queue.top().ready - r->cycle - 1, cycles - k - 1);
+      if (skip > 0) {
+        r->st.mem_outstanding_cycles += skip * (r->outstanding > 0);
+        r->st.busy_cycles += skip * u.busy_o;
+        r->st.skipped_cycles += skip;
+        r->cycle += skip;
+        k += skip;
+      }
+    }
     // ---- inputs of this cycle ----
     u.ray_valid_i = r->next_ray < r->n;
     if (u.ray_valid_i) {

@@ -329,6 +329,32 @@ def test_end_to_end_runs_the_render_in_fresh_processes(tmp_path, capsys):
     assert "rays per second outside loading and the BVH: median" in capsys.readouterr().out
 
 
+def test_end_to_end_on_the_rt_unit(tmp_path, capsys):
+    """--end-to-end --backend rtunit: the render on the RT unit in RTL, each run a fresh
+    process; the unit's cycles instead of the replay's time."""
+    out = tmp_path / "u.json"
+    assert main(["bench", "--end-to-end", "--scene", "cornell", "--workload", "ao", "--size",
+                 "8", "--repeat", "1", "--backend", "rtunit", "--rays-in-flight", "8",
+                 "--unit-check", "none", "--json", str(out), "--no-progress"]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["backend"] == "rtunit"
+    assert doc["command"].endswith("--check-embree --backend rtunit --unit-check none")
+    (run,) = doc["runs"]
+    assert run["unit_cycles"] > 0 and run["replay_s"] is None and run["traversal_mismatches"] is None
+    assert run["verdicts"]["datapath_wrong"] == 0 and 0 < run["functional_s"] < run["trace_s"]
+    assert doc["summary"]["replay_s"] is None
+    assert doc["summary"]["rays_per_s"]["median"] == pytest.approx(run["rays_per_s"])
+    assert "the RT unit" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv", [["--backend", "rtunit"], ["--backend", "golden", "--end-to-end"],
+                                  ["--end-to-end", "--unit-check", "none"]])
+def test_bench_takes_the_rt_unit_with_end_to_end_only(argv, capsys):
+    assert main(["bench", *argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("rayflex: error:")
+
+
 @pytest.mark.parametrize("extra", [["--bvh"], ["--workers", "2"], ["--repeat", "0"]])
 def test_end_to_end_refuses_other_modes(extra, capsys):
     assert main(["bench", "--end-to-end", *extra]) == 2

@@ -244,6 +244,9 @@ def test_one_ray_frame_cycles_by_hand(deep):
     # then the divider (DIV_CYCLES), the empty stack's pop (1), the result register (1), taken (1)
     per_node = 1 + 1 + mem + 1 + dp
     assert res.stats["cycles"] == 1 + 2 * per_node + div + 1 + 1 + 1
+    # while the ray waits for a node, the harness counts the cycles without clocking the unit:
+    # from the cycle after the request's handshake to the cycle before the response
+    assert res.stats["skipped_cycles"] == 2 * (mem - 2)
     # busy from the cycle after its handshake to the cycle its result is taken (at once)
     assert res.stats["divider_busy_cycles"] == div
     assert (res.box_ops[0], res.tri_ops[0]) == (1, 1)
@@ -425,6 +428,36 @@ def test_stack_depth_needs_the_unit(in_tmp, error_line):
     assert main(["render", "bunny", "--size", "8", "--backend", "rtunit", "--rays-in-flight",
                  "8", "--stack-depth", "1"]) != 0
     assert "--stack-depth" in error_line()
+
+
+def test_unit_check_none_runs_the_unit_alone(in_tmp, error_line, monkeypatch):
+    """--unit-check none: the unit's frame without the Python traversal and the replays (their
+    figures null), the same cycles and hits; tiles on two threads, each with its own unit, give
+    the frame of one thread."""
+    import json
+    argv = ["render", "cornell", "--workload", "ao", "--size", "8", "--tile", "4", "--backend",
+            "rtunit", "--rays-in-flight", str(RAYS), "--check-embree", "--no-progress"]
+    docs = {}
+    for check, threads in (("traversal", "1"), ("none", "1"), ("none", "2")):
+        monkeypatch.setenv("RAYFLEX_THREADS", threads)
+        out = f"{check}{threads}.json"
+        assert main([*argv, "--unit-check", check, "--json", out]) == 0
+        docs[check, threads] = json.loads(open(out).read())
+    ref = docs["traversal", "1"]
+    assert ref["unit_rtl"]["traversal_mismatches"] == 0
+    assert 0 < ref["unit_rtl"]["skipped_cycles"] < ref["unit_rtl"]["cycles"]
+    for key in (("none", "1"), ("none", "2")):
+        doc = docs[key]
+        unit = doc["unit_rtl"]
+        assert unit["traversal_mismatches"] is None and unit["replay_cycles_ratio"] is None
+        assert {k: v for k, v in unit.items() if "replay" not in k and "traversal" not in k} \
+            == {k: v for k, v in ref["unit_rtl"].items() if "replay" not in k
+                and "traversal" not in k}
+        assert doc["embree"]["adjudicated"]["classes"] == ref["embree"]["adjudicated"]["classes"]
+        assert doc["provenance"]["design_point"]["unit_check"] == "none"
+    for command in ("render", "sweep"):
+        assert main([command, "--size", "8", "--unit-check", "none"]) != 0
+        assert "--backend rtunit" in error_line()
 
 
 def test_render_an_instanced_scene(in_tmp, error_line):

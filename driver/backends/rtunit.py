@@ -45,12 +45,15 @@ DEFAULT_SETUPS, MAX_SETUPS = 2, 16       # ray setups (rf_rtu_setup: one ray ent
 MAX_UNIT_PIPELINES = 4              # datapath pipelines the unit can be built with (PIPELINES)
 DEFAULT_MEM_LATENCY = 20            # the fixed-latency memory behind the port, cycles
 FORMATS = ("box32", "q8")           # node images the unit reads (q8: with the decode stage)
+# what checks the unit's rays besides Embree (``--unit-check``): the Python traversal on the unit's
+# datapath and the replay of its requests (the backend's ``compare``), or nothing
+UNIT_CHECKS = ("traversal", "none")
 UNIT_BACKEND = "rtunit"
-# the design options (driver/design.py) the unit reads: its ray slots, stack, pipelines and memory
-# hierarchy
-UNIT_OPTIONS = ("rays_in_flight", "stack_depth", "pipelines", "cache_kib", "cache_ways",
-                "cache_latency", "mshrs", "l2_kib", "l2_ways", "l2_latency", "line_bytes",
-                "sector_bytes", "mem_latency", "mem_bytes_per_cycle")
+# the design options (driver/design.py) the unit reads: its ray slots, stack, pipelines, check
+# and memory hierarchy
+UNIT_OPTIONS = ("rays_in_flight", "stack_depth", "pipelines", "unit_check", "cache_kib",
+                "cache_ways", "cache_latency", "mshrs", "l2_kib", "l2_ways", "l2_latency",
+                "line_bytes", "sector_bytes", "mem_latency", "mem_bytes_per_cycle")
 # the unit's statistics, in the order of rf_rtunit_stats::RtuStats (generated from this tuple);
 # UNIT_STAT_ARRAYS: those with one entry per pipeline (MAX_UNIT_PIPELINES entries)
 UNIT_STATS = (
@@ -68,6 +71,7 @@ UNIT_STATS = (
     "divider_full_cycles",      # cycles with every divider holding one
     "setup_busy_cycles",        # sum over cycles of the ray setups holding a ray
     "pipeline_requests",        # per pipeline: requests that entered it (cycles its input took one)
+    "skipped_cycles",           # cycles counted without clocking the model (every ray waited)
 )
 UNIT_STAT_ARRAYS = ("pipeline_requests",)
 # the top's instances, one row each in the unit's area and energy tables: instance -> (row name,
@@ -353,6 +357,7 @@ class RtUnitBackend(HarnessBackend):
         self.memory = memory
         self.max_outstanding = int(max_outstanding)
         self.activity = bool(activity)
+        self._checked = None        # the last image check_image passed: (image, root)
         self._nets = None                               # (codes, rows, weight) once read
         self.net_names: list[list[str]] = []            # the traced nets' names, once read
         self._unit = unit_library(self.unit_params, self.activity)   # build now: fail early
@@ -412,12 +417,16 @@ class RtUnitBackend(HarnessBackend):
     def trace_unit(self, bvh, rays: np.ndarray, any_hit=False, progress=None,
                    max_cycles: int | None = None) -> UnitResult:
         """Run prepared rays (``driver.core.datapath.prepare_rays``) through the unit over
-        ``bvh`` (checked by ``check_image``). ``any_hit``: a bool or one per ray.
+        ``bvh`` (checked by ``check_image``, once for the batches of a frame: again when the
+        image object or the root changes). ``any_hit``: a bool or one per ray.
         ``progress(done, total)`` is called between harness calls. ``max_cycles``: the budget
         (default: ``BUDGET_BASE`` + ``BUDGET_PER_RAY`` per ray + ``BUDGET_PER_REQUEST`` per
         datapath request made); RuntimeError when it runs out; ValueError when the rays make
         more requests than the image has nodes for (``request_bound``: a loop)."""
-        check_image(bvh, self.compressed, self.transform)
+        if self._checked is None or self._checked[0] is not bvh.image or \
+                self._checked[1] != int(bvh.root):
+            check_image(bvh, self.compressed, self.transform)
+            self._checked = (bvh.image, int(bvh.root))
         n = len(rays)
         rw = np.ascontiguousarray(ray_words(rays), np.uint32)
         assert rw.shape == (n, RAY_WORDS)

@@ -12,6 +12,9 @@ from ..check import summary as check_summary
 from ..core.provenance import provenance
 from ..frame_bench import end_to_end
 from ..load_bench import load_bench
+from ..backends import DEFAULT_BACKEND
+from ..backends.rtunit import UNIT_BACKEND
+from ..design import unit_flags
 from ..rtunit import SWEEP_RAYS_IN_FLIGHT
 from ..scenes.lumibench import is_lumibench, root
 from ..studies.bvh import bvh_bench
@@ -79,15 +82,19 @@ def frame_end_to_end(args, point) -> int:
         point = point.replace(size=128)
     outs = Outputs()
     js = outs.add("--json", args.json, JSON) if args.json else None
-    doc = {"provenance": provenance(point), **end_to_end(point, args.repeat, not args.no_progress)}
+    if args.backend == UNIT_BACKEND:        # what the unit cannot be built with, at once
+        point.backend_options(UNIT_BACKEND)
+    doc = {"provenance": provenance(point),
+           **end_to_end(point, args.repeat, not args.no_progress, args.backend)}
     with outs.commit():
         if js:
             outputs.write_json(doc, outs.temp(js))
     for k, r in enumerate(doc["runs"], 1):
+        parts = (f"the RT unit {r['functional_s']:.2f} s" if r["replay_s"] is None else
+                 f"functional pass {r['functional_s']:.2f} s, replay {r['replay_s']:.2f} s")
         print(f"run {k}: {r['rays']:,} rays in {r['trace_s']:.2f} s outside loading and the BVH "
-              f"({r['rays_per_s']:,.0f} rays/s; functional pass {r['functional_s']:.2f} s, "
-              f"replay {r['replay_s']:.2f} s); the process {r['process_s']:.2f} s, peak "
-              f"{r['peak_rss_bytes'] / 2**20:,.0f} MiB")
+              f"({r['rays_per_s']:,.0f} rays/s; {parts}); the process {r['process_s']:.2f} s, "
+              f"peak {r['peak_rss_bytes'] / 2**20:,.0f} MiB")
     m = doc["summary"]["rays_per_s"]
     print(f"rays per second outside loading and the BVH: median {m['median']:,.0f} (min "
           f"{m['min']:,.0f}, max {m['max']:,.0f}) over {plural(len(doc['runs']), 'run')}")
@@ -109,6 +116,13 @@ def run(args) -> int:
     from ..render import check_memory
 
     point = options.from_args(args)
+    if args.backend not in (DEFAULT_BACKEND, UNIT_BACKEND):
+        raise ValueError(f"--backend {args.backend}: bench runs the frame on {DEFAULT_BACKEND}, "
+                         f"or with --end-to-end on {UNIT_BACKEND}")
+    if args.backend == UNIT_BACKEND and not args.end_to_end:
+        raise ValueError(f"--backend {UNIT_BACKEND} goes with --end-to-end (the other "
+                         f"measurements run the {DEFAULT_BACKEND} backend)")
+    unit_flags(args, args.backend)
     if args.synthetic and not args.scene_load:
         raise ValueError("--synthetic goes with --scene-load")
     if args.scene_load:

@@ -299,10 +299,12 @@ FLAGS: dict[str, tuple[tuple[str | None, tuple[Flag, ...]], ...]] = {
             "with --scene-load: measure a LumiBench-format folder of FILES OBJ files of "
             "TRIANGLES triangles in all, written to a temporary folder")),
         flag("--end-to-end", action="store_true", help=(
-            "the design point's frame as 'rayflex render --check-embree --rtunit' runs it, "
+            "the design point's frame as 'rayflex render --check-embree --rtunit' runs it "
+            "(--backend rtunit: as 'rayflex render --check-embree --backend rtunit' does), "
             "instead: --repeat fresh processes after one that fills the caches; rays per "
             "second outside loading and the BVH (minimum, median, maximum), and each run's "
             "functional pass, replay and check (docs/lumibench.md)")),
+        _backend(),
     )), (DESIGN, ()), (None, (SHARED["progress"],))),
     "sweep": ((None, (
         flag("--csv", metavar="PATH", help="one row per design point x ray type"),

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..backends.rtunit import UNIT_BACKEND
+from ..design import unit_flags
 from ..scenes.lumibench import PREFIX as LUMIBENCH_PREFIX
 from ..scenes.camera import MAX_SIZE
 from ..core.words import cell, plural
@@ -42,6 +43,7 @@ def run(args) -> int:
         raise SuiteError("--scenes and --workloads choose LumiBench's runs; a --suite file "
                          "lists its own")
     check_backend(args.backend)
+    unit_flags(args, args.backend)
     if args.backend == UNIT_BACKEND and args.ideal_replay:
         raise SuiteError(f"--backend {UNIT_BACKEND}: the RT unit in RTL times every frame "
                          "itself; --ideal-replay replays the rtl backend's frames")

@@ -48,6 +48,8 @@ def run(args) -> int:
     unit = args.backend == "rtunit"
     if unit:
         check_unit_points(points)
+    elif getattr(args, "unit_check", None) is not None:
+        raise ValueError("--unit-check sets the RT unit in RTL: give --backend rtunit")
     check_workers(args)
     for size in {p.size for p in points if p.size}:
         check_memory(size * size)

@@ -71,7 +71,7 @@ def measure_unit(point, n: int = DEFAULT_OPS, seed: int = 0, progress: bool = Fa
     (``frame``), per module, the unit's idle energy per cycle, the datapath alone's energy per
     op (``datapath_ops``) and the check of the unit's datapath row against it."""
     t0 = time.perf_counter()
-    be = backend(UNIT_BACKEND, **point.backend_options(UNIT_BACKEND), compare=False,
+    be = backend(UNIT_BACKEND, **{**point.backend_options(UNIT_BACKEND), "compare": False},
                  activity=True)
     idle = be.idle_activity(IDLE_CYCLES)
     per_op = datapath_ops(point, n, seed)
