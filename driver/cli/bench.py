@@ -112,10 +112,9 @@ def _int_list(text: str, flag: str) -> list[int]:
     return sorted(set(vals))
 
 
-def run(args) -> int:
-    from ..render import check_memory
-
-    point = options.from_args(args)
+def check_backend(args) -> None:
+    """Refuse (ValueError, one line) a backend bench does not run, or the RT unit in RTL outside
+    ``--end-to-end`` or with a setting it does not model."""
     if args.backend not in (DEFAULT_BACKEND, UNIT_BACKEND):
         raise ValueError(f"--backend {args.backend}: bench runs the frame on {DEFAULT_BACKEND}, "
                          f"or with --end-to-end on {UNIT_BACKEND}")
@@ -123,6 +122,13 @@ def run(args) -> int:
         raise ValueError(f"--backend {UNIT_BACKEND} goes with --end-to-end (the other "
                          f"measurements run the {DEFAULT_BACKEND} backend)")
     unit_flags(args, args.backend)
+
+
+def run(args) -> int:
+    from ..render import check_memory
+
+    point = options.from_args(args)
+    check_backend(args)
     if args.synthetic and not args.scene_load:
         raise ValueError("--synthetic goes with --scene-load")
     if args.scene_load:
