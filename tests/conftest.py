@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from driver.core.configs import CONFIGS as CONFIG_NAMES, parse_config
+from support.prebuild import SUITE_DEPTH, SUITE_RAYS
 
 # The suite builds the RTL harness without profile-guided optimisation: a PGO build compiles the
 # model twice and runs a training workload, which for five configurations would double the suite's
@@ -48,6 +49,7 @@ MODULE_MARKERS = {
 # made by the first test that needs it; one listed but not needed costs its time.
 PREBUILD = Path(__file__).parent / "support" / "prebuild.py"
 _B = "baseline-unified"
+_UNIT = f"rtunit:{_B}:{SUITE_RAYS}:{SUITE_DEPTH}"      # the RT unit the suite's unit tests share
 RTL_BUILDS = {
     "test_rtl": (_B, _B + "@10", _B + "@14", "pyverilator:" + _B),
     "test_rtl_extended": tuple(CONFIG_NAMES),
@@ -58,7 +60,7 @@ RTL_BUILDS = {
     "test_instances": (_B, _B + "-q8", _B + "-xf"),
     "test_q8_image": (_B, _B + "-q8"),
     "test_sweep": (_B, "baseline-disjoint", "signals:" + _B, "signals:baseline-disjoint",
-                   f"rtunit:{_B}:8:32"),
+                   _UNIT),
     "test_fused": (_B + "-fused", "extended-disjoint-fused"),
     "test_shared": ("extended-disjoint-q8-shared",),
     "test_pgo": ("pgo:" + _B,),
@@ -66,12 +68,12 @@ RTL_BUILDS = {
     "test_power_ops": (f"signals:{_B}-q8",),
     "test_gpu": (_B, "signals:" + _B),
     "test_bench": (_B, "pyverilator:" + _B),
-    "test_rtunit_rtl": (_B, _B + "-q8", _B + "-q8-xf", f"rtunit:{_B}:8:32",
-                        f"rtunit:{_B}-q8-xf:8:4"),
+    "test_rtunit_rtl": (_B, _B + "-q8", _B + "-q8-xf", _UNIT,
+                        f"rtunit:{_B}-q8-xf:{SUITE_RAYS}:4"),
     "test_rtunit_modules": ("tb:rtu_units",),
-    "test_rtunit_pipelines": (_B, f"rtunit:{_B}:16:32", f"rtunit:{_B}:16:32:2"),
+    "test_rtunit_pipelines": (_B, _UNIT, _UNIT + ":2"),
     "test_unit_energy": (_B, f"rtunit:{_B}:4:8", f"activity:{_B}:4:8", f"signals-all:{_B}"),
-    "test_readme_questions": (_B, _B + "-xf", f"rtunit:{_B}:8:32", "signals:" + _B,
+    "test_readme_questions": (_B, _B + "-xf", _UNIT, "signals:" + _B,
                               "signals:baseline-disjoint"),
     **{m: (_B,) for m in ("test_rtunit", "test_gpu_pin", "test_memory",
                           "test_rayorder", "test_replay_timing", "test_traversal",
