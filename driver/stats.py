@@ -156,6 +156,7 @@ def unit_rtl_stats(res, be) -> dict:
         "pipeline_utilization": [n / cycles if cycles else 0.0
                                  for n in st["pipeline_requests"]],
         "skipped_cycles": st["skipped_cycles"],
+        "reused_batches": int(getattr(res, "reused", False)),
     }
     if getattr(res, "activity", None) is not None:     # the traced unit (rayflex power)
         out[ACTIVITY] = res.activity
@@ -166,7 +167,7 @@ UNIT_RTL = "unit_rtl"
 ACTIVITY = "activity"          # a traced unit's bit toggles per module, and its cycles
 _UNIT_SUMMED = ("cycles", "stack_overflows", "stack_refills", "rays_overflowed", "mem_requests",
                 "mem_bytes", "mem_busy_cycles", "busy_cycles", "divider_busy_cycles",
-                "divider_full_cycles", "setup_busy_cycles", "skipped_cycles")
+                "divider_full_cycles", "setup_busy_cycles", "skipped_cycles", "reused_batches")
 
 
 def merge_unit_rtl(parts: list[dict], ops: int) -> dict:

@@ -241,7 +241,8 @@ def _replay_unit(be, rec, any_hit, n: int, unit_cycles: int) -> dict:
                                        pipelines=be.pipelines,
                                        memory=mem, unit_costs=uc).cycles)
         out[f"{key}_cycles"] = cycles
-        out[f"{key}_cycles_ratio"] = None if cycles is None else cycles / unit_cycles
+        out[f"{key}_cycles_ratio"] = (None if cycles is None or not unit_cycles  # no rays
+                                      else cycles / unit_cycles)
     return out
 
 

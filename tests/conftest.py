@@ -80,6 +80,7 @@ RTL_BUILDS = {
                           "test_workloads", "test_cli", "test_export",
                           "test_double_sided", "test_tiles", "test_api")},
     "test_statistics_doc": (_B, f"activity:{_B}:4:8", f"signals-all:{_B}"),
+    "test_suite": (_B, _UNIT),
 }
 
 

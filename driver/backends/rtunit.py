@@ -27,7 +27,7 @@ import numpy as np
 from ..core.layout import (BOX_NODE, BOX_TYPE, INSTANCE_NODE, INSTANCE_TYPE, NO_CHILD, NODE_BYTES,
                            PAIR_TYPE, Q8_NODE, Q8_TYPE, TRI_TYPE, NodeRef, node_word)
 from ..core.wire import RAY_WORDS, ray_words
-from . import toggles, verilate
+from . import toggles, unit_memo, verilate
 from .base import BackendError
 from .build import (DIV_SOURCE_LIST, RTL_DIR, SIM_DIR, layout_header_dir, parse_source_list,
                     rtl_sources)
@@ -258,6 +258,7 @@ class UnitResult:
     instance: np.ndarray
     xf_ops: np.ndarray
     activity: dict | None = None       # a traced backend's: ``RtUnitBackend.activity_of``
+    reused: bool = False               # the results of an equal batch (``unit_memo``)
 
 
 def check_format(fmt: str, compressed: bool, transform: bool, instanced: bool) -> None:
@@ -358,6 +359,7 @@ class RtUnitBackend(HarnessBackend):
         self.max_outstanding = int(max_outstanding)
         self.activity = bool(activity)
         self._checked = None        # the last image check_image passed: (image, root)
+        self._image_digest = None   # its bytes' digest, once a memo needs it (unit_memo)
         self._nets = None                               # (codes, rows, weight) once read
         self.net_names: list[list[str]] = []            # the traced nets' names, once read
         self._unit = unit_library(self.unit_params, self.activity)   # build now: fail early
@@ -422,15 +424,42 @@ class RtUnitBackend(HarnessBackend):
         ``progress(done, total)`` is called between harness calls. ``max_cycles``: the budget
         (default: ``BUDGET_BASE`` + ``BUDGET_PER_RAY`` per ray + ``BUDGET_PER_REQUEST`` per
         datapath request made); RuntimeError when it runs out; ValueError when the rays make
-        more requests than the image has nodes for (``request_bound``: a loop)."""
+        more requests than the image has nodes for (``request_bound``: a loop). Within
+        ``unit_memo.memo`` a batch traced before is reused (``UnitResult.reused``)."""
         if self._checked is None or self._checked[0] is not bvh.image or \
                 self._checked[1] != int(bvh.root):
             check_image(bvh, self.compressed, self.transform)
             self._checked = (bvh.image, int(bvh.root))
+            self._image_digest = None
         n = len(rays)
         rw = np.ascontiguousarray(ray_words(rays), np.uint32)
         assert rw.shape == (n, RAY_WORDS)
         ah = np.ascontiguousarray(np.broadcast_to(np.asarray(any_hit, bool), (n,)), np.uint8)
+        name = (self._memo_name(bvh, rw, ah) if unit_memo.directory() is not None
+                and not self.activity and max_cycles is None else None)
+        found = unit_memo.load(name) if name is not None else None
+        activity = None
+        if found is not None:
+            arrays, stats = found
+        else:
+            arrays, stats, activity = self._simulate(bvh, rw, ah, progress, max_cycles)
+            if name is not None:
+                unit_memo.store(name, arrays, stats)
+        self.cycles += stats["cycles"]
+        self.requests += stats["dp_requests"]
+        return UnitResult(**arrays, stats=stats, activity=activity, reused=found is not None)
+
+    def _memo_name(self, bvh, rw: np.ndarray, ah: np.ndarray) -> str:
+        """The batch's name in ``unit_memo``: its rays, flags, image and root, the unit's library
+        (its RTL, harness and parameters) and the memory behind its port."""
+        if self._image_digest is None:
+            self._image_digest = unit_memo.key([], [np.asarray(bvh.image)])
+        return unit_memo.key([self._unit._name, self._image_digest, int(bvh.root),
+                              self.mem_latency, self.max_outstanding, self.memory], [rw, ah])
+
+    def _simulate(self, bvh, rw: np.ndarray, ah: np.ndarray, progress, max_cycles):
+        """``trace_unit``'s simulation: ``({UnitResult array: ndarray}, stats, activity)``."""
+        n = len(rw)
         img = np.ascontiguousarray(np.asarray(bvh.image).reshape(-1).view(np.uint8))
         prim = np.full(n, NO_CHILD, np.uint32)
         inst = np.full(n, NO_CHILD, np.uint32)
@@ -442,37 +471,8 @@ class RtUnitBackend(HarnessBackend):
         if self.activity:
             lib.rtu_toggles_start(h)
         activity = None
-        budget = BUDGET_BASE + BUDGET_PER_RAY * n if max_cycles is None else int(max_cycles)
-        most = request_bound(bvh, n)
-        st = RtuStats()
         try:
-            bad = ctypes.c_int64(-1)
-            ran, grown = 0, budget
-            while True:
-                step = min(ADVANCE_CYCLES, max(1, grown - ran))
-                rc = lib.rtu_advance(h, step, ctypes.byref(bad))
-                lib.rtu_stats(h, ctypes.byref(st))
-                ran = st.cycles_simulated
-                if progress is not None:
-                    progress(int(np.count_nonzero(ops[:, 0] + ops[:, 1])), n)
-                if rc == 1:
-                    break
-                if rc == _BAD_ADDRESS:
-                    raise ValueError("a BVH pointer leaves the image (the unit fetched past it)")
-                if rc == _RAY_ERROR:
-                    raise ValueError(f"ray {bad.value} met a node pointer the RT unit cannot "
-                                     "read (a corrupt image)")
-                if rc < 0:
-                    raise RuntimeError(f"RT unit harness failed ({rc})")
-                if st.dp_requests > most:
-                    raise ValueError(f"the RT unit made {st.dp_requests:,} requests for {n} rays, "
-                                     f"more than this image has nodes for ({most:,}): its "
-                                     "pointers loop")
-                if max_cycles is None:
-                    grown = budget + BUDGET_PER_REQUEST * st.dp_requests
-                if ran >= grown:
-                    raise RuntimeError(f"the RT unit did not finish {n} rays within its budget "
-                                       f"of {grown:,} cycles (a corrupt image?)")
+            st = self._advance(h, bvh, n, ops, progress, max_cycles)
             if self.activity:
                 activity = {**self._count(h), "cycles": int(st.cycles_simulated)}
         finally:
@@ -480,15 +480,49 @@ class RtUnitBackend(HarnessBackend):
         stats = {name: ([int(v) for v in getattr(st, name)][:self.pipelines]
                         if name in UNIT_STAT_ARRAYS else int(getattr(st, name)))
                  for name in UNIT_STATS}
-        self.cycles += stats["cycles"]
-        self.requests += stats["dp_requests"]
         prim64 = prim.astype(np.int64)
         prim64[prim == NO_CHILD] = -1
         inst64 = inst.astype(np.int64)
         inst64[inst == NO_CHILD] = -1
-        return UnitResult(prim64, t.view(np.float32), hit.astype(bool), ops[:, 0].copy(),
-                          ops[:, 1].copy(), ops[:, 2].copy(), ops[:, 3].copy(), stats, inst64,
-                          ops[:, 4].copy(), activity)
+        arrays = dict(prim=prim64, t=t.view(np.float32), hit=hit.astype(bool),
+                      box_ops=ops[:, 0].copy(), tri_ops=ops[:, 1].copy(),
+                      overflows=ops[:, 2].copy(), refills=ops[:, 3].copy(), instance=inst64,
+                      xf_ops=ops[:, 4].copy())
+        return arrays, stats, activity
+
+    def _advance(self, h, bvh, n: int, ops: np.ndarray, progress, max_cycles) -> RtuStats:
+        """Clock the harness run ``h`` until every ray's result is in; its final statistics."""
+        lib = self._unit
+        budget = BUDGET_BASE + BUDGET_PER_RAY * n if max_cycles is None else int(max_cycles)
+        most = request_bound(bvh, n)
+        st = RtuStats()
+        bad = ctypes.c_int64(-1)
+        ran, grown = 0, budget
+        while True:
+            step = min(ADVANCE_CYCLES, max(1, grown - ran))
+            rc = lib.rtu_advance(h, step, ctypes.byref(bad))
+            lib.rtu_stats(h, ctypes.byref(st))
+            ran = st.cycles_simulated
+            if progress is not None:
+                progress(int(np.count_nonzero(ops[:, 0] + ops[:, 1])), n)
+            if rc == 1:
+                return st
+            if rc == _BAD_ADDRESS:
+                raise ValueError("a BVH pointer leaves the image (the unit fetched past it)")
+            if rc == _RAY_ERROR:
+                raise ValueError(f"ray {bad.value} met a node pointer the RT unit cannot "
+                                 "read (a corrupt image)")
+            if rc < 0:
+                raise RuntimeError(f"RT unit harness failed ({rc})")
+            if st.dp_requests > most:
+                raise ValueError(f"the RT unit made {st.dp_requests:,} requests for {n} rays, "
+                                 f"more than this image has nodes for ({most:,}): its "
+                                 "pointers loop")
+            if max_cycles is None:
+                grown = budget + BUDGET_PER_REQUEST * st.dp_requests
+            if ran >= grown:
+                raise RuntimeError(f"the RT unit did not finish {n} rays within its budget "
+                                   f"of {grown:,} cycles (a corrupt image?)")
 
 
 def request_bound(bvh, rays: int) -> int:
