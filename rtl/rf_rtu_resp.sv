@@ -4,6 +4,8 @@
 //   * QUADBOX: the hit children are pushed on the slot's stack farthest first, so that the
 //     nearest is popped next: for j = 3 down to 0 with box_hit[j], the child pointer
 //     child[box_index[j]] of the slot's node (a box32 or a q8 node: kind_i, the kind of slot rd_o).
+//     Each push carries the child's entry distance push_dist_o (its box_tmin[j]: kept on the
+//     stack by the distance-culled stack, rf_rtu_stack's CULL; unused without it).
 //     One push per cycle (the stack RAM has one write port per response stage): a response with k
 //     hit children takes max(k, 1) cycles; then next_o pulses (the ray pops its next node).
 //   * TRIANGLE without a hit: next_o pulses in the cycle the response is taken.
@@ -36,6 +38,7 @@ module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
   output logic              push_o,
   output logic [SLOT_W-1:0] push_slot_o,
   output logic [31:0]       push_ptr_o,
+  output logic [31:0]       push_dist_o,
   output logic              next_o,
   output logic              div_o,
   output logic [SLOT_W-1:0] evt_slot_o,
@@ -56,12 +59,14 @@ module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
   logic              busy_q;
   logic [3:0]        left_q;
   logic [3:0][1:0]   index_q;
+  logic [3:0][31:0]  tmin_q;
   logic [SLOT_W-1:0] slot_q;
 
   logic              take, tri_op, tri_hit, xf_op;
   logic [SLOT_W-1:0] slot;
   logic [3:0]        left;
   logic [3:0][1:0]   index;
+  logic [3:0][31:0]  tmin;
   assign tri_op  = dp_rsp_i.opcode == OP_TRIANGLE;
   assign tri_hit = tri_op & dp_rsp_i.tri_hit;
   assign xf_op   = dp_rsp_i.opcode == OP_TRANSFORM;
@@ -70,6 +75,7 @@ module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign slot  = busy_q ? slot_q : SLOT_W'(dp_rsp_i.tag);
   assign left  = busy_q ? left_q : (tri_op | xf_op ? 4'b0 : dp_rsp_i.box_hit);
   assign index = busy_q ? index_q : dp_rsp_i.box_index;
+  assign tmin  = busy_q ? tmin_q : dp_rsp_i.box_tmin;
   assign rd_o  = slot;
 
   // the farthest remaining hit child: the highest set bit of left
@@ -90,6 +96,8 @@ module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign prim_word   = kind_i == KIND_PAIR0 ? PAIR_NODE_PRIM_WORD
                      : kind_i == KIND_PAIR1 ? PAIR_NODE_PRIM_WORD + 1 : TRI_NODE_PRIM_WORD;
   assign push_ptr_o  = take & xf_op ? RETURN_PTR : node_i[(child_word + 32'(index[j])) * 32 +: 32];
+
+  assign push_dist_o = take & xf_op ? '0 : tmin[j];
 
   assign next_o     = (active & (rest == 4'b0)) | (take & tri_op & ~tri_hit);
   assign div_o      = take & tri_hit;
@@ -119,6 +127,7 @@ module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
     if (active) begin
       left_q  <= rest;
       index_q <= index;
+      tmin_q  <= tmin;
       slot_q  <= slot;
     end
   end
