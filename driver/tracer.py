@@ -219,7 +219,8 @@ def _trace_unit(be, be_name: str, bvh, rays, any_hit, progress, cull_stack,
                        | (inst.transform_ops != res.xf_ops))
         unit["traversal_mismatches"] = int(np.count_nonzero(differ))
         unit.update(_replay_unit(be, issue.record(backend_params(be)), any_hit, len(rays),
-                                 res.stats["cycles"]))
+                                 res.stats["cycles"],
+                                 trav.cull_events if be.cull else None))
     stats["unit_rtl"] = unit
     steps = np.zeros(0, np.int64)
     prim = res.prim.copy()
@@ -229,15 +230,15 @@ def _trace_unit(be, be_name: str, bvh, rays, any_hit, progress, cull_stack,
                        res.instance, res.xf_ops if instanced else None)
 
 
-def _replay_unit(be, rec, any_hit, n: int, unit_cycles: int) -> dict:
+def _replay_unit(be, rec, any_hit, n: int, unit_cycles: int, culls=None) -> dict:
     """The RT-unit replay of the unit's batch on its parameters (its pipelines, its rays in flight
     and memory): with the unit's costs (``rtunit.UnitCosts``: its dividers, its fixed-latency
-    memory, the any-hit rays, its stack depth) and, when the unit has the memory hierarchy, with the replay's
+    memory, the any-hit rays, its stack depth, the culling stack's pops ``culls``) and, when the unit has the memory hierarchy, with the replay's
     default costs; each as cycles and over the unit's."""
     mem = memory_model(be.memory) if be.memory is not None else None
     costs = rtunit.UnitCosts(be.dividers, fixed_latency=0 if mem else be.mem_latency,
                              any_hit=np.broadcast_to(np.asarray(any_hit, bool), (n,)),
-                             stack_depth=be.stack_depth, setups=be.setups)
+                             stack_depth=be.stack_depth, setups=be.setups, culls=culls)
     out = {}
     for key, uc in (("replay", costs), ("replay_default", None)):
         cycles = None

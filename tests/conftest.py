@@ -67,7 +67,7 @@ RTL_BUILDS = {
     "test_gpu": (_B, "signals:" + _B),
     "test_bench": (_B, "pyverilator:" + _B),
     "test_rtunit_rtl": (_B, _B + "-q8", _B + "-q8-xf", f"rtunit:{_B}:8:32",
-                        f"rtunit:{_B}-q8-xf:8:4"),
+                        f"rtunit:{_B}-q8-xf:8:4", f"rtunit:{_B}-q8-xf:8:4:1:cull"),
     "test_rtunit_modules": ("tb:rtu_units",),
     "test_rtunit_pipelines": (_B, f"rtunit:{_B}:16:32", f"rtunit:{_B}:16:32:2"),
     "test_unit_energy": (_B, f"rtunit:{_B}:4:8", f"activity:{_B}:4:8", f"signals-all:{_B}"),
