@@ -304,6 +304,9 @@ def test_unit_lint_clean():
     assert lint_unit(unit_params(rtl_params(False, False), RAYS, DEEP)) == ""
     assert lint_unit(unit_params(rtl_params(False, False, compressed=True, transform=True), RAYS,
                                  SHALLOW)) == ""
+    # the culling stack, with two pipelines (two push ports carrying distances)
+    assert lint_unit(unit_params(rtl_params(False, False), RAYS, SHALLOW, pipelines=2,
+                                 cull=True)) == ""
 
 
 def test_unit_refuses_what_it_cannot_read(scene, deep):
@@ -313,7 +316,7 @@ def test_unit_refuses_what_it_cannot_read(scene, deep):
         trace(q8, o[:4], d[:4], backend=deep)
     with pytest.raises(ValueError, match="reads box32, q8 images, not q8g"):
         trace(as_bvh(soup(50, 2), "q8g"), o[:4], d[:4], backend=deep)
-    with pytest.raises(ValueError, match="no culling stack"):
+    with pytest.raises(ValueError, match="only when built with CULL"):
         trace(bvh, o[:4], d[:4], backend=deep, cull_stack=True)
     with pytest.raises(ValueError, match="times the frame itself"):
         trace(bvh, o[:4], d[:4], backend=deep, rays_in_flight=8)
