@@ -29,6 +29,7 @@ module rf_rtu_pipes import rf_pkg::*; import rf_rtu_pkg::*; #(
   parameter bit          DISJOINT   = 1'b0,
   parameter bit          COMPRESSED = 1'b0,
   parameter bit          TRANSFORM  = 1'b0,
+  parameter bit          CULL       = 1'b0,
   parameter bit          FUSED      = 1'b0,
   parameter bit          SHARED     = 1'b0,
   parameter int unsigned LATENCY    = 11 + 32'(COMPRESSED),
@@ -83,7 +84,7 @@ module rf_rtu_pipes import rf_pkg::*; import rf_rtu_pkg::*; #(
       .in_valid_i(in_valid_i[p]), .in_ready_o(in_ready_o[p]), .req_i(req_i[p]),
       .out_valid_o(dp_out_valid), .out_ready_i(dp_out_ready), .rsp_o(dp_rsp));
 
-    rf_rtu_resp #(.RAYS(RAYS)) u_resp (
+    rf_rtu_resp #(.RAYS(RAYS), .CULL(CULL)) u_resp (
       .clk_i, .rst_ni,
       .dp_valid_i(dp_out_valid), .dp_ready_o(dp_out_ready), .dp_rsp_i(dp_rsp),
       .rd_o(rd_o[p]), .node_i(node_i[p]), .kind_i(kind_i[p]),

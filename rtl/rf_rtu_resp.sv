@@ -4,8 +4,8 @@
 //   * QUADBOX: the hit children are pushed on the slot's stack farthest first, so that the
 //     nearest is popped next: for j = 3 down to 0 with box_hit[j], the child pointer
 //     child[box_index[j]] of the slot's node (a box32 or a q8 node: kind_i, the kind of slot rd_o).
-//     Each push carries the child's entry distance push_dist_o (its box_tmin[j]: kept on the
-//     stack by the distance-culled stack, rf_rtu_stack's CULL; unused without it).
+//     With CULL each push carries the child's entry distance push_dist_o (its box_tmin[j],
+//     for the distance-culled stack, rf_rtu_stack's CULL; 0 without, and no register for it).
 //     One push per cycle (the stack RAM has one write port per response stage): a response with k
 //     hit children takes max(k, 1) cycles; then next_o pulses (the ray pops its next node).
 //   * TRIANGLE without a hit: next_o pulses in the cycle the response is taken.
@@ -25,6 +25,7 @@
 // evt_slot_o (at most one of them per cycle).
 module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
   parameter int unsigned RAYS = 4,
+  parameter bit          CULL = 1'b0,
   localparam int unsigned SLOT_W = RAYS > 1 ? $clog2(RAYS) : 1
 ) (
   input  logic              clk_i,
@@ -59,7 +60,6 @@ module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
   logic              busy_q;
   logic [3:0]        left_q;
   logic [3:0][1:0]   index_q;
-  logic [3:0][31:0]  tmin_q;
   logic [SLOT_W-1:0] slot_q;
 
   logic              take, tri_op, tri_hit, xf_op;
@@ -75,7 +75,6 @@ module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign slot  = busy_q ? slot_q : SLOT_W'(dp_rsp_i.tag);
   assign left  = busy_q ? left_q : (tri_op | xf_op ? 4'b0 : dp_rsp_i.box_hit);
   assign index = busy_q ? index_q : dp_rsp_i.box_index;
-  assign tmin  = busy_q ? tmin_q : dp_rsp_i.box_tmin;
   assign rd_o  = slot;
 
   // the farthest remaining hit child: the highest set bit of left
@@ -97,6 +96,13 @@ module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
                      : kind_i == KIND_PAIR1 ? PAIR_NODE_PRIM_WORD + 1 : TRI_NODE_PRIM_WORD;
   assign push_ptr_o  = take & xf_op ? RETURN_PTR : node_i[(child_word + 32'(index[j])) * 32 +: 32];
 
+  if (CULL) begin : g_tmin
+    logic [3:0][31:0] tmin_q;
+    assign tmin = busy_q ? tmin_q : dp_rsp_i.box_tmin;
+    always_ff @(posedge clk_i) if (active) tmin_q <= tmin;
+  end else begin : g_no_tmin
+    assign tmin = '0;
+  end
   assign push_dist_o = take & xf_op ? '0 : tmin[j];
 
   assign next_o     = (active & (rest == 4'b0)) | (take & tri_op & ~tri_hit);
@@ -127,7 +133,6 @@ module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
     if (active) begin
       left_q  <= rest;
       index_q <= index;
-      tmin_q  <= tmin;
       slot_q  <= slot;
     end
   end

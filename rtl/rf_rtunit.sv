@@ -332,7 +332,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     assign resp_kind[p] = kind_q[resp_rd[p]];
   end
   rf_rtu_pipes #(.RAYS(RAYS), .PIPELINES(P), .EXTENDED(EXTENDED), .DISJOINT(DISJOINT),
-                 .COMPRESSED(COMPRESSED), .TRANSFORM(TRANSFORM), .FUSED(FUSED), .SHARED(SHARED),
+                 .COMPRESSED(COMPRESSED), .TRANSFORM(TRANSFORM), .CULL(CULL), .FUSED(FUSED),
+                 .SHARED(SHARED),
                  .LATENCY(LATENCY)) u_pipes (
     .clk_i, .rst_ni,
     .in_valid_i(dp_in_valid), .in_ready_o(dp_in_ready), .req_i(dp_req),
