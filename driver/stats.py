@@ -142,6 +142,8 @@ def unit_rtl_stats(res, be) -> dict:
         "stack_overflows": st["overflows"],
         "stack_refills": st["refill_reads"],
         "rays_overflowed": int(np.count_nonzero(res.overflows)),
+        "cull_stack": be.cull,
+        "stack_culls": int(np.sum(res.culled)),
         "mem_requests": st["mem_requests"],
         "mem_bytes": st["mem_bytes"],
         "mem_busy_cycles": st["mem_outstanding_cycles"],
@@ -165,7 +167,8 @@ def unit_rtl_stats(res, be) -> dict:
 
 UNIT_RTL = "unit_rtl"
 ACTIVITY = "activity"          # a traced unit's bit toggles per module, and its cycles
-_UNIT_SUMMED = ("cycles", "stack_overflows", "stack_refills", "rays_overflowed", "mem_requests",
+_UNIT_SUMMED = ("cycles", "stack_overflows", "stack_refills", "rays_overflowed", "stack_culls",
+                "mem_requests",
                 "mem_bytes", "mem_busy_cycles", "busy_cycles", "divider_busy_cycles",
                 "divider_full_cycles", "setup_busy_cycles", "skipped_cycles", "reused_batches")
 

@@ -29,7 +29,7 @@ import numpy as np
 _DIRECTORY: list[Path | None] = [None]
 
 ARRAYS = ("prim", "t", "hit", "box_ops", "tri_ops", "overflows", "refills", "instance",
-          "xf_ops")
+          "xf_ops", "culled")
 
 
 @contextlib.contextmanager
