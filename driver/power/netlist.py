@@ -37,6 +37,7 @@ from .. import area
 from ..backends.cache import cache_root as tool_cache
 
 RECIPE = 2                # bump when the synthesis script or the writer below changes meaning
+TOP = "rayflex"           # the datapath's top; the RT unit's netlist has its own (unit_gates.py)
 
 # Yosys internal gate -> (gatesim code, input pins in the order A, B, S)
 GATES = {
@@ -62,11 +63,15 @@ def cache_root() -> Path:
     return tool_cache() / "power"
 
 
-def synth_script(params: dict[str, int], files: list[str]) -> str:
-    """Elaborate, flatten, fold constants, map to generic gates; no ABC and no ``share``."""
+def synth_script(params: dict[str, int], files: list[str], top: str = TOP) -> str:
+    """Elaborate, flatten, fold constants, map to generic gates; no ABC and no ``share``. Another
+    top than the datapath's (the RT unit's) also maps its arrays to flip-flops and multiplexers
+    (``memory``) and names each gate's enclosing instance (``flatten -scopename``)."""
     g = " ".join(f"-G {k}={v}" for k, v in params.items())
-    return (f"read_slang -j 1 --top rayflex {g} {' '.join(files)}\n"
-            "hierarchy -top rayflex\nproc\nflatten\nopt_expr\nopt_clean\n"
+    flat = "flatten\nopt_expr\nopt_clean\n" if top == TOP else \
+        "flatten -noscopeinfo -scopename\nopt_expr\nopt_clean\nmemory\nopt_clean\n"
+    return (f"read_slang -j 1 --top {top} {g} {' '.join(files)}\n"
+            f"hierarchy -top {top}\nproc\n{flat}"
             "techmap\nopt -fast\n"
             "tee -q -o stat.json stat -json\nwrite_json netlist.json\n")
 
@@ -89,10 +94,10 @@ class Netlist:
     cached: bool
 
 
-def _entry(params: dict[str, int], sources) -> tuple[str, str, Path]:
+def _entry(params: dict[str, int], sources, top: str = TOP) -> tuple[str, str, Path]:
     """(synthesis script, cache key, cache directory) of a configuration's netlist."""
     area = _area()
-    script = synth_script(params, [n for n, _ in sources])
+    script = synth_script(params, [n for n, _ in sources], top)
     h = hashlib.sha256(f"{RECIPE}\n{area.yosys_version()}\n{script}".encode())
     for n, b in sources:
         h.update(n.encode() + b"\0" + b)
@@ -108,11 +113,12 @@ def is_cached(params: dict[str, int]) -> bool:
         return False
 
 
-def synthesize(params: dict[str, int], sources=None, progress=None) -> Netlist:
-    """The generic-gate netlist of one configuration, synthesized on a cache miss."""
+def synthesize(params: dict[str, int], sources=None, progress=None, top: str = TOP) -> Netlist:
+    """The generic-gate netlist of one configuration, synthesized on a cache miss (``top``
+    and ``sources``: another design than the datapath, e.g. the RT unit)."""
     area = _area()
     sources = sources if sources is not None else area.snapshot()
-    script, key, entry = _entry(params, sources)
+    script, key, entry = _entry(params, sources, top)
     if (entry / "done.json").is_file():
         info = json.loads((entry / "done.json").read_text())
         return _load(entry, key, info, cached=True)
@@ -131,7 +137,7 @@ def synthesize(params: dict[str, int], sources=None, progress=None) -> Netlist:
             raise OSError(str(e)) from None
         design = json.loads((work / "netlist.json").read_text())
         (work / "out").mkdir()
-        info = _write(design, work / "out")
+        info = _write(design, work / "out", top)
         info["synth_s"] = round(time.perf_counter() - t0, 1)
         info["script"] = script.splitlines()[1:]
         (work / "out" / "done.json").write_text(json.dumps(info, indent=1))
@@ -184,8 +190,9 @@ def _record(root: Path, name: str, seconds: float) -> None:
 
 def _load(entry: Path, key: str, info: dict, cached: bool) -> Netlist:
     arr = np.load(entry / "nets.npz")
-    gates = {k: arr[k] for k in arr.files if k in ("a", "b", "s", "y", "groups")
+    gates = {k: arr[k] for k in arr.files if k in ("a", "b", "s", "y", "groups", "loops")
              or k.startswith("ff_")}
+    gates.setdefault("loops", np.zeros((0, 3), np.int32))     # a netlist written before them
     ports = {k[5:]: arr[k] for k in arr.files if k.startswith("port_")}
     return Netlist(arr["fanout"], arr["driver"], arr["stage"], arr["sinks"], arr["in0"], gates,
                    ports, info["cell_types"], info["cells"], info["levels"], key,
@@ -198,10 +205,10 @@ def _net(b) -> int:
     return b if isinstance(b, int) else int(b == "1")
 
 
-def _write(design: dict, out: Path) -> dict:
+def _write(design: dict, out: Path, top: str = TOP) -> dict:
     """Turn ``design`` (Yosys JSON, one flat module of generic gates) into the arrays of
     ``gatesim`` (levelized gates, flip-flops, ports) and the per-net arrays; save nets.npz."""
-    mod = design["modules"]["rayflex"]
+    mod = design["modules"][top]
     cells = mod["cells"]
     n = 2
     for v in mod["netnames"].values():
@@ -216,6 +223,7 @@ def _write(design: dict, out: Path) -> dict:
     sinks = np.zeros((n, len(types)), np.int32)
     in0 = np.full(n, -1, np.int32)
     comb = []                                  # (code, a, b, s, y)
+    loops = []                                 # (y, s, pin) of the multiplexers cut below
     ffs = []                                   # (d, e, e_inv, r, r_inv, r_val, q)
     cell_out, cell_in, cell_src, cell_ff = [], [], [], []
     for c in cells.values():
@@ -224,6 +232,17 @@ def _write(design: dict, out: Path) -> dict:
             code, pins = GATES[t]
             ins = [_net(conn[p][0]) for p in pins]
             y = _net(conn["Y"][0])
+            if y in ins:
+                # a multiplexer feeding itself back (an always_comb assigning an element of a
+                # vector at a computed index keeps the others: proc's feedback) is cut: its
+                # looped input reads 0, and gatesim checks every cycle that the select never
+                # picks it (GateSim.loops_held), so the cut changes no value
+                if code not in (GATES["$_MUX_"][0], GATES["$_NMUX_"][0]) or ins[2] == y or \
+                        ins[0] == ins[1]:
+                    raise OSError(f"gate-level netlist: combinational loop through {t}")
+                pin = ins.index(y)
+                loops.append((y, ins[2], pin))
+                ins[pin] = 0
             comb.append((code, *(ins + [0] * (3 - len(ins))), y))
             ff = False
         else:
@@ -260,12 +279,13 @@ def _write(design: dict, out: Path) -> dict:
     np.savez_compressed(out / "nets.npz", fanout=fanout, driver=driver, stage=stage,
                         sinks=sinks, in0=in0, **gates, ff_d=f[:, 0], ff_e=f[:, 1],
                         ff_e_inv=f[:, 2], ff_r=f[:, 3], ff_r_inv=f[:, 4], ff_r_val=f[:, 5],
-                        ff_q=f[:, 6], **{f"port_{k}": v for k, v in ports.items()})
+                        ff_q=f[:, 6], **{f"port_{k}": v for k, v in ports.items()},
+                        loops=np.array(loops, np.int32).reshape(-1, 3))
     counts: dict[str, int] = {}
     for c in cells.values():
         counts[c["type"]] = counts.get(c["type"], 0) + 1
     return {"cell_types": types, "cells": dict(sorted(counts.items())), "nets": int(n),
-            "levels": gates["levels"], "ports": list(ports)}
+            "levels": gates["levels"], "ports": list(ports), "loops_cut": len(loops)}
 
 
 def _levelize(comb: np.ndarray, n: int) -> dict:
