@@ -205,6 +205,40 @@ def _net(b) -> int:
     return b if isinstance(b, int) else int(b == "1")
 
 
+def _comb(t: str, conn: dict, loops: list) -> tuple[list[int], int, tuple]:
+    """(input nets, output net, gatesim row (code, a, b, s, y)) of a combinational gate.
+
+    A multiplexer feeding itself back (an ``always_comb`` assigning an element of a vector at a
+    computed index keeps the others: Yosys' feedback) is cut: its looped input reads 0, its
+    (output, select, pin) goes to ``loops``, and gatesim checks every cycle that the select never
+    picks it (``GateSim.loops_held``), so the cut changes no value."""
+    code, pins = GATES[t]
+    ins = [_net(conn[p][0]) for p in pins]
+    y = _net(conn["Y"][0])
+    if y in ins:
+        if code not in (GATES["$_MUX_"][0], GATES["$_NMUX_"][0]) or ins[2] == y or \
+                ins[0] == ins[1]:
+            raise OSError(f"gate-level netlist: combinational loop through {t}")
+        pin = ins.index(y)
+        loops.append((y, ins[2], pin))
+        ins[pin] = 0
+    return ins, y, (code, *(ins + [0] * (3 - len(ins))), y)
+
+
+def _flop(t: str, conn: dict) -> tuple[list[int], int, tuple]:
+    """(input nets, output net, gatesim row (d, e, e_inv, r, r_inv, r_val, q)) of a
+    flip-flop."""
+    m = _FF.fullmatch(t)
+    if not m:
+        raise OSError(f"gate-level netlist: unsupported cell type {t}")
+    kind, rpol, rval, epol = m.groups()
+    d, y = _net(conn["D"][0]), _net(conn["Q"][0])
+    e = _net(conn["E"][0]) if "E" in kind else 1
+    r = _net(conn["R"][0]) if rpol else 0
+    ins = [d] + ([e] if "E" in kind else []) + ([r] if rpol else [])
+    return ins, y, (d, e, int(epol == "N"), r, int(rpol == "N"), int(rval == "1"), y)
+
+
 def _write(design: dict, out: Path, top: str = TOP) -> dict:
     """Turn ``design`` (Yosys JSON, one flat module of generic gates) into the arrays of
     ``gatesim`` (levelized gates, flip-flops, ports) and the per-net arrays; save nets.npz."""
@@ -229,32 +263,12 @@ def _write(design: dict, out: Path, top: str = TOP) -> dict:
     for c in cells.values():
         t, conn = c["type"], c["connections"]
         if t in GATES:
-            code, pins = GATES[t]
-            ins = [_net(conn[p][0]) for p in pins]
-            y = _net(conn["Y"][0])
-            if y in ins:
-                # a multiplexer feeding itself back (an always_comb assigning an element of a
-                # vector at a computed index keeps the others: proc's feedback) is cut: its
-                # looped input reads 0, and gatesim checks every cycle that the select never
-                # picks it (GateSim.loops_held), so the cut changes no value
-                if code not in (GATES["$_MUX_"][0], GATES["$_NMUX_"][0]) or ins[2] == y or \
-                        ins[0] == ins[1]:
-                    raise OSError(f"gate-level netlist: combinational loop through {t}")
-                pin = ins.index(y)
-                loops.append((y, ins[2], pin))
-                ins[pin] = 0
-            comb.append((code, *(ins + [0] * (3 - len(ins))), y))
+            ins, y, row = _comb(t, conn, loops)
+            comb.append(row)
             ff = False
         else:
-            m = _FF.fullmatch(t)
-            if not m:
-                raise OSError(f"gate-level netlist: unsupported cell type {t}")
-            kind, rpol, rval, epol = m.groups()
-            d, y = _net(conn["D"][0]), _net(conn["Q"][0])
-            e = _net(conn["E"][0]) if "E" in kind else 1
-            r = _net(conn["R"][0]) if rpol else 0
-            ffs.append((d, e, int(epol == "N"), r, int(rpol == "N"), int(rval == "1"), y))
-            ins = [d] + ([e] if "E" in kind else []) + ([r] if rpol else [])
+            ins, y, row = _flop(t, conn)
+            ffs.append(row)
             ff = True
         driver[y] = tindex[t]
         for b in ins:

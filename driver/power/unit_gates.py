@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import unit_area
 from ..backends.rtunit import UNIT_TOP
 from . import gatesim, netlist
 
@@ -27,7 +28,6 @@ RESET_CYCLES = 2           # the harness's (rtu_new): rst_ni low for two clock e
 def unit_netlist(params: dict[str, int], progress=None) -> netlist.Netlist:
     """The generic-gate netlist of the unit built with ``params`` (``rtunit.unit_params``),
     synthesized on a cache miss (minutes: the datapath's gates are most of it)."""
-    from .. import unit_area
     return netlist.synthesize(params, unit_area.sources(), progress, top=UNIT_TOP)
 
 
