@@ -14,6 +14,12 @@ cell that drives it and a stage label: flip-flops and the skid-buffer logic are 
 every other gate gets the stage whose pipeline register it feeds (a backward search from the
 registers' D inputs): "S1".."S9", "out" (response format), or "control" (handshake logic).
 
+``synthesize(..., top=...)`` makes another design's netlist the same way: the RT unit's
+(``unit_gates.py``: its arrays mapped to flip-flops, its sources the unit's). The stage labels
+come from the datapath's own register names, which the unit's netlist does not have (they are
+prefixed by its instances): there every gate is labelled "registers" (flip-flops, skid-buffer
+logic) or "control", and no label says which of the unit's modules a gate belongs to.
+
 Results are cached in ``$RAYFLEX_CACHE/power`` (default ``~/.cache/rayflex/power``), keyed by
 the RTL snapshot, this recipe and the Yosys version.
 """
