@@ -27,6 +27,14 @@
 // (Verilator --trace, driver/backends/rtunit.py's traced build, made only for rayflex power),
 // rtu_toggles_start has every clock cycle's values streamed into the VCD toggle counter of
 // sim/rf_toggles.h (no file is written) until rtu_toggles_write saves the counts.
+//
+// Recorded stimulus (the gate levels of the power flow, driver/power/unit_gates.py): after
+// rtu_record_start, every clock cycle's values of the unit's ports (RF_UNIT_INPUTS, then
+// RF_UNIT_OUTPUTS: the clock excluded, generated from the RTL's port list) are appended to a
+// buffer just before the clock edge, settled with that cycle's inputs, each port as the model
+// stores it (sizeof bytes, little-endian, bit 0 first); no cycle is skipped while recording.
+// The unit's gate netlist driven by the recorded inputs from reset must show the recorded
+// outputs, cycle by cycle.
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -93,6 +101,12 @@ struct Context : VerilatedContext {
 #endif
 };
 
+template <typename T>
+void put_bytes(std::vector<uint8_t>* out, const T& value) {
+  const uint8_t* p = reinterpret_cast<const uint8_t*>(&value);
+  out->insert(out->end(), p, p + sizeof(T));
+}
+
 struct Run {
   Context ctx;
   Vrf_rtunit top{&ctx};
@@ -115,6 +129,8 @@ struct Run {
   std::priority_queue<Pending, std::vector<Pending>, std::greater<Pending>> queue;
   int64_t next_ray = 0, done = 0, cycle = 0, seq = 0, outstanding = 0;
   rf_rtunit_stats::RtuStats st{};
+  bool recording = false;
+  std::vector<uint8_t> record;         // per cycle: every port's bytes (rtu_record_start)
 #ifdef RF_TOGGLES
   rf_toggles::Counter counter;
   rf_toggles::CountingFile* file = nullptr;
@@ -128,7 +144,18 @@ struct Run {
 #endif
 };
 
+// Append this cycle's port values (settled with its inputs) to the recording.
+void record_cycle(Run* r) {
+  Vrf_rtunit& u = r->top;
+  u.eval();
+#define RF_PUT(name) put_bytes(&r->record, u.name);
+  RF_UNIT_INPUTS(RF_PUT)
+  RF_UNIT_OUTPUTS(RF_PUT)
+#undef RF_PUT
+}
+
 void tick(Run* r) {
+  if (r->recording) record_cycle(r);
   r->top.clk_i = 1;
   r->top.eval();
   r->top.clk_i = 0;
@@ -209,7 +236,7 @@ int64_t rtu_advance(void* h, int64_t cycles, int64_t* bad_ray) {
     // earliest response is due: clocking the unit until then changes nothing it will show, so
     // those cycles are counted without being simulated (the statistics as if they had been).
     // The build that counts switching activity clocks every cycle (idle registers toggle too).
-    if (!kCountsToggles && u.wait_o && !u.div_busy_o && !u.setup_busy_o && !r->queue.empty() &&
+    if (!kCountsToggles && !r->recording && u.wait_o && !u.div_busy_o && !u.setup_busy_o && !r->queue.empty() &&
         r->queue.top().ready > r->cycle + 1 && !(r->next_ray < r->n && u.ray_ready_o)) {
       const int64_t skip = std::min(r->queue.top().ready - r->cycle - 1, cycles - k - 1);
       if (skip > 0) {
@@ -325,6 +352,40 @@ void rtu_idle(void* h, int64_t cycles) {
   u.mem_rsp_valid_i = 0;
   u.res_ready_i = 1;
   for (int64_t k = 0; k < cycles; k++) tick(r);
+}
+
+// Record every following clock cycle's port values (see the top of this file); clears what was
+// recorded so far.
+void rtu_record_start(void* h) {
+  Run* r = static_cast<Run*>(h);
+  r->recording = true;
+  r->record.clear();
+}
+
+// The recording so far: returns its size in bytes; with `out` (at least that size) copies it
+// there and clears it.
+int64_t rtu_record_take(void* h, uint8_t* out, int64_t cap) {
+  Run* r = static_cast<Run*>(h);
+  const int64_t size = static_cast<int64_t>(r->record.size());
+  if (out && cap >= size) {
+    std::memcpy(out, r->record.data(), r->record.size());
+    r->record.clear();
+  }
+  return size;
+}
+
+// The recording's layout: "name bytes" per port and line, inputs then outputs, written to `buf`
+// (`cap` bytes, NUL-terminated when it fits). Returns the text's length.
+int64_t rtu_record_layout(char* buf, int64_t cap) {
+  std::string text;
+  Vrf_rtunit* none = nullptr;
+#define RF_NAME(name) text += std::string(#name) + " " + std::to_string(sizeof(none->name)) + "\n";
+  RF_UNIT_INPUTS(RF_NAME)
+  RF_UNIT_OUTPUTS(RF_NAME)
+#undef RF_NAME
+  if (buf && cap > static_cast<int64_t>(text.size()))
+    std::memcpy(buf, text.c_str(), text.size() + 1);
+  return static_cast<int64_t>(text.size());
 }
 
 // Whether this build counts switching activity (RF_TOGGLES).

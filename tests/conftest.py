@@ -74,6 +74,7 @@ RTL_BUILDS = {
     "test_rtunit_modules": ("tb:rtu_units",),
     "test_rtunit_pipelines": (_B, _UNIT, _UNIT + ":2"),
     "test_unit_energy": (_B, f"rtunit:{_B}:4:8", f"activity:{_B}:4:8", f"signals-all:{_B}"),
+    "test_unit_gates": (f"rtunit:{_B}:4:8",),
     "test_readme_questions": (_B, _B + "-xf", _UNIT, "signals:" + _B,
                               "signals:baseline-disjoint"),
     **{m: (_B,) for m in ("test_rtunit", "test_gpu_pin", "test_memory",

@@ -128,7 +128,8 @@ def run_unit(args) -> int:
                          "unit's datapath), not a list")
     if args.level != unit.LEVEL:
         raise ValueError(f"--level {args.level}: --backend {UNIT_BACKEND} is measured at level "
-                         f"{unit.LEVEL} (the unit's gate netlist is not simulated)")
+                         f"{unit.LEVEL} (the unit's energy in pJ is not measured: "
+                         "docs/rtunit_rtl.md#energy)")
     for flag_, value in (("--op", args.op), ("--plot", args.plot), ("--liberty", args.liberty)):
         if value is not None:
             raise ValueError(f"{flag_}: not used with --backend {UNIT_BACKEND} (the datapath's "

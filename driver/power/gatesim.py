@@ -34,6 +34,10 @@ class GateSim:
         self.e_inv = g["ff_e_inv"].astype(bool)
         self.r, self.r_inv, self.r_val = g["ff_r"], g["ff_r_inv"].astype(bool), g["ff_r_val"]
         self.ports = net.ports
+        # the multiplexers netlist.py cut out of a loop: (output, select, looped pin: 0 A, 1 B)
+        loops = g.get("loops", np.zeros((0, 3), np.int32))
+        self.loop_s = loops[:, 1]
+        self.loop_b = loops[:, 2].astype(bool)
         self.v = np.zeros(self.n, np.uint64)
         self.v[1] = ONES                                       # net 1: constant 1
 
@@ -84,6 +88,13 @@ class GateSim:
                 else:
                     r = A | ~B
             v[y[i:j]] = r
+
+    def loops_held(self, lanes: np.uint64 = ONES) -> bool:
+        """Whether no cut multiplexer selects its looped input in ``lanes`` (a bit mask) after
+        ``settle``: then the cut changed no value."""
+        sel = self.v[self.loop_s]
+        picked = np.where(self.loop_b, sel, ~sel) & lanes
+        return not picked.any()
 
     def clock(self) -> None:
         """Rising edge: every flip-flop loads D where enabled, its reset value where reset."""

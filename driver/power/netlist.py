@@ -14,6 +14,12 @@ cell that drives it and a stage label: flip-flops and the skid-buffer logic are 
 every other gate gets the stage whose pipeline register it feeds (a backward search from the
 registers' D inputs): "S1".."S9", "out" (response format), or "control" (handshake logic).
 
+``synthesize(..., top=...)`` makes another design's netlist the same way: the RT unit's
+(``unit_gates.py``: its arrays mapped to flip-flops, its sources the unit's). The stage labels
+come from the datapath's own register names, which the unit's netlist does not have (they are
+prefixed by its instances): there every gate is labelled "registers" (flip-flops, skid-buffer
+logic) or "control", and no label says which of the unit's modules a gate belongs to.
+
 Results are cached in ``$RAYFLEX_CACHE/power`` (default ``~/.cache/rayflex/power``), keyed by
 the RTL snapshot, this recipe and the Yosys version.
 """
@@ -37,6 +43,7 @@ from .. import area
 from ..backends.cache import cache_root as tool_cache
 
 RECIPE = 2                # bump when the synthesis script or the writer below changes meaning
+TOP = "rayflex"           # the datapath's top; the RT unit's netlist has its own (unit_gates.py)
 
 # Yosys internal gate -> (gatesim code, input pins in the order A, B, S)
 GATES = {
@@ -62,11 +69,15 @@ def cache_root() -> Path:
     return tool_cache() / "power"
 
 
-def synth_script(params: dict[str, int], files: list[str]) -> str:
-    """Elaborate, flatten, fold constants, map to generic gates; no ABC and no ``share``."""
+def synth_script(params: dict[str, int], files: list[str], top: str = TOP) -> str:
+    """Elaborate, flatten, fold constants, map to generic gates; no ABC and no ``share``. Another
+    top than the datapath's (the RT unit's) also maps its arrays to flip-flops and multiplexers
+    (``memory``) and names each gate's enclosing instance (``flatten -scopename``)."""
     g = " ".join(f"-G {k}={v}" for k, v in params.items())
-    return (f"read_slang -j 1 --top rayflex {g} {' '.join(files)}\n"
-            "hierarchy -top rayflex\nproc\nflatten\nopt_expr\nopt_clean\n"
+    flat = "flatten\nopt_expr\nopt_clean\n" if top == TOP else \
+        "flatten -noscopeinfo -scopename\nopt_expr\nopt_clean\nmemory\nopt_clean\n"
+    return (f"read_slang -j 1 --top {top} {g} {' '.join(files)}\n"
+            f"hierarchy -top {top}\nproc\n{flat}"
             "techmap\nopt -fast\n"
             "tee -q -o stat.json stat -json\nwrite_json netlist.json\n")
 
@@ -89,10 +100,10 @@ class Netlist:
     cached: bool
 
 
-def _entry(params: dict[str, int], sources) -> tuple[str, str, Path]:
+def _entry(params: dict[str, int], sources, top: str = TOP) -> tuple[str, str, Path]:
     """(synthesis script, cache key, cache directory) of a configuration's netlist."""
     area = _area()
-    script = synth_script(params, [n for n, _ in sources])
+    script = synth_script(params, [n for n, _ in sources], top)
     h = hashlib.sha256(f"{RECIPE}\n{area.yosys_version()}\n{script}".encode())
     for n, b in sources:
         h.update(n.encode() + b"\0" + b)
@@ -108,11 +119,12 @@ def is_cached(params: dict[str, int]) -> bool:
         return False
 
 
-def synthesize(params: dict[str, int], sources=None, progress=None) -> Netlist:
-    """The generic-gate netlist of one configuration, synthesized on a cache miss."""
+def synthesize(params: dict[str, int], sources=None, progress=None, top: str = TOP) -> Netlist:
+    """The generic-gate netlist of one configuration, synthesized on a cache miss (``top``
+    and ``sources``: another design than the datapath, e.g. the RT unit)."""
     area = _area()
     sources = sources if sources is not None else area.snapshot()
-    script, key, entry = _entry(params, sources)
+    script, key, entry = _entry(params, sources, top)
     if (entry / "done.json").is_file():
         info = json.loads((entry / "done.json").read_text())
         return _load(entry, key, info, cached=True)
@@ -131,7 +143,7 @@ def synthesize(params: dict[str, int], sources=None, progress=None) -> Netlist:
             raise OSError(str(e)) from None
         design = json.loads((work / "netlist.json").read_text())
         (work / "out").mkdir()
-        info = _write(design, work / "out")
+        info = _write(design, work / "out", top)
         info["synth_s"] = round(time.perf_counter() - t0, 1)
         info["script"] = script.splitlines()[1:]
         (work / "out" / "done.json").write_text(json.dumps(info, indent=1))
@@ -184,8 +196,9 @@ def _record(root: Path, name: str, seconds: float) -> None:
 
 def _load(entry: Path, key: str, info: dict, cached: bool) -> Netlist:
     arr = np.load(entry / "nets.npz")
-    gates = {k: arr[k] for k in arr.files if k in ("a", "b", "s", "y", "groups")
+    gates = {k: arr[k] for k in arr.files if k in ("a", "b", "s", "y", "groups", "loops")
              or k.startswith("ff_")}
+    gates.setdefault("loops", np.zeros((0, 3), np.int32))     # a netlist written before them
     ports = {k[5:]: arr[k] for k in arr.files if k.startswith("port_")}
     return Netlist(arr["fanout"], arr["driver"], arr["stage"], arr["sinks"], arr["in0"], gates,
                    ports, info["cell_types"], info["cells"], info["levels"], key,
@@ -198,10 +211,44 @@ def _net(b) -> int:
     return b if isinstance(b, int) else int(b == "1")
 
 
-def _write(design: dict, out: Path) -> dict:
+def _comb(t: str, conn: dict, loops: list) -> tuple[list[int], int, tuple]:
+    """(input nets, output net, gatesim row (code, a, b, s, y)) of a combinational gate.
+
+    A multiplexer feeding itself back (an ``always_comb`` assigning an element of a vector at a
+    computed index keeps the others: Yosys' feedback) is cut: its looped input reads 0, its
+    (output, select, pin) goes to ``loops``, and gatesim checks every cycle that the select never
+    picks it (``GateSim.loops_held``), so the cut changes no value."""
+    code, pins = GATES[t]
+    ins = [_net(conn[p][0]) for p in pins]
+    y = _net(conn["Y"][0])
+    if y in ins:
+        if code not in (GATES["$_MUX_"][0], GATES["$_NMUX_"][0]) or ins[2] == y or \
+                ins[0] == ins[1]:
+            raise OSError(f"gate-level netlist: combinational loop through {t}")
+        pin = ins.index(y)
+        loops.append((y, ins[2], pin))
+        ins[pin] = 0
+    return ins, y, (code, *(ins + [0] * (3 - len(ins))), y)
+
+
+def _flop(t: str, conn: dict) -> tuple[list[int], int, tuple]:
+    """(input nets, output net, gatesim row (d, e, e_inv, r, r_inv, r_val, q)) of a
+    flip-flop."""
+    m = _FF.fullmatch(t)
+    if not m:
+        raise OSError(f"gate-level netlist: unsupported cell type {t}")
+    kind, rpol, rval, epol = m.groups()
+    d, y = _net(conn["D"][0]), _net(conn["Q"][0])
+    e = _net(conn["E"][0]) if "E" in kind else 1
+    r = _net(conn["R"][0]) if rpol else 0
+    ins = [d] + ([e] if "E" in kind else []) + ([r] if rpol else [])
+    return ins, y, (d, e, int(epol == "N"), r, int(rpol == "N"), int(rval == "1"), y)
+
+
+def _write(design: dict, out: Path, top: str = TOP) -> dict:
     """Turn ``design`` (Yosys JSON, one flat module of generic gates) into the arrays of
     ``gatesim`` (levelized gates, flip-flops, ports) and the per-net arrays; save nets.npz."""
-    mod = design["modules"]["rayflex"]
+    mod = design["modules"][top]
     cells = mod["cells"]
     n = 2
     for v in mod["netnames"].values():
@@ -216,26 +263,18 @@ def _write(design: dict, out: Path) -> dict:
     sinks = np.zeros((n, len(types)), np.int32)
     in0 = np.full(n, -1, np.int32)
     comb = []                                  # (code, a, b, s, y)
+    loops = []                                 # (y, s, pin) of the multiplexers cut below
     ffs = []                                   # (d, e, e_inv, r, r_inv, r_val, q)
     cell_out, cell_in, cell_src, cell_ff = [], [], [], []
     for c in cells.values():
         t, conn = c["type"], c["connections"]
         if t in GATES:
-            code, pins = GATES[t]
-            ins = [_net(conn[p][0]) for p in pins]
-            y = _net(conn["Y"][0])
-            comb.append((code, *(ins + [0] * (3 - len(ins))), y))
+            ins, y, row = _comb(t, conn, loops)
+            comb.append(row)
             ff = False
         else:
-            m = _FF.fullmatch(t)
-            if not m:
-                raise OSError(f"gate-level netlist: unsupported cell type {t}")
-            kind, rpol, rval, epol = m.groups()
-            d, y = _net(conn["D"][0]), _net(conn["Q"][0])
-            e = _net(conn["E"][0]) if "E" in kind else 1
-            r = _net(conn["R"][0]) if rpol else 0
-            ffs.append((d, e, int(epol == "N"), r, int(rpol == "N"), int(rval == "1"), y))
-            ins = [d] + ([e] if "E" in kind else []) + ([r] if rpol else [])
+            ins, y, row = _flop(t, conn)
+            ffs.append(row)
             ff = True
         driver[y] = tindex[t]
         for b in ins:
@@ -260,12 +299,13 @@ def _write(design: dict, out: Path) -> dict:
     np.savez_compressed(out / "nets.npz", fanout=fanout, driver=driver, stage=stage,
                         sinks=sinks, in0=in0, **gates, ff_d=f[:, 0], ff_e=f[:, 1],
                         ff_e_inv=f[:, 2], ff_r=f[:, 3], ff_r_inv=f[:, 4], ff_r_val=f[:, 5],
-                        ff_q=f[:, 6], **{f"port_{k}": v for k, v in ports.items()})
+                        ff_q=f[:, 6], **{f"port_{k}": v for k, v in ports.items()},
+                        loops=np.array(loops, np.int32).reshape(-1, 3))
     counts: dict[str, int] = {}
     for c in cells.values():
         counts[c["type"]] = counts.get(c["type"], 0) + 1
     return {"cell_types": types, "cells": dict(sorted(counts.items())), "nets": int(n),
-            "levels": gates["levels"], "ports": list(ports)}
+            "levels": gates["levels"], "ports": list(ports), "loops_cut": len(loops)}
 
 
 def _levelize(comb: np.ndarray, n: int) -> dict:
