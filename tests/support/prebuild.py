@@ -27,7 +27,7 @@ KINDS = ("harness", "pgo", "pyverilator", "signals", "signals-all", "rtunit", "a
 UNIT_KINDS = ("rtunit", "activity")      # CONFIG:RAYS:DEPTH
 # sim/rtu_units_tb_top.sv's parameters in tests/test_rtunit_modules.py (its testbench, sim/
 # rtu_units_tb.cpp, assumes RAYS 4)
-RTU_UNITS_PARAMS = {"RAYS": 4, "STACK_DEPTH": 3, "DIVIDERS": 3}
+RTU_UNITS_PARAMS = {"RAYS": 4, "STACK_DEPTH": 3, "DIVIDERS": 3, "PIPE_RAYS": 16}
 
 
 def rtu_units_library():
