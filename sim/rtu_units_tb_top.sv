@@ -4,11 +4,11 @@
 // (rf_rtu_fetch, with the q8 decode stage; a second one without it, of which only in_bad_o is
 // read), scheduler (rf_rtu_sched), response processing (rf_rtu_resp), ray buffer
 // (rf_rtu_ray_buffer), hit update (rf_rtu_hit) and the datapath pipelines (rf_rtu_pipes: two
-// pipelines, and one on the same ports when p_one_i is set; PIPE_RAYS slots; the datapath with
-// TRANSFORM, so that both shared ports, divider and ray setup, carry traffic). Each module's ports
-// are the wrapper's under a prefix (k_, d_, f_, s_, r_, b_, h_, p_); the struct ports (req_t,
-// rsp_t, kind_e) are flat bit vectors here, word 0 at the low end. The testbench assumes
-// RAYS = 4.
+// pipelines, and one on the same ports when p_one_i is set; PIPE_RAYS slots; its datapaths are
+// the stand-in of sim/rtu_pipes_datapath.sv, which this build compiles in place of
+// rtl/rayflex.sv). Each module's ports are the wrapper's under a prefix (k_, d_, f_, s_, r_, b_,
+// h_, p_); the struct ports (req_t, rsp_t, kind_e) are flat bit vectors here, word 0 at the low
+// end. The testbench assumes RAYS = 4.
 module rtu_units_tb_top import rf_pkg::*; import rf_rtu_pkg::*; #(
   parameter int unsigned RAYS        = 4,
   parameter int unsigned STACK_DEPTH = 3,
@@ -287,7 +287,7 @@ module rtu_units_tb_top import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign p_req  = req_t [1:0]'(p_req_i);
   assign p_kind = kind_e [1:0]'(p_kind_i);
 
-  rf_rtu_pipes #(.RAYS(PIPE_RAYS), .PIPELINES(2), .TRANSFORM(1'b1)) u_pipes2 (
+  rf_rtu_pipes #(.RAYS(PIPE_RAYS), .PIPELINES(2)) u_pipes2 (
     .clk_i, .rst_ni,
     .in_valid_i(p_one_i ? 2'b00 : p_in_valid_i), .in_ready_o(po2.in_ready), .req_i(p_req),
     .rd_o(po2.rd), .node_i(p_node_i), .kind_i(p_kind),
@@ -300,7 +300,7 @@ module rtu_units_tb_top import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign po2.div_want = u_pipes2.s_div_valid;
   assign po2.xf_want  = u_pipes2.s_xf_valid;
 
-  rf_rtu_pipes #(.RAYS(PIPE_RAYS), .PIPELINES(1), .TRANSFORM(1'b1)) u_pipes1 (
+  rf_rtu_pipes #(.RAYS(PIPE_RAYS), .PIPELINES(1)) u_pipes1 (
     .clk_i, .rst_ni,
     .in_valid_i(p_in_valid_i[0] & p_one_i), .in_ready_o(po1.in_ready[0]), .req_i(p_req[0]),
     .rd_o(po1.rd[0]), .node_i(p_node_i[NODE_W-1:0]), .kind_i(p_kind[0]),

@@ -17,9 +17,8 @@ import numpy as np
 import pytest
 
 from driver.backends.build import RTL_DIR
-from driver.backends.golden import GoldenBackend
 from driver.core import layout, wire
-from driver.core.datapath import default_latency, prepare_rays
+from driver.core.datapath import default_latency
 from support.prebuild import RTU_UNITS_PARAMS, rtu_units_library
 
 U8, U32, I64, U64 = (np.ctypeslib.ndpointer(t, flags="C")
@@ -548,55 +547,37 @@ def test_hit_update_against_its_reference():
 
 
 # ---- the datapath pipelines (rf_rtu_pipes) ----------------------------------------------------
-# The real pipelines (the datapath with TRANSFORM, each followed by its response stage) under
-# random gaps on every pipeline's input and random ready on the shared divider and ray-setup
-# ports. The reference is the golden model (the one-pipeline datapath's contract: bit-exact)
-# followed by the response stage's header (response_effects); the arbiters' reference is the
-# round robin of rf_rtu_pipes' header, cycle by cycle, on the monitored requests of the stages.
+# rf_rtu_pipes with its response stages, two pipelines and one, under random gaps on every
+# pipeline's input and random ready on the shared divider and ray-setup ports. Its datapaths are
+# the testbench's stand-in (sim/rtu_pipes_datapath.sv: the datapath's handshake and latency, a
+# response that is a fixed function of the request), so the reference is that function followed
+# by the response stage's header (response_effects); the arbiters' reference is the round robin
+# of rf_rtu_pipes' header, cycle by cycle, on the monitored requests of the stages.
 
 PIPE_RAYS = RTU_UNITS_PARAMS["PIPE_RAYS"]
 PIPE_SLOT_W = (PIPE_RAYS - 1).bit_length()
 
 
+def standin_responses(req_words) -> np.ndarray:
+    """The stand-in datapath's response to each request (sim/rtu_pipes_datapath.sv's header):
+    RESPONSE rows from (n, 81) request words."""
+    q = np.asarray(req_words, np.uint32)
+    w = np.zeros((len(q), wire.RESPONSE.words), np.uint32)
+    w[:, 0] = q[:, 0]
+    i = np.arange(1, wire.RESPONSE.words)
+    w[:, 1:] = q[:, i] ^ q[:, 15 + i] ^ q[:, 39 + i] ^ q[:, 55 + i]
+    w[:, 1] = (w[:, 1] & ~np.uint32(7)) | (q[:, 1] & np.uint32(7))
+    return wire.RESPONSE.unpack(w)
+
+
 def _pipe_jobs(rng, n, kinds):
-    """n jobs (node words, kind, request) with rays aimed at the unit cube, so that boxes and
-    triangles hit often: box32 nodes, triangle nodes, pair leaves (either triangle) and instance
-    nodes (a TRANSFORM by a matrix near the identity)."""
+    """n jobs (node words, kind, request as the scheduler makes it): box32 nodes, triangle
+    nodes, pair leaves (either triangle) and instance nodes (TRANSFORM), random words."""
     kind = rng.choice([kinds[k] for k in ("KIND_BOX32", "KIND_TRI", "KIND_PAIR0", "KIND_PAIR1",
-                                          "KIND_XF")], n, p=[0.25, 0.2, 0.1, 0.1, 0.35])
+                                          "KIND_XF")], n, p=[0.2, 0.2, 0.1, 0.1, 0.4])
     kind = kind.astype(np.uint8)
-    node = _rand_u32(rng, (n, NODE_WORDS))      # unused words: anything
-    origin, aim = rng.uniform(-3, 3, (n, 3)), rng.uniform(-1, 1, (n, 3))
-    box = node.view(layout.BOX_NODE)[:, 0]
-    centre, half = aim[:, None] + rng.normal(0, 0.8, (n, 4, 3)), rng.uniform(0.05, 1, (n, 4, 3))
-    b32 = kind == kinds["KIND_BOX32"]
-    box["box"][b32] = np.concatenate([centre - half, centre + half], axis=2)[b32]
-    tri = node[:, :16].view(layout.TRI_NODE)[:, 0]
-    # vertices around the aim in a random plane (the first three enclose it) and one anywhere
-    u = np.linalg.qr(rng.normal(size=(n, 3, 3)))[0]
-    ang = rng.uniform(0, 2 * np.pi, (n, 1)) + np.array([0, 2, 4, 1]) * np.pi / 3
-    rad = rng.uniform(0.3, 2, (n, 4, 1))
-    verts = aim[:, None] + rad * (np.cos(ang)[..., None] * u[:, None, :, 0]
-                                  + np.sin(ang)[..., None] * u[:, None, :, 1])
-    verts[:, 3] += rng.normal(0, 1, (n, 3))
-    verts = verts.astype(np.float32)
-    t = kind == kinds["KIND_TRI"]
-    tri["tri"][t] = verts[t, :3]
-    pair = node[:, :16].view(layout.PAIR_NODE)[:, 0]
-    p = np.isin(kind, [kinds["KIND_PAIR0"], kinds["KIND_PAIR1"]])
-    pair["v"][p] = verts[p]
-    pair["idx"][p] = rng.integers(0, 64, p.sum())
-    inst = node.view(layout.INSTANCE_NODE)[:, 0]
-    m = np.concatenate([np.eye(3) + rng.normal(0, 0.3, (n, 3, 3)), rng.normal(0, 1, (n, 3, 1))],
-                       axis=2)
-    xf = kind == kinds["KIND_XF"]
-    inst["world_to_object"][xf] = m[xf]
-    node = np.ascontiguousarray(node)
-    rays = prepare_rays(origin, aim - origin,
-                        flags=rng.integers(0, 2, n) * wire.FLAG_NO_CULL)
-    nearest = np.select([rng.random(n) < 0.3, rng.random(n) < 0.5],
-                        [np.inf, rng.uniform(0.2, 3, n)], 100).astype(np.float32)
-    req = scheduled_requests(rays, nearest.view(np.uint32), node, kind, kinds)
+    node = _rand_u32(rng, (n, NODE_WORDS))
+    req = scheduled_requests(_ray_rows(rng, n), _rand_u32(rng, n), node, kind, kinds)
     return node, kind, req
 
 
@@ -628,15 +609,14 @@ def _pipes_run(pipes, job_pipe, node, kind, req, gap, div_ready, xf_ready) -> di
 
 
 def _pipes_reference(r, job_pipe, node, kind, req, kinds):
-    """Each job's response: the golden model's (the datapath alone: the one-pipeline unit's
-    contract), then the response stage's header (response_effects); checks every job's event
-    and pushes (one a cycle, ending with the event) and returns (the divisions, the ray setups)
-    the stages must have handed on, by the cycle their event names them, and the cycle each
-    response was taken."""
+    """Each job's response: the stand-in datapath's, then the response stage's header
+    (response_effects); checks every job's event and pushes (one a cycle, ending with the
+    event) and returns (the divisions, the ray setups) the stages must have handed on, by the
+    cycle their event names them, and the cycle each response was taken."""
     n = len(job_pipe)
     rows = req.copy()
     rows["tag"] = r["in_slot"]
-    rsp = GoldenBackend(transform=True).run(rows)
+    rsp = standin_responses(wire.REQUEST.pack(rows))
     evt = {int(j): (int(c), int(w)) for j, c, w in zip(r["evt_job"], r["evt_cycle"],
                                                          r["evt_what"])}
     divs, xfs, take, pushes = {}, {}, np.zeros(n, np.int64), 0
@@ -686,7 +666,8 @@ def _check_round_robin(r, pipes, port, ready_in, taken):
 
 
 @pytest.mark.parametrize("pipes,seed,valid,ready", [
-    (2, 21, 0.9, 0.9), (2, 22, 0.5, 0.3), (2, 23, 1.0, 0.15), (1, 24, 0.3, 0.7)])
+    (2, 21, 0.9, (0.9, 0.9)), (2, 22, 0.5, (0.3, 0.3)), (2, 23, 1.0, (0.15, 0.9)),
+    (2, 25, 1.0, (0.9, 0.15)), (1, 24, 0.3, (0.7, 0.7))])
 def test_pipelines_under_back_pressure(pipes, seed, valid, ready):
     kinds = _kinds(xf=True)
     rng = np.random.default_rng(seed)
@@ -694,7 +675,7 @@ def test_pipelines_under_back_pressure(pipes, seed, valid, ready):
     node, kind, req = _pipe_jobs(rng, n, kinds)
     job_pipe = rng.integers(0, pipes, n).astype(np.uint8)
     gap = rng.random((2, cycles)) < valid
-    div_ready, xf_ready = ((rng.random(cycles) < ready).astype(np.uint8) for _ in range(2))
+    div_ready, xf_ready = ((rng.random(cycles) < p).astype(np.uint8) for p in ready)
     r = _pipes_run(pipes, job_pipe, node, kind, req, gap, div_ready, xf_ready)
     # every job taken once, in its driver's order, and one event each, on its pipeline's ports,
     # in request order per pipeline; the ready and valid outputs are register outputs; no event
@@ -718,7 +699,8 @@ def test_pipelines_under_back_pressure(pipes, seed, valid, ready):
     assert got_divs == want_divs and got_xfs == want_xfs
     assert len(want_divs) > 40 and len(want_xfs) > 40
     assert (np.bincount(r["push_job"], minlength=n) > 1).sum() > 30   # several pushes a response
-    # the arbiters: round robin, bounded wait, and both stages asking at once often enough
+    # the arbiters: round robin, bounded wait; a port that is often not ready has both stages
+    # asking at once often enough
     for port, (ready_in, taken) in enumerate(((div_ready, got_divs), (xf_ready, got_xfs))):
         contended = _check_round_robin(r, pipes, port, ready_in, taken)
-        assert pipes == 1 or contended >= 5, port
+        assert pipes == 1 or ready[port] > 0.3 or contended >= 10, port
