@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from driver.core.configs import CONFIGS as CONFIG_NAMES, parse_config
+from support.prebuild import SUITE_DEPTH, SUITE_RAYS
 
 # The suite builds the RTL harness without profile-guided optimisation: a PGO build compiles the
 # model twice and runs a training workload, which for five configurations would double the suite's
@@ -48,30 +49,31 @@ MODULE_MARKERS = {
 # made by the first test that needs it; one listed but not needed costs its time.
 PREBUILD = Path(__file__).parent / "support" / "prebuild.py"
 _B = "baseline-unified"
+_UNIT = f"rtunit:{_B}:{SUITE_RAYS}:{SUITE_DEPTH}"      # the RT unit the suite's unit tests share
 RTL_BUILDS = {
     "test_rtl": (_B, _B + "@10", _B + "@14", "pyverilator:" + _B),
     "test_rtl_extended": tuple(CONFIG_NAMES),
     "test_no_cull": tuple(CONFIG_NAMES),
-    "test_q8_datapath": (_B, *(n + "-q8" for n in CONFIG_NAMES), f"pyverilator:{_B}-q8"),
+    "test_q8_datapath": (_B, _B + "-q8", "extended-disjoint-q8", f"pyverilator:{_B}-q8"),
     "test_transform": (_B, _B + "-xf", "extended-disjoint-q8-xf", f"pyverilator:{_B}-xf"),
     "test_knn": ("extended-unified",),
     "test_instances": (_B, _B + "-q8", _B + "-xf"),
     "test_q8_image": (_B, _B + "-q8"),
     "test_sweep": (_B, "baseline-disjoint", "signals:" + _B, "signals:baseline-disjoint",
-                   f"rtunit:{_B}:8:32"),
-    "test_fused": (_B + "-fused", "extended-unified-fused", "extended-disjoint-fused"),
-    "test_shared": ("extended-unified-shared", "extended-disjoint-q8-shared"),
+                   _UNIT),
+    "test_fused": (_B + "-fused", "extended-disjoint-fused"),
+    "test_shared": ("extended-disjoint-q8-shared",),
     "test_pgo": ("pgo:" + _B,),
     "test_power": ("signals:" + _B, f"signals:{_B}-q8"),
     "test_power_ops": (f"signals:{_B}-q8",),
     "test_gpu": (_B, "signals:" + _B),
     "test_bench": (_B, "pyverilator:" + _B),
-    "test_rtunit_rtl": (_B, _B + "-q8", _B + "-q8-xf", f"rtunit:{_B}:8:32",
-                        f"rtunit:{_B}-q8-xf:8:4"),
+    "test_rtunit_rtl": (_B, _B + "-q8", _B + "-q8-xf", _UNIT,
+                        f"rtunit:{_B}-q8-xf:{SUITE_RAYS}:4"),
     "test_rtunit_modules": ("tb:rtu_units",),
-    "test_rtunit_pipelines": (_B, f"rtunit:{_B}:16:32", f"rtunit:{_B}:16:32:2"),
+    "test_rtunit_pipelines": (_B, _UNIT, _UNIT + ":2"),
     "test_unit_energy": (_B, f"rtunit:{_B}:4:8", f"activity:{_B}:4:8", f"signals-all:{_B}"),
-    "test_readme_questions": (_B, _B + "-xf", f"rtunit:{_B}:8:32", "signals:" + _B,
+    "test_readme_questions": (_B, _B + "-xf", _UNIT, "signals:" + _B,
                               "signals:baseline-disjoint"),
     **{m: (_B,) for m in ("test_rtunit", "test_gpu_pin", "test_memory",
                           "test_rayorder", "test_replay_timing", "test_traversal",
@@ -81,13 +83,29 @@ RTL_BUILDS = {
 }
 
 
+# Builds only a module's `slow` tests use (the configurations between the two that bound the
+# others, e.g. the q8 decode on baseline-disjoint): made before the first test when a slow test
+# of the module is collected (`pytest -m slow`), never for the default suite.
+SLOW_BUILDS = {
+    "test_q8_datapath": ("baseline-disjoint-q8", "extended-unified-q8"),
+    "test_fused": ("extended-unified-fused",),
+    "test_shared": ("extended-unified-shared",),
+}
+
+
+def builds_for(item) -> tuple[str, ...]:
+    """The Verilator builds the collected test ``item`` needs (``RTL_BUILDS``, ``SLOW_BUILDS``)."""
+    module = Path(str(item.fspath)).stem
+    slow = SLOW_BUILDS.get(module, ()) if item.get_closest_marker("slow") else ()
+    return (*RTL_BUILDS.get(module, ()), *slow)
+
+
 def pytest_collection_finish(session):
-    """Build the harness configurations the collected tests need (``RTL_BUILDS``), as many at
+    """Build the harness configurations the collected tests need (``builds_for``), as many at
     once as there are cores, each in its own process, with a line per build on the terminal."""
     if session.config.option.collectonly or not session.items:
         return
-    names = sorted({n for item in session.items
-                    for n in RTL_BUILDS.get(Path(str(item.fspath)).stem, ())},
+    names = sorted({n for item in session.items for n in builds_for(item)},
                    key=lambda n: (":" not in n, n))    # the longer, non-harness builds first
     if names:
         _prebuild(names, session.config.pluginmanager.get_plugin("terminalreporter"))

@@ -55,11 +55,11 @@ def test_marker_table_names_test_modules_and_declared_markers(pytestconfig):
     declared = {m.split(":")[0] for m in pytestconfig.getini("markers")}
     modules = {p.stem for p in (ROOT / "tests").glob("test_*.py")}
     assert set(conftest.MODULE_MARKERS) <= declared
-    for table in (conftest.MODULE_MARKERS, conftest.RTL_BUILDS):
+    for table in (conftest.MODULE_MARKERS, conftest.RTL_BUILDS, conftest.SLOW_BUILDS):
         named = {m for ms in table.values() for m in ms} if table is conftest.MODULE_MARKERS \
             else set(table)
         assert named <= modules, sorted(named - modules)
-    for builds in conftest.RTL_BUILDS.values():
+    for builds in (*conftest.RTL_BUILDS.values(), *conftest.SLOW_BUILDS.values()):
         for spec in builds:                  # every spec names a kind and a configuration
             kind, config, extra = prebuild.split(spec)
             if kind == "tb":                 # a testbench (split checked its name)

@@ -57,6 +57,7 @@ def _fake_tools(monkeypatch, work: Path):
         if what.startswith("verilating"):
             (work / "obj").mkdir(exist_ok=True)
     monkeypatch.setattr(verilate, "_run", fake_run)
+    monkeypatch.setattr(verilate, "_runtime_library", lambda obj, *a: obj / "libverilated.a")
     monkeypatch.setattr(verilate, "is_gcc", lambda cxx: True)
     monkeypatch.setattr(verilate, "find_make", lambda: "make")
     return ran
@@ -136,3 +137,37 @@ def test_every_bad_argument_fails_before_any_work(error_line, in_tmp, monkeypatc
     assert main([*args, *extra, "--no-progress"]) == 2
     assert words in error_line()
     assert sorted(p.name for p in in_tmp.iterdir()) == ["data.npy"]
+
+
+COUNTER = """module counter #(parameter int STEP = 1) (input logic clk_i, output logic [7:0] n_o);
+  always_ff @(posedge clk_i) n_o <= n_o + 8'(STEP);
+endmodule
+"""
+
+
+def test_plain_builds_share_one_runtime_library(monkeypatch, tmp_path):
+    """Two models with the same Verilator settings link one runtime library, compiled once;
+    each loads."""
+    import ctypes
+    monkeypatch.setenv("RAYFLEX_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("RAYFLEX_PGO", "0")
+    sv = tmp_path / "counter.sv"
+    sv.write_text(COUNTER)
+    libs = [verilate.build_library("counter", [sv], [], params={"STEP": s}) for s in (1, 2)]
+    assert libs[0] != libs[1]
+    for lib in libs:
+        ctypes.CDLL(str(lib))
+    runtimes = list((tmp_path / "cache" / "verilator").glob("libverilated-*/libverilated.a"))
+    assert len(runtimes) == 1
+
+
+def test_runtime_settings_name_tracing_and_the_runtime_files():
+    """What keys the shared runtime library: a traced model's makefile differs from a plain one's
+    in VM_TRACE and its runtime files, and both are read."""
+    plain = "VM_TRACE = 0\nVM_TRACE_VCD = 0\nVM_GLOBAL_FAST += \\\n  verilated \\\n\n"
+    traced = ("VM_TRACE = 1\nVM_TRACE_VCD = 1\nVM_GLOBAL_FAST += \\\n  verilated \\\n"
+              "  verilated_vcd_c \\\n\n")
+    found = [verilate.runtime_settings(t) for t in (plain, traced)]
+    assert found[0] == [["VM_TRACE", "=", "0"], ["VM_TRACE_VCD", "=", "0"],
+                        ["VM_GLOBAL_FAST", "+=", "verilated"]]
+    assert found[1][2] == ["VM_GLOBAL_FAST", "+=", "verilated", "verilated_vcd_c"]

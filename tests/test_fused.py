@@ -141,7 +141,10 @@ def test_rtl_fused_random(gaps, stalls):
     assert 0.1 < rsp["tri_hit"][req["opcode"] == TRIANGLE].mean() < 0.7
 
 
-@pytest.mark.parametrize("disjoint", [False, True], ids=["unified", "disjoint"])
+# extended-disjoint-fused bounds the extended builds in the default suite; extended-unified-fused,
+# a Verilator model of its own, runs with -m slow.
+@pytest.mark.parametrize("disjoint", [pytest.param(False, marks=pytest.mark.slow), True],
+                         ids=["unified", "disjoint"])
 def test_rtl_fused_extended_random(disjoint):
     req, _ = extended_stream(12, n_jobs=20, n_box=1500, n_tri=1000)
     Testbench("rtl", extended=True, disjoint=disjoint, fused=True, gaps=0.5, stalls=0.5,

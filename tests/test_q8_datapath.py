@@ -35,6 +35,11 @@ F32 = np.float32
 CONFIGS = [(False, False), (False, True), (True, False), (True, True)]
 CONFIG_IDS = ["baseline-unified-q8", "baseline-disjoint-q8", "extended-unified-q8",
               "extended-disjoint-q8"]
+# The default suite streams through the two builds that bound the others (baseline-unified-q8,
+# extended-disjoint-q8); the other two, a Verilator model each, run with -m slow.
+DEFAULT_CONFIGS = [(False, False), (True, True)]
+CONFIG_PARAMS = [pytest.param(*c, id=i, marks=() if c in DEFAULT_CONFIGS else pytest.mark.slow)
+                 for c, i in zip(CONFIGS, CONFIG_IDS)]
 FAST_PRESSURES = [(0.0, 0.0), (0.5, 0.5)]
 
 
@@ -203,7 +208,7 @@ def test_directed_decode(case):
     assert np.array_equal(bits(ref)[~nan], want[~nan]) and np.isnan(ref[nan]).all()
 
 
-@pytest.mark.parametrize("extended,disjoint", CONFIGS, ids=CONFIG_IDS)
+@pytest.mark.parametrize("extended,disjoint", CONFIG_PARAMS)
 def test_directed_nodes_answer_as_their_boxes(extended, disjoint):
     """Every directed node against rays from all sides: the DECODE_Q8 request's responses are
     those of a plain QUADBOX on the hand-computed boxes, on the RTL and the golden model."""
@@ -284,7 +289,7 @@ def test_random_stream_covers_the_node_space():
 
 
 @pytest.mark.parametrize("gaps,stalls", FAST_PRESSURES, ids=["steady", "gaps0.5-stalls0.5"])
-@pytest.mark.parametrize("extended,disjoint", CONFIGS, ids=CONFIG_IDS)
+@pytest.mark.parametrize("extended,disjoint", CONFIG_PARAMS)
 def test_random_q8_stream_rtl(extended, disjoint, gaps, stalls):
     tb = Testbench("rtl", extended=extended, disjoint=disjoint, compressed=True, gaps=gaps,
                    stalls=stalls, seed=21)
@@ -302,7 +307,8 @@ def test_random_q8_stream_rtl_all_pressures(extended, disjoint, gaps, stalls):
               stalls=stalls, seed=22).run(q8_stream(22, 30_000, 10_000, 10_000))
 
 
-@pytest.mark.parametrize("disjoint", [False, True], ids=["unified", "disjoint"])
+@pytest.mark.parametrize("disjoint", [pytest.param(False, marks=pytest.mark.slow), True],
+                         ids=["unified", "disjoint"])
 def test_q8_with_vector_jobs_extended(disjoint):
     """q8 requests interleaved with multi-beat EUCLIDEAN/ANGULAR jobs and QUADBOX/TRIANGLE
     requests, under gaps and stalls: the decode stage holds a beat without disturbing the

@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 
 from driver.cli import main
+from support.prebuild import SUITE_RAYS
 from test_lumibench_scenes import suite_root
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -136,7 +137,7 @@ def small(argv: list[str], lumibench_root: Path | None = None) -> list[str]:
     if argv[:2] == ["rayflex", "knn"]:
         argv += ["--queries", "4"]
     if "rtunit" in argv and "--rays-in-flight" not in argv:
-        argv += ["--rays-in-flight", "8"]             # the RT unit the suite builds anyway
+        argv += ["--rays-in-flight", str(SUITE_RAYS)]   # the RT unit the suite builds anyway
     if argv[0] == "rayflex":
         argv.append("--no-progress")
     return argv

@@ -22,8 +22,9 @@ from driver.cli import main
 from driver.tracer import as_bvh, trace
 from support.corpus import rays as corpus_rays
 from support.meshes import box_room, instance_rays, small_instances, soup
+from support.prebuild import SUITE_DEPTH, SUITE_RAYS
 
-RAYS, DEPTH = 16, 32        # the test builds (tests/conftest.py: rtunit:...:16:32 and :16:32:2)
+RAYS, DEPTH = SUITE_RAYS, SUITE_DEPTH    # the suite's unit (tests/support/prebuild.py), and :2
 FAST = 2                    # fixed memory latency: the datapath, not the memory, decides
 
 

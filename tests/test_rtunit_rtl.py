@@ -28,10 +28,10 @@ from driver.rtunit import MemoryModel, UnitCosts
 from driver.tracer import as_bvh, trace
 from support.corpus import rays as corpus_rays
 from support.meshes import box_room, instance_rays, reuse_glb, small_instances, soup
+from support.prebuild import SUITE_DEPTH, SUITE_RAYS
 
-RAYS = 8            # ray slots of the test builds (two: stack depth 32; 4 with the q8 decode
-                    # and TRANSFORM)
-DEEP, SHALLOW = 32, 4
+# the suite's unit (tests/support/prebuild.py), and one with stacks of 4, the q8 decode and TRANSFORM
+RAYS, DEEP, SHALLOW = SUITE_RAYS, SUITE_DEPTH, 4
 
 
 @pytest.fixture(scope="module")

@@ -28,9 +28,14 @@ def test_config_names():
         DesignPoint(config="baseline-unified-shared")
 
 
+# The default suite streams through the build with every option (extended-disjoint-q8-shared);
+# extended-unified-shared, a Verilator model of its own, runs with -m slow.
 @pytest.mark.parametrize("disjoint,compressed,gaps,stalls", [
-    (False, False, 0.5, 0.5), (False, False, 0.9, 0.1), (True, True, 0.3, 0.3)],
-    ids=["unified-gaps0.5-stalls0.5", "unified-gaps0.9-stalls0.1", "disjoint-q8-gaps0.3"])
+    (True, True, 0.5, 0.5), (True, True, 0.9, 0.1),
+    pytest.param(False, False, 0.5, 0.5, marks=pytest.mark.slow),
+    pytest.param(False, False, 0.9, 0.1, marks=pytest.mark.slow)],
+    ids=["disjoint-q8-gaps0.5-stalls0.5", "disjoint-q8-gaps0.9-stalls0.1",
+         "unified-gaps0.5-stalls0.5", "unified-gaps0.9-stalls0.1"])
 def test_rtl_shared_extended(disjoint, compressed, gaps, stalls):
     req, _ = extended_stream(21, n_jobs=20, n_box=1500, n_tri=1000)
     Testbench("rtl", extended=True, disjoint=disjoint, compressed=compressed, shared=True,

@@ -13,6 +13,7 @@ from driver import sweep as sweep_mod
 from driver.bench import bench_workload
 from driver.cli import main
 from driver.design import DesignPoint
+from support.prebuild import SUITE_DEPTH, SUITE_RAYS
 
 GRID = ["--scene", "sphere", "--workload", "ao", "--size", "10",
         "--config", "baseline-unified,baseline-disjoint", "--rays-in-flight", "4,32",
@@ -186,7 +187,8 @@ def test_points_through_the_rt_unit_in_rtl(tmp_path):
     with the unit's costs counts its cycles; a results file of points measured without the
     unit is measured again."""
     argv = ["sweep", "--scene", "sphere", "--workload", "ao", "--size", "8",
-            "--rays-in-flight", "8", "--stack-depth", "32", "--cache-kib", "0,16",
+            "--rays-in-flight", str(SUITE_RAYS), "--stack-depth", str(SUITE_DEPTH),
+            "--cache-kib", "0,16",
             "--csv", str(tmp_path / "u.csv"), "--json", str(tmp_path / "u.json"), "--no-progress"]
     assert main(argv[:-5] + ["--json", str(tmp_path / "u.json"), "--no-progress"]) == 0
     assert all("unit_rtl" not in e for e in json.loads((tmp_path / "u.json").read_text())
@@ -197,7 +199,7 @@ def test_points_through_the_rt_unit_in_rtl(tmp_path):
     uncached, cached = (e["unit_rtl"] for e in doc["points"])
     assert [e["design_point"]["cache_kib"] for e in doc["points"]] == [0, 16]
     for u in (uncached, cached):
-        assert (u["rays_in_flight"], u["stack_depth"]) == (8, 32)
+        assert (u["rays_in_flight"], u["stack_depth"]) == (SUITE_RAYS, SUITE_DEPTH)
         assert u["traversal_mismatches"] == 0 and u["cycles"] > 0
         assert u["replay_cycles_ratio"] == pytest.approx(1, abs=0.01)
     assert uncached["cycles"] > cached["cycles"]          # every node from DRAM without a cache

