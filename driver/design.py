@@ -478,9 +478,9 @@ class DesignPoint:
 
     def backend_options(self, name: str | None = None) -> dict:
         """Keyword options of ``driver.backends.backend`` for this datapath; for the RT unit in
-        RTL (``name`` "rtunit") also its ray slots, stack depth, pipelines and memory hierarchy,
-        after refusing (ValueError, one line) a ray count, stack depth, pipeline count or node
-        format it cannot take."""
+        RTL (``name`` "rtunit") also its ray slots, stack depth, pipelines, memory hierarchy and
+        culling stack (``cull_stack``), after refusing (ValueError, one line) a ray count, stack
+        depth, pipeline count or node format it cannot take."""
         out = {"extended": self.extended, "disjoint": self.disjoint, "latency": self.latency,
                "compressed": self.compressed, "transform": self.transform_op,
                **({"fused": True} if self.fused else {}),
@@ -491,7 +491,8 @@ class DesignPoint:
             check_format(self.bvh_format, self.compressed, self.transform_op, False)
             out.update(rays_in_flight=self.rays_in_flight, stack_depth=self.stack_depth,
                        pipelines=self.pipelines, memory=self.memory().config(),
-                       compare=self.unit_check == UNIT_CHECKS[0])
+                       compare=self.unit_check == UNIT_CHECKS[0],
+                       **({"cull": True} if self.cull_stack else {}))
         return out
 
     def rtl_params(self) -> dict:

@@ -86,7 +86,8 @@ def end_to_end(point, repeat: int, progress: bool = True, backend: str = "rtl") 
     how = (f"--backend {UNIT_BACKEND} --unit-check {point.unit_check}"
            if backend == UNIT_BACKEND else "--rtunit")
     return {"command": (f"rayflex render {point.scene} --workload {point.workload} --size "
-                        f"{point.size} --spp {point.spp} --check-embree {how}"),
+                        f"{point.size} --spp {point.spp} --check-embree {how}"
+                        + (" --cull-stack" if point.cull_stack else "")),
             "backend": backend, "first_run": first, "runs": runs, "summary": summary}
 
 

@@ -142,6 +142,8 @@ def unit_rtl_stats(res, be) -> dict:
         "stack_overflows": st["overflows"],
         "stack_refills": st["refill_reads"],
         "rays_overflowed": int(np.count_nonzero(res.overflows)),
+        "cull_stack": be.cull,
+        "stack_culls": int(np.sum(res.culled)),
         "mem_requests": st["mem_requests"],
         "mem_bytes": st["mem_bytes"],
         "mem_busy_cycles": st["mem_outstanding_cycles"],
@@ -156,6 +158,7 @@ def unit_rtl_stats(res, be) -> dict:
         "pipeline_utilization": [n / cycles if cycles else 0.0
                                  for n in st["pipeline_requests"]],
         "skipped_cycles": st["skipped_cycles"],
+        "reused_batches": int(getattr(res, "reused", False)),
     }
     if getattr(res, "activity", None) is not None:     # the traced unit (rayflex power)
         out[ACTIVITY] = res.activity
@@ -164,9 +167,10 @@ def unit_rtl_stats(res, be) -> dict:
 
 UNIT_RTL = "unit_rtl"
 ACTIVITY = "activity"          # a traced unit's bit toggles per module, and its cycles
-_UNIT_SUMMED = ("cycles", "stack_overflows", "stack_refills", "rays_overflowed", "mem_requests",
+_UNIT_SUMMED = ("cycles", "stack_overflows", "stack_refills", "rays_overflowed", "stack_culls",
+                "mem_requests",
                 "mem_bytes", "mem_busy_cycles", "busy_cycles", "divider_busy_cycles",
-                "divider_full_cycles", "setup_busy_cycles", "skipped_cycles")
+                "divider_full_cycles", "setup_busy_cycles", "skipped_cycles", "reused_batches")
 
 
 def merge_unit_rtl(parts: list[dict], ops: int) -> dict:

@@ -26,10 +26,12 @@ figures per run, grouped by shader).
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import io
 import json
 import math
+import shutil
 import sys
 import time
 import uuid
@@ -39,6 +41,7 @@ from pathlib import Path
 from PIL import Image
 
 from . import suite_report
+from .backends import unit_memo
 from .backends.rtunit import UNIT_BACKEND
 from .core.errors import RayflexError
 from .core.outputs import jsonable
@@ -184,15 +187,17 @@ def key(run: Run, point, backend: str) -> str:
     return hashlib.blake2b(text.encode(), digest_size=12).hexdigest()
 
 
+MEMO_DIR = ".unit-batches"   # in the output folder: the RT unit's batches the runs share, until done
 SPLIT_TILE = 128       # the tile of a run whose tiles are spread over the workers
 
 
 def execute(run: Run, point, backend: str = "rtl", root=None, ideal: bool = False,
             energy: dict | None = None, workers: int = 1,
-            scheduler: str | None = None) -> tuple[dict, bytes]:
+            scheduler: str | None = None, memo: str | None = None) -> tuple[dict, bytes]:
     """Trace, check and replay one run (a task: pure in its inputs); returns its JSON document
     and its PNG image bytes. The frame is one tile in this process, or with ``workers`` > 1 or
-    a ``scheduler`` tiles of ``SPLIT_TILE`` on the Dask cluster (a suite of one run)."""
+    a ``scheduler`` tiles of ``SPLIT_TILE`` on the Dask cluster (a suite of one run). ``memo``:
+    the folder of the RT unit's batches the suite's runs share (``unit_memo``)."""
     from .render import render
     from .scenes.scene import load_scene
     t0 = time.perf_counter()
@@ -200,11 +205,12 @@ def execute(run: Run, point, backend: str = "rtl", root=None, ideal: bool = Fals
         scene = _scene(point.scene, load_scene)
     t_load = time.perf_counter() - t0
     split = workers > 1 or bool(scheduler)
-    res = render(scene, point.size, point.size, backend=backend, progress=False,
-                 check_embree=True, point=point,
-                 rtunit=backend != UNIT_BACKEND and ("ideal" if ideal else True),
-                 tile=SPLIT_TILE if split else max(point.size, 1),
-                 workers=workers, scheduler=scheduler)
+    with unit_memo.memo(memo) if memo else contextlib.nullcontext():
+        res = render(scene, point.size, point.size, backend=backend, progress=False,
+                     check_embree=True, point=point,
+                     rtunit=backend != UNIT_BACKEND and ("ideal" if ideal else True),
+                     tile=SPLIT_TILE if split else max(point.size, 1),
+                     workers=workers, scheduler=scheduler)
     stats = res.stats
     if energy:
         _add_energy(stats, energy)
@@ -302,9 +308,7 @@ def _run_suite(name, runs, base, out, backend, root, workers, scheduler, ideal, 
     per_scene: dict = {}
     for r, _ in todo:
         per_scene[r.scene] = per_scene.get(r.scene, 0.0) + cost[r.name]
-    # the most expensive scene's runs first, its longest run first: a worker that finishes a
-    # run of a scene takes the next run of the same scene (and keeps the scene and its BVH)
-    todo.sort(key=lambda rp: (-per_scene[rp[0].scene], -cost[rp[0].name]))
+    todo = _order(todo, cost, per_scene, backend == UNIT_BACKEND)
     if progress:
         print(f"rayflex: suite {name}: {plural(len(runs), 'run')}, {len(done)} already in {out}, "
               f"{len(todo)} to make", file=sys.stderr, flush=True)
@@ -312,14 +316,17 @@ def _run_suite(name, runs, base, out, backend, root, workers, scheduler, ideal, 
         energy = _energy(base)
     bar = progress_bar(len(todo), f"suite {name}", "run", progress)
     bar.hook(0, len(todo))
+    memo = out / MEMO_DIR if backend == UNIT_BACKEND else None
     for n, (r, doc, png) in enumerate(_execute_all(todo, backend, root, ideal, energy,
-                                                   workers, scheduler), 1):
+                                                   workers, scheduler, memo), 1):
         _write_run(out, r.name, doc, png)
         done[r.name] = doc
         bar.hook(n, len(todo))
         if progress:
             bar.set_postfix_str(f"{r.name} {doc['timing']['wall_s']:.1f} s")
     bar.close()
+    if memo is not None:              # every run made: its shared batches are not needed again
+        shutil.rmtree(memo, ignore_errors=True)
     summary = suite_report.summary(name, runs, done, skipped or {}, base, backend, root,
                        time.perf_counter() - t0, len(todo), workers, scheduler)
     suite_report.write_summary(out, summary)
@@ -350,19 +357,40 @@ def _energy(base) -> dict:
             "box_op": _box_op(base)}
 
 
-def _execute_all(todo, backend, root, ideal, energy, workers, scheduler):
-    """(run, document, png) of every run to make, in this process or on Dask."""
+def _order(todo: list, cost: dict, per_scene: dict, unit: bool) -> list:
+    """The runs in the order they are handed out: the most expensive scene's runs first, its
+    longest run first, so that a worker that finishes a run of a scene takes the next run of
+    the same scene (and keeps the scene and its BVH). Through the RT unit in RTL (``unit``),
+    whose runs of a scene share their camera rays' batch (``unit_memo``), each scene's longest
+    run first, then the others: a scene's second run starts after its first has traced the
+    camera rays, while the other worker makes other scenes' runs."""
+    todo = sorted(todo, key=lambda rp: (-per_scene[rp[0].scene], -cost[rp[0].name]))
+    if not unit:
+        return todo
+    first, seen = [], set()
+    for r, p in todo:
+        if r.scene not in seen:
+            seen.add(r.scene)
+            first.append((r, p))
+    rest = sorted((rp for rp in todo if rp not in first), key=lambda rp: -cost[rp[0].name])
+    return first + rest
+
+
+def _execute_all(todo, backend, root, ideal, energy, workers, scheduler, memo=None):
+    """(run, document, png) of every run to make, in this process or on Dask (``memo``: the
+    folder of the RT unit's batches the runs share, ``execute``)."""
     if not todo:
         return
+    memo = str(memo) if memo is not None else None
     if len(todo) == 1 or (workers == 1 and not scheduler):     # one run: its tiles spread
         for r, p in todo:
-            doc, png = execute(r, p, backend, root, ideal, energy, workers, scheduler)
+            doc, png = execute(r, p, backend, root, ideal, energy, workers, scheduler, memo)
             yield r, doc, png
         return
     with _client(workers, scheduler) as client:
         sid = uuid.uuid4().hex[:12]
         futures = {client.submit(execute, r, p, backend, str(root) if root else None, ideal,
-                                 energy, key=f"rayflex-suite-{sid}-{i}", retries=2): r
+                                 energy, memo=memo, key=f"rayflex-suite-{sid}-{i}", retries=2): r
                    for i, (r, p) in enumerate(todo)}
         from distributed import as_completed
         try:

@@ -17,6 +17,7 @@ import numpy as np
 from . import rtunit
 from .backends import DEFAULT_BACKEND, resolve
 from .backends.build import backend_params
+from .backends.rtunit import UNIT_BACKEND
 from .bvh4 import BVH4, build, build_two_level
 from .core.datapath import prepare_rays
 from .core.layout import DEFAULT_FORMAT
@@ -141,7 +142,7 @@ def trace(scene_or_mesh_or_bvh, origins, directions, backend=DEFAULT_BACKEND, ex
     replay = {k: v for k, v in rtunit_options.items() if v is not None}
     rays = prepare_rays(origins, directions, extent)   # bad rays fail before the BVH is built
     bvh, double_sided, where, be, be_name = _set_up(scene_or_mesh_or_bvh, backend, double_sided,
-                                                    bvh_format, transform)
+                                                    bvh_format, transform, cull_stack)
     instanced = getattr(bvh, "instances", None) is not None
     rays["flags"] |= FLAG_NO_CULL if double_sided else 0
     if hasattr(be, "trace_unit"):
@@ -181,9 +182,11 @@ def _trace_unit(be, be_name: str, bvh, rays, any_hit, progress, cull_stack,
     the rays where the unit differs from it (``traversal_mismatches``; hit, primitive, t bits and
     op counts) and gives the RT-unit replay's cycles for the same pool and memory over the
     unit's (``replay_cycles_ratio``)."""
-    if cull_stack:
-        raise ValueError("the RT unit in RTL has no culling stack yet: drop --cull-stack or use "
-                         "--backend rtl")
+    if bool(cull_stack) != be.cull:
+        raise ValueError("the RT unit in RTL culls its stack only when built with CULL: give "
+                         "--cull-stack for both the unit (cull=True) and the frame"
+                         if cull_stack else "this RT unit is built with CULL (the "
+                         "distance-culled stack): trace with --cull-stack (cull_stack=True)")
     if replay:
         raise ValueError("the RT unit in RTL times the frame itself: the RT-unit replay "
                          "(--rtunit, rays_in_flight=, record=) replays the Python traversal's "
@@ -195,26 +198,29 @@ def _trace_unit(be, be_name: str, bvh, rays, any_hit, progress, cull_stack,
     instanced = getattr(bvh, "instances", None) is not None
     entered = res.xf_ops if instanced else None     # every instance entered is a TRANSFORM
     stats = frame_stats(res.box_ops, res.tri_ops, res.hit, res.stats["cycles"],
-                        int(be.latency), wall, be_name, instance_ops=entered,
-                        transform_ops=entered)
+                        int(be.latency), wall, be_name, res.culled if be.cull else None,
+                        instance_ops=entered, transform_ops=entered)
     unit = unit_rtl_stats(res, be)
     unit.update(dict.fromkeys(("traversal_mismatches", "replay_cycles", "replay_cycles_ratio",
                                "replay_default_cycles", "replay_default_cycles_ratio")))
     if be.compare:
         issue = issuer(be, rays, bvh, be_name, record=True)
         inst = InstanceStepper(bvh, rays, issue, DATAPATH) if instanced else None
-        trav = traverse(bvh, rays["extent"], issue, any_hit=any_hit, instances=inst)
+        trav = traverse(bvh, rays["extent"], issue, any_hit=any_hit, cull=be.cull,
+                        instances=inst)
         hit = trav.prim >= 0
         t_ref = np.where(hit, trav.nearest, np.float32(np.inf)).astype(np.float32)
         differ = ((hit != res.hit) | (trav.prim != res.prim)
                   | (t_ref.view(np.uint32) != t.view(np.uint32))
-                  | (trav.box_ops != res.box_ops) | (trav.tri_ops != res.tri_ops))
+                  | (trav.box_ops != res.box_ops) | (trav.tri_ops != res.tri_ops)
+                  | (trav.culled != res.culled))
         if inst is not None:
             differ |= ((inst.hit_instance != res.instance)
                        | (inst.transform_ops != res.xf_ops))
         unit["traversal_mismatches"] = int(np.count_nonzero(differ))
         unit.update(_replay_unit(be, issue.record(backend_params(be)), any_hit, len(rays),
-                                 res.stats["cycles"]))
+                                 res.stats["cycles"],
+                                 trav.cull_events if be.cull else None))
     stats["unit_rtl"] = unit
     steps = np.zeros(0, np.int64)
     prim = res.prim.copy()
@@ -224,15 +230,15 @@ def _trace_unit(be, be_name: str, bvh, rays, any_hit, progress, cull_stack,
                        res.instance, res.xf_ops if instanced else None)
 
 
-def _replay_unit(be, rec, any_hit, n: int, unit_cycles: int) -> dict:
+def _replay_unit(be, rec, any_hit, n: int, unit_cycles: int, culls=None) -> dict:
     """The RT-unit replay of the unit's batch on its parameters (its pipelines, its rays in flight
     and memory): with the unit's costs (``rtunit.UnitCosts``: its dividers, its fixed-latency
-    memory, the any-hit rays, its stack depth) and, when the unit has the memory hierarchy, with the replay's
+    memory, the any-hit rays, its stack depth, the culling stack's pops ``culls``) and, when the unit has the memory hierarchy, with the replay's
     default costs; each as cycles and over the unit's."""
     mem = memory_model(be.memory) if be.memory is not None else None
     costs = rtunit.UnitCosts(be.dividers, fixed_latency=0 if mem else be.mem_latency,
                              any_hit=np.broadcast_to(np.asarray(any_hit, bool), (n,)),
-                             stack_depth=be.stack_depth, setups=be.setups)
+                             stack_depth=be.stack_depth, setups=be.setups, culls=culls)
     out = {}
     for key, uc in (("replay", costs), ("replay_default", None)):
         cycles = None
@@ -241,7 +247,8 @@ def _replay_unit(be, rec, any_hit, n: int, unit_cycles: int) -> dict:
                                        pipelines=be.pipelines,
                                        memory=mem, unit_costs=uc).cycles)
         out[f"{key}_cycles"] = cycles
-        out[f"{key}_cycles_ratio"] = None if cycles is None else cycles / unit_cycles
+        out[f"{key}_cycles_ratio"] = (None if cycles is None or not unit_cycles  # no rays
+                                      else cycles / unit_cycles)
     return out
 
 
@@ -254,9 +261,11 @@ def memory_model(config: dict) -> rtunit.MemoryModel:
         l2_ways=config["l2_ways"], l2_latency=config["l2_latency"])
 
 
-def _set_up(scene_or_mesh_or_bvh, backend, double_sided, bvh_format, transform):
+def _set_up(scene_or_mesh_or_bvh, backend, double_sided, bvh_format, transform,
+            cull_stack=False):
     """``trace``'s BVH and backend: (bvh, double_sided, where the transform runs, backend, its
-    name); a ValueError for a transform on a backend built without it."""
+    name; the RT unit in RTL named with ``cull_stack`` is made with its culling stack); a
+    ValueError for a transform on a backend built without it."""
     if transform is not None:
         check_transform(transform)
     if isinstance(scene_or_mesh_or_bvh, (str, bytes)) or hasattr(scene_or_mesh_or_bvh,
@@ -268,7 +277,8 @@ def _set_up(scene_or_mesh_or_bvh, backend, double_sided, bvh_format, transform):
     bvh = as_bvh(scene_or_mesh_or_bvh, bvh_format)
     where = transform or getattr(bvh, "transform", "driver")
     xf = getattr(bvh, "instances", None) is not None and where == DATAPATH
-    be, be_name = resolve(backend, **({"transform": True} if xf else {}))
+    be, be_name = resolve(backend, **({"transform": True} if xf else {}),
+                          **({"cull": True} if cull_stack and backend == UNIT_BACKEND else {}))
     if xf and not backend_params(be)["TRANSFORM"]:
         raise ValueError(f"transform='{DATAPATH}' needs a backend built with the TRANSFORM "
                          f"operation (backend({be_name!r}, transform=True))")

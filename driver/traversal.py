@@ -87,6 +87,9 @@ class Traversal:
     box_ops, tri_ops : (n,) int64, QUADBOX / TRIANGLE requests issued for each ray
     node_bytes : (n,) int64, node bytes each ray's requests fetched (``layout.NODE_BYTES``)
     culled : (n,) int64, box nodes dropped from each ray's stack by ``cull`` (no request)
+    cull_events : (k, 3) int64 (none without ``cull``): a row per ray and step that culled, of
+        the ray, the requests it had issued before (its chain position: box, triangle and
+        TRANSFORM requests) and the entries it culled then (what an RT unit's pop port does)
     step_requests, step_box_requests : (calls,) int64, requests (all / QUADBOX) per backend
         call: one per step, and before it the step's TRANSFORM requests, if any (an instance
         transform on the datapath)
@@ -100,6 +103,7 @@ class Traversal:
     step_box_requests: np.ndarray
     culled: np.ndarray
     node_bytes: np.ndarray
+    cull_events: np.ndarray = None
 
 
 def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
@@ -108,11 +112,10 @@ def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
     """Traverse ``bvh`` (a ``driver.bvh4.BVH4``) for n rays whose extents are ``extent`` (n,)
     float32; ``issue`` runs each step's requests on a datapath (see ``Issue``). ``any_hit``: a ray
     ends at its first accepted triangle (occlusion). ``cull``: drop box nodes whose entry
-    distance is not below the nearest hit (module docstring). ``progress(done_rays,
-    total_rays)`` is called once per step. ``instances``: a
-    ``driver.tracing.stepper.InstanceStepper`` (two-level images): it enters the instance nodes on
-    top of the stacks before each step, and the requests name each ray by its row in the issuer's
-    ray table (``instances.row``)."""
+    distance is not below the nearest hit (module docstring). ``progress(done_rays, total_rays)``
+    is called once per step. ``instances``: a ``driver.tracing.stepper.InstanceStepper``
+    (two-level images): it enters the instance nodes on top of the stacks before each step, and
+    the requests name each ray by its row in the issuer's ray table (``instances.row``)."""
     n = len(extent)
     nearest = np.array(extent, np.float32, copy=True)
     prim = np.full(n, -1, np.int64)
@@ -125,13 +128,14 @@ def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
     dist = np.zeros(stack.shape, np.float32) if cull else None    # entry distances (root: 0)
     culled = np.zeros(n, np.int64)
     sp = np.ones(n, np.int64)
-    steps, steps_box = [], []
+    steps, steps_box, events = [], [], [np.zeros((0, 3), np.int64)]
     image = bvh.image.view("<u4")
     active = np.arange(n)
     while len(active):
         sp[active] -= 1
         if cull:
-            active = _cull(active, stack, dist, sp, nearest, culled)
+            active = _cull_logged(active, stack, dist, sp, nearest, culled, events,
+                                  box_ops + tri_ops, instances)
             if not len(active):
                 if progress is not None:
                     progress(n, n)
@@ -181,7 +185,22 @@ def traverse(bvh, extent: np.ndarray, issue: Issue, any_hit: bool = False,
         if progress is not None:
             progress(n - len(active), n)
     return Traversal(nearest, prim, box_ops, tri_ops, np.array(steps, np.int64),
-                     np.array(steps_box, np.int64), culled, node_bytes)
+                     np.array(steps_box, np.int64), culled, node_bytes, np.concatenate(events))
+
+
+def _cull_logged(active, stack, dist, sp, nearest, culled, events, issued,
+                 instances) -> np.ndarray:
+    """``_cull``, and a row in ``events`` for each ray that culled: the ray, the requests it
+    had issued (``issued``: its box and triangle requests, and its TRANSFORM requests) and the
+    entries it culled now (``Traversal.cull_events``)."""
+    before = culled[active]
+    rays = active
+    active = _cull(active, stack, dist, sp, nearest, culled)
+    got = culled[rays] - before
+    r = rays[got > 0]
+    issued = issued[r] + (instances.transform_ops[r] if instances is not None else 0)
+    events.append(np.stack([r, issued, got[got > 0]], axis=1).astype(np.int64))
+    return active
 
 
 def _push_hit_children(ray_b, children, rsp, stack, dist, sp) -> None:

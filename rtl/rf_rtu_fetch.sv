@@ -10,7 +10,8 @@
 //     becomes one memory request; in_bad_o is high, combinationally, while in_ptr_i names no such
 //     type (the caller must not then raise in_valid_i: it finishes the ray with an error). With
 //     in_refill_i the request is instead a read of the slot's last spilled stack entry (4 bytes
-//     of the slot's spill area; in_ptr_i is not used);
+//     of the slot's spill area, 8 with CULL: the pointer and its entry distance; in_ptr_i is
+//     not used);
 //   * mem_req (valid/ready): byte address (pointer & ~7) << 3, size in bytes, tag = the slot,
 //     refill (a spill-area read: the memory side knows each slot's spill area).
 //     mem_req_valid_o and its data are register outputs (rf_skid); in_ready_o is a register
@@ -18,13 +19,15 @@
 //   * mem_rsp (valid/ready, always ready): data (node word 0 at the low end; the words past the
 //     node's size are ignored) for the request tagged mem_rsp_tag_i, in any order. It is written
 //     into the slot's node buffer entry and done_o pulses with done_slot_o in the same cycle, with
-//     done_refill_o and done_ptr_o (data word 0: the spilled pointer) for a refill;
+//     done_refill_o, done_ptr_o (data word 0: the spilled pointer) and done_dist_o (word 1: its
+//     entry distance, with CULL) for a refill;
 //   * node_a_o[p] / node_b_o[p]: the node buffer entries of slots rd_a_i[p] / rd_b_i[p], p < PORTS
 //     (combinational read ports: per pipeline, for the scheduler and its response stage).
 module rf_rtu_fetch import rf_rtu_pkg::*; #(
   parameter int unsigned RAYS = 4,
   parameter bit          Q8   = 1'b0,
   parameter bit          XF   = 1'b0,
+  parameter bit          CULL = 1'b0,
   parameter int unsigned PORTS = 1,
   localparam int unsigned SLOT_W = RAYS > 1 ? $clog2(RAYS) : 1
 ) (
@@ -50,6 +53,7 @@ module rf_rtu_fetch import rf_rtu_pkg::*; #(
   output logic [SLOT_W-1:0] done_slot_o,
   output logic              done_refill_o,
   output logic [31:0]       done_ptr_o,
+  output logic [31:0]       done_dist_o,
   input  logic [PORTS-1:0][SLOT_W-1:0] rd_a_i,
   output logic [PORTS-1:0][NODE_W-1:0] node_a_o,
   input  logic [PORTS-1:0][SLOT_W-1:0] rd_b_i,
@@ -69,7 +73,7 @@ module rf_rtu_fetch import rf_rtu_pkg::*; #(
   assign in_bad_o = !(in_type == BOX_TYPE || in_type == TRI_TYPE || in_type == PAIR_TYPE
                      || (Q8 && in_type == Q8_TYPE) || (XF && in_type == INSTANCE_TYPE));
   assign req_d.addr = in_refill_i ? '0 : ADDR_W'({in_ptr_i[31:3], 3'b000}) << PTR_SHIFT;
-  assign req_d.size = in_refill_i ? SIZE_W'(4)
+  assign req_d.size = in_refill_i ? SIZE_W'(CULL ? 8 : 4)
                     : in_type == BOX_TYPE  ? SIZE_W'(BOX_NODE_WORDS * 4)
                     : in_type == Q8_TYPE   ? SIZE_W'(Q8_NODE_WORDS * 4)
                     : in_type == INSTANCE_TYPE ? SIZE_W'(INST_NODE_WORDS * 4)
@@ -95,6 +99,7 @@ module rf_rtu_fetch import rf_rtu_pkg::*; #(
   end
   assign done_refill_o = refill_q[mem_rsp_tag_i];
   assign done_ptr_o    = mem_rsp_data_i[31:0];
+  assign done_dist_o   = CULL ? mem_rsp_data_i[63:32] : '0;
 
   // ---- node buffer ----
   logic [NODE_W-1:0] node_q [RAYS];

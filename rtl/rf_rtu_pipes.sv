@@ -14,7 +14,7 @@
 //     register output); tag = the ray's slot;
 //   * response stage p (rf_rtu_resp's contract): rd_o[p] names the slot whose node_i[p] (node
 //     buffer entry) and kind_i[p] (node kind) it reads; push_o[p]/push_slot_o[p]/push_ptr_o[p]
-//     drive stack push port p; next_o[p]/div_o[p]/xf_o[p] name the slot in evt_slot_o[p]. A slot
+//     and push_dist_o[p] (the entry distance) drive stack push port p; next_o[p]/div_o[p]/xf_o[p] name the slot in evt_slot_o[p]. A slot
 //     has one request in the unit at a time, so the stages' slots differ;
 //   * div (valid/ready, one port): the response stages whose response is a triangle hit ask for
 //     it; the first asking at or after the pipeline after the last one served (round robin)
@@ -29,6 +29,7 @@ module rf_rtu_pipes import rf_pkg::*; import rf_rtu_pkg::*; #(
   parameter bit          DISJOINT   = 1'b0,
   parameter bit          COMPRESSED = 1'b0,
   parameter bit          TRANSFORM  = 1'b0,
+  parameter bit          CULL       = 1'b0,
   parameter bit          FUSED      = 1'b0,
   parameter bit          SHARED     = 1'b0,
   parameter int unsigned LATENCY    = 11 + 32'(COMPRESSED),
@@ -46,6 +47,7 @@ module rf_rtu_pipes import rf_pkg::*; import rf_rtu_pkg::*; #(
   output logic [PIPELINES-1:0]             push_o,
   output logic [PIPELINES-1:0][SLOT_W-1:0] push_slot_o,
   output logic [PIPELINES-1:0][31:0]       push_ptr_o,
+  output logic [PIPELINES-1:0][31:0]       push_dist_o,
   output logic [PIPELINES-1:0]             next_o,
   output logic [PIPELINES-1:0]             div_o,
   output logic [PIPELINES-1:0]             xf_o,
@@ -82,11 +84,12 @@ module rf_rtu_pipes import rf_pkg::*; import rf_rtu_pkg::*; #(
       .in_valid_i(in_valid_i[p]), .in_ready_o(in_ready_o[p]), .req_i(req_i[p]),
       .out_valid_o(dp_out_valid), .out_ready_i(dp_out_ready), .rsp_o(dp_rsp));
 
-    rf_rtu_resp #(.RAYS(RAYS)) u_resp (
+    rf_rtu_resp #(.RAYS(RAYS), .CULL(CULL)) u_resp (
       .clk_i, .rst_ni,
       .dp_valid_i(dp_out_valid), .dp_ready_o(dp_out_ready), .dp_rsp_i(dp_rsp),
       .rd_o(rd_o[p]), .node_i(node_i[p]), .kind_i(kind_i[p]),
       .push_o(push_o[p]), .push_slot_o(push_slot_o[p]), .push_ptr_o(push_ptr_o[p]),
+      .push_dist_o(push_dist_o[p]),
       .next_o(next_o[p]), .div_o(div_o[p]), .evt_slot_o(evt_slot_o[p]),
       .div_valid_o(s_div_valid[p]), .div_ready_i(s_div_ready[p]), .div_num_o(s_div_num[p]),
       .div_den_o(s_div_den[p]), .div_tag_o(s_div_tag[p]),

@@ -1,7 +1,8 @@
 // Ray buffer: RAYS entries, one per ray slot, each holding the prepared ray (request words 1..14:
 // control word with the flags such as NO_CULL, origin, direction, inverse, extent, shear), the
 // ray's id and any-hit flag, its nearest t so far, its hit record (primitive id, instance, hit)
-// and its counters (QUADBOX, TRIANGLE and TRANSFORM requests issued, stack overflows, refills).
+// and its counters (QUADBOX, TRIANGLE and TRANSFORM requests issued, stack overflows, refills;
+// with CULL, the distance-culled stack's, box nodes culled).
 // A second register set holds the object-space ray of the instance the ray is in (two-level
 // images, docs/instances.md; built with XF, the datapath's TRANSFORM): while the slot is inside
 // an instance, read port a gives that ray.
@@ -20,11 +21,13 @@
 //     pipeline, each its own slot): one more QUADBOX / TRIANGLE / TRANSFORM request;
 //   * ovf_inc_i[p] (slot ovf_slot_i[p], p < PORTS, each its own slot), rst_inc_i (slot
 //     rst_slot_i): one more stack overflow / refill;
-//   * read ports a[p] (the scheduler's, one per pipeline), b (hit update) and c (result) are
-//     combinational.
+//   * cull_inc_i (slot rd_d_i, CULL only): one more box node culled from the stack;
+//   * read ports a[p] (the scheduler's, one per pipeline), b (hit update), c (result) and d (the
+//     pop port's nearest t, for culling) are combinational.
 module rf_rtu_ray_buffer import rf_rtu_pkg::*; #(
   parameter int unsigned RAYS = 4,
   parameter bit          XF   = 1'b0,
+  parameter bit          CULL = 1'b0,
   parameter int unsigned PORTS = 1,
   localparam int unsigned SLOT_W = RAYS > 1 ? $clog2(RAYS) : 1
 ) (
@@ -53,6 +56,9 @@ module rf_rtu_ray_buffer import rf_rtu_pkg::*; #(
   input  logic [PORTS-1:0][SLOT_W-1:0] ovf_slot_i,
   input  logic              rst_inc_i,
   input  logic [SLOT_W-1:0] rst_slot_i,
+  input  logic              cull_inc_i,
+  input  logic [SLOT_W-1:0] rd_d_i,
+  output logic [31:0]       nearest_d_o,
   input  logic [PORTS-1:0][SLOT_W-1:0] rd_a_i,
   output ray_t [PORTS-1:0]  ray_a_o,
   output logic [PORTS-1:0][31:0] nearest_a_o,
@@ -69,7 +75,8 @@ module rf_rtu_ray_buffer import rf_rtu_pkg::*; #(
   output logic [31:0]       tri_ops_c_o,
   output logic [31:0]       xf_ops_c_o,
   output logic [15:0]       overflows_c_o,
-  output logic [15:0]       refills_c_o
+  output logic [15:0]       refills_c_o,
+  output logic [31:0]       culled_c_o
 );
 
   ray_t        ray_q      [RAYS];
@@ -171,5 +178,24 @@ module rf_rtu_ray_buffer import rf_rtu_pkg::*; #(
   assign inst_c_o      = hit_inst_q[rd_c_i];
   assign overflows_c_o = ovf_q[rd_c_i];
   assign refills_c_o  = rst_q[rd_c_i];
+  assign nearest_d_o  = nearest_q[rd_d_i];
+
+  // box nodes culled from the stack (CULL only)
+  if (CULL) begin : g_culled
+    logic [31:0] culled_q [RAYS];
+    always_ff @(posedge clk_i or negedge rst_ni) begin
+      if (!rst_ni) begin
+        for (int i = 0; i < RAYS; i++) culled_q[i] <= '0;
+      end else begin
+        if (load_i) culled_q[load_slot_i] <= '0;
+        if (cull_inc_i) culled_q[rd_d_i] <= culled_q[rd_d_i] + 1'b1;
+      end
+    end
+    assign culled_c_o = culled_q[rd_c_i];
+  end else begin : g_no_culled
+    assign culled_c_o = '0;
+    logic unused_cull;
+    assign unused_cull = cull_inc_i;
+  end
 
 endmodule

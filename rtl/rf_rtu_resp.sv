@@ -4,6 +4,8 @@
 //   * QUADBOX: the hit children are pushed on the slot's stack farthest first, so that the
 //     nearest is popped next: for j = 3 down to 0 with box_hit[j], the child pointer
 //     child[box_index[j]] of the slot's node (a box32 or a q8 node: kind_i, the kind of slot rd_o).
+//     With CULL each push carries the child's entry distance push_dist_o (its box_tmin[j],
+//     for the distance-culled stack, rf_rtu_stack's CULL; 0 without, and no register for it).
 //     One push per cycle (the stack RAM has one write port per response stage): a response with k
 //     hit children takes max(k, 1) cycles; then next_o pulses (the ray pops its next node).
 //   * TRIANGLE without a hit: next_o pulses in the cycle the response is taken.
@@ -23,6 +25,7 @@
 // evt_slot_o (at most one of them per cycle).
 module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
   parameter int unsigned RAYS = 4,
+  parameter bit          CULL = 1'b0,
   localparam int unsigned SLOT_W = RAYS > 1 ? $clog2(RAYS) : 1
 ) (
   input  logic              clk_i,
@@ -36,6 +39,7 @@ module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
   output logic              push_o,
   output logic [SLOT_W-1:0] push_slot_o,
   output logic [31:0]       push_ptr_o,
+  output logic [31:0]       push_dist_o,
   output logic              next_o,
   output logic              div_o,
   output logic [SLOT_W-1:0] evt_slot_o,
@@ -62,6 +66,7 @@ module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
   logic [SLOT_W-1:0] slot;
   logic [3:0]        left;
   logic [3:0][1:0]   index;
+  logic [3:0][31:0]  tmin;
   assign tri_op  = dp_rsp_i.opcode == OP_TRIANGLE;
   assign tri_hit = tri_op & dp_rsp_i.tri_hit;
   assign xf_op   = dp_rsp_i.opcode == OP_TRANSFORM;
@@ -90,6 +95,15 @@ module rf_rtu_resp import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign prim_word   = kind_i == KIND_PAIR0 ? PAIR_NODE_PRIM_WORD
                      : kind_i == KIND_PAIR1 ? PAIR_NODE_PRIM_WORD + 1 : TRI_NODE_PRIM_WORD;
   assign push_ptr_o  = take & xf_op ? RETURN_PTR : node_i[(child_word + 32'(index[j])) * 32 +: 32];
+
+  if (CULL) begin : g_tmin
+    logic [3:0][31:0] tmin_q;
+    assign tmin = busy_q ? tmin_q : dp_rsp_i.box_tmin;
+    always_ff @(posedge clk_i) if (active) tmin_q <= tmin;
+  end else begin : g_no_tmin
+    assign tmin = '0;
+  end
+  assign push_dist_o = take & xf_op ? '0 : tmin[j];
 
   assign next_o     = (active & (rest == 4'b0)) | (take & tri_op & ~tri_hit);
   assign div_o      = take & tri_hit;

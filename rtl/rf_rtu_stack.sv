@@ -19,10 +19,15 @@
 // The spilled entries are the oldest, so an empty stack's next entry is the last one spilled:
 // the pops come in the order of an unbounded stack, and so do the requests and every hit
 // (docs/rtunit_rtl.md#stack-overflow).
+// With CULL (the distance-culled stack, docs/rtunit_rtl.md#the-culling-stack) every entry also
+// holds its entry distance push_dist_i[p] (a binary32, in a second RAM of RAYS x STACK_DEPTH
+// words): top_dist_o is the top entry's, and a spilled entry leaves with its distance on
+// spill_dist_o[p]. Without CULL there is no distance RAM and both outputs are 0.
 module rf_rtu_stack #(
   parameter int unsigned RAYS        = 4,
   parameter int unsigned STACK_DEPTH = 8,
   parameter int unsigned PUSHES      = 1,
+  parameter bit          CULL        = 1'b0,
   localparam int unsigned SLOT_W  = RAYS > 1 ? $clog2(RAYS) : 1,
   localparam int unsigned IDX_W   = STACK_DEPTH > 1 ? $clog2(STACK_DEPTH) : 1,
   localparam int unsigned COUNT_W = $clog2(STACK_DEPTH + 1)
@@ -34,14 +39,17 @@ module rf_rtu_stack #(
   input  logic [PUSHES-1:0]             push_i,
   input  logic [PUSHES-1:0][SLOT_W-1:0] push_slot_i,
   input  logic [PUSHES-1:0][31:0]       push_ptr_i,
+  input  logic [PUSHES-1:0][31:0]       push_dist_i,
   input  logic [SLOT_W-1:0] pop_slot_i,
   input  logic              pop_i,
   input  logic              refill_i,
   output logic [31:0]       top_o,
+  output logic [31:0]       top_dist_o,
   output logic              empty_o,
   output logic              spilled_o,
   output logic [PUSHES-1:0]       spill_o,
   output logic [PUSHES-1:0][31:0] spill_ptr_o,
+  output logic [PUSHES-1:0][31:0] spill_dist_o,
   output logic [COUNT_W-1:0] depth_o
 );
 
@@ -110,6 +118,24 @@ module rf_rtu_stack #(
   always_ff @(posedge clk_i) begin
     for (int p = 0; p < PUSHES; p++)
       if (push_i[p]) ram_q[push_slot_i[p]][next_q[push_slot_i[p]]] <= push_ptr_i[p];
+  end
+
+  // ---- the entry distances (CULL only) ----
+  if (CULL) begin : g_dist
+    logic [31:0] dist_q [RAYS][STACK_DEPTH];
+    assign top_dist_o = dist_q[pop_slot_i][top_idx];
+    for (genvar p = 0; p < PUSHES; p++) begin : g_spill_dist
+      assign spill_dist_o[p] = dist_q[push_slot_i[p]][next_q[push_slot_i[p]]];
+    end
+    always_ff @(posedge clk_i) begin
+      for (int p = 0; p < PUSHES; p++)
+        if (push_i[p]) dist_q[push_slot_i[p]][next_q[push_slot_i[p]]] <= push_dist_i[p];
+    end
+  end else begin : g_no_dist
+    assign top_dist_o   = '0;
+    assign spill_dist_o = '0;
+    logic unused_dist;
+    assign unused_dist = ^push_dist_i;
   end
 
 endmodule

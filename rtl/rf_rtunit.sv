@@ -29,6 +29,15 @@
 // ray buffer's second set and holds the BLAS root as the next pop; a ray whose transformed ray is
 // not finite skips the instance (nothing held). Popping the marker returns the ray to its world
 // ray and pops again. The nearest t is the ray's in both spaces (directions are not normalised).
+// The distance-culled stack (CULL, docs/rtunit_rtl.md#the-culling-stack): every stack entry keeps
+// its entry distance (the box response's tmin of the child; the root's is 0), and a pop whose
+// entry is a box node (box32 or q8) at a distance not below the ray's nearest t (IEEE >=) culls
+// it: the entry leaves the stack without a fetch or a request, the ray's culled count goes up and
+// the slot stays in POP (one pop-port cycle per culled entry). Never culled: triangle nodes, pair
+// leaves' second triangles, instance nodes and the return marker, the BLAS root a ray enters
+// (issued as the traversal issues it, at once), and the first pop after a skipped instance (the
+// traversal issues that entry without a cull check too). A refilled entry comes back with its
+// distance and is culled like any other.
 //
 // Handshake contract of the ports (valid/ready, a beat moves when both are high on a rising edge):
 //   * ray (in): a prepared ray (request words 1..14 of docs/datapath.md, ray_i[k] is word k), its
@@ -39,11 +48,12 @@
 //   * spill (out, valid only: the memory takes PIPELINES writes per cycle, one per response
 //     stage p, each for its own slot): with spill_valid_o[p] a stack overflow's oldest entry
 //     spill_ptr_o[p] goes to the spill area of slot spill_slot_o[p] (a per-slot LIFO in memory,
-//     read back by the refill requests);
+//     read back by the refill requests), with CULL its entry distance spill_dist_o[p] too (0
+//     without; a refill response carries the pointer in data word 0 and the distance in word 1);
 //   * res (out): a finished ray: id, hit, prim (0xFFFFFFFF without a hit: the primitive id in its
 //     BLAS), instance (of the hit; 0xFFFFFFFF: none), t bits (the nearest t: the ray's extent
 //     without a hit), its QUADBOX, TRIANGLE and TRANSFORM requests, stack overflows and refills,
-//     and err (its traversal met a pointer the unit cannot fetch). Register outputs.
+//     culled (box nodes the distance-culled stack dropped; 0 without CULL), and err (its traversal met a pointer the unit cannot fetch). Register outputs.
 //   * root_i: the root node pointer, constant while rays are in the unit.
 //   * status: busy_o (some slot holds a ray), dp_issue_o[p] (a request entered pipeline p this
 //     cycle), max_depth_o (most stack entries any ray held), overflow_o[p] (response stage p's
@@ -52,7 +62,8 @@
 //     its request sent, and nothing else is in flight: no request in a datapath or a response
 //     stage, no division, no ray setup, no result; until a memory response or a new ray comes,
 //     no register that a later output depends on changes). All from registers only.
-// Parameters: RAYS (slots), STACK_DEPTH (entries per stack), DIVIDERS (binary32 dividers,
+// Parameters: RAYS (slots), STACK_DEPTH (entries per stack), CULL (the distance-culled stack),
+// DIVIDERS (binary32 dividers,
 // rf_fp_div), SETUPS (ray setups, rf_rtu_setup), PIPELINES (datapaths, each with its response
 // stage: rf_rtu_pipes; the pop port, the fetch, the memory port, the divider and setup ports and
 // the result port stay one each), and the datapath's own, passed through.
@@ -62,6 +73,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   parameter int unsigned DIVIDERS    = 2,
   parameter int unsigned SETUPS      = 2,
   parameter int unsigned PIPELINES   = 1,
+  parameter bit          CULL        = 1'b0,
   parameter bit          EXTENDED    = 1'b0,
   parameter bit          DISJOINT    = 1'b0,
   parameter bit          COMPRESSED  = 1'b0,
@@ -95,6 +107,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   output logic [PIPELINES-1:0]       spill_valid_o,
   output logic [PIPELINES-1:0][7:0]  spill_slot_o,
   output logic [PIPELINES-1:0][31:0] spill_ptr_o,
+  output logic [PIPELINES-1:0][31:0] spill_dist_o,
   output logic               res_valid_o,
   input  logic               res_ready_i,
   output logic [31:0]        res_id_o,
@@ -107,6 +120,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   output logic [31:0]        res_xf_ops_o,
   output logic [15:0]        res_overflows_o,
   output logic [15:0]        res_refills_o,
+  output logic [31:0]        res_culled_o,
   output logic               res_err_o,
   output logic               busy_o,
   output logic [PIPELINES-1:0] dp_issue_o,
@@ -139,6 +153,9 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   logic  [31:0]     leaf_q [RAYS];         // the pointer the slot popped last
   logic  [RAYS-1:0] at_root_q, err_q, held_q;
   logic  [31:0]     held_ptr_q [RAYS];     // a refilled pointer, popped next
+  logic  [31:0]     held_dist_q [RAYS];    // CULL: its entry distance
+  logic  [RAYS-1:0] held_cull_q;           // CULL: the held pointer may be culled (refilled)
+  logic  [RAYS-1:0] nocull_q;              // CULL: the next node popped is not culled
 
   // ---- per-slot state in masks ----
   logic [RAYS-1:0] free_m, pop_m, ready_m, done_m, fetch_m;
@@ -165,7 +182,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   rf_rr_pick #(.N(RAYS)) u_pop_pick (
     .req_i(pop_m), .start_i(pop_next_q), .valid_o(pop_any), .idx_o(pop_slot));
 
-  logic [31:0] stk_top, pop_ptr;
+  logic [31:0] stk_top, pop_ptr, stk_top_dist, pop_dist, nearest_d;
   logic        stk_empty, stk_spilled;
   logic [P-1:0] stk_spill;
   logic        fetch_ready, fetch_bad;
@@ -177,15 +194,32 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign pop_refill = ~pop_root & ~pop_held & stk_empty & stk_spilled;
   assign pop_node   = pop_root | pop_held | pop_stack;
   assign pop_ptr    = pop_stack ? stk_top : pop_held ? held_ptr_q[pop_slot] : root_i;
+  assign pop_dist   = pop_stack ? stk_top_dist : pop_held ? held_dist_q[pop_slot] : '0;
+  // the distance-culled stack: a box node popped at an entry distance >= the nearest t is dropped
+  logic pop_cull;
+  if (CULL) begin : g_cull
+    logic cull_ge, cmp_lt, cmp_eq, cmp_unord;
+    rf_fp_cmp u_cull_cmp (.a_i(nearest_d), .b_i(pop_dist), .lt_o(cmp_lt), .le_o(cull_ge),
+                          .eq_o(cmp_eq), .unord_o(cmp_unord));
+    logic unused_cmp;
+    assign unused_cmp = cmp_lt ^ cmp_eq ^ cmp_unord;
+    assign pop_cull = pop_any & pop_node & cull_ge & ~nocull_q[pop_slot]
+                      & (pop_ptr[2:0] == BOX_TYPE | pop_ptr[2:0] == Q8_TYPE)
+                      & ~(pop_held & ~held_cull_q[pop_slot]);
+  end else begin : g_no_cull
+    assign pop_cull = 1'b0;
+    logic unused_cull;
+    assign unused_cull = ^{pop_dist, nearest_d, nocull_q, held_cull_q};
+  end
   // a leaf's triangle 1 needs no fetch; the return marker brings the ray back to its world ray
   // (and it pops again); any other node waits for the fetch unit; a bad pointer, or an empty
   // stack with nothing spilled, ends the ray
   logic pop_leaf_next;
   assign pop_leaf_next = pop_any & pop_node & pop_ptr[2:0] == LEAF_NEXT_TYPE;
   assign pop_ret    = pop_any & pop_node & pop_ptr[2:0] == RETURN_TYPE;
-  assign pop_err    = pop_any & pop_node & ~pop_leaf_next & ~pop_ret & fetch_bad;
-  assign pop_fetch  = pop_any & ((pop_node & ~pop_leaf_next & ~pop_ret & ~fetch_bad) | pop_refill)
-                      & fetch_ready;
+  assign pop_err    = pop_any & pop_node & ~pop_leaf_next & ~pop_ret & ~pop_cull & fetch_bad;
+  assign pop_fetch  = pop_any & ((pop_node & ~pop_leaf_next & ~pop_ret & ~pop_cull & ~fetch_bad)
+                                 | pop_refill) & fetch_ready;
   assign pop_finish = pop_any & ~pop_node & ~pop_refill;
   kind_e pop_kind;
   always_comb begin
@@ -199,36 +233,37 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     endcase
   end
   logic pop_moves;
-  assign pop_moves = pop_fetch | pop_leaf_next | pop_ret | pop_err | pop_finish;
+  assign pop_moves = pop_fetch | pop_leaf_next | pop_ret | pop_err | pop_finish | pop_cull;
 
   // ---- the blocks ----
   logic              fetch_done, fetch_done_refill;
-  logic [31:0]       fetch_done_ptr;
+  logic [31:0]       fetch_done_ptr, fetch_done_dist;
   logic [SLOT_W-1:0] fetch_done_slot;
   logic [P-1:0][SLOT_W-1:0] sched_rd, resp_rd;
   logic [P-1:0][NODE_W-1:0] node_a, node_b;
-  rf_rtu_fetch #(.RAYS(RAYS), .Q8(COMPRESSED), .XF(TRANSFORM), .PORTS(P)) u_fetch (
+  rf_rtu_fetch #(.RAYS(RAYS), .Q8(COMPRESSED), .XF(TRANSFORM), .CULL(CULL), .PORTS(P)) u_fetch (
     .clk_i, .rst_ni,
     .in_valid_i(pop_fetch), .in_ready_o(fetch_ready), .in_slot_i(pop_slot), .in_ptr_i(pop_ptr),
     .in_refill_i(pop_refill), .in_bad_o(fetch_bad),
     .mem_req_valid_o, .mem_req_ready_i, .mem_req_addr_o, .mem_req_size_o, .mem_req_tag_o,
     .mem_req_refill_o, .mem_rsp_valid_i, .mem_rsp_ready_o, .mem_rsp_data_i, .mem_rsp_tag_i,
     .done_o(fetch_done), .done_slot_o(fetch_done_slot), .done_refill_o(fetch_done_refill),
-    .done_ptr_o(fetch_done_ptr),
+    .done_ptr_o(fetch_done_ptr), .done_dist_o(fetch_done_dist),
     .rd_a_i(sched_rd), .node_a_o(node_a), .rd_b_i(resp_rd), .node_b_o(node_b));
 
   logic [P-1:0]              push;
   logic [P-1:0][SLOT_W-1:0]  push_slot;
-  logic [P-1:0][31:0]        push_ptr;
+  logic [P-1:0][31:0]        push_ptr, push_dist;
   logic              hit_finish;
-  rf_rtu_stack #(.RAYS(RAYS), .STACK_DEPTH(STACK_DEPTH), .PUSHES(P)) u_stack (
+  rf_rtu_stack #(.RAYS(RAYS), .STACK_DEPTH(STACK_DEPTH), .PUSHES(P), .CULL(CULL)) u_stack (
     .clk_i, .rst_ni,
     .clear_i(load), .clear_slot_i(load_slot),
-    .push_i(push), .push_slot_i(push_slot), .push_ptr_i(push_ptr),
-    .pop_slot_i(pop_slot), .pop_i((pop_fetch | pop_ret) & pop_stack),
+    .push_i(push), .push_slot_i(push_slot), .push_ptr_i(push_ptr), .push_dist_i(push_dist),
+    .pop_slot_i(pop_slot), .pop_i((pop_fetch | pop_ret | pop_cull) & pop_stack),
     .refill_i(pop_fetch & pop_refill),
-    .top_o(stk_top), .empty_o(stk_empty), .spilled_o(stk_spilled), .spill_o(stk_spill),
-    .spill_ptr_o(spill_ptr_o), .depth_o(max_depth_o));
+    .top_o(stk_top), .top_dist_o(stk_top_dist), .empty_o(stk_empty), .spilled_o(stk_spilled),
+    .spill_o(stk_spill), .spill_ptr_o(spill_ptr_o), .spill_dist_o(spill_dist_o),
+    .depth_o(max_depth_o));
   assign spill_valid_o = stk_spill;
   for (genvar p = 0; p < P; p++) begin : g_spill_slot
     assign spill_slot_o[p] = 8'(push_slot[p]);
@@ -245,6 +280,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   logic [SLOT_W-1:0] hit_slot;
   logic [31:0]       hit_t, hit_prim;
   logic [31:0] res_id_c, res_prim_c, res_t_c, res_box_c, res_tri_c, res_inst_c, res_xf_c;
+  logic [31:0] res_cull_c;
   logic              setup_valid, setup_ok;
   ray_t              setup_ray;
   logic [64+SLOT_W-1:0] setup_tag;
@@ -252,7 +288,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign setup_slot = setup_tag[SLOT_W-1:0];
   logic [15:0] res_ovf_c, res_rst_c;
   logic        res_hit_c;
-  rf_rtu_ray_buffer #(.RAYS(RAYS), .XF(TRANSFORM), .PORTS(P)) u_rays (
+  rf_rtu_ray_buffer #(.RAYS(RAYS), .XF(TRANSFORM), .CULL(CULL), .PORTS(P)) u_rays (
     .clk_i, .rst_ni,
     .load_i(load), .load_slot_i(load_slot), .load_ray_i(ray_i), .load_id_i(ray_id_i),
     .load_any_hit_i(ray_any_hit_i),
@@ -264,12 +300,13 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     .tri_inc_i(issue & ~issue_box & ~issue_xf), .xf_inc_i(issue & issue_xf),
     .ovf_inc_i(stk_spill), .ovf_slot_i(push_slot),
     .rst_inc_i(pop_fetch & pop_refill), .rst_slot_i(pop_slot),
+    .cull_inc_i(pop_cull), .rd_d_i(pop_slot), .nearest_d_o(nearest_d),
     .rd_a_i(sched_rd), .ray_a_o(ray_a), .nearest_a_o(nearest_a),
     .rd_b_i(hit_rd), .nearest_b_o(nearest_b), .any_hit_b_o(any_hit_b),
     .rd_c_i(res_rd), .id_c_o(res_id_c), .hit_c_o(res_hit_c), .prim_c_o(res_prim_c),
     .inst_c_o(res_inst_c), .nearest_c_o(res_t_c), .box_ops_c_o(res_box_c),
     .tri_ops_c_o(res_tri_c), .xf_ops_c_o(res_xf_c),
-    .overflows_c_o(res_ovf_c), .refills_c_o(res_rst_c));
+    .overflows_c_o(res_ovf_c), .refills_c_o(res_rst_c), .culled_c_o(res_cull_c));
 
   logic [P-1:0] dp_in_valid, dp_in_ready;
   req_t [P-1:0] dp_req;
@@ -295,12 +332,13 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     assign resp_kind[p] = kind_q[resp_rd[p]];
   end
   rf_rtu_pipes #(.RAYS(RAYS), .PIPELINES(P), .EXTENDED(EXTENDED), .DISJOINT(DISJOINT),
-                 .COMPRESSED(COMPRESSED), .TRANSFORM(TRANSFORM), .FUSED(FUSED), .SHARED(SHARED),
+                 .COMPRESSED(COMPRESSED), .TRANSFORM(TRANSFORM), .CULL(CULL), .FUSED(FUSED),
+                 .SHARED(SHARED),
                  .LATENCY(LATENCY)) u_pipes (
     .clk_i, .rst_ni,
     .in_valid_i(dp_in_valid), .in_ready_o(dp_in_ready), .req_i(dp_req),
     .rd_o(resp_rd), .node_i(node_b), .kind_i(resp_kind),
-    .push_o(push), .push_slot_o(push_slot), .push_ptr_o(push_ptr),
+    .push_o(push), .push_slot_o(push_slot), .push_ptr_o(push_ptr), .push_dist_o(push_dist),
     .next_o(resp_next), .div_o(resp_div), .evt_slot_o(resp_slot),
     .div_valid_o(div_in_valid), .div_ready_i(div_in_ready), .div_num_o(div_num),
     .div_den_o(div_den), .div_tag_o(div_tag_in),
@@ -353,6 +391,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
     logic [31:0] xf_ops;
     logic [15:0] overflows;
     logic [15:0] refills;
+    logic [31:0] culled;
     logic        err;
   } res_t;
   logic [SLOT_W-1:0] res_next_q;
@@ -364,7 +403,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign res_d = '{id: res_id_c, hit: res_hit_c, prim: res_prim_c, t: res_t_c,
                    box_ops: res_box_c, tri_ops: res_tri_c, inst: res_inst_c, xf_ops: res_xf_c,
                    overflows: res_ovf_c,
-                   refills: res_rst_c, err: err_q[res_rd]};
+                   refills: res_rst_c, culled: res_cull_c, err: err_q[res_rd]};
   rf_skid #(.T(res_t)) u_res (
     .clk_i, .rst_ni,
     .valid_i(res_any), .ready_o(res_in_ready), .data_i(res_d),
@@ -379,6 +418,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
   assign res_xf_ops_o    = res_q.xf_ops;
   assign res_overflows_o = res_q.overflows;
   assign res_refills_o   = res_q.refills;
+  assign res_culled_o    = res_q.culled;
   assign res_err_o       = res_q.err;
   // a slot in DP, DIV or SETUP has its request, division or ray setup in flight
   assign wait_o          = (free_m | fetch_m) == '1 && !mem_req_valid_o && !res_valid_o;
@@ -387,7 +427,10 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
 
   // ---- slot control ----
   always_ff @(posedge clk_i) begin
-    if (fetch_done && fetch_done_refill) held_ptr_q[fetch_done_slot] <= fetch_done_ptr;
+    if (fetch_done && fetch_done_refill) begin
+      held_ptr_q[fetch_done_slot]  <= fetch_done_ptr;
+      held_dist_q[fetch_done_slot] <= fetch_done_dist;
+    end
     for (int p = 0; p < P; p++)
       if (resp_next[p]) held_ptr_q[resp_slot[p]] <= {leaf_q[resp_slot[p]][31:3], LEAF_NEXT_TYPE};
     if (hit_next)  held_ptr_q[hit_rd]    <= {leaf_q[hit_rd][31:3], LEAF_NEXT_TYPE};
@@ -403,6 +446,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
       at_root_q  <= '0;
       err_q      <= '0;
       held_q     <= '0;
+      held_cull_q <= '0;
+      nocull_q   <= '0;
       pop_next_q <= '0;
       res_next_q <= '0;
     end else begin
@@ -410,14 +455,17 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
         `STATE(load_slot)   <= SLOT_POP;
         at_root_q[load_slot] <= 1'b1;
         err_q[load_slot]     <= 1'b0;
+        nocull_q[load_slot]  <= 1'b0;
       end
       if (pop_moves) begin
         pop_next_q <= (32'(pop_slot) == RAYS - 1) ? '0 : pop_slot + 1'b1;
         at_root_q[pop_slot] <= 1'b0;
         if (pop_held) held_q[pop_slot] <= 1'b0;
+        // a node popped (not the return marker, not a refill read) ends a skip's no-cull pop
+        if (pop_node & ~pop_ret) nocull_q[pop_slot] <= 1'b0;
         if (pop_fetch & pop_refill) begin
           `STATE(pop_slot) <= SLOT_FETCH;
-        end else if (pop_ret) begin
+        end else if (pop_ret | pop_cull) begin
           `STATE(pop_slot) <= SLOT_POP;
         end else if (pop_fetch | pop_leaf_next) begin
           `STATE(pop_slot) <= pop_leaf_next ? SLOT_READY : SLOT_FETCH;
@@ -430,6 +478,7 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
       if (fetch_done) begin
         `STATE(fetch_done_slot) <= fetch_done_refill ? SLOT_POP : SLOT_READY;
         if (fetch_done_refill) held_q[fetch_done_slot] <= 1'b1;
+        held_cull_q[fetch_done_slot] <= fetch_done_refill;
         second_q[fetch_done_slot] <=
             mem_rsp_data_i[(PAIR_NODE_PRIM_WORD + 1)*32 +: 32] != NO_CHILD;
       end
@@ -451,6 +500,8 @@ module rf_rtunit import rf_pkg::*; import rf_rtu_pkg::*; #(
       if (setup_valid) begin
         `STATE(setup_slot) <= SLOT_POP;
         held_q[setup_slot]  <= setup_ok;
+        held_cull_q[setup_slot] <= 1'b0;
+        nocull_q[setup_slot]    <= ~setup_ok;
       end
       if (res_take) begin
         `STATE(res_rd) <= SLOT_FREE;

@@ -191,7 +191,9 @@ module rtu_units_tb_top import rf_pkg::*; import rf_rtu_pkg::*; #(
     .push_slot_i(k_push_slot_i), .push_ptr_i(k_push_ptr_i), .pop_slot_i(k_pop_slot_i),
     .pop_i(k_pop_i), .refill_i(k_refill_i), .top_o(k_top_o), .empty_o(k_empty_o),
     .spilled_o(k_spilled_o), .spill_o(k_spill_o), .spill_ptr_o(k_spill_ptr_o),
-    .depth_o(k_depth_o));
+    .depth_o(k_depth_o),
+    // the entry distances (CULL): tested with the whole unit (tests/test_rtunit_rtl.py)
+    .push_dist_i('0), .top_dist_o(), .spill_dist_o());
 
   rf_rtu_divs #(.DIVIDERS(DIVIDERS), .TAG_W(DIV_TAG_W)) u_divs (
     .clk_i, .rst_ni,
@@ -209,7 +211,7 @@ module rtu_units_tb_top import rf_pkg::*; import rf_rtu_pkg::*; #(
     .mem_rsp_valid_i(f_mem_rsp_valid_i), .mem_rsp_ready_o(f_mem_rsp_ready_o),
     .mem_rsp_data_i(f_mem_rsp_data_i), .mem_rsp_tag_i(f_mem_rsp_tag_i),
     .done_o(f_done_o), .done_slot_o(f_done_slot_o), .done_refill_o(f_done_refill_o),
-    .done_ptr_o(f_done_ptr_o),
+    .done_ptr_o(f_done_ptr_o), .done_dist_o(),
     .rd_a_i(f_rd_a_i), .node_a_o(f_node_a_o), .rd_b_i(f_rd_b_i), .node_b_o(f_node_b_o));
 
   /* verilator lint_off PINCONNECTEMPTY */
@@ -220,7 +222,7 @@ module rtu_units_tb_top import rf_pkg::*; import rf_rtu_pkg::*; #(
     .mem_req_valid_o(), .mem_req_ready_i(1'b0), .mem_req_addr_o(), .mem_req_size_o(),
     .mem_req_tag_o(), .mem_req_refill_o(), .mem_rsp_valid_i(1'b0), .mem_rsp_ready_o(),
     .mem_rsp_data_i('0), .mem_rsp_tag_i('0), .done_o(), .done_slot_o(), .done_refill_o(),
-    .done_ptr_o(), .rd_a_i('0), .node_a_o(), .rd_b_i('0), .node_b_o());
+    .done_ptr_o(), .done_dist_o(), .rd_a_i('0), .node_a_o(), .rd_b_i('0), .node_b_o());
   /* verilator lint_on PINCONNECTEMPTY */
 
   req_t s_req;
@@ -238,6 +240,7 @@ module rtu_units_tb_top import rf_pkg::*; import rf_rtu_pkg::*; #(
     .dp_valid_i(r_dp_valid_i), .dp_ready_o(r_dp_ready_o), .dp_rsp_i(rsp_t'(r_dp_rsp_i)),
     .rd_o(r_rd_o), .node_i(r_node_i), .kind_i(kind_e'(r_kind_i)),
     .push_o(r_push_o), .push_slot_o(r_push_slot_o), .push_ptr_o(r_push_ptr_o),
+    .push_dist_o(),
     .next_o(r_next_o), .div_o(r_div_o), .evt_slot_o(r_evt_slot_o),
     .div_valid_o(r_div_valid_o), .div_ready_i(r_div_ready_i), .div_num_o(r_div_num_o),
     .div_den_o(r_div_den_o), .div_tag_o(r_div_tag_o),
@@ -260,7 +263,8 @@ module rtu_units_tb_top import rf_pkg::*; import rf_rtu_pkg::*; #(
     .rd_b_i(b_rd_b_i), .nearest_b_o(b_nearest_b_o), .any_hit_b_o(b_any_hit_b_o),
     .rd_c_i(b_rd_c_i), .id_c_o(b_id_c_o), .hit_c_o(b_hit_c_o), .prim_c_o(b_prim_c_o),
     .inst_c_o(), .xf_ops_c_o(), .nearest_c_o(b_nearest_c_o), .box_ops_c_o(b_box_ops_c_o), .tri_ops_c_o(b_tri_ops_c_o),
-    .overflows_c_o(b_overflows_c_o), .refills_c_o(b_refills_c_o));
+    .overflows_c_o(b_overflows_c_o), .refills_c_o(b_refills_c_o),
+    .cull_inc_i(1'b0), .rd_d_i('0), .nearest_d_o(), .culled_c_o());
   assign b_ray_a_o = b_ray_a;
 
   rf_rtu_hit #(.RAYS(RAYS)) u_hit (

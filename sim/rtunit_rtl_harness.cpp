@@ -10,7 +10,9 @@
 //
 // Stack spills: the unit writes a stack overflow's oldest entry on its spill port (one write per
 // cycle and pipeline, always taken) and reads it back with a refill request on the memory port;
-// here each ray slot's spill area is a LIFO, and a refill is served after `mem_latency` cycles
+// here each ray slot's spill area is a LIFO of (pointer, entry distance) pairs (the distance is 0
+// unless the unit is built with CULL, the distance-culled stack; a refill's response carries the
+// pointer in data word 0 and the distance in word 1), and a refill is served after `mem_latency` cycles
 // (fixed latency) or the node cache's hit latency (with the hierarchy: a ray's spill area stays in
 // its L1).
 //
@@ -30,6 +32,7 @@
 #include <cstring>
 #include <queue>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "Vrf_rtunit.h"
@@ -69,6 +72,7 @@ constexpr bool kCountsToggles = true;
 #else
 constexpr bool kCountsToggles = false;
 #endif
+constexpr int64_t kOps = rf_rtunit_stats::kUnitOps;   // per-ray counters in `ops`
 constexpr int64_t kOk = 0, kBudget = -1, kBadAddress = -2, kBadArgs = -3, kBadGeometry = -4,
                   kRayError = -5;
 
@@ -76,7 +80,7 @@ struct Pending {
   int64_t ready, seq, addr, size;
   uint32_t tag;
   bool refill;
-  uint32_t value;                      // a refill's pointer
+  uint32_t value, dist;                // a refill's pointer and its entry distance
   bool operator>(const Pending& o) const {
     return ready != o.ready ? ready > o.ready : seq > o.seq;
   }
@@ -100,13 +104,14 @@ struct Run {
   int64_t mem_latency = 0, max_outstanding = 0;
   rf::MemorySystem mem;
   int64_t l1_latency = 0, dividers = 0;
-  std::vector<std::vector<uint32_t>> spill;   // per slot: the spill area, a LIFO
+  std::vector<std::vector<std::pair<uint32_t, uint32_t>>> spill;   // per slot: a LIFO
   // results, per ray id
   uint32_t* prim = nullptr;
   uint32_t* inst = nullptr;            // the hit's instance (0xFFFFFFFF: none)
   uint32_t* t = nullptr;
   uint8_t* hit = nullptr;
-  int64_t* ops = nullptr;              // (n, 5): box, triangle, overflows, refills, transform
+  int64_t* ops = nullptr;              // (n, kOps): box, triangle, overflows, refills,
+                                       // transform, culled
   std::priority_queue<Pending, std::vector<Pending>, std::greater<Pending>> queue;
   int64_t next_ray = 0, done = 0, cycle = 0, seq = 0, outstanding = 0;
   rf_rtunit_stats::RtuStats st{};
@@ -140,7 +145,7 @@ extern "C" {
 
 // A unit for one frame: n rays (ray words (n, kRayWords), any_hit (n,) 0/1) through the BVH image
 // (image_bytes bytes, root pointer `root`); results go to prim, inst, t, hit (n,) and ops
-// (n, 5). The
+// (n, kOps). The
 // arrays must outlive the handle. Returns null for inconsistent arguments or a memory geometry
 // the hierarchy cannot model (*err: kBadArgs or kBadGeometry).
 void* rtu_new(const uint32_t* rays, const uint8_t* any_hit, int64_t n, const uint32_t* image,
@@ -231,11 +236,13 @@ int64_t rtu_advance(void* h, int64_t cycles, int64_t* bad_ray) {
       u.mem_rsp_valid_i = 1;
       u.mem_rsp_tag_i = p.tag;
       std::memset(u.mem_rsp_data_i.data(), 0, sizeof(uint32_t) * u.mem_rsp_data_i.Words);
-      if (p.refill)
+      if (p.refill) {
         u.mem_rsp_data_i[0] = p.value;
-      else
+        u.mem_rsp_data_i[1] = p.dist;
+      } else {
         std::memcpy(u.mem_rsp_data_i.data(), reinterpret_cast<const uint8_t*>(r->image) + p.addr,
                     p.size);
+      }
       r->outstanding--;
     }
     u.res_ready_i = 1;
@@ -245,11 +252,12 @@ int64_t rtu_advance(void* h, int64_t cycles, int64_t* bad_ray) {
       const int64_t addr = static_cast<int64_t>(u.mem_req_addr_o), size = u.mem_req_size_o;
       const uint32_t tag = u.mem_req_tag_o;
       if (u.mem_req_refill_o) {
-        std::vector<uint32_t>& area = r->spill[tag];
+        auto& area = r->spill[tag];
         if (area.empty()) return kBadArgs;      // a refill of nothing: the unit is wrong
         const int64_t lat = r->mem.enabled() ? std::max<int64_t>(r->l1_latency, 1)
                                              : r->mem_latency;
-        r->queue.push({r->cycle + lat, r->seq++, 0, 4, tag, true, area.back()});
+        r->queue.push({r->cycle + lat, r->seq++, 0, size, tag, true, area.back().first,
+                       area.back().second});
         area.pop_back();
         r->st.refill_reads++;
       } else {
@@ -259,7 +267,7 @@ int64_t rtu_advance(void* h, int64_t cycles, int64_t* bad_ray) {
         int64_t ready = r->cycle + r->mem_latency;
         if (r->mem.enabled())
           ready = std::max(r->mem.fetch(0, addr, size, r->cycle, nullptr).ready, r->cycle + 1);
-        r->queue.push({ready, r->seq++, addr, size, tag, false, 0});
+        r->queue.push({ready, r->seq++, addr, size, tag, false, 0, 0});
         r->st.mem_requests++;
         r->st.mem_bytes += size;
       }
@@ -267,8 +275,8 @@ int64_t rtu_advance(void* h, int64_t cycles, int64_t* bad_ray) {
     }
     for (int p = 0; p < kPipelines; p++) {
       if (port_bits(u.spill_valid_o, p, 1))
-        r->spill[port_bits(u.spill_slot_o, 8 * p, 8)].push_back(
-            port_bits(u.spill_ptr_o, 32 * p, 32));
+        r->spill[port_bits(u.spill_slot_o, 8 * p, 8)].emplace_back(
+            port_bits(u.spill_ptr_o, 32 * p, 32), port_bits(u.spill_dist_o, 32 * p, 32));
       const uint32_t issued = port_bits(u.dp_issue_o, p, 1);
       r->st.dp_requests += issued;
       r->st.pipeline_requests[p] += issued;
@@ -286,12 +294,13 @@ int64_t rtu_advance(void* h, int64_t cycles, int64_t* bad_ray) {
       r->inst[id] = u.res_inst_o;
       r->t[id] = u.res_t_o;
       r->hit[id] = u.res_hit_o;
-      int64_t* o = r->ops + 5 * static_cast<int64_t>(id);
+      int64_t* o = r->ops + kOps * static_cast<int64_t>(id);
       o[0] = u.res_box_ops_o;
       o[1] = u.res_tri_ops_o;
       o[2] = u.res_overflows_o;
       o[3] = u.res_refills_o;
       o[4] = u.res_xf_ops_o;
+      o[5] = u.res_culled_o;
       r->done++;
       r->st.cycles = r->cycle + 1;
       if (u.res_err_o) {

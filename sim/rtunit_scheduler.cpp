@@ -155,6 +155,7 @@ struct Engine {
   const int64_t* tl_node_bytes;
   const uint32_t* responses;   // the functional run's responses (unit costs, timing pipelines)
   const uint8_t* any_hit;      // (n_chains,) or null: any-hit rays (unit costs)
+  const int64_t* culls;        // (m + n_chains,) or null: culled pops (unit costs; pop())
   // outputs
   int64_t* ray_times;    // (n_chains, 3): call issued, call admitted, last response
   int64_t* ray_served;   // (n_chains, kMemoryLevels): node bytes supplied by each memory level
@@ -180,6 +181,8 @@ struct Engine {
   std::vector<int64_t> depth, spilled, slot_of;
   std::vector<char> refilling, held, marker;
   std::vector<uint32_t> world_row;
+  // distance-culled stack: entries culled at the chain's current request, and at which request
+  std::vector<int64_t> culled_here, cull_pos;
 
   Engine(const ReplayConfig& c, NodeSource s) : cfg(c), src(s) {}
 
@@ -259,7 +262,9 @@ struct Engine {
   // + 1 cycles (its dividers) and the ray pops its BLAS root then, held, not from the stack; a
   // transformed ray that is not finite (or has a zero direction) skips the instance: the setup
   // holds it 2 cycles. The marker is popped (a pop of its own) before the ray's first request on
-  // its world row after it, or before it ends.
+  // its world row after it, or before it ends. The distance-culled stack (in->culls): each entry
+  // the traversal culled before a request (or before the ray ends) is a pop of its own, after
+  // the marker's, the stack's entries first and then those read back.
   static constexpr int64_t kNever = INT64_MAX;
 
   // The first slot from `start` (round robin) whose time has come at cycle k, or -1.
@@ -342,6 +347,27 @@ struct Engine {
       marker[r] = 0;
       u.pop_at[s] = k + 1;
       return;
+    }
+    // the distance-culled stack (culls): the entries the traversal culled before this request
+    // (or before the ray ends), each a pop of its own, from the stack or read back first
+    if (culls) {
+      if (cull_pos[r] != pos[r]) {
+        cull_pos[r] = pos[r];
+        culled_here[r] = 0;
+      }
+      if (culled_here[r] < culls[chain_off[r] + r + pos[r]]) {
+        if (held[r] == 1) {
+          held[r] = 0;
+        } else if (cfg.stack_depth && depth[r] == 0 && spilled[r] > 0) {
+          refill(u, uid, r, k);
+          return;
+        } else if (depth[r] > 0) {
+          depth[r]--;
+        }
+        culled_here[r]++;
+        u.pop_at[s] = k + 1;
+        return;
+      }
     }
     // the root, a refilled entry and a pair leaf's second triangle are not on the stack
     if (cfg.stack_depth && (!more || (pos[r] > 0 && bytes)) && !held[r]) {
@@ -787,6 +813,7 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
   e.tl_node_bytes = tl_node_bytes;
   e.responses = in->responses;
   e.any_hit = in->any_hit;
+  e.culls = c.unit_costs ? in->culls : nullptr;
   e.unit_costs = c.unit_costs != 0;
   e.ray_times = ray_times;
   e.ray_served = ray_served;
@@ -847,6 +874,8 @@ int64_t rf_replay(const ReplayConfig* cfg, const MemoryConfig* mc, const ReplayI
     e.marker.assign(n_chains, 0);
     e.world_row.assign(n_chains, 0);
     e.slot_of.assign(n_chains, -1);
+    e.culled_here.assign(n_chains, 0);
+    e.cull_pos.assign(n_chains, -1);
   }
   if (e.treelets) e.cur_tl.assign(n_chains, -1);
 

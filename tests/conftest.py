@@ -69,7 +69,8 @@ RTL_BUILDS = {
     "test_gpu": (_B, "signals:" + _B),
     "test_bench": (_B, "pyverilator:" + _B),
     "test_rtunit_rtl": (_B, _B + "-q8", _B + "-q8-xf", _UNIT,
-                        f"rtunit:{_B}-q8-xf:{SUITE_RAYS}:4"),
+                        f"rtunit:{_B}-q8-xf:{SUITE_RAYS}:4",
+                        f"rtunit:{_B}-q8-xf:{SUITE_RAYS}:4:1:cull"),
     "test_rtunit_modules": ("tb:rtu_units",),
     "test_rtunit_pipelines": (_B, _UNIT, _UNIT + ":2"),
     "test_unit_energy": (_B, f"rtunit:{_B}:4:8", f"activity:{_B}:4:8", f"signals-all:{_B}"),
@@ -80,6 +81,7 @@ RTL_BUILDS = {
                           "test_workloads", "test_cli", "test_export",
                           "test_double_sided", "test_tiles", "test_api")},
     "test_statistics_doc": (_B, f"activity:{_B}:4:8", f"signals-all:{_B}"),
+    "test_suite": (_B, _UNIT),
 }
 
 

@@ -2,8 +2,9 @@
 and box/triangle op counts identical to the Python traversal on the "rtl" datapath, at a stack
 depth that never overflows and at one that spills; instanced scenes (two-level images) entered
 through the datapath's TRANSFORM, instance and transform ops included; a one-ray frame's cycles
-counted by hand; its package constants against driver/core/layout.py; lint; bad input refused in
-one line before any work; a corrupt image that gets past the host's check stopped by the harness,
+counted by hand; the distance-culled stack (``--cull-stack``, CULL) against the Python traversal's
+``cull``, culled counts per ray included, at a stack depth that spills; its package constants
+against driver/core/layout.py; lint; bad input refused in one line before any work; a corrupt image that gets past the host's check stopped by the harness,
 the unit or the cycle budget."""
 
 from __future__ import annotations
@@ -26,11 +27,14 @@ from driver.core.wire import FLAG_NO_CULL
 from driver.instances import Instances
 from driver.rtunit import MemoryModel, UnitCosts
 from driver.tracer import as_bvh, trace
+from driver.tracing.issue import issuer
+from driver.traversal import traverse
 from support.corpus import rays as corpus_rays
 from support.meshes import box_room, instance_rays, reuse_glb, small_instances, soup
 from support.prebuild import SUITE_DEPTH, SUITE_RAYS
 
 # the suite's unit (tests/support/prebuild.py), and one with stacks of 4, the q8 decode and TRANSFORM
+# (and that one with the culling stack)
 RAYS, DEEP, SHALLOW = SUITE_RAYS, SUITE_DEPTH, 4
 
 
@@ -39,6 +43,13 @@ def scene():
     tris = soup(200, 1)
     o, d = corpus_rays(tris, 256, 3)            # 16 x 16 rays aimed at the soup
     return as_bvh(tris), o, d
+
+
+@pytest.fixture(scope="module")
+def culling():
+    """``shallow`` with the distance-culled stack (CULL): the suite's one culling build."""
+    return RtUnitBackend(rays_in_flight=RAYS, stack_depth=SHALLOW, mem_latency=20,
+                         compressed=True, transform=True, cull=True)
 
 
 @pytest.fixture(scope="module")
@@ -270,6 +281,9 @@ def test_unit_lint_clean():
     assert lint_unit(unit_params(rtl_params(False, False), RAYS, DEEP)) == ""
     assert lint_unit(unit_params(rtl_params(False, False, compressed=True, transform=True), RAYS,
                                  SHALLOW)) == ""
+    # the culling stack, with two pipelines (two push ports carrying distances)
+    assert lint_unit(unit_params(rtl_params(False, False), RAYS, SHALLOW, pipelines=2,
+                                 cull=True)) == ""
 
 
 def test_unit_refuses_what_it_cannot_read(scene, deep):
@@ -279,7 +293,7 @@ def test_unit_refuses_what_it_cannot_read(scene, deep):
         trace(q8, o[:4], d[:4], backend=deep)
     with pytest.raises(ValueError, match="reads box32, q8 images, not q8g"):
         trace(as_bvh(soup(50, 2), "q8g"), o[:4], d[:4], backend=deep)
-    with pytest.raises(ValueError, match="no culling stack"):
+    with pytest.raises(ValueError, match="only when built with CULL"):
         trace(bvh, o[:4], d[:4], backend=deep, cull_stack=True)
     with pytest.raises(ValueError, match="times the frame itself"):
         trace(bvh, o[:4], d[:4], backend=deep, rays_in_flight=8)
@@ -504,3 +518,101 @@ def test_the_budget_grows_with_the_requests_a_frame_makes(scene, deep, monkeypat
     with pytest.raises(RuntimeError, match="within its budget of 170 cycles"):
         deep.trace_unit(bvh, rays)
     assert rtunit.request_bound(bvh, 2) == 2 * (np.asarray(bvh.image).nbytes // 64 + 1)
+
+
+def _rtl_xf():
+    return backend("rtl", compressed=True, transform=True)
+
+
+@pytest.mark.parametrize("fmt", ["box32", "q8"])
+def test_the_culling_stack_matches_the_traversal_ray_by_ray(culling, fmt):
+    """Every ray's hit, primitive, t bits, box and triangle ops and culled entries equal the
+    Python traversal's ``cull`` on the "rtl" datapath, with a stack that spills."""
+    tris = np.concatenate([box_room(4), soup(200, 1)])
+    o, d = corpus_rays(tris, 256, 3)
+    bvh = as_bvh(tris, fmt)
+    rays = prepare_rays(o, d)
+    ref = traverse(bvh, rays["extent"], issuer(_rtl_xf(), rays, bvh, "rtl"), cull=True)
+    got = culling.trace_unit(bvh, rays)
+    assert got.hit.sum() > 50 and ref.culled.sum() > 100
+    assert got.prim.tolist() == ref.prim.tolist()
+    assert got.t.view(np.uint32).tolist() == ref.nearest.view(np.uint32).tolist()
+    assert got.box_ops.tolist() == ref.box_ops.tolist()
+    assert got.tri_ops.tolist() == ref.tri_ops.tolist()
+    assert got.culled.tolist() == ref.culled.tolist()
+    assert got.stats["overflows"] > 0 and (got.overflows == 0).any()   # both kinds of rays
+    assert (got.refills > 0).any()
+
+
+@pytest.mark.parametrize("any_hit", [False, True], ids=["closest", "any-hit"])
+def test_the_culling_stack_keeps_every_hit_with_fewer_box_ops(scene, shallow, culling, any_hit):
+    bvh, o, d = scene
+    ref = trace(bvh, o, d, backend=_rtl_xf(), any_hit=any_hit, cull_stack=True)
+    got = trace(bvh, o, d, backend=culling, any_hit=any_hit, cull_stack=True)
+    plain = trace(bvh, o, d, backend=shallow, any_hit=any_hit)
+    _same(ref, got)
+    _same(plain, got, ops=False)
+    unit = got.stats["unit_rtl"]
+    assert unit["traversal_mismatches"] == 0 and unit["stack_overflows"] > 0
+    assert unit["cull_stack"] and not plain.stats["unit_rtl"]["cull_stack"]
+    assert got.stats["stack_culls"] == ref.stats["stack_culls"] == unit["stack_culls"]
+    if any_hit:     # an any-hit ray's nearest t changes only where it ends: nothing to cull
+        assert unit["stack_culls"] == 0 and got.box_ops.tolist() == plain.box_ops.tolist()
+    else:
+        assert unit["stack_culls"] > 0
+        assert got.box_ops.sum() + unit["stack_culls"] <= plain.box_ops.sum()
+        assert got.box_ops.sum() < plain.box_ops.sum()
+        assert unit["mem_requests"] < plain.stats["unit_rtl"]["mem_requests"]
+    # the replay with the unit's costs charges a pop-port cycle per culled entry
+    assert abs(unit["replay_cycles_ratio"] - 1) <= 0.03
+
+
+@pytest.mark.parametrize("any_hit", [False, True], ids=["closest", "any-hit"])
+def test_the_culling_stack_through_instances(culling, any_hit):
+    """The BLAS root a ray enters carries no cull check (the traversal issues it at once), the
+    entries inside a BLAS are culled by the object-space ray's t (the world ray's scale), and
+    a ray that skips an instance issues its next entry unculled, as the traversal does."""
+    base = small_instances()
+    tiny = np.hstack([np.diag([1e-20] * 3), [[0.0], [5.0], [0.0]]])
+    inst = Instances(base.meshes, np.append(base.mesh, 0),
+                     np.concatenate([base.object_to_world, tiny[None]]))
+    bvh = build_two_level(inst)
+    o, d = instance_rays(256)
+    o = np.concatenate([[[0, 5, -2e-20], [0, 5, -2e-20]], o]).astype(np.float32)
+    d = np.concatenate([[[0, 0, 1e19], [0, -1e19, 1e18]], d]).astype(np.float32)
+    ref = trace(bvh, o, d, backend=_rtl_xf(), transform="datapath", any_hit=any_hit,
+                cull_stack=True)
+    got = trace(bvh, o, d, backend=culling, any_hit=any_hit, cull_stack=True)
+    _same(ref, got)
+    assert got.instance.tolist() == ref.instance.tolist()
+    assert got.transform_ops.tolist() == ref.transform_ops.tolist()
+    unit = got.stats["unit_rtl"]
+    assert unit["traversal_mismatches"] == 0 and unit["stack_overflows"] > 0
+    assert got.stats["stack_culls"] == ref.stats["stack_culls"]
+    assert (unit["stack_culls"] == 0) if any_hit else (unit["stack_culls"] > 0)
+    assert abs(unit["replay_cycles_ratio"] - 1) <= 0.03
+
+
+def test_the_culling_stack_is_one_build_parameter(scene, shallow, culling):
+    bvh, o, d = scene
+    assert culling.unit_params == {**shallow.unit_params, "CULL": 1}
+    assert "CULL" not in unit_params({}, RAYS, SHALLOW)
+    with pytest.raises(ValueError, match="built with CULL"):
+        trace(bvh, o[:4], d[:4], backend=shallow, cull_stack=True)
+    with pytest.raises(ValueError, match="--cull-stack"):
+        trace(bvh, o[:4], d[:4], backend=culling)
+
+
+def test_render_with_the_culling_stack(in_tmp, error_line):
+    import json
+    glb = str(reuse_glb(in_tmp / "reuse.glb"))         # three instances of one icosphere
+    # the build of ``culling``: the q8 decode stage, TRANSFORM, a stack of SHALLOW, CULL
+    argv = ["render", glb, "--size", "16", "--backend", "rtunit", "--rays-in-flight", str(RAYS),
+            "--transform", "datapath", "--config", "baseline-unified-q8", "--stack-depth",
+            str(SHALLOW), "--cull-stack", "--check-embree", "--no-progress"]
+    assert main([*argv, "--json", "f.json"]) == 0
+    doc = json.loads(open("f.json").read())
+    unit = doc["unit_rtl"]
+    assert unit["cull_stack"] and unit["traversal_mismatches"] == 0
+    assert doc["stack_culls"] == unit["stack_culls"] > 0
+    assert doc["embree"]["adjudicated"]["classes"]["datapath_wrong"] == 0

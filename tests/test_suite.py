@@ -191,3 +191,34 @@ def test_the_lumibench_page_quotes_its_json():
     page = (ROOT / "docs" / "lumibench.md").read_text()
     assert _figures().lumibench_page() == page, "run python tools/figures.py --lumibench-page"
     assert "<!-- generated: table" in page and "| SHIP_AO |" in page
+
+
+def test_runs_through_the_rt_unit_share_their_camera_rays_batch(root, in_tmp):
+    """Through the RT unit in RTL, a scene's runs trace the same camera rays first: the second
+    run reuses the first's batch (``unit_rtl.reused_batches``), with the statistics and results
+    of that run made alone, bit for bit; the shared batches are removed when every run is made."""
+    from support.prebuild import SUITE_DEPTH, SUITE_RAYS
+    argv = ["suite", "lumibench", "--lumibench-root", str(root), "--scenes", "BATH",
+            "--size", "8", "--spp", "1", "--backend", "rtunit", "--flatten",
+            "--rays-in-flight", str(SUITE_RAYS), "--stack-depth", str(SUITE_DEPTH),
+            "--no-progress"]
+    assert main([*argv, "--workloads", "ao,sh", "--out", "both"]) == 0
+    docs = {n: json.loads((in_tmp / "both" / f"BATH_{n}.json").read_text()) for n in ("AO", "SH")}
+    reused = {n: d["by_type"]["primary"]["unit_rtl"]["reused_batches"] for n, d in docs.items()}
+    assert sorted(reused.values()) == [0, 1]
+    assert not (in_tmp / "both" / ".unit-batches").exists()
+    second = next(n for n, r in reused.items() if r)
+    assert main([*argv, "--workloads", second.lower(), "--out", "alone"]) == 0
+    alone = json.loads((in_tmp / "alone" / f"BATH_{second}.json").read_text())
+    got = docs[second]
+    assert got["by_type"]["primary"]["unit_rtl"]["cycles"] > 0
+    for doc in (got, alone):
+        doc["unit_rtl"].pop("reused_batches")
+        for t in doc["by_type"].values():
+            t["unit_rtl"].pop("reused_batches")
+    assert got["unit_rtl"] == alone["unit_rtl"] and got["embree"] == alone["embree"]
+    assert got["by_type"].keys() == alone["by_type"].keys()
+    for t in got["by_type"]:
+        assert got["by_type"][t]["unit_rtl"] == alone["by_type"][t]["unit_rtl"]
+    assert (in_tmp / "both" / f"BATH_{second}.png").read_bytes() == \
+        (in_tmp / "alone" / f"BATH_{second}.png").read_bytes()

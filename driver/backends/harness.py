@@ -211,7 +211,7 @@ _LATENCY: dict = {}
 
 
 def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, frame, chains,
-                    plan, treelets=None, any_hit=None):
+                    plan, treelets=None, any_hit=None, culls=None):
     """Run the RT-unit replay (sim/rtunit_scheduler.cpp, ``rf_replay``) of recorded request
     chains issued by warps of trace calls. ``config``: the ``REPLAY_CONFIG`` values
     (``series_capacity`` is filled in); ``memory``: the ``MEMORY_CONFIG`` values, or None (every
@@ -227,7 +227,7 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
     ``MEMORY_LEVELS``), ``ray_wait`` (n,), ``call_times`` (calls, 3), ``call_unit`` (calls,),
     ``series``, ``kernel_times`` (kernels, 3)). ``config["unit_costs"]``: the RT unit in RTL's
     costs (``driver.rtunit.UnitCosts``; timing pipelines read ``frame.responses``), any_hit:
-    (chains,) bool or None."""
+    (chains,) bool or None; culls: the culled pops (``driver.rtunit.gpu._culls``) or None."""
     lib = harness_library(params)
     rw, img, r, p, e = node_arrays(frame.ray_words, frame.image, frame.ray, frame.ptr,
                                    frame.extent)
@@ -252,7 +252,7 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
     n_chains, n_calls = len(co) - 1, len(cro) - 1
     # the timing replay (timing_latency > 0) writes no responses
     rsp = np.zeros((0 if cfg.timing_latency else len(r), RSP_WORDS), np.uint32)
-    known, ah = _unit_cost_inputs(cfg, frame.responses, len(r), len(co) - 1, any_hit)
+    known, ah, cu = _unit_cost_inputs(cfg, frame.responses, len(r), n_chains, any_hit, culls)
     stats = ReplayStats()
     per_pipe = np.zeros((cfg.units, cfg.pipelines), np.int64)
     sched = np.zeros(len(SCHED_STATS), np.int64)
@@ -271,7 +271,7 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
         kernel_off=_data(ko), warp_call_off=_data(wo), call_ray_off=_data(cro),
         call_rays=_data(crs), treelet=_data(ids), n_treelets=n_tl,
         **dict(zip(("tl_off", "tl_node_off", "tl_node_bytes"), map(_data, pre))),
-        responses=_data(known), any_hit=_data(ah))
+        responses=_data(known), any_hit=_data(ah), culls=_data(cu))
     outputs = ReplayOutputs(rsp=_data(rsp), per_pipe=_data(per_pipe), sched=_data(sched),
                             **{k: _data(v) for k, v in out.items()})
     rc = lib.rf_replay(ctypes.byref(cfg), ctypes.byref(mc), ctypes.byref(inputs),
@@ -292,11 +292,15 @@ def replay_schedule(params: dict[str, int], config: dict, memory: dict | None, f
     return rsp, st, per_pipe, out
 
 
-def _unit_cost_inputs(cfg, responses, m: int, n_chains: int, any_hit) -> tuple:
+def _unit_cost_inputs(cfg, responses, m: int, n_chains: int, any_hit, culls) -> tuple:
     """``rf_replay``'s inputs for the RT unit's costs: the functional run's responses (the
-    timing pipelines' response stage reads them; else None) and the any-hit flag per chain (or
-    None)."""
-    known = ah = None
+    timing pipelines' response stage reads them; else None), the any-hit flag per chain (or
+    None) and the culled pops per chain position (or None)."""
+    known = ah = cu = None
+    if culls is not None:
+        cu = np.ascontiguousarray(culls, np.int64)
+        if cu.shape != (m + n_chains,):
+            raise ValueError("the stack's culls need one count per request and one per chain")
     if cfg.unit_costs and cfg.timing_latency:
         known = np.ascontiguousarray(responses, np.uint32)
         if known.shape != (m, RSP_WORDS):
@@ -304,7 +308,7 @@ def _unit_cost_inputs(cfg, responses, m: int, n_chains: int, any_hit) -> tuple:
     if any_hit is not None:
         ah = np.ascontiguousarray(np.broadcast_to(np.asarray(any_hit, bool), (n_chains,)),
                                   np.uint8)
-    return known, ah
+    return known, ah, cu
 
 
 MEMORY_TRACE_COUNTS = ("l1_accesses", "l1_hits", "l1_merged", "l1_misses", "l1_bytes",

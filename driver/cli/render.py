@@ -139,7 +139,9 @@ def summary(res) -> str:
             f"RT unit in RTL R={u['rays_in_flight']}, stack {u['stack_depth']}, "
             f"{u['dividers']} dividers ({u['memory']} memory): {u['cycles']} cycles, "
             f"utilization {u['utilization']:.3f}, max stack depth {u['max_stack_depth']}, "
-            f"{u['stack_overflows']} stack overflows; simulated in {wf['sim_wall_s']:.2f} s"
+            f"{u['stack_overflows']} stack overflows"
+            + (f", {u['stack_culls']} box nodes culled" if u.get("cull_stack") else "")
+            + f"; simulated in {wf['sim_wall_s']:.2f} s"
             + (f"; {u['traversal_mismatches']} rays differ from the traversal"
                if u.get("traversal_mismatches") is not None else "")
             + (f"; replay cycles {ratio:.3f} x the unit's" if ratio is not None else ""))

@@ -459,6 +459,9 @@ REPLAY_INPUTS = (
     ("tl_node_bytes", "const int64_t*"),
     ("responses", "const uint32_t*"),   # unit costs: the functional run's responses (or null)
     ("any_hit", "const uint8_t*"),      # unit costs: per chain, an any-hit ray (or null)
+    # unit costs: entries the distance-culled stack pops before each request of each chain and
+    # after its last (chain r's request k at chain_off[r] + r + k), or null
+    ("culls", "const int64_t*"),
 )
 REPLAY_OUTPUTS = (
     ("rsp", "uint32_t*"), ("per_pipe", "int64_t*"), ("sched", "int64_t*"),

@@ -55,7 +55,9 @@ class UnitCosts:
     (``div_cycles`` each) of rays entering instances after their TRANSFORM. With several
     pipelines each has its response stage, the dividers and the ray setups are shared through
     one port each (granted round robin), as in the unit's RTL (``rtl/rf_rtu_pipes.sv``). Needs
-    the per-ray pool's index order (the unit has no other scheduler)."""
+    the per-ray pool's index order (the unit has no other scheduler). ``culls``: the
+    distance-culled stack's pops (``driver.traversal.Traversal.cull_events``: rows of chain,
+    requests it had issued, entries culled then; None: no culling), one pop-port cycle each."""
 
     dividers: int = DEFAULT_DIVIDERS
     div_cycles: int = field(default_factory=div_cycles)
@@ -63,6 +65,7 @@ class UnitCosts:
     any_hit: object = None
     stack_depth: int = 0
     setups: int = DEFAULT_SETUPS
+    culls: object = None
 
     def config(self) -> dict:
         """Its ``REPLAY_CONFIG`` fields."""
@@ -349,7 +352,7 @@ def replay_frame(waves: list[Wave], rays_in_flight: int, pipelines: int = 1, mem
     t0 = time.perf_counter()
     rsp, counters, per_pipe, arrays = harness.replay_schedule(
         comb.params, config, None if memory is None else memory.config(), comb, chains[:2],
-        plan, tl, _any_hit(unit_costs, waves, comb))
+        plan, tl, _any_hit(unit_costs, waves, comb), _culls(unit_costs, chains[1]))
     wall = time.perf_counter() - t0
     if timing:
         rsp, verified = comb.responses, None          # nothing evaluated, nothing compared
@@ -407,6 +410,22 @@ def _check_replay(r: int, p: int, ta: int, s: Schedule, order: ray_orders.RayOrd
                          "one-kernel frame every ray is issued by its thread: use it with "
                          "--frame wavefront, or a scheduling order (affinity, treelet)")
     return pol, window
+
+
+def _culls(costs: UnitCosts | None, chain_off: np.ndarray):
+    """The unit costs' culled pops per chain position, or None: (requests + chains,) int64,
+    the entries a distance-culled stack pops before each request of each chain and after its
+    last (chain r's request k at chain_off[r] + r + k)."""
+    if costs is None or costs.culls is None:
+        return None
+    ev = np.asarray(costs.culls, np.int64).reshape(-1, 3)
+    n = len(chain_off) - 1
+    out = np.zeros(int(chain_off[-1]) + n, np.int64)
+    ray, pos, k = ev.T
+    if ((ray < 0) | (ray >= n) | (pos < 0) | (pos > np.diff(chain_off)[ray.clip(0, n - 1)])).any():
+        raise ValueError("a stack cull names a request its chain does not have")
+    np.add.at(out, chain_off[ray] + ray + pos, k)
+    return out
 
 
 def _any_hit(costs: UnitCosts | None, waves: list[Wave], comb: Combined):

@@ -9,6 +9,7 @@ tests/conftest.py), named by one string each:
   ``signals-all:CONFIG``        the same with every net traced (beside the traced RT unit)
   ``rtunit:CONFIG:RAYS:DEPTH``  the RT unit in RTL with RAYS slots and stacks of DEPTH entries
   ``rtunit:CONFIG:RAYS:DEPTH:P`` the same with P datapath pipelines (1 without the field)
+  ``rtunit:CONFIG:RAYS:DEPTH:P:cull`` the same with the distance-culled stack (CULL)
   ``activity:CONFIG:RAYS:DEPTH`` the same traced, counting its switching activity
                                 (``rayflex power --backend rtunit``)
   ``tb:NAME``                   a module testbench, ``TESTBENCHES[NAME]`` (rtu_units: the RT
@@ -58,8 +59,9 @@ def split(spec: str) -> tuple[str, str, list[str]]:
     head, sep, rest = spec.partition(":")
     kind, fields = (head, rest.split(":")) if sep else ("harness", [spec])
     if (kind not in KINDS
-            or len(fields) not in ((3, 4) if kind == "rtunit" else (3,) if kind in UNIT_KINDS
+            or len(fields) not in ((3, 4, 5) if kind == "rtunit" else (3,) if kind in UNIT_KINDS
                                    else (1,))
+            or (len(fields) == 5 and fields[4] != "cull")
             or (kind == "tb" and fields[0] not in TESTBENCHES)):
         raise ValueError(f"build spec {spec!r}: see tests/support/prebuild.py")
     return kind, fields[0], fields[1:]
@@ -97,7 +99,8 @@ def build(spec: str) -> None:
     else:
         from driver.backends.rtunit import unit_library, unit_params
         pipelines = int(extra[2]) if len(extra) > 2 else 1
-        unit_library(unit_params(params, int(extra[0]), int(extra[1]), pipelines=pipelines),
+        unit_library(unit_params(params, int(extra[0]), int(extra[1]), pipelines=pipelines,
+                                 cull=len(extra) > 3),
                      kind == "activity")
 
 
