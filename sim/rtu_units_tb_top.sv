@@ -296,6 +296,7 @@ module rtu_units_tb_top import rf_pkg::*; import rf_rtu_pkg::*; #(
     .in_valid_i(p_one_i ? 2'b00 : p_in_valid_i), .in_ready_o(po2.in_ready), .req_i(p_req),
     .rd_o(po2.rd), .node_i(p_node_i), .kind_i(p_kind),
     .push_o(po2.push), .push_slot_o(po2.push_slot), .push_ptr_o(po2.push_ptr),
+    .push_dist_o(),                      // the entry distances (CULL): tested with the whole unit
     .next_o(po2.next), .div_o(po2.div), .xf_o(po2.xf), .evt_slot_o(po2.evt_slot),
     .div_valid_o(po2.div_valid), .div_ready_i(p_div_ready_i & ~p_one_i),
     .div_num_o(po2.div_num), .div_den_o(po2.div_den), .div_tag_o(po2.div_tag),
@@ -309,6 +310,7 @@ module rtu_units_tb_top import rf_pkg::*; import rf_rtu_pkg::*; #(
     .in_valid_i(p_in_valid_i[0] & p_one_i), .in_ready_o(po1.in_ready[0]), .req_i(p_req[0]),
     .rd_o(po1.rd[0]), .node_i(p_node_i[NODE_W-1:0]), .kind_i(p_kind[0]),
     .push_o(po1.push[0]), .push_slot_o(po1.push_slot[0]), .push_ptr_o(po1.push_ptr[0]),
+    .push_dist_o(),                      // the entry distances (CULL): tested with the whole unit
     .next_o(po1.next[0]), .div_o(po1.div[0]), .xf_o(po1.xf[0]), .evt_slot_o(po1.evt_slot[0]),
     .div_valid_o(po1.div_valid), .div_ready_i(p_div_ready_i & p_one_i),
     .div_num_o(po1.div_num), .div_den_o(po1.div_den), .div_tag_o(po1.div_tag),
