@@ -110,13 +110,10 @@ module rf_rtu_pipes import rf_pkg::*; import rf_rtu_pkg::*; #(
     assign xf_tag_o       = s_xf_tag[0];
   end else begin : g_arbiters
     logic [PIPE_W-1:0] div_next_q, xf_next_q, div_g, xf_g;
-    logic [32:0]       div_pick, xf_pick;
-    assign div_pick    = rr_pick(256'(s_div_valid), PIPELINES, 32'(div_next_q));
-    assign xf_pick     = rr_pick(256'(s_xf_valid), PIPELINES, 32'(xf_next_q));
-    assign div_g       = PIPE_W'(div_pick[31:0]);
-    assign xf_g        = PIPE_W'(xf_pick[31:0]);
-    assign div_valid_o = div_pick[32];
-    assign xf_valid_o  = xf_pick[32];
+    rf_rr_pick #(.N(PIPELINES)) u_div_pick (
+      .req_i(s_div_valid), .start_i(div_next_q), .valid_o(div_valid_o), .idx_o(div_g));
+    rf_rr_pick #(.N(PIPELINES)) u_xf_pick (
+      .req_i(s_xf_valid), .start_i(xf_next_q), .valid_o(xf_valid_o), .idx_o(xf_g));
     assign div_num_o   = s_div_num[div_g];
     assign div_den_o   = s_div_den[div_g];
     assign div_tag_o   = s_div_tag[div_g];
@@ -124,8 +121,8 @@ module rf_rtu_pipes import rf_pkg::*; import rf_rtu_pkg::*; #(
     assign xf_dir_o    = s_xf_dir[xf_g];
     assign xf_tag_o    = s_xf_tag[xf_g];
     for (genvar p = 0; p < PIPELINES; p++) begin : g_grant
-      assign s_div_ready[p] = div_ready_i & div_pick[32] & (32'(div_g) == p);
-      assign s_xf_ready[p]  = xf_ready_i & xf_pick[32] & (32'(xf_g) == p);
+      assign s_div_ready[p] = div_ready_i & div_valid_o & (32'(div_g) == p);
+      assign s_xf_ready[p]  = xf_ready_i & xf_valid_o & (32'(xf_g) == p);
     end
     function automatic logic [PIPE_W-1:0] after(input logic [PIPE_W-1:0] p);
       return (32'(p) == PIPELINES - 1) ? '0 : p + 1'b1;

@@ -72,20 +72,4 @@ package rf_rtu_pkg;
     SLOT_SETUP = 3'd7    // its transformed ray is being prepared (rf_rtu_setup)
   } slot_e;
 
-  // The first set bit of req_i at or after start (round robin over n bits), and whether any is
-  // set: scans start..n-1, then 0..start-1 (start < n). The loop's bounds are constants (n is a
-  // parameter at every call): Yosys' slang frontend unrolls a loop whose bound is a signal until
-  // its stack runs out.
-  function automatic logic [32:0] rr_pick(input logic [255:0] req, input int unsigned n,
-                                          input int unsigned start);
-    logic [32:0] pick;
-    int unsigned idx;
-    pick = 33'd0;
-    for (int unsigned k = 0; k < n; k++) begin
-      idx = start + k >= n ? start + k - n : start + k;
-      if (!pick[32] && req[idx[7:0]]) pick = {1'b1, idx};
-    end
-    return pick;
-  endfunction
-
 endpackage

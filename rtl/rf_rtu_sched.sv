@@ -51,34 +51,42 @@ module rf_rtu_sched import rf_pkg::*; import rf_rtu_pkg::*; #(
     return (32'(slot) == RAYS - 1) ? '0 : slot + 1'b1;
   endfunction
 
+  function automatic logic [PIPE_W-1:0] after_pipe(input logic [PIPE_W-1:0] p);
+    return (32'(p) == PIPELINES - 1) ? '0 : p + 1'b1;
+  endfunction
+
   logic [SLOT_W-1:0] next_q;      // round-robin start over the slots
   logic [PIPE_W-1:0] pipe_q;      // and over the pipelines
-  // each pipeline's pick, in turn from pipe_q: from the slots the pipelines served before it
-  // left, after the last one they took
-  logic [RAYS-1:0]   left;
-  logic [SLOT_W-1:0] start, next_d;
-  logic [PIPE_W-1:0] pipe_d;
-  logic [32:0]       pick;
-  int unsigned       q;      // the pipeline served j-th
-  always_comb begin
-    left   = ready_i;
-    start  = next_q;
-    next_d = next_q;
-    pipe_d = pipe_q;
-    for (int unsigned j = 0; j < PIPELINES; j++) begin
-      q = 32'(pipe_q) + j >= PIPELINES ? 32'(pipe_q) + j - PIPELINES : 32'(pipe_q) + j;
-      pick          = rr_pick(256'(left), RAYS, 32'(start));
-      rd_o[q]       = SLOT_W'(pick[31:0]);
-      dp_valid_o[q] = pick[32];
-      issue_o[q]    = pick[32] & dp_ready_i[q];
-      if (issue_o[q]) begin
-        left[rd_o[q]] = 1'b0;
-        start  = after(rd_o[q]);
-        next_d = start;
-        pipe_d = q + 1 == PIPELINES ? '0 : PIPE_W'(q + 1);
-      end
+  // each pipeline's pick, in turn from pipe_q (the j-th served is pipeline q[j]): from the slots
+  // the pipelines served before it left (left[j]), after the last one they took (start[j]);
+  // pipe[j]: the pipeline after the last of them that took a request
+  logic [PIPELINES-1:0][RAYS-1:0]   left  /*verilator split_var*/;
+  logic [PIPELINES:0][SLOT_W-1:0]   start /*verilator split_var*/;
+  logic [PIPELINES:0][PIPE_W-1:0]   pipe  /*verilator split_var*/;
+  logic [PIPELINES-1:0]             found, took;
+  logic [PIPELINES-1:0][SLOT_W-1:0] pick;
+  logic [PIPELINES-1:0][PIPE_W-1:0] q;
+  assign left[0]  = ready_i;
+  assign start[0] = next_q;
+  assign pipe[0]  = pipe_q;
+  for (genvar j = 0; j < PIPELINES; j++) begin : g_pick
+    assign q[j] = PIPE_W'(32'(pipe_q) + j >= PIPELINES ? 32'(pipe_q) + j - PIPELINES
+                                                        : 32'(pipe_q) + j);
+    rf_rr_pick #(.N(RAYS)) u_pick (
+      .req_i(left[j]), .start_i(start[j]), .valid_o(found[j]), .idx_o(pick[j]));
+    assign took[j]    = found[j] & dp_ready_i[q[j]];
+    if (j + 1 < PIPELINES) begin : g_left
+      assign left[j+1] = took[j] ? left[j] & ~(RAYS'(1) << pick[j]) : left[j];
     end
+    assign start[j+1] = took[j] ? after(pick[j]) : start[j];
+    assign pipe[j+1]  = took[j] ? after_pipe(q[j]) : pipe[j];
   end
+  always_comb
+    for (int unsigned j = 0; j < PIPELINES; j++) begin
+      rd_o[q[j]]       = pick[j];
+      dp_valid_o[q[j]] = found[j];
+      issue_o[q[j]]    = took[j];
+    end
 
   for (genvar p = 0; p < PIPELINES; p++) begin : g_req
     logic [REQ_W-1:0] w;
@@ -122,8 +130,8 @@ module rf_rtu_sched import rf_pkg::*; import rf_rtu_pkg::*; #(
       next_q <= '0;
       pipe_q <= '0;
     end else begin
-      next_q <= next_d;
-      pipe_q <= pipe_d;
+      next_q <= start[PIPELINES];
+      pipe_q <= pipe[PIPELINES];
     end
   end
 

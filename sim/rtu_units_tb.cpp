@@ -424,5 +424,144 @@ int64_t divs_run(int64_t cycles, const uint8_t* in_valid, const uint8_t* out_rea
   return got;
 }
 
+// ---- rf_rtu_pipes ----
+// pipes: 2 (u_pipes2) or 1 (u_pipes1, port 0 only); rays: the slots (PIPE_RAYS). Job j goes to
+// pipeline job_pipe[j]: its request words req (n, 81), whose tag word the driver sets to the slot,
+// and its node buffer entry node (n, 32) and kind. Driver p: its jobs in order, each offered
+// after a gap (gap (2, cycles)) once a slot is free (the lowest free one: a slot holds one job
+// from its offer to its last event, next_o, div_o or xf_o), held until taken (in_cycle[j],
+// in_slot[j]). div_ready_i = div_ready[k], xf_ready_i = xf_ready[k]; the read ports answer rd_o[p]
+// with its slot's job's node and kind. Monitor: per cycle flags[k] = div_want | xf_want << 2 |
+// div_valid_o << 4 | xf_valid_o << 5; events (evt_cycle, evt_pipe, evt_job, evt_what: 1 div_o,
+// 2 next_o, 4 xf_o; evt_job: the job its slot holds); pushes (push_cycle, push_pipe, push_job,
+// push_ptr); divisions taken (div_cycle, div_words (m, 4): num, den, tag words 0..1) and setups
+// taken (xf_cycle, xf_words (m, 9): origin, dir, tag words 0..2). errs[0]: cycles
+// in_ready_o moved with in_valid_i; errs[1]: cycles div_valid_o or xf_valid_o moved with their
+// ready inputs (register outputs and the arbiters' picks); errs[2]: an event or push naming a
+// slot that holds no job. counts: jobs taken, events, pushes, divisions, setups.
+void pipes_run(int64_t cycles, int64_t pipes, int64_t rays, int64_t n, const uint8_t* job_pipe,
+               const uint32_t* req, const uint32_t* node, const uint8_t* kind, const uint8_t* gap,
+               const uint8_t* div_ready, const uint8_t* xf_ready, int64_t* in_cycle,
+               uint8_t* in_slot, uint8_t* flags, int64_t* evt_cycle, uint8_t* evt_pipe,
+               int64_t* evt_job, uint8_t* evt_what, int64_t* push_cycle, uint8_t* push_pipe,
+               int64_t* push_job, uint32_t* push_ptr, int64_t* div_cycle, uint32_t* div_words,
+               int64_t* xf_cycle, uint32_t* xf_words, int64_t* errs, int64_t* counts) {
+  VerilatedContext ctx;
+  Top t{&ctx};
+  t.p_one_i = pipes == 1;
+  t.p_in_valid_i = 0;
+  t.p_div_ready_i = t.p_xf_ready_i = 0;
+  reset(t);
+  std::vector<int64_t> held(rays, -1);   // the job in each slot
+  int sw = 0;                            // the slot fields' width: $clog2(PIPE_RAYS)
+  while ((int64_t{1} << sw) < rays) sw++;
+  const uint32_t slot_mask = (1u << sw) - 1;
+  int64_t next[2] = {0, 0}, offer[2] = {-1, -1};   // per driver: its next job, the one offered
+  int64_t taken = 0, evts = 0, pushes = 0, divs = 0, xfs = 0;
+  auto find = [&](int p, int64_t from) {   // driver p's next job at or after from
+    while (from < n && job_pipe[from] != p) from++;
+    return from;
+  };
+  for (int p = 0; p < 2; p++) next[p] = find(p, 0);
+  auto set_valid = [&](bool probe) {
+    uint32_t v = 0;
+    for (int p = 0; p < 2; p++) v |= static_cast<uint32_t>((offer[p] >= 0) != probe) << p;
+    t.p_in_valid_i = v;
+  };
+  for (int64_t k = 0; k < cycles; k++) {
+    // drivers: the next job into the lowest free slot, after a gap
+    for (int p = 0; p < pipes; p++) {
+      if (offer[p] >= 0 || next[p] >= n || !gap[p * cycles + k]) continue;
+      int64_t s = 0;
+      while (s < rays && held[s] >= 0) s++;
+      if (s == rays) continue;
+      offer[p] = next[p];
+      held[s] = next[p];
+      in_slot[next[p]] = static_cast<uint8_t>(s);
+      for (int w = 0; w < kReqWords; w++)
+        t.p_req_i[p * kReqWords + w] =
+            w == 0 ? static_cast<uint32_t>(s) : req[next[p] * kReqWords + w];
+      next[p] = find(p, next[p] + 1);
+    }
+    // the ready outputs with the valid inputs flipped, the valid outputs with the readies
+    // flipped: register outputs move with neither
+    set_valid(true);
+    t.p_div_ready_i = !div_ready[k];
+    t.p_xf_ready_i = !xf_ready[k];
+    t.eval();
+    const uint32_t ready_probe = t.p_in_ready_o;
+    const uint32_t valid_probe = t.p_div_valid_o | t.p_xf_valid_o << 1;
+    set_valid(false);
+    t.p_div_ready_i = div_ready[k];
+    t.p_xf_ready_i = xf_ready[k];
+    t.eval();
+    for (int p = 0; p < 2; p++) {   // the read ports
+      const int64_t j = held[(t.p_rd_o >> (sw * p)) & slot_mask];
+      for (int w = 0; w < kNodeWords; w++)
+        t.p_node_i[p * kNodeWords + w] = j >= 0 ? node[j * kNodeWords + w] : 0;
+      t.p_kind_i = (t.p_kind_i & ~(7u << 3 * p)) | (j >= 0 ? kind[j] : 0u) << 3 * p;
+    }
+    t.eval();
+    errs[0] += ready_probe != t.p_in_ready_o;
+    errs[1] += valid_probe != (t.p_div_valid_o | t.p_xf_valid_o << 1u);
+    flags[k] = static_cast<uint8_t>(t.p_div_want_o | t.p_xf_want_o << 2 | t.p_div_valid_o << 4 |
+                                    t.p_xf_valid_o << 5);
+    // monitors
+    std::vector<uint32_t> freed;
+    for (int p = 0; p < 2; p++) {
+      if (t.p_push_o >> p & 1) {
+        const int64_t j = held[(t.p_push_slot_o >> (sw * p)) & slot_mask];
+        errs[2] += j < 0;
+        push_cycle[pushes] = k;
+        push_pipe[pushes] = static_cast<uint8_t>(p);
+        push_job[pushes] = j;
+        push_ptr[pushes++] = static_cast<uint32_t>(t.p_push_ptr_o >> (32 * p));
+      }
+      const uint32_t what = (t.p_div_o >> p & 1) | (t.p_next_o >> p & 1) << 1 |
+                            (t.p_xf_o >> p & 1) << 2;
+      if (what) {
+        const uint32_t s = (t.p_evt_slot_o >> (sw * p)) & slot_mask;
+        errs[2] += held[s] < 0;
+        evt_cycle[evts] = k;
+        evt_pipe[evts] = static_cast<uint8_t>(p);
+        evt_job[evts] = held[s];
+        evt_what[evts++] = static_cast<uint8_t>(what);
+        freed.push_back(s);
+      }
+    }
+    if (t.p_div_valid_o && t.p_div_ready_i) {
+      div_cycle[divs] = k;
+      div_words[divs * 4 + 0] = t.p_div_num_o;
+      div_words[divs * 4 + 1] = t.p_div_den_o;
+      div_words[divs * 4 + 2] = static_cast<uint32_t>(t.p_div_tag_o);
+      div_words[divs * 4 + 3] = static_cast<uint32_t>(t.p_div_tag_o >> 32);
+      divs++;
+    }
+    if (t.p_xf_valid_o && t.p_xf_ready_i) {
+      xf_cycle[xfs] = k;
+      for (int i = 0; i < 3; i++) {
+        xf_words[xfs * 9 + i] = t.p_xf_origin_o[i];
+        xf_words[xfs * 9 + 3 + i] = t.p_xf_dir_o[i];
+        xf_words[xfs * 9 + 6 + i] = t.p_xf_tag_o[i];
+      }
+      xfs++;
+    }
+    for (int p = 0; p < 2; p++) {
+      if (offer[p] >= 0 && (t.p_in_ready_o >> p & 1)) {
+        in_cycle[offer[p]] = k;
+        offer[p] = -1;
+        taken++;
+      }
+    }
+    for (uint32_t s : freed) held[s] = -1;
+    tick(t);
+  }
+  counts[0] = taken;
+  counts[1] = evts;
+  counts[2] = pushes;
+  counts[3] = divs;
+  counts[4] = xfs;
+}
+
 }  // extern "C"
 #pragma GCC visibility pop

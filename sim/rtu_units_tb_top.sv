@@ -3,17 +3,22 @@
 // build for all): traversal stacks (rf_rtu_stack), divider pool (rf_rtu_divs), node fetch
 // (rf_rtu_fetch, with the q8 decode stage; a second one without it, of which only in_bad_o is
 // read), scheduler (rf_rtu_sched), response processing (rf_rtu_resp), ray buffer
-// (rf_rtu_ray_buffer) and hit update (rf_rtu_hit). Each module's ports are the wrapper's under a
-// prefix (k_, d_, f_, s_, r_, b_, h_); the struct ports (req_t, rsp_t, kind_e) are flat bit
-// vectors here, word 0 at the low end. The testbench assumes RAYS = 4.
+// (rf_rtu_ray_buffer), hit update (rf_rtu_hit) and the datapath pipelines (rf_rtu_pipes: two
+// pipelines, and one on the same ports when p_one_i is set; PIPE_RAYS slots; its datapaths are
+// the stand-in of sim/rtu_pipes_datapath.sv, which this build compiles in place of
+// rtl/rayflex.sv). Each module's ports are the wrapper's under a prefix (k_, d_, f_, s_, r_, b_,
+// h_, p_); the struct ports (req_t, rsp_t, kind_e) are flat bit vectors here, word 0 at the low
+// end. The testbench assumes RAYS = 4.
 module rtu_units_tb_top import rf_pkg::*; import rf_rtu_pkg::*; #(
   parameter int unsigned RAYS        = 4,
   parameter int unsigned STACK_DEPTH = 3,
   parameter int unsigned DIVIDERS    = 3,
+  parameter int unsigned PIPE_RAYS   = 16,
   localparam int unsigned DIV_TAG_W  = 16,
   localparam int unsigned SLOT_W = RAYS > 1 ? $clog2(RAYS) : 1,
   localparam int unsigned DEPTH_W = $clog2(STACK_DEPTH + 1),
   localparam int unsigned DIV_W   = $clog2(DIVIDERS + 1),
+  localparam int unsigned PSLOT_W = $clog2(PIPE_RAYS),
   localparam int unsigned REQ_W  = $bits(req_t),
   localparam int unsigned RSP_W  = $bits(rsp_t),
   localparam int unsigned RAY_W  = $bits(ray_t)
@@ -148,7 +153,36 @@ module rtu_units_tb_top import rf_pkg::*; import rf_rtu_pkg::*; #(
   output logic [31:0]        h_hit_t_o,
   output logic [31:0]        h_hit_prim_o,
   output logic               h_next_o,
-  output logic               h_finish_o
+  output logic               h_finish_o,
+  // ---- rf_rtu_pipes (port p: pipeline p; with p_one_i the one-pipeline unit's, on port 0) ----
+  input  logic                    p_one_i,
+  input  logic [1:0]              p_in_valid_i,
+  output logic [1:0]              p_in_ready_o,
+  input  logic [2*REQ_W-1:0]      p_req_i,
+  output logic [1:0][PSLOT_W-1:0] p_rd_o,
+  input  logic [2*NODE_W-1:0]     p_node_i,
+  input  logic [5:0]              p_kind_i,
+  output logic [1:0]              p_push_o,
+  output logic [1:0][PSLOT_W-1:0] p_push_slot_o,
+  output logic [1:0][31:0]        p_push_ptr_o,
+  output logic [1:0]              p_next_o,
+  output logic [1:0]              p_div_o,
+  output logic [1:0]              p_xf_o,
+  output logic [1:0][PSLOT_W-1:0] p_evt_slot_o,
+  output logic                    p_div_valid_o,
+  input  logic                    p_div_ready_i,
+  output logic [31:0]             p_div_num_o,
+  output logic [31:0]             p_div_den_o,
+  output logic [32+PSLOT_W-1:0]   p_div_tag_o,
+  output logic                    p_xf_valid_o,
+  input  logic                    p_xf_ready_i,
+  output logic [2:0][31:0]        p_xf_origin_o,
+  output logic [2:0][31:0]        p_xf_dir_o,
+  output logic [64+PSLOT_W-1:0]   p_xf_tag_o,
+  // the response stages' requests to the two arbiters (inside rf_rtu_pipes: the monitor's view
+  // of who waits)
+  output logic [1:0]              p_div_want_o,
+  output logic [1:0]              p_xf_want_o
 );
 
   rf_rtu_stack #(.RAYS(RAYS), .STACK_DEPTH(STACK_DEPTH)) u_stack (
@@ -238,5 +272,74 @@ module rtu_units_tb_top import rf_pkg::*; import rf_rtu_pkg::*; #(
     .div_tag_i(h_div_tag_i), .rd_o(h_rd_o), .nearest_i(h_nearest_i), .any_hit_i(h_any_hit_i),
     .hit_o(h_hit_o), .hit_slot_o(h_hit_slot_o), .hit_t_o(h_hit_t_o), .hit_prim_o(h_hit_prim_o),
     .next_o(h_next_o), .finish_o(h_finish_o));
+
+  // ---- rf_rtu_pipes: u_pipes2 (two pipelines) and u_pipes1 (one), p_one_i selects ----
+  typedef struct packed {
+    logic [1:0]              in_ready, push, next, div, xf;
+    logic [1:0][PSLOT_W-1:0] rd, push_slot, evt_slot;
+    logic [1:0][31:0]        push_ptr;
+    logic                    div_valid, xf_valid;
+    logic [31:0]             div_num, div_den;
+    logic [32+PSLOT_W-1:0]   div_tag;
+    logic [2:0][31:0]        xf_origin, xf_dir;
+    logic [64+PSLOT_W-1:0]   xf_tag;
+    logic [1:0]              div_want, xf_want;
+  } pipes_out_t;
+  pipes_out_t po2, po1, po;
+  req_t  [1:0] p_req;
+  kind_e [1:0] p_kind;
+  assign p_req  = req_t [1:0]'(p_req_i);
+  assign p_kind = kind_e [1:0]'(p_kind_i);
+
+  rf_rtu_pipes #(.RAYS(PIPE_RAYS), .PIPELINES(2)) u_pipes2 (
+    .clk_i, .rst_ni,
+    .in_valid_i(p_one_i ? 2'b00 : p_in_valid_i), .in_ready_o(po2.in_ready), .req_i(p_req),
+    .rd_o(po2.rd), .node_i(p_node_i), .kind_i(p_kind),
+    .push_o(po2.push), .push_slot_o(po2.push_slot), .push_ptr_o(po2.push_ptr),
+    .push_dist_o(),                      // the entry distances (CULL): tested with the whole unit
+    .next_o(po2.next), .div_o(po2.div), .xf_o(po2.xf), .evt_slot_o(po2.evt_slot),
+    .div_valid_o(po2.div_valid), .div_ready_i(p_div_ready_i & ~p_one_i),
+    .div_num_o(po2.div_num), .div_den_o(po2.div_den), .div_tag_o(po2.div_tag),
+    .xf_valid_o(po2.xf_valid), .xf_ready_i(p_xf_ready_i & ~p_one_i),
+    .xf_origin_o(po2.xf_origin), .xf_dir_o(po2.xf_dir), .xf_tag_o(po2.xf_tag));
+  assign po2.div_want = u_pipes2.s_div_valid;
+  assign po2.xf_want  = u_pipes2.s_xf_valid;
+
+  rf_rtu_pipes #(.RAYS(PIPE_RAYS), .PIPELINES(1)) u_pipes1 (
+    .clk_i, .rst_ni,
+    .in_valid_i(p_in_valid_i[0] & p_one_i), .in_ready_o(po1.in_ready[0]), .req_i(p_req[0]),
+    .rd_o(po1.rd[0]), .node_i(p_node_i[NODE_W-1:0]), .kind_i(p_kind[0]),
+    .push_o(po1.push[0]), .push_slot_o(po1.push_slot[0]), .push_ptr_o(po1.push_ptr[0]),
+    .push_dist_o(),                      // the entry distances (CULL): tested with the whole unit
+    .next_o(po1.next[0]), .div_o(po1.div[0]), .xf_o(po1.xf[0]), .evt_slot_o(po1.evt_slot[0]),
+    .div_valid_o(po1.div_valid), .div_ready_i(p_div_ready_i & p_one_i),
+    .div_num_o(po1.div_num), .div_den_o(po1.div_den), .div_tag_o(po1.div_tag),
+    .xf_valid_o(po1.xf_valid), .xf_ready_i(p_xf_ready_i & p_one_i),
+    .xf_origin_o(po1.xf_origin), .xf_dir_o(po1.xf_dir), .xf_tag_o(po1.xf_tag));
+  assign po1.div_want = {1'b0, u_pipes1.s_div_valid};
+  assign po1.xf_want  = {1'b0, u_pipes1.s_xf_valid};
+  assign {po1.in_ready[1], po1.rd[1], po1.push[1], po1.push_slot[1], po1.push_ptr[1],
+          po1.next[1], po1.div[1], po1.xf[1], po1.evt_slot[1]} = '0;
+
+  assign po = p_one_i ? po1 : po2;
+  assign p_in_ready_o  = po.in_ready;
+  assign p_rd_o        = po.rd;
+  assign p_push_o      = po.push;
+  assign p_push_slot_o = po.push_slot;
+  assign p_push_ptr_o  = po.push_ptr;
+  assign p_next_o      = po.next;
+  assign p_div_o       = po.div;
+  assign p_xf_o        = po.xf;
+  assign p_evt_slot_o  = po.evt_slot;
+  assign p_div_valid_o = po.div_valid;
+  assign p_div_num_o   = po.div_num;
+  assign p_div_den_o   = po.div_den;
+  assign p_div_tag_o   = po.div_tag;
+  assign p_xf_valid_o  = po.xf_valid;
+  assign p_xf_origin_o = po.xf_origin;
+  assign p_xf_dir_o    = po.xf_dir;
+  assign p_xf_tag_o    = po.xf_tag;
+  assign p_div_want_o  = po.div_want;
+  assign p_xf_want_o   = po.xf_want;
 
 endmodule

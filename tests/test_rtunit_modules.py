@@ -18,6 +18,7 @@ import pytest
 
 from driver.backends.build import RTL_DIR
 from driver.core import layout, wire
+from driver.core.datapath import default_latency
 from support.prebuild import RTU_UNITS_PARAMS, rtu_units_library
 
 U8, U32, I64, U64 = (np.ctypeslib.ndpointer(t, flags="C")
@@ -143,14 +144,16 @@ def test_divider_pool_under_back_pressure(valid, ready):
 NODE_WORDS = layout.BOX_BYTES // 4      # rf_rtu_pkg::NODE_W / 32: the widest node, one beat
 
 
-def _kinds() -> dict:
-    """rf_rtu_pkg::kind_e, read from the package: {name: value}; without KIND_XF (an instance
-    node's TRANSFORM: tested with the whole unit, tests/test_rtunit_rtl.py)."""
+def _kinds(xf: bool = False) -> dict:
+    """rf_rtu_pkg::kind_e, read from the package: {name: value}; KIND_XF (an instance node's
+    TRANSFORM) only with ``xf`` (the scheduler's and the response stage's tests leave it to the
+    whole unit, tests/test_rtunit_rtl.py; the pipelines' test has it)."""
     text = (RTL_DIR / "rf_rtu_pkg.sv").read_text()
     kinds = {m[1]: int(m[2]) for m in re.finditer(r"(KIND_\w+)\s*=\s*3'd(\d+)", text)}
     assert set(kinds) == {"KIND_BOX32", "KIND_Q8", "KIND_TRI", "KIND_PAIR0", "KIND_PAIR1",
                           "KIND_XF"}
-    del kinds["KIND_XF"]
+    if not xf:
+        del kinds["KIND_XF"]
     return kinds
 
 
@@ -171,9 +174,9 @@ def mem_words(addr) -> np.ndarray:
     return (w ^ (i << np.uint64(16))).astype(np.uint32)
 
 
-def rr_pick(mask: int, start: int) -> int | None:
-    """The first set bit of mask at or after start, round robin over the slots."""
-    for i in [*range(start, RAYS), *range(start)]:
+def rr_pick(mask: int, start: int, n: int = RAYS) -> int | None:
+    """The first set bit of mask at or after start, round robin over n bits (the slots)."""
+    for i in [*range(start, n), *range(start)]:
         if mask >> i & 1:
             return i
     return None
@@ -263,6 +266,30 @@ def _ray_rows(rng, n) -> np.ndarray:
     return rows
 
 
+def scheduled_requests(rays, nearest, node, kind, kinds) -> np.ndarray:
+    """The request rf_rtu_sched's header makes of each job (REQUEST rows; tag left as in rays):
+    its ray, extent = its nearest t (bits), and by its node's kind (``kinds``: ``_kinds``) the
+    op and its operands from the node's words (driver/core/wire.py, driver/core/layout.py)."""
+    exp = rays.copy()
+    box = np.isin(kind, [kinds["KIND_BOX32"], kinds["KIND_Q8"]])
+    xf = kind == kinds.get("KIND_XF", -1)
+    exp["opcode"] = np.select([box, xf], [wire.QUADBOX, wire.TRANSFORM], wire.TRIANGLE)
+    exp["extent"] = _f32(nearest)
+    b32, q8 = kind == kinds["KIND_BOX32"], kind == kinds["KIND_Q8"]
+    exp["box"][b32] = node[b32].copy().view(layout.BOX_NODE)["box"][:, 0]
+    exp["flags"][q8] |= wire.FLAG_DECODE_Q8
+    exp["qnode"][q8] = node[q8, :wire.QNODE_WORDS]
+    exp["matrix"][xf] = node[xf].copy().view(layout.INSTANCE_NODE)["world_to_object"][:, 0]
+    tri = kind == kinds["KIND_TRI"]
+    exp["tri"][tri] = node[tri, :16].copy().view(layout.TRI_NODE)["tri"][:, 0]
+    pair = node[:, :16].copy().view(layout.PAIR_NODE)[:, 0]
+    p0, p1 = kind == kinds["KIND_PAIR0"], kind == kinds["KIND_PAIR1"]
+    exp["tri"][p0] = pair["v"][p0, :3]
+    sel = (pair["idx"][:, None] >> np.array([0, 2, 4], np.uint32)) & 3
+    exp["tri"][p1] = np.take_along_axis(pair["v"], sel[:, :, None].astype(np.int64), 1)[p1]
+    return exp
+
+
 @pytest.mark.parametrize("seed,valid,ready", [(4, 0.9, 0.9), (5, 0.5, 0.3), (6, 1.0, 0.1)])
 def test_scheduler_under_back_pressure(seed, valid, ready):
     lib = _lib()
@@ -311,29 +338,13 @@ def test_scheduler_under_back_pressure(seed, valid, ready):
     assert ((pick_log >> 7 == 1) & (dp_ready == 0)).sum() > 50      # requests held back
     jobs = np.array(jobs)
     assert sorted(jobs.tolist()) == list(range(n))                  # each job issued once
-    # the request each issued job becomes: its ray, tag = slot, extent = nearest t, and by the
-    # node's kind the op and its operands (driver/core/wire.py, driver/core/layout.py)
-    kind = job_kind[jobs]
-    node = job_node[jobs]
-    exp = rays[jobs].copy()
+    exp = scheduled_requests(rays[jobs], job_nearest[jobs], job_node[jobs], job_kind[jobs],
+                             kinds)
     exp["tag"] = issue_slot
-    box = np.isin(kind, [kinds["KIND_BOX32"], kinds["KIND_Q8"]])
-    exp["opcode"] = np.where(box, wire.QUADBOX, wire.TRIANGLE)
-    exp["extent"] = _f32(job_nearest[jobs])
-    b32, q8 = kind == kinds["KIND_BOX32"], kind == kinds["KIND_Q8"]
-    exp["box"][b32] = node[b32].copy().view(layout.BOX_NODE)["box"][:, 0]
-    exp["flags"][q8] |= wire.FLAG_DECODE_Q8
-    exp["qnode"][q8] = node[q8, :wire.QNODE_WORDS]
-    tri = kind == kinds["KIND_TRI"]
-    exp["tri"][tri] = node[tri, :16].copy().view(layout.TRI_NODE)["tri"][:, 0]
-    pair = node[:, :16].copy().view(layout.PAIR_NODE)[:, 0]
-    p0, p1 = kind == kinds["KIND_PAIR0"], kind == kinds["KIND_PAIR1"]
-    exp["tri"][p0] = pair["v"][p0, :3]
-    sel = (pair["idx"][:, None] >> np.array([0, 2, 4], np.uint32)) & 3
-    exp["tri"][p1] = np.take_along_axis(pair["v"], sel[:, :, None].astype(np.int64), 1)[p1]
-    assert issue_box.tolist() == box.tolist()
+    assert issue_box.tolist() == (exp["opcode"] == wire.QUADBOX).tolist()
     assert (issue_req == wire.REQUEST.pack(exp)).all(axis=1).tolist() == [True] * n
-    assert p1.sum() > 50 and q8.sum() > 50
+    kind = job_kind[jobs]
+    assert (kind == kinds["KIND_PAIR1"]).sum() > 50 and (kind == kinds["KIND_Q8"]).sum() > 50
 
 
 def _pair_slots(rng, n) -> np.ndarray:
@@ -343,6 +354,44 @@ def _pair_slots(rng, n) -> np.ndarray:
         if s[i] == s[i - 1]:
             s[i] = (s[i] + rng.integers(1, RAYS)) % RAYS
     return s.astype(np.uint8)
+
+
+def _bits(x) -> list[int]:
+    return np.asarray(x, np.float32).reshape(-1).view(np.uint32).tolist()
+
+
+def response_effects(rsp, node, kind, slot, kinds, slot_w):
+    """What rf_rtu_resp's header says one response (a RESPONSE row) does to its slot, whose
+    node buffer entry is ``node`` (words) of kind ``kind``: (the pointers pushed, in order; the
+    event: 1 div_o, 2 next_o, 4 xf_o; the division (t_num bits, t_den bits, tag) or None; the
+    ray setup (o' bits, d' bits, tag) or None). Tags: {prim, slot} and {instance, BLAS root,
+    slot}, the slot ``slot_w`` bits wide."""
+    op = int(rsp["opcode"])
+    if op == wire.QUADBOX:
+        child = layout.node_word(layout.Q8_NODE if kind == kinds["KIND_Q8"] else layout.BOX_NODE,
+                                 "child")
+        return ([int(node[child + rsp["box_index"][j]]) for j in (3, 2, 1, 0)
+                 if rsp["box_hit"][j]], 2, None, None)
+    if op == wire.TRANSFORM:
+        inst = layout.INSTANCE_NODE
+        tag = (int(node[layout.node_word(inst, "instance")]) << 32 + slot_w
+               | int(node[layout.node_word(inst, "blas")]) << slot_w | slot)
+        return [_return_ptr()], 4, None, (_bits(rsp["xf_origin"]), _bits(rsp["xf_dir"]), tag)
+    if rsp["tri_hit"]:
+        prim = layout.node_word(layout.PAIR_NODE, "prim") + (kind == kinds["KIND_PAIR1"])
+        if kind == kinds["KIND_TRI"]:
+            prim = layout.node_word(layout.TRI_NODE, "prim")
+        return ([], 1, (*_bits(rsp["t_num"]), *_bits(rsp["t_den"]),
+                        int(node[prim]) << slot_w | slot), None)
+    return [], 2, None, None
+
+
+def _return_ptr() -> int:
+    """rf_rtu_pkg::RETURN_PTR, read from the package: the return marker's pointer (type bits
+    RETURN_TYPE, offset 0)."""
+    text = (RTL_DIR / "rf_rtu_pkg.sv").read_text()
+    assert "RETURN_PTR     = {29'd0, RETURN_TYPE}" in text
+    return int(re.search(r"RETURN_TYPE\s*=\s*3'd(\d+)", text)[1])
 
 
 @pytest.mark.parametrize("seed,valid,ready", [(7, 0.9, 0.9), (8, 0.5, 0.3), (9, 1.0, 0.1)])
@@ -380,31 +429,17 @@ def test_response_processing_under_back_pressure(seed, valid, ready):
                  div_tag, errs, counts)
     assert counts[0] == n and errs[0] == 0      # all taken; dp_ready_o not from dp_valid_i
     # reference: per response taken in cycle c, what its header says, cycle by cycle
-    child = {kinds["KIND_BOX32"]: layout.node_word(layout.BOX_NODE, "child"),
-             kinds["KIND_Q8"]: layout.node_word(layout.Q8_NODE, "child")}
-    prim = {kinds["KIND_TRI"]: layout.node_word(layout.TRI_NODE, "prim"),
-            kinds["KIND_PAIR0"]: layout.node_word(layout.PAIR_NODE, "prim"),
-            kinds["KIND_PAIR1"]: layout.node_word(layout.PAIR_NODE, "prim") + 1}
     pushes, events, divs = [], [], []
     next_ok = 0
     for i in range(n):
-        c, s, r = int(take[i]), int(slot[i]), rows[i]
+        c, s = int(take[i]), int(slot[i])
         assert c >= next_ok, i                  # held back while the last one's pushes go out
-        if box[i]:
-            hits = [j for j in (3, 2, 1, 0) if r["box_hit"][j]]
-            for q, j in enumerate(hits):
-                pushes.append((c + q, s, int(node[i, child[kind[i]] + r["box_index"][j]])))
-            events.append((c + max(len(hits), 1) - 1, s, 2))
-            next_ok = c + max(len(hits), 1)
-        elif r["tri_hit"]:
-            events.append((c, s, 1))
-            divs.append((c, int(rsp[i, wire.RESPONSE.field["t_num"].word]),
-                         int(rsp[i, wire.RESPONSE.field["t_den"].word]),
-                         int(node[i, prim[kind[i]]]) << 2 | s))
-            next_ok = c + 1
-        else:
-            events.append((c, s, 2))
-            next_ok = c + 1
+        ptrs, what, div, _ = response_effects(rows[i], node[i], kind[i], s, kinds, 2)
+        pushes += [(c + q, s, ptr) for q, ptr in enumerate(ptrs)]
+        events.append((c + max(len(ptrs), 1) - 1, s, what))
+        if div:
+            divs.append((c, *div))
+        next_ok = c + max(len(ptrs), 1)
     got_push = list(zip(push_cycle[:counts[1]].tolist(), push_slot[:counts[1]].tolist(),
                         push_ptr[:counts[1]].tolist()))
     got_evt = list(zip(evt_cycle[:counts[2]].tolist(), evt_slot[:counts[2]].tolist(),
@@ -509,3 +544,163 @@ def test_hit_update_against_its_reference():
     assert ((out[hit] >> 6) & 3).tolist() == slot[hit].tolist()
     assert hit_t[hit].tolist() == t[hit].tolist() and hit_prim[hit].tolist() == prim[hit].tolist()
     assert hit.sum() > 500 and finish.sum() > 200 and (v & (way == 0) & ~hit).sum() > 300
+
+
+# ---- the datapath pipelines (rf_rtu_pipes) ----------------------------------------------------
+# rf_rtu_pipes with its response stages, two pipelines and one, under random gaps on every
+# pipeline's input and random ready on the shared divider and ray-setup ports. Its datapaths are
+# the testbench's stand-in (sim/rtu_pipes_datapath.sv: the datapath's handshake and latency, a
+# response that is a fixed function of the request), so the reference is that function followed
+# by the response stage's header (response_effects); the arbiters' reference is the round robin
+# of rf_rtu_pipes' header, cycle by cycle, on the monitored requests of the stages.
+
+PIPE_RAYS = RTU_UNITS_PARAMS["PIPE_RAYS"]
+PIPE_SLOT_W = (PIPE_RAYS - 1).bit_length()
+
+
+def standin_responses(req_words) -> np.ndarray:
+    """The stand-in datapath's response to each request (sim/rtu_pipes_datapath.sv's header):
+    RESPONSE rows from (n, 81) request words."""
+    q = np.asarray(req_words, np.uint32)
+    w = np.zeros((len(q), wire.RESPONSE.words), np.uint32)
+    w[:, 0] = q[:, 0]
+    i = np.arange(1, wire.RESPONSE.words)
+    w[:, 1:] = q[:, i] ^ q[:, 15 + i] ^ q[:, 39 + i] ^ q[:, 55 + i]
+    w[:, 1] = (w[:, 1] & ~np.uint32(7)) | (q[:, 1] & np.uint32(7))
+    return wire.RESPONSE.unpack(w)
+
+
+def _pipe_jobs(rng, n, kinds):
+    """n jobs (node words, kind, request as the scheduler makes it): box32 nodes, triangle
+    nodes, pair leaves (either triangle) and instance nodes (TRANSFORM), random words."""
+    kind = rng.choice([kinds[k] for k in ("KIND_BOX32", "KIND_TRI", "KIND_PAIR0", "KIND_PAIR1",
+                                          "KIND_XF")], n, p=[0.2, 0.2, 0.1, 0.1, 0.4])
+    kind = kind.astype(np.uint8)
+    node = _rand_u32(rng, (n, NODE_WORDS))
+    req = scheduled_requests(_ray_rows(rng, n), _rand_u32(rng, n), node, kind, kinds)
+    return node, kind, req
+
+
+def _pipes_run(pipes, job_pipe, node, kind, req, gap, div_ready, xf_ready) -> dict:
+    """Run the jobs through rf_rtu_pipes (sim/rtu_units_tb.cpp's pipes_run); what the
+    monitors recorded, trimmed to what moved."""
+    lib = _lib()
+    n, cycles = len(job_pipe), len(div_ready)
+    m = 4 * n
+    r = dict(in_cycle=np.full(n, -1, np.int64), in_slot=np.zeros(n, np.uint8),
+             flags=np.zeros(cycles, np.uint8),
+             evt_cycle=np.full(n, -1, np.int64), evt_pipe=np.zeros(n, np.uint8),
+             evt_job=np.full(n, -1, np.int64), evt_what=np.zeros(n, np.uint8),
+             push_cycle=np.full(m, -1, np.int64), push_pipe=np.zeros(m, np.uint8),
+             push_job=np.full(m, -1, np.int64), push_ptr=np.zeros(m, np.uint32),
+             div_cycle=np.full(n, -1, np.int64), div_words=np.zeros((n, 4), np.uint32),
+             xf_cycle=np.full(n, -1, np.int64), xf_words=np.zeros((n, 9), np.uint32),
+             errs=np.zeros(3, np.int64), counts=np.zeros(5, np.int64))
+    lib.pipes_run.argtypes = [ctypes.c_int64] * 4 + [U8, U32, U32, U8, U8, U8, U8, I64, U8, U8,
+                                                     I64, U8, I64, U8, I64, U8, I64, U32, I64,
+                                                     U32, I64, U32, I64, I64]
+    lib.pipes_run(cycles, pipes, PIPE_RAYS, n, job_pipe, wire.REQUEST.pack(req), node, kind,
+                  np.ascontiguousarray(gap, np.uint8), div_ready, xf_ready, *r.values())
+    _, evts, pushes, divs, xfs = r["counts"].tolist()
+    for key, count in (("evt", evts), ("push", pushes), ("div", divs), ("xf", xfs)):
+        for name in [k for k in r if k.startswith(key + "_")]:
+            r[name] = r[name][:count]
+    return r
+
+
+def _pipes_reference(r, job_pipe, node, kind, req, kinds):
+    """Each job's response: the stand-in datapath's, then the response stage's header
+    (response_effects); checks every job's event and pushes (one a cycle, ending with the
+    event) and returns (the divisions, the ray setups) the stages must have handed on, by the
+    cycle their event names them, and the cycle each response was taken."""
+    n = len(job_pipe)
+    rows = req.copy()
+    rows["tag"] = r["in_slot"]
+    rsp = standin_responses(wire.REQUEST.pack(rows))
+    evt = {int(j): (int(c), int(w)) for j, c, w in zip(r["evt_job"], r["evt_cycle"],
+                                                         r["evt_what"])}
+    divs, xfs, take, pushes = {}, {}, np.zeros(n, np.int64), 0
+    for j in range(n):
+        ptrs, what, div, xf = response_effects(rsp[j], node[j], kind[j], int(r["in_slot"][j]),
+                                               kinds, PIPE_SLOT_W)
+        c, got_what = evt[j]
+        assert got_what == what, j
+        take[j] = c - max(len(ptrs), 1) + 1       # the response taken: its pushes, one a cycle
+        mine = r["push_job"] == j
+        assert r["push_ptr"][mine].tolist() == ptrs, j
+        assert r["push_cycle"][mine].tolist() == list(range(take[j], take[j] + len(ptrs))), j
+        assert (r["push_pipe"][mine] == job_pipe[j]).all()
+        pushes += len(ptrs)
+        if div:
+            divs[c] = div
+        if xf:
+            xfs[c] = (*xf[0], *xf[1], xf[2])
+    assert len(r["push_job"]) == pushes                                # none extra
+    return divs, xfs, take
+
+
+def _check_round_robin(r, pipes, port, ready_in, taken):
+    """The arbiter of a shared port (0 divider, 1 ray setup) against rf_rtu_pipes' header, cycle
+    by cycle on the stages' monitored requests: valid when any stage asks, the first asking at
+    or after the one after the last served takes the port when it is ready (``taken``: the
+    cycles it moved), and so no stage waits while another is served twice. Returns the grants
+    made while both stages asked."""
+    what = (1, 4)[port]                         # the event naming the stage served
+    pipe_at = {int(c): int(p) for c, p, w in zip(r["evt_cycle"], r["evt_pipe"], r["evt_what"])
+               if w == what}
+    want, valid_o = r["flags"] >> 2 * port & 3, r["flags"] >> 4 + port & 1
+    start, waited, contended = 0, [0] * pipes, 0
+    for k in range(len(want)):
+        pick = rr_pick(int(want[k]), start, pipes)
+        assert valid_o[k] == (pick is not None), (port, k)
+        assert (k in taken) == (pick is not None and ready_in[k] == 1), (port, k)
+        if k not in taken:
+            continue
+        assert pipe_at[k] == pick, (port, k)
+        start = (pick + 1) % pipes
+        contended += int(want[k]) == 3
+        for q in range(pipes):
+            waited[q] = 0 if q == pick else waited[q] + (int(want[k]) >> q & 1)
+            assert waited[q] < pipes, (port, k, q)
+    return contended
+
+
+@pytest.mark.parametrize("pipes,seed,valid,ready", [
+    (2, 21, 0.9, (0.9, 0.9)), (2, 22, 0.5, (0.3, 0.3)), (2, 23, 1.0, (0.15, 0.9)),
+    (2, 25, 1.0, (0.9, 0.15)), (1, 24, 0.3, (0.7, 0.7))])
+def test_pipelines_under_back_pressure(pipes, seed, valid, ready):
+    kinds = _kinds(xf=True)
+    rng = np.random.default_rng(seed)
+    n, cycles = 600, 8000
+    node, kind, req = _pipe_jobs(rng, n, kinds)
+    job_pipe = rng.integers(0, pipes, n).astype(np.uint8)
+    gap = rng.random((2, cycles)) < valid
+    div_ready, xf_ready = ((rng.random(cycles) < p).astype(np.uint8) for p in ready)
+    r = _pipes_run(pipes, job_pipe, node, kind, req, gap, div_ready, xf_ready)
+    # every job taken once, in its driver's order, and one event each, on its pipeline's ports,
+    # in request order per pipeline; the ready and valid outputs are register outputs; no event
+    # or push for an empty slot
+    assert r["counts"][0] == n and r["errs"].tolist() == [0, 0, 0]
+    assert sorted(r["evt_job"].tolist()) == list(range(n))
+    assert r["evt_cycle"].max() < cycles - 1
+    for p in range(pipes):
+        jobs = np.flatnonzero(job_pipe == p)
+        assert (np.diff(r["in_cycle"][jobs]) > 0).all()
+        assert r["evt_job"][r["evt_pipe"] == p].tolist() == jobs.tolist()
+    # each response bit-exact to the reference, its pushes and its event; a response is taken
+    # LATENCY cycles after its request at the earliest, and some are
+    want_divs, want_xfs, take = _pipes_reference(r, job_pipe, node, kind, req, kinds)
+    assert (take - r["in_cycle"]).min() == default_latency()
+    # each division and ray setup handed on once, in the cycle its stage names its job
+    got_divs = {int(c): (int(w[0]), int(w[1]), int(w[2]) | int(w[3]) << 32)
+                for c, w in zip(r["div_cycle"], r["div_words"])}
+    got_xfs = {int(c): (*w[:6].tolist(), int(w[6]) | int(w[7]) << 32 | int(w[8]) << 64)
+               for c, w in zip(r["xf_cycle"], r["xf_words"])}
+    assert got_divs == want_divs and got_xfs == want_xfs
+    assert len(want_divs) > 40 and len(want_xfs) > 40
+    assert (np.bincount(r["push_job"], minlength=n) > 1).sum() > 30   # several pushes a response
+    # the arbiters: round robin, bounded wait; a port that is often not ready has both stages
+    # asking at once often enough
+    for port, (ready_in, taken) in enumerate(((div_ready, got_divs), (xf_ready, got_xfs))):
+        contended = _check_round_robin(r, pipes, port, ready_in, taken)
+        assert pipes == 1 or ready[port] > 0.3 or contended >= 10, port

@@ -14,13 +14,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from driver.backends import BackendError
+from driver.backends import BackendError, backend
 from driver.backends.build import rtl_params
 from driver.backends.rtunit import RtUnitBackend, lint_unit, unit_params
+from driver.bvh.instances import build_two_level
 from driver.cli import main
 from driver.tracer import as_bvh, trace
 from support.corpus import rays as corpus_rays
-from support.meshes import soup
+from support.meshes import box_room, instance_rays, small_instances, soup
 from support.prebuild import SUITE_DEPTH, SUITE_RAYS
 
 RAYS, DEPTH = SUITE_RAYS, SUITE_DEPTH    # the suite's unit (tests/support/prebuild.py), and :2
@@ -69,6 +70,44 @@ def test_two_pipelines_take_fewer_cycles_on_a_busy_datapath(scene, units):
     assert one["utilization"] > 0.5                   # one pipeline is kept busy
     assert two["cycles"] < 0.95 * one["cycles"]
     assert one["replay_cycles_ratio"] == 1.0 and two["replay_cycles_ratio"] == 1.0
+
+
+@pytest.mark.slow    # its own build (rtunit:baseline-unified-q8-xf:8:4:2), not in the suite's
+@pytest.mark.parametrize("frame", ["instanced", "q8"])
+def test_two_pipelines_on_instanced_and_q8_frames(frame):
+    """Two pipelines with the q8 decode stage and TRANSFORM (a small stack: it spills): an
+    instanced frame (a two-level q8 image, rays entering their BLAS through TRANSFORM, whose
+    responses share the ray-setup port) and a q8 frame with pair leaves, every ray equal to the
+    "rtl" traversal, both pipelines used, and the replay with the unit's costs on the same two
+    pipelines counting the unit's cycles."""
+    unit = RtUnitBackend(rays_in_flight=8, stack_depth=4, mem_latency=FAST, compressed=True,
+                         transform=True, pipelines=2)
+    if frame == "instanced":
+        bvh = build_two_level(small_instances(), "q8")
+        o, d = instance_rays()
+        ref = trace(bvh, o, d, backend=backend("rtl", compressed=True, transform=True),
+                    transform="datapath")
+    else:
+        tris = np.concatenate([box_room(4), soup(100, 4)])  # quads (pair leaves) and triangles
+        o, d = corpus_rays(tris, 256, 5)
+        bvh = as_bvh(tris, "q8")
+        ref = trace(bvh, o, d, backend=backend("rtl", compressed=True))
+    got = trace(bvh, o, d, backend=unit)
+    assert ref.hit.sum() > 20
+    fields = ["hit", "prim", "box_ops", "tri_ops"]
+    if frame == "instanced":
+        fields += ["instance", "transform_ops"]
+    for field in fields:
+        assert getattr(got, field).tolist() == getattr(ref, field).tolist(), field
+    assert got.t.view(np.uint32).tolist() == ref.t.view(np.uint32).tolist()
+    assert got.stats["ops"] == ref.stats["ops"]
+    u = got.stats["unit_rtl"]
+    assert u["traversal_mismatches"] == 0 and u["stack_overflows"] > 0
+    requests = sum(int(getattr(got, f).sum()) for f in fields[2:] if "ops" in f)
+    assert sum(u["pipeline_requests"]) == requests and min(u["pipeline_requests"]) > 0
+    if frame == "instanced":
+        assert (got.transform_ops > 1).sum() >= 20 and u["setup_busy_cycles"] > 0
+    assert u["replay_cycles"] == u["cycles"]
 
 
 def test_pipelines_lint_clean():

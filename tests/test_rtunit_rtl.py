@@ -13,7 +13,6 @@ import re
 
 import numpy as np
 import pytest
-import trimesh
 
 from driver.backends import BackendError, backend
 from driver.backends.build import RTL_DIR, rtl_params
@@ -31,7 +30,7 @@ from driver.tracer import as_bvh, trace
 from driver.tracing.issue import issuer
 from driver.traversal import traverse
 from support.corpus import rays as corpus_rays
-from support.meshes import box_room, reuse_glb, soup
+from support.meshes import box_room, instance_rays, reuse_glb, small_instances, soup
 from support.prebuild import SUITE_DEPTH, SUITE_RAYS
 
 # the suite's unit (tests/support/prebuild.py), and one with stacks of 4, the q8 decode and TRANSFORM
@@ -141,29 +140,6 @@ def test_q8_images_with_the_decode_stage(shallow, any_hit):
     assert unit["traversal_mismatches"] == 0 and unit["stack_overflows"] > 0
     # a pair's second triangle is read from the leaf the ray fetched for its first
     assert unit["mem_requests"] < got.stats["ops"]
-
-
-def small_instances() -> Instances:
-    """Five overlapping instances of two tiny meshes (an icosahedron, 20 triangles; a box, 12),
-    side by side along x, 0.8 apart at unit size; instance 3 turned about z and scaled
-    non-uniformly."""
-    ico = trimesh.creation.icosphere(0).triangles
-    box = trimesh.creation.box().triangles
-    a = 0.7
-    turn = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
-    mats = []
-    for i in range(5):
-        m = turn @ np.diag([1.5, 0.7, 1.2]) if i == 3 else np.eye(3)
-        mats.append(np.hstack([m, [[i * 0.8 - 1.6], [0.3 * (i % 2)], [0.0]]]))
-    return Instances([ico, box], np.array([0, 1, 0, 1, 0]), np.array(mats))
-
-
-def instance_rays(n=256, seed=0):
-    """Rays from the plane z = -5 towards +z, over the instances."""
-    rng = np.random.default_rng(seed)
-    o = np.column_stack([rng.uniform(-3, 3, n), rng.uniform(-2, 2, n), np.full(n, -5.0)])
-    d = np.column_stack([rng.uniform(-0.3, 0.3, n), rng.uniform(-0.3, 0.3, n), np.ones(n)])
-    return o.astype(np.float32), d.astype(np.float32)
 
 
 @pytest.mark.parametrize("fmt", ["box32", "q8"])

@@ -16,17 +16,14 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from driver.backends.rtunit import RtUnitBackend  # noqa: E402
-from driver.core import outputs  # noqa: E402
-from driver.design import DesignPoint  # noqa: E402
-from driver.render import render  # noqa: E402
+from unit_runs import render_unit, run_all, unknown  # noqa: E402
 
-FIXED = 20            # the fixed-latency memory's cycles
+from driver.core.markdown import table as md_table  # noqa: E402
+
 BASE = {"scene": "bunny", "workload": "primary", "size": 64, "point": {}, "rays_in_flight": 64,
         "stack_depth": 32, "memory": "hierarchy", "dividers": 2}
 # name: what differs from BASE (point: DesignPoint options of the frame and its datapath)
@@ -66,13 +63,8 @@ def run(name: str) -> dict:
     spec = {**BASE, **RUNS[name]}
     scene, workload, size = spec["scene"], spec["workload"], spec["size"]
     rif, depth, mem = spec["rays_in_flight"], spec["stack_depth"], spec["memory"]
-    point = DesignPoint(workload=workload, **spec["point"])
-    be = RtUnitBackend(rays_in_flight=rif, stack_depth=depth, mem_latency=FIXED,
-                       memory=point.memory().config() if mem == "hierarchy" else None,
-                       dividers=spec["dividers"], **point.backend_options())
-    t0 = time.perf_counter()
-    res = render(scene, size, size, backend=be, progress=False, point=point,
-                 check_embree=name in FULL)
+    res, wall = render_unit(scene, workload, size, rif, depth, mem, point=spec["point"],
+                            check_embree=name in FULL, dividers=spec["dividers"])
     u = res.stats["unit_rtl"]
     emb = res.stats.get("embree")
     return {"run": name, "scene": scene, "workload": workload, "size": size,
@@ -91,25 +83,22 @@ def run(name: str) -> dict:
                                       emb["adjudicated"]["classes"]["datapath_wrong"]
                                       if "adjudicated" in emb else
                                       emb["hit_mismatch"] + emb["prim_mismatch"]),
-            "wall_s": time.perf_counter() - t0}
+            "wall_s": wall}
 
 
 def table(rows: list[dict]) -> str:
-    head = ("| run | rays | rays in flight | stack | memory | ops | unit cycles | max stack depth "
-            "| refills | rays ≠ traversal | Embree `datapath_wrong` | replay, default costs | "
-            "ratio | replay, unit costs | ratio |\n|" + "---|" * 15)
-    lines = [head]
+    head = ["run", "rays", "rays in flight", "stack", "memory", "ops", "unit cycles",
+            "max stack depth", "refills", "rays ≠ traversal", "Embree `datapath_wrong`",
+            "replay, default costs", "ratio", "replay, unit costs", "ratio"]
 
     def num(v, fmt):
         return "—" if v is None else format(v, fmt)
-    for r in rows:
-        lines.append(f"| {r['run']} | {r['rays']:,} | {r['rays_in_flight']} | "
-                     f"{r['stack_depth']} | {r['memory']} | {r['ops']:,} | "
-                     f"{r['unit_cycles']:,} | {r['max_stack_depth']} | {r['stack_refills']:,} | "
-                     f"{r['mismatches']} | {num(r['embree_datapath_wrong'], ',')} | "
-                     f"{num(r['default_cycles'], ',')} | {num(r['default_ratio'], '.3f')} | "
-                     f"{num(r['replay_cycles'], ',')} | {num(r['ratio'], '.3f')} |")
-    return "\n".join(lines)
+    return md_table(head, [
+        [r["run"], f"{r['rays']:,}", str(r["rays_in_flight"]), str(r["stack_depth"]),
+         r["memory"], f"{r['ops']:,}", f"{r['unit_cycles']:,}", str(r["max_stack_depth"]),
+         f"{r['stack_refills']:,}", str(r["mismatches"]), num(r["embree_datapath_wrong"], ","),
+         num(r["default_cycles"], ","), num(r["default_ratio"], ".3f"),
+         num(r["replay_cycles"], ","), num(r["ratio"], ".3f")] for r in rows])
 
 
 def main(argv=None) -> int:
@@ -120,21 +109,10 @@ def main(argv=None) -> int:
     ap.add_argument("--json", help="write the rows here")
     a = ap.parse_args(argv)
     names = FULL if a.runs == "full" else [n for n in a.runs.split(",") if n]
-    bad = [n for n in names if n not in RUNS]
-    if bad:
-        print(f"replay_vs_unit: unknown run {bad[0]!r}; choose from {', '.join(RUNS)}",
-              file=sys.stderr)
+    if unknown("replay_vs_unit", "run", names, RUNS):
         return 2
-    rows = []
-    for n in names:
-        print(f"  {n} ...", file=sys.stderr, flush=True)
-        rows.append(run(n))
-        r = rows[-1]
-        print(f"  {n}: ratio {r['ratio']} ({r['wall_s']:.1f} s)", file=sys.stderr, flush=True)
-    print(table(rows))
-    if a.json:
-        outputs.write_json({"runs": rows}, a.json)
-    return 0
+    return run_all([(n, lambda n=n: run(n)) for n in names], lambda r: f"ratio {r['ratio']}",
+                   table, a.json)
 
 
 if __name__ == "__main__":

@@ -18,17 +18,14 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from driver.backends.rtunit import RtUnitBackend  # noqa: E402
-from driver.core import outputs  # noqa: E402
-from driver.design import DesignPoint  # noqa: E402
-from driver.render import render  # noqa: E402
+from unit_runs import render_unit, run_all, unknown  # noqa: E402
 
-FIXED = 20            # the fixed-latency memory's cycles
+from driver.core.markdown import table as md_table  # noqa: E402
+
 RAYS_IN_FLIGHT, STACK_DEPTH = 64, 32
 # name: scene, workload, size, memory
 FRAMES = {
@@ -41,12 +38,8 @@ FRAMES = {
 
 def run(name: str, pipelines: int) -> dict:
     scene, workload, size, mem = FRAMES[name]
-    point = DesignPoint(workload=workload)
-    be = RtUnitBackend(rays_in_flight=RAYS_IN_FLIGHT, stack_depth=STACK_DEPTH, mem_latency=FIXED,
-                       memory=point.memory().config() if mem == "hierarchy" else None,
-                       pipelines=pipelines, **point.backend_options())
-    t0 = time.perf_counter()
-    res = render(scene, size, size, backend=be, progress=False, point=point)
+    res, wall = render_unit(scene, workload, size, RAYS_IN_FLIGHT, STACK_DEPTH, mem,
+                            pipelines=pipelines)
     u = res.stats["unit_rtl"]
     return {"frame": name, "scene": scene, "workload": workload, "size": size, "memory": mem,
             "pipelines": pipelines, "rays": res.stats["rays"], "ops": res.stats["ops"],
@@ -55,27 +48,27 @@ def run(name: str, pipelines: int) -> dict:
             "ops_per_cycle": res.stats["ops"] / u["cycles"],
             "mem_requests": u["mem_requests"], "divider_full_cycles": u["divider_full_cycles"],
             "mismatches": u["traversal_mismatches"], "replay_cycles": u["replay_cycles"],
-            "ratio": u["replay_cycles_ratio"], "wall_s": time.perf_counter() - t0}
+            "ratio": u["replay_cycles_ratio"], "wall_s": wall}
 
 
 def table(rows: list[dict]) -> str:
-    head = ("| frame | memory | pipelines | ops | cycles | vs 1 pipeline | ops per cycle | "
-            "utilization per pipeline | node fetches per cycle | both dividers busy | "
-            "rays ≠ traversal | replay, unit costs | ratio |\n|" + "---|" * 13)
-    lines = [head]
+    head = ["frame", "memory", "pipelines", "ops", "cycles", "vs 1 pipeline", "ops per cycle",
+            "utilization per pipeline", "node fetches per cycle", "both dividers busy",
+            "rays ≠ traversal", "replay, unit costs", "ratio"]
+    lines = []
     base = {}
     for r in rows:
         base.setdefault((r["frame"]), r["cycles"] if r["pipelines"] == 1 else None)
         one = base.get(r["frame"])
         util = ", ".join(f"{u:.3f}" for u in r["pipeline_utilization"])
         fetches = r["mem_requests"] / r["cycles"]
-        lines.append(f"| {r['scene']} {r['size']}², {r['workload']} | {r['memory']} | "
-                     f"{r['pipelines']} | {r['ops']:,} | {r['cycles']:,} | "
-                     f"{'—' if not one else format(r['cycles'] / one, '.3f')} | "
-                     f"{r['ops_per_cycle']:.3f} | {util} | {fetches:.3f} | "
-                     f"{r['divider_full_cycles']:,} | {r['mismatches']} | "
-                     f"{r['replay_cycles']:,} | {r['ratio']:.3f} |")
-    return "\n".join(lines)
+        lines.append([f"{r['scene']} {r['size']}², {r['workload']}", r["memory"],
+                      str(r["pipelines"]), f"{r['ops']:,}", f"{r['cycles']:,}",
+                      "—" if not one else format(r["cycles"] / one, ".3f"),
+                      f"{r['ops_per_cycle']:.3f}", util, f"{fetches:.3f}",
+                      f"{r['divider_full_cycles']:,}", str(r["mismatches"]),
+                      f"{r['replay_cycles']:,}", f"{r['ratio']:.3f}"])
+    return md_table(head, lines)
 
 
 def main(argv=None) -> int:
@@ -86,10 +79,7 @@ def main(argv=None) -> int:
     ap.add_argument("--json", help="write the rows here")
     a = ap.parse_args(argv)
     names = [n for n in a.frames.split(",") if n]
-    bad = [n for n in names if n not in FRAMES]
-    if bad:
-        print(f"unit_pipelines: unknown frame {bad[0]!r}; choose from {', '.join(FRAMES)}",
-              file=sys.stderr)
+    if unknown("unit_pipelines", "frame", names, FRAMES):
         return 2
     try:
         counts = [int(p) for p in a.pipelines.split(",") if p]
@@ -97,18 +87,9 @@ def main(argv=None) -> int:
         print(f"unit_pipelines: --pipelines {a.pipelines!r}: give whole numbers",
               file=sys.stderr)
         return 2
-    rows = []
-    for n in names:
-        for p in counts:
-            print(f"  {n}, {p} pipelines ...", file=sys.stderr, flush=True)
-            rows.append(run(n, p))
-            r = rows[-1]
-            print(f"  {n}, {p} pipelines: {r['cycles']:,} cycles, ratio {r['ratio']:.4f} "
-                  f"({r['wall_s']:.1f} s)", file=sys.stderr, flush=True)
-    print(table(rows))
-    if a.json:
-        outputs.write_json({"runs": rows}, a.json)
-    return 0
+    return run_all([(f"{n}, {p} pipelines", lambda n=n, p=p: run(n, p))
+                    for n in names for p in counts],
+                   lambda r: f"{r['cycles']:,} cycles, ratio {r['ratio']:.4f}", table, a.json)
 
 
 if __name__ == "__main__":

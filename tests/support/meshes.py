@@ -12,6 +12,8 @@ to.
 - ``bunny()``: the 99,785-triangle Stanford bunny shipped with pymeshfix (trimesh mesh, cached).
 - ``reuse_glb(path)``: a GLB scene that places one icosphere three times (three instances of one
   mesh, 240 instanced triangles); returns ``path``.
+- ``small_instances()``: five overlapping instances of two tiny meshes (``Instances``), and
+  ``instance_rays(n, seed)``: rays over them.
 """
 
 from __future__ import annotations
@@ -21,6 +23,8 @@ import importlib.resources
 
 import numpy as np
 import trimesh
+
+from driver.instances import Instances
 
 
 def soup(n: int, seed: int = 0) -> np.ndarray:
@@ -134,3 +138,26 @@ def bricks(nx: int = 12, ny: int = 8, nz: int = 3, seed: int = 0) -> trimesh.Tri
                 stud.apply_translation((x, y, height - 0.5 + 0.1))
                 parts.append(stud)
     return trimesh.util.concatenate(parts)
+
+
+def small_instances() -> Instances:
+    """Five overlapping instances of two tiny meshes (an icosahedron, 20 triangles; a box, 12),
+    side by side along x, 0.8 apart at unit size; instance 3 turned about z and scaled
+    non-uniformly."""
+    ico = trimesh.creation.icosphere(0).triangles
+    box = trimesh.creation.box().triangles
+    a = 0.7
+    turn = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+    mats = []
+    for i in range(5):
+        m = turn @ np.diag([1.5, 0.7, 1.2]) if i == 3 else np.eye(3)
+        mats.append(np.hstack([m, [[i * 0.8 - 1.6], [0.3 * (i % 2)], [0.0]]]))
+    return Instances([ico, box], np.array([0, 1, 0, 1, 0]), np.array(mats))
+
+
+def instance_rays(n=256, seed=0):
+    """Rays from the plane z = -5 towards +z, over the instances."""
+    rng = np.random.default_rng(seed)
+    o = np.column_stack([rng.uniform(-3, 3, n), rng.uniform(-2, 2, n), np.full(n, -5.0)])
+    d = np.column_stack([rng.uniform(-0.3, 0.3, n), rng.uniform(-0.3, 0.3, n), np.ones(n)])
+    return o.astype(np.float32), d.astype(np.float32)
