@@ -222,3 +222,20 @@ def test_runs_through_the_rt_unit_share_their_camera_rays_batch(root, in_tmp):
         assert got["by_type"][t]["unit_rtl"] == alone["by_type"][t]["unit_rtl"]
     assert (in_tmp / "both" / f"BATH_{second}.png").read_bytes() == \
         (in_tmp / "alone" / f"BATH_{second}.png").read_bytes()
+
+
+def test_render_refuses_a_lumibench_scene_on_the_rt_unit_before_loading_it(root, in_tmp,
+                                                                           monkeypatch,
+                                                                           error_line):
+    """LumiBench's scenes are instanced: the RT unit in RTL without --transform datapath (or
+    --flatten) is refused in one line before the scene is loaded."""
+    import driver.scenes.scene as scene_mod
+
+    def no_load(*a, **k):
+        raise AssertionError("the scene was loaded before the refusal")
+    monkeypatch.setattr(scene_mod, "load_scene", no_load)
+    monkeypatch.setenv("LUMIBENCH_ROOT", str(root))
+    assert main(["render", "lumibench:BATH", "--size", "8", "--backend", "rtunit",
+                 "--no-progress"]) == 2
+    assert "--transform datapath" in error_line()
+    assert not list(in_tmp.glob("*.png"))

@@ -20,6 +20,7 @@ from ..core.progress import phase
 from ..core.provenance import provenance
 from ..design import clock_figures
 from ..scenes.camera import check_size
+from ..scenes.lumibench import PREFIX as LUMIBENCH_PREFIX
 from . import options
 from .common import (EXIT_CHECK, PROG, check_backend, check_flag_size, check_positive,
                      check_workers, scene_info, view_options, wrote)
@@ -72,6 +73,8 @@ def run(args) -> int:
         check_frame_memory(pixels, point.spp, plan_tile(
             pixels, point.workload, point.spp, args.tile, args.workers, args.scheduler))
 
+    if backend_is_unit_on_lumibench(args.backend, point):   # instanced: known before loading
+        check_format(point.bvh_format, point.compressed, point.transform_op, not point.flatten)
     distributed = args.workers > 1 or args.scheduler
     # a backend that cannot be built fails first (tiles on workers and threads make their own
     # from its name)
@@ -115,6 +118,11 @@ def run(args) -> int:
               file=sys.stderr)
         return EXIT_CHECK
     return 0
+
+
+def backend_is_unit_on_lumibench(backend: str, point) -> bool:
+    """Whether the RT unit in RTL would render a LumiBench scene (instanced, every one)."""
+    return backend == UNIT_BACKEND and str(point.scene).startswith(LUMIBENCH_PREFIX)
 
 
 def summary(res) -> str:
