@@ -187,7 +187,7 @@ def key(run: Run, point, backend: str) -> str:
     return hashlib.blake2b(text.encode(), digest_size=12).hexdigest()
 
 
-MEMO_DIR = ".unit-batches"   # in the output folder: the RT unit's batches the runs share, until done
+MEMO_DIR = ".unit-batches"   # in the output folder: the unit's batches the runs share, until done
 SPLIT_TILE = 128       # the tile of a run whose tiles are spread over the workers
 
 

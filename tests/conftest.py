@@ -67,7 +67,7 @@ RTL_BUILDS = {
     "test_power": ("signals:" + _B, f"signals:{_B}-q8"),
     "test_power_ops": (f"signals:{_B}-q8",),
     "test_gpu": (_B, "signals:" + _B),
-    "test_bench": (_B, "pyverilator:" + _B),
+    "test_bench": (_B, "pyverilator:" + _B, _UNIT),
     "test_rtunit_rtl": (_B, _B + "-q8", _B + "-q8-xf", _UNIT,
                         f"rtunit:{_B}-q8-xf:{SUITE_RAYS}:4",
                         f"rtunit:{_B}-q8-xf:{SUITE_RAYS}:4:1:cull"),

@@ -10,6 +10,7 @@ from PIL import Image
 
 from driver.cli import main
 from driver.design import DesignPoint
+from support.prebuild import SUITE_RAYS
 
 COUNTS = ("rays", "hits", "box_ops", "tri_ops", "ops", "latency_cycles", "box_ops_per_ray",
           "tri_ops_per_ray", "node_bytes_fetched", "backend")
@@ -334,7 +335,7 @@ def test_end_to_end_on_the_rt_unit(tmp_path, capsys):
     process; the unit's cycles instead of the replay's time."""
     out = tmp_path / "u.json"
     assert main(["bench", "--end-to-end", "--scene", "cornell", "--workload", "ao", "--size",
-                 "8", "--repeat", "1", "--backend", "rtunit", "--rays-in-flight", "8",
+                 "8", "--repeat", "1", "--backend", "rtunit", "--rays-in-flight", str(SUITE_RAYS),
                  "--unit-check", "none", "--json", str(out), "--no-progress"]) == 0
     doc = json.loads(out.read_text())
     assert doc["backend"] == "rtunit"
