@@ -73,8 +73,7 @@ def run(args) -> int:
         check_frame_memory(pixels, point.spp, plan_tile(
             pixels, point.workload, point.spp, args.tile, args.workers, args.scheduler))
 
-    if backend_is_unit_on_lumibench(args.backend, point):   # instanced: known before loading
-        check_format(point.bvh_format, point.compressed, point.transform_op, not point.flatten)
+    check_unit_reads(args.backend, point)       # a LumiBench scene: before loading it
     distributed = args.workers > 1 or args.scheduler
     # a backend that cannot be built fails first (tiles on workers and threads make their own
     # from its name)
@@ -83,9 +82,7 @@ def run(args) -> int:
     backend = args.backend
     with phase(f"loading {name}", not args.no_progress):
         scene = with_camera(load_scene(source, args.up_axis), **view)
-    if backend == UNIT_BACKEND:         # what the unit cannot read fails before the BVH build
-        check_format(point.bvh_format, point.compressed, point.transform_op,
-                     getattr(scene, "instances", None) is not None and not point.flatten)
+    check_unit_reads(backend, point, scene)     # before the BVH build
     w, h = scene.size
     if point.size is not None:
         w = h = point.size
@@ -120,9 +117,17 @@ def run(args) -> int:
     return 0
 
 
-def backend_is_unit_on_lumibench(backend: str, point) -> bool:
-    """Whether the RT unit in RTL would render a LumiBench scene (instanced, every one)."""
-    return backend == UNIT_BACKEND and str(point.scene).startswith(LUMIBENCH_PREFIX)
+def check_unit_reads(backend: str, point, scene=None) -> None:
+    """What the RT unit in RTL cannot read, refused in one line (``check_format``): without
+    ``scene``, a LumiBench scene (instanced, every one) before it is loaded; with it, the loaded
+    scene's instances and the node format, before the BVH build."""
+    if backend != UNIT_BACKEND:
+        return
+    if scene is None and not str(point.scene).startswith(LUMIBENCH_PREFIX):
+        return
+    instanced = scene is None or getattr(scene, "instances", None) is not None
+    check_format(point.bvh_format, point.compressed, point.transform_op,
+                 instanced and not point.flatten)
 
 
 def summary(res) -> str:
