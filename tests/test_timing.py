@@ -75,25 +75,32 @@ HAND_READ = {"tools": ("Yosys 0.23 ", "OpenSTA 2.0.17"), "start": "b_i[7]", "end
              "last": ("OAI21X1", 14.609), "cells": 2077, "area_um2": 62728.0}
 
 
-def _time_the_adder(tmp_path) -> tuple[dict, dict]:
-    """rayflex timing --top rf_fp_add with a made-up power document: (the JSON, its adder)."""
-    out = tmp_path / "add.json"
-    power = tmp_path / "power.json"            # a power document's shape, its numbers made up
+@pytest.fixture(scope="module")
+def adder(tmp_path_factory):
+    """``rayflex timing --top rf_fp_add`` with a made-up power document, run once for the tests
+    that read it (a cache of its own): (the JSON, its adder, its folder, its cache)."""
+    if not TOOLS:
+        pytest.skip(f"needs the area extra and {timing.INSTALL}")
+    tmp = tmp_path_factory.mktemp("adder")
+    out = tmp / "add.json"
+    power = tmp / "power.json"                 # a power document's shape, its numbers made up
     power.write_text(json.dumps({"level": "liberty", "configs": {"rf_fp_add": {
         "triangle": {"energy_per_op": 90.0}, "leakage": {"leakage_mW": 0.5,
                                                          "clock_per_cycle_pj": 10.0}}}}))
-    assert main(["timing", "--top", "rf_fp_add", "--json", str(out), "--no-progress",
-                 "--power-json", str(power), "--power-plot", str(tmp_path / "p.png")]) == 0
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("RAYFLEX_CACHE", str(tmp / "cache"))
+        assert main(["timing", "--top", "rf_fp_add", "--json", str(out), "--no-progress",
+                     "--power-json", str(power), "--power-plot", str(tmp / "p.png")]) == 0
     doc = json.loads(out.read_text())
-    return doc, doc["configs"]["rf_fp_add"]
+    return doc, doc["configs"]["rf_fp_add"], tmp, tmp / "cache"
 
 
 @needs_tools
-def test_fp_adder_flow_invariants(cache, tmp_path):
+def test_fp_adder_flow_invariants(adder):
     """What holds with any Yosys and OpenSTA version: a combinational adder timed port to port,
     Fmax from the least period, the path's increments adding up, power against the clock, the
     kept report, every JSON key documented."""
-    doc, r = _time_the_adder(tmp_path)
+    doc, r, folder, cache = adder
     path = r["stages"]["outputs"]["path"]
     assert r["flip_flops"] == 0 and r["limiting_stage"] == "outputs"
     assert r["fmax_mhz"] == pytest.approx(1000 / r["min_period_ns"], abs=0.06)
@@ -102,7 +109,7 @@ def test_fp_adder_flow_invariants(cache, tmp_path):
     pf = doc["power_vs_frequency"]["rf_fp_add"]["ops"]["triangle"]
     assert (pf["pj_per_op"], pf["mw_at_1ghz"]) == (100.0, 100.5)          # (90 + 10) pJ x 1 GHz
     assert pf["mw_at_fmax"] == pytest.approx(100 * r["fmax_mhz"] / 1000 + 0.5, abs=0.06)
-    assert (tmp_path / "p.png").stat().st_size > 1000
+    assert (folder / "p.png").stat().st_size > 1000
     report = (cache / "timing" / (re.sub(r"\.v$", "", r["netlist"].split("/")[-1]) + ".sta.txt"))
     assert report.is_file() and "Startpoint" in report.read_text()
     keys, maps = documented()              # like every other command's JSON: docs/statistics.md
@@ -111,10 +118,11 @@ def test_fp_adder_flow_invariants(cache, tmp_path):
 
 
 @needs_tools
-def test_fp_adder_against_a_hand_read_opensta_report(cache, tmp_path):
+def test_fp_adder_against_a_hand_read_opensta_report(adder):
     """The flow's figures are the ones read by hand off OpenSTA's report (HAND_READ): needs the
-    tool versions that report came from (Debian 12's yosys and opensta)."""
-    _, r = _time_the_adder(tmp_path)
+    tool versions that report came from (Debian 12's yosys and opensta); with others it skips
+    (the reason is in the suite's summary) and test_fp_adder_flow_invariants still runs."""
+    _, r, _, _ = adder
     if not (r["yosys_map"].startswith(HAND_READ["tools"][0]) and r["sta"] == HAND_READ["tools"][1]):
         pytest.skip(f"the hand-read report is of {' and '.join(HAND_READ['tools'])}; here "
                     f"{r['yosys_map']} and {r['sta']} (test_fp_adder_flow_invariants still runs)")
