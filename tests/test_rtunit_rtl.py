@@ -65,6 +65,11 @@ def shallow():
                          compressed=True, transform=True)
 
 
+def _rtl_xf():
+    """The "rtl" datapath with the q8 decode and TRANSFORM (``shallow``'s), the reference."""
+    return backend("rtl", compressed=True, transform=True)
+
+
 def _same(ref, got, ops=True):
     assert got.hit.tolist() == ref.hit.tolist()
     assert got.prim.tolist() == ref.prim.tolist()
@@ -148,8 +153,7 @@ def test_instances_enter_their_blas_through_the_transform(shallow, fmt, any_hit)
     inst = small_instances()
     bvh = build_two_level(inst, fmt)
     o, d = instance_rays()
-    ref = trace(bvh, o, d, backend=backend("rtl", compressed=True, transform=True),
-                transform="datapath", any_hit=any_hit)
+    ref = trace(bvh, o, d, backend=_rtl_xf(), transform="datapath", any_hit=any_hit)
     got = trace(bvh, o, d, backend=shallow, any_hit=any_hit)
     assert ref.hit.sum() > 50 and set(ref.instance[ref.hit]) == set(range(5))
     _same(ref, got)
@@ -169,21 +173,26 @@ def test_instances_enter_their_blas_through_the_transform(shallow, fmt, any_hit)
         assert not failed(emb) and emb["hit_mismatch"] == 0
 
 
+def _with_a_skipped_instance(n: int):
+    """The small instanced scene with a sixth instance scaled by 1e-20 at (0, 5, 0), and n
+    instance rays after two whose transformed ray overflows float32 in it: (bvh, o, d)."""
+    base = small_instances()
+    tiny = np.hstack([np.diag([1e-20] * 3), [[0.0], [5.0], [0.0]]])
+    inst = Instances(base.meshes, np.append(base.mesh, 0),
+                     np.concatenate([base.object_to_world, tiny[None]]))
+    o, d = instance_rays(n)
+    o = np.concatenate([[[0, 5, -2e-20], [0, 5, -2e-20]], o]).astype(np.float32)
+    d = np.concatenate([[[0, 0, 1e19], [0, -1e19, 1e18]], d]).astype(np.float32)
+    return build_two_level(inst), o, d
+
+
 @pytest.mark.parametrize("any_hit", [False, True], ids=["closest", "any-hit"])
 def test_an_instance_whose_transformed_ray_overflows_is_skipped(shallow, any_hit):
     # a sixth instance scaled by 1e-20 at (0, 5, 0): its world_to_object (1e20) takes these
     # rays' long directions past the float32 range, so they skip it; the second then hits
     # instance 2
-    base = small_instances()
-    tiny = np.hstack([np.diag([1e-20] * 3), [[0.0], [5.0], [0.0]]])
-    inst = Instances(base.meshes, np.append(base.mesh, 0),
-                     np.concatenate([base.object_to_world, tiny[None]]))
-    bvh = build_two_level(inst)
-    o, d = instance_rays(32)
-    o = np.concatenate([[[0, 5, -2e-20], [0, 5, -2e-20]], o]).astype(np.float32)
-    d = np.concatenate([[[0, 0, 1e19], [0, -1e19, 1e18]], d]).astype(np.float32)
-    ref = trace(bvh, o, d, backend=backend("rtl", compressed=True, transform=True),
-                transform="datapath", any_hit=any_hit)
+    bvh, o, d = _with_a_skipped_instance(32)
+    ref = trace(bvh, o, d, backend=_rtl_xf(), transform="datapath", any_hit=any_hit)
     got = trace(bvh, o, d, backend=shallow, any_hit=any_hit)
     assert ref.transform_ops[:2].tolist() == [1, 2] and ref.instance[:2].tolist() == [-1, 2]
     _same(ref, got)
@@ -199,8 +208,7 @@ def test_instances_keep_no_cull_in_object_space(shallow):
     o = np.column_stack([rng.integers(0, 5, 64) * 0.8 - 1.6, np.zeros(64), np.zeros(64)])
     o, d = o.astype(np.float32), rng.normal(size=(64, 3)).astype(np.float32)
     bvh = build_two_level(small_instances(), "q8")
-    ref = trace(bvh, o, d, backend=backend("rtl", compressed=True, transform=True),
-                transform="datapath", double_sided=True)
+    ref = trace(bvh, o, d, backend=_rtl_xf(), transform="datapath", double_sided=True)
     got = trace(bvh, o, d, backend=shallow, double_sided=True)
     culled = trace(bvh, o, d, backend=shallow)
     assert ref.hit.all() and culled.hit.sum() < len(o) // 2
@@ -520,10 +528,6 @@ def test_the_budget_grows_with_the_requests_a_frame_makes(scene, deep, monkeypat
     assert rtunit.request_bound(bvh, 2) == 2 * (np.asarray(bvh.image).nbytes // 64 + 1)
 
 
-def _rtl_xf():
-    return backend("rtl", compressed=True, transform=True)
-
-
 @pytest.mark.parametrize("fmt", ["box32", "q8"])
 def test_the_culling_stack_matches_the_traversal_ray_by_ray(culling, fmt):
     """Every ray's hit, primitive, t bits, box and triangle ops and culled entries equal the
@@ -572,14 +576,7 @@ def test_the_culling_stack_through_instances(culling, any_hit):
     """The BLAS root a ray enters carries no cull check (the traversal issues it at once), the
     entries inside a BLAS are culled by the object-space ray's t (the world ray's scale), and
     a ray that skips an instance issues its next entry unculled, as the traversal does."""
-    base = small_instances()
-    tiny = np.hstack([np.diag([1e-20] * 3), [[0.0], [5.0], [0.0]]])
-    inst = Instances(base.meshes, np.append(base.mesh, 0),
-                     np.concatenate([base.object_to_world, tiny[None]]))
-    bvh = build_two_level(inst)
-    o, d = instance_rays(256)
-    o = np.concatenate([[[0, 5, -2e-20], [0, 5, -2e-20]], o]).astype(np.float32)
-    d = np.concatenate([[[0, 0, 1e19], [0, -1e19, 1e18]], d]).astype(np.float32)
+    bvh, o, d = _with_a_skipped_instance(256)
     ref = trace(bvh, o, d, backend=_rtl_xf(), transform="datapath", any_hit=any_hit,
                 cull_stack=True)
     got = trace(bvh, o, d, backend=culling, any_hit=any_hit, cull_stack=True)
