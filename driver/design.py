@@ -51,6 +51,7 @@ from .rtunit.gpu import DEFAULT_REPLAY_DATAPATH, DEFAULT_UNIT_COSTS, REPLAY_DATA
 from .rtunit.plan import FRAMES, MAX_RT_UNITS, MAX_WARP_SIZE, Schedule
 from .rtunit.presets import DEFAULT_PRESET, PRESETS
 from .scenes.camera import MAX_SIZE
+from .scenes.lumibench import PREFIX as LUMIBENCH_PREFIX
 from .workloads import WORKLOADS
 
 GROUPS = {
@@ -345,6 +346,19 @@ def unit_flags(args, backend: str) -> None:
             if getattr(args, name, None) is not None:
                 raise ValueError(f"{BY_NAME[name].flag} sets the RT unit in RTL: give --backend "
                                  f"{UNIT_BACKEND}")
+
+
+def check_unit_reads(backend: str, point, scene=None) -> None:
+    """What the RT unit in RTL cannot read, refused in one line (``check_format``): without
+    ``scene``, a LumiBench scene (instanced, every one) before it is loaded; with it, the loaded
+    scene's instances and the node format, before the BVH build."""
+    if backend != UNIT_BACKEND:
+        return
+    if scene is None and not str(point.scene).startswith(LUMIBENCH_PREFIX):
+        return
+    instanced = scene is None or getattr(scene, "instances", None) is not None
+    check_format(point.bvh_format, point.compressed, point.transform_op,
+                 instanced and not point.flatten)
 
 
 @dataclass(frozen=True)

@@ -10,8 +10,8 @@ from __future__ import annotations
 import sys
 
 from ..backends import resolve as resolve_backend
-from ..backends.rtunit import UNIT_BACKEND, check_format
-from ..design import unit_flags
+from ..backends.rtunit import UNIT_BACKEND
+from ..design import check_unit_reads, unit_flags
 from ..check import failed
 from ..check import summary as check_summary
 from ..core import outputs
@@ -20,7 +20,6 @@ from ..core.progress import phase
 from ..core.provenance import provenance
 from ..design import clock_figures
 from ..scenes.camera import check_size
-from ..scenes.lumibench import PREFIX as LUMIBENCH_PREFIX
 from . import options
 from .common import (EXIT_CHECK, PROG, check_backend, check_flag_size, check_positive,
                      check_workers, scene_info, view_options, wrote)
@@ -115,19 +114,6 @@ def run(args) -> int:
               file=sys.stderr)
         return EXIT_CHECK
     return 0
-
-
-def check_unit_reads(backend: str, point, scene=None) -> None:
-    """What the RT unit in RTL cannot read, refused in one line (``check_format``): without
-    ``scene``, a LumiBench scene (instanced, every one) before it is loaded; with it, the loaded
-    scene's instances and the node format, before the BVH build."""
-    if backend != UNIT_BACKEND:
-        return
-    if scene is None and not str(point.scene).startswith(LUMIBENCH_PREFIX):
-        return
-    instanced = scene is None or getattr(scene, "instances", None) is not None
-    check_format(point.bvh_format, point.compressed, point.transform_op,
-                 instanced and not point.flatten)
 
 
 def summary(res) -> str:

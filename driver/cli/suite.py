@@ -6,8 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..backends.rtunit import UNIT_BACKEND
-from ..design import unit_flags
-from ..scenes.lumibench import PREFIX as LUMIBENCH_PREFIX
+from ..design import check_unit_reads, unit_flags
 from ..scenes.camera import MAX_SIZE
 from ..core.words import cell, plural
 from ..scenes.lumibench import root
@@ -67,14 +66,11 @@ def run(args) -> int:
                              + "; ".join(f"{k}: {v}" for k, v in list(skipped.items())[:3]))
     runs = [Run(r.name, r.scene, r.workload, args.size or r.size, args.spp or r.spp,
                 r.bounces, r.ao_rays, r.seed) for r in runs]
-    check_runs(runs, base)
+    points = check_runs(runs, base)
     if args.backend == UNIT_BACKEND:    # what the unit cannot be built with or read, at once
         base.backend_options(UNIT_BACKEND)
-    if args.backend == UNIT_BACKEND and not (base.flatten or base.transform_op) and any(
-            r.scene.startswith(LUMIBENCH_PREFIX) for r in runs):
-        raise SuiteError(f"--backend {UNIT_BACKEND}: the RT unit in RTL enters instances "
-                         "with the datapath's TRANSFORM, and LumiBench's scenes are instanced: "
-                         "give --transform datapath (or --flatten)")
+    for p in points:                    # a LumiBench scene (instanced) the unit cannot enter
+        check_unit_reads(args.backend, p)
     from ..scenes.scene import resolve
     for r in runs:                          # every scene exists before any work
         try:
