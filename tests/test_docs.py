@@ -350,6 +350,34 @@ def test_the_rt_unit_page_quotes_its_full_size_runs():
         assert abs(r["ratio"] - 1) < 0.005
 
 
+def test_the_rt_unit_page_quotes_its_lumibench_runs_with_instances():
+    """docs/rtunit_rtl.md's table of LumiBench's runs with their instances is
+    tools/unit_lumibench.py's table of docs/rtunit_lumibench.json, and the JSON holds what the
+    page says of them: every ray equal to the traversal at both depths, none wrong by Embree,
+    no overflow at depth 32, the same ops at depth 8, the replay within 0.06 %."""
+    spec = importlib.util.spec_from_file_location("unit_lumibench",
+                                                  ROOT / "tools" / "unit_lumibench.py")
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    doc = json.loads((ROOT / "docs" / "rtunit_lumibench.json").read_text())
+    page = (ROOT / "docs" / "rtunit_rtl.md").read_text()
+    assert tool.table(doc) in page and len(doc["depth_32"]) == 12
+    for name, a in doc["depth_32"].items():
+        b = doc["depth_8"][name]
+        assert a["traversal_mismatches"] == b["traversal_mismatches"] == 0
+        assert a["datapath_wrong"] == b["datapath_wrong"] == 0
+        assert a["stack_overflows"] == 0 and b["max_stack_depth"] == 8
+        assert [a[k] for k in ("box_ops", "tri_ops", "transform_ops")] == \
+            [b[k] for k in ("box_ops", "tri_ops", "transform_ops")]
+        for r in (a, b):                                  # "within 0.06 %"
+            assert round(abs(r["replay_cycles_ratio"] - 1) * 100, 2) <= 0.06
+    flat = " ".join(page.split())
+    for depth in ("depth_32", "depth_8"):
+        s = doc["suites"][depth]
+        assert f"takes {s['wall_s']:.1f} s" in flat or f"and {s['wall_s']:.1f} s" in flat
+        assert f"commit {s['commit'][:7]}" in flat
+
+
 def test_the_tradeoffs_page_quotes_the_timing_of_the_fused_build():
     """docs/tradeoffs.md's Fmax and area of the fused build are docs/timing_fused.json's (the
     ``timing_fused`` figure: both builds mapped by ABC's fast script)."""

@@ -351,6 +351,11 @@ FIGURES = [
            ("docs/rtunit_replay_full.json",), 1.5,
            "the full-size frames through the RT unit in RTL, every ray checked against the "
            "traversal and Embree, the replay's cycles against the unit's (docs/rtunit_rtl.md)"),
+    Figure("rtunit_lumibench",
+           (sys.executable, "tools/unit_lumibench.py", "--json", "docs/rtunit_lumibench.json"),
+           ("docs/rtunit_lumibench.json",), 3.5,
+           "LumiBench's runs through the RT unit in RTL with their instances, every ray checked, "
+           "at stack depths 32 and 8 (needs LUMIBENCH_ROOT; docs/rtunit_rtl.md)"),
     Figure("rtunit_pipelines",
            (sys.executable, "tools/unit_pipelines.py", "--json", "docs/rtunit_pipelines.json"),
            ("docs/rtunit_pipelines.json",), 2.0,
